@@ -1,0 +1,48 @@
+//! PNG plots for the experiments: the pictures people look at.
+//!
+//! Organization: one module per kind of figure; [`register_fonts`] runs once before any text is
+//! drawn, so plots look the same on every machine whatever fonts it has installed.
+#![warn(missing_docs)]
+
+use std::sync::Once;
+
+pub use plotters;
+
+static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
+
+/// Registers the embedded DejaVu Sans as `sans-serif` (idempotent).
+pub fn register_fonts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        for style in [
+            plotters::style::FontStyle::Normal,
+            plotters::style::FontStyle::Bold,
+            plotters::style::FontStyle::Italic,
+            plotters::style::FontStyle::Oblique,
+        ] {
+            // The embedded font is a valid TTF, so registration cannot fail on its bytes.
+            let _ = plotters::style::register_font("sans-serif", style, FONT);
+        }
+    });
+}
+
+/// Why a plot could not be written.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlotError {
+    /// The drawing backend failed (usually writing the PNG).
+    #[error("drawing {path}: {message}")]
+    Draw {
+        /// Output file.
+        path: String,
+        /// Backend message.
+        message: String,
+    },
+}
+
+impl PlotError {
+    /// Wraps any drawing error with the file it was drawing.
+    pub fn draw(path: &std::path::Path, err: impl std::fmt::Display) -> Self {
+        PlotError::Draw { path: path.display().to_string(), message: err.to_string() }
+    }
+}

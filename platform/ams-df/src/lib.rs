@@ -1,0 +1,2 @@
+//! FIPA Agent Management System and Directory Facilitator.
+#![warn(missing_docs)]

@@ -1,0 +1,2 @@
+//! Communication layer: de-duplication, retransmission until acknowledged, size limits.
+#![warn(missing_docs)]

@@ -1,0 +1,2 @@
+//! Temporal layer: timestamps, sequence numbers, stale and future message rejection.
+#![warn(missing_docs)]

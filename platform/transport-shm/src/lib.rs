@@ -1,0 +1,2 @@
+//! Same-host frame transport over iceoryx2 shared memory.
+#![warn(missing_docs)]

@@ -1,0 +1,2 @@
+//! FIPA interaction protocols as typed state machines.
+#![warn(missing_docs)]

@@ -1,0 +1,1 @@
+//! Internal: shared fixtures for the cross-crate integration tests in `tests/tests/`.

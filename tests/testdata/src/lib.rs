@@ -1,0 +1,31 @@
+//! Internal: locates `shared/` (FIPA vectors, photographs, TUM RGB-D sequences) beside the clone.
+//!
+//! Tests and benches call [`shared`] or [`require`]; when the data is absent they print a clear
+//! `SKIP` line and return, so a run without the data says so instead of silently passing.
+#![warn(missing_docs)]
+
+use std::path::{Path, PathBuf};
+
+/// The shared data folder: `$INTELLWHEELS_SHARED` if set, else `shared/` beside the workspace.
+pub fn shared() -> Option<PathBuf> {
+    if let Some(dir) = std::env::var_os("INTELLWHEELS_SHARED") {
+        let dir = PathBuf::from(dir);
+        return dir.is_dir().then_some(dir);
+    }
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).ancestors().nth(2)?;
+    let dir = workspace.parent()?.join("shared");
+    dir.is_dir().then_some(dir)
+}
+
+/// `shared/<relative>` if it exists; otherwise prints `SKIP <test>: ...` to stderr and returns `None`.
+pub fn require(test: &str, relative: &str) -> Option<PathBuf> {
+    match shared().map(|dir| dir.join(relative)) {
+        Some(path) if path.exists() => Some(path),
+        _ => {
+            eprintln!(
+                "SKIP {test}: shared data `{relative}` not found (set INTELLWHEELS_SHARED or place shared/ beside the clone)"
+            );
+            None
+        }
+    }
+}
