@@ -1,2 +1,369 @@
-//! Communication layer: de-duplication, retransmission until acknowledged, size limits.
+//! Communication layer (thesis 3.3.3, lowest layer): de-duplication by message id,
+//! retransmission until acknowledged, and the receiving agent's size limit.
+//!
+//! # Organization
+//! - [`CommLayer`]: the [`Layer`]; [`CommConfig`]: its settings; [`CommStats`]: what it did.
+//!
+//! # Guarantees
+//! With this layer at both ends of a datagram link that loses, duplicates and reorders frames:
+//! - **no loss** (EN 50159 *deletion*): every non-acknowledgement frame is kept and sent again
+//!   with exponential backoff (`initial_rto`, doubling, capped at `max_rto`) until the receiver
+//!   acknowledges it, or counted [`Reason::Undeliverable`] after `max_attempts` sends;
+//! - **no double delivery** (EN 50159 *repetition*): a receiver passes each `(sender, message
+//!   id)` once within a bounded window of recent ids per sender (`dedup_window`), and
+//!   re-acknowledges repeats (the first acknowledgement may have been lost);
+//! - **size limit**: a message whose payload exceeds the limit configured for its receiving agent
+//!   is never delivered ([`Reason::TooLarge`]).
+//!
+//! Not covered here: ordering (temporal layer), authenticity (security layer). An
+//! acknowledgement echoes the last 16 payload bytes of the frame it acknowledges; with the
+//! security layer on these are AEAD tag bytes, so only someone who saw the frame can forge its
+//! acknowledgement (and such an attacker could drop the frame anyway).
+//! Ids older than the window are no longer recognised: the temporal layer's age limit and
+//! sequence window reject such late replays.
 #![warn(missing_docs)]
+
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::time::Duration;
+
+use iw_bus::{Counters, Envelope, Flags, IdGen, Layer, MsgId, Reason, Time, Verdict};
+
+/// Bytes of the acknowledged frame's payload an acknowledgement echoes.
+const ECHO_LEN: usize = 16;
+
+/// Settings of the communication layer. Durations are simulated or real time alike.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommConfig {
+    /// Recent message ids remembered per sender for de-duplication (default 4096).
+    pub dedup_window: usize,
+    /// Senders tracked at once; beyond it the window of an arbitrary sender is forgotten
+    /// (default 4096).
+    pub max_senders: usize,
+    /// First retransmission timeout (default 20 ms).
+    pub initial_rto: Duration,
+    /// Largest retransmission timeout after doubling (default 1 s).
+    pub max_rto: Duration,
+    /// Sends of one frame before it is given up as undeliverable (default 16).
+    pub max_attempts: u32,
+    /// Payload limit for receiving agents without their own entry, bytes (default 64 KiB).
+    pub default_max_payload: usize,
+    /// Payload limit per receiving agent name, bytes.
+    pub max_payload: HashMap<String, usize>,
+}
+
+impl Default for CommConfig {
+    fn default() -> Self {
+        CommConfig {
+            dedup_window: 4096,
+            max_senders: 4096,
+            initial_rto: Duration::from_millis(20),
+            max_rto: Duration::from_secs(1),
+            max_attempts: 16,
+            default_max_payload: 64 * 1024,
+            max_payload: HashMap::new(),
+        }
+    }
+}
+
+impl CommConfig {
+    /// The payload limit of receiving agent `agent`, bytes.
+    pub fn limit_for(&self, agent: &str) -> usize {
+        self.max_payload.get(agent).copied().unwrap_or(self.default_max_payload)
+    }
+    /// Retransmission timeout before send number `attempt + 1` (attempt counts from 1).
+    pub fn rto(&self, attempt: u32) -> Duration {
+        let factor = 1u32.checked_shl(attempt.saturating_sub(1)).unwrap_or(u32::MAX);
+        self.initial_rto.saturating_mul(factor).min(self.max_rto)
+    }
+}
+
+/// What the layer did, for reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CommStats {
+    /// Frames sent again after a timeout.
+    pub retransmissions: u64,
+    /// Acknowledgements sent (including repeats for duplicates).
+    pub acks_sent: u64,
+    /// Acknowledgements that matched a frame in flight.
+    pub acks_matched: u64,
+    /// Acknowledgements for nothing in flight (late repeats, or forged).
+    pub acks_stray: u64,
+}
+
+struct Pending {
+    env: Envelope,
+    next_at: Time,
+    attempts: u32,
+}
+
+#[derive(Default)]
+struct Window {
+    order: VecDeque<MsgId>,
+    ids: HashSet<MsgId>,
+}
+
+impl Window {
+    /// Records `id`; false if it was already there.
+    fn insert(&mut self, id: MsgId, cap: usize) -> bool {
+        if !self.ids.insert(id) {
+            return false;
+        }
+        self.order.push_back(id);
+        while self.order.len() > cap.max(1) {
+            if let Some(old) = self.order.pop_front() {
+                self.ids.remove(&old);
+            }
+        }
+        true
+    }
+}
+
+/// The communication layer. Put it lowest in the stack, right above the transport.
+pub struct CommLayer {
+    config: CommConfig,
+    seen: HashMap<String, Window>,
+    in_flight: HashMap<MsgId, Pending>,
+    acks: VecDeque<Envelope>,
+    ids: IdGen,
+    stats: CommStats,
+    undeliverable: u64,
+}
+
+impl CommLayer {
+    /// A layer with the given settings.
+    pub fn new(config: CommConfig) -> CommLayer {
+        CommLayer {
+            config,
+            seen: HashMap::new(),
+            in_flight: HashMap::new(),
+            acks: VecDeque::new(),
+            ids: IdGen::new(),
+            stats: CommStats::default(),
+            undeliverable: 0,
+        }
+    }
+    /// What the layer did so far.
+    pub fn stats(&self) -> CommStats {
+        self.stats
+    }
+    /// Frames sent and not yet acknowledged.
+    pub fn in_flight(&self) -> usize {
+        self.in_flight.len()
+    }
+
+    fn queue_ack(&mut self, acked: &Envelope, now: Time) {
+        let mut payload = Vec::with_capacity(8 + ECHO_LEN);
+        payload.extend_from_slice(&acked.header.id.0.to_be_bytes());
+        payload.extend_from_slice(echo(&acked.payload));
+        let mut ack = Envelope::new(self.ids.next_id(), acked.header.receiver.clone(), acked.header.sender.clone(), payload);
+        ack.header.flags = Flags::ACK;
+        ack.header.timestamp = now;
+        self.acks.push_back(ack);
+        self.stats.acks_sent += 1;
+    }
+
+    fn on_ack(&mut self, ack: &Envelope) {
+        let matched = ack
+            .payload
+            .get(..8)
+            .and_then(|b| b.try_into().ok())
+            .map(|b: [u8; 8]| MsgId(u64::from_be_bytes(b)))
+            .filter(|id| {
+                self.in_flight.get(id).is_some_and(|p| {
+                    p.env.header.receiver == ack.header.sender && echo(&p.env.payload) == &ack.payload[8..]
+                })
+            });
+        match matched {
+            Some(id) => {
+                self.in_flight.remove(&id);
+                self.stats.acks_matched += 1;
+            }
+            None => self.stats.acks_stray += 1,
+        }
+    }
+
+    fn window(&mut self, sender: &str) -> &mut Window {
+        if !self.seen.contains_key(sender) && self.seen.len() >= self.config.max_senders.max(1) {
+            if let Some(victim) = self.seen.keys().next().cloned() {
+                self.seen.remove(&victim);
+            }
+        }
+        self.seen.entry(sender.to_string()).or_default()
+    }
+}
+
+fn echo(payload: &[u8]) -> &[u8] {
+    &payload[payload.len().saturating_sub(ECHO_LEN)..]
+}
+
+impl Layer for CommLayer {
+    fn name(&self) -> &'static str {
+        "comm"
+    }
+
+    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
+        if env.header.flags.contains(Flags::ACK) {
+            return Verdict::Pass(env);
+        }
+        let limit = self.config.limit_for(&env.header.receiver);
+        if env.payload.len() > limit {
+            tracing::debug!(receiver = %env.header.receiver, len = env.payload.len(), limit, "outbound too large");
+            return Verdict::Drop(Reason::TooLarge);
+        }
+        let next_at = now.plus(self.config.rto(1));
+        self.in_flight.insert(env.header.id, Pending { env: env.clone(), next_at, attempts: 1 });
+        Verdict::Pass(env)
+    }
+
+    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict {
+        if env.header.flags.contains(Flags::ACK) {
+            self.on_ack(&env);
+            return Verdict::Consumed;
+        }
+        // Acknowledge first: the sender must stop retransmitting even what we then reject.
+        self.queue_ack(&env, now);
+        let cap = self.config.dedup_window;
+        if !self.window(&env.header.sender).insert(env.header.id, cap) {
+            return Verdict::Drop(Reason::Duplicate);
+        }
+        let limit = self.config.limit_for(&env.header.receiver);
+        if env.payload.len() > limit {
+            tracing::debug!(receiver = %env.header.receiver, len = env.payload.len(), limit, "inbound too large");
+            return Verdict::Drop(Reason::TooLarge);
+        }
+        Verdict::Pass(env)
+    }
+
+    fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
+        if let Some(ack) = self.acks.pop_front() {
+            return Some(ack);
+        }
+        let due = self.in_flight.iter().filter(|(_, p)| p.next_at <= now).map(|(id, _)| *id).next()?;
+        let give_up = self.in_flight.get(&due).is_some_and(|p| p.attempts >= self.config.max_attempts);
+        if give_up {
+            if let Some(p) = self.in_flight.remove(&due) {
+                tracing::warn!(id = %due, receiver = %p.env.header.receiver, attempts = p.attempts, "undeliverable");
+            }
+            self.undeliverable += 1;
+            return self.poll_transmit(now);
+        }
+        let rto = |a| self.config.rto(a);
+        let p = self.in_flight.get_mut(&due)?;
+        p.attempts += 1;
+        p.next_at = now.plus(rto(p.attempts));
+        self.stats.retransmissions += 1;
+        Some(p.env.clone())
+    }
+
+    fn next_deadline(&self) -> Option<Time> {
+        if !self.acks.is_empty() {
+            return Some(Time::ZERO);
+        }
+        self.in_flight.values().map(|p| p.next_at).min()
+    }
+
+    fn drain_rejections(&mut self, into: &mut Counters) {
+        for _ in 0..std::mem::take(&mut self.undeliverable) {
+            into.record(Reason::Undeliverable);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data(id: u64, payload: &[u8]) -> Envelope {
+        Envelope::new(MsgId(id), "a", "b", payload.to_vec())
+    }
+
+    fn pass(v: Verdict) -> Envelope {
+        match v {
+            Verdict::Pass(e) => e,
+            other => panic!("expected pass, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn duplicate_dropped_but_reacknowledged() {
+        let mut rx = CommLayer::new(CommConfig::default());
+        pass(rx.inbound(data(1, b"hello"), Time::ZERO));
+        assert_eq!(rx.inbound(data(1, b"hello"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        assert!(rx.poll_transmit(Time::ZERO).unwrap().header.flags.contains(Flags::ACK));
+        assert!(rx.poll_transmit(Time::ZERO).unwrap().header.flags.contains(Flags::ACK));
+        assert!(rx.poll_transmit(Time::ZERO).is_none());
+    }
+
+    #[test]
+    fn window_is_bounded() {
+        let mut rx = CommLayer::new(CommConfig { dedup_window: 2, ..CommConfig::default() });
+        for id in 1..=3 {
+            pass(rx.inbound(data(id, b"x"), Time::ZERO));
+        }
+        // Id 1 left the window: recognised no more (the temporal layer catches such replays).
+        pass(rx.inbound(data(1, b"x"), Time::ZERO));
+        assert_eq!(rx.inbound(data(3, b"x"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+    }
+
+    #[test]
+    fn retransmits_with_backoff_until_acked() {
+        let cfg = CommConfig { initial_rto: Duration::from_millis(10), max_rto: Duration::from_millis(40), ..CommConfig::default() };
+        let mut tx = CommLayer::new(cfg);
+        let mut rx = CommLayer::new(CommConfig::default());
+        let sent = pass(tx.outbound(data(7, b"payload"), Time::ZERO));
+        let ms = |m| Time::ZERO.plus(Duration::from_millis(m));
+        assert!(tx.poll_transmit(ms(9)).is_none());
+        assert_eq!(tx.next_deadline(), Some(ms(10)));
+        assert_eq!(tx.poll_transmit(ms(10)).unwrap(), sent);
+        assert!(tx.poll_transmit(ms(29)).is_none(), "second timeout doubles to 20 ms");
+        assert_eq!(tx.poll_transmit(ms(30)).unwrap(), sent);
+        assert_eq!(tx.next_deadline(), Some(ms(70)), "third timeout capped at 40 ms");
+        pass(rx.inbound(sent, ms(31)));
+        let ack = rx.poll_transmit(ms(31)).unwrap();
+        assert_eq!(tx.inbound(ack, ms(32)), Verdict::Consumed);
+        assert_eq!(tx.in_flight(), 0);
+        assert!(tx.poll_transmit(ms(1000)).is_none());
+        assert_eq!(tx.stats().retransmissions, 2);
+    }
+
+    #[test]
+    fn gives_up_and_counts_undeliverable() {
+        let cfg = CommConfig { max_attempts: 3, initial_rto: Duration::from_millis(1), ..CommConfig::default() };
+        let mut tx = CommLayer::new(cfg);
+        pass(tx.outbound(data(1, b"x"), Time::ZERO));
+        let mut t = Time::ZERO;
+        let mut sends = 1;
+        for _ in 0..20 {
+            t = t.plus(Duration::from_millis(100));
+            while tx.poll_transmit(t).is_some() {
+                sends += 1;
+            }
+        }
+        assert_eq!(sends, 3);
+        let mut c = Counters::default();
+        tx.drain_rejections(&mut c);
+        assert_eq!(c.get(Reason::Undeliverable), 1);
+    }
+
+    #[test]
+    fn forged_ack_without_echo_is_ignored() {
+        let mut tx = CommLayer::new(CommConfig::default());
+        pass(tx.outbound(data(5, b"secret tag bytes 0123456789"), Time::ZERO));
+        let mut forged = Envelope::new(MsgId(99), "b", "a", 5u64.to_be_bytes().to_vec());
+        forged.header.flags = Flags::ACK;
+        assert_eq!(tx.inbound(forged, Time::ZERO), Verdict::Consumed);
+        assert_eq!(tx.in_flight(), 1);
+        assert_eq!(tx.stats().acks_stray, 1);
+    }
+
+    #[test]
+    fn receiver_size_limit() {
+        let mut cfg = CommConfig::default();
+        cfg.max_payload.insert("b".into(), 4);
+        let mut rx = CommLayer::new(cfg.clone());
+        assert_eq!(rx.inbound(data(1, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
+        pass(rx.inbound(data(2, b"1234"), Time::ZERO));
+        let mut tx = CommLayer::new(cfg);
+        assert_eq!(tx.outbound(data(3, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
+    }
+}

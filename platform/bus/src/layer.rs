@@ -1,0 +1,507 @@
+//! The layer trait, the verdicts and rejection reasons, and the [`Stack`] that chains layers.
+//!
+//! A layer sees each envelope twice: on the way down ([`Layer::outbound`], agent to transport)
+//! and on the way up ([`Layer::inbound`], transport to agent). It passes it on, possibly
+//! transformed, drops it with a [`Reason`], or consumes it (acknowledgements, handshakes).
+//! Frames a layer originates itself (acknowledgements, retransmissions, held messages released
+//! after a key agreement) wait in its outbox until [`Layer::poll_transmit`] hands them on; a
+//! [`Stack`] sends them down through the layers below the one that made them.
+//!
+//! Order in the thesis' stack, top (agent) to bottom (transport): parser, temporal, security,
+//! communication. Any of them may be left out per deployment (see [`LayerSet`]).
+
+use std::str::FromStr;
+
+use crate::BusError;
+use crate::envelope::Envelope;
+use crate::time::Time;
+
+/// What a layer decided about one envelope.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[must_use]
+pub enum Verdict {
+    /// Hand it to the next layer (or the transport, or the agent).
+    Pass(Envelope),
+    /// Rejected: never delivered, counted under the reason.
+    Drop(Reason),
+    /// Used by the layer itself (an acknowledgement, a handshake, a message held until a key is
+    /// agreed): not a rejection, not counted.
+    Consumed,
+}
+
+/// Why an envelope was rejected. Each has a counter in [`Counters`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[non_exhaustive]
+pub enum Reason {
+    /// Communication: the message id was seen before (repetition).
+    Duplicate,
+    /// Communication: larger than the receiving agent's configured limit.
+    TooLarge,
+    /// Communication: never acknowledged after the last retransmission (the link is down).
+    Undeliverable,
+    /// Security: the frame is not sealed but the layer requires it (insertion of plaintext).
+    NotSealed,
+    /// Security: the AEAD tag does not verify (corruption or alteration).
+    BadTag,
+    /// Security: no key is known for the peer (unknown sender or receiver).
+    UnknownPeer,
+    /// Security: the frame names a key session this node does not hold.
+    UnknownSession,
+    /// Security: a signature (message or handshake) does not verify (masquerade).
+    BadSignature,
+    /// Security: a handshake frame is malformed or does not match a pending agreement.
+    BadHandshake,
+    /// Temporal: older than the configured maximum age (delay).
+    Stale,
+    /// Temporal: timestamped too far in the future for the allowed clock skew.
+    FromFuture,
+    /// Temporal: past its reply-by deadline.
+    PastReplyBy,
+    /// Temporal: this sender's sequence number was already accepted (replay).
+    ReplayedSequence,
+    /// Temporal: out of order (behind the newest accepted sequence number) in strict ordering,
+    /// or too far behind to be checked at all.
+    OutOfOrder,
+    /// Parser: the payload is not a well-formed FIPA-ACL message.
+    Malformed,
+    /// Parser: the sender is not registered on the platform.
+    Unregistered,
+    /// Parser: no security layer authenticated the sender, and the parser requires it.
+    Unauthenticated,
+    /// Parser: the ACL sender or receiver differs from the authenticated envelope (masquerade).
+    Mismatch,
+    /// Bus: the frame does not decode.
+    BadFrame,
+    /// Bus: no local agent or route for the receiver.
+    NoRoute,
+    /// Bus: the receiving agent's mailbox is full or closed.
+    MailboxFull,
+}
+
+impl Reason {
+    /// Every reason, in counter order.
+    pub const ALL: [Reason; 21] = [
+        Reason::Duplicate,
+        Reason::TooLarge,
+        Reason::Undeliverable,
+        Reason::NotSealed,
+        Reason::BadTag,
+        Reason::UnknownPeer,
+        Reason::UnknownSession,
+        Reason::BadSignature,
+        Reason::BadHandshake,
+        Reason::Stale,
+        Reason::FromFuture,
+        Reason::PastReplyBy,
+        Reason::ReplayedSequence,
+        Reason::OutOfOrder,
+        Reason::Malformed,
+        Reason::Unregistered,
+        Reason::Unauthenticated,
+        Reason::Mismatch,
+        Reason::BadFrame,
+        Reason::NoRoute,
+        Reason::MailboxFull,
+    ];
+
+    /// A short snake_case name, as printed in counters.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::Duplicate => "duplicate",
+            Reason::TooLarge => "too_large",
+            Reason::Undeliverable => "undeliverable",
+            Reason::NotSealed => "not_sealed",
+            Reason::BadTag => "bad_tag",
+            Reason::UnknownPeer => "unknown_peer",
+            Reason::UnknownSession => "unknown_session",
+            Reason::BadSignature => "bad_signature",
+            Reason::BadHandshake => "bad_handshake",
+            Reason::Stale => "stale",
+            Reason::FromFuture => "from_future",
+            Reason::PastReplyBy => "past_reply_by",
+            Reason::ReplayedSequence => "replayed_sequence",
+            Reason::OutOfOrder => "out_of_order",
+            Reason::Malformed => "malformed",
+            Reason::Unregistered => "unregistered",
+            Reason::Unauthenticated => "unauthenticated",
+            Reason::Mismatch => "mismatch",
+            Reason::BadFrame => "bad_frame",
+            Reason::NoRoute => "no_route",
+            Reason::MailboxFull => "mailbox_full",
+        }
+    }
+
+    fn index(self) -> usize {
+        Reason::ALL.iter().position(|r| *r == self).unwrap_or(0)
+    }
+}
+
+impl std::fmt::Display for Reason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Rejections per [`Reason`].
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Counters {
+    counts: [u64; Reason::ALL.len()],
+}
+
+impl Counters {
+    /// Counts one rejection.
+    pub fn record(&mut self, reason: Reason) {
+        let c = &mut self.counts[reason.index()];
+        *c = c.saturating_add(1);
+    }
+    /// Rejections for `reason`.
+    pub fn get(&self, reason: Reason) -> u64 {
+        self.counts[reason.index()]
+    }
+    /// All rejections.
+    pub fn total(&self) -> u64 {
+        self.counts.iter().sum()
+    }
+    /// Adds `other`'s counts to these.
+    pub fn merge(&mut self, other: &Counters) {
+        for (a, b) in self.counts.iter_mut().zip(other.counts.iter()) {
+            *a = a.saturating_add(*b);
+        }
+    }
+    /// `(reason, count)` for every reason with a non-zero count.
+    pub fn nonzero(&self) -> impl Iterator<Item = (Reason, u64)> + '_ {
+        Reason::ALL.iter().map(|r| (*r, self.get(*r))).filter(|(_, n)| *n > 0)
+    }
+}
+
+impl std::fmt::Display for Counters {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut first = true;
+        for (r, n) in self.nonzero() {
+            write!(f, "{}{}={}", if first { "" } else { " " }, r, n)?;
+            first = false;
+        }
+        if first {
+            f.write_str("(no rejections)")?;
+        }
+        Ok(())
+    }
+}
+
+/// One layer of the bus. Layers are plain state machines: time comes in as `now`, never from a
+/// clock they read themselves.
+pub trait Layer: Send {
+    /// A short name for logs ("comm", "security", ...).
+    fn name(&self) -> &'static str;
+    /// An envelope on its way from an agent to the transport.
+    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict;
+    /// An envelope on its way from the transport to an agent.
+    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict;
+    /// The next frame this layer originates (acknowledgement, retransmission, released message),
+    /// due at or before `now`; `None` when there is nothing to send now.
+    fn poll_transmit(&mut self, _now: Time) -> Option<Envelope> {
+        None
+    }
+    /// When `poll_transmit` will next have something without any new input (a retransmission
+    /// timer); `None` if never.
+    fn next_deadline(&self) -> Option<Time> {
+        None
+    }
+    /// Moves rejections the layer decided on its own (not as a verdict, e.g. a message given up
+    /// after its last retransmission) into `into`.
+    fn drain_rejections(&mut self, _into: &mut Counters) {}
+}
+
+/// The no-op layer: passes everything both ways. Use it where a layer is switched off.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PassThrough;
+
+impl Layer for PassThrough {
+    fn name(&self) -> &'static str {
+        "pass-through"
+    }
+    fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+        Verdict::Pass(env)
+    }
+    fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+        Verdict::Pass(env)
+    }
+}
+
+/// Layers in order, top (agent side) first; itself a [`Layer`]. Counts every rejection.
+#[derive(Default)]
+pub struct Stack {
+    layers: Vec<Box<dyn Layer>>,
+    counters: Counters,
+    outbox: std::collections::VecDeque<Envelope>,
+}
+
+impl std::fmt::Debug for Stack {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Stack")
+            .field("layers", &self.layers.iter().map(|l| l.name()).collect::<Vec<_>>())
+            .field("counters", &self.counters)
+            .finish()
+    }
+}
+
+impl Stack {
+    /// An empty stack (passes everything).
+    pub fn new() -> Stack {
+        Stack::default()
+    }
+    /// Adds `layer` below the ones already pushed (closer to the transport).
+    #[must_use]
+    pub fn push(mut self, layer: impl Layer + 'static) -> Stack {
+        self.layers.push(Box::new(layer));
+        self
+    }
+    /// Adds a boxed layer below the ones already pushed.
+    pub fn push_boxed(&mut self, layer: Box<dyn Layer>) {
+        self.layers.push(layer);
+    }
+    /// Names of the layers, top first.
+    pub fn layer_names(&self) -> Vec<&'static str> {
+        self.layers.iter().map(|l| l.name()).collect()
+    }
+    /// Rejections so far, per reason.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+    /// Counts a rejection made outside the layers (by the bus: undecodable frame, no route).
+    pub fn record(&mut self, reason: Reason) {
+        self.counters.record(reason);
+    }
+
+    fn down_from(&mut self, first: usize, mut env: Envelope, now: Time) -> Option<Envelope> {
+        for i in first..self.layers.len() {
+            match self.layers[i].outbound(env, now) {
+                Verdict::Pass(e) => env = e,
+                Verdict::Drop(r) => {
+                    tracing::debug!(layer = self.layers[i].name(), reason = %r, "outbound drop");
+                    self.counters.record(r);
+                    return None;
+                }
+                Verdict::Consumed => return None,
+            }
+        }
+        Some(env)
+    }
+
+    fn collect_transmits(&mut self, now: Time) {
+        for i in 0..self.layers.len() {
+            while let Some(env) = self.layers[i].poll_transmit(now) {
+                if let Some(env) = self.down_from(i + 1, env, now) {
+                    self.outbox.push_back(env);
+                }
+            }
+            self.layers[i].drain_rejections(&mut self.counters);
+        }
+    }
+}
+
+impl Layer for Stack {
+    fn name(&self) -> &'static str {
+        "stack"
+    }
+    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
+        match self.down_from(0, env, now) {
+            Some(env) => Verdict::Pass(env),
+            None => Verdict::Consumed,
+        }
+    }
+    fn inbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
+        for i in (0..self.layers.len()).rev() {
+            match self.layers[i].inbound(env, now) {
+                Verdict::Pass(e) => env = e,
+                Verdict::Drop(r) => {
+                    tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
+                    self.counters.record(r);
+                    return Verdict::Drop(r);
+                }
+                Verdict::Consumed => return Verdict::Consumed,
+            }
+        }
+        Verdict::Pass(env)
+    }
+    fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
+        if self.outbox.is_empty() {
+            self.collect_transmits(now);
+        }
+        self.outbox.pop_front()
+    }
+    fn next_deadline(&self) -> Option<Time> {
+        if !self.outbox.is_empty() {
+            return Some(Time::ZERO);
+        }
+        self.layers.iter().filter_map(|l| l.next_deadline()).min()
+    }
+}
+
+/// One of the four layers, by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LayerKind {
+    /// Syntax and sender registration (top).
+    Parser,
+    /// Timestamps, sequence numbers.
+    Temporal,
+    /// Confidentiality, integrity, authenticity.
+    Security,
+    /// De-duplication, retransmission, size limits (bottom).
+    Comm,
+}
+
+impl LayerKind {
+    /// All four, top to bottom.
+    pub const ALL: [LayerKind; 4] = [LayerKind::Parser, LayerKind::Temporal, LayerKind::Security, LayerKind::Comm];
+
+    /// Lower-case name, as in `--layers parser,comm`.
+    pub fn name(self) -> &'static str {
+        match self {
+            LayerKind::Parser => "parser",
+            LayerKind::Temporal => "temporal",
+            LayerKind::Security => "security",
+            LayerKind::Comm => "comm",
+        }
+    }
+}
+
+/// Which layers a deployment switches on. Parses from `all`, `none`, or a comma list such as
+/// `comm,security`; always applied in the thesis order (parser, temporal, security, comm).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LayerSet(Vec<LayerKind>);
+
+impl LayerSet {
+    /// All four layers.
+    pub fn all() -> LayerSet {
+        LayerSet(LayerKind::ALL.to_vec())
+    }
+    /// No layer: frames go straight to the transport.
+    pub fn none() -> LayerSet {
+        LayerSet(Vec::new())
+    }
+    /// Exactly the given layers (any order, duplicates ignored).
+    pub fn of(kinds: &[LayerKind]) -> LayerSet {
+        LayerSet(LayerKind::ALL.iter().copied().filter(|k| kinds.contains(k)).collect())
+    }
+    /// True if `kind` is switched on.
+    pub fn contains(&self, kind: LayerKind) -> bool {
+        self.0.contains(&kind)
+    }
+    /// The layers switched on, top to bottom.
+    pub fn kinds(&self) -> &[LayerKind] {
+        &self.0
+    }
+}
+
+impl std::fmt::Display for LayerSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_empty() {
+            return f.write_str("none");
+        }
+        if self.0.len() == LayerKind::ALL.len() {
+            return f.write_str("all");
+        }
+        let names: Vec<_> = self.0.iter().map(|k| k.name()).collect();
+        f.write_str(&names.join(","))
+    }
+}
+
+impl FromStr for LayerSet {
+    type Err = BusError;
+    fn from_str(s: &str) -> Result<LayerSet, BusError> {
+        match s.trim() {
+            "all" => return Ok(LayerSet::all()),
+            "none" | "" => return Ok(LayerSet::none()),
+            _ => {}
+        }
+        let mut kinds = Vec::new();
+        for part in s.split(',') {
+            let part = part.trim();
+            let kind = LayerKind::ALL
+                .iter()
+                .find(|k| k.name() == part)
+                .ok_or_else(|| BusError::UnknownLayer { name: part.to_string() })?;
+            kinds.push(*kind);
+        }
+        Ok(LayerSet::of(&kinds))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::envelope::MsgId;
+
+    /// Drops payloads starting with `x` inbound; on outbound, queues an extra copy for poll.
+    struct Picky {
+        echo: Option<Envelope>,
+    }
+    impl Layer for Picky {
+        fn name(&self) -> &'static str {
+            "picky"
+        }
+        fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+            self.echo = Some(env.clone());
+            Verdict::Pass(env)
+        }
+        fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+            if env.payload.first() == Some(&b'x') { Verdict::Drop(Reason::Malformed) } else { Verdict::Pass(env) }
+        }
+        fn poll_transmit(&mut self, _now: Time) -> Option<Envelope> {
+            self.echo.take()
+        }
+    }
+
+    /// Appends a byte outbound, so the test sees which layers a frame went through.
+    struct Mark(u8);
+    impl Layer for Mark {
+        fn name(&self) -> &'static str {
+            "mark"
+        }
+        fn outbound(&mut self, mut env: Envelope, _now: Time) -> Verdict {
+            env.payload.push(self.0);
+            Verdict::Pass(env)
+        }
+        fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+            Verdict::Pass(env)
+        }
+    }
+
+    fn env(p: &[u8]) -> Envelope {
+        Envelope::new(MsgId(1), "a", "b", p.to_vec())
+    }
+
+    #[test]
+    fn stack_orders_counts_and_forwards_transmits_below_origin() {
+        let mut s = Stack::new().push(Mark(b'1')).push(Picky { echo: None }).push(Mark(b'2'));
+        let Verdict::Pass(out) = s.outbound(env(b"m"), Time::ZERO) else { panic!() };
+        assert_eq!(out.payload, b"m12");
+        // The echo was made by the middle layer: it passes only the layer below it.
+        // (not "m112": it does not pass the layer above its origin again).
+        assert_eq!(s.poll_transmit(Time::ZERO).unwrap().payload, b"m12");
+        assert!(s.poll_transmit(Time::ZERO).is_none());
+        assert_eq!(s.inbound(env(b"x"), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert!(matches!(s.inbound(env(b"ok"), Time::ZERO), Verdict::Pass(_)));
+        assert_eq!(s.counters().get(Reason::Malformed), 1);
+        assert_eq!(s.counters().to_string(), "malformed=1");
+    }
+
+    #[test]
+    fn pass_through_and_empty_stack_pass() {
+        let mut p = PassThrough;
+        assert_eq!(p.inbound(env(b"a"), Time::ZERO), Verdict::Pass(env(b"a")));
+        let mut s = Stack::new();
+        assert_eq!(s.outbound(env(b"a"), Time::ZERO), Verdict::Pass(env(b"a")));
+    }
+
+    #[test]
+    fn layer_sets_parse() {
+        assert_eq!("all".parse::<LayerSet>().unwrap(), LayerSet::all());
+        assert_eq!("none".parse::<LayerSet>().unwrap(), LayerSet::none());
+        let s: LayerSet = "comm, parser".parse().unwrap();
+        assert_eq!(s.kinds(), &[LayerKind::Parser, LayerKind::Comm]);
+        assert_eq!(s.to_string(), "parser,comm");
+        assert!(matches!("comm,foo".parse::<LayerSet>(), Err(BusError::UnknownLayer { .. })));
+    }
+}
