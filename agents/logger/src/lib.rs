@@ -1,0 +1,17 @@
+//! The logger agent's store: a permanent, append-only, crash-safe log of every message exchanged.
+//!
+//! Organization:
+//! - [`store`]: [`LogStore`], checksummed records in segment files, the fsync policy and recovery.
+//! - [`entry`]: [`LoggedMessage`], what one record holds, and [`Query`], how records are selected.
+//!
+//! Guarantees: a record acknowledged by [`LogStore::append`] under [`SyncPolicy::Always`] (or
+//! covered by a later [`LogStore::sync`]) survives a crash; recovery truncates a torn tail and
+//! refuses, with the offset, to open a log damaged anywhere else, so no acknowledged record is lost
+//! silently.
+#![warn(missing_docs)]
+
+pub mod entry;
+pub mod store;
+
+pub use entry::{EntryError, LoggedMessage, Query, QueryError};
+pub use store::{read_records, LogError, LogStore, Record, Recovery, SyncPolicy, DEFAULT_MAX_RECORD_LEN};
