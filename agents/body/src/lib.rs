@@ -3,7 +3,33 @@
 //!
 //! API CONTRACT (shared by the simulator, the control and perception agents): the body work fills
 //! in the serial driver and board emulator and may extend, but keeps these names.
+//!
+//! # Organization
+//! - [`Body`]: read a [`SensorFrame`], command [`WheelSpeeds`], stop. Implemented by
+//!   [`SerialBody`] (the interface board of thesis figure 3.3 on a serial port), by the
+//!   simulator's `VirtualBody` (crate `iw-sim`) and by [`MixedBody`] (real readings merged with
+//!   virtual ones, nearest wins per sonar).
+//! - [`protocol`]: the framed binary protocol spoken with the interface board (CRC-32 per frame).
+//! - [`BoardEmulator`]: the interface board emulated on a pseudo-terminal, so tests and demos
+//!   run the real [`SerialBody`] driver over a real tty.
+//! - [`WheelGeometry`] and [`Odometry`]: ticks to metres, dead reckoning of `t_world_body`.
+//!
+//! # Guarantees
+//! - No input from the serial line panics: corrupt, truncated or oversized frames are rejected
+//!   with a [`BodyError`] naming what was wrong.
+//! - [`Body::stop`] always sends zero wheel speeds; it is the watchdog's last resort.
 #![warn(missing_docs)]
+
+mod emulator;
+mod mixed;
+mod odometry;
+pub mod protocol;
+mod serial;
+
+pub use emulator::{BoardEmulator, BoardHandle, BoardState};
+pub use mixed::{MixedBody, VirtualSensors, merge_nearest};
+pub use odometry::{Odometry, WheelGeometry};
+pub use serial::SerialBody;
 
 /// Number of sonars on the IntellWheels prototype (thesis figure 3.4).
 pub const SONAR_COUNT: usize = 16;
@@ -23,6 +49,13 @@ pub struct SensorFrame {
     pub laser_m: Vec<f64>,
 }
 
+impl SensorFrame {
+    /// A frame at `time_ns` with no echoes, no laser and zero ticks.
+    pub fn empty(time_ns: u64) -> Self {
+        Self { time_ns, left_ticks: 0, right_ticks: 0, sonar_m: [None; SONAR_COUNT], laser_m: Vec::new() }
+    }
+}
+
 /// Wheel speed references, m/s at the tyre.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct WheelSpeeds {
@@ -30,4 +63,74 @@ pub struct WheelSpeeds {
     pub left_mps: f64,
     /// Right wheel, m/s.
     pub right_mps: f64,
+}
+
+impl WheelSpeeds {
+    /// Both wheels stopped.
+    pub const STOP: Self = Self { left_mps: 0.0, right_mps: 0.0 };
+
+    /// Wheel speeds for a linear speed `v_mps` and an angular speed `w_radps` (counter-clockwise
+    /// positive) on a differential drive whose wheels are `track_m` apart.
+    pub fn from_twist(v_mps: f64, w_radps: f64, track_m: f64) -> Self {
+        Self { left_mps: v_mps - w_radps * track_m / 2.0, right_mps: v_mps + w_radps * track_m / 2.0 }
+    }
+}
+
+/// A wheelchair body as the agents see it: real, virtual or mixed, they cannot tell.
+pub trait Body {
+    /// The latest sensor reading (blocks at most one control period on real hardware).
+    fn read(&mut self) -> Result<SensorFrame, BodyError>;
+    /// Sets the wheel speed references; the body applies its own acceleration limits.
+    fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError>;
+    /// Commands zero wheel speeds.
+    fn stop(&mut self) -> Result<(), BodyError> {
+        self.command(WheelSpeeds::STOP)
+    }
+}
+
+/// Why the body could not read or command.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BodyError {
+    /// The serial port could not be opened or configured.
+    #[error("serial port `{port}`: {source}")]
+    Port {
+        /// Port path, e.g. `/dev/ttyUSB0`.
+        port: String,
+        /// What the OS said.
+        source: serialport::Error,
+    },
+    /// Reading or writing the link failed.
+    #[error("serial i/o on `{port}`: {source}")]
+    Io {
+        /// Port path.
+        port: String,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// A frame on the link was malformed (bad checksum, unknown type, wrong length).
+    #[error("interface board frame rejected: {0}")]
+    Protocol(#[from] protocol::ProtocolError),
+    /// No complete sensor frame arrived within the timeout.
+    #[error("no sensor frame from `{port}` within {timeout_ms} ms")]
+    Timeout {
+        /// Port path.
+        port: String,
+        /// How long we waited.
+        timeout_ms: u64,
+    },
+    /// A wheel speed reference cannot be encoded (not finite or beyond the wire range).
+    #[error("wheel speed {value_mps} m/s is not finite or beyond +-{limit_mps} m/s")]
+    SpeedOutOfRange {
+        /// The offending reference.
+        value_mps: f64,
+        /// The wire limit.
+        limit_mps: f64,
+    },
+    /// The virtual side (simulator) failed; the message says why.
+    #[error("virtual body: {reason}")]
+    Virtual {
+        /// What went wrong.
+        reason: String,
+    },
 }
