@@ -1,0 +1,305 @@
+//! TCP frame transport: length-prefixed frames (see [`crate::frame`]) over cached connections.
+
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
+
+use crate::NetError;
+use crate::frame::{FrameCodec, FrameKind, HEADER_LEN};
+use crate::udp::resolve;
+
+/// Default largest frame, bytes (1 MiB).
+pub const TCP_DEFAULT_MAX_FRAME: usize = 1 << 20;
+/// Frames received but not yet taken by `recv_timeout`; beyond it readers wait (TCP backpressure).
+const INBOX_CAPACITY: usize = 1024;
+/// How long a connection attempt may take.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
+/// Longest a hello frame (a listening address) may be, bytes.
+const MAX_HELLO_LEN: usize = 256;
+
+type Inbound = (PeerAddr, Vec<u8>);
+
+/// A TCP endpoint: a listener for inbound connections and a cache of outbound ones.
+///
+/// Each connection opens with a hello frame naming the sender's listening address, so a frame's
+/// `from` is an address that can be replied to. A send on a broken cached connection reconnects
+/// once and retries; a frame written into a connection the peer has just closed may still be lost
+/// (the kernel accepts it before the reset arrives), which the communication layer repairs like a
+/// lost datagram. Frames above the limit are refused on send and close the connection on receive.
+#[derive(Debug)]
+pub struct TcpTransport {
+    local: PeerAddr,
+    codec: FrameCodec,
+    inbox: Mutex<Receiver<Inbound>>,
+    outbound: Mutex<HashMap<PeerAddr, TcpStream>>,
+    shared: Arc<Shared>,
+    acceptor: Option<JoinHandle<()>>,
+}
+
+#[derive(Debug)]
+struct Shared {
+    stop: AtomicBool,
+    /// Clones of accepted streams, shut down on drop so their reader threads end.
+    accepted: Mutex<Vec<TcpStream>>,
+}
+
+impl TcpTransport {
+    /// Listens on `addr` (`127.0.0.1:0` picks a free port) with a 1 MiB frame limit.
+    pub fn bind(addr: &str) -> Result<Self, TransportError> {
+        Self::bind_with_limit(addr, TCP_DEFAULT_MAX_FRAME)
+    }
+
+    /// Listens on `addr`, refusing frames longer than `max_frame_len` bytes.
+    pub fn bind_with_limit(addr: &str, max_frame_len: usize) -> Result<Self, TransportError> {
+        let listener = TcpListener::bind(addr)
+            .map_err(|source| TransportError::Io { context: format!("listening on TCP `{addr}`"), source })?;
+        let bound = listener
+            .local_addr()
+            .map_err(|source| TransportError::Io { context: "reading the TCP listening address".into(), source })?;
+        let codec = FrameCodec::new(max_frame_len);
+        let (tx, rx) = std::sync::mpsc::sync_channel(INBOX_CAPACITY);
+        let shared = Arc::new(Shared { stop: AtomicBool::new(false), accepted: Mutex::new(Vec::new()) });
+        let acceptor = {
+            let shared = Arc::clone(&shared);
+            std::thread::Builder::new()
+                .name(format!("iw-tcp-accept-{bound}"))
+                .spawn(move || accept_loop(listener, codec, tx, shared))
+                .map_err(|source| TransportError::Io { context: "spawning the TCP accept thread".into(), source })?
+        };
+        Ok(Self {
+            local: PeerAddr(bound.to_string()),
+            codec,
+            inbox: Mutex::new(rx),
+            outbound: Mutex::new(HashMap::new()),
+            shared,
+            acceptor: Some(acceptor),
+        })
+    }
+
+    fn connect(&self, to: &PeerAddr) -> Result<TcpStream, TransportError> {
+        let dest = resolve(to)?;
+        let io = |context: &str| {
+            let context = format!("{context} {to}");
+            move |source| TransportError::Io { context, source }
+        };
+        let mut stream = TcpStream::connect_timeout(&dest, CONNECT_TIMEOUT).map_err(io("connecting to"))?;
+        stream.set_nodelay(true).map_err(io("disabling Nagle on the connection to"))?;
+        let mut hello = Vec::new();
+        self.codec
+            .encode(FrameKind::Hello, self.local.0.as_bytes(), &mut hello)
+            .map_err(|e| TransportError::BadAddress { addr: self.local.0.clone(), reason: e.to_string() })?;
+        stream.write_all(&hello).map_err(io("greeting"))?;
+        Ok(stream)
+    }
+}
+
+impl FrameTransport for TcpTransport {
+    fn local_addr(&self) -> &PeerAddr {
+        &self.local
+    }
+
+    fn max_frame_len(&self) -> usize {
+        self.codec.max_frame_len()
+    }
+
+    fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
+        let mut bytes = Vec::new();
+        self.codec.encode(FrameKind::Data, frame, &mut bytes).map_err(|_| TransportError::FrameTooLarge {
+            len: frame.len(),
+            max: self.codec.max_frame_len(),
+        })?;
+        let mut cache = self.outbound.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(stream) = cache.get_mut(to) {
+            match stream.write_all(&bytes) {
+                Ok(()) => return Ok(()),
+                Err(e) => {
+                    tracing::debug!(%to, error = %e, "cached TCP connection broken; reconnecting");
+                    cache.remove(to);
+                }
+            }
+        }
+        let mut stream = self.connect(to)?;
+        stream
+            .write_all(&bytes)
+            .map_err(|source| TransportError::Io { context: format!("sending a frame to {to}"), source })?;
+        cache.insert(to.clone(), stream);
+        Ok(())
+    }
+
+    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+        let inbox = self.inbox.lock().unwrap_or_else(PoisonError::into_inner);
+        match inbox.recv_timeout(timeout) {
+            Ok(got) => Ok(Some(got)),
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(RecvTimeoutError::Disconnected) => Err(TransportError::Closed),
+        }
+    }
+}
+
+impl Drop for TcpTransport {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        for stream in self.shared.accepted.lock().unwrap_or_else(PoisonError::into_inner).drain(..) {
+            let _ = stream.shutdown(Shutdown::Both);
+        }
+        for stream in self.outbound.lock().unwrap_or_else(PoisonError::into_inner).values() {
+            let _ = stream.shutdown(Shutdown::Both);
+        }
+        // Wake the blocking accept so the thread sees `stop`.
+        if let Ok(addr) = self.local.0.parse::<SocketAddr>() {
+            let _ = TcpStream::connect_timeout(&addr, CONNECT_TIMEOUT);
+        }
+        if let Some(acceptor) = self.acceptor.take() {
+            let _ = acceptor.join();
+        }
+    }
+}
+
+fn accept_loop(listener: TcpListener, codec: FrameCodec, tx: SyncSender<Inbound>, shared: Arc<Shared>) {
+    for stream in listener.incoming() {
+        if shared.stop.load(Ordering::Relaxed) {
+            break;
+        }
+        let stream = match stream {
+            Ok(s) => s,
+            Err(e) => {
+                tracing::warn!(error = %e, "TCP accept failed");
+                continue;
+            }
+        };
+        let _ = stream.set_nodelay(true);
+        match stream.try_clone() {
+            Ok(clone) => {
+                let mut accepted = shared.accepted.lock().unwrap_or_else(PoisonError::into_inner);
+                accepted.retain(|s| s.peer_addr().is_ok());
+                accepted.push(clone);
+            }
+            Err(e) => tracing::warn!(error = %e, "cannot track an accepted TCP connection"),
+        }
+        let tx = tx.clone();
+        let spawned = std::thread::Builder::new().name("iw-tcp-read".into()).spawn(move || {
+            let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
+            if let Err(e) = read_connection(stream, codec, &tx) {
+                tracing::debug!(%peer, error = %e, "TCP connection closed");
+            }
+        });
+        if let Err(e) = spawned {
+            tracing::warn!(error = %e, "cannot spawn a TCP reader thread");
+        }
+    }
+}
+
+/// Reads frames until EOF or a corrupt frame; the first must be a hello naming the sender.
+fn read_connection(mut stream: TcpStream, codec: FrameCodec, tx: &SyncSender<Inbound>) -> Result<(), NetError> {
+    let mut from: Option<PeerAddr> = None;
+    let mut header = [0u8; HEADER_LEN];
+    loop {
+        match stream.read_exact(&mut header) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(source) => return Err(NetError::Io { context: "reading a frame header".into(), source }),
+        }
+        let Some(h) = codec.decode_header(&header)? else {
+            return Ok(());
+        };
+        let mut payload = vec![0u8; h.len];
+        stream
+            .read_exact(&mut payload)
+            .map_err(|source| NetError::Io { context: format!("reading a {}-byte frame", h.len), source })?;
+        match (h.kind, &from) {
+            (FrameKind::Hello, None) if h.len <= MAX_HELLO_LEN => {
+                let addr = String::from_utf8(payload).map_err(|e| NetError::BadHello { reason: e.to_string() })?;
+                from = Some(PeerAddr(addr));
+            }
+            (FrameKind::Hello, _) => {
+                return Err(NetError::BadHello { reason: "a second or oversized hello".into() });
+            }
+            (FrameKind::Data, None) => {
+                return Err(NetError::BadHello { reason: "data before hello".into() });
+            }
+            (FrameKind::Data, Some(peer)) => {
+                let mut item = (peer.clone(), payload);
+                loop {
+                    match tx.try_send(item) {
+                        Ok(()) => break,
+                        Err(TrySendError::Full(back)) => {
+                            item = back;
+                            std::thread::sleep(Duration::from_micros(100));
+                        }
+                        Err(TrySendError::Disconnected(_)) => return Ok(()),
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const WAIT: Duration = Duration::from_secs(5);
+
+    #[test]
+    fn frames_and_replies_use_listening_addresses() {
+        let a = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let b = TcpTransport::bind("127.0.0.1:0").unwrap();
+        for i in 0..100u32 {
+            a.send(b.local_addr(), &i.to_be_bytes()).unwrap();
+        }
+        for i in 0..100u32 {
+            let (from, frame) = b.recv_timeout(WAIT).unwrap().unwrap();
+            assert_eq!(&from, a.local_addr());
+            assert_eq!(frame, i.to_be_bytes());
+        }
+        b.send(a.local_addr(), b"reply").unwrap();
+        assert_eq!(a.recv_timeout(WAIT).unwrap().unwrap().1, b"reply");
+        assert!(a.recv_timeout(Duration::from_millis(5)).unwrap().is_none());
+    }
+
+    #[test]
+    fn max_frame_length_is_enforced_both_ways() {
+        let small = TcpTransport::bind_with_limit("127.0.0.1:0", 16).unwrap();
+        let big = TcpTransport::bind("127.0.0.1:0").unwrap();
+        assert!(matches!(small.send(big.local_addr(), &[0; 17]), Err(TransportError::FrameTooLarge { len: 17, max: 16 })));
+        // Oversized frame closes the connection at the receiver; nothing is delivered.
+        big.send(small.local_addr(), &[0; 17]).unwrap();
+        assert!(small.recv_timeout(Duration::from_millis(200)).unwrap().is_none());
+    }
+
+    #[test]
+    fn garbage_on_a_connection_is_refused_without_delivering() {
+        let t = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let mut raw = TcpStream::connect(t.local_addr().0.as_str()).unwrap();
+        raw.write_all(b"GET / HTTP/1.1\r\n\r\n").unwrap();
+        assert!(t.recv_timeout(Duration::from_millis(200)).unwrap().is_none());
+    }
+
+    #[test]
+    fn a_restarted_peer_is_reached_again_after_reconnect() {
+        let a = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let b = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let b_addr = b.local_addr().clone();
+        a.send(&b_addr, b"one").unwrap();
+        assert_eq!(b.recv_timeout(WAIT).unwrap().unwrap().1, b"one");
+        drop(b);
+        let b = TcpTransport::bind(&b_addr.0).unwrap();
+        // The first writes may vanish into the dead connection; a bounded retry gets through.
+        let mut got = None;
+        for _ in 0..50 {
+            let _ = a.send(&b_addr, b"two");
+            if let Some(frame) = b.recv_timeout(Duration::from_millis(20)).unwrap() {
+                got = Some(frame.1);
+                break;
+            }
+        }
+        assert_eq!(got.as_deref(), Some(&b"two"[..]));
+    }
+}

