@@ -1,0 +1,556 @@
+//! The security layer state machine: sealing, opening, key agreement, pre-shared sessions.
+
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::sync::Arc;
+use std::time::Duration;
+
+use aes_gcm::aead::AeadInPlace;
+use aes_gcm::{Aes256Gcm, KeyInit};
+use iw_bus::{Envelope, Flags, IdGen, Layer, Reason, SIGNATURE_LEN, Time, Verdict, write_aad};
+use ring::aead::{AES_256_GCM, Aad, LessSafeKey, Nonce, UnboundKey};
+use ring::agreement::{EphemeralPrivateKey, UnparsedPublicKey, X25519, agree_ephemeral};
+use ring::hkdf;
+use ring::rand::{SecureRandom, SystemRandom};
+
+use crate::SecurityError;
+use crate::identity::{Identity, KeyDirectory, signed_bytes, verify};
+
+/// Session id length (public-key mode), bytes.
+const SID_LEN: usize = 8;
+/// Session salt length (pre-shared mode), bytes.
+const SALT_LEN: usize = 16;
+const NONCE_LEN: usize = 12;
+const TAG_LEN: usize = 16;
+const HELLO: u8 = 1;
+const REPLY: u8 = 2;
+const REKEY: u8 = 3;
+const HANDSHAKE_LEN: usize = 1 + SID_LEN + 32 + SIGNATURE_LEN;
+
+/// A 256-bit pre-shared key.
+pub type PreSharedKey = [u8; 32];
+
+/// Settings of the security layer.
+#[derive(Debug, Clone)]
+pub struct SecurityConfig {
+    /// Peers (agent names) reached in pre-shared-key mode, with their key; every other peer is
+    /// reached in public-key mode. Both ends list each other with the same key.
+    pub pre_shared: HashMap<String, PreSharedKey>,
+    /// Sign every message so third parties can verify it.
+    pub sign_all: bool,
+    /// Receivers whose messages are signed even when `sign_all` is off.
+    pub sign_for: HashSet<String>,
+    /// Unanswered key agreement is started again after this long (default 1 s).
+    pub handshake_timeout: Duration,
+    /// Messages held per peer while a key agreement runs; more are dropped (default 1024).
+    pub max_queued: usize,
+    /// Receive sessions kept per sender and receiver (older ones are forgotten; default 4).
+    pub sessions_kept: usize,
+}
+
+impl Default for SecurityConfig {
+    fn default() -> Self {
+        SecurityConfig {
+            pre_shared: HashMap::new(),
+            sign_all: false,
+            sign_for: HashSet::new(),
+            handshake_timeout: Duration::from_secs(1),
+            max_queued: 1024,
+            sessions_kept: 4,
+        }
+    }
+}
+
+/// Where a sealed frame's AEAD key and nonce came from, read back from its payload (tests use
+/// it to prove that no (key, nonce) pair repeats).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct SealInfo {
+    /// The key: session id (public-key mode) or session salt (pre-shared mode), with the mode.
+    pub key_id: Vec<u8>,
+    /// The 96-bit nonce.
+    pub nonce: [u8; NONCE_LEN],
+}
+
+impl SealInfo {
+    /// Reads the key id and nonce of a sealed envelope; `None` if it is not sealed or too short.
+    pub fn of(env: &Envelope) -> Option<SealInfo> {
+        let f = env.header.flags;
+        if !f.contains(Flags::SEALED) {
+            return None;
+        }
+        let id_len = if f.contains(Flags::PRE_SHARED) { SALT_LEN } else { SID_LEN };
+        let mut key_id = vec![u8::from(f.contains(Flags::PRE_SHARED))];
+        key_id.extend_from_slice(env.payload.get(..id_len)?);
+        let nonce = env.payload.get(id_len..id_len + NONCE_LEN)?.try_into().ok()?;
+        Some(SealInfo { key_id, nonce })
+    }
+}
+
+struct SendSession {
+    id: [u8; SID_LEN],
+    key: LessSafeKey,
+    counter: u64,
+}
+
+struct PskSend {
+    salt: [u8; SALT_LEN],
+    cipher: Aes256Gcm,
+    counter: u64,
+}
+
+struct Pending {
+    id: [u8; SID_LEN],
+    eph: Option<EphemeralPrivateKey>,
+    eph_pub: [u8; 32],
+    queued: VecDeque<Envelope>,
+    started: Time,
+}
+
+type Nested<V> = HashMap<String, HashMap<String, V>>;
+
+fn nested<'a, V: Default>(m: &'a mut Nested<V>, a: &str, b: &str) -> &'a mut V {
+    if !m.contains_key(a) {
+        m.insert(a.to_string(), HashMap::new());
+    }
+    let inner = m.get_mut(a).unwrap_or_else(|| unreachable!("inserted above"));
+    if !inner.contains_key(b) {
+        inner.insert(b.to_string(), V::default());
+    }
+    inner.get_mut(b).unwrap_or_else(|| unreachable!("inserted above"))
+}
+
+fn nested_get<'a, V>(m: &'a Nested<V>, a: &str, b: &str) -> Option<&'a V> {
+    m.get(a).and_then(|x| x.get(b))
+}
+
+fn nonce_bytes(counter: u64) -> [u8; NONCE_LEN] {
+    let mut n = [0u8; NONCE_LEN];
+    n[4..].copy_from_slice(&counter.to_be_bytes());
+    n
+}
+
+fn aad_of(env: &Envelope) -> Vec<u8> {
+    let mut aad = Vec::with_capacity(64);
+    // Names over 255 bytes never get this far (the codec refuses them); if one did, the
+    // shorter associated data would still be identical on both ends of a local loop.
+    let _ = write_aad(&env.header, &mut aad);
+    aad
+}
+
+fn length_prefixed(parts: &[&[u8]]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for p in parts {
+        out.extend_from_slice(&(p.len() as u32).to_be_bytes());
+        out.extend_from_slice(p);
+    }
+    out
+}
+
+struct KeyLen;
+impl hkdf::KeyType for KeyLen {
+    fn len(&self) -> usize {
+        32
+    }
+}
+
+fn hkdf32(salt: &[u8], ikm: &[u8], info: &[u8]) -> Result<[u8; 32], SecurityError> {
+    let mut out = [0u8; 32];
+    hkdf::Salt::new(hkdf::HKDF_SHA256, salt)
+        .extract(ikm)
+        .expand(&[info], KeyLen)
+        .and_then(|okm| okm.fill(&mut out))
+        .map_err(|_| SecurityError::KeyDerivation)?;
+    Ok(out)
+}
+
+fn ring_key(k: &[u8; 32]) -> Result<LessSafeKey, SecurityError> {
+    UnboundKey::new(&AES_256_GCM, k).map(LessSafeKey::new).map_err(|_| SecurityError::KeyDerivation)
+}
+
+fn hello_transcript(id: &[u8], eph_a: &[u8], a: &str, b: &str) -> Vec<u8> {
+    length_prefixed(&[b"iw-hello-v1", id, eph_a, a.as_bytes(), b.as_bytes()])
+}
+
+fn reply_transcript(id: &[u8], eph_a: &[u8], eph_b: &[u8], a: &str, b: &str) -> Vec<u8> {
+    length_prefixed(&[b"iw-reply-v1", id, eph_a, eph_b, a.as_bytes(), b.as_bytes()])
+}
+
+fn session_key(shared: &[u8], eph_a: &[u8], eph_b: &[u8], a: &str, b: &str) -> Result<LessSafeKey, SecurityError> {
+    let salt = [eph_a, eph_b].concat();
+    let info = length_prefixed(&[b"iw-pk-v1", a.as_bytes(), b.as_bytes()]);
+    ring_key(&hkdf32(&salt, shared, &info)?)
+}
+
+fn psk_cipher(psk: &PreSharedKey, salt: &[u8], sender: &str, receiver: &str) -> Result<Aes256Gcm, SecurityError> {
+    let info = length_prefixed(&[b"iw-psk-v1", sender.as_bytes(), receiver.as_bytes()]);
+    let key = hkdf32(salt, psk, &info)?;
+    Aes256Gcm::new_from_slice(&key).map_err(|_| SecurityError::KeyDerivation)
+}
+
+fn split_handshake(payload: &[u8]) -> Option<(u8, [u8; SID_LEN], [u8; 32], [u8; SIGNATURE_LEN])> {
+    if payload.len() != HANDSHAKE_LEN {
+        return None;
+    }
+    let id = payload.get(1..1 + SID_LEN)?.try_into().ok()?;
+    let eph = payload.get(1 + SID_LEN..1 + SID_LEN + 32)?.try_into().ok()?;
+    let sig = payload.get(1 + SID_LEN + 32..)?.try_into().ok()?;
+    Some((payload[0], id, eph, sig))
+}
+
+/// The security layer of one node (agent or container identity).
+pub struct SecurityLayer {
+    identity: Arc<Identity>,
+    directory: Arc<dyn KeyDirectory>,
+    config: SecurityConfig,
+    rng: SystemRandom,
+    ids: IdGen,
+    send: Nested<Option<SendSession>>,
+    pending: Nested<Option<Pending>>,
+    recv: Nested<VecDeque<([u8; SID_LEN], LessSafeKey)>>,
+    psk_send: Nested<Option<PskSend>>,
+    psk_recv: Nested<VecDeque<([u8; SALT_LEN], Aes256Gcm)>>,
+    outbox: VecDeque<Envelope>,
+}
+
+impl SecurityLayer {
+    /// A layer speaking for `identity`, looking peers' keys up in `directory`.
+    pub fn new(identity: Arc<Identity>, directory: Arc<dyn KeyDirectory>, config: SecurityConfig) -> SecurityLayer {
+        SecurityLayer {
+            identity,
+            directory,
+            config,
+            rng: SystemRandom::new(),
+            ids: IdGen::new(),
+            send: HashMap::new(),
+            pending: HashMap::new(),
+            recv: HashMap::new(),
+            psk_send: HashMap::new(),
+            psk_recv: HashMap::new(),
+            outbox: VecDeque::new(),
+        }
+    }
+
+    fn random<const N: usize>(&self) -> Result<[u8; N], SecurityError> {
+        let mut b = [0u8; N];
+        self.rng.fill(&mut b).map_err(|_| SecurityError::Rng)?;
+        Ok(b)
+    }
+
+    fn wants_signature(&self, env: &Envelope) -> bool {
+        self.config.sign_all || self.config.sign_for.contains(&env.header.receiver)
+    }
+
+    /// Sets the flags, signs if asked, and returns the plaintext to seal (payload + signature).
+    fn prepare(&self, env: &mut Envelope, mode: Flags) -> Vec<u8> {
+        let mut flags = env.header.flags.with(Flags::SEALED).with(mode);
+        let sig = if self.wants_signature(env) {
+            flags = flags.with(Flags::SIGNED);
+            Some(self.identity.sign(&signed_bytes(env)))
+        } else {
+            None
+        };
+        env.header.flags = flags;
+        env.signature = None;
+        let mut plain = std::mem::take(&mut env.payload);
+        if let Some(sig) = sig {
+            plain.extend_from_slice(&sig);
+        }
+        plain
+    }
+
+    fn seal_psk(&mut self, mut env: Envelope, psk: PreSharedKey) -> Result<Envelope, SecurityError> {
+        let mut plain = self.prepare(&mut env, Flags::PRE_SHARED);
+        let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
+        if nested_get(&self.psk_send, &s, &r).is_none_or(Option::is_none) {
+            let salt = self.random::<SALT_LEN>()?;
+            let cipher = psk_cipher(&psk, &salt, &s, &r)?;
+            *nested(&mut self.psk_send, &s, &r) = Some(PskSend { salt, cipher, counter: 0 });
+        }
+        let aad = aad_of(&env);
+        let sess = nested(&mut self.psk_send, &s, &r).as_mut().ok_or(SecurityError::KeyDerivation)?;
+        let nonce = nonce_bytes(sess.counter);
+        sess.counter += 1;
+        sess.cipher
+            .encrypt_in_place(aes_gcm::Nonce::from_slice(&nonce), &aad, &mut plain)
+            .map_err(|_| SecurityError::KeyDerivation)?;
+        let mut payload = Vec::with_capacity(SALT_LEN + NONCE_LEN + plain.len());
+        payload.extend_from_slice(&sess.salt);
+        payload.extend_from_slice(&nonce);
+        payload.extend_from_slice(&plain);
+        env.payload = payload;
+        Ok(env)
+    }
+
+    fn seal_pk(&mut self, mut env: Envelope) -> Result<Envelope, SecurityError> {
+        let mut plain = self.prepare(&mut env, Flags::NONE);
+        let aad = aad_of(&env);
+        let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
+        let sess = nested(&mut self.send, &s, &r).as_mut().ok_or(SecurityError::KeyDerivation)?;
+        let nonce = nonce_bytes(sess.counter);
+        sess.counter += 1;
+        sess.key
+            .seal_in_place_append_tag(Nonce::assume_unique_for_key(nonce), Aad::from(&aad), &mut plain)
+            .map_err(|_| SecurityError::KeyDerivation)?;
+        let mut payload = Vec::with_capacity(SID_LEN + NONCE_LEN + plain.len());
+        payload.extend_from_slice(&sess.id);
+        payload.extend_from_slice(&nonce);
+        payload.extend_from_slice(&plain);
+        env.payload = payload;
+        Ok(env)
+    }
+
+    fn handshake_env(&mut self, sender: &str, receiver: &str, payload: Vec<u8>, now: Time) -> Envelope {
+        let mut env = Envelope::new(self.ids.next_id(), sender, receiver, payload);
+        env.header.flags = Flags::HANDSHAKE;
+        env.header.timestamp = now;
+        env
+    }
+
+    /// Starts (or restarts) key agreement from `a` to `b`, keeping messages already queued.
+    fn start_handshake(&mut self, a: &str, b: &str, now: Time) -> Result<(), SecurityError> {
+        let id = self.random::<SID_LEN>()?;
+        let eph = EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
+        let eph_pub: [u8; 32] = eph
+            .compute_public_key()
+            .map_err(|_| SecurityError::Rng)?
+            .as_ref()
+            .try_into()
+            .map_err(|_| SecurityError::KeyDerivation)?;
+        let sig = self.identity.sign(&hello_transcript(&id, &eph_pub, a, b));
+        let payload = [&[HELLO][..], &id, &eph_pub, &sig].concat();
+        let hello = self.handshake_env(a, b, payload, now);
+        self.outbox.push_back(hello);
+        let slot = nested(&mut self.pending, a, b);
+        let queued = slot.take().map(|p| p.queued).unwrap_or_default();
+        *slot = Some(Pending { id, eph: Some(eph), eph_pub, queued, started: now });
+        Ok(())
+    }
+
+    fn outbound_pk(&mut self, env: Envelope, now: Time) -> Result<Verdict, SecurityError> {
+        let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
+        if nested_get(&self.send, a, b).is_some_and(Option::is_some) {
+            return self.seal_pk(env).map(Verdict::Pass);
+        }
+        if self.directory.public_key(b).is_none() {
+            return Ok(Verdict::Drop(Reason::UnknownPeer));
+        }
+        let (a, b) = (a.to_string(), b.to_string());
+        if nested_get(&self.pending, &a, &b).is_none_or(Option::is_none) {
+            self.start_handshake(&a, &b, now)?;
+        }
+        let max = self.config.max_queued;
+        let Some(p) = nested(&mut self.pending, &a, &b).as_mut() else { return Err(SecurityError::KeyDerivation) };
+        if p.queued.len() >= max {
+            tracing::warn!(sender = %a, receiver = %b, "key agreement pending, queue full");
+            return Ok(Verdict::Drop(Reason::UnknownPeer));
+        }
+        p.queued.push_back(env);
+        Ok(Verdict::Consumed)
+    }
+
+    fn on_hello(&mut self, env: &Envelope, now: Time) -> Result<Verdict, SecurityError> {
+        let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
+        let Some((_, id, eph_a, sig)) = split_handshake(&env.payload) else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        let Some(key_a) = self.directory.public_key(a) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+        if !verify(&key_a, &hello_transcript(&id, &eph_a, a, b), &sig) {
+            return Ok(Verdict::Drop(Reason::BadSignature));
+        }
+        if nested_get(&self.recv, a, b).is_some_and(|q| q.iter().any(|(sid, _)| *sid == id)) {
+            return Ok(Verdict::Consumed);
+        }
+        let eph = EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
+        let eph_b: [u8; 32] = eph
+            .compute_public_key()
+            .map_err(|_| SecurityError::Rng)?
+            .as_ref()
+            .try_into()
+            .map_err(|_| SecurityError::KeyDerivation)?;
+        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_a), |shared| session_key(shared, &eph_a, &eph_b, a, b));
+        let Ok(key) = key else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        let key = key?;
+        let kept = self.config.sessions_kept.max(1);
+        let q = nested(&mut self.recv, a, b);
+        q.push_back((id, key));
+        while q.len() > kept {
+            q.pop_front();
+        }
+        let sig_b = self.identity.sign(&reply_transcript(&id, &eph_a, &eph_b, a, b));
+        let payload = [&[REPLY][..], &id, &eph_b, &sig_b].concat();
+        let (a, b) = (a.to_string(), b.to_string());
+        let reply = self.handshake_env(&b, &a, payload, now);
+        self.outbox.push_back(reply);
+        Ok(Verdict::Consumed)
+    }
+
+    fn on_reply(&mut self, env: &Envelope) -> Result<Verdict, SecurityError> {
+        // The reply comes from b (the peer) to a (who started the agreement).
+        let (b, a) = (env.header.sender.clone(), env.header.receiver.clone());
+        let Some((_, id, eph_b, sig)) = split_handshake(&env.payload) else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        let matches = nested_get(&self.pending, &a, &b).and_then(Option::as_ref).is_some_and(|p| p.id == id && p.eph.is_some());
+        if !matches {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        }
+        let Some(key_b) = self.directory.public_key(&b) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+        let Some(mut p) = nested(&mut self.pending, &a, &b).take() else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        if !verify(&key_b, &reply_transcript(&id, &p.eph_pub, &eph_b, &a, &b), &sig) {
+            *nested(&mut self.pending, &a, &b) = Some(p);
+            return Ok(Verdict::Drop(Reason::BadSignature));
+        }
+        let Some(eph) = p.eph.take() else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        let eph_a = p.eph_pub;
+        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_b), |shared| session_key(shared, &eph_a, &eph_b, &a, &b));
+        let Ok(key) = key else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        *nested(&mut self.send, &a, &b) = Some(SendSession { id, key: key?, counter: 0 });
+        for queued in p.queued {
+            let sealed = self.seal_pk(queued)?;
+            self.outbox.push_back(sealed);
+        }
+        Ok(Verdict::Consumed)
+    }
+
+    fn on_rekey(&mut self, env: &Envelope) -> Verdict {
+        // Sent by a receiver that lost the session (restart): start over on the next message.
+        // Unauthenticated by necessity; the worst a forger achieves is an extra agreement.
+        let (b, a) = (env.header.sender.as_str(), env.header.receiver.as_str());
+        let id = env.payload.get(1..1 + SID_LEN);
+        if env.payload.len() != 1 + SID_LEN {
+            return Verdict::Drop(Reason::BadHandshake);
+        }
+        if let Some(slot) = self.send.get_mut(a).and_then(|m| m.get_mut(b)) {
+            if slot.as_ref().is_some_and(|s| Some(&s.id[..]) == id) {
+                *slot = None;
+            }
+        }
+        Verdict::Consumed
+    }
+
+    fn open(&mut self, mut env: Envelope, now: Time) -> Result<Verdict, SecurityError> {
+        let aad = aad_of(&env);
+        let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
+        let psk_mode = env.header.flags.contains(Flags::PRE_SHARED);
+        let id_len = if psk_mode { SALT_LEN } else { SID_LEN };
+        if env.payload.len() < id_len + NONCE_LEN + TAG_LEN {
+            return Ok(Verdict::Drop(Reason::BadTag));
+        }
+        let mut body = env.payload.split_off(id_len);
+        let key_id = std::mem::take(&mut env.payload);
+        let mut ct = body.split_off(NONCE_LEN);
+        let nonce: [u8; NONCE_LEN] = body.as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
+        if psk_mode {
+            let Some(psk) = self.config.pre_shared.get(&s).copied() else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+            let cached = nested_get(&self.psk_recv, &s, &r).and_then(|q| q.iter().find(|(salt, _)| salt[..] == key_id[..]));
+            let fresh;
+            let cipher = match cached {
+                Some((_, c)) => c,
+                None => {
+                    fresh = psk_cipher(&psk, &key_id, &s, &r)?;
+                    &fresh
+                }
+            };
+            if cipher.decrypt_in_place(aes_gcm::Nonce::from_slice(&nonce), &aad, &mut ct).is_err() {
+                return Ok(Verdict::Drop(Reason::BadTag));
+            }
+            if cached.is_none() {
+                let salt: [u8; SALT_LEN] = key_id.as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
+                let cipher = psk_cipher(&psk, &salt, &s, &r)?;
+                let kept = self.config.sessions_kept.max(1);
+                let q = nested(&mut self.psk_recv, &s, &r);
+                q.push_back((salt, cipher));
+                while q.len() > kept {
+                    q.pop_front();
+                }
+            }
+        } else {
+            let session = nested_get(&self.recv, &s, &r).and_then(|q| q.iter().find(|(sid, _)| sid[..] == key_id[..]));
+            let Some((_, key)) = session else {
+                let payload = [&[REKEY][..], &key_id].concat();
+                let rekey = self.handshake_env(&r, &s, payload, now);
+                self.outbox.push_back(rekey);
+                return Ok(Verdict::Drop(Reason::UnknownSession));
+            };
+            let plain_len = match key.open_in_place(Nonce::assume_unique_for_key(nonce), Aad::from(&aad), &mut ct) {
+                Ok(p) => p.len(),
+                Err(_) => return Ok(Verdict::Drop(Reason::BadTag)),
+            };
+            ct.truncate(plain_len);
+        }
+        env.header.flags = env.header.flags.without(Flags::SEALED).without(Flags::PRE_SHARED);
+        if env.header.flags.contains(Flags::SIGNED) {
+            let Some(at) = ct.len().checked_sub(SIGNATURE_LEN) else { return Ok(Verdict::Drop(Reason::BadSignature)) };
+            let sig: [u8; SIGNATURE_LEN] = ct.split_off(at).as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
+            env.payload = ct;
+            let Some(key) = self.directory.public_key(&s) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+            if !verify(&key, &signed_bytes(&env), &sig) {
+                return Ok(Verdict::Drop(Reason::BadSignature));
+            }
+            env.signature = Some(sig);
+        } else {
+            env.payload = ct;
+        }
+        env.authenticated = Some(s);
+        Ok(Verdict::Pass(env))
+    }
+}
+
+fn or_log(r: Result<Verdict, SecurityError>) -> Verdict {
+    r.unwrap_or_else(|e| {
+        tracing::error!(error = %e, "security layer failure");
+        Verdict::Drop(Reason::BadHandshake)
+    })
+}
+
+impl Layer for SecurityLayer {
+    fn name(&self) -> &'static str {
+        "security"
+    }
+
+    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
+        match self.config.pre_shared.get(&env.header.receiver).copied() {
+            Some(psk) => or_log(self.seal_psk(env, psk).map(Verdict::Pass)),
+            None => or_log(self.outbound_pk(env, now)),
+        }
+    }
+
+    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict {
+        let flags = env.header.flags;
+        if flags.contains(Flags::HANDSHAKE) {
+            return match env.payload.first() {
+                Some(&HELLO) => or_log(self.on_hello(&env, now)),
+                Some(&REPLY) => or_log(self.on_reply(&env)),
+                Some(&REKEY) => self.on_rekey(&env),
+                _ => Verdict::Drop(Reason::BadHandshake),
+            };
+        }
+        if !flags.contains(Flags::SEALED) {
+            return Verdict::Drop(Reason::NotSealed);
+        }
+        or_log(self.open(env, now))
+    }
+
+    fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
+        if self.outbox.is_empty() {
+            let timeout = self.config.handshake_timeout;
+            let stale: Vec<(String, String)> = self
+                .pending
+                .iter()
+                .flat_map(|(a, m)| m.iter().map(move |(b, p)| (a, b, p)))
+                .filter(|(_, _, p)| p.as_ref().is_some_and(|p| now.since(p.started) >= timeout))
+                .map(|(a, b, _)| (a.clone(), b.clone()))
+                .collect();
+            for (a, b) in stale {
+                tracing::debug!(sender = %a, receiver = %b, "key agreement unanswered, starting again");
+                if let Err(e) = self.start_handshake(&a, &b, now) {
+                    tracing::error!(error = %e, "cannot restart key agreement");
+                }
+            }
+        }
+        self.outbox.pop_front()
+    }
+
+    fn next_deadline(&self) -> Option<Time> {
+        if !self.outbox.is_empty() {
+            return Some(Time::ZERO);
+        }
+        let timeout = self.config.handshake_timeout;
+        self.pending.values().flat_map(|m| m.values()).filter_map(|p| p.as_ref().map(|p| p.started.plus(timeout))).min()
+    }
+}

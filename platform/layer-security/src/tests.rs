@@ -1,0 +1,238 @@
+use std::collections::HashSet;
+use std::sync::Arc;
+
+use iw_bus::{Envelope, FrameCodec, Layer, MsgId, Reason, Time, Verdict};
+
+use super::*;
+
+struct Net {
+    a: SecurityLayer,
+    b: SecurityLayer,
+    dir: Directory,
+    id_a: Arc<Identity>,
+}
+
+fn net(cfg_a: SecurityConfig, cfg_b: SecurityConfig) -> Net {
+    let dir = Directory::new();
+    let id_a = Arc::new(Identity::generate().unwrap());
+    let id_b = Arc::new(Identity::generate().unwrap());
+    dir.insert("a", id_a.public_key());
+    dir.insert("b", id_b.public_key());
+    let a = SecurityLayer::new(id_a.clone(), Arc::new(dir.clone()), cfg_a);
+    let b = SecurityLayer::new(id_b, Arc::new(dir.clone()), cfg_b);
+    Net { a, b, dir, id_a }
+}
+
+fn msg(n: u64) -> Envelope {
+    let mut e = Envelope::new(MsgId(n), "a", "b", format!("(inform :content \"{n}\")").into_bytes());
+    e.header.seq = n;
+    e.header.timestamp = Time::from_ns(n);
+    e
+}
+
+/// Moves every pending frame between the two layers until quiet; returns what B delivered and
+/// the sealed frames A sent.
+fn exchange(a: &mut SecurityLayer, b: &mut SecurityLayer, out: Vec<Envelope>) -> (Vec<Envelope>, Vec<Envelope>) {
+    let (mut delivered, mut wire) = (Vec::new(), Vec::new());
+    let mut to_b: Vec<Envelope> = out;
+    loop {
+        while let Some(e) = a.poll_transmit(Time::ZERO) {
+            to_b.push(e);
+        }
+        let mut progressed = !to_b.is_empty();
+        for e in to_b.drain(..) {
+            if e.header.flags.contains(iw_bus::Flags::SEALED) {
+                wire.push(e.clone());
+            }
+            if let Verdict::Pass(d) = b.inbound(e, Time::ZERO) {
+                delivered.push(d);
+            }
+        }
+        while let Some(e) = b.poll_transmit(Time::ZERO) {
+            progressed = true;
+            let _ = a.inbound(e, Time::ZERO);
+        }
+        if !progressed {
+            return (delivered, wire);
+        }
+    }
+}
+
+fn send(a: &mut SecurityLayer, b: &mut SecurityLayer, msgs: impl IntoIterator<Item = Envelope>) -> (Vec<Envelope>, Vec<Envelope>) {
+    let mut out = Vec::new();
+    for m in msgs {
+        if let Verdict::Pass(e) = a.outbound(m, Time::ZERO) {
+            out.push(e);
+        }
+    }
+    exchange(a, b, out)
+}
+
+#[test]
+fn public_key_mode_agrees_once_then_seals() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    assert_eq!(n.a.outbound(msg(1), Time::ZERO), Verdict::Consumed, "held until the key exists");
+    let (got, wire) = exchange(&mut n.a, &mut n.b, Vec::new());
+    assert_eq!(got.len(), 1);
+    assert_eq!(got[0].payload, msg(1).payload);
+    assert_eq!(got[0].authenticated.as_deref(), Some("a"));
+    assert!(!wire[0].payload.windows(6).any(|w| w == b"inform"), "ciphertext hides the content");
+    // Now the key is cached: the next message is sealed at once.
+    assert!(matches!(n.a.outbound(msg(2), Time::ZERO), Verdict::Pass(_)));
+}
+
+#[test]
+fn pre_shared_mode_round_trip() {
+    let psk = [9u8; 32];
+    let mut ca = SecurityConfig::default();
+    ca.pre_shared.insert("b".into(), psk);
+    let mut cb = SecurityConfig::default();
+    cb.pre_shared.insert("a".into(), psk);
+    let mut n = net(ca, cb);
+    let Verdict::Pass(sealed) = n.a.outbound(msg(1), Time::ZERO) else { panic!() };
+    assert!(sealed.header.flags.contains(iw_bus::Flags::PRE_SHARED));
+    let Verdict::Pass(open) = n.b.inbound(sealed, Time::ZERO) else { panic!() };
+    assert_eq!(open.payload, msg(1).payload);
+    // A wrong key on the receiving side is an authentication failure.
+    let mut cw = SecurityConfig::default();
+    cw.pre_shared.insert("a".into(), [8u8; 32]);
+    let mut w = net(SecurityConfig { pre_shared: [("b".to_string(), psk)].into(), ..Default::default() }, cw);
+    let Verdict::Pass(sealed) = w.a.outbound(msg(2), Time::ZERO) else { panic!() };
+    assert_eq!(w.b.inbound(sealed, Time::ZERO), Verdict::Drop(Reason::BadTag));
+}
+
+#[test]
+fn any_tampered_byte_is_rejected_in_both_modes() {
+    let codec = FrameCodec::new();
+    let psk = [3u8; 32];
+    let modes = [
+        (SecurityConfig::default(), SecurityConfig::default()),
+        (
+            SecurityConfig { pre_shared: [("b".to_string(), psk)].into(), sign_all: true, ..Default::default() },
+            SecurityConfig { pre_shared: [("a".to_string(), psk)].into(), ..Default::default() },
+        ),
+    ];
+    for (ca, cb) in modes {
+        let mut n = net(ca, cb);
+        let (_, wire) = send(&mut n.a, &mut n.b, [msg(1)]);
+        let frame = codec.encode_to_vec(&wire[0]).unwrap();
+        let mut delivered = 0;
+        for i in 0..frame.len() {
+            for bit in [0x01u8, 0x80] {
+                let mut bad = frame.clone();
+                bad[i] ^= bit;
+                let Ok(env) = codec.decode_datagram(&bad) else { continue };
+                if let Verdict::Pass(_) = n.b.inbound(env, Time::ZERO) {
+                    delivered += 1;
+                }
+            }
+        }
+        assert_eq!(delivered, 0, "a tampered frame got through");
+        // The original still opens: rejections did not disturb the session.
+        let env = codec.decode_datagram(&frame).unwrap();
+        assert!(matches!(n.b.inbound(env, Time::ZERO), Verdict::Pass(_)));
+    }
+}
+
+#[test]
+fn nonces_never_repeat_across_messages_and_restarts() {
+    let psk = [5u8; 32];
+    for pre_shared in [false, true] {
+        let cfg = |peer: &str| SecurityConfig {
+            pre_shared: if pre_shared { [(peer.to_string(), psk)].into() } else { Default::default() },
+            ..Default::default()
+        };
+        let mut n = net(cfg("b"), cfg("a"));
+        let mut seen = HashSet::new();
+        let mut total = 0;
+        for session in 0..3 {
+            if session > 0 {
+                // A restart: same identity and keys, all volatile state gone.
+                n.a = SecurityLayer::new(n.id_a.clone(), Arc::new(n.dir.clone()), cfg("b"));
+            }
+            // The first message waits for the key agreement; the rest are sealed at once.
+            let (mut got, mut wire) = send(&mut n.a, &mut n.b, [msg(0)]);
+            let (more, more_wire) = send(&mut n.a, &mut n.b, (1..3000).map(msg));
+            got.extend(more);
+            wire.extend(more_wire);
+            assert_eq!(got.len(), 3000, "pre_shared={pre_shared} session={session}");
+            for e in &wire {
+                total += 1;
+                assert!(seen.insert(SealInfo::of(e).unwrap()), "(key, nonce) reused");
+            }
+        }
+        assert_eq!(seen.len(), total);
+        assert_eq!(total, 9000);
+        let keys: HashSet<_> = seen.iter().map(|s| s.key_id.clone()).collect();
+        assert_eq!(keys.len(), 3, "each sending session has its own key");
+    }
+}
+
+#[test]
+fn signatures_verifiable_by_third_parties() {
+    let mut n = net(SecurityConfig { sign_all: true, ..Default::default() }, SecurityConfig::default());
+    let (got, _) = send(&mut n.a, &mut n.b, [msg(1)]);
+    let env = &got[0];
+    assert!(verify_envelope(env, &n.id_a.public_key()));
+    let mut forged = env.clone();
+    forged.payload[1] ^= 1;
+    assert!(!verify_envelope(&forged, &n.id_a.public_key()));
+    let other = Identity::generate().unwrap();
+    assert!(!verify_envelope(env, &other.public_key()));
+}
+
+#[test]
+fn masquerade_and_plaintext_insertion_rejected() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    let plain = msg(1);
+    assert_eq!(n.b.inbound(plain, Time::ZERO), Verdict::Drop(Reason::NotSealed));
+    // Mallory has a registered identity of her own and claims to be `a`.
+    let mallory_id = Arc::new(Identity::generate().unwrap());
+    n.dir.insert("m", mallory_id.public_key());
+    let mut m = SecurityLayer::new(mallory_id, Arc::new(n.dir.clone()), SecurityConfig::default());
+    assert_eq!(m.outbound(msg(1), Time::ZERO), Verdict::Consumed);
+    let hello = m.poll_transmit(Time::ZERO).unwrap();
+    assert_eq!(n.b.inbound(hello, Time::ZERO), Verdict::Drop(Reason::BadSignature));
+    // Her own valid session, relabelled as `a`, names no session of `a`.
+    let mut as_m = msg(2);
+    as_m.header.sender = "m".into();
+    let (_, wire) = send(&mut m, &mut n.b, [as_m]);
+    let mut relabelled = wire[0].clone();
+    relabelled.header.sender = "a".into();
+    assert_eq!(n.b.inbound(relabelled, Time::ZERO), Verdict::Drop(Reason::UnknownSession));
+}
+
+#[test]
+fn receiver_restart_recovers_with_rekey() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    assert_eq!(send(&mut n.a, &mut n.b, [msg(1)]).0.len(), 1);
+    let id_b = Arc::new(Identity::generate().unwrap());
+    n.dir.insert("b", id_b.public_key());
+    n.b = SecurityLayer::new(id_b, Arc::new(n.dir.clone()), SecurityConfig::default());
+    let (got, _) = send(&mut n.a, &mut n.b, [msg(2)]);
+    assert!(got.is_empty(), "the frame under the lost key is rejected");
+    let (got, _) = send(&mut n.a, &mut n.b, [msg(3)]);
+    assert_eq!(got.len(), 1, "a new key was agreed");
+}
+
+#[test]
+fn unanswered_hello_is_repeated() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    assert_eq!(n.a.outbound(msg(1), Time::ZERO), Verdict::Consumed);
+    assert!(n.a.poll_transmit(Time::ZERO).is_some());
+    assert!(n.a.poll_transmit(Time::ZERO).is_none());
+    let later = Time::ZERO.plus(std::time::Duration::from_secs(1));
+    assert_eq!(n.a.next_deadline(), Some(later));
+    let again = n.a.poll_transmit(later).unwrap();
+    assert!(again.header.flags.contains(iw_bus::Flags::HANDSHAKE));
+    let (got, _) = exchange(&mut n.a, &mut n.b, vec![again]);
+    assert_eq!(got.len(), 1);
+}
+
+#[test]
+fn unknown_receiver_is_refused() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    let mut e = msg(1);
+    e.header.receiver = "nobody".into();
+    assert_eq!(n.a.outbound(e, Time::ZERO), Verdict::Drop(Reason::UnknownPeer));
+}
