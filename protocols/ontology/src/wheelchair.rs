@@ -1,0 +1,423 @@
+//! The wheelchair ontology: what IntellWheels agents tell and ask each other, as SL content.
+//!
+//! Requests are FIPA action expressions `((action (agent-identifier :name nav@P) (goto-xy :x 1.0
+//! :y 2.0)))`; facts are predicates `((at-pose (agent-identifier ...) (pose :x .. :y .. :theta ..
+//! :covariance (sequence c00 .. c22))))`. Units are SI (metres, radians); integers carry their
+//! unit in the slot name (`:duration-ms`).
+
+use iw_acl::AgentId;
+use iw_sl::{
+    ActionExpression, ActionOp, ActionOperand, Collection, Content, ContentExpression, Formula,
+    Level, Term,
+};
+use nalgebra::{Isometry2, Matrix3, Vector2};
+use serde::{Deserialize, Serialize};
+
+use crate::concept::{Concept, Frame, FrameBuilder, is_frame, number_of, shown, text_of};
+use crate::error::OntologyError;
+
+/// The `:ontology` name of this ontology.
+pub const ONTOLOGY: &str = "IntellWheels-Wheelchair";
+
+/// Planar pose of the wheelchair base in the map frame, with its uncertainty.
+///
+/// SL: `(pose :x 1.0 :y 2.0 :theta 0.5 :covariance (sequence c00 c01 c02 c10 .. c22))`, the
+/// covariance of (x, y, theta) row by row in m² / m·rad / rad².
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// x of the base in the map frame, metres.
+    pub x_m: f64,
+    /// y of the base in the map frame, metres.
+    pub y_m: f64,
+    /// Heading of the base in the map frame, radians.
+    pub theta_rad: f64,
+    /// Covariance of (x, y, theta).
+    pub covariance: Matrix3<f64>,
+}
+
+impl Pose {
+    /// `t_map_base`: maps base coordinates into the map frame.
+    pub fn t_map_base(&self) -> Isometry2<f64> {
+        Isometry2::new(Vector2::new(self.x_m, self.y_m), self.theta_rad)
+    }
+}
+
+impl Concept for Pose {
+    fn to_term(&self) -> Term {
+        // Row-major on the wire; nalgebra stores columns, so walk the transpose.
+        let cov = self.covariance.transpose().iter().map(|&c| Term::float(c)).collect();
+        FrameBuilder::new("pose")
+            .float("x", self.x_m)
+            .float("y", self.y_m)
+            .float("theta", self.theta_rad)
+            .list("covariance", Collection::Sequence, cov)
+            .build()
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        let f = Frame::read(term, "pose")?;
+        let cov = f.list("covariance")?;
+        let values: Option<Vec<f64>> = cov.iter().map(number_of).collect();
+        let covariance = match values {
+            Some(v) if v.len() == 9 => Matrix3::from_row_slice(&v),
+            Some(v) if v.is_empty() => Matrix3::zeros(),
+            _ => {
+                return Err(OntologyError::BadValue {
+                    concept: "pose",
+                    slot: "covariance",
+                    value: f.get("covariance").map(shown).unwrap_or_default(),
+                    reason: "expected 9 numbers (3x3, row by row)",
+                });
+            }
+        };
+        Ok(Self {
+            x_m: f.required_number("x")?,
+            y_m: f.required_number("y")?,
+            theta_rad: f.required_number("theta")?,
+            covariance,
+        })
+    }
+}
+
+/// A sensor reading.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum SensorReading {
+    /// `(sonar-reading :ranges (sequence r0 r1 ...))`: one range per sonar, metres, in the
+    /// body's sonar order.
+    Sonar {
+        /// Ranges, metres.
+        ranges_m: Vec<f64>,
+    },
+    /// `(encoder-reading :left n :right m)`: cumulative wheel encoder ticks.
+    Encoders {
+        /// Left wheel ticks.
+        left_ticks: i64,
+        /// Right wheel ticks.
+        right_ticks: i64,
+    },
+}
+
+impl Concept for SensorReading {
+    fn to_term(&self) -> Term {
+        match self {
+            Self::Sonar { ranges_m } => FrameBuilder::new("sonar-reading")
+                .term("ranges", Term::sequence(ranges_m.iter().map(|&r| Term::float(r)).collect()))
+                .build(),
+            Self::Encoders { left_ticks, right_ticks } => FrameBuilder::new("encoder-reading")
+                .term("left", Term::integer(*left_ticks))
+                .term("right", Term::integer(*right_ticks))
+                .build(),
+        }
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        if is_frame(term, "sonar-reading") {
+            let f = Frame::read(term, "sonar-reading")?;
+            let ranges = f.list("ranges")?;
+            let ranges_m = ranges.iter().map(|t| {
+                number_of(t).ok_or_else(|| OntologyError::BadValue {
+                    concept: "sonar-reading",
+                    slot: "ranges",
+                    value: shown(t),
+                    reason: "expected ranges in metres",
+                })
+            });
+            return Ok(Self::Sonar { ranges_m: ranges_m.collect::<Result<_, _>>()? });
+        }
+        let f = Frame::read(term, "encoder-reading").map_err(|_| OntologyError::UnexpectedTerm {
+            expected: "sonar-reading or encoder-reading",
+            found: shown(term),
+        })?;
+        let ticks = |slot| f.integer(slot)?.ok_or(OntologyError::MissingSlot { concept: "encoder-reading", slot });
+        Ok(Self::Encoders { left_ticks: ticks("left")?, right_ticks: ticks("right")? })
+    }
+}
+
+/// What a wheelchair (or the agent driving it) can be asked to do.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum WheelchairAction {
+    /// `(goto-xy :x 1.0 :y 2.0)`: drive to a point of the map frame, metres.
+    GotoXy {
+        /// Target x, metres.
+        x_m: f64,
+        /// Target y, metres.
+        y_m: f64,
+    },
+    /// `(go-to :place kitchen)`: a goal; the planner chooses the route to the named place.
+    GoTo {
+        /// A place of the building map.
+        place: String,
+    },
+    /// `(follow-line)`: follow the floor line.
+    FollowLine,
+    /// `(follow-left-wall :distance 0.5)`: keep the wall on the left at this distance, metres.
+    FollowLeftWall {
+        /// Distance to keep, metres.
+        distance_m: f64,
+    },
+    /// `(follow-right-wall :distance 0.5)`.
+    FollowRightWall {
+        /// Distance to keep, metres.
+        distance_m: f64,
+    },
+    /// `(spin :angle 1.57)`: turn in place to this heading of the map frame, radians.
+    Spin {
+        /// Target heading, radians.
+        angle_rad: f64,
+    },
+    /// `(wait :duration-ms 500)`: stay still.
+    Wait {
+        /// How long, milliseconds.
+        duration_ms: i64,
+    },
+    /// `(stop)`: stop now.
+    Stop,
+    /// `(open-door :door d1)`: asked of a door agent.
+    OpenDoor {
+        /// The door.
+        door: String,
+    },
+    /// `(close-door :door d1)`.
+    CloseDoor {
+        /// The door.
+        door: String,
+    },
+    /// `(action-sequence :steps (sequence a1 a2 ...))`: the steps one after the other.
+    Sequence {
+        /// The steps, in order.
+        steps: Vec<WheelchairAction>,
+    },
+}
+
+impl Concept for WheelchairAction {
+    fn to_term(&self) -> Term {
+        match self {
+            Self::GotoXy { x_m, y_m } => FrameBuilder::new("goto-xy").float("x", *x_m).float("y", *y_m).build(),
+            Self::GoTo { place } => FrameBuilder::new("go-to").text("place", Some(place)).build(),
+            Self::FollowLine => FrameBuilder::new("follow-line").build(),
+            Self::FollowLeftWall { distance_m } => {
+                FrameBuilder::new("follow-left-wall").float("distance", *distance_m).build()
+            }
+            Self::FollowRightWall { distance_m } => {
+                FrameBuilder::new("follow-right-wall").float("distance", *distance_m).build()
+            }
+            Self::Spin { angle_rad } => FrameBuilder::new("spin").float("angle", *angle_rad).build(),
+            Self::Wait { duration_ms } => {
+                FrameBuilder::new("wait").term("duration-ms", Term::integer(*duration_ms)).build()
+            }
+            Self::Stop => FrameBuilder::new("stop").build(),
+            Self::OpenDoor { door } => FrameBuilder::new("open-door").text("door", Some(door)).build(),
+            Self::CloseDoor { door } => FrameBuilder::new("close-door").text("door", Some(door)).build(),
+            Self::Sequence { steps } => FrameBuilder::new("action-sequence")
+                .term("steps", Term::sequence(steps.iter().map(Concept::to_term).collect()))
+                .build(),
+        }
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        const EXPECTED: &str = "a wheelchair action (goto-xy, go-to, follow-line, follow-left-wall, \
+                                follow-right-wall, spin, wait, stop, open-door, close-door, action-sequence)";
+        let Term::Functional { symbol, .. } = term else {
+            return Err(OntologyError::UnexpectedTerm { expected: EXPECTED, found: shown(term) });
+        };
+        let name = symbol.to_ascii_lowercase();
+        let frame = |concept| Frame::read(term, concept);
+        Ok(match name.as_str() {
+            "goto-xy" => {
+                let f = frame("goto-xy")?;
+                Self::GotoXy { x_m: f.required_number("x")?, y_m: f.required_number("y")? }
+            }
+            "go-to" => Self::GoTo { place: frame("go-to")?.required_text("place")? },
+            "follow-line" => Self::FollowLine,
+            "follow-left-wall" => Self::FollowLeftWall { distance_m: frame("follow-left-wall")?.required_number("distance")? },
+            "follow-right-wall" => Self::FollowRightWall { distance_m: frame("follow-right-wall")?.required_number("distance")? },
+            "spin" => Self::Spin { angle_rad: frame("spin")?.required_number("angle")? },
+            "wait" => {
+                let f = frame("wait")?;
+                let duration_ms = f.integer("duration-ms")?.ok_or(OntologyError::MissingSlot { concept: "wait", slot: "duration-ms" })?;
+                Self::Wait { duration_ms }
+            }
+            "stop" => Self::Stop,
+            "open-door" => Self::OpenDoor { door: frame("open-door")?.required_text("door")? },
+            "close-door" => Self::CloseDoor { door: frame("close-door")?.required_text("door")? },
+            "action-sequence" => Self::Sequence { steps: frame("action-sequence")?.concepts("steps")? },
+            _ => return Err(OntologyError::UnexpectedTerm { expected: EXPECTED, found: shown(term) }),
+        })
+    }
+}
+
+/// The state of a door.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DoorState {
+    /// `open`
+    Open,
+    /// `closed`
+    Closed,
+    /// `opening`
+    Opening,
+    /// `closing`
+    Closing,
+}
+
+impl DoorState {
+    const ALL: [(DoorState, &'static str); 4] = [
+        (DoorState::Open, "open"),
+        (DoorState::Closed, "closed"),
+        (DoorState::Opening, "opening"),
+        (DoorState::Closing, "closing"),
+    ];
+
+    /// The SL word.
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(s, _)| *s == self).map_or("closed", |(_, n)| n)
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        let word = text_of(term).unwrap_or_default();
+        Self::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(&word)).map(|(s, _)| *s).ok_or_else(|| {
+            OntologyError::BadValue {
+                concept: "door-state",
+                slot: "state",
+                value: shown(term),
+                reason: "expected open, closed, opening or closing",
+            }
+        })
+    }
+}
+
+/// Facts agents inform each other of.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Fact {
+    /// `(at-pose agent (pose ...))`: where `agent`'s wheelchair is.
+    AtPose {
+        /// The wheelchair's agent.
+        agent: AgentId,
+        /// Its pose.
+        pose: Pose,
+    },
+    /// `(sensor-reading agent (sonar-reading ...))`.
+    Reading {
+        /// The wheelchair's agent.
+        agent: AgentId,
+        /// What its sensor read.
+        reading: SensorReading,
+    },
+    /// `(door-state d1 open)`.
+    Door {
+        /// The door.
+        door: String,
+        /// Its state.
+        state: DoorState,
+    },
+}
+
+impl Fact {
+    fn to_formula(&self) -> Formula {
+        let (predicate, args) = match self {
+            Self::AtPose { agent, pose } => ("at-pose", vec![agent.to_term(), pose.to_term()]),
+            Self::Reading { agent, reading } => ("sensor-reading", vec![agent.to_term(), reading.to_term()]),
+            Self::Door { door, state } => ("door-state", vec![Term::string(door.as_str()), Term::string(state.name())]),
+        };
+        Formula::Atomic { predicate: predicate.into(), args }
+    }
+
+    fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
+        let bad = || OntologyError::UnexpectedTerm {
+            expected: "(at-pose agent pose), (sensor-reading agent reading) or (door-state door state)",
+            found: formula.to_string(),
+        };
+        let Formula::Atomic { predicate, args } = formula else { return Err(bad()) };
+        let [first, second] = args.as_slice() else { return Err(bad()) };
+        match predicate.to_ascii_lowercase().as_str() {
+            "at-pose" => Ok(Self::AtPose { agent: AgentId::from_term(first)?, pose: Pose::from_term(second)? }),
+            "sensor-reading" => {
+                Ok(Self::Reading { agent: AgentId::from_term(first)?, reading: SensorReading::from_term(second)? })
+            }
+            "door-state" => Ok(Self::Door { door: text_of(first).ok_or_else(bad)?, state: DoorState::from_term(second)? }),
+            _ => Err(bad()),
+        }
+    }
+}
+
+/// The content forms of wheelchair conversations (all within `fipa-sl0`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum WheelchairContent {
+    /// REQUEST: `((action actor act))`.
+    Request {
+        /// Who should act.
+        actor: AgentId,
+        /// What to do.
+        action: WheelchairAction,
+    },
+    /// INFORM when finished: `((done (action actor act)))`.
+    Done {
+        /// Who acted.
+        actor: AgentId,
+        /// What was done.
+        action: WheelchairAction,
+    },
+    /// INFORM: `(fact)`.
+    Inform(Fact),
+}
+
+impl WheelchairContent {
+    /// The SL level needed: everything here is SL0.
+    pub const LEVEL: Level = Level::Sl0;
+
+    /// As SL content.
+    pub fn to_content(&self) -> Content {
+        let action = |actor: &AgentId, act: &WheelchairAction| ActionExpression::Action {
+            agent: actor.to_term(),
+            act: act.to_term(),
+        };
+        match self {
+            Self::Request { actor, action: act } => Content::single(action(actor, act)),
+            Self::Done { actor, action: act } => Content::single(Formula::ActionCondition {
+                op: ActionOp::Done,
+                action: Box::new(ActionOperand::Expression(action(actor, act))),
+                condition: None,
+            }),
+            Self::Inform(fact) => Content::single(fact.to_formula()),
+        }
+    }
+
+    /// Parses SL0 text and reads it.
+    pub fn parse(text: &str) -> Result<Self, OntologyError> {
+        Self::from_content(&iw_sl::parse(text, Self::LEVEL)?)
+    }
+
+    /// Reads SL content.
+    pub fn from_content(content: &Content) -> Result<Self, OntologyError> {
+        let read_action = |a: &ActionExpression| match a {
+            ActionExpression::Action { agent, act } => {
+                Ok((AgentId::from_term(agent)?, WheelchairAction::from_term(act)?))
+            }
+            other => Err(OntologyError::UnexpectedTerm { expected: "(action actor act)", found: other.to_string() }),
+        };
+        match content.expressions.as_slice() {
+            [ContentExpression::Action(a)] => read_action(a).map(|(actor, action)| Self::Request { actor, action }),
+            [ContentExpression::Formula(Formula::ActionCondition {
+                op: ActionOp::Done,
+                action,
+                condition: None,
+            })] => match action.as_ref() {
+                ActionOperand::Expression(a) => read_action(a).map(|(actor, action)| Self::Done { actor, action }),
+                ActionOperand::Meta(_) => Err(unexpected(content)),
+            },
+            [ContentExpression::Formula(f)] => Fact::from_formula(f).map(Self::Inform),
+            _ => Err(unexpected(content)),
+        }
+    }
+}
+
+fn unexpected(content: &Content) -> OntologyError {
+    OntologyError::UnexpectedContent {
+        expected: "((action actor act)), ((done (action actor act))) or a wheelchair fact",
+        found: content.to_string(),
+    }
+}
