@@ -1,0 +1,141 @@
+//! The wheelchair ontology: every value survives value -> SL text -> value, and the SL it
+//! produces is what the documentation shows.
+
+use iw_acl::AgentId;
+use iw_ontology::wheelchair::{DoorState, Fact, Pose, SensorReading, WheelchairAction, WheelchairContent};
+use iw_ontology::{Concept, OntologyError};
+use nalgebra::Matrix3;
+use proptest::prelude::*;
+
+fn finite() -> impl Strategy<Value = f64> {
+    prop_oneof![-1e6..1e6f64, any::<f64>().prop_filter("finite", |x| x.is_finite())]
+}
+
+fn name() -> impl Strategy<Value = String> {
+    prop_oneof!["[a-z][a-z0-9-]{0,10}", "[ -~]{1,12}[ -\\[\\]-~]"]
+}
+
+fn agent() -> impl Strategy<Value = AgentId> {
+    ("[a-z][a-z0-9]{0,6}@[A-Z][a-zA-Z]{0,6}", prop::collection::vec("http://[a-z0-9.:]{1,12}/acc", 0..2))
+        .prop_map(|(n, addrs)| addrs.into_iter().fold(AgentId::new(n), AgentId::with_address))
+}
+
+fn pose() -> impl Strategy<Value = Pose> {
+    (finite(), finite(), -4.0..4.0f64, prop::array::uniform9(finite())).prop_map(|(x, y, t, c)| Pose {
+        x_m: x,
+        y_m: y,
+        theta_rad: t,
+        covariance: Matrix3::from_row_slice(&c),
+    })
+}
+
+fn action() -> impl Strategy<Value = WheelchairAction> {
+    let leaf = prop_oneof![
+        (finite(), finite()).prop_map(|(x_m, y_m)| WheelchairAction::GotoXy { x_m, y_m }),
+        name().prop_map(|place| WheelchairAction::GoTo { place }),
+        Just(WheelchairAction::FollowLine),
+        finite().prop_map(|distance_m| WheelchairAction::FollowLeftWall { distance_m }),
+        finite().prop_map(|distance_m| WheelchairAction::FollowRightWall { distance_m }),
+        finite().prop_map(|angle_rad| WheelchairAction::Spin { angle_rad }),
+        any::<i64>().prop_map(|duration_ms| WheelchairAction::Wait { duration_ms }),
+        Just(WheelchairAction::Stop),
+        name().prop_map(|door| WheelchairAction::OpenDoor { door }),
+        name().prop_map(|door| WheelchairAction::CloseDoor { door }),
+    ];
+    leaf.prop_recursive(3, 16, 4, |inner| {
+        prop::collection::vec(inner, 0..4).prop_map(|steps| WheelchairAction::Sequence { steps })
+    })
+}
+
+fn fact() -> impl Strategy<Value = Fact> {
+    prop_oneof![
+        (agent(), pose()).prop_map(|(agent, pose)| Fact::AtPose { agent, pose }),
+        (agent(), prop::collection::vec(0.0..10.0f64, 0..24))
+            .prop_map(|(agent, ranges_m)| Fact::Reading { agent, reading: SensorReading::Sonar { ranges_m } }),
+        (agent(), any::<i64>(), any::<i64>()).prop_map(|(agent, left_ticks, right_ticks)| Fact::Reading {
+            agent,
+            reading: SensorReading::Encoders { left_ticks, right_ticks }
+        }),
+        (name(), prop_oneof![Just(DoorState::Open), Just(DoorState::Closed), Just(DoorState::Opening), Just(DoorState::Closing)])
+            .prop_map(|(door, state)| Fact::Door { door, state }),
+    ]
+}
+
+fn content() -> impl Strategy<Value = WheelchairContent> {
+    prop_oneof![
+        (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Request { actor, action }),
+        (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Done { actor, action }),
+        fact().prop_map(WheelchairContent::Inform),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(400))]
+
+    #[test]
+    fn every_message_round_trips_through_sl_text(msg in content()) {
+        let text = msg.to_content().to_string();
+        prop_assert_eq!(WheelchairContent::parse(&text), Ok(msg), "{}", text);
+    }
+
+    #[test]
+    fn poses_round_trip_as_terms(p in pose()) {
+        prop_assert_eq!(Pose::from_term(&p.to_term()), Ok(p));
+    }
+}
+
+#[test]
+fn requests_read_as_documented() {
+    let nav = AgentId::new("nav@IntellWheels");
+    let msg = WheelchairContent::Request {
+        actor: nav.clone(),
+        action: WheelchairAction::Sequence {
+            steps: vec![
+                WheelchairAction::GotoXy { x_m: 1.0, y_m: 2.5 },
+                WheelchairAction::Spin { angle_rad: 1.5 },
+                WheelchairAction::Wait { duration_ms: 500 },
+                WheelchairAction::FollowLeftWall { distance_m: 0.5 },
+                WheelchairAction::Stop,
+            ],
+        },
+    };
+    assert_eq!(
+        msg.to_content().to_string(),
+        "((action (agent-identifier :name nav@IntellWheels) (action-sequence :steps (sequence \
+         (goto-xy :x 1.0 :y 2.5) (spin :angle 1.5) (wait :duration-ms 500) \
+         (follow-left-wall :distance 0.5) (stop)))))"
+    );
+    let goal = WheelchairContent::parse(
+        "((action (agent-identifier :name nav@IntellWheels) (GO-TO :place \"room 2.1\")))",
+    )
+    .unwrap();
+    assert_eq!(goal, WheelchairContent::Request { actor: nav, action: WheelchairAction::GoTo { place: "room 2.1".into() } });
+}
+
+#[test]
+fn facts_read_as_documented() {
+    let door = WheelchairContent::Inform(Fact::Door { door: "d1".into(), state: DoorState::Open });
+    assert_eq!(door.to_content().to_string(), "((door-state d1 open))");
+    let pose = WheelchairContent::parse(
+        "((at-pose (agent-identifier :name wheelchair1@P) (pose :x 1 :y -2.5 :theta 0.5 \
+         :covariance (sequence 0.01 0 0 0 0.01 0 0 0 0.002))))",
+    )
+    .unwrap();
+    let WheelchairContent::Inform(Fact::AtPose { pose, .. }) = pose else { panic!("{pose:?}") };
+    assert_eq!((pose.x_m, pose.y_m, pose.theta_rad), (1.0, -2.5, 0.5));
+    assert_eq!(pose.covariance[(2, 2)], 0.002);
+    let p = pose.t_map_base() * nalgebra::Point2::new(1.0, 0.0);
+    assert!((p.x - (1.0 + 0.5f64.cos())).abs() < 1e-12 && (p.y - (-2.5 + 0.5f64.sin())).abs() < 1e-12);
+}
+
+#[test]
+fn wrong_content_says_what_is_wrong() {
+    let e = WheelchairContent::parse("((action (agent-identifier :name a@P) (goto-xy :x 1)))").unwrap_err();
+    assert!(matches!(e, OntologyError::MissingSlot { concept: "goto-xy", slot: "y" }), "{e}");
+    let e = WheelchairContent::parse("((door-state d1 ajar))").unwrap_err();
+    assert!(matches!(e, OntologyError::BadValue { slot: "state", ref value, .. } if value == "ajar"), "{e}");
+    let e = WheelchairContent::parse("((at-pose (agent-identifier :name a@P) (pose :x 1 :y 2 :theta 0 :covariance (sequence 1 2))))")
+        .unwrap_err();
+    assert!(matches!(e, OntologyError::BadValue { slot: "covariance", .. }), "{e}");
+    assert!(matches!(WheelchairContent::parse("((not (x y)))"), Err(OntologyError::Sl(_))));
+}
