@@ -356,11 +356,10 @@ fn valid_record_after(
             continue;
         }
         let body = start + RECORD_HEADER_LEN;
-        if let Some(payload) = rest.get(body..body + len as usize) {
-            if checksum(seq, payload) == crc {
+        if let Some(payload) = rest.get(body..body + len as usize)
+            && checksum(seq, payload) == crc {
                 return Ok(true);
             }
-        }
     }
     Ok(false)
 }
