@@ -1,14 +1,45 @@
-//! `intellwheels sl ...`
+//! `intellwheels sl ...`: FIPA-SL content at a chosen level.
 
+use std::io::Read;
 use std::process::ExitCode;
+
+use anyhow::Context;
+use iw_sl::Level;
 
 /// The `sl` subcommands.
 #[derive(clap::Subcommand)]
 pub enum Command {
-    /// Placeholder until implemented.
-    Todo,
+    /// Read SL content on stdin and print its tree as JSON.
+    ///
+    /// Output: `{"level", "sl", "jade_tree", "content"}`: the level, the content printed back as
+    /// canonical SL, the tree as JADE's codec renders it, and the typed tree. Content the level
+    /// does not accept: the error (line, column, expected) on stderr and exit status 2.
+    Parse {
+        /// SL level: sl0, sl1, sl2 or full.
+        #[arg(long, default_value = "full", value_parser = parse_level)]
+        level: Level,
+    },
 }
 
-pub fn run(_command: Command) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("`sl` is not implemented yet")
+fn parse_level(s: &str) -> Result<Level, String> {
+    s.parse().map_err(|e: iw_sl::SlError| e.to_string())
+}
+
+pub fn run(command: Command) -> anyhow::Result<ExitCode> {
+    match command {
+        Command::Parse { level } => {
+            let mut input = String::new();
+            std::io::stdin().read_to_string(&mut input).context("reading SL content from stdin")?;
+            let content = iw_sl::parse(&input, level)
+                .with_context(|| format!("SL content refused at level {level}"))?;
+            let out = serde_json::json!({
+                "level": level.short_name(),
+                "sl": content.to_string(),
+                "jade_tree": iw_sl::jade_tree(&content, level),
+                "content": content,
+            });
+            println!("{out}");
+            Ok(ExitCode::SUCCESS)
+        }
+    }
 }
