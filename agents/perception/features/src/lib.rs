@@ -1,8 +1,46 @@
 //! SURF, LN-SURF and LSAC-SURF feature detection, description and matching (thesis 2.8.4, ch. 4).
 //!
-//! API CONTRACT (shared with `iw-vo`; the vision work fills in the bodies and may extend, but keeps
-//! these names and signatures): one pipeline, three detector choices.
+//! One pipeline, three detector choices: the [`DetectorKind`] only decides which *working image*
+//! the box-filter Hessian runs on (gray intensity, or the local space average colour image) and
+//! whether the Hessian determinant is divided by the local variance under the filter. Everything
+//! else (scale space, non-maximum suppression, interpolation, orientation, descriptor) is shared.
+//!
+//! # Organization
+//! - [`Detector`]: the pipeline with caller-owned scratch buffers, reused frame after frame;
+//!   [`detect`] is the one-shot convenience. [`DetectorConfig`] holds every parameter with units.
+//! - [`match_features`] with [`MatchConfig`]: brute force, Lowe ratio test, mutual check, hard
+//!   features matched against all, opposite Laplacian signs skipped.
+//! - [`experiment`]: the thesis's illumination collections (LIC, LIS, LCC), the repeatability
+//!   protocol (eq. 4.66) and the Wilcoxon signed-rank test used to compare detectors.
+//! - [`GrayImage32`], [`IntegralImage`]: typed buffers the pipeline works on.
+//!
+//! # Guarantees
+//! - Any `RgbImage` is accepted (empty or tiny images give no features, never a panic); only an
+//!   inconsistent [`DetectorConfig`] is an error ([`FeatureError`]).
+//! - Integral-image box sums are exact (fixed-point integers with wrapping arithmetic), so the
+//!   responses do not depend on where a box lies in the image.
+//! - `Features::descriptors[i]` belongs to `Features::keypoints[i]`, unit length (or all zero on
+//!   a perfectly flat patch). Output is deterministic: the same image gives the same features.
+//!
+//! API CONTRACT (shared with `iw-vo`): `DetectorKind`, `Keypoint`, `FeatureClass`, `Features`,
+//! `Match` keep their names and fields; the entry points are [`detect`], [`Detector::detect`] and
+//! [`match_features`].
 #![warn(missing_docs)]
+
+mod config;
+mod describe;
+pub mod experiment;
+mod extrema;
+mod hessian;
+mod image32;
+mod integral;
+mod matching;
+mod working;
+
+pub use config::{DetectorConfig, LsacSpace, MatchConfig};
+pub use image32::GrayImage32;
+pub use integral::IntegralImage;
+pub use matching::match_features;
 
 use image::RgbImage;
 
@@ -16,6 +54,37 @@ pub enum DetectorKind {
     LnSurf,
     /// SURF on the local space average colour image (thesis Algorithm 2).
     LsacSurf,
+}
+
+impl DetectorKind {
+    /// All detectors, in the order the thesis compares them.
+    pub const ALL: [DetectorKind; 3] = [DetectorKind::Surf, DetectorKind::LnSurf, DetectorKind::LsacSurf];
+
+    /// The command-line and JSON name: `surf`, `ln-surf`, `lsac-surf`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DetectorKind::Surf => "surf",
+            DetectorKind::LnSurf => "ln-surf",
+            DetectorKind::LsacSurf => "lsac-surf",
+        }
+    }
+}
+
+impl std::str::FromStr for DetectorKind {
+    type Err = FeatureError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        DetectorKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| FeatureError::UnknownDetector { name: s.to_string() })
+    }
+}
+
+impl std::fmt::Display for DetectorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Hard features are trusted everywhere; soft ones lie near saturation (thesis Algorithm 2).
@@ -67,4 +136,76 @@ pub struct Match {
     pub train_index: usize,
     /// Euclidean descriptor distance.
     pub distance: f32,
+}
+
+/// Why detection could not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FeatureError {
+    /// A [`DetectorConfig`] or [`MatchConfig`] field is out of its range.
+    #[error("invalid config `{field}` = {value}: {reason}")]
+    InvalidConfig {
+        /// Field name.
+        field: &'static str,
+        /// The offending value, printed.
+        value: String,
+        /// The accepted range.
+        reason: &'static str,
+    },
+    /// A detector name that is none of `surf`, `ln-surf`, `lsac-surf`.
+    #[error("unknown detector `{name}` (expected surf, ln-surf or lsac-surf)")]
+    UnknownDetector {
+        /// The name given.
+        name: String,
+    },
+}
+
+/// The shared pipeline with its scratch buffers; keep one per thread and call [`Detector::detect`]
+/// for every frame to avoid re-allocating the integral images and response maps.
+#[derive(Debug, Default)]
+pub struct Detector {
+    scratch: working::Scratch,
+    layers: hessian::ScaleSpace,
+}
+
+impl Detector {
+    /// An empty pipeline; buffers grow on the first frame.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Detects and describes the features of `image` with detector `kind`.
+    pub fn detect(
+        &mut self,
+        kind: DetectorKind,
+        image: &RgbImage,
+        config: &DetectorConfig,
+    ) -> Result<Features, FeatureError> {
+        config.validate()?;
+        let (width, height) = (image.width() as usize, image.height() as usize);
+        if width == 0 || height == 0 {
+            return Ok(Features::default());
+        }
+        self.scratch.prepare(kind, image, config);
+        let normalise = (kind == DetectorKind::LnSurf).then_some(&self.scratch.gray_integral);
+        self.layers.compute(self.scratch.working(kind), normalise, config);
+        let candidates = extrema::find(&self.layers, config);
+        // LN-SURF describes on the intensity image (Algorithm 1), LSAC-SURF on its working space.
+        let describe_on = self.scratch.working(kind);
+        let mut keypoints = candidates;
+        if let Some(max) = config.max_keypoints {
+            keypoints.sort_by(|a, b| b.response.total_cmp(&a.response));
+            keypoints.truncate(max);
+        }
+        for kp in &mut keypoints {
+            kp.class = working::classify(&self.scratch.gray, kp, config.soft_band);
+        }
+        let descriptors = describe::describe(describe_on, &mut keypoints, config.upright);
+        Ok(Features { keypoints, descriptors })
+    }
+}
+
+/// One-shot detection with fresh buffers (see [`Detector`] to reuse them across frames).
+pub fn detect(kind: DetectorKind, image: &RgbImage, config: &DetectorConfig) -> Result<Features, FeatureError> {
+    Detector::new().detect(kind, image, config)
 }

@@ -1,0 +1,140 @@
+//! Detector and matcher parameters, each with its unit, default and range.
+
+use crate::{DetectorKind, FeatureError};
+
+/// Which image LSAC-SURF divides by twice its local average.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LsacSpace {
+    /// Thesis Algorithm 2 as printed: gray first, then `gray / (2 a_gray)`. Invariant to a common
+    /// gain on all channels, not to a change of illuminant colour.
+    Gray,
+    /// Ebner's descriptor per channel, `O_k = I_k / (2 a_k)` (thesis eq. 4.17), then the luma of
+    /// `O`: also invariant to a per-channel gain (the diagonal model, LCC). The default.
+    PerChannel,
+}
+
+/// Parameters of the shared SURF pipeline. Build with [`DetectorConfig::for_kind`], then adjust.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DetectorConfig {
+    /// Octaves of the box-filter scale space, 1..=6 (default 4: filters up to 195 px).
+    pub octaves: usize,
+    /// Filter sizes per octave, 3..=8 (default 4: 9, 15, 21, 27 in the first octave).
+    pub levels: usize,
+    /// Minimum response kept before non-maximum suppression. Units: the Hessian determinant of
+    /// 8-bit intensities normalised by the filter area (OpenCV's `hessianThreshold` scale) for
+    /// SURF and LSAC-SURF; dimensionless (determinant / variance) for LN-SURF.
+    pub threshold: f32,
+    /// Skip the orientation step (U-SURF): faster, for a camera that does not roll.
+    pub upright: bool,
+    /// LN-SURF: smallest variance used as divisor, in 8-bit intensity units squared (default 1.0,
+    /// about the rounding noise of an 8-bit camera): keeps perfectly flat patches at zero response.
+    pub ln_min_variance: f32,
+    /// LSAC-SURF: radius of the largest of the three nested boxes approximating the Gaussian
+    /// local average, px (default 12; the thesis found small neighbourhoods work best).
+    pub lsac_radius_px: usize,
+    /// LSAC-SURF: smallest local average used as divisor, 8-bit units (default 4): a black region
+    /// would otherwise turn its rounding noise into full-contrast texture.
+    pub lsac_min_average: f32,
+    /// LSAC-SURF: per-channel or gray local average (see [`LsacSpace`]).
+    pub lsac_space: LsacSpace,
+    /// `(lower, upper)` 8-bit gray thresholds: a keypoint whose pixel lies strictly between them is
+    /// hard, otherwise soft (thesis Algorithm 2, lines 13-20). `None`: every keypoint is hard.
+    pub soft_band: Option<(u8, u8)>,
+    /// Keep at most this many keypoints, strongest response first (`None`: all).
+    pub max_keypoints: Option<usize>,
+}
+
+impl DetectorConfig {
+    /// The defaults used in the experiments for `kind`. Thresholds were chosen so that the three
+    /// detectors find similar numbers of keypoints on the shared photographs (as the thesis set
+    /// LN-SURF's to match SURF's count).
+    pub fn for_kind(kind: DetectorKind) -> Self {
+        let base = DetectorConfig {
+            octaves: 4,
+            levels: 4,
+            threshold: 100.0,
+            upright: false,
+            ln_min_variance: 1.0,
+            lsac_radius_px: 12,
+            lsac_min_average: 4.0,
+            lsac_space: LsacSpace::PerChannel,
+            soft_band: None,
+            max_keypoints: None,
+        };
+        match kind {
+            DetectorKind::Surf => base,
+            DetectorKind::LnSurf => DetectorConfig { threshold: 0.02, ..base },
+            DetectorKind::LsacSurf => DetectorConfig { soft_band: Some((10, 245)), ..base },
+        }
+    }
+
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), FeatureError> {
+        let bad = |field, value: String, reason| Err(FeatureError::InvalidConfig { field, value, reason });
+        if !(1..=6).contains(&self.octaves) {
+            return bad("octaves", self.octaves.to_string(), "expected 1..=6");
+        }
+        if !(3..=8).contains(&self.levels) {
+            return bad("levels", self.levels.to_string(), "expected 3..=8 (two neighbours per tested level)");
+        }
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            return bad("threshold", self.threshold.to_string(), "expected a finite value >= 0");
+        }
+        if !(self.ln_min_variance.is_finite() && self.ln_min_variance > 0.0) {
+            return bad("ln_min_variance", self.ln_min_variance.to_string(), "expected a finite value > 0");
+        }
+        if !(1..=256).contains(&self.lsac_radius_px) {
+            return bad("lsac_radius_px", self.lsac_radius_px.to_string(), "expected 1..=256");
+        }
+        if !(self.lsac_min_average.is_finite() && self.lsac_min_average >= 0.5) {
+            return bad("lsac_min_average", self.lsac_min_average.to_string(), "expected a finite value >= 0.5");
+        }
+        if let Some((lower, upper)) = self.soft_band {
+            if lower >= upper {
+                return bad("soft_band", format!("({lower}, {upper})"), "expected lower < upper");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Parameters of [`crate::match_features`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MatchConfig {
+    /// Lowe's ratio: keep a match when best < ratio * second best, (0, 1] (default 0.8).
+    pub ratio: f32,
+    /// Keep a match only if each side is the other's nearest neighbour (default true).
+    pub mutual: bool,
+    /// Only hard query features are matched, against all train features (thesis 4.5; default true).
+    pub hard_queries_only: bool,
+    /// Reject matches with a larger descriptor distance (default 0.6 for unit descriptors).
+    pub max_distance: f32,
+}
+
+impl Default for MatchConfig {
+    fn default() -> Self {
+        MatchConfig { ratio: 0.8, mutual: true, hard_queries_only: true, max_distance: 0.6 }
+    }
+}
+
+impl MatchConfig {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), FeatureError> {
+        if !(self.ratio > 0.0 && self.ratio <= 1.0) {
+            return Err(FeatureError::InvalidConfig {
+                field: "ratio",
+                value: self.ratio.to_string(),
+                reason: "expected 0 < ratio <= 1",
+            });
+        }
+        if !(self.max_distance > 0.0) {
+            return Err(FeatureError::InvalidConfig {
+                field: "max_distance",
+                value: self.max_distance.to_string(),
+                reason: "expected > 0",
+            });
+        }
+        Ok(())
+    }
+}
