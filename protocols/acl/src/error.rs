@@ -109,7 +109,7 @@ pub enum Error {
         limit: usize,
     },
     /// A string JADE's escaping cannot carry: it would reach JADE altered or unparseable.
-    #[error("{slot} value `{value}` cannot be written with JADE escaping (an odd run of backslashes before a quote or at the end); send it as byte content or use standard escaping")]
+    #[error("{slot} value `{value}` cannot be written with JADE escaping (it ends in a backslash); send it as byte content or use standard escaping")]
     NotRepresentable {
         /// The parameter holding it (`content`, `ontology`, ...).
         slot: &'static str,

@@ -16,7 +16,7 @@
 //! - No input makes the parser panic; input above [`codec::DEFAULT_MAX_LEN`] bytes (unless
 //!   configured) and identifiers nested deeper than [`codec::DEFAULT_MAX_DEPTH`] are refused.
 //! - `parse(&print(&m)) == m` for every message `m` (standard escaping); with JADE escaping the
-//!   printer refuses, rather than corrupts, the few strings JADE cannot carry.
+//!   printer refuses, rather than corrupts, the strings JADE cannot carry (those ending in a backslash).
 //! - Agrees with JADE 4.6.5 on the FIPA test vectors kept beside the project (`shared/fipa`).
 //! - serde: [`AclMessage`] serializes to the JSON shape of those vectors.
 #![warn(missing_docs)]

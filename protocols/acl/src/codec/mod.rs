@@ -32,18 +32,16 @@ pub const DEFAULT_MAX_DEPTH: usize = 8;
 pub const JADE_ENCODING_PARAM: &str = "JADE-Encoding";
 
 /// How backslashes and quotes inside `"..."` strings are read and written.
-///
-/// Both modes agree on where a string ends (a backslash always takes the next character with it).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Escaping {
-    /// `\"` is a quote and `\\` a backslash; any other `\x` is kept as is. Every string can be
-    /// written.
+    /// A backslash takes the next character with it: `\"` is a quote, `\\` a backslash, any
+    /// other `\x` stays as is. Every string can be written.
     #[default]
     Standard,
-    /// JADE 4.x: only `\"` is unescaped on reading and only `"` escaped on writing, so `\\`
-    /// stays two backslashes. A string with an odd run of backslashes before a quote or at its
-    /// end cannot be written ([`Error::NotRepresentable`]); JADE itself emits such strings
-    /// unparseable.
+    /// JADE 4.x: a string ends at the first quote not preceded by a backslash, reading deletes
+    /// each backslash right before a quote (so `\\` stays two backslashes), and writing escapes
+    /// only `"`. A string ending in a backslash cannot be written ([`Error::NotRepresentable`]);
+    /// JADE itself emits such strings unparseable.
     Jade,
 }
 

