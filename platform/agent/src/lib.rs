@@ -1,0 +1,354 @@
+//! The agent runtime: what an agent is, what it may do, and the host that runs many of them in
+//! one container on one [`Bus`].
+//!
+//! Organization:
+//! - [`Agent`]: the trait every agent implements (JADE's `setup` / message handling / `takeDown`,
+//!   plus a periodic `tick` for control loops). Handlers are short and never block.
+//! - [`Context`]: an agent's view of the platform: its [`AgentId`], the time, and `send`.
+//! - [`AgentHost`]: owns the agents of a container; [`AgentHost::step`] runs them once at a
+//!   given time (simulated time: scenarios run faster than real time and deterministically), and
+//!   [`AgentHost::run_until`] paces steps with the bus clock (real time).
+//!
+//! Guarantees: agents only meet through ACL messages on the bus (an agent never holds another);
+//! a message that is not well-formed ACL is counted and answered with nothing (its sender cannot
+//! be trusted); a step delivers every message that local agents send each other during it, up
+//! to [`MAX_ROUNDS_PER_STEP`] rounds, so a step is a consistent instant.
+#![warn(missing_docs)]
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_bus::{Bus, BusError, Mailbox, Time};
+
+/// Rounds of local delivery within one [`AgentHost::step`]; a longer chain continues next step.
+pub const MAX_ROUNDS_PER_STEP: usize = 16;
+
+/// Why an agent could not be added or a message not sent.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AgentError {
+    /// The bus refused (name taken, no route, transport failure).
+    #[error("agent `{agent}`: {source}")]
+    Bus {
+        /// The agent concerned.
+        agent: String,
+        /// The bus error.
+        #[source]
+        source: BusError,
+    },
+    /// A message without receivers.
+    #[error("agent `{agent}` sent a {performative} with no receiver")]
+    NoReceiver {
+        /// The sender.
+        agent: String,
+        /// Its performative.
+        performative: Performative,
+    },
+}
+
+/// One agent. Every method gets the agent's [`Context`]; none may block.
+pub trait Agent: Send {
+    /// Called once, before the first message or tick (JADE's `setup`).
+    fn setup(&mut self, _ctx: &mut Context<'_>) {}
+    /// Handles one message addressed to this agent.
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage);
+    /// Periodic work (control loops, timeouts), every [`Agent::tick_period`].
+    fn tick(&mut self, _ctx: &mut Context<'_>) {}
+    /// How often [`Agent::tick`] runs; `None` for purely reactive agents.
+    fn tick_period(&self) -> Option<Duration> {
+        None
+    }
+    /// Called once when the agent is removed (JADE's `takeDown`).
+    fn take_down(&mut self, _ctx: &mut Context<'_>) {}
+}
+
+/// An agent's view of the platform during one call.
+pub struct Context<'a> {
+    aid: &'a AgentId,
+    bus: &'a Bus,
+    now: Time,
+    sent: &'a mut u64,
+    failed: &'a mut u64,
+}
+
+impl Context<'_> {
+    /// This agent's identifier.
+    pub fn aid(&self) -> &AgentId {
+        self.aid
+    }
+
+    /// This agent's name on the bus.
+    pub fn name(&self) -> &str {
+        &self.aid.name
+    }
+
+    /// The time of this step.
+    pub fn now(&self) -> Time {
+        self.now
+    }
+
+    /// Sends `message` to each of its receivers, as this agent (the sender is set here, so an
+    /// agent cannot speak for another). Failures are returned and counted in [`HostStats`].
+    pub fn send(&mut self, mut message: AclMessage) -> Result<(), AgentError> {
+        message.sender = Some(self.aid.clone());
+        if message.receivers.is_empty() {
+            let err = AgentError::NoReceiver { agent: self.aid.name.clone(), performative: message.performative };
+            return Err(self.keep(err));
+        }
+        let text = iw_acl::codec::print(&message);
+        for receiver in &message.receivers {
+            if let Err(source) = self.bus.send(&self.aid.name, &receiver.name, text.clone().into_bytes()) {
+                let err = AgentError::Bus { agent: self.aid.name.clone(), source };
+                return Err(self.keep(err));
+            }
+            *self.sent += 1;
+        }
+        Ok(())
+    }
+
+    /// Replies `not-understood` to `message` with a reason, as FIPA asks of an agent that cannot
+    /// process what it received.
+    pub fn not_understood(&mut self, message: &AclMessage, reason: &str) -> Result<(), AgentError> {
+        let mut reply = message.create_reply().with_performative(Performative::NotUnderstood);
+        reply.content = None;
+        let reply = reply.with_content(format!("((error-message \"{}\"))", reason.replace('"', "'")));
+        self.send(reply)
+    }
+
+    fn keep(&mut self, err: AgentError) -> AgentError {
+        tracing::warn!(agent = %self.aid.name, error = %err, "send failed");
+        *self.failed += 1;
+        err
+    }
+}
+
+struct Slot {
+    aid: AgentId,
+    agent: Box<dyn Agent>,
+    mailbox: Mailbox,
+    started: bool,
+    next_tick: Option<Time>,
+}
+
+/// Counts of what the host did, for reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct HostStats {
+    /// Messages handed to agents.
+    pub delivered: u64,
+    /// Messages agents sent.
+    pub sent: u64,
+    /// Payloads that were not well-formed ACL.
+    pub malformed: u64,
+    /// Sends that failed (no route, no receiver, transport error).
+    pub send_failures: u64,
+}
+
+/// The agents of one container, run on one bus.
+pub struct AgentHost {
+    bus: Arc<Bus>,
+    slots: Vec<Slot>,
+    stats: HostStats,
+}
+
+impl AgentHost {
+    /// A host with no agents on `bus`.
+    pub fn new(bus: Arc<Bus>) -> AgentHost {
+        AgentHost { bus, slots: Vec::new(), stats: HostStats::default() }
+    }
+
+    /// The bus the agents talk on.
+    pub fn bus(&self) -> &Arc<Bus> {
+        &self.bus
+    }
+
+    /// Registers `agent` under `aid` (its name is its bus address); it starts at the next step.
+    pub fn add(&mut self, aid: AgentId, agent: Box<dyn Agent>) -> Result<(), AgentError> {
+        let mailbox = self
+            .bus
+            .register(&aid.name)
+            .map_err(|source| AgentError::Bus { agent: aid.name.clone(), source })?;
+        self.slots.push(Slot { aid, agent, mailbox, started: false, next_tick: None });
+        Ok(())
+    }
+
+    /// Removes an agent (its `take_down` runs); returns whether it was here.
+    pub fn remove(&mut self, name: &str, now: Time) -> bool {
+        let Some(index) = self.slots.iter().position(|s| s.aid.name == name) else { return false };
+        let mut slot = self.slots.remove(index);
+        let mut sent = 0;
+        let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures };
+        slot.agent.take_down(&mut ctx);
+        self.stats.sent += sent;
+        self.bus.deregister(name);
+        true
+    }
+
+    /// Names of the agents hosted here (the container's Local Agent List).
+    pub fn agent_names(&self) -> Vec<String> {
+        self.slots.iter().map(|s| s.aid.name.clone()).collect()
+    }
+
+    /// What the host has done so far.
+    pub fn stats(&self) -> HostStats {
+        self.stats
+    }
+
+    /// Runs every agent once at time `now`: setup if new, every waiting message, the tick if
+    /// due; then delivers what they sent each other, for up to [`MAX_ROUNDS_PER_STEP`] rounds.
+    /// Returns the number of messages delivered.
+    pub fn step(&mut self, now: Time) -> u64 {
+        let before = self.stats.delivered;
+        for round in 0..MAX_ROUNDS_PER_STEP {
+            let mut activity = false;
+            for slot in &mut self.slots {
+                let mut sent = 0;
+                let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures };
+                if !slot.started {
+                    slot.started = true;
+                    slot.agent.setup(&mut ctx);
+                    slot.next_tick = slot.agent.tick_period().map(|_| now);
+                }
+                while let Some(envelope) = slot.mailbox.try_recv() {
+                    activity = true;
+                    let parsed = envelope.payload_str().map(iw_acl::codec::parse);
+                    match parsed {
+                        Some(Ok(mut message)) => {
+                            // The envelope's sender is authoritative (the parser layer checks
+                            // they agree); a message that omits `:sender` can still be answered.
+                            message.sender.get_or_insert_with(|| AgentId::new(envelope.header.sender.clone()));
+                            self.stats.delivered += 1;
+                            slot.agent.handle(&mut ctx, message);
+                        }
+                        Some(Err(err)) => {
+                            self.stats.malformed += 1;
+                            tracing::warn!(agent = %slot.aid.name, error = %err, "dropped a malformed ACL message");
+                        }
+                        None => {
+                            self.stats.malformed += 1;
+                            tracing::warn!(agent = %slot.aid.name, "dropped a payload that is not UTF-8");
+                        }
+                    }
+                }
+                if round == 0 {
+                    if let (Some(due), Some(period)) = (slot.next_tick, slot.agent.tick_period()) {
+                        if now >= due {
+                            slot.agent.tick(&mut ctx);
+                            // Catch up at most one period late, never in a burst.
+                            slot.next_tick = Some(due.plus(period).max(now));
+                        }
+                    }
+                }
+                self.stats.sent += sent;
+                activity |= sent > 0;
+            }
+            if !activity {
+                break;
+            }
+        }
+        self.stats.delivered - before
+    }
+
+    /// Steps in real time every `period` of the bus clock until `stop` is set.
+    pub fn run_until(&mut self, period: Duration, stop: &AtomicBool) {
+        while !stop.load(Ordering::Acquire) {
+            let now = self.bus.clock().now();
+            self.step(now);
+            let next = now.plus(period);
+            let wait = next.since(self.bus.clock().now());
+            std::thread::sleep(wait.min(period));
+        }
+    }
+
+    /// Removes every agent, running their `take_down`.
+    pub fn shutdown(&mut self, now: Time) {
+        for name in self.agent_names() {
+            self.remove(&name, now);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use iw_bus::{BusConfig, Clock, InProcNetwork, Stack};
+
+    /// Answers every request with an inform carrying the same content.
+    struct Echo;
+    impl Agent for Echo {
+        fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+            if message.performative == Performative::Request {
+                let content = message.content_text().unwrap_or_default().to_string();
+                let reply = message.create_reply().with_performative(Performative::Inform).with_content(content);
+                ctx.send(reply).unwrap();
+            } else {
+                ctx.not_understood(&message, "only requests").unwrap();
+            }
+        }
+    }
+
+    /// Sends one request per tick to `echo` and counts the answers.
+    struct Pinger {
+        asked: u32,
+        answers: Arc<std::sync::Mutex<Vec<String>>>,
+    }
+    impl Agent for Pinger {
+        fn tick_period(&self) -> Option<Duration> {
+            Some(Duration::from_millis(100))
+        }
+        fn tick(&mut self, ctx: &mut Context<'_>) {
+            self.asked += 1;
+            let request = AclMessage::new(Performative::Request)
+                .with_receiver(AgentId::new("echo@c1"))
+                .with_content(format!("ping {}", self.asked))
+                .with_conversation_id(format!("c{}", self.asked));
+            // A failure is counted by the host; the test reads it there.
+            let _ = ctx.send(request);
+        }
+        fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
+            let line = format!("{} {}", message.performative, message.content_text().unwrap_or_default());
+            self.answers.lock().unwrap().push(line);
+        }
+    }
+
+    fn host() -> (AgentHost, iw_bus::MockController) {
+        let network = InProcNetwork::new();
+        let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
+        let transport = Arc::new(network.endpoint("c1").unwrap());
+        let bus = Bus::start(Stack::new(), transport, clock, BusConfig::default()).unwrap();
+        (AgentHost::new(Arc::new(bus)), controller)
+    }
+
+    #[test]
+    fn agents_talk_only_through_acl_and_ticks_follow_simulated_time() {
+        let (mut host, clock) = host();
+        let answers = Arc::new(std::sync::Mutex::new(Vec::new()));
+        host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
+        host.add(AgentId::new("pinger@c1"), Box::new(Pinger { asked: 0, answers: answers.clone() })).unwrap();
+        for _ in 0..5 {
+            host.step(clock.now());
+            clock.advance(Duration::from_millis(50));
+        }
+        // Ticks at 0, 100 and 200 ms of the 250 ms run; each answered within its own step.
+        assert_eq!(*answers.lock().unwrap(), ["INFORM ping 1", "INFORM ping 2", "INFORM ping 3"]);
+        assert_eq!(host.stats(), HostStats { delivered: 6, sent: 6, malformed: 0, send_failures: 0 });
+    }
+
+    #[test]
+    fn wrong_performative_gets_not_understood_and_unknown_receivers_are_errors() {
+        let (mut host, clock) = host();
+        let answers = Arc::new(std::sync::Mutex::new(Vec::new()));
+        host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
+        host.add(AgentId::new("pinger@c1"), Box::new(Pinger { asked: 0, answers: answers.clone() })).unwrap();
+        host.bus().send("pinger@c1", "echo@c1", b"(inform :content \"hello\")".to_vec()).unwrap();
+        host.bus().send("pinger@c1", "echo@c1", b"this is not ACL".to_vec()).unwrap();
+        host.step(clock.now());
+        assert!(answers.lock().unwrap().iter().any(|a| a.starts_with("NOT-UNDERSTOOD")), "{answers:?}");
+        assert_eq!(host.stats().malformed, 1);
+        assert!(host.add(AgentId::new("echo@c1"), Box::new(Echo)).is_err(), "names are unique per bus");
+        assert!(host.remove("echo@c1", clock.now()));
+        host.step(clock.now().plus(Duration::from_millis(100)));
+        assert_eq!(host.stats().send_failures, 1, "sending to a removed agent is reported");
+    }
+}
