@@ -1,0 +1,224 @@
+//! The wheelchair body model: footprint, drive limits, encoder errors and the sensor layout of
+//! thesis figure 3.4.
+
+use iw_body::{SONAR_COUNT, WheelGeometry};
+use nalgebra::{Isometry2, Point2, Vector2};
+
+/// One sonar: where it sits on the body and where it looks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SonarMount {
+    /// Transducer pose in the body frame (x forward, y left), acoustic axis along its x.
+    pub t_body_sonar: Isometry2<f64>,
+}
+
+/// The sonar model shared by all 16 transducers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SonarModel {
+    /// Full cone angle, deg (45 in thesis 3.4).
+    pub cone_deg: f64,
+    /// Rays cast across the cone; the nearest echo is the reading.
+    pub rays: usize,
+    /// Closest measurable range, m (nearer objects read as this).
+    pub min_range_m: f64,
+    /// Farthest echo, m; beyond it the reading is `None`.
+    pub max_range_m: f64,
+    /// Standard deviation of the range noise, m.
+    pub noise_std_m: f64,
+}
+
+/// A 2D laser scanner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserModel {
+    /// Scanner pose in the body frame; beams are spread symmetrically around its x axis.
+    pub t_body_laser: Isometry2<f64>,
+    /// Field of view, deg (270 in thesis 3.4).
+    pub fov_deg: f64,
+    /// Number of beams (first at -fov/2, last at +fov/2).
+    pub beams: usize,
+    /// Maximum range, m; beams that hit nothing read this.
+    pub max_range_m: f64,
+    /// Standard deviation of the range noise, m.
+    pub noise_std_m: f64,
+}
+
+/// The RGB-D camera (Kinect-like, thesis 3.4: 58 x 45 deg, 0.5 - 3.5 m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraModel {
+    /// Camera position and heading in the body frame (optical axis along the body-frame x of
+    /// this pose, level with the floor).
+    pub t_body_camera: Isometry2<f64>,
+    /// Lens height above the floor, m.
+    pub height_m: f64,
+    /// Image width, px.
+    pub width_px: u32,
+    /// Image height, px.
+    pub height_px: u32,
+    /// Horizontal field of view, deg.
+    pub hfov_deg: f64,
+    /// Nearest valid depth, m (nearer reads 0 = invalid, as a Kinect does).
+    pub min_depth_m: f64,
+    /// Farthest valid depth, m.
+    pub max_depth_m: f64,
+}
+
+impl CameraModel {
+    /// Pinhole intrinsics `(fx, fy, cx, cy)` in px (square pixels).
+    pub fn intrinsics(&self) -> (f64, f64, f64, f64) {
+        let fx = self.width_px as f64 / 2.0 / (self.hfov_deg.to_radians() / 2.0).tan();
+        (fx, fx, self.width_px as f64 / 2.0 - 0.5, self.height_px as f64 / 2.0 - 0.5)
+    }
+}
+
+/// Encoder error model: what makes dead reckoning drift.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EncoderModel {
+    /// Tyre compression range: each wheel's effective radius is the nominal one times
+    /// `1 - c`, `c` drawn once per chair uniformly in this range (load, tyre pressure).
+    pub compression: (f64, f64),
+    /// Standard deviation of the per-step slip fraction (ground travel lost to slip).
+    pub slip_std: f64,
+    /// Extra slip per m/s^2 of wheel acceleration (wheels spin when accelerating hard).
+    pub slip_per_mps2: f64,
+}
+
+/// Everything that defines a chair model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChairSpec {
+    /// Footprint reach in front of the drive axle, m.
+    pub front_m: f64,
+    /// Footprint reach behind the drive axle, m.
+    pub rear_m: f64,
+    /// Half the footprint width, m.
+    pub half_width_m: f64,
+    /// Drive geometry (nominal wheel radius, track, ticks per revolution).
+    pub geometry: WheelGeometry,
+    /// Top wheel speed, m/s.
+    pub max_wheel_mps: f64,
+    /// Wheel acceleration limit, m/s^2.
+    pub max_wheel_accel_mps2: f64,
+    /// Encoder errors.
+    pub encoder: EncoderModel,
+    /// The 16 sonars, S1 first.
+    pub sonars: [SonarMount; SONAR_COUNT],
+    /// Sonar physics.
+    pub sonar: SonarModel,
+    /// The laser scanner, if fitted.
+    pub laser: Option<LaserModel>,
+    /// The RGB-D camera.
+    pub camera: CameraModel,
+}
+
+impl Default for ChairSpec {
+    /// A mid-size rear-wheel-drive powered wheelchair, 0.65 x 1.1 m, with the IntellWheels
+    /// sensor bars.
+    fn default() -> Self {
+        let (front_m, rear_m, half_width_m) = (0.75, 0.35, 0.325);
+        Self {
+            front_m,
+            rear_m,
+            half_width_m,
+            geometry: WheelGeometry::default(),
+            max_wheel_mps: 1.5,
+            max_wheel_accel_mps2: 1.2,
+            encoder: EncoderModel { compression: (0.005, 0.03), slip_std: 0.01, slip_per_mps2: 0.02 },
+            sonars: sonar_layout(front_m, rear_m, half_width_m),
+            sonar: SonarModel { cone_deg: 45.0, rays: 7, min_range_m: 0.05, max_range_m: 3.0, noise_std_m: 0.01 },
+            laser: Some(LaserModel {
+                t_body_laser: Isometry2::new(Vector2::new(front_m - 0.05, half_width_m), 0.0),
+                fov_deg: 270.0,
+                beams: 271,
+                max_range_m: 10.0,
+                noise_std_m: 0.01,
+            }),
+            camera: CameraModel {
+                t_body_camera: Isometry2::new(Vector2::new(front_m, 0.0), 0.0),
+                height_m: 0.9,
+                width_px: 320,
+                height_px: 240,
+                hfov_deg: 58.0,
+                min_depth_m: 0.5,
+                max_depth_m: 3.5,
+            },
+        }
+    }
+}
+
+/// The sensor-bar layout of thesis figure 3.4 (body frame: x forward, y left, origin at the
+/// drive axle centre). Right bar: S1 (ahead) and S2 (45 deg right) on the front tip, S3-S6
+/// facing right 22 cm apart front to back, S7 (135 deg right) and S8 (behind) on the rear tip.
+/// Left bar mirrors it back to front: S9 (behind), S10, S11-S14 facing left rear to front, S15,
+/// S16 (ahead). Lateral cones of 45 deg 22 cm apart overlap from 0.22 / (2 tan 22.5) = 27 cm.
+pub fn sonar_layout(front_m: f64, rear_m: f64, half_width_m: f64) -> [SonarMount; SONAR_COUNT] {
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    let mid = (front_m - rear_m) / 2.0;
+    let lateral = [mid + 0.33, mid + 0.11, mid - 0.11, mid - 0.33];
+    let at = |x: f64, y: f64, heading: f64| SonarMount { t_body_sonar: Isometry2::new(Vector2::new(x, y), heading) };
+    let (f, r, w) = (front_m, -rear_m, half_width_m);
+    [
+        at(f, -w, 0.0),
+        at(f - 0.03, -w, -FRAC_PI_4),
+        at(lateral[0], -w, -FRAC_PI_2),
+        at(lateral[1], -w, -FRAC_PI_2),
+        at(lateral[2], -w, -FRAC_PI_2),
+        at(lateral[3], -w, -FRAC_PI_2),
+        at(r + 0.03, -w, -3.0 * FRAC_PI_4),
+        at(r, -w, PI),
+        at(r, w, PI),
+        at(r + 0.03, w, 3.0 * FRAC_PI_4),
+        at(lateral[3], w, FRAC_PI_2),
+        at(lateral[2], w, FRAC_PI_2),
+        at(lateral[1], w, FRAC_PI_2),
+        at(lateral[0], w, FRAC_PI_2),
+        at(f - 0.03, w, FRAC_PI_4),
+        at(f, w, 0.0),
+    ]
+}
+
+impl ChairSpec {
+    /// Footprint corners in the body frame, counter-clockwise.
+    pub fn footprint(&self) -> [Point2<f64>; 4] {
+        [
+            Point2::new(-self.rear_m, -self.half_width_m),
+            Point2::new(self.front_m, -self.half_width_m),
+            Point2::new(self.front_m, self.half_width_m),
+            Point2::new(-self.rear_m, self.half_width_m),
+        ]
+    }
+
+    /// Distance from the body origin to the farthest footprint corner, m.
+    pub fn reach_m(&self) -> f64 {
+        self.footprint().iter().map(|p| p.coords.norm()).fold(0.0, f64::max)
+    }
+
+    /// Footprint corners in the world for a body at `t_world_body`.
+    pub fn footprint_at(&self, t_world_body: &Isometry2<f64>) -> [Point2<f64>; 4] {
+        self.footprint().map(|p| t_world_body * p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lateral_sonars_are_22cm_apart_and_cones_overlap_from_27cm() {
+        let spec = ChairSpec::default();
+        let s = &spec.sonars;
+        for k in 2..5 {
+            let d = (s[k].t_body_sonar.translation.vector - s[k + 1].t_body_sonar.translation.vector).norm();
+            assert!((d - 0.22).abs() < 1e-12);
+        }
+        let half_cone = (spec.sonar.cone_deg / 2.0).to_radians();
+        let overlap_from = 0.22 / (2.0 * half_cone.tan());
+        assert!(overlap_from > 0.26 && overlap_from < 0.28, "{overlap_from}");
+    }
+
+    #[test]
+    fn front_and_rear_pairs_differ_by_45_degrees() {
+        let s = ChairSpec::default().sonars;
+        for (a, b) in [(0, 1), (6, 7), (8, 9), (14, 15)] {
+            let d = s[a].t_body_sonar.rotation.angle_to(&s[b].t_body_sonar.rotation).abs();
+            assert!((d - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
+        }
+    }
+}
