@@ -1,2 +1,40 @@
-//! FIPA interaction protocols as typed state machines.
+//! FIPA interaction protocols as typed state machines, independent of any transport.
+//!
+//! An agent opens a conversation with an [`Initiator`] (fipa-request, fipa-query,
+//! fipa-request-when, fipa-contract-net and its iterated form, fipa-subscribe, fipa-propose) and
+//! answers one with a [`Responder`]. Both run the same transition table
+//! ([`Protocol::after_participant_act`], [`Protocol::after_initiator_act`]) over typed
+//! [`SessionState`]s, so a responder cannot send what the initiator would reject.
+//!
+//! # Organization
+//! - [`Protocol`], [`SessionState`], [`Outcome`]: the protocols and their state machine.
+//! - [`Initiator`]: one engine for all protocols (modelled on JADE's `AchieveREInitiator`):
+//!   a [`Session`] per participant keyed by `reply-with`, [`Event`]s or a typed [`Handler`],
+//!   contract-net decisions ([`Initiator::decide`], [`Initiator::iterate`]) and
+//!   [`Initiator::cancel`] for subscriptions.
+//! - [`Responder`]: the participant's side.
+//! - [`Error`]: out-of-protocol acts, late answers, foreign conversations.
+//!
+//! # Guarantees
+//! - A message the protocol does not allow in the session's state is refused with
+//!   [`Error::OutOfProtocol`] and changes nothing.
+//! - Replies are matched by conversation id and `in-reply-to`; a reply from another agent than
+//!   the session's participant is refused.
+//! - `reply-by` bounds the first answer of each round: later ones are refused
+//!   ([`Error::Late`]) and [`Initiator::tick`] turns silence into [`Outcome::TimedOut`]. Time is
+//!   always an explicit `now_unix_ms` argument: the logic never reads a clock.
+//!
+//! # Known limits
+//! - Only the first answer of a round has a deadline; a result after AGREE may come any time.
+//! - In a subscription being cancelled, any INFORM counts as the cancel confirmation.
 #![warn(missing_docs)]
+
+mod error;
+mod initiator;
+mod protocol;
+mod responder;
+
+pub use error::Error;
+pub use initiator::{Event, EventKind, Handler, Initiator, Session};
+pub use protocol::{Outcome, Protocol, SessionState};
+pub use responder::Responder;

@@ -1,0 +1,111 @@
+//! The responder engine: the participant's side of one conversation, on the same state table
+//! as the initiator, so it can only send what the initiator will accept.
+
+use iw_acl::{AclMessage, AgentId, Performative};
+
+use crate::initiator::opening_protocol;
+use crate::{Error, Protocol, SessionState};
+
+/// The participant's side of one conversation.
+///
+/// Create it from the opening message with [`Responder::accept`], answer with
+/// [`Responder::reply`] and feed the initiator's follow-ups (ACCEPT/REJECT-PROPOSAL, a new CFP,
+/// CANCEL) to [`Responder::handle`].
+#[derive(Clone, Debug)]
+pub struct Responder {
+    protocol: Protocol,
+    state: SessionState,
+    me: AgentId,
+    initiator: Option<AgentId>,
+    conversation_id: String,
+    /// The initiator's latest message; replies answer it.
+    latest: AclMessage,
+    deadline_unix_ms: Option<i64>,
+}
+
+impl Responder {
+    /// Takes up a conversation opened by `opening` (which must name its protocol, open it
+    /// properly and carry a conversation id), answering as `me`.
+    pub fn accept(opening: &AclMessage, me: AgentId, now_unix_ms: i64) -> Result<Self, Error> {
+        let protocol = opening_protocol(opening)?;
+        let conversation_id = opening.conversation_id.clone().ok_or(Error::MissingConversationId { performative: opening.performative })?;
+        Ok(Self {
+            protocol,
+            state: SessionState::AwaitingResponse,
+            me,
+            initiator: opening.sender.clone(),
+            conversation_id,
+            latest: opening.clone(),
+            deadline_unix_ms: opening.reply_by.map(|t| t.to_unix_ms(now_unix_ms)),
+        })
+    }
+
+    /// The protocol run.
+    pub fn protocol(&self) -> Protocol {
+        self.protocol
+    }
+
+    /// Where the exchange stands.
+    pub fn state(&self) -> SessionState {
+        self.state
+    }
+
+    /// The initiator's latest message (the request, the CFP, the accepted proposal, ...).
+    pub fn latest(&self) -> &AclMessage {
+        &self.latest
+    }
+
+    /// Answers the initiator's latest message with `act` if the protocol allows it now and,
+    /// for a first answer, the `reply-by` deadline has not passed. The caller adds content.
+    pub fn reply(&mut self, act: Performative, now_unix_ms: i64) -> Result<AclMessage, Error> {
+        let participant = self.initiator_name();
+        let state = self.protocol.after_participant_act(self.state, act).ok_or_else(|| Error::OutOfProtocol {
+            protocol: self.protocol,
+            state: self.state,
+            act,
+            participant: participant.clone(),
+        })?;
+        if self.state == SessionState::AwaitingResponse {
+            if let Some(deadline_unix_ms) = self.deadline_unix_ms.filter(|&d| now_unix_ms > d) {
+                return Err(Error::Late { act, participant, deadline_unix_ms, now_unix_ms });
+            }
+        }
+        self.state = state;
+        let mut reply = self.latest.create_reply();
+        reply.performative = act;
+        reply.sender = Some(self.me.clone());
+        reply.protocol = Some(self.protocol.fipa_name().to_owned());
+        reply.conversation_id = Some(self.conversation_id.clone());
+        Ok(reply)
+    }
+
+    /// Applies an initiator follow-up; returns the new state.
+    pub fn handle(&mut self, message: &AclMessage, now_unix_ms: i64) -> Result<SessionState, Error> {
+        if message.conversation_id.as_deref() != Some(self.conversation_id.as_str()) {
+            return Err(Error::WrongConversation { expected: self.conversation_id.clone(), found: message.conversation_id.clone() });
+        }
+        let expected = self.initiator_name();
+        if let Some(sender) = &message.sender {
+            if self.initiator.is_some() && sender.name != expected {
+                return Err(Error::WrongSender { expected, found: sender.name.clone() });
+            }
+        }
+        let act = message.performative;
+        let state = self.protocol.after_initiator_act(self.state, act).ok_or_else(|| Error::OutOfProtocol {
+            protocol: self.protocol,
+            state: self.state,
+            act,
+            participant: expected,
+        })?;
+        if act == Performative::Cfp {
+            self.deadline_unix_ms = message.reply_by.map(|t| t.to_unix_ms(now_unix_ms));
+        }
+        self.state = state;
+        self.latest = message.clone();
+        Ok(state)
+    }
+
+    fn initiator_name(&self) -> String {
+        self.initiator.as_ref().map_or_else(String::new, |a| a.name.clone())
+    }
+}
