@@ -1,0 +1,199 @@
+//! Differential-drive dead reckoning from encoder ticks with the probabilistic odometry motion
+//! model (Thrun, Burgard, Fox, "Probabilistic Robotics", 5.4; thesis 3.3.2): the pose estimate
+//! carries a covariance that grows with the distance travelled and the angle turned.
+
+use nalgebra::{Matrix3, Vector3};
+
+/// A planar pose: position in metres and heading in radians (counter-clockwise from x).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Pose2 {
+    /// x, m.
+    pub x: f64,
+    /// y, m.
+    pub y: f64,
+    /// Heading, rad, wrapped to (-pi, pi].
+    pub theta: f64,
+}
+
+/// Wraps an angle to (-pi, pi].
+pub fn wrap_angle(a: f64) -> f64 {
+    let w = a.rem_euclid(std::f64::consts::TAU);
+    if w > std::f64::consts::PI { w - std::f64::consts::TAU } else { w }
+}
+
+impl Pose2 {
+    /// A pose.
+    pub fn new(x: f64, y: f64, theta: f64) -> Self {
+        Pose2 { x, y, theta: wrap_angle(theta) }
+    }
+
+    /// `self ⊕ delta`: applies a motion expressed in this pose's own frame.
+    pub fn compose(&self, delta: &Pose2) -> Pose2 {
+        let (s, c) = self.theta.sin_cos();
+        Pose2::new(self.x + c * delta.x - s * delta.y, self.y + s * delta.x + c * delta.y, self.theta + delta.theta)
+    }
+
+    /// `self^-1 ⊕ other`: `other` seen from this pose's frame.
+    pub fn between(&self, other: &Pose2) -> Pose2 {
+        let (s, c) = self.theta.sin_cos();
+        let (dx, dy) = (other.x - self.x, other.y - self.y);
+        Pose2::new(c * dx + s * dy, -s * dx + c * dy, other.theta - self.theta)
+    }
+}
+
+/// Drive geometry and the motion model's noise parameters.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DiffDriveParams {
+    /// Drive wheel radius, m.
+    pub wheel_radius_m: f64,
+    /// Distance between the wheels' contact points, m.
+    pub track_m: f64,
+    /// Encoder ticks per wheel revolution.
+    pub ticks_per_rev: f64,
+    /// Motion model alphas (Thrun 5.4): rotation noise from rotation (rad^2/rad^2), from
+    /// translation (rad^2/m^2), translation noise from translation (m^2/m^2), from rotation (m^2/rad^2).
+    pub alpha: [f64; 4],
+}
+
+impl Default for DiffDriveParams {
+    /// A powered wheelchair: 0.175 m wheels 0.56 m apart, 36 864 ticks per revolution, and noise
+    /// of a few percent of the motion.
+    fn default() -> Self {
+        DiffDriveParams { wheel_radius_m: 0.175, track_m: 0.56, ticks_per_rev: 36_864.0, alpha: [0.01, 0.002, 0.01, 0.002] }
+    }
+}
+
+/// One motion step in the odometry model's terms: turn, drive straight, turn.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct OdometryStep {
+    /// First rotation, rad.
+    pub rot1: f64,
+    /// Straight-line distance, m (negative when reversing).
+    pub trans: f64,
+    /// Second rotation, rad.
+    pub rot2: f64,
+}
+
+impl OdometryStep {
+    /// The step from wheel travel: the mid-point arc approximation (half the turn before, half after).
+    pub fn from_wheels(left_m: f64, right_m: f64, track_m: f64) -> Self {
+        let dtheta = (right_m - left_m) / track_m;
+        OdometryStep { rot1: 0.5 * dtheta, trans: 0.5 * (left_m + right_m), rot2: 0.5 * dtheta }
+    }
+
+    /// The motion in the start pose's frame.
+    pub fn as_delta(&self) -> Pose2 {
+        let (s, c) = self.rot1.sin_cos();
+        Pose2::new(self.trans * c, self.trans * s, self.rot1 + self.rot2)
+    }
+
+    /// Covariance of (rot1, trans, rot2) under the model's alphas (Thrun table 5.6).
+    pub fn covariance(&self, alpha: &[f64; 4]) -> Matrix3<f64> {
+        let (r1, t, r2) = (self.rot1 * self.rot1, self.trans * self.trans, self.rot2 * self.rot2);
+        Matrix3::from_diagonal(&Vector3::new(
+            alpha[0] * r1 + alpha[1] * t,
+            alpha[2] * t + alpha[3] * (r1 + r2),
+            alpha[0] * r2 + alpha[1] * t,
+        ))
+    }
+
+    /// Applies the step to `pose` and propagates `covariance`: `G P G^T + V M V^T`.
+    pub fn propagate(&self, pose: &Pose2, covariance: &Matrix3<f64>, alpha: &[f64; 4]) -> (Pose2, Matrix3<f64>) {
+        let heading = pose.theta + self.rot1;
+        let (s, c) = heading.sin_cos();
+        let g = Matrix3::new(1.0, 0.0, -self.trans * s, 0.0, 1.0, self.trans * c, 0.0, 0.0, 1.0);
+        let v = Matrix3::new(-self.trans * s, c, 0.0, self.trans * c, s, 0.0, 1.0, 0.0, 1.0);
+        let next = pose.compose(&self.as_delta());
+        (next, g * covariance * g.transpose() + v * self.covariance(alpha) * v.transpose())
+    }
+}
+
+/// Dead reckoning from cumulative encoder counts.
+#[derive(Debug, Clone)]
+pub struct WheelOdometry {
+    params: DiffDriveParams,
+    last_ticks: Option<(i64, i64)>,
+    pose: Pose2,
+    covariance: Matrix3<f64>,
+}
+
+impl WheelOdometry {
+    /// Starts at `pose` with zero uncertainty.
+    pub fn new(params: DiffDriveParams, pose: Pose2) -> Self {
+        WheelOdometry { params, last_ticks: None, pose, covariance: Matrix3::zeros() }
+    }
+
+    /// Feeds the cumulative tick counts of both wheels; returns the step since the last call
+    /// (`None` on the first call, which only latches the counters).
+    pub fn update(&mut self, left_ticks: i64, right_ticks: i64) -> Option<OdometryStep> {
+        let previous = self.last_ticks.replace((left_ticks, right_ticks))?;
+        let m_per_tick = std::f64::consts::TAU * self.params.wheel_radius_m / self.params.ticks_per_rev;
+        let left = left_ticks.wrapping_sub(previous.0) as f64 * m_per_tick;
+        let right = right_ticks.wrapping_sub(previous.1) as f64 * m_per_tick;
+        let step = OdometryStep::from_wheels(left, right, self.params.track_m);
+        (self.pose, self.covariance) = step.propagate(&self.pose, &self.covariance, &self.params.alpha);
+        Some(step)
+    }
+
+    /// Dead-reckoned pose.
+    pub fn pose(&self) -> Pose2 {
+        self.pose
+    }
+
+    /// Covariance of (x, y, theta).
+    pub fn covariance(&self) -> Matrix3<f64> {
+        self.covariance
+    }
+
+    /// Drive geometry and noise.
+    pub fn params(&self) -> &DiffDriveParams {
+        &self.params
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn straight_and_turn_in_place() {
+        let params = DiffDriveParams::default();
+        let ticks_per_m = params.ticks_per_rev / (std::f64::consts::TAU * params.wheel_radius_m);
+        let mut odo = WheelOdometry::new(params, Pose2::default());
+        assert!(odo.update(0, 0).is_none());
+        let one_m = (ticks_per_m).round() as i64;
+        odo.update(one_m, one_m);
+        assert!((odo.pose().x - 1.0).abs() < 1e-4 && odo.pose().y.abs() < 1e-9);
+        // Turn in place by +90 deg: right wheel forward, left back, each a quarter of pi*track.
+        let arc = (std::f64::consts::FRAC_PI_2 * 0.5 * params.track_m * ticks_per_m).round() as i64;
+        odo.update(one_m - arc, one_m + arc);
+        assert!((odo.pose().theta - std::f64::consts::FRAC_PI_2).abs() < 1e-3);
+        assert!((odo.pose().x - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn covariance_grows_with_travel() {
+        let params = DiffDriveParams::default();
+        let mut odo = WheelOdometry::new(params, Pose2::default());
+        odo.update(0, 0);
+        let mut last_trace = 0.0;
+        for i in 1..=20 {
+            odo.update(i * 2000, i * 2100);
+            let trace = odo.covariance().trace();
+            assert!(trace > last_trace, "step {i}: {trace} <= {last_trace}");
+            last_trace = trace;
+        }
+        let eig = odo.covariance().symmetric_eigenvalues();
+        assert!(eig.iter().all(|e| *e >= -1e-12), "positive semi-definite: {eig}");
+    }
+
+    #[test]
+    fn between_inverts_compose() {
+        let a = Pose2::new(1.0, -2.0, 2.5);
+        let d = Pose2::new(0.3, 0.1, 1.2);
+        let b = a.compose(&d);
+        let back = a.between(&b);
+        assert!((back.x - d.x).abs() < 1e-12 && (back.y - d.y).abs() < 1e-12 && (back.theta - d.theta).abs() < 1e-12);
+        assert!((wrap_angle(3.5 * std::f64::consts::PI) + 0.5 * std::f64::consts::PI).abs() < 1e-12);
+    }
+}
