@@ -29,7 +29,9 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
         Command::Parse { level } => {
             let mut input = String::new();
-            std::io::stdin().read_to_string(&mut input).context("reading SL content from stdin")?;
+            std::io::stdin()
+                .read_to_string(&mut input)
+                .context("reading SL content from stdin")?;
             let content = iw_sl::parse(&input, level)
                 .with_context(|| format!("SL content refused at level {level}"))?;
             let out = serde_json::json!({

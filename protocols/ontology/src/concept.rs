@@ -39,9 +39,16 @@ impl<'a> Frame<'a> {
                     Arguments::Named(p) => (p, &[]),
                     Arguments::Positional(t) => (&[], t),
                 };
-                Ok(Self { concept, params, positional })
+                Ok(Self {
+                    concept,
+                    params,
+                    positional,
+                })
             }
-            _ => Err(OntologyError::UnexpectedTerm { expected: concept, found: shown(term) }),
+            _ => Err(OntologyError::UnexpectedTerm {
+                expected: concept,
+                found: shown(term),
+            }),
         }
     }
 
@@ -52,31 +59,49 @@ impl<'a> Frame<'a> {
 
     /// The `n`-th positional argument, required.
     pub fn arg(&self, n: usize, slot: &'static str) -> Result<&'a Term, OntologyError> {
-        self.positional.get(n).ok_or(OntologyError::MissingSlot { concept: self.concept, slot })
+        self.positional.get(n).ok_or(OntologyError::MissingSlot {
+            concept: self.concept,
+            slot,
+        })
     }
 
     /// The value of `:slot`, if present.
     pub fn get(&self, slot: &str) -> Option<&'a Term> {
-        self.params.iter().find(|p| p.name.eq_ignore_ascii_case(slot)).map(|p| &p.value)
+        self.params
+            .iter()
+            .find(|p| p.name.eq_ignore_ascii_case(slot))
+            .map(|p| &p.value)
     }
 
     /// The value of `:slot`, required.
     pub fn require(&self, slot: &'static str) -> Result<&'a Term, OntologyError> {
-        self.get(slot).ok_or(OntologyError::MissingSlot { concept: self.concept, slot })
+        self.get(slot).ok_or(OntologyError::MissingSlot {
+            concept: self.concept,
+            slot,
+        })
     }
 
     /// Every `:X-...` slot, in order (user-defined slots).
     pub fn user_slots(&self) -> impl Iterator<Item = &'a Parameter> {
-        self.params.iter().filter(|p| p.name.len() > 2 && p.name[..2].eq_ignore_ascii_case("x-"))
+        self.params
+            .iter()
+            .filter(|p| p.name.len() > 2 && p.name[..2].eq_ignore_ascii_case("x-"))
     }
 
     fn bad(&self, slot: &'static str, value: &Term, reason: &'static str) -> OntologyError {
-        OntologyError::BadValue { concept: self.concept, slot, value: shown(value), reason }
+        OntologyError::BadValue {
+            concept: self.concept,
+            slot,
+            value: shown(value),
+            reason,
+        }
     }
 
     /// `:slot` as text (any constant, written as its text).
     pub fn text(&self, slot: &'static str) -> Result<Option<String>, OntologyError> {
-        self.get(slot).map(|t| text_of(t).ok_or_else(|| self.bad(slot, t, "expected a word or string"))).transpose()
+        self.get(slot)
+            .map(|t| text_of(t).ok_or_else(|| self.bad(slot, t, "expected a word or string")))
+            .transpose()
     }
 
     /// `:slot` as text, required.
@@ -143,6 +168,52 @@ pub(crate) fn number_of(term: &Term) -> Option<f64> {
     }
 }
 
+/// An enum whose values are SL words (`active`, `open`): derives, the word of each value and
+/// the value of a word (any ASCII case).
+macro_rules! word_enum {
+    ($(#[$meta:meta])* pub enum $name:ident { $($(#[$vmeta:meta])* $variant:ident => $word:literal,)+ }) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+        #[serde(rename_all = "kebab-case")]
+        pub enum $name {
+            $($(#[$vmeta])* $variant,)+
+        }
+
+        impl $name {
+            /// The SL word.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Self::$variant => $word,)+
+                }
+            }
+
+            /// The value written `word` (any ASCII case).
+            pub fn from_word(word: &str) -> Option<Self> {
+                [$(Self::$variant,)+].into_iter().find(|v| v.name().eq_ignore_ascii_case(word))
+            }
+        }
+    };
+}
+pub(crate) use word_enum;
+
+/// Reads a word-valued slot through `from_word`.
+pub(crate) fn word_value<T>(
+    term: &Term,
+    concept: &'static str,
+    slot: &'static str,
+    from_word: fn(&str) -> Option<T>,
+    reason: &'static str,
+) -> Result<T, OntologyError> {
+    text_of(term)
+        .and_then(|w| from_word(&w))
+        .ok_or_else(|| OntologyError::BadValue {
+            concept,
+            slot,
+            value: shown(term),
+            reason,
+        })
+}
+
 /// Builds `(symbol :slot value ...)`, leaving out absent and empty slots.
 pub(crate) struct FrameBuilder {
     symbol: &'static str,
@@ -151,7 +222,10 @@ pub(crate) struct FrameBuilder {
 
 impl FrameBuilder {
     pub fn new(symbol: &'static str) -> Self {
-        Self { symbol, params: Vec::new() }
+        Self {
+            symbol,
+            params: Vec::new(),
+        }
     }
 
     pub fn term(mut self, slot: &str, value: Term) -> Self {
@@ -186,7 +260,11 @@ impl FrameBuilder {
     }
 
     pub fn texts(self, slot: &str, kind: Collection, items: &[String]) -> Self {
-        self.list(slot, kind, items.iter().map(|s| Term::string(s.as_str())).collect())
+        self.list(
+            slot,
+            kind,
+            items.iter().map(|s| Term::string(s.as_str())).collect(),
+        )
     }
 
     pub fn concepts<C: Concept>(self, slot: &str, kind: Collection, items: &[C]) -> Self {

@@ -9,7 +9,9 @@ use iw_sl::{
 };
 use serde::{Deserialize, Serialize};
 
-use crate::concept::{Concept, Frame, FrameBuilder, is_frame, shown, text_of};
+use crate::concept::{
+    Concept, Frame, FrameBuilder, is_frame, shown, text_of, word_enum, word_value,
+};
 use crate::error::OntologyError;
 
 /// The `:ontology` name of this ontology.
@@ -60,12 +62,18 @@ pub struct Property {
 
 impl Concept for Property {
     fn to_term(&self) -> Term {
-        FrameBuilder::new("property").text("name", Some(&self.name)).term("value", self.value.clone()).build()
+        FrameBuilder::new("property")
+            .text("name", Some(&self.name))
+            .term("value", self.value.clone())
+            .build()
     }
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         let f = Frame::read(term, "property")?;
-        Ok(Self { name: f.required_text("name")?, value: f.require("value")?.clone() })
+        Ok(Self {
+            name: f.required_text("name")?,
+            value: f.require("value")?.clone(),
+        })
     }
 }
 
@@ -141,7 +149,12 @@ impl Concept for DfAgentDescription {
             .texts("protocols", Collection::Set, &self.protocols)
             .texts("ontologies", Collection::Set, &self.ontologies)
             .texts("languages", Collection::Set, &self.languages)
-            .opt_term("lease-time", self.lease_time.map(|d| Term::Constant { value: iw_sl::Constant::DateTime(d) }))
+            .opt_term(
+                "lease-time",
+                self.lease_time.map(|d| Term::Constant {
+                    value: iw_sl::Constant::DateTime(d),
+                }),
+            )
             .build()
     }
 
@@ -172,34 +185,19 @@ impl Concept for DfAgentDescription {
     }
 }
 
-/// An agent's life-cycle state as the AMS reports it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AgentState {
-    /// `initiated`
-    Initiated,
-    /// `active`
-    Active,
-    /// `suspended`
-    Suspended,
-    /// `waiting`
-    Waiting,
-    /// `transit`
-    Transit,
-}
-
-impl AgentState {
-    const ALL: [(AgentState, &'static str); 5] = [
-        (AgentState::Initiated, "initiated"),
-        (AgentState::Active, "active"),
-        (AgentState::Suspended, "suspended"),
-        (AgentState::Waiting, "waiting"),
-        (AgentState::Transit, "transit"),
-    ];
-
-    /// The SL word.
-    pub fn name(self) -> &'static str {
-        Self::ALL.iter().find(|(s, _)| *s == self).map_or("active", |(_, n)| n)
+word_enum! {
+    /// An agent's life-cycle state as the AMS reports it.
+    pub enum AgentState {
+        /// `initiated`
+        Initiated => "initiated",
+        /// `active`
+        Active => "active",
+        /// `suspended`
+        Suspended => "suspended",
+        /// `waiting`
+        Waiting => "waiting",
+        /// `transit`
+        Transit => "transit",
     }
 }
 
@@ -225,20 +223,23 @@ impl Concept for AmsAgentDescription {
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         let f = Frame::read(term, "ams-agent-description")?;
-        let state = match f.get("state") {
-            None => None,
-            Some(t) => {
-                let word = text_of(t).unwrap_or_default();
-                let found = AgentState::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(&word));
-                Some(found.map(|(s, _)| *s).ok_or_else(|| OntologyError::BadValue {
-                    concept: "ams-agent-description",
-                    slot: "state",
-                    value: shown(t),
-                    reason: "expected initiated, active, suspended, waiting or transit",
-                })?)
-            }
-        };
-        Ok(Self { name: f.get("name").map(AgentId::from_term).transpose()?, ownership: f.text("ownership")?, state })
+        let state = f
+            .get("state")
+            .map(|t| {
+                word_value(
+                    t,
+                    "ams-agent-description",
+                    "state",
+                    AgentState::from_word,
+                    "expected initiated, active, suspended, waiting or transit",
+                )
+            })
+            .transpose()?;
+        Ok(Self {
+            name: f.get("name").map(AgentId::from_term).transpose()?,
+            ownership: f.text("ownership")?,
+            state,
+        })
     }
 }
 
@@ -296,7 +297,11 @@ impl Concept for SearchConstraints {
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         let f = Frame::read(term, "search-constraints")?;
-        Ok(Self { max_depth: f.integer("max-depth")?, max_results: f.integer("max-results")?, search_id: f.text("search-id")? })
+        Ok(Self {
+            max_depth: f.integer("max-depth")?,
+            max_results: f.integer("max-results")?,
+            search_id: f.text("search-id")?,
+        })
     }
 }
 
@@ -336,9 +341,10 @@ impl Concept for ManagementAction {
             Self::Register { description } => ("register", vec![description.to_term()]),
             Self::Deregister { description } => ("deregister", vec![description.to_term()]),
             Self::Modify { description } => ("modify", vec![description.to_term()]),
-            Self::Search { description, constraints } => {
-                ("search", vec![description.to_term(), constraints.to_term()])
-            }
+            Self::Search {
+                description,
+                constraints,
+            } => ("search", vec![description.to_term(), constraints.to_term()]),
             Self::GetDescription => ("get-description", vec![]),
         };
         Term::positional(symbol, args)
@@ -346,24 +352,45 @@ impl Concept for ManagementAction {
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         const EXPECTED: &str = "register, deregister, modify, search or get-description";
-        let Term::Functional { symbol, args: Arguments::Positional(_) } = term else {
-            return Err(OntologyError::UnexpectedTerm { expected: EXPECTED, found: shown(term) });
+        let Term::Functional {
+            symbol,
+            args: Arguments::Positional(_),
+        } = term
+        else {
+            return Err(OntologyError::UnexpectedTerm {
+                expected: EXPECTED,
+                found: shown(term),
+            });
         };
         let symbol = symbol.to_ascii_lowercase();
         let action = match symbol.as_str() {
-            "register" => Self::Register { description: description_arg(term, "register")? },
-            "deregister" => Self::Deregister { description: description_arg(term, "deregister")? },
-            "modify" => Self::Modify { description: description_arg(term, "modify")? },
+            "register" => Self::Register {
+                description: description_arg(term, "register")?,
+            },
+            "deregister" => Self::Deregister {
+                description: description_arg(term, "deregister")?,
+            },
+            "modify" => Self::Modify {
+                description: description_arg(term, "modify")?,
+            },
             "search" => {
                 let f = Frame::read(term, "search")?;
                 let constraints = match f.positional().get(1) {
                     Some(c) => SearchConstraints::from_term(c)?,
                     None => SearchConstraints::default(),
                 };
-                Self::Search { description: AgentDescription::from_term(f.arg(0, "description")?)?, constraints }
+                Self::Search {
+                    description: AgentDescription::from_term(f.arg(0, "description")?)?,
+                    constraints,
+                }
             }
             "get-description" => Self::GetDescription,
-            _ => return Err(OntologyError::UnexpectedTerm { expected: EXPECTED, found: shown(term) }),
+            _ => {
+                return Err(OntologyError::UnexpectedTerm {
+                    expected: EXPECTED,
+                    found: shown(term),
+                });
+            }
         };
         Ok(action)
     }
@@ -385,23 +412,33 @@ pub struct ManagementRequest {
 impl ManagementRequest {
     /// As an SL action expression.
     pub fn to_action(&self) -> ActionExpression {
-        ActionExpression::Action { agent: self.actor.to_term(), act: self.action.to_term() }
+        ActionExpression::Action {
+            agent: self.actor.to_term(),
+            act: self.action.to_term(),
+        }
     }
 
     /// From an SL action expression.
     pub fn from_action(action: &ActionExpression) -> Result<Self, OntologyError> {
         match action {
-            ActionExpression::Action { agent, act } => {
-                Ok(Self { actor: AgentId::from_term(agent)?, action: ManagementAction::from_term(act)? })
-            }
-            other => Err(OntologyError::UnexpectedTerm { expected: "(action actor act)", found: other.to_string() }),
+            ActionExpression::Action { agent, act } => Ok(Self {
+                actor: AgentId::from_term(agent)?,
+                action: ManagementAction::from_term(act)?,
+            }),
+            other => Err(OntologyError::UnexpectedTerm {
+                expected: "(action actor act)",
+                found: other.to_string(),
+            }),
         }
     }
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         match term {
             Term::Action { action } => Self::from_action(action),
-            _ => Err(OntologyError::UnexpectedTerm { expected: "(action actor act)", found: shown(term) }),
+            _ => Err(OntologyError::UnexpectedTerm {
+                expected: "(action actor act)",
+                found: shown(term),
+            }),
         }
     }
 }
@@ -507,19 +544,30 @@ impl FipaError {
             Self::UnrecognisedValue { value } => ("unrecognised-value", vec![s(value)]),
             Self::MissingArgument { argument } => ("missing-argument", vec![s(argument)]),
             Self::UnexpectedArgument { argument } => ("unexpected-argument", vec![s(argument)]),
-            Self::MissingParameter { object, parameter } => ("missing-parameter", vec![s(object), s(parameter)]),
+            Self::MissingParameter { object, parameter } => {
+                ("missing-parameter", vec![s(object), s(parameter)])
+            }
             Self::UnexpectedParameter { object, parameter } => {
                 ("unexpected-parameter", vec![s(object), s(parameter)])
             }
             Self::UnrecognisedParameterValue { parameter, value } => {
                 ("unrecognised-parameter-value", vec![s(parameter), s(value)])
             }
-            Self::MtsError { receiver, reason } => ("MTS-error", vec![receiver.to_term(), reason.to_term()]),
+            Self::MtsError { receiver, reason } => {
+                ("MTS-error", vec![receiver.to_term(), reason.to_term()])
+            }
         }
     }
 
-    fn from_parts(symbol: &str, args: &[Term], shown_as: impl Fn() -> String) -> Result<Self, OntologyError> {
-        let bad = || OntologyError::UnexpectedTerm { expected: "a FIPA exception", found: shown_as() };
+    fn from_parts(
+        symbol: &str,
+        args: &[Term],
+        shown_as: impl Fn() -> String,
+    ) -> Result<Self, OntologyError> {
+        let bad = || OntologyError::UnexpectedTerm {
+            expected: "a FIPA exception",
+            found: shown_as(),
+        };
         let text = |i: usize| args.get(i).and_then(text_of).ok_or_else(bad);
         let symbol = symbol.to_ascii_lowercase();
         let arity = |n: usize| if args.len() == n { Ok(()) } else { Err(bad()) };
@@ -536,14 +584,26 @@ impl FipaError {
             "unrecognised-value" => Self::UnrecognisedValue { value: text(0)? },
             "missing-argument" => Self::MissingArgument { argument: text(0)? },
             "unexpected-argument" => Self::UnexpectedArgument { argument: text(0)? },
-            "missing-parameter" => Self::MissingParameter { object: text(0)?, parameter: text(1)? },
-            "unexpected-parameter" => Self::UnexpectedParameter { object: text(0)?, parameter: text(1)? },
-            "unrecognised-parameter-value" => {
-                Self::UnrecognisedParameterValue { parameter: text(0)?, value: text(1)? }
-            }
+            "missing-parameter" => Self::MissingParameter {
+                object: text(0)?,
+                parameter: text(1)?,
+            },
+            "unexpected-parameter" => Self::UnexpectedParameter {
+                object: text(0)?,
+                parameter: text(1)?,
+            },
+            "unrecognised-parameter-value" => Self::UnrecognisedParameterValue {
+                parameter: text(0)?,
+                value: text(1)?,
+            },
             "mts-error" => {
-                let (Some(receiver), Some(reason)) = (args.first(), args.get(1)) else { return Err(bad()) };
-                Self::MtsError { receiver: AgentId::from_term(receiver)?, reason: Box::new(Self::from_term(reason)?) }
+                let (Some(receiver), Some(reason)) = (args.first(), args.get(1)) else {
+                    return Err(bad());
+                };
+                Self::MtsError {
+                    receiver: AgentId::from_term(receiver)?,
+                    reason: Box::new(Self::from_term(reason)?),
+                }
             }
             _ => return Err(bad()),
         })
@@ -553,9 +613,14 @@ impl FipaError {
     pub fn to_formula(&self) -> Formula {
         let (symbol, args) = self.parts();
         if args.is_empty() {
-            Formula::Symbol { name: symbol.into() }
+            Formula::Symbol {
+                name: symbol.into(),
+            }
         } else {
-            Formula::Atomic { predicate: symbol.into(), args }
+            Formula::Atomic {
+                predicate: symbol.into(),
+                args,
+            }
         }
     }
 
@@ -563,8 +628,13 @@ impl FipaError {
     pub fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
         match formula {
             Formula::Symbol { name } => Self::from_parts(name, &[], || formula.to_string()),
-            Formula::Atomic { predicate, args } => Self::from_parts(predicate, args, || formula.to_string()),
-            _ => Err(OntologyError::UnexpectedTerm { expected: "a FIPA exception", found: formula.to_string() }),
+            Formula::Atomic { predicate, args } => {
+                Self::from_parts(predicate, args, || formula.to_string())
+            }
+            _ => Err(OntologyError::UnexpectedTerm {
+                expected: "a FIPA exception",
+                found: formula.to_string(),
+            }),
         }
     }
 }
@@ -573,16 +643,26 @@ impl Concept for FipaError {
     /// As a term (inside `MTS-error`): `(internal-error "msg")`, or the bare word.
     fn to_term(&self) -> Term {
         let (symbol, args) = self.parts();
-        if args.is_empty() { Term::string(symbol) } else { Term::positional(symbol, args) }
+        if args.is_empty() {
+            Term::string(symbol)
+        } else {
+            Term::positional(symbol, args)
+        }
     }
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         match term {
-            Term::Functional { symbol, args: Arguments::Positional(args) } => {
-                Self::from_parts(symbol, args, || shown(term))
-            }
-            Term::Constant { value: iw_sl::Constant::String(s) } => Self::from_parts(s, &[], || shown(term)),
-            _ => Err(OntologyError::UnexpectedTerm { expected: "a FIPA exception", found: shown(term) }),
+            Term::Functional {
+                symbol,
+                args: Arguments::Positional(args),
+            } => Self::from_parts(symbol, args, || shown(term)),
+            Term::Constant {
+                value: iw_sl::Constant::String(s),
+            } => Self::from_parts(s, &[], || shown(term)),
+            _ => Err(OntologyError::UnexpectedTerm {
+                expected: "a FIPA exception",
+                found: shown(term),
+            }),
         }
     }
 }
@@ -636,14 +716,20 @@ impl ManagementContent {
     pub fn to_content(&self) -> Content {
         let result_of = |request: &ManagementRequest, value: Term| Formula::Atomic {
             predicate: "result".into(),
-            args: vec![Term::Action { action: Box::new(request.to_action()) }, value],
+            args: vec![
+                Term::Action {
+                    action: Box::new(request.to_action()),
+                },
+                value,
+            ],
         };
         let subscription = |request: &ManagementRequest| IdentifyingExpression {
             op: ReferentialOp::Iota,
             term: Term::variable("x"),
             formula: result_of(request, Term::variable("x")),
         };
-        let descriptions = |d: &[AgentDescription]| Term::sequence(d.iter().map(Concept::to_term).collect());
+        let descriptions =
+            |d: &[AgentDescription]| Term::sequence(d.iter().map(Concept::to_term).collect());
         match self {
             Self::Request(r) => Content::single(r.to_action()),
             Self::Done(r) => Content::single(Formula::ActionCondition {
@@ -651,14 +737,28 @@ impl ManagementContent {
                 action: Box::new(iw_sl::ActionOperand::Expression(r.to_action())),
                 condition: None,
             }),
-            Self::Result { request, descriptions: d } => Content::single(result_of(request, descriptions(d))),
+            Self::Result {
+                request,
+                descriptions: d,
+            } => Content::single(result_of(request, descriptions(d))),
             Self::Subscribe(r) => Content::single(subscription(r)),
-            Self::Notification { request, descriptions: d } => Content::single(Formula::Atomic {
+            Self::Notification {
+                request,
+                descriptions: d,
+            } => Content::single(Formula::Atomic {
                 predicate: "=".into(),
-                args: vec![Term::Identifying { expression: Box::new(subscription(request)) }, descriptions(d)],
+                args: vec![
+                    Term::Identifying {
+                        expression: Box::new(subscription(request)),
+                    },
+                    descriptions(d),
+                ],
             }),
             Self::Failure { action, reason } => Content {
-                expressions: vec![ContentExpression::Action(action.clone()), reason.to_formula().into()],
+                expressions: vec![
+                    ContentExpression::Action(action.clone()),
+                    reason.to_formula().into(),
+                ],
             },
         }
     }
@@ -670,27 +770,44 @@ impl ManagementContent {
 
     /// Reads SL content.
     pub fn from_content(content: &Content) -> Result<Self, OntologyError> {
-        let unexpected = || OntologyError::UnexpectedContent { expected: FORMS, found: content.to_string() };
+        let unexpected = || OntologyError::UnexpectedContent {
+            expected: FORMS,
+            found: content.to_string(),
+        };
         match content.expressions.as_slice() {
             [ContentExpression::Action(a)] => ManagementRequest::from_action(a).map(Self::Request),
-            [ContentExpression::Action(action), ContentExpression::Formula(reason)] => {
-                Ok(Self::Failure { action: action.clone(), reason: FipaError::from_formula(reason)? })
-            }
-            [ContentExpression::Formula(Formula::ActionCondition { op: iw_sl::ActionOp::Done, action, .. })] => {
-                match action.as_ref() {
-                    iw_sl::ActionOperand::Expression(a) => ManagementRequest::from_action(a).map(Self::Done),
-                    iw_sl::ActionOperand::Meta(_) => Err(unexpected()),
+            [
+                ContentExpression::Action(action),
+                ContentExpression::Formula(reason),
+            ] => Ok(Self::Failure {
+                action: action.clone(),
+                reason: FipaError::from_formula(reason)?,
+            }),
+            [
+                ContentExpression::Formula(Formula::ActionCondition {
+                    op: iw_sl::ActionOp::Done,
+                    action,
+                    ..
+                }),
+            ] => match action.as_ref() {
+                iw_sl::ActionOperand::Expression(a) => {
+                    ManagementRequest::from_action(a).map(Self::Done)
                 }
-            }
-            [ContentExpression::Formula(Formula::Atomic { predicate, args })] => match args.as_slice() {
+                iw_sl::ActionOperand::Meta(_) => Err(unexpected()),
+            },
+            [ContentExpression::Formula(Formula::Atomic { predicate, args })] => match args
+                .as_slice()
+            {
                 [action, value] if predicate.eq_ignore_ascii_case("result") => Ok(Self::Result {
                     request: ManagementRequest::from_term(action)?,
                     descriptions: descriptions_of(value)?,
                 }),
-                [Term::Identifying { expression }, value] if predicate == "=" => Ok(Self::Notification {
-                    request: subscribed_request(expression)?,
-                    descriptions: descriptions_of(value)?,
-                }),
+                [Term::Identifying { expression }, value] if predicate == "=" => {
+                    Ok(Self::Notification {
+                        request: subscribed_request(expression)?,
+                        descriptions: descriptions_of(value)?,
+                    })
+                }
                 _ => Err(unexpected()),
             },
             [ContentExpression::Identifying(i)] => subscribed_request(i).map(Self::Subscribe),
@@ -702,7 +819,10 @@ impl ManagementContent {
 fn descriptions_of(value: &Term) -> Result<Vec<AgentDescription>, OntologyError> {
     match value.collection() {
         Some((_, items)) => items.iter().map(AgentDescription::from_term).collect(),
-        None => Err(OntologyError::UnexpectedTerm { expected: "a set or sequence of descriptions", found: shown(value) }),
+        None => Err(OntologyError::UnexpectedTerm {
+            expected: "a set or sequence of descriptions",
+            found: shown(value),
+        }),
     }
 }
 
@@ -717,7 +837,9 @@ fn subscribed_request(i: &IdentifyingExpression) -> Result<ManagementRequest, On
             if predicate.eq_ignore_ascii_case("result") =>
         {
             match args.as_slice() {
-                [action, Term::Variable { name: v }] if v == name => ManagementRequest::from_term(action),
+                [action, Term::Variable { name: v }] if v == name => {
+                    ManagementRequest::from_term(action)
+                }
                 _ => Err(bad()),
             }
         }

@@ -13,7 +13,9 @@ use iw_sl::{
 use nalgebra::{Isometry2, Matrix3, Vector2};
 use serde::{Deserialize, Serialize};
 
-use crate::concept::{Concept, Frame, FrameBuilder, is_frame, number_of, shown, text_of};
+use crate::concept::{
+    Concept, Frame, FrameBuilder, is_frame, number_of, shown, text_of, word_enum, word_value,
+};
 use crate::error::OntologyError;
 
 /// The `:ontology` name of this ontology.
@@ -45,7 +47,12 @@ impl Pose {
 impl Concept for Pose {
     fn to_term(&self) -> Term {
         // Row-major on the wire; nalgebra stores columns, so walk the transpose.
-        let cov = self.covariance.transpose().iter().map(|&c| Term::float(c)).collect();
+        let cov = self
+            .covariance
+            .transpose()
+            .iter()
+            .map(|&c| Term::float(c))
+            .collect();
         FrameBuilder::new("pose")
             .float("x", self.x_m)
             .float("y", self.y_m)
@@ -102,9 +109,15 @@ impl Concept for SensorReading {
     fn to_term(&self) -> Term {
         match self {
             Self::Sonar { ranges_m } => FrameBuilder::new("sonar-reading")
-                .term("ranges", Term::sequence(ranges_m.iter().map(|&r| Term::float(r)).collect()))
+                .term(
+                    "ranges",
+                    Term::sequence(ranges_m.iter().map(|&r| Term::float(r)).collect()),
+                )
                 .build(),
-            Self::Encoders { left_ticks, right_ticks } => FrameBuilder::new("encoder-reading")
+            Self::Encoders {
+                left_ticks,
+                right_ticks,
+            } => FrameBuilder::new("encoder-reading")
                 .term("left", Term::integer(*left_ticks))
                 .term("right", Term::integer(*right_ticks))
                 .build(),
@@ -123,14 +136,25 @@ impl Concept for SensorReading {
                     reason: "expected ranges in metres",
                 })
             });
-            return Ok(Self::Sonar { ranges_m: ranges_m.collect::<Result<_, _>>()? });
+            return Ok(Self::Sonar {
+                ranges_m: ranges_m.collect::<Result<_, _>>()?,
+            });
         }
-        let f = Frame::read(term, "encoder-reading").map_err(|_| OntologyError::UnexpectedTerm {
-            expected: "sonar-reading or encoder-reading",
-            found: shown(term),
-        })?;
-        let ticks = |slot| f.integer(slot)?.ok_or(OntologyError::MissingSlot { concept: "encoder-reading", slot });
-        Ok(Self::Encoders { left_ticks: ticks("left")?, right_ticks: ticks("right")? })
+        let f =
+            Frame::read(term, "encoder-reading").map_err(|_| OntologyError::UnexpectedTerm {
+                expected: "sonar-reading or encoder-reading",
+                found: shown(term),
+            })?;
+        let ticks = |slot| {
+            f.integer(slot)?.ok_or(OntologyError::MissingSlot {
+                concept: "encoder-reading",
+                slot,
+            })
+        };
+        Ok(Self::Encoders {
+            left_ticks: ticks("left")?,
+            right_ticks: ticks("right")?,
+        })
     }
 }
 
@@ -194,24 +218,38 @@ pub enum WheelchairAction {
 impl Concept for WheelchairAction {
     fn to_term(&self) -> Term {
         match self {
-            Self::GotoXy { x_m, y_m } => FrameBuilder::new("goto-xy").float("x", *x_m).float("y", *y_m).build(),
-            Self::GoTo { place } => FrameBuilder::new("go-to").text("place", Some(place)).build(),
+            Self::GotoXy { x_m, y_m } => FrameBuilder::new("goto-xy")
+                .float("x", *x_m)
+                .float("y", *y_m)
+                .build(),
+            Self::GoTo { place } => FrameBuilder::new("go-to")
+                .text("place", Some(place))
+                .build(),
             Self::FollowLine => FrameBuilder::new("follow-line").build(),
-            Self::FollowLeftWall { distance_m } => {
-                FrameBuilder::new("follow-left-wall").float("distance", *distance_m).build()
+            Self::FollowLeftWall { distance_m } => FrameBuilder::new("follow-left-wall")
+                .float("distance", *distance_m)
+                .build(),
+            Self::FollowRightWall { distance_m } => FrameBuilder::new("follow-right-wall")
+                .float("distance", *distance_m)
+                .build(),
+            Self::Spin { angle_rad } => {
+                FrameBuilder::new("spin").float("angle", *angle_rad).build()
             }
-            Self::FollowRightWall { distance_m } => {
-                FrameBuilder::new("follow-right-wall").float("distance", *distance_m).build()
-            }
-            Self::Spin { angle_rad } => FrameBuilder::new("spin").float("angle", *angle_rad).build(),
-            Self::Wait { duration_ms } => {
-                FrameBuilder::new("wait").term("duration-ms", Term::integer(*duration_ms)).build()
-            }
+            Self::Wait { duration_ms } => FrameBuilder::new("wait")
+                .term("duration-ms", Term::integer(*duration_ms))
+                .build(),
             Self::Stop => FrameBuilder::new("stop").build(),
-            Self::OpenDoor { door } => FrameBuilder::new("open-door").text("door", Some(door)).build(),
-            Self::CloseDoor { door } => FrameBuilder::new("close-door").text("door", Some(door)).build(),
+            Self::OpenDoor { door } => FrameBuilder::new("open-door")
+                .text("door", Some(door))
+                .build(),
+            Self::CloseDoor { door } => FrameBuilder::new("close-door")
+                .text("door", Some(door))
+                .build(),
             Self::Sequence { steps } => FrameBuilder::new("action-sequence")
-                .term("steps", Term::sequence(steps.iter().map(Concept::to_term).collect()))
+                .term(
+                    "steps",
+                    Term::sequence(steps.iter().map(Concept::to_term).collect()),
+                )
                 .build(),
         }
     }
@@ -220,71 +258,75 @@ impl Concept for WheelchairAction {
         const EXPECTED: &str = "a wheelchair action (goto-xy, go-to, follow-line, follow-left-wall, \
                                 follow-right-wall, spin, wait, stop, open-door, close-door, action-sequence)";
         let Term::Functional { symbol, .. } = term else {
-            return Err(OntologyError::UnexpectedTerm { expected: EXPECTED, found: shown(term) });
+            return Err(OntologyError::UnexpectedTerm {
+                expected: EXPECTED,
+                found: shown(term),
+            });
         };
         let name = symbol.to_ascii_lowercase();
         let frame = |concept| Frame::read(term, concept);
         Ok(match name.as_str() {
             "goto-xy" => {
                 let f = frame("goto-xy")?;
-                Self::GotoXy { x_m: f.required_number("x")?, y_m: f.required_number("y")? }
+                Self::GotoXy {
+                    x_m: f.required_number("x")?,
+                    y_m: f.required_number("y")?,
+                }
             }
-            "go-to" => Self::GoTo { place: frame("go-to")?.required_text("place")? },
+            "go-to" => Self::GoTo {
+                place: frame("go-to")?.required_text("place")?,
+            },
             "follow-line" => Self::FollowLine,
-            "follow-left-wall" => Self::FollowLeftWall { distance_m: frame("follow-left-wall")?.required_number("distance")? },
-            "follow-right-wall" => Self::FollowRightWall { distance_m: frame("follow-right-wall")?.required_number("distance")? },
-            "spin" => Self::Spin { angle_rad: frame("spin")?.required_number("angle")? },
+            "follow-left-wall" => Self::FollowLeftWall {
+                distance_m: frame("follow-left-wall")?.required_number("distance")?,
+            },
+            "follow-right-wall" => Self::FollowRightWall {
+                distance_m: frame("follow-right-wall")?.required_number("distance")?,
+            },
+            "spin" => Self::Spin {
+                angle_rad: frame("spin")?.required_number("angle")?,
+            },
             "wait" => {
                 let f = frame("wait")?;
-                let duration_ms = f.integer("duration-ms")?.ok_or(OntologyError::MissingSlot { concept: "wait", slot: "duration-ms" })?;
+                let duration_ms = f
+                    .integer("duration-ms")?
+                    .ok_or(OntologyError::MissingSlot {
+                        concept: "wait",
+                        slot: "duration-ms",
+                    })?;
                 Self::Wait { duration_ms }
             }
             "stop" => Self::Stop,
-            "open-door" => Self::OpenDoor { door: frame("open-door")?.required_text("door")? },
-            "close-door" => Self::CloseDoor { door: frame("close-door")?.required_text("door")? },
-            "action-sequence" => Self::Sequence { steps: frame("action-sequence")?.concepts("steps")? },
-            _ => return Err(OntologyError::UnexpectedTerm { expected: EXPECTED, found: shown(term) }),
-        })
-    }
-}
-
-/// The state of a door.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DoorState {
-    /// `open`
-    Open,
-    /// `closed`
-    Closed,
-    /// `opening`
-    Opening,
-    /// `closing`
-    Closing,
-}
-
-impl DoorState {
-    const ALL: [(DoorState, &'static str); 4] = [
-        (DoorState::Open, "open"),
-        (DoorState::Closed, "closed"),
-        (DoorState::Opening, "opening"),
-        (DoorState::Closing, "closing"),
-    ];
-
-    /// The SL word.
-    pub fn name(self) -> &'static str {
-        Self::ALL.iter().find(|(s, _)| *s == self).map_or("closed", |(_, n)| n)
-    }
-
-    fn from_term(term: &Term) -> Result<Self, OntologyError> {
-        let word = text_of(term).unwrap_or_default();
-        Self::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(&word)).map(|(s, _)| *s).ok_or_else(|| {
-            OntologyError::BadValue {
-                concept: "door-state",
-                slot: "state",
-                value: shown(term),
-                reason: "expected open, closed, opening or closing",
+            "open-door" => Self::OpenDoor {
+                door: frame("open-door")?.required_text("door")?,
+            },
+            "close-door" => Self::CloseDoor {
+                door: frame("close-door")?.required_text("door")?,
+            },
+            "action-sequence" => Self::Sequence {
+                steps: frame("action-sequence")?.concepts("steps")?,
+            },
+            _ => {
+                return Err(OntologyError::UnexpectedTerm {
+                    expected: EXPECTED,
+                    found: shown(term),
+                });
             }
         })
+    }
+}
+
+word_enum! {
+    /// The state of a door.
+    pub enum DoorState {
+        /// `open`
+        Open => "open",
+        /// `closed`
+        Closed => "closed",
+        /// `opening`
+        Opening => "opening",
+        /// `closing`
+        Closing => "closing",
     }
 }
 
@@ -319,10 +361,18 @@ impl Fact {
     fn to_formula(&self) -> Formula {
         let (predicate, args) = match self {
             Self::AtPose { agent, pose } => ("at-pose", vec![agent.to_term(), pose.to_term()]),
-            Self::Reading { agent, reading } => ("sensor-reading", vec![agent.to_term(), reading.to_term()]),
-            Self::Door { door, state } => ("door-state", vec![Term::string(door.as_str()), Term::string(state.name())]),
+            Self::Reading { agent, reading } => {
+                ("sensor-reading", vec![agent.to_term(), reading.to_term()])
+            }
+            Self::Door { door, state } => (
+                "door-state",
+                vec![Term::string(door.as_str()), Term::string(state.name())],
+            ),
         };
-        Formula::Atomic { predicate: predicate.into(), args }
+        Formula::Atomic {
+            predicate: predicate.into(),
+            args,
+        }
     }
 
     fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
@@ -330,14 +380,31 @@ impl Fact {
             expected: "(at-pose agent pose), (sensor-reading agent reading) or (door-state door state)",
             found: formula.to_string(),
         };
-        let Formula::Atomic { predicate, args } = formula else { return Err(bad()) };
-        let [first, second] = args.as_slice() else { return Err(bad()) };
+        let Formula::Atomic { predicate, args } = formula else {
+            return Err(bad());
+        };
+        let [first, second] = args.as_slice() else {
+            return Err(bad());
+        };
         match predicate.to_ascii_lowercase().as_str() {
-            "at-pose" => Ok(Self::AtPose { agent: AgentId::from_term(first)?, pose: Pose::from_term(second)? }),
-            "sensor-reading" => {
-                Ok(Self::Reading { agent: AgentId::from_term(first)?, reading: SensorReading::from_term(second)? })
-            }
-            "door-state" => Ok(Self::Door { door: text_of(first).ok_or_else(bad)?, state: DoorState::from_term(second)? }),
+            "at-pose" => Ok(Self::AtPose {
+                agent: AgentId::from_term(first)?,
+                pose: Pose::from_term(second)?,
+            }),
+            "sensor-reading" => Ok(Self::Reading {
+                agent: AgentId::from_term(first)?,
+                reading: SensorReading::from_term(second)?,
+            }),
+            "door-state" => Ok(Self::Door {
+                door: text_of(first).ok_or_else(bad)?,
+                state: word_value(
+                    second,
+                    "door-state",
+                    "state",
+                    DoorState::from_word,
+                    "expected open, closed, opening or closing",
+                )?,
+            }),
             _ => Err(bad()),
         }
     }
@@ -394,19 +461,29 @@ impl WheelchairContent {
     /// Reads SL content.
     pub fn from_content(content: &Content) -> Result<Self, OntologyError> {
         let read_action = |a: &ActionExpression| match a {
-            ActionExpression::Action { agent, act } => {
-                Ok((AgentId::from_term(agent)?, WheelchairAction::from_term(act)?))
-            }
-            other => Err(OntologyError::UnexpectedTerm { expected: "(action actor act)", found: other.to_string() }),
+            ActionExpression::Action { agent, act } => Ok((
+                AgentId::from_term(agent)?,
+                WheelchairAction::from_term(act)?,
+            )),
+            other => Err(OntologyError::UnexpectedTerm {
+                expected: "(action actor act)",
+                found: other.to_string(),
+            }),
         };
         match content.expressions.as_slice() {
-            [ContentExpression::Action(a)] => read_action(a).map(|(actor, action)| Self::Request { actor, action }),
-            [ContentExpression::Formula(Formula::ActionCondition {
-                op: ActionOp::Done,
-                action,
-                condition: None,
-            })] => match action.as_ref() {
-                ActionOperand::Expression(a) => read_action(a).map(|(actor, action)| Self::Done { actor, action }),
+            [ContentExpression::Action(a)] => {
+                read_action(a).map(|(actor, action)| Self::Request { actor, action })
+            }
+            [
+                ContentExpression::Formula(Formula::ActionCondition {
+                    op: ActionOp::Done,
+                    action,
+                    condition: None,
+                }),
+            ] => match action.as_ref() {
+                ActionOperand::Expression(a) => {
+                    read_action(a).map(|(actor, action)| Self::Done { actor, action })
+                }
                 ActionOperand::Meta(_) => Err(unexpected(content)),
             },
             [ContentExpression::Formula(f)] => Fact::from_formula(f).map(Self::Inform),

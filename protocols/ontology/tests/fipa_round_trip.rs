@@ -14,9 +14,15 @@ fn word() -> impl Strategy<Value = String> {
 }
 
 fn agent() -> impl Strategy<Value = AgentId> {
-    ("[a-z][a-z0-9]{0,6}@[A-Z][a-zA-Z]{0,6}", prop::collection::vec("http://[a-z0-9.:]{1,12}/acc", 0..3), prop::option::of(("[A-Z][a-z-]{0,8}", word())))
+    (
+        "[a-z][a-z0-9]{0,6}@[A-Z][a-zA-Z]{0,6}",
+        prop::collection::vec("http://[a-z0-9.:]{1,12}/acc", 0..3),
+        prop::option::of(("[A-Z][a-z-]{0,8}", word())),
+    )
         .prop_map(|(n, addrs, user)| {
-            let aid = addrs.into_iter().fold(AgentId::new(n), AgentId::with_address);
+            let aid = addrs
+                .into_iter()
+                .fold(AgentId::new(n), AgentId::with_address);
             match user {
                 Some((k, v)) => aid.with_user_param(&format!("X-{k}"), v),
                 None => aid,
@@ -32,27 +38,54 @@ fn service() -> impl Strategy<Value = ServiceDescription> {
         prop::option::of(word()),
         prop::collection::vec((word(), -1e3..1e3f64), 0..3),
     )
-        .prop_map(|(name, service_type, protocols, ownership, props)| ServiceDescription {
-            name,
-            service_type,
-            protocols,
-            ownership,
-            properties: props.into_iter().map(|(name, v)| Property { name, value: Term::float(v) }).collect(),
-            ..ServiceDescription::default()
-        })
+        .prop_map(
+            |(name, service_type, protocols, ownership, props)| ServiceDescription {
+                name,
+                service_type,
+                protocols,
+                ownership,
+                properties: props
+                    .into_iter()
+                    .map(|(name, v)| Property {
+                        name,
+                        value: Term::float(v),
+                    })
+                    .collect(),
+                ..ServiceDescription::default()
+            },
+        )
 }
 
 fn description() -> impl Strategy<Value = AgentDescription> {
     prop_oneof![
-        (prop::option::of(agent()), prop::collection::vec(service(), 0..3), prop::collection::vec(word(), 0..3))
-            .prop_map(|(name, services, languages)| AgentDescription::Df(DfAgentDescription {
-                name,
-                services,
-                languages,
-                ..DfAgentDescription::default()
-            })),
-        (prop::option::of(agent()), prop::option::of(word()), prop::option::of(prop_oneof![Just(AgentState::Active), Just(AgentState::Suspended)]))
-            .prop_map(|(name, ownership, state)| AgentDescription::Ams(AmsAgentDescription { name, ownership, state })),
+        (
+            prop::option::of(agent()),
+            prop::collection::vec(service(), 0..3),
+            prop::collection::vec(word(), 0..3)
+        )
+            .prop_map(|(name, services, languages)| AgentDescription::Df(
+                DfAgentDescription {
+                    name,
+                    services,
+                    languages,
+                    ..DfAgentDescription::default()
+                }
+            )),
+        (
+            prop::option::of(agent()),
+            prop::option::of(word()),
+            prop::option::of(prop_oneof![
+                Just(AgentState::Active),
+                Just(AgentState::Suspended)
+            ])
+        )
+            .prop_map(|(name, ownership, state)| AgentDescription::Ams(
+                AmsAgentDescription {
+                    name,
+                    ownership,
+                    state
+                }
+            )),
     ]
 }
 
@@ -61,12 +94,21 @@ fn request() -> impl Strategy<Value = ManagementRequest> {
         description().prop_map(|description| ManagementAction::Register { description }),
         description().prop_map(|description| ManagementAction::Deregister { description }),
         description().prop_map(|description| ManagementAction::Modify { description }),
-        (description(), prop::option::of(-1i64..100), prop::option::of(0i64..5)).prop_map(|(description, r, d)| {
-            ManagementAction::Search {
-                description,
-                constraints: SearchConstraints { max_results: r, max_depth: d, search_id: None },
-            }
-        }),
+        (
+            description(),
+            prop::option::of(-1i64..100),
+            prop::option::of(0i64..5)
+        )
+            .prop_map(|(description, r, d)| {
+                ManagementAction::Search {
+                    description,
+                    constraints: SearchConstraints {
+                        max_results: r,
+                        max_depth: d,
+                        search_id: None,
+                    },
+                }
+            }),
         Just(ManagementAction::GetDescription),
     ];
     (agent(), action).prop_map(|(actor, action)| ManagementRequest { actor, action })
@@ -77,19 +119,35 @@ fn content() -> impl Strategy<Value = ManagementContent> {
         request().prop_map(ManagementContent::Request),
         request().prop_map(ManagementContent::Done),
         request().prop_map(ManagementContent::Subscribe),
-        (request(), prop::collection::vec(description(), 0..3))
-            .prop_map(|(request, descriptions)| ManagementContent::Result { request, descriptions }),
-        (request(), prop::collection::vec(description(), 0..3))
-            .prop_map(|(request, descriptions)| ManagementContent::Notification { request, descriptions }),
-        (request(), agent(), word()).prop_map(|(r, receiver, message)| ManagementContent::Failure {
-            action: r.to_action(),
-            reason: FipaError::MtsError { receiver, reason: Box::new(FipaError::InternalError { message }) },
+        (request(), prop::collection::vec(description(), 0..3)).prop_map(
+            |(request, descriptions)| ManagementContent::Result {
+                request,
+                descriptions
+            }
+        ),
+        (request(), prop::collection::vec(description(), 0..3)).prop_map(
+            |(request, descriptions)| ManagementContent::Notification {
+                request,
+                descriptions
+            }
+        ),
+        (request(), agent(), word()).prop_map(|(r, receiver, message)| {
+            ManagementContent::Failure {
+                action: r.to_action(),
+                reason: FipaError::MtsError {
+                    receiver,
+                    reason: Box::new(FipaError::InternalError { message }),
+                },
+            }
         }),
         (request(), word(), word()).prop_map(|(r, object, parameter)| ManagementContent::Failure {
             action: r.to_action(),
             reason: FipaError::MissingParameter { object, parameter },
         }),
-        request().prop_map(|r| ManagementContent::Failure { action: r.to_action(), reason: FipaError::NotRegistered }),
+        request().prop_map(|r| ManagementContent::Failure {
+            action: r.to_action(),
+            reason: FipaError::NotRegistered
+        }),
     ]
 }
 
@@ -107,8 +165,17 @@ proptest! {
 fn failure_keeps_actions_outside_the_ontology() {
     let text = "((action (agent-identifier :name a@P) (ACLMessage)) (internal-error \"boom\"))";
     let msg = ManagementContent::parse(text, iw_sl::Level::Sl0).unwrap();
-    let ManagementContent::Failure { action: ActionExpression::Action { act, .. }, .. } = &msg else { panic!("{msg:?}") };
+    let ManagementContent::Failure {
+        action: ActionExpression::Action { act, .. },
+        ..
+    } = &msg
+    else {
+        panic!("{msg:?}")
+    };
     assert_eq!(act.to_string(), "(ACLMessage)");
     // Printed canonically: the quotes around a plain word go.
-    assert_eq!(msg.to_content().to_string(), text.replace("\"boom\"", "boom"));
+    assert_eq!(
+        msg.to_content().to_string(),
+        text.replace("\"boom\"", "boom")
+    );
 }

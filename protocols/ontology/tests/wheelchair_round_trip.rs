@@ -2,13 +2,18 @@
 //! produces is what the documentation shows.
 
 use iw_acl::AgentId;
-use iw_ontology::wheelchair::{DoorState, Fact, Pose, SensorReading, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{
+    DoorState, Fact, Pose, SensorReading, WheelchairAction, WheelchairContent,
+};
 use iw_ontology::{Concept, OntologyError};
 use nalgebra::Matrix3;
 use proptest::prelude::*;
 
 fn finite() -> impl Strategy<Value = f64> {
-    prop_oneof![-1e6..1e6f64, any::<f64>().prop_filter("finite", |x| x.is_finite())]
+    prop_oneof![
+        -1e6..1e6f64,
+        any::<f64>().prop_filter("finite", |x| x.is_finite())
+    ]
 }
 
 fn name() -> impl Strategy<Value = String> {
@@ -16,17 +21,30 @@ fn name() -> impl Strategy<Value = String> {
 }
 
 fn agent() -> impl Strategy<Value = AgentId> {
-    ("[a-z][a-z0-9]{0,6}@[A-Z][a-zA-Z]{0,6}", prop::collection::vec("http://[a-z0-9.:]{1,12}/acc", 0..2))
-        .prop_map(|(n, addrs)| addrs.into_iter().fold(AgentId::new(n), AgentId::with_address))
+    (
+        "[a-z][a-z0-9]{0,6}@[A-Z][a-zA-Z]{0,6}",
+        prop::collection::vec("http://[a-z0-9.:]{1,12}/acc", 0..2),
+    )
+        .prop_map(|(n, addrs)| {
+            addrs
+                .into_iter()
+                .fold(AgentId::new(n), AgentId::with_address)
+        })
 }
 
 fn pose() -> impl Strategy<Value = Pose> {
-    (finite(), finite(), -4.0..4.0f64, prop::array::uniform9(finite())).prop_map(|(x, y, t, c)| Pose {
-        x_m: x,
-        y_m: y,
-        theta_rad: t,
-        covariance: Matrix3::from_row_slice(&c),
-    })
+    (
+        finite(),
+        finite(),
+        -4.0..4.0f64,
+        prop::array::uniform9(finite()),
+    )
+        .prop_map(|(x, y, t, c)| Pose {
+            x_m: x,
+            y_m: y,
+            theta_rad: t,
+            covariance: Matrix3::from_row_slice(&c),
+        })
 }
 
 fn action() -> impl Strategy<Value = WheelchairAction> {
@@ -50,20 +68,38 @@ fn action() -> impl Strategy<Value = WheelchairAction> {
 fn fact() -> impl Strategy<Value = Fact> {
     prop_oneof![
         (agent(), pose()).prop_map(|(agent, pose)| Fact::AtPose { agent, pose }),
-        (agent(), prop::collection::vec(0.0..10.0f64, 0..24))
-            .prop_map(|(agent, ranges_m)| Fact::Reading { agent, reading: SensorReading::Sonar { ranges_m } }),
-        (agent(), any::<i64>(), any::<i64>()).prop_map(|(agent, left_ticks, right_ticks)| Fact::Reading {
-            agent,
-            reading: SensorReading::Encoders { left_ticks, right_ticks }
+        (agent(), prop::collection::vec(0.0..10.0f64, 0..24)).prop_map(|(agent, ranges_m)| {
+            Fact::Reading {
+                agent,
+                reading: SensorReading::Sonar { ranges_m },
+            }
         }),
-        (name(), prop_oneof![Just(DoorState::Open), Just(DoorState::Closed), Just(DoorState::Opening), Just(DoorState::Closing)])
+        (agent(), any::<i64>(), any::<i64>()).prop_map(|(agent, left_ticks, right_ticks)| {
+            Fact::Reading {
+                agent,
+                reading: SensorReading::Encoders {
+                    left_ticks,
+                    right_ticks,
+                },
+            }
+        }),
+        (
+            name(),
+            prop_oneof![
+                Just(DoorState::Open),
+                Just(DoorState::Closed),
+                Just(DoorState::Opening),
+                Just(DoorState::Closing)
+            ]
+        )
             .prop_map(|(door, state)| Fact::Door { door, state }),
     ]
 }
 
 fn content() -> impl Strategy<Value = WheelchairContent> {
     prop_oneof![
-        (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Request { actor, action }),
+        (agent(), action())
+            .prop_map(|(actor, action)| WheelchairContent::Request { actor, action }),
         (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Done { actor, action }),
         fact().prop_map(WheelchairContent::Inform),
     ]
@@ -109,33 +145,73 @@ fn requests_read_as_documented() {
         "((action (agent-identifier :name nav@IntellWheels) (GO-TO :place \"room 2.1\")))",
     )
     .unwrap();
-    assert_eq!(goal, WheelchairContent::Request { actor: nav, action: WheelchairAction::GoTo { place: "room 2.1".into() } });
+    assert_eq!(
+        goal,
+        WheelchairContent::Request {
+            actor: nav,
+            action: WheelchairAction::GoTo {
+                place: "room 2.1".into()
+            }
+        }
+    );
 }
 
 #[test]
 fn facts_read_as_documented() {
-    let door = WheelchairContent::Inform(Fact::Door { door: "d1".into(), state: DoorState::Open });
+    let door = WheelchairContent::Inform(Fact::Door {
+        door: "d1".into(),
+        state: DoorState::Open,
+    });
     assert_eq!(door.to_content().to_string(), "((door-state d1 open))");
     let pose = WheelchairContent::parse(
         "((at-pose (agent-identifier :name wheelchair1@P) (pose :x 1 :y -2.5 :theta 0.5 \
          :covariance (sequence 0.01 0 0 0 0.01 0 0 0 0.002))))",
     )
     .unwrap();
-    let WheelchairContent::Inform(Fact::AtPose { pose, .. }) = pose else { panic!("{pose:?}") };
+    let WheelchairContent::Inform(Fact::AtPose { pose, .. }) = pose else {
+        panic!("{pose:?}")
+    };
     assert_eq!((pose.x_m, pose.y_m, pose.theta_rad), (1.0, -2.5, 0.5));
     assert_eq!(pose.covariance[(2, 2)], 0.002);
     let p = pose.t_map_base() * nalgebra::Point2::new(1.0, 0.0);
-    assert!((p.x - (1.0 + 0.5f64.cos())).abs() < 1e-12 && (p.y - (-2.5 + 0.5f64.sin())).abs() < 1e-12);
+    assert!(
+        (p.x - (1.0 + 0.5f64.cos())).abs() < 1e-12 && (p.y - (-2.5 + 0.5f64.sin())).abs() < 1e-12
+    );
 }
 
 #[test]
 fn wrong_content_says_what_is_wrong() {
-    let e = WheelchairContent::parse("((action (agent-identifier :name a@P) (goto-xy :x 1)))").unwrap_err();
-    assert!(matches!(e, OntologyError::MissingSlot { concept: "goto-xy", slot: "y" }), "{e}");
+    let e = WheelchairContent::parse("((action (agent-identifier :name a@P) (goto-xy :x 1)))")
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            OntologyError::MissingSlot {
+                concept: "goto-xy",
+                slot: "y"
+            }
+        ),
+        "{e}"
+    );
     let e = WheelchairContent::parse("((door-state d1 ajar))").unwrap_err();
-    assert!(matches!(e, OntologyError::BadValue { slot: "state", ref value, .. } if value == "ajar"), "{e}");
+    assert!(
+        matches!(e, OntologyError::BadValue { slot: "state", ref value, .. } if value == "ajar"),
+        "{e}"
+    );
     let e = WheelchairContent::parse("((at-pose (agent-identifier :name a@P) (pose :x 1 :y 2 :theta 0 :covariance (sequence 1 2))))")
         .unwrap_err();
-    assert!(matches!(e, OntologyError::BadValue { slot: "covariance", .. }), "{e}");
-    assert!(matches!(WheelchairContent::parse("((not (x y)))"), Err(OntologyError::Sl(_))));
+    assert!(
+        matches!(
+            e,
+            OntologyError::BadValue {
+                slot: "covariance",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(matches!(
+        WheelchairContent::parse("((not (x y)))"),
+        Err(OntologyError::Sl(_))
+    ));
 }

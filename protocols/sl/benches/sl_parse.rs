@@ -15,11 +15,18 @@ fn bench(c: &mut Criterion) {
     let content = parse(DF_RESULT, Level::Sl0).expect("bench input parses");
     let json = serde_json::to_string(&content).expect("serialises");
     let mut g = c.benchmark_group("sl");
-    g.measurement_time(Duration::from_secs(4)).warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(4))
+        .warm_up_time(Duration::from_secs(1));
     g.throughput(Throughput::Bytes(DF_RESULT.len() as u64));
-    g.bench_function("parse_df_result_sl0", |b| b.iter(|| parse(black_box(DF_RESULT), Level::Sl0)));
-    g.bench_function("parse_df_result_full", |b| b.iter(|| parse(black_box(DF_RESULT), Level::Full)));
-    g.bench_function("print_df_result", |b| b.iter(|| black_box(&content).to_string()));
+    g.bench_function("parse_df_result_sl0", |b| {
+        b.iter(|| parse(black_box(DF_RESULT), Level::Sl0))
+    });
+    g.bench_function("parse_df_result_full", |b| {
+        b.iter(|| parse(black_box(DF_RESULT), Level::Full))
+    });
+    g.bench_function("print_df_result", |b| {
+        b.iter(|| black_box(&content).to_string())
+    });
     g.bench_function("peer_serde_json_same_tree", |b| {
         b.iter(|| serde_json::from_str::<Content>(black_box(&json)))
     });

@@ -16,7 +16,9 @@ pub struct Content {
 impl Content {
     /// Content made of a single expression (the usual case: one request, one inform).
     pub fn single(expression: impl Into<ContentExpression>) -> Self {
-        Self { expressions: vec![expression.into()] }
+        Self {
+            expressions: vec![expression.into()],
+        }
     }
 }
 
@@ -288,22 +290,30 @@ pub enum Term {
 impl Term {
     /// A string constant (a word or a quoted string on the wire).
     pub fn string(s: impl Into<String>) -> Self {
-        Self::Constant { value: Constant::String(s.into()) }
+        Self::Constant {
+            value: Constant::String(s.into()),
+        }
     }
 
     /// An integer constant.
     pub fn integer(i: i64) -> Self {
-        Self::Constant { value: Constant::Integer(i) }
+        Self::Constant {
+            value: Constant::Integer(i),
+        }
     }
 
     /// A float constant.
     pub fn float(x: f64) -> Self {
-        Self::Constant { value: Constant::Float(x) }
+        Self::Constant {
+            value: Constant::Float(x),
+        }
     }
 
     /// A boolean constant.
     pub fn boolean(b: bool) -> Self {
-        Self::Constant { value: Constant::Boolean(b) }
+        Self::Constant {
+            value: Constant::Boolean(b),
+        }
     }
 
     /// A variable `?name`.
@@ -313,12 +323,18 @@ impl Term {
 
     /// A functional term with named slots, `(symbol :a x :b y)`.
     pub fn named(symbol: impl Into<String>, params: Vec<Parameter>) -> Self {
-        Self::Functional { symbol: symbol.into(), args: Arguments::Named(params) }
+        Self::Functional {
+            symbol: symbol.into(),
+            args: Arguments::Named(params),
+        }
     }
 
     /// A functional term with positional arguments, `(symbol x y)`; `(symbol)` when empty.
     pub fn positional(symbol: impl Into<String>, args: Vec<Term>) -> Self {
-        Self::Functional { symbol: symbol.into(), args: Arguments::Positional(args) }
+        Self::Functional {
+            symbol: symbol.into(),
+            args: Arguments::Positional(args),
+        }
     }
 
     /// `(set elements...)`: an unordered collection.
@@ -333,7 +349,11 @@ impl Term {
 
     /// The kind and elements if this term is a `set` or `sequence` (any ASCII case).
     pub fn collection(&self) -> Option<(Collection, &[Term])> {
-        let Self::Functional { symbol, args: Arguments::Positional(elements) } = self else {
+        let Self::Functional {
+            symbol,
+            args: Arguments::Positional(elements),
+        } = self
+        else {
             return None;
         };
         Collection::from_symbol(symbol).map(|kind| (kind, elements.as_slice()))
@@ -385,9 +405,10 @@ impl Arguments {
     /// The value of the named parameter `name` (ASCII case-insensitive, as SL slot names are).
     pub fn get(&self, name: &str) -> Option<&Term> {
         match self {
-            Self::Named(params) => {
-                params.iter().find(|p| p.name.eq_ignore_ascii_case(name)).map(|p| &p.value)
-            }
+            Self::Named(params) => params
+                .iter()
+                .find(|p| p.name.eq_ignore_ascii_case(name))
+                .map(|p| &p.value),
             Self::Positional(_) => None,
         }
     }
@@ -405,7 +426,10 @@ pub struct Parameter {
 impl Parameter {
     /// `:name value`.
     pub fn new(name: impl Into<String>, value: Term) -> Self {
-        Self { name: name.into(), value }
+        Self {
+            name: name.into(),
+            value,
+        }
     }
 }
 
@@ -449,8 +473,7 @@ impl DateTime {
         milli: u32,
     ) -> Option<Self> {
         let month_ok = (1..=12).contains(&month);
-        if !month_ok || day == 0 || day > days_in_month(year, month) || hour > 23 || minute > 59
-        {
+        if !month_ok || day == 0 || day > days_in_month(year, month) || hour > 23 || minute > 59 {
             return None;
         }
         if second > 59 || milli > 999 {
@@ -458,7 +481,9 @@ impl DateTime {
         }
         let days = days_from_civil(year, month, day);
         let secs = days * 86_400 + i64::from(hour * 3600 + minute * 60 + second);
-        Some(Self { unix_ms: secs * 1000 + i64::from(milli) })
+        Some(Self {
+            unix_ms: secs * 1000 + i64::from(milli),
+        })
     }
 
     /// Calendar fields in UTC: (year, month, day, hour, minute, second, milli, weekday 0=Sunday).

@@ -16,7 +16,10 @@ use crate::level::Level;
 
 /// JADE's rendering of `content` as parsed by its codec for `level`.
 pub fn jade_tree(content: &Content, level: Level) -> String {
-    let mut r = Renderer { tier: level.ontology_tier(), out: String::new() };
+    let mut r = Renderer {
+        tier: level.ontology_tier(),
+        out: String::new(),
+    };
     match content.expressions.as_slice() {
         [single] => r.content_expression(single),
         many => {
@@ -103,18 +106,36 @@ impl Renderer {
             Formula::Binary { op, left, right } => {
                 self.positional(op.keyword(), &[left, right], |r, f| r.formula(f));
             }
-            Formula::Quantified { quantifier, variable, formula } => {
-                let var = Term::Variable { name: variable.clone() };
+            Formula::Quantified {
+                quantifier,
+                variable,
+                formula,
+            } => {
+                let var = Term::Variable {
+                    name: variable.clone(),
+                };
                 self.positional(quantifier.keyword(), &[0, 1], |r, &i| {
-                    if i == 0 { r.term(&var) } else { r.formula(formula) }
+                    if i == 0 {
+                        r.term(&var)
+                    } else {
+                        r.formula(formula)
+                    }
                 });
             }
             Formula::Modal { op, agent, formula } => {
                 self.positional(op.keyword(), &[0, 1], |r, &i| {
-                    if i == 0 { r.term(agent) } else { r.formula(formula) }
+                    if i == 0 {
+                        r.term(agent)
+                    } else {
+                        r.formula(formula)
+                    }
                 });
             }
-            Formula::ActionCondition { op, action, condition } => {
+            Formula::ActionCondition {
+                op,
+                action,
+                condition,
+            } => {
                 let name = match op {
                     ActionOp::Done => "done",
                     ActionOp::Feasible => "feasible",
@@ -165,9 +186,10 @@ impl Renderer {
         match t {
             Term::Variable { name } | Term::Meta { name } => self.variable(name),
             Term::Constant { value } => self.constant(value),
-            Term::Functional { symbol, args: Arguments::Positional(elements) }
-                if Collection::from_symbol(symbol).is_some() =>
-            {
+            Term::Functional {
+                symbol,
+                args: Arguments::Positional(elements),
+            } if Collection::from_symbol(symbol).is_some() => {
                 self.out.push('(');
                 self.out.push_str(symbol);
                 for (i, e) in elements.iter().enumerate() {
@@ -212,7 +234,9 @@ impl Renderer {
             Constant::DateTime(d) => self.out.push_str(&java_date(*d)),
             Constant::ByteString(s) => {
                 // Java prints a byte[] as its identity hash; we print a content hash in its place.
-                let h = s.bytes().fold(0x811c_9dc5_u32, |h, b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193));
+                let h = s.bytes().fold(0x811c_9dc5_u32, |h, b| {
+                    (h ^ u32::from(b)).wrapping_mul(0x0100_0193)
+                });
                 let _ = write!(self.out, "[B@{h:x}");
             }
         }
@@ -225,7 +249,11 @@ pub(crate) fn java_double(x: f64) -> String {
         return "NaN".into();
     }
     if x.is_infinite() {
-        return if x > 0.0 { "Infinity".into() } else { "-Infinity".into() };
+        return if x > 0.0 {
+            "Infinity".into()
+        } else {
+            "-Infinity".into()
+        };
     }
     let a = x.abs();
     if a == 0.0 || (1e-3..1e7).contains(&a) {
@@ -235,18 +263,27 @@ pub(crate) fn java_double(x: f64) -> String {
     // Rust's shortest round-trip digits in scientific form: `1.5e-5`, `1e7`.
     let s = format!("{x:e}");
     let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
-    let mantissa = if mantissa.contains('.') { mantissa.to_owned() } else { format!("{mantissa}.0") };
+    let mantissa = if mantissa.contains('.') {
+        mantissa.to_owned()
+    } else {
+        format!("{mantissa}.0")
+    };
     format!("{mantissa}E{exponent}")
 }
 
 /// Java's `Date.toString` in UTC: `Sun Nov 22 01:41:40 UTC 2026`.
 fn java_date(d: DateTime) -> String {
     const DAYS: [&str; 7] = ["Sun", "Mon", "Tue", "Wed", "Thu", "Fri", "Sat"];
-    const MONTHS: [&str; 12] =
-        ["Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec"];
+    const MONTHS: [&str; 12] = [
+        "Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec",
+    ];
     let (y, mo, day, h, mi, s, _, wd) = d.to_utc_fields();
     let weekday = DAYS.get(wd as usize).copied().unwrap_or("?");
-    let month = (mo as usize).checked_sub(1).and_then(|i| MONTHS.get(i)).copied().unwrap_or("?");
+    let month = (mo as usize)
+        .checked_sub(1)
+        .and_then(|i| MONTHS.get(i))
+        .copied()
+        .unwrap_or("?");
     format!("{weekday} {month} {day:02} {h:02}:{mi:02}:{s:02} UTC {y}")
 }
 

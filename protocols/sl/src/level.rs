@@ -78,7 +78,10 @@ impl Level {
 
     /// The lowest level accepting `feature` (for error hints).
     pub(crate) fn lowest_allowing(feature: Feature) -> Level {
-        Level::ALL.into_iter().find(|l| l.allows(feature)).unwrap_or(Level::Full)
+        Level::ALL
+            .into_iter()
+            .find(|l| l.allows(feature))
+            .unwrap_or(Level::Full)
     }
 
     /// Ontology tier used to name slots in the JADE tree: 0 (SL0) .. 3 (full).

@@ -54,7 +54,10 @@ const KEYWORDS: [(&str, Keyword); 24] = [
 
 /// The keyword spelled `s` (any ASCII case), if it is one.
 pub(crate) fn keyword(s: &str) -> Option<Keyword> {
-    KEYWORDS.iter().find(|(k, _)| k.eq_ignore_ascii_case(s)).map(|&(_, kw)| kw)
+    KEYWORDS
+        .iter()
+        .find(|(k, _)| k.eq_ignore_ascii_case(s))
+        .map(|&(_, kw)| kw)
 }
 
 /// A token kind; slices borrow the input.
@@ -89,7 +92,10 @@ impl Tok<'_> {
             Tok::LParen => "\"(\"".into(),
             Tok::RParen => "\")\"".into(),
             Tok::Keyword(k) => {
-                let name = KEYWORDS.iter().find(|(_, kw)| kw == k).map_or("?", |(s, _)| s);
+                let name = KEYWORDS
+                    .iter()
+                    .find(|(_, kw)| kw == k)
+                    .map_or("?", |(s, _)| s);
                 format!("keyword {name:?}")
             }
             Tok::Word(s) => format!("word {s:?}"),
@@ -129,7 +135,11 @@ pub(crate) fn line_column(src: &str, offset: usize) -> (usize, usize) {
 }
 
 fn is_word_start(b: u8) -> bool {
-    b > 0x20 && !matches!(b, b'(' | b')' | b'"' | b'#' | b'0'..=b'9' | b':' | b'-' | b'?')
+    b > 0x20
+        && !matches!(
+            b,
+            b'(' | b')' | b'"' | b'#' | b'0'..=b'9' | b':' | b'-' | b'?'
+        )
 }
 
 fn is_word_rest(b: u8) -> bool {
@@ -202,7 +212,11 @@ fn hex_len(s: &[u8]) -> usize {
     let sg = sign(s);
     let rest = &s[sg..];
     if rest.len() >= 3 && rest[0] == b'0' && matches!(rest[1], b'x' | b'X') {
-        match rest[2..].iter().take_while(|b| b.is_ascii_hexdigit()).count() {
+        match rest[2..]
+            .iter()
+            .take_while(|b| b.is_ascii_hexdigit())
+            .count()
+        {
             0 => 0,
             h => sg + 2 + h,
         }
@@ -266,7 +280,11 @@ fn datetime_len(s: &[u8]) -> usize {
 
 impl<'a> Lexer<'a> {
     pub(crate) fn new(src: &'a str) -> Self {
-        Self { src, pos: 0, operator_state: false }
+        Self {
+            src,
+            pos: 0,
+            operator_state: false,
+        }
     }
 
     pub(crate) fn src(&self) -> &'a str {
@@ -275,8 +293,17 @@ impl<'a> Lexer<'a> {
 
     fn lexical(&self, at: usize, reason: &'static str) -> SlError {
         let (line, column) = line_column(self.src, at);
-        let found = self.src.get(at..).and_then(|s| s.chars().next()).unwrap_or('\0');
-        SlError::Lexical { line, column, found, reason }
+        let found = self
+            .src
+            .get(at..)
+            .and_then(|s| s.chars().next())
+            .unwrap_or('\0');
+        SlError::Lexical {
+            line,
+            column,
+            found,
+            reason,
+        }
     }
 
     /// The next token (state changes as in JADE: `(` enters operator state, anything else leaves).
@@ -288,7 +315,10 @@ impl<'a> Lexer<'a> {
         let start = self.pos;
         let rest = &bytes[start..];
         let Some(&first) = rest.first() else {
-            return Ok(Token { tok: Tok::Eof, offset: start });
+            return Ok(Token {
+                tok: Tok::Eof,
+                offset: start,
+            });
         };
         let (tok, len) = if first == b'(' {
             (Tok::LParen, 1)
@@ -347,16 +377,22 @@ impl<'a> Lexer<'a> {
                         w => Ok((Tok::Meta(self.slice(start, 2 + w)), 2 + w)),
                     };
                 }
-                let len = self.name_len(start + 1, body, "`?` must be followed by a word or a string")?;
+                let len = self.name_len(
+                    start + 1,
+                    body,
+                    "`?` must be followed by a word or a string",
+                )?;
                 Ok((Tok::Variable(self.slice(start + 1, len)), 1 + len))
             }
             b':' => {
                 let body = &rest[1..];
-                let len = self.name_len(start + 1, body, "`:` must be followed by a parameter name")?;
+                let len =
+                    self.name_len(start + 1, body, "`:` must be followed by a parameter name")?;
                 Ok((Tok::Param(self.slice(start + 1, len)), 1 + len))
             }
             b'"' => {
-                let len = quoted_len(rest).ok_or_else(|| self.lexical(start, "unterminated string"))?;
+                let len =
+                    quoted_len(rest).ok_or_else(|| self.lexical(start, "unterminated string"))?;
                 Ok((Tok::Quoted(self.slice(start, len)), len))
             }
             b'#' => self.byte_string(start, rest),
@@ -373,7 +409,10 @@ impl<'a> Lexer<'a> {
                     .into_iter()
                     .fold((0, 0), |best, c| if c.0 > best.0 { c } else { best });
                 if len == 0 {
-                    return Err(self.lexical(start, "expected a term: word, number, string, variable, date or \"(\""));
+                    return Err(self.lexical(
+                        start,
+                        "expected a term: word, number, string, variable, date or \"(\"",
+                    ));
                 }
                 let text = self.slice(start, len);
                 let tok = match kind {
@@ -410,7 +449,9 @@ impl<'a> Lexer<'a> {
             .parse::<i64>()
             .ok()
             .and_then(|n| usize::try_from(n).ok())
-            .ok_or_else(|| self.lexical(start, "byte string length must be a non-negative integer"))?;
+            .ok_or_else(|| {
+                self.lexical(start, "byte string length must be a non-negative integer")
+            })?;
         let body_start = start + 1 + n_len + 1;
         let body_end = body_start
             .checked_add(count)
@@ -461,19 +502,31 @@ mod tests {
                 Tok::RParen,
             ]
         );
-        assert_eq!(kinds("(Born)"), vec![Tok::LParen, Tok::Word("Born"), Tok::RParen]);
-        assert_eq!(kinds("(+x)"), vec![Tok::LParen, Tok::Word("+x"), Tok::RParen]);
+        assert_eq!(
+            kinds("(Born)"),
+            vec![Tok::LParen, Tok::Word("Born"), Tok::RParen]
+        );
+        assert_eq!(
+            kinds("(+x)"),
+            vec![Tok::LParen, Tok::Word("+x"), Tok::RParen]
+        );
     }
 
     #[test]
     fn strings_and_bytes() {
-        assert_eq!(kinds(r#"(p "a \"b\"" #3"x y)"#)[2], Tok::Quoted(r#""a \"b\"""#));
+        assert_eq!(
+            kinds(r#"(p "a \"b\"" #3"x y)"#)[2],
+            Tok::Quoted(r#""a \"b\"""#)
+        );
         assert_eq!(kinds(r#"(p #3"x y)"#)[2], Tok::Bytes("x y"));
         assert_eq!(unescape(r#""a \"b\" \\ c""#), r#"a "b" \\ c"#);
         assert!(Lexer::new("(p #9\"ab)").next_token().is_ok());
         let mut lx = Lexer::new("(p #9\"ab)");
         lx.next_token().unwrap();
         lx.next_token().unwrap();
-        assert!(matches!(lx.next_token(), Err(SlError::Lexical { column: 4, .. })));
+        assert!(matches!(
+            lx.next_token(),
+            Err(SlError::Lexical { column: 4, .. })
+        ));
     }
 }

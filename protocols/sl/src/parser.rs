@@ -17,7 +17,13 @@ pub const MAX_DEPTH: usize = 128;
 /// stops at the parenthesis closing the content: text after it is not examined (JADE's own test
 /// content has a stray `)` there).
 pub fn parse(input: &str, level: Level) -> Result<Content, SlError> {
-    Parser { lexer: Lexer::new(input), peeked: None, level, depth: 0 }.content()
+    Parser {
+        lexer: Lexer::new(input),
+        peeked: None,
+        level,
+        depth: 0,
+    }
+    .content()
 }
 
 struct Parser<'a> {
@@ -50,7 +56,12 @@ impl<'a> Parser<'a> {
 
     fn unexpected(&self, t: Token<'_>, expected: &'static str) -> SlError {
         let (line, column) = line_column(self.lexer.src(), t.offset);
-        SlError::Syntax { line, column, found: t.tok.describe(), expected }
+        SlError::Syntax {
+            line,
+            column,
+            found: t.tok.describe(),
+            expected,
+        }
     }
 
     fn open(&mut self) -> Result<(), SlError> {
@@ -61,7 +72,11 @@ impl<'a> Parser<'a> {
         self.depth += 1;
         if self.depth > MAX_DEPTH {
             let (line, column) = line_column(self.lexer.src(), t.offset);
-            return Err(SlError::TooDeep { line, column, limit: MAX_DEPTH });
+            return Err(SlError::TooDeep {
+                line,
+                column,
+                limit: MAX_DEPTH,
+            });
         }
         Ok(())
     }
@@ -126,7 +141,11 @@ impl<'a> Parser<'a> {
         let Tok::Keyword(Keyword::Referential(op)) = t.tok else {
             return Err(self.unexpected(t, "iota, any or all"));
         };
-        self.require(t, Feature::Higher, "an identifying expression (iota/any/all)")?;
+        self.require(
+            t,
+            Feature::Higher,
+            "an identifying expression (iota/any/all)",
+        )?;
         let term = self.term()?;
         let formula = self.formula()?;
         Ok(IdentifyingExpression { op, term, formula })
@@ -174,10 +193,14 @@ impl<'a> Parser<'a> {
     fn formula(&mut self) -> Result<Formula, SlError> {
         let t = self.peek()?;
         match t.tok {
-            Tok::Word(_) | Tok::Quoted(_) => Ok(Formula::Symbol { name: self.string()? }),
+            Tok::Word(_) | Tok::Quoted(_) => Ok(Formula::Symbol {
+                name: self.string()?,
+            }),
             Tok::Meta(name) => {
                 self.next()?;
-                Ok(Formula::Meta { name: name.to_owned() })
+                Ok(Formula::Meta {
+                    name: name.to_owned(),
+                })
             }
             Tok::LParen => {
                 self.open()?;
@@ -206,10 +229,16 @@ impl<'a> Parser<'a> {
         match k {
             Keyword::Not => {
                 self.require(t, Feature::Connectives, "the connective \"not\"")?;
-                Ok(Formula::Not { formula: Box::new(self.formula()?) })
+                Ok(Formula::Not {
+                    formula: Box::new(self.formula()?),
+                })
             }
             Keyword::Binary(op) => {
-                self.require(t, Feature::Connectives, "a binary connective (and/or/implies/equiv)")?;
+                self.require(
+                    t,
+                    Feature::Connectives,
+                    "a binary connective (and/or/implies/equiv)",
+                )?;
                 let left = Box::new(self.formula()?);
                 let right = Box::new(self.formula()?);
                 Ok(Formula::Binary { op, left, right })
@@ -221,7 +250,11 @@ impl<'a> Parser<'a> {
                     return Err(self.unexpected(v, "a ?variable after the quantifier"));
                 };
                 let formula = Box::new(self.formula()?);
-                Ok(Formula::Quantified { quantifier, variable: variable_name(name), formula })
+                Ok(Formula::Quantified {
+                    quantifier,
+                    variable: variable_name(name),
+                    formula,
+                })
             }
             Keyword::Modal(op) => {
                 self.require(t, Feature::Higher, "a modal operator (B/U/PG/I)")?;
@@ -232,12 +265,19 @@ impl<'a> Parser<'a> {
             Keyword::ActionOp(op) => {
                 let action = Box::new(self.action_operand()?);
                 let next = self.peek()?.tok;
-                let condition = if matches!(next, Tok::Word(_) | Tok::Quoted(_) | Tok::Meta(_) | Tok::LParen) {
+                let condition = if matches!(
+                    next,
+                    Tok::Word(_) | Tok::Quoted(_) | Tok::Meta(_) | Tok::LParen
+                ) {
                     Some(Box::new(self.formula()?))
                 } else {
                     None
                 };
-                Ok(Formula::ActionCondition { op, action, condition })
+                Ok(Formula::ActionCondition {
+                    op,
+                    action,
+                    condition,
+                })
             }
             _ => Err(self.unexpected(t, "a predicate symbol or a formula operator")),
         }
@@ -273,16 +313,29 @@ impl<'a> Parser<'a> {
         let t = self.next()?;
         let constant = |value| Ok(Term::Constant { value });
         match t.tok {
-            Tok::Variable(name) => Ok(Term::Variable { name: variable_name(name) }),
-            Tok::Meta(name) => Ok(Term::Meta { name: name.to_owned() }),
+            Tok::Variable(name) => Ok(Term::Variable {
+                name: variable_name(name),
+            }),
+            Tok::Meta(name) => Ok(Term::Meta {
+                name: name.to_owned(),
+            }),
             Tok::Word(w) if w.eq_ignore_ascii_case("true") => constant(Constant::Boolean(true)),
             Tok::Word(w) if w.eq_ignore_ascii_case("false") => constant(Constant::Boolean(false)),
             Tok::Word(w) => constant(Constant::String(w.to_owned())),
             Tok::Quoted(q) => constant(Constant::String(unescape(q))),
-            Tok::Integer(s) => constant(s.parse().map_or_else(|_| Constant::String(s.to_owned()), Constant::Integer)),
+            Tok::Integer(s) => constant(
+                s.parse()
+                    .map_or_else(|_| Constant::String(s.to_owned()), Constant::Integer),
+            ),
             Tok::Hex(s) => constant(Constant::String(s.to_owned())),
-            Tok::Float(s) => constant(s.parse().map_or_else(|_| Constant::String(s.to_owned()), Constant::Float)),
-            Tok::DateTime(s) => constant(parse_datetime(s).map_or_else(|| Constant::String(s.to_owned()), Constant::DateTime)),
+            Tok::Float(s) => constant(
+                s.parse()
+                    .map_or_else(|_| Constant::String(s.to_owned()), Constant::Float),
+            ),
+            Tok::DateTime(s) => constant(
+                parse_datetime(s)
+                    .map_or_else(|| Constant::String(s.to_owned()), Constant::DateTime),
+            ),
             Tok::Bytes(b) => constant(Constant::ByteString(b.to_owned())),
             Tok::LParen => {
                 self.peeked = Some(t);
@@ -305,19 +358,28 @@ impl<'a> Parser<'a> {
                 Ok(Term::Arithmetic { op, left, right })
             }
             Tok::Keyword(Keyword::Action | Keyword::Alternative | Keyword::Sequence) => {
-                Ok(Term::Action { action: Box::new(self.action_nobrace()?) })
+                Ok(Term::Action {
+                    action: Box::new(self.action_nobrace()?),
+                })
             }
-            Tok::Keyword(Keyword::Referential(_)) => {
-                Ok(Term::Identifying { expression: Box::new(self.identifying_nobrace()?) })
-            }
+            Tok::Keyword(Keyword::Referential(_)) => Ok(Term::Identifying {
+                expression: Box::new(self.identifying_nobrace()?),
+            }),
             Tok::Word(_) | Tok::Quoted(_) => {
                 let symbol = self.string()?;
                 let args = if let Tok::Param(_) = self.peek()?.tok {
                     let mut params = vec![];
                     while let Tok::Param(name) = self.peek()?.tok {
                         self.next()?;
-                        let name = if name.starts_with('"') { unescape(name) } else { name.to_owned() };
-                        params.push(Parameter { name, value: self.term()? });
+                        let name = if name.starts_with('"') {
+                            unescape(name)
+                        } else {
+                            name.to_owned()
+                        };
+                        params.push(Parameter {
+                            name,
+                            value: self.term()?,
+                        });
                     }
                     Arguments::Named(params)
                 } else {
@@ -329,13 +391,20 @@ impl<'a> Parser<'a> {
                 };
                 Ok(Term::Functional { symbol, args })
             }
-            _ => Err(self.unexpected(t, "a function symbol, action, iota/any/all or an arithmetic operator")),
+            _ => Err(self.unexpected(
+                t,
+                "a function symbol, action, iota/any/all or an arithmetic operator",
+            )),
         }
     }
 }
 
 fn variable_name(raw: &str) -> String {
-    if raw.starts_with('"') { unescape(raw) } else { raw.to_owned() }
+    if raw.starts_with('"') {
+        unescape(raw)
+    } else {
+        raw.to_owned()
+    }
 }
 
 /// `YYYYMMDDThhmmssmmm[letter]`, read as UTC; `None` if a field is out of range.

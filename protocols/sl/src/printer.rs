@@ -18,7 +18,11 @@ use crate::lexer::is_bare_word;
 
 /// Writes `s` bare if it reads back as the same word, quoted otherwise.
 fn write_symbol(f: &mut Formatter<'_>, s: &str) -> fmt::Result {
-    if is_bare_word(s) { f.write_str(s) } else { write_quoted(f, s) }
+    if is_bare_word(s) {
+        f.write_str(s)
+    } else {
+        write_quoted(f, s)
+    }
 }
 
 fn write_quoted(f: &mut Formatter<'_>, s: &str) -> fmt::Result {
@@ -90,7 +94,11 @@ impl Display for Formula {
             }
             Formula::Not { formula } => write!(f, "(not {formula})"),
             Formula::Binary { op, left, right } => write!(f, "({} {left} {right})", op.keyword()),
-            Formula::Quantified { quantifier, variable, formula } => {
+            Formula::Quantified {
+                quantifier,
+                variable,
+                formula,
+            } => {
                 write!(f, "({} ", quantifier.keyword())?;
                 write_variable(f, variable)?;
                 write!(f, " {formula})")
@@ -98,7 +106,11 @@ impl Display for Formula {
             Formula::Modal { op, agent, formula } => {
                 write!(f, "({} {agent} {formula})", op.keyword())
             }
-            Formula::ActionCondition { op, action, condition } => {
+            Formula::ActionCondition {
+                op,
+                action,
+                condition,
+            } => {
                 write!(f, "({} {action}", op.keyword())?;
                 if let Some(c) = condition {
                     write!(f, " {c}")?;

@@ -17,18 +17,26 @@ fn level_of(codec: &str) -> Level {
 fn same_tree(ours: &str, jade: &str) -> bool {
     let mut a = ours.split("[B@");
     let mut b = jade.split("[B@");
-    let (Some(a0), Some(b0)) = (a.next(), b.next()) else { return false };
+    let (Some(a0), Some(b0)) = (a.next(), b.next()) else {
+        return false;
+    };
     if a0 != b0 {
         return false;
     }
-    let skip_hash = |s: &str| s.trim_start_matches(|c: char| c.is_ascii_hexdigit()).to_owned();
+    let skip_hash = |s: &str| {
+        s.trim_start_matches(|c: char| c.is_ascii_hexdigit())
+            .to_owned()
+    };
     let (ra, rb): (Vec<_>, Vec<_>) = (a.map(skip_hash).collect(), b.map(skip_hash).collect());
     ra == rb
 }
 
 #[test]
 fn every_sl_decode_row_agrees_with_jade() {
-    let Some(path) = iw_testdata::require("every_sl_decode_row_agrees_with_jade", "fipa/vectors/sl-decode.jsonl") else {
+    let Some(path) = iw_testdata::require(
+        "every_sl_decode_row_agrees_with_jade",
+        "fipa/vectors/sl-decode.jsonl",
+    ) else {
         return;
     };
     let text = std::fs::read_to_string(path).unwrap();
@@ -46,19 +54,32 @@ fn every_sl_decode_row_agrees_with_jade() {
                 let ours = jade_tree(&content, level);
                 let jade = row["abs"].as_str().unwrap();
                 if !same_tree(&ours, jade) {
-                    failures.push(format!("{source} {level}: tree differs\n ours: {ours}\n jade: {jade}"));
+                    failures.push(format!(
+                        "{source} {level}: tree differs\n ours: {ours}\n jade: {jade}"
+                    ));
                 }
                 let printed = content.to_string();
                 match parse(&printed, level) {
                     Ok(again) if again == content => {}
-                    other => failures.push(format!("{source} {level}: reprint {printed} -> {other:?}")),
+                    other => {
+                        failures.push(format!("{source} {level}: reprint {printed} -> {other:?}"))
+                    }
                 }
             }
             (Err(_), false) => {}
-            (Ok(_), false) => failures.push(format!("{source} {level}: JADE refuses, we accept: {input}")),
-            (Err(e), true) => failures.push(format!("{source} {level}: JADE accepts, we refuse: {e}")),
+            (Ok(_), false) => failures.push(format!(
+                "{source} {level}: JADE refuses, we accept: {input}"
+            )),
+            (Err(e), true) => {
+                failures.push(format!("{source} {level}: JADE accepts, we refuse: {e}"))
+            }
         }
     }
     assert_eq!(rows, 332, "expected JADE's 332 rows");
-    assert!(failures.is_empty(), "{} of {rows} rows disagree:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {rows} rows disagree:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }

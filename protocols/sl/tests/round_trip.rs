@@ -29,10 +29,22 @@ fn constant() -> impl Strategy<Value = Constant> {
     prop_oneof![
         text().prop_map(Constant::String),
         any::<i64>().prop_map(Constant::Integer),
-        any::<f64>().prop_filter("finite", |x| x.is_finite()).prop_map(Constant::Float),
+        any::<f64>()
+            .prop_filter("finite", |x| x.is_finite())
+            .prop_map(Constant::Float),
         any::<bool>().prop_map(Constant::Boolean),
-        (0i64..=9999, 1u32..=12, 1u32..=28, 0u32..24, 0u32..60, 0u32..60, 0u32..1000)
-            .prop_map(|(y, mo, d, h, mi, s, ms)| Constant::DateTime(DateTime::from_utc(y, mo, d, h, mi, s, ms).unwrap())),
+        (
+            0i64..=9999,
+            1u32..=12,
+            1u32..=28,
+            0u32..24,
+            0u32..60,
+            0u32..60,
+            0u32..1000
+        )
+            .prop_map(|(y, mo, d, h, mi, s, ms)| Constant::DateTime(
+                DateTime::from_utc(y, mo, d, h, mi, s, ms).unwrap()
+            )),
         "\\PC{0,8}".prop_map(Constant::ByteString),
     ]
 }
@@ -41,15 +53,24 @@ fn term() -> impl Strategy<Value = Term> {
     let leaf = prop_oneof![
         constant().prop_map(|value| Term::Constant { value }),
         text().prop_map(|name| Term::Variable { name }),
-        word().prop_map(|w| Term::Meta { name: format!("??{w}") }),
+        word().prop_map(|w| Term::Meta {
+            name: format!("??{w}")
+        }),
     ];
     leaf.prop_recursive(4, 24, 4, |inner| {
         prop_oneof![
-            (text(), prop::collection::vec(inner.clone(), 0..4))
-                .prop_map(|(s, args)| Term::Functional { symbol: s, args: Arguments::Positional(args) }),
+            (text(), prop::collection::vec(inner.clone(), 0..4)).prop_map(|(s, args)| {
+                Term::Functional {
+                    symbol: s,
+                    args: Arguments::Positional(args),
+                }
+            }),
             (text(), prop::collection::vec((text(), inner.clone()), 1..4)).prop_map(|(s, ps)| {
                 let params = ps.into_iter().map(|(n, v)| Parameter::new(n, v)).collect();
-                Term::Functional { symbol: s, args: Arguments::Named(params) }
+                Term::Functional {
+                    symbol: s,
+                    args: Arguments::Named(params),
+                }
             }),
             prop::collection::vec(inner.clone(), 0..4).prop_map(Term::set),
             (inner.clone(), inner.clone()).prop_map(|(l, r)| Term::Arithmetic {
@@ -67,12 +88,17 @@ fn term() -> impl Strategy<Value = Term> {
 fn formula() -> impl Strategy<Value = Formula> {
     let leaf = prop_oneof![
         text().prop_map(|name| Formula::Symbol { name }),
-        word().prop_map(|w| Formula::Meta { name: format!("??{w}") }),
-        (text(), prop::collection::vec(term(), 1..3)).prop_map(|(predicate, args)| Formula::Atomic { predicate, args }),
+        word().prop_map(|w| Formula::Meta {
+            name: format!("??{w}")
+        }),
+        (text(), prop::collection::vec(term(), 1..3))
+            .prop_map(|(predicate, args)| Formula::Atomic { predicate, args }),
     ];
     leaf.prop_recursive(3, 16, 2, |inner| {
         prop_oneof![
-            inner.clone().prop_map(|f| Formula::Not { formula: Box::new(f) }),
+            inner.clone().prop_map(|f| Formula::Not {
+                formula: Box::new(f)
+            }),
             (inner.clone(), inner.clone()).prop_map(|(l, r)| Formula::Binary {
                 op: BinaryOp::Implies,
                 left: Box::new(l),
@@ -83,11 +109,20 @@ fn formula() -> impl Strategy<Value = Formula> {
                 variable: v,
                 formula: Box::new(f)
             }),
-            (term(), inner.clone()).prop_map(|(agent, f)| Formula::Modal { op: ModalOp::PG, agent, formula: Box::new(f) }),
-            (term(), term(), prop::option::of(inner.clone())).prop_map(|(agent, act, c)| Formula::ActionCondition {
-                op: ActionOp::Done,
-                action: Box::new(ActionOperand::Expression(ActionExpression::Action { agent, act })),
-                condition: c.map(Box::new),
+            (term(), inner.clone()).prop_map(|(agent, f)| Formula::Modal {
+                op: ModalOp::PG,
+                agent,
+                formula: Box::new(f)
+            }),
+            (term(), term(), prop::option::of(inner.clone())).prop_map(|(agent, act, c)| {
+                Formula::ActionCondition {
+                    op: ActionOp::Done,
+                    action: Box::new(ActionOperand::Expression(ActionExpression::Action {
+                        agent,
+                        act,
+                    })),
+                    condition: c.map(Box::new),
+                }
             }),
         ]
     })
@@ -96,15 +131,22 @@ fn formula() -> impl Strategy<Value = Formula> {
 fn expression() -> impl Strategy<Value = ContentExpression> {
     prop_oneof![
         formula().prop_map(ContentExpression::Formula),
-        (term(), term()).prop_map(|(agent, act)| ContentExpression::Action(ActionExpression::Sequence {
-            first: Box::new(ActionOperand::Expression(ActionExpression::Action { agent, act })),
-            second: Box::new(ActionOperand::Meta("??next".into())),
-        })),
-        (term(), formula()).prop_map(|(term, formula)| ContentExpression::Identifying(IdentifyingExpression {
-            op: ReferentialOp::All,
-            term,
-            formula
-        })),
+        (term(), term()).prop_map(|(agent, act)| ContentExpression::Action(
+            ActionExpression::Sequence {
+                first: Box::new(ActionOperand::Expression(ActionExpression::Action {
+                    agent,
+                    act
+                })),
+                second: Box::new(ActionOperand::Meta("??next".into())),
+            }
+        )),
+        (term(), formula()).prop_map(|(term, formula)| ContentExpression::Identifying(
+            IdentifyingExpression {
+                op: ReferentialOp::All,
+                term,
+                formula
+            }
+        )),
     ]
 }
 
@@ -145,30 +187,61 @@ proptest! {
 #[test]
 fn errors_say_where_and_what() {
     let e = parse("((cfp-item :price (+ 10 5)))", Level::Full).unwrap_err();
-    assert!(matches!(e, SlError::Syntax { line: 1, column: 12, .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            SlError::Syntax {
+                line: 1,
+                column: 12,
+                ..
+            }
+        ),
+        "{e}"
+    );
     assert!(e.to_string().contains("expected a term"), "{e}");
     let e = parse("(\n  (forall ?x (p ?x)))", Level::Sl0).unwrap_err();
     assert!(
-        matches!(e, SlError::NotAllowed { line: 2, column: 4, level: Level::Sl0, needs: Level::Sl1, .. }),
+        matches!(
+            e,
+            SlError::NotAllowed {
+                line: 2,
+                column: 4,
+                level: Level::Sl0,
+                needs: Level::Sl1,
+                ..
+            }
+        ),
         "{e}"
     );
     let e = parse("((p \"open", Level::Full).unwrap_err();
     assert!(matches!(e, SlError::Lexical { column: 5, .. }), "{e}");
-    assert!(matches!(parse("", Level::Full), Err(SlError::Syntax { .. })));
-    assert!(matches!(parse("()", Level::Full), Err(SlError::Syntax { .. })));
+    assert!(matches!(
+        parse("", Level::Full),
+        Err(SlError::Syntax { .. })
+    ));
+    assert!(matches!(
+        parse("()", Level::Full),
+        Err(SlError::Syntax { .. })
+    ));
 }
 
 #[test]
 fn deep_nesting_is_refused_not_overflowed() {
     let deep = format!("((p {}x{}))", "(f ".repeat(100_000), ")".repeat(100_000));
-    assert!(matches!(parse(&deep, Level::Full), Err(SlError::TooDeep { .. })));
+    assert!(matches!(
+        parse(&deep, Level::Full),
+        Err(SlError::TooDeep { .. })
+    ));
     let ok = format!("((p {}x{}))", "(f ".repeat(50), ")".repeat(50));
     assert!(parse(&ok, Level::Full).is_ok());
 }
 
 #[test]
 fn strings_that_sl_cannot_quote_become_byte_strings() {
-    let c = Content::single(Formula::Atomic { predicate: "p".into(), args: vec![Term::string("a b\\")] });
+    let c = Content::single(Formula::Atomic {
+        predicate: "p".into(),
+        args: vec![Term::string("a b\\")],
+    });
     assert_eq!(c.to_string(), "((p #4\"a b\\))");
     let back = parse(&c.to_string(), Level::Sl0).unwrap();
     assert_eq!(back.to_string(), c.to_string());

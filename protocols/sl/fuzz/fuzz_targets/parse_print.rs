@@ -6,7 +6,9 @@ use iw_sl::{Level, parse};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let Ok(text) = std::str::from_utf8(data) else { return };
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
     for level in Level::ALL {
         if let Ok(content) = parse(text, level) {
             let printed = content.to_string();
