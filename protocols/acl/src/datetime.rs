@@ -96,10 +96,8 @@ impl FipaDateTime {
         if self.hour > 23 || self.minute > 59 || self.second > 59 {
             return Err(bad("time of day out of range"));
         }
-        if let Some(zone) = self.zone {
-            if !zone.is_ascii_alphabetic() {
-                return Err(bad("type designator must be a letter such as Z"));
-            }
+        if self.zone.is_some_and(|zone| !zone.is_ascii_alphabetic()) {
+            return Err(bad("type designator must be a letter such as Z"));
         }
         Ok(self)
     }
@@ -116,7 +114,7 @@ fn zone_offset_hours(zone: Option<char>) -> i32 {
 }
 
 fn is_leap(year: u16) -> bool {
-    (year % 4 == 0 && year % 100 != 0) || year % 400 == 0
+    (year.is_multiple_of(4) && !year.is_multiple_of(100)) || year.is_multiple_of(400)
 }
 
 fn days_in_month(year: u16, month: u8) -> u8 {

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 
+use crate::protocol::{Actor, check_conversation, check_deadline, check_sender};
 use crate::{Error, Protocol, SessionState};
 
 /// One initiator-participant exchange.
@@ -201,29 +202,14 @@ impl Initiator {
     /// Applies a participant's message: the protocol must allow it in the session's current
     /// state, and a first answer must arrive by the deadline. On error nothing changes.
     pub fn handle(&mut self, message: &AclMessage, now_unix_ms: i64) -> Result<Event, Error> {
-        if message.conversation_id.as_deref() != Some(self.conversation_id.as_str()) {
-            return Err(Error::WrongConversation { expected: self.conversation_id.clone(), found: message.conversation_id.clone() });
-        }
+        check_conversation(message, &self.conversation_id)?;
         let index = self.session_index(message)?;
         let session = &self.sessions[index];
-        let participant = session.participant.name.clone();
-        if let Some(sender) = &message.sender {
-            if sender.name != participant {
-                return Err(Error::WrongSender { expected: participant, found: sender.name.clone() });
-            }
-        }
+        let participant = session.participant.name.as_str();
+        check_sender(message, participant)?;
         let act = message.performative;
-        let state = self.protocol.after_participant_act(session.state, act).ok_or_else(|| Error::OutOfProtocol {
-            protocol: self.protocol,
-            state: session.state,
-            act,
-            participant: participant.clone(),
-        })?;
-        if session.state == SessionState::AwaitingResponse {
-            if let Some(deadline_unix_ms) = self.deadline_unix_ms.filter(|&d| now_unix_ms > d) {
-                return Err(Error::Late { act, participant, deadline_unix_ms, now_unix_ms });
-            }
-        }
+        let state = self.protocol.step(Actor::Participant, session.state, act, participant)?;
+        check_deadline(session.state, self.deadline_unix_ms, act, participant, now_unix_ms)?;
         let session = &mut self.sessions[index];
         session.state = state;
         session.last_received = Some(message.clone());
@@ -305,12 +291,7 @@ impl Initiator {
             } else {
                 continue;
             };
-            let state = self.protocol.after_initiator_act(session.state, act).ok_or_else(|| Error::OutOfProtocol {
-                protocol: self.protocol,
-                state: session.state,
-                act,
-                participant: session.participant.name.clone(),
-            })?;
+            let state = self.protocol.step(Actor::Initiator, session.state, act, &session.participant.name)?;
             plan.push((index, act, state));
         }
         Ok(plan.into_iter().map(|(index, act, state)| self.follow_up(index, act, state, template)).collect())
@@ -326,12 +307,7 @@ impl Initiator {
             .ok_or_else(|| Error::UnknownParticipant { name: participant.to_owned() })?;
         let session = &self.sessions[index];
         let act = Performative::Cancel;
-        let state = self.protocol.after_initiator_act(session.state, act).ok_or_else(|| Error::OutOfProtocol {
-            protocol: self.protocol,
-            state: session.state,
-            act,
-            participant: participant.to_owned(),
-        })?;
+        let state = self.protocol.step(Actor::Initiator, session.state, act, participant)?;
         Ok(self.follow_up(index, act, state, None))
     }
 

@@ -3,7 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use iw_acl::Performative;
+use iw_acl::{AclMessage, Performative};
 
 use crate::Error;
 
@@ -111,6 +111,57 @@ impl Protocol {
             (S::AwaitingResponse | S::Subscribed, P::Cancel) if self == Self::Subscribe => Some(S::Cancelling),
             _ => None,
         }
+    }
+}
+
+/// Which side performs an act.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Actor {
+    Initiator,
+    Participant,
+}
+
+impl Protocol {
+    /// The next state, or why `act` is not allowed; `participant` names the other agent.
+    pub(crate) fn step(self, actor: Actor, state: SessionState, act: Performative, participant: &str) -> Result<SessionState, Error> {
+        let next = match actor {
+            Actor::Initiator => self.after_initiator_act(state, act),
+            Actor::Participant => self.after_participant_act(state, act),
+        };
+        next.ok_or_else(|| Error::OutOfProtocol { protocol: self, state, act, participant: participant.to_owned() })
+    }
+}
+
+/// A first answer (state [`SessionState::AwaitingResponse`]) must come by the deadline.
+pub(crate) fn check_deadline(
+    state: SessionState,
+    deadline_unix_ms: Option<i64>,
+    act: Performative,
+    participant: &str,
+    now_unix_ms: i64,
+) -> Result<(), Error> {
+    match deadline_unix_ms {
+        Some(deadline_unix_ms) if state == SessionState::AwaitingResponse && now_unix_ms > deadline_unix_ms => {
+            Err(Error::Late { act, participant: participant.to_owned(), deadline_unix_ms, now_unix_ms })
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The message belongs to conversation `expected`.
+pub(crate) fn check_conversation(message: &AclMessage, expected: &str) -> Result<(), Error> {
+    if message.conversation_id.as_deref() == Some(expected) {
+        Ok(())
+    } else {
+        Err(Error::WrongConversation { expected: expected.to_owned(), found: message.conversation_id.clone() })
+    }
+}
+
+/// The message, if it names a sender, comes from `expected`.
+pub(crate) fn check_sender(message: &AclMessage, expected: &str) -> Result<(), Error> {
+    match &message.sender {
+        Some(sender) if sender.name != expected => Err(Error::WrongSender { expected: expected.to_owned(), found: sender.name.clone() }),
+        _ => Ok(()),
     }
 }
 

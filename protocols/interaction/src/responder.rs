@@ -4,6 +4,7 @@
 use iw_acl::{AclMessage, AgentId, Performative};
 
 use crate::initiator::opening_protocol;
+use crate::protocol::{Actor, check_conversation, check_deadline, check_sender};
 use crate::{Error, Protocol, SessionState};
 
 /// The participant's side of one conversation.
@@ -58,18 +59,9 @@ impl Responder {
     /// Answers the initiator's latest message with `act` if the protocol allows it now and,
     /// for a first answer, the `reply-by` deadline has not passed. The caller adds content.
     pub fn reply(&mut self, act: Performative, now_unix_ms: i64) -> Result<AclMessage, Error> {
-        let participant = self.initiator_name();
-        let state = self.protocol.after_participant_act(self.state, act).ok_or_else(|| Error::OutOfProtocol {
-            protocol: self.protocol,
-            state: self.state,
-            act,
-            participant: participant.clone(),
-        })?;
-        if self.state == SessionState::AwaitingResponse {
-            if let Some(deadline_unix_ms) = self.deadline_unix_ms.filter(|&d| now_unix_ms > d) {
-                return Err(Error::Late { act, participant, deadline_unix_ms, now_unix_ms });
-            }
-        }
+        let initiator = self.initiator_name();
+        let state = self.protocol.step(Actor::Participant, self.state, act, &initiator)?;
+        check_deadline(self.state, self.deadline_unix_ms, act, &initiator, now_unix_ms)?;
         self.state = state;
         let mut reply = self.latest.create_reply();
         reply.performative = act;
@@ -81,22 +73,13 @@ impl Responder {
 
     /// Applies an initiator follow-up; returns the new state.
     pub fn handle(&mut self, message: &AclMessage, now_unix_ms: i64) -> Result<SessionState, Error> {
-        if message.conversation_id.as_deref() != Some(self.conversation_id.as_str()) {
-            return Err(Error::WrongConversation { expected: self.conversation_id.clone(), found: message.conversation_id.clone() });
-        }
-        let expected = self.initiator_name();
-        if let Some(sender) = &message.sender {
-            if self.initiator.is_some() && sender.name != expected {
-                return Err(Error::WrongSender { expected, found: sender.name.clone() });
-            }
+        check_conversation(message, &self.conversation_id)?;
+        let initiator = self.initiator_name();
+        if self.initiator.is_some() {
+            check_sender(message, &initiator)?;
         }
         let act = message.performative;
-        let state = self.protocol.after_initiator_act(self.state, act).ok_or_else(|| Error::OutOfProtocol {
-            protocol: self.protocol,
-            state: self.state,
-            act,
-            participant: expected,
-        })?;
+        let state = self.protocol.step(Actor::Initiator, self.state, act, &initiator)?;
         if act == Performative::Cfp {
             self.deadline_unix_ms = message.reply_by.map(|t| t.to_unix_ms(now_unix_ms));
         }
