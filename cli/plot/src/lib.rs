@@ -8,6 +8,8 @@ use std::sync::Once;
 
 pub use plotters;
 
+pub mod paths;
+
 static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
 
 /// Registers the embedded DejaVu Sans as `sans-serif` (idempotent).
