@@ -462,7 +462,8 @@ pub struct DateTime {
 }
 
 impl DateTime {
-    /// From calendar fields in UTC; `None` if a field is out of range.
+    /// From calendar fields in UTC; `None` if a field is out of range (years are SL's four
+    /// digits, 0 to 9999).
     pub fn from_utc(
         year: i64,
         month: u32,
@@ -472,8 +473,8 @@ impl DateTime {
         second: u32,
         milli: u32,
     ) -> Option<Self> {
-        let month_ok = (1..=12).contains(&month);
-        if !month_ok || day == 0 || day > days_in_month(year, month) || hour > 23 || minute > 59 {
+        let in_range = (1..=12).contains(&month) && (0..=9999).contains(&year);
+        if !in_range || day == 0 || day > days_in_month(year, month) || hour > 23 || minute > 59 {
             return None;
         }
         if second > 59 || milli > 999 {

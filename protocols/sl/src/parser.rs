@@ -86,7 +86,7 @@ impl<'a> Parser<'a> {
         if t.tok != Tok::RParen {
             return Err(self.unexpected(t, "\")\""));
         }
-        self.depth -= 1;
+        self.depth = self.depth.saturating_sub(1);
         Ok(())
     }
 
