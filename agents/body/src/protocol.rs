@@ -43,6 +43,7 @@ mod kind {
 
 /// One decoded frame.
 #[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)] // decoded one at a time and consumed at once: boxing buys nothing
 pub enum Message {
     /// Host asks for a sensor frame.
     RequestSensors,

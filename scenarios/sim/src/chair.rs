@@ -147,7 +147,9 @@ impl Default for ChairSpec {
 /// drive axle centre). Right bar: S1 (ahead) and S2 (45 deg right) on the front tip, S3-S6
 /// facing right 22 cm apart front to back, S7 (135 deg right) and S8 (behind) on the rear tip.
 /// Left bar mirrors it back to front: S9 (behind), S10, S11-S14 facing left rear to front, S15,
-/// S16 (ahead). Lateral cones of 45 deg 22 cm apart overlap from 0.22 / (2 tan 22.5) = 27 cm.
+/// S16 (ahead). Lateral cones of 45 deg 22 cm apart overlap from 0.22 / (2 tan 22.5) = 27 cm;
+/// the two forward cones, 0.65 m apart, close the gap straight ahead at 0.325 / tan 22.5 = 80 cm:
+/// the 27-80 cm safety perimeter of the thesis.
 pub fn sonar_layout(front_m: f64, rear_m: f64, half_width_m: f64) -> [SonarMount; SONAR_COUNT] {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
     let mid = (front_m - rear_m) / 2.0;
@@ -211,6 +213,41 @@ mod tests {
         let half_cone = (spec.sonar.cone_deg / 2.0).to_radians();
         let overlap_from = 0.22 / (2.0 * half_cone.tan());
         assert!(overlap_from > 0.26 && overlap_from < 0.28, "{overlap_from}");
+    }
+
+    /// Whether some sonar's cone (within range) contains body-frame point `p`.
+    fn covered(spec: &ChairSpec, p: Point2<f64>) -> bool {
+        let half_cone = (spec.sonar.cone_deg / 2.0).to_radians();
+        spec.sonars.iter().any(|s| {
+            let local = s.t_body_sonar.inverse() * p;
+            local.coords.norm() <= spec.sonar.max_range_m && local.y.atan2(local.x).abs() <= half_cone + 1e-12
+        })
+    }
+
+    #[test]
+    fn safety_perimeter_sides_from_27cm_everywhere_from_80cm() {
+        let spec = ChairSpec::default();
+        let (f, r, w) = (spec.front_m, spec.rear_m, spec.half_width_m);
+        let lateral: Vec<f64> = [2, 5].iter().map(|&k| spec.sonars[k].t_body_sonar.translation.x).collect();
+        // beside the lateral sonars: every point from 27 cm out is seen
+        for d in [0.27, 0.4, 0.6, 0.8] {
+            for k in 0..=50 {
+                let x = lateral[1] + (lateral[0] - lateral[1]) * k as f64 / 50.0;
+                assert!(covered(&spec, Point2::new(x, -w - d)) && covered(&spec, Point2::new(x, w + d)), "side x {x} d {d}");
+            }
+        }
+        // all four sides: every point 80 cm out is seen (the corner arcs between a tip pair and the
+        // lateral row keep small gaps with a 1.1 m footprint and a 0.66 m lateral row)
+        let d = 0.8;
+        let mut ring = Vec::new();
+        for k in 0..=100 {
+            let t = k as f64 / 100.0;
+            let (x, y) = (-r + (f + r) * t, -w + 2.0 * w * t);
+            ring.extend([Point2::new(f + d, y), Point2::new(-r - d, y), Point2::new(x, w + d), Point2::new(x, -w - d)]);
+        }
+        for p in ring {
+            assert!(covered(&spec, p), "point {p:?} 80 cm out is in no sonar cone");
+        }
     }
 
     #[test]

@@ -91,6 +91,9 @@ pub fn segment_hits_polygon(a: &Point2<f64>, b: &Point2<f64>, poly: &[Point2<f64
     (0..n).any(|i| segments_intersect(a, b, &poly[i], &poly[(i + 1) % n])) || point_in_polygon(a, poly)
 }
 
+/// Most cells along one grid axis: a 1 km building still gets 1 m cells, a huge map coarser ones.
+pub const MAX_CELLS_PER_AXIS: usize = 1024;
+
 /// Uniform grid over the world's bounding box; each cell lists the segments crossing it.
 #[derive(Debug, Clone)]
 pub struct Grid {
@@ -103,10 +106,13 @@ pub struct Grid {
 }
 
 impl Grid {
-    /// An empty grid covering `min`..`max` with square cells of `cell_m`.
+    /// An empty grid covering `min`..`max` with square cells of `cell_m`, grown as needed to
+    /// keep at most [`MAX_CELLS_PER_AXIS`] cells along each axis.
     pub fn new(min: Point2<f64>, max: Point2<f64>, cell_m: f64) -> Self {
-        let cols = (((max.x - min.x) / cell_m).ceil() as usize).clamp(1, 4096);
-        let rows = (((max.y - min.y) / cell_m).ceil() as usize).clamp(1, 4096);
+        let extent = (max.x - min.x).max(max.y - min.y);
+        let cell_m = cell_m.max(extent / MAX_CELLS_PER_AXIS as f64);
+        let cols = (((max.x - min.x) / cell_m).ceil() as usize).clamp(1, MAX_CELLS_PER_AXIS);
+        let rows = (((max.y - min.y) / cell_m).ceil() as usize).clamp(1, MAX_CELLS_PER_AXIS);
         Self { origin: min, cell_m, cols, rows, cells: vec![Vec::new(); cols * rows], touched: Vec::new() }
     }
 

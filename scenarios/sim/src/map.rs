@@ -274,7 +274,7 @@ fn positive(token: &str, what: &str) -> Result<f64, String> {
 }
 
 fn points(tokens: &[&str], min: usize, what: &str) -> Result<Vec<Point2<f64>>, String> {
-    if tokens.len() % 2 != 0 {
+    if !tokens.len().is_multiple_of(2) {
         return Err(format!("{what}: coordinates come in x y pairs, got {} numbers", tokens.len()));
     }
     if tokens.len() / 2 < min {
