@@ -42,6 +42,17 @@ pub enum OntologyError {
         /// The content, printed as SL.
         found: String,
     },
+    /// The message names another `:ontology`.
+    #[error("message is in ontology {found:?}, expected {expected:?}")]
+    WrongOntology {
+        /// This content type's ontology.
+        expected: &'static str,
+        /// The message's.
+        found: String,
+    },
+    /// The message has no content, or byte content.
+    #[error("message has no text content")]
+    NoTextContent,
     /// The text is not SL at the level given.
     #[error("content is not valid SL: {0}")]
     Sl(#[from] SlError),

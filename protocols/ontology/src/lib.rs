@@ -11,6 +11,8 @@
 //!   [`fipa::ManagementContent`].
 //! - [`wheelchair`]: poses, sensor readings, driving actions, goals and doors, in
 //!   [`wheelchair::WheelchairContent`].
+//! - [`OntologyContent`]: puts a value into an [`iw_acl::AclMessage`] (content, language,
+//!   ontology) and reads it back at the SL level the message's `:language` names.
 //! - [`OntologyError`]: what in the content did not fit, and where.
 //!
 //! # Guarantees
@@ -23,7 +25,9 @@
 mod concept;
 mod error;
 pub mod fipa;
+mod message;
 pub mod wheelchair;
 
 pub use concept::Concept;
 pub use error::OntologyError;
+pub use message::OntologyContent;

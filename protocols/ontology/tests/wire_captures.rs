@@ -352,3 +352,33 @@ fn mistakes_are_reported_with_the_offending_part() {
         Err(OntologyError::Sl(_))
     ));
 }
+
+#[test]
+fn whole_acl_messages_carry_the_ontology() {
+    use iw_acl::{AclMessage, Performative};
+    use iw_ontology::OntologyContent;
+    let Some(path) = iw_testdata::require("whole_acl_messages", "fipa/wire/acl/03-df-search.acl")
+    else {
+        return;
+    };
+    let message = iw_acl::codec::parse(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let content = ManagementContent::from_message(&message).unwrap();
+    assert_eq!(
+        content,
+        ManagementContent::Request(search_for("wheelchair-echo"))
+    );
+    let ours = content.fill(AclMessage::new(Performative::Request));
+    assert_eq!(ours.language.as_deref(), Some("fipa-sl0"));
+    assert_eq!(ours.ontology.as_deref(), Some("FIPA-Agent-Management"));
+    assert_eq!(ours.content_text(), message.content_text());
+    let wrong = ours.clone().with_ontology("IntellWheels-Wheelchair");
+    assert!(matches!(
+        ManagementContent::from_message(&wrong),
+        Err(OntologyError::WrongOntology { .. })
+    ));
+    let bytes = ours.with_byte_content(vec![1, 2]);
+    assert!(matches!(
+        ManagementContent::from_message(&bytes),
+        Err(OntologyError::NoTextContent)
+    ));
+}

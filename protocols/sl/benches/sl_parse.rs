@@ -1,4 +1,4 @@
-//! SL parse and print of a typical DF answer (the ~430-byte `result` of a DF search JADE sent
+//! SL parse and print of a typical DF answer (a 489-byte `result` of a DF search, as JADE sent
 //! in the wire captures), with serde_json reading the same tree as JSON as a peer in the same run.
 //!
 //! `cargo bench -p iw-sl --bench sl_parse`
