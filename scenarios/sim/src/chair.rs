@@ -187,6 +187,28 @@ impl ChairSpec {
         ]
     }
 
+    /// Unit ray directions spread evenly across the sonar cone, in the sonar frame.
+    pub fn sonar_ray_dirs(&self) -> Vec<Vector2<f64>> {
+        let rays = self.sonar.rays.max(1);
+        let half_cone = self.sonar.cone_deg.to_radians() / 2.0;
+        (0..rays)
+            .map(|k| if rays == 1 { 0.0 } else { -half_cone + 2.0 * half_cone * k as f64 / (rays - 1) as f64 })
+            .map(|a| Vector2::new(a.cos(), a.sin()))
+            .collect()
+    }
+
+    /// Unit beam directions of the laser, first at -fov/2, in the laser frame (empty without
+    /// a laser).
+    pub fn laser_beam_dirs(&self) -> Vec<Vector2<f64>> {
+        let Some(laser) = &self.laser else { return Vec::new() };
+        let n = laser.beams.max(1);
+        let fov = laser.fov_deg.to_radians();
+        (0..n)
+            .map(|k| if n == 1 { 0.0 } else { -fov / 2.0 + fov * k as f64 / (n - 1) as f64 })
+            .map(|a| Vector2::new(a.cos(), a.sin()))
+            .collect()
+    }
+
     /// Distance from the body origin to the farthest footprint corner, m.
     pub fn reach_m(&self) -> f64 {
         self.footprint().iter().map(|p| p.coords.norm()).fold(0.0, f64::max)

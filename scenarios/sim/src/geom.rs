@@ -157,10 +157,20 @@ impl Grid {
         }
     }
 
+    /// An empty grid with the same cells (cell indices are interchangeable between the two).
+    pub fn empty_like(&self) -> Self {
+        Self { cells: vec![Vec::new(); self.cells.len()], touched: Vec::new(), ..*self }
+    }
+
+    /// The segment indices in cell `cell` (as passed by [`Self::walk_ray`]).
+    pub fn cell(&self, cell: usize) -> &[u32] {
+        self.cells.get(cell).map_or(&[], Vec::as_slice)
+    }
+
     /// Walks the cells along the ray from `origin` in direction `dir` (unit) up to `max_t`, in
-    /// order (Amanatides-Woo). `visit(indices, t_exit)` returns the best hit `t` found so far;
-    /// the walk stops once that hit lies before the current cell's exit.
-    pub fn walk_ray(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_t: f64, mut visit: impl FnMut(&[u32]) -> f64) {
+    /// order (Amanatides-Woo). `visit(cell)` returns the best hit `t` found so far; the walk
+    /// stops once that hit lies before the current cell's exit.
+    pub fn walk_ray(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_t: f64, mut visit: impl FnMut(usize) -> f64) {
         let (mut cx, mut cy) = self.cell_of(origin);
         let step_x: isize = if dir.x >= 0.0 { 1 } else { -1 };
         let step_y: isize = if dir.y >= 0.0 { 1 } else { -1 };
@@ -171,7 +181,7 @@ impl Grid {
         let t_delta_y = if dir.y.abs() < 1e-12 { f64::INFINITY } else { self.cell_m / dir.y.abs() };
         loop {
             let t_exit = t_max_x.min(t_max_y);
-            let best = visit(&self.cells[cy * self.cols + cx]);
+            let best = visit(cy * self.cols + cx);
             if best <= t_exit || t_exit > max_t {
                 return;
             }
@@ -226,7 +236,8 @@ mod tests {
         let mut g = Grid::new(Point2::new(0.0, 0.0), Point2::new(10.0, 10.0), 1.0);
         g.insert(7, &Point2::new(8.5, 0.0), &Point2::new(8.5, 10.0));
         let mut seen = Vec::new();
-        g.walk_ray(&Point2::new(0.5, 5.5), &Vector2::new(1.0, 0.0), 20.0, |ids| {
+        g.walk_ray(&Point2::new(0.5, 5.5), &Vector2::new(1.0, 0.0), 20.0, |cell| {
+            let ids = g.cell(cell);
             seen.extend_from_slice(ids);
             if ids.is_empty() { f64::INFINITY } else { 8.0 }
         });

@@ -54,6 +54,10 @@ struct Chair {
     inside_restricted: Option<usize>,
     distance_m: f64,
     sensors: SensorFrame,
+    /// Sonar ray directions across the cone, sonar frame (computed once).
+    sonar_rays: Vec<Vector2<f64>>,
+    /// Laser beam directions, laser frame (computed once).
+    laser_beams: Vec<Vector2<f64>>,
     wants_rgbd: bool,
     rgbd: Option<RgbdFrame>,
     rng: ChaCha8Rng,
@@ -120,7 +124,7 @@ impl World {
         }
         let door_open = map.doors.iter().map(|d| d.open).collect();
         Self {
-            chair_grid: Grid::new(min, max, CELL_M),
+            chair_grid: static_grid.empty_like(),
             map,
             statics,
             static_grid,
@@ -152,6 +156,7 @@ impl World {
         let (lo, hi) = spec.encoder.compression;
         let mut compression = || if hi > lo { rng.random_range(lo..hi) } else { lo };
         let radius_scale = (1.0 - compression(), 1.0 - compression());
+        let (sonar_rays, laser_beams) = (spec.sonar_ray_dirs(), spec.laser_beam_dirs());
         self.chairs.push(Chair {
             spec,
             kind,
@@ -166,6 +171,8 @@ impl World {
             inside_restricted: None,
             distance_m: 0.0,
             sensors: SensorFrame::empty(self.time_ns),
+            sonar_rays,
+            laser_beams,
             wants_rgbd: false,
             rgbd: None,
             rng,
@@ -468,28 +475,9 @@ impl World {
     /// chair `ignore` (the one casting).
     pub fn cast(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_m: f64, ignore: Option<usize>) -> Option<Hit> {
         let mut best: Option<Hit> = None;
-        let consider = |seg: &Segment, best: &mut Option<Hit>| {
-            if let Some((t, u)) = ray_segment(origin, dir, &seg.a, &seg.b)
-                && t <= max_m
-                && best.is_none_or(|b| t < b.range_m)
-            {
-                *best = Some(Hit { range_m: t, owner: seg.owner, height_m: seg.height_m, texture: seg.texture, along_m: u * (seg.b - seg.a).norm() });
-            }
-        };
-        self.static_grid.walk_ray(origin, dir, max_m, |ids| {
-            for &s in ids {
-                if let Some(seg) = self.statics.get(s as usize) && self.solid(seg) {
-                    consider(seg, &mut best);
-                }
-            }
-            best.map_or(f64::INFINITY, |b| b.range_m)
-        });
-        let static_best = best;
-        self.chair_grid.walk_ray(origin, dir, static_best.map_or(max_m, |b| b.range_m), |ids| {
-            for &s in ids {
-                if let Some(seg) = self.chair_segments.get(s as usize) && seg.owner != Owner::Chair(ignore.unwrap_or(usize::MAX)) {
-                    consider(seg, &mut best);
-                }
+        self.walk(origin, dir, max_m, ignore, |seg, t, u| {
+            if best.is_none_or(|b| t < b.range_m) {
+                best = Some(Hit { range_m: t, owner: seg.owner, height_m: seg.height_m, texture: seg.texture, along_m: u * (seg.b - seg.a).norm() });
             }
             best.map_or(f64::INFINITY, |b| b.range_m)
         });
@@ -500,32 +488,33 @@ impl World {
     /// sees over low furniture).
     pub fn cast_all(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_m: f64, ignore: Option<usize>, out: &mut Vec<Hit>) {
         out.clear();
-        let mut push = |seg: &Segment| {
-            if let Some((t, u)) = ray_segment(origin, dir, &seg.a, &seg.b)
-                && t <= max_m
-            {
+        self.walk(origin, dir, max_m, ignore, |seg, t, u| {
+            // a segment spanning several cells is met once per cell: keep one hit per surface
+            if !out.iter().any(|h| h.range_m == t && h.owner == seg.owner) {
                 out.push(Hit { range_m: t, owner: seg.owner, height_m: seg.height_m, texture: seg.texture, along_m: u * (seg.b - seg.a).norm() });
-            }
-        };
-        let mut seen = std::collections::HashSet::new();
-        self.static_grid.walk_ray(origin, dir, max_m, |ids| {
-            for &s in ids {
-                if seen.insert(s) && let Some(seg) = self.statics.get(s as usize) && self.solid(seg) {
-                    push(seg);
-                }
-            }
-            f64::INFINITY
-        });
-        let mut seen_chairs = std::collections::HashSet::new();
-        self.chair_grid.walk_ray(origin, dir, max_m, |ids| {
-            for &s in ids {
-                if seen_chairs.insert(s) && let Some(seg) = self.chair_segments.get(s as usize) && seg.owner != Owner::Chair(ignore.unwrap_or(usize::MAX)) {
-                    push(seg);
-                }
             }
             f64::INFINITY
         });
         out.sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
+    }
+
+    /// One grid walk over static and chair segments: `on_hit(segment, t, u)` for every solid
+    /// segment the ray meets within `max_m`, returning the range beyond which the walk may stop.
+    fn walk(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_m: f64, ignore: Option<usize>, mut on_hit: impl FnMut(&Segment, f64, f64) -> f64) {
+        let own = Owner::Chair(ignore.unwrap_or(usize::MAX));
+        let mut stop_at = f64::INFINITY;
+        self.static_grid.walk_ray(origin, dir, max_m, |cell| {
+            let statics = self.static_grid.cell(cell).iter().filter_map(|&s| self.statics.get(s as usize)).filter(|seg| self.solid(seg));
+            let chairs = self.chair_grid.cell(cell).iter().filter_map(|&s| self.chair_segments.get(s as usize)).filter(|seg| seg.owner != own);
+            for seg in statics.chain(chairs) {
+                if let Some((t, u)) = ray_segment(origin, dir, &seg.a, &seg.b)
+                    && t <= max_m
+                {
+                    stop_at = on_hit(seg, t, u);
+                }
+            }
+            stop_at
+        });
     }
 
     fn update_sensors(&mut self, i: usize) {
@@ -535,20 +524,15 @@ impl World {
         let mut rng = chair.rng.clone();
         let mut sonar_m = [None; SONAR_COUNT];
         let model = spec.sonar;
-        let half_cone = model.cone_deg.to_radians() / 2.0;
         for (reading, mount) in sonar_m.iter_mut().zip(spec.sonars.iter()) {
             let t_world_sonar = pose * mount.t_body_sonar;
             let origin = Point2::from(t_world_sonar.translation.vector);
-            let heading = t_world_sonar.rotation.angle();
-            let rays = model.rays.max(1);
-            let mut nearest = f64::INFINITY;
-            for k in 0..rays {
-                let offset = if rays == 1 { 0.0 } else { -half_cone + 2.0 * half_cone * k as f64 / (rays - 1) as f64 };
-                let a = heading + offset;
-                if let Some(hit) = self.cast(&origin, &Vector2::new(a.cos(), a.sin()), model.max_range_m, Some(i)) {
-                    nearest = nearest.min(hit.range_m);
-                }
-            }
+            let nearest = chair
+                .sonar_rays
+                .iter()
+                .filter_map(|local| self.cast(&origin, &(t_world_sonar.rotation * local), model.max_range_m, Some(i)))
+                .map(|hit| hit.range_m)
+                .fold(f64::INFINITY, f64::min);
             let noise = gaussian(&mut rng) * model.noise_std_m;
             *reading = nearest.is_finite().then(|| (nearest + noise).clamp(model.min_range_m, model.max_range_m));
         }
@@ -556,16 +540,12 @@ impl World {
             Some(laser) => {
                 let t_world_laser = pose * laser.t_body_laser;
                 let origin = Point2::from(t_world_laser.translation.vector);
-                let heading = t_world_laser.rotation.angle();
-                let fov = laser.fov_deg.to_radians();
-                let n = laser.beams.max(1);
-                (0..n)
-                    .map(|k| {
-                        let a = heading - fov / 2.0 + if n == 1 { fov / 2.0 } else { fov * k as f64 / (n - 1) as f64 };
-                        match self.cast(&origin, &Vector2::new(a.cos(), a.sin()), laser.max_range_m, Some(i)) {
-                            Some(hit) => (hit.range_m + gaussian(&mut rng) * laser.noise_std_m).clamp(0.0, laser.max_range_m),
-                            None => laser.max_range_m,
-                        }
+                chair
+                    .laser_beams
+                    .iter()
+                    .map(|local| match self.cast(&origin, &(t_world_laser.rotation * local), laser.max_range_m, Some(i)) {
+                        Some(hit) => (hit.range_m + gaussian(&mut rng) * laser.noise_std_m).clamp(0.0, laser.max_range_m),
+                        None => laser.max_range_m,
                     })
                     .collect()
             }
