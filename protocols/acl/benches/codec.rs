@@ -1,6 +1,7 @@
 //! ACL string codec speed: parse and print of JADE's timing message (`bench-message-470B.acl`)
-//! and of a typical ~350-byte INFORM reply. JADE 4.6.5 on the same 470 bytes: 55 k decodes/s,
-//! 405 k encodes/s (shared/fipa/README.md).
+//! and of a typical ~380-byte INFORM reply. JADE 4.6.5 on the same 470 bytes: 55 k decodes/s,
+//! 405 k encodes/s (shared/fipa/README.md). Peer measured in the same run: serde_json reading
+//! the same message as JSON (`json-peer`), a well-tuned parser on the same data.
 //!
 //! `cargo bench -p iw-acl --bench codec`
 
@@ -19,7 +20,7 @@ const TYPICAL: &str = r#"(INFORM
  :conversation-id conv-4711 :in-reply-to q-4711)"#;
 
 fn bench(c: &mut Criterion) {
-    let mut inputs = vec![("typical-350B", TYPICAL.to_owned())];
+    let mut inputs = vec![("typical-380B", TYPICAL.to_owned())];
     if let Some(path) = iw_testdata::require("acl codec bench", "fipa/vectors/bench-message-470B.acl") {
         inputs.insert(0, ("jade-470B", std::fs::read_to_string(path).expect("readable bench message")));
     }
@@ -31,6 +32,10 @@ fn bench(c: &mut Criterion) {
         group.bench_function(format!("parse/{name}/{}B", text.len()), |b| b.iter(|| codec::parse(black_box(text))));
         let jade = ParseOptions::jade();
         group.bench_function(format!("parse-jade/{name}"), |b| b.iter(|| codec::parse_with(black_box(text), &jade)));
+        let json = serde_json::to_string(&message).expect("serializable");
+        group.bench_function(format!("json-peer-parse/{name}/{}B", json.len()), |b| {
+            b.iter(|| serde_json::from_str::<iw_acl::AclMessage>(black_box(&json)))
+        });
         group.bench_function(format!("print/{name}"), |b| b.iter(|| codec::print(black_box(&message))));
         let mut buffer = String::with_capacity(1024);
         let options = PrintOptions::default();

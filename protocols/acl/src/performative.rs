@@ -92,11 +92,11 @@ impl Performative {
         }
     }
 
-    /// Case-insensitive lookup of a FIPA name without allocating (the parser's hot path).
+    /// Case-insensitive lookup of a FIPA name without allocating (the parser's hot path:
+    /// the usual upper-case spelling is tried first).
     pub fn from_fipa_name(name: &str) -> Option<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|p| p.fipa_name().eq_ignore_ascii_case(name))
+        let exact = Self::ALL.into_iter().find(|p| p.fipa_name() == name);
+        exact.or_else(|| Self::ALL.into_iter().find(|p| p.fipa_name().eq_ignore_ascii_case(name)))
     }
 }
 

@@ -61,7 +61,8 @@ impl Param {
     ];
 
     fn lookup(name: &str) -> Option<Param> {
-        Self::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(name)).map(|&(p, _)| p)
+        let exact = Self::ALL.iter().find(|(_, n)| *n == name);
+        exact.or_else(|| Self::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(name))).map(|&(p, _)| p)
     }
 }
 
@@ -92,8 +93,66 @@ struct Parser<'a> {
     max_depth: usize,
 }
 
-fn is_delimiter(b: u8) -> bool {
-    matches!(b, b'(' | b')' | b'"') || b.is_ascii_whitespace() || b == 0x0b
+const WHITESPACE: u8 = 1;
+const DELIMITER: u8 = 2;
+
+/// Byte classes: whitespace (also a delimiter), and the delimiters that end a word.
+static CLASS: [u8; 256] = {
+    let mut table = [0u8; 256];
+    let mut b = 0;
+    while b < 256 {
+        let byte = b as u8;
+        if byte.is_ascii_whitespace() || byte == 0x0b {
+            table[b] = WHITESPACE | DELIMITER;
+        } else if matches!(byte, b'(' | b')' | b'"') {
+            table[b] = DELIMITER;
+        }
+        b += 1;
+    }
+    table
+};
+
+const LOW: u64 = 0x0101_0101_0101_0101;
+const HIGH: u64 = 0x8080_8080_8080_8080;
+
+/// Flags (high bit) the bytes of `x` below `n` (n <= 128). The lowest flag is always exact:
+/// borrows only create false flags above a true one.
+fn bytes_below(x: u64, n: u8) -> u64 {
+    x.wrapping_sub(LOW * u64::from(n)) & !x & HIGH
+}
+
+/// Scans `bytes` from `from` eight bytes at a time; `flags` marks candidate bytes of a chunk
+/// (its lowest flag exact) and `is_hit` confirms one. Returns the first confirmed index.
+fn scan(bytes: &[u8], from: usize, flags: impl Fn(u64) -> u64, is_hit: impl Fn(u8) -> bool) -> Option<usize> {
+    let mut i = from;
+    while let Some(chunk) = bytes.get(i..i + 8) {
+        let mut word = [0u8; 8];
+        word.copy_from_slice(chunk);
+        let hits = flags(u64::from_le_bytes(word));
+        if hits == 0 {
+            i += 8;
+            continue;
+        }
+        let at = i + (hits.trailing_zeros() / 8) as usize;
+        if is_hit(bytes[at]) {
+            return Some(at);
+        }
+        i = at + 1;
+    }
+    bytes.get(i..)?.iter().position(|&b| is_hit(b)).map(|p| i + p)
+}
+
+/// The first index at or after `from` holding `a` or `b`.
+fn find_either(bytes: &[u8], from: usize, a: u8, b: u8) -> Option<usize> {
+    let (splat_a, splat_b) = (LOW * u64::from(a), LOW * u64::from(b));
+    scan(bytes, from, |x| bytes_below(x ^ splat_a, 1) | bytes_below(x ^ splat_b, 1), |x| x == a || x == b)
+}
+
+/// The first delimiter (whitespace, parenthesis, quote) at or after `from`. Candidates are the
+/// bytes below `#` (whitespace, `"`, also `!` and controls) and `(`/`)`.
+fn find_delimiter(bytes: &[u8], from: usize) -> Option<usize> {
+    let parens = LOW * 0x28;
+    scan(bytes, from, |x| bytes_below(x, b'#') | bytes_below(x ^ parens, 2), |b| CLASS[usize::from(b)] & DELIMITER != 0)
 }
 
 impl<'a> Parser<'a> {
@@ -137,7 +196,7 @@ impl<'a> Parser<'a> {
     /// The next token; at the end of input, `Kind::End` (repeatedly).
     fn next(&mut self) -> Result<Token<'a>, Error> {
         let bytes = self.text.as_bytes();
-        while bytes.get(self.pos).is_some_and(|b| b.is_ascii_whitespace() || *b == 0x0b) {
+        while bytes.get(self.pos).is_some_and(|&b| CLASS[usize::from(b)] & WHITESPACE != 0) {
             self.pos += 1;
         }
         let start = self.pos;
@@ -165,8 +224,7 @@ impl<'a> Parser<'a> {
 
     fn word(&mut self, start: usize) -> Result<Kind<'a>, Error> {
         let bytes = self.text.as_bytes();
-        let len = bytes[start..].iter().position(|&b| is_delimiter(b)).unwrap_or(bytes.len() - start);
-        self.pos = start + len;
+        self.pos = find_delimiter(bytes, start).unwrap_or(bytes.len());
         self.slice(start, self.pos).map(Kind::Word)
     }
 
@@ -184,31 +242,33 @@ impl<'a> Parser<'a> {
     fn quoted(&mut self, start: usize) -> Result<Kind<'a>, Error> {
         let bytes = self.text.as_bytes();
         let body_start = start + 1;
+        let mut escaped = false;
+        let mut i = body_start;
         let end = match self.escaping {
-            Escaping::Standard => {
-                let mut i = body_start;
-                loop {
-                    match bytes.get(i) {
-                        Some(b'"') => break Some(i),
-                        Some(b'\\') => i += 2,
-                        Some(_) => i += 1,
-                        None => break None,
+            Escaping::Standard => loop {
+                match find_either(bytes, i, b'"', b'\\') {
+                    Some(j) if bytes[j] == b'"' => break Some(j),
+                    Some(j) => {
+                        escaped = true;
+                        i = j + 2;
                     }
+                    None => break None,
                 }
-            }
+            },
             Escaping::Jade => {
-                let mut last = None;
-                let mut first_plain = None;
-                for (i, &b) in bytes.iter().enumerate().skip(body_start) {
-                    if b == b'"' {
-                        if bytes[i - 1] != b'\\' {
-                            first_plain = Some(i);
-                            break;
-                        }
-                        last = Some(i);
+                let mut last_escaped_quote = None;
+                loop {
+                    let Some(j) = find_either(bytes, i, b'"', b'\\') else { break last_escaped_quote };
+                    if bytes[j] == b'\\' {
+                        escaped = true;
+                    } else if bytes[j - 1] != b'\\' {
+                        // `j - 1` is at least the opening quote.
+                        break Some(j);
+                    } else {
+                        last_escaped_quote = Some(j);
                     }
+                    i = j + 1;
                 }
-                first_plain.or(last)
             }
         };
         let Some(end) = end else {
@@ -217,7 +277,7 @@ impl<'a> Parser<'a> {
         };
         self.pos = end + 1;
         let body = self.slice(body_start, end)?;
-        Ok(Kind::Quoted { body, escaped: body.as_bytes().contains(&b'\\') })
+        Ok(Kind::Quoted { body, escaped })
     }
 
     /// `#N"` + N bytes; `None` when the `#` does not start one (it is then a word).
@@ -280,7 +340,7 @@ impl<'a> Parser<'a> {
     fn expect_keyword(&mut self, keyword: &'static str, expected: &'static str) -> Result<(), Error> {
         let token = self.next()?;
         match token.kind {
-            Kind::Word(word) if word.eq_ignore_ascii_case(keyword) => Ok(()),
+            Kind::Word(word) if word == keyword || word.eq_ignore_ascii_case(keyword) => Ok(()),
             _ => Err(self.syntax(&token, expected)),
         }
     }
@@ -559,6 +619,23 @@ mod tests {
         assert_eq!(fipa.content, Some(Content::Bytes(b"a\"b".to_vec())));
         assert!(matches!(parse("(INFORM :content #9\"ab)"), Err(Error::Syntax { .. })));
         assert!(matches!(parse("(INFORM :X-JADE-Encoding Base64 :content \"***\")"), Err(Error::InvalidValue { .. })));
+    }
+
+    #[test]
+    fn fast_scans_agree_with_plain_searches() {
+        let text = "abcdefgh\"ijklmnopqrs\\tuvwxyz0123456789\"é\\\"";
+        let bytes = text.as_bytes();
+        for from in 0..=bytes.len() + 2 {
+            let naive = bytes.get(from..).and_then(|rest| rest.iter().position(|&b| b == b'"' || b == b'\\')).map(|p| from + p);
+            assert_eq!(find_either(bytes, from, b'"', b'\\'), naive, "from {from}");
+        }
+        assert_eq!(find_either(&[0x80, 0x22 + 1, 0x01, 0x22], 0, b'"', b'"'), Some(3));
+        let words = "a!b\x01c\u{80}(d)e f\"g\th\ni-j:k@l#m!!!!!!!!!!!!!!!!)";
+        let bytes = words.as_bytes();
+        for from in 0..=bytes.len() {
+            let naive = bytes[from..].iter().position(|&b| CLASS[usize::from(b)] & DELIMITER != 0).map(|p| from + p);
+            assert_eq!(find_delimiter(bytes, from), naive, "from {from}");
+        }
     }
 
     #[test]
