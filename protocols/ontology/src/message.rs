@@ -34,13 +34,15 @@ pub trait OntologyContent: Sized {
     /// The value in `message`'s content, parsed at the level its `:language` names (full SL
     /// when absent). A message naming another ontology is refused.
     fn from_message(message: &AclMessage) -> Result<Self, OntologyError> {
-        if let Some(found) = &message.ontology {
-            if !found.eq_ignore_ascii_case(Self::ONTOLOGY) {
-                return Err(OntologyError::WrongOntology {
-                    expected: Self::ONTOLOGY,
-                    found: found.clone(),
-                });
-            }
+        if let Some(found) = message
+            .ontology
+            .as_ref()
+            .filter(|o| !o.eq_ignore_ascii_case(Self::ONTOLOGY))
+        {
+            return Err(OntologyError::WrongOntology {
+                expected: Self::ONTOLOGY,
+                found: found.clone(),
+            });
         }
         let level = match &message.language {
             Some(language) => language.parse()?,
