@@ -1,0 +1,184 @@
+//! The Local Agent List (one container's agents) and the Global Agent List (everyone's), merged
+//! by a version vector: one generation number per container, newest wins.
+
+use std::collections::BTreeMap;
+
+use iw_bus::transport::PeerAddr;
+
+use crate::ContainerId;
+
+/// One agent as the lists carry it: name, public key and where its container's bus listens.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct AgentEntry {
+    /// The agent's name (its FIPA agent identifier's `:name`).
+    pub name: String,
+    /// The public key its messages are verified with (Ed25519, raw bytes).
+    pub public_key: Vec<u8>,
+    /// The bus address of its container.
+    pub addr: PeerAddr,
+}
+
+/// The agents one container hosts, with a generation bumped on every change.
+///
+/// The generation starts at `incarnation << 32`, so a restarted container (higher incarnation)
+/// supersedes what the others remember of its previous life.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LocalAgentList {
+    generation: u64,
+    agents: BTreeMap<String, AgentEntry>,
+}
+
+impl LocalAgentList {
+    /// An empty list for a container in its `incarnation`-th life (e.g. boot time in seconds).
+    pub fn new(incarnation: u32) -> Self {
+        Self { generation: u64::from(incarnation) << 32, agents: BTreeMap::new() }
+    }
+
+    /// Adds or replaces an agent.
+    pub fn insert(&mut self, entry: AgentEntry) {
+        self.agents.insert(entry.name.clone(), entry);
+        self.generation += 1;
+    }
+
+    /// Removes an agent; `false` if it was not there (the generation is unchanged then).
+    pub fn remove(&mut self, name: &str) -> bool {
+        let removed = self.agents.remove(name).is_some();
+        if removed {
+            self.generation += 1;
+        }
+        removed
+    }
+
+    /// The agent named `name`.
+    pub fn get(&self, name: &str) -> Option<&AgentEntry> {
+        self.agents.get(name)
+    }
+
+    /// Current generation.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    /// The agents, by name.
+    pub fn entries(&self) -> impl Iterator<Item = &AgentEntry> {
+        self.agents.values()
+    }
+
+    /// This list as a part of the global list.
+    pub fn to_part(&self) -> Part {
+        Part { generation: self.generation, agents: self.agents.values().cloned().collect() }
+    }
+}
+
+/// One container's contribution to the global list, as of `generation`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Part {
+    /// The container's LAL generation this part reflects.
+    pub generation: u64,
+    /// Its agents.
+    pub agents: Vec<AgentEntry>,
+}
+
+/// Generations per container: what a global list knows.
+pub type VersionVector = BTreeMap<ContainerId, u64>;
+
+/// Every container's agents, one [`Part`] per container; merging keeps the newest part of each.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct GlobalAgentList {
+    parts: BTreeMap<ContainerId, Part>,
+}
+
+impl GlobalAgentList {
+    /// Takes `part` for container `id` if it is newer than what is held; returns whether it was.
+    pub fn merge_part(&mut self, id: ContainerId, part: Part) -> bool {
+        match self.parts.get(&id) {
+            Some(held) if held.generation >= part.generation => false,
+            _ => {
+                self.parts.insert(id, part);
+                true
+            }
+        }
+    }
+
+    /// Merges every part of `other`; returns whether anything changed. Commutative, idempotent.
+    pub fn merge(&mut self, other: &GlobalAgentList) -> bool {
+        let mut changed = false;
+        for (id, part) in &other.parts {
+            changed |= self.merge_part(*id, part.clone());
+        }
+        changed
+    }
+
+    /// The generation held per container.
+    pub fn versions(&self) -> VersionVector {
+        self.parts.iter().map(|(id, p)| (*id, p.generation)).collect()
+    }
+
+    /// The agent named `name` and the container hosting it (lowest container id if two claim it).
+    pub fn lookup(&self, name: &str) -> Option<(ContainerId, &AgentEntry)> {
+        self.parts.iter().find_map(|(id, p)| p.agents.iter().find(|a| a.name == name).map(|a| (*id, a)))
+    }
+
+    /// All agents with their containers.
+    pub fn entries(&self) -> impl Iterator<Item = (ContainerId, &AgentEntry)> {
+        self.parts.iter().flat_map(|(id, p)| p.agents.iter().map(move |a| (*id, a)))
+    }
+
+    /// Number of agents.
+    pub fn len(&self) -> usize {
+        self.parts.values().map(|p| p.agents.len()).sum()
+    }
+
+    /// Whether no container has contributed agents.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub(crate) fn parts(&self) -> &BTreeMap<ContainerId, Part> {
+        &self.parts
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(name: &str) -> AgentEntry {
+        AgentEntry { name: name.into(), public_key: vec![1, 2, 3], addr: PeerAddr("127.0.0.1:1".into()) }
+    }
+
+    #[test]
+    fn generations_count_changes_and_incarnations_supersede() {
+        let mut lal = LocalAgentList::new(1);
+        lal.insert(entry("a"));
+        assert!(!lal.remove("nobody"));
+        assert!(lal.remove("a"));
+        assert_eq!(lal.generation(), (1 << 32) + 2);
+        let mut gal = GlobalAgentList::default();
+        assert!(gal.merge_part(ContainerId(7), lal.to_part()));
+        let mut reborn = LocalAgentList::new(2);
+        reborn.insert(entry("b"));
+        assert!(gal.merge_part(ContainerId(7), reborn.to_part()));
+        assert!(!gal.merge_part(ContainerId(7), lal.to_part()), "the older life is ignored");
+        assert_eq!(gal.lookup("b").map(|(id, _)| id), Some(ContainerId(7)));
+    }
+
+    #[test]
+    fn merge_is_commutative_and_idempotent() {
+        let part = |g: u64, names: &[&str]| Part { generation: g, agents: names.iter().map(|n| entry(n)).collect() };
+        let mut x = GlobalAgentList::default();
+        x.merge_part(ContainerId(1), part(3, &["a"]));
+        x.merge_part(ContainerId(2), part(1, &["b"]));
+        let mut y = GlobalAgentList::default();
+        y.merge_part(ContainerId(1), part(2, &["old"]));
+        y.merge_part(ContainerId(3), part(5, &["c"]));
+        let mut xy = x.clone();
+        xy.merge(&y);
+        let mut yx = y.clone();
+        yx.merge(&x);
+        assert_eq!(xy, yx);
+        assert!(!xy.clone().merge(&yx));
+        assert_eq!(xy.len(), 3);
+        assert!(xy.lookup("old").is_none());
+    }
+}

@@ -1,0 +1,262 @@
+//! The container state machine: heartbeats, leases, lowest-id election and list distribution.
+//! Pure: it is driven by `on_message`/`on_tick` with an explicit [`Time`] and returns the frames
+//! to send, so every behaviour is tested in simulated time.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::time::Duration;
+
+use iw_bus::Time;
+use iw_bus::transport::PeerAddr;
+
+use crate::lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
+use crate::{ContainerError, ContainerId};
+
+/// What containers say to each other.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum ContainerMsg {
+    /// "I am alive": sent every heartbeat period to every known container.
+    Heartbeat {
+        /// Sender.
+        id: ContainerId,
+        /// Whom the sender takes for leader.
+        leader: ContainerId,
+        /// The sender's LAL generation.
+        lal_generation: u64,
+        /// What the sender's GAL holds.
+        gal_versions: VersionVector,
+    },
+    /// A follower's LAL, sent to the leader when the leader's GAL lacks its latest generation.
+    Lal {
+        /// Sender.
+        id: ContainerId,
+        /// Its list.
+        part: Part,
+    },
+    /// The leader's GAL, sent to a follower whose GAL is behind.
+    Gal {
+        /// The leader.
+        leader: ContainerId,
+        /// The list.
+        gal: GlobalAgentList,
+    },
+}
+
+impl ContainerMsg {
+    /// Encodes for a frame transport (JSON: control traffic is small and rare).
+    pub fn encode(&self) -> Result<Vec<u8>, ContainerError> {
+        serde_json::to_vec(self).map_err(|e| ContainerError::Encode { reason: e.to_string() })
+    }
+
+    /// Decodes a frame; anything else is [`ContainerError::BadMessage`].
+    pub fn decode(frame: &[u8]) -> Result<Self, ContainerError> {
+        serde_json::from_slice(frame).map_err(|e| ContainerError::BadMessage { len: frame.len(), reason: e.to_string() })
+    }
+}
+
+/// A frame to send.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Outgoing {
+    /// Destination container.
+    pub to: PeerAddr,
+    /// What to say.
+    pub msg: ContainerMsg,
+}
+
+/// Settings of one container.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ContainerConfig {
+    /// This container's id; the lowest live id leads.
+    pub id: ContainerId,
+    /// Its incarnation (e.g. boot time, s): must grow across restarts so its LAL supersedes.
+    pub incarnation: u32,
+    /// Where it listens for container traffic.
+    pub addr: PeerAddr,
+    /// Other containers' addresses to greet (the ids are learnt from their heartbeats).
+    pub seeds: Vec<PeerAddr>,
+    /// Heartbeat period, ms (default 50).
+    pub heartbeat_ms: u64,
+    /// A container not heard for this long is taken for dead, ms (default 250; several heartbeats).
+    pub lease_ms: u64,
+}
+
+impl ContainerConfig {
+    /// Default periods for container `id` at `addr` greeting `seeds`.
+    pub fn new(id: ContainerId, addr: PeerAddr, seeds: Vec<PeerAddr>) -> Self {
+        Self { id, incarnation: 0, addr, seeds, heartbeat_ms: 50, lease_ms: 250 }
+    }
+}
+
+/// What is known of a live peer.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Peer {
+    addr: PeerAddr,
+    last_heard: Time,
+    leader: ContainerId,
+    gal_versions: VersionVector,
+}
+
+/// One container: its LAL, its copy of the GAL, the live peers and the elected leader.
+///
+/// Election: every container takes the lowest id among itself and the peers whose lease holds
+/// (bully order, decided locally from heartbeats, so no extra round trips). The leader merges
+/// the LALs into the GAL and sends the GAL to any follower whose heartbeat shows it behind; a
+/// follower sends its LAL when the leader's heartbeat lacks its generation. Losing the leader or
+/// the network never touches the LAL: local agents keep resolving; a partition elects its own
+/// leader and the lists converge again (newest generation per container) when it heals.
+#[derive(Debug)]
+pub struct Container {
+    config: ContainerConfig,
+    lal: LocalAgentList,
+    gal: GlobalAgentList,
+    peers: BTreeMap<ContainerId, Peer>,
+    leader: ContainerId,
+    elections: u64,
+    next_heartbeat: Time,
+}
+
+impl Container {
+    /// A container alone, leading itself until it hears lower ids.
+    pub fn new(config: ContainerConfig) -> Self {
+        let lal = LocalAgentList::new(config.incarnation);
+        let mut gal = GlobalAgentList::default();
+        gal.merge_part(config.id, lal.to_part());
+        Self { leader: config.id, config, lal, gal, peers: BTreeMap::new(), elections: 0, next_heartbeat: Time::ZERO }
+    }
+
+    /// This container's id.
+    pub fn id(&self) -> ContainerId {
+        self.config.id
+    }
+
+    /// The container taken for leader now.
+    pub fn leader(&self) -> ContainerId {
+        self.leader
+    }
+
+    /// How many times the leader changed.
+    pub fn elections(&self) -> u64 {
+        self.elections
+    }
+
+    /// Live peers' ids.
+    pub fn live_peers(&self) -> BTreeSet<ContainerId> {
+        self.peers.keys().copied().collect()
+    }
+
+    /// The Local Agent List.
+    pub fn lal(&self) -> &LocalAgentList {
+        &self.lal
+    }
+
+    /// This container's copy of the Global Agent List.
+    pub fn gal(&self) -> &GlobalAgentList {
+        &self.gal
+    }
+
+    /// Hosts an agent here (replacing one of the same name).
+    pub fn register(&mut self, entry: AgentEntry) {
+        self.lal.insert(entry);
+        self.gal.merge_part(self.config.id, self.lal.to_part());
+    }
+
+    /// Stops hosting `name`; `false` if it was not hosted here.
+    pub fn deregister(&mut self, name: &str) -> bool {
+        let removed = self.lal.remove(name);
+        self.gal.merge_part(self.config.id, self.lal.to_part());
+        removed
+    }
+
+    /// Finds an agent: local first (always available), then the GAL.
+    pub fn resolve(&self, name: &str) -> Option<&AgentEntry> {
+        self.lal.get(name).or_else(|| self.gal.lookup(name).map(|(_, e)| e))
+    }
+
+    /// Handles one frame from `from`.
+    pub fn on_message(&mut self, from: &PeerAddr, msg: ContainerMsg, now: Time) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        match msg {
+            ContainerMsg::Heartbeat { id, leader, lal_generation: _, gal_versions } => {
+                if id == self.config.id {
+                    return out; // our own heartbeat, looped back by a seed list naming us
+                }
+                self.peers.insert(id, Peer { addr: from.clone(), last_heard: now, leader, gal_versions });
+                self.elect();
+                self.sync_with(id, &mut out);
+            }
+            ContainerMsg::Lal { id, part } => {
+                if self.leader == self.config.id && id != self.config.id {
+                    self.gal.merge_part(id, part);
+                }
+            }
+            ContainerMsg::Gal { leader, gal } => {
+                if leader == self.leader && leader != self.config.id {
+                    self.gal.merge(&gal);
+                }
+            }
+        }
+        out
+    }
+
+    /// Expires leases, re-elects, and sends heartbeats when due.
+    pub fn on_tick(&mut self, now: Time) -> Vec<Outgoing> {
+        let lease = Duration::from_millis(self.config.lease_ms);
+        let before = self.peers.len();
+        self.peers.retain(|id, p| {
+            let alive = now.since(p.last_heard) < lease;
+            if !alive {
+                tracing::info!(container = %id, "lease expired");
+            }
+            alive
+        });
+        if self.peers.len() != before {
+            self.elect();
+        }
+        let mut out = Vec::new();
+        if now >= self.next_heartbeat {
+            self.next_heartbeat = now.plus(Duration::from_millis(self.config.heartbeat_ms));
+            let heartbeat = ContainerMsg::Heartbeat {
+                id: self.config.id,
+                leader: self.leader,
+                lal_generation: self.lal.generation(),
+                gal_versions: self.gal.versions(),
+            };
+            let mut targets: BTreeSet<&PeerAddr> = self.config.seeds.iter().collect();
+            targets.extend(self.peers.values().map(|p| &p.addr));
+            targets.remove(&self.config.addr);
+            out.extend(targets.into_iter().map(|to| Outgoing { to: to.clone(), msg: heartbeat.clone() }));
+            let ids: Vec<ContainerId> = self.peers.keys().copied().collect();
+            for id in ids {
+                self.sync_with(id, &mut out);
+            }
+        }
+        out
+    }
+
+    fn elect(&mut self) {
+        let lowest = self.peers.keys().next().copied().map_or(self.config.id, |p| p.min(self.config.id));
+        if lowest != self.leader {
+            tracing::info!(container = %self.config.id, old = %self.leader, new = %lowest, "leader elected");
+            self.leader = lowest;
+            self.elections += 1;
+        }
+    }
+
+    /// Sends `id` what it lacks: the GAL if we lead and it is behind, our LAL if it leads and
+    /// lacks our generation.
+    fn sync_with(&self, id: ContainerId, out: &mut Vec<Outgoing>) {
+        let Some(peer) = self.peers.get(&id) else {
+            return;
+        };
+        if self.leader == self.config.id && peer.gal_versions != self.gal.versions() && self.is_newer_than(&peer.gal_versions) {
+            out.push(Outgoing { to: peer.addr.clone(), msg: ContainerMsg::Gal { leader: self.config.id, gal: self.gal.clone() } });
+        }
+        if id == self.leader && peer.gal_versions.get(&self.config.id).copied() != Some(self.lal.generation()) {
+            out.push(Outgoing { to: peer.addr.clone(), msg: ContainerMsg::Lal { id: self.config.id, part: self.lal.to_part() } });
+        }
+    }
+
+    /// Whether our GAL holds some part newer than `versions` does.
+    fn is_newer_than(&self, versions: &VersionVector) -> bool {
+        self.gal.parts().iter().any(|(id, p)| versions.get(id).is_none_or(|g| *g < p.generation))
+    }
+}

@@ -1,0 +1,96 @@
+//! [`ContainerNode`]: a [`Container`] driven over a real frame transport on its own thread.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use iw_bus::Clock;
+use iw_bus::transport::FrameTransport;
+
+use crate::ContainerError;
+use crate::machine::{Container, ContainerMsg, Outgoing};
+
+/// A running container: receives control frames, ticks its state machine, sends what it says.
+///
+/// Transport errors (a lost network) are logged and retried, never fatal: the container and its
+/// local agents carry on alone until peers are heard again.
+#[derive(Debug)]
+pub struct ContainerNode {
+    state: Arc<Mutex<Container>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl ContainerNode {
+    /// Runs `container` over `transport` (its own endpoint, not an agent bus), timed by `clock`.
+    pub fn start(container: Container, transport: Arc<dyn FrameTransport>, clock: Clock, tick: Duration) -> Result<Self, ContainerError> {
+        let state = Arc::new(Mutex::new(container));
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (state, stop) = (Arc::clone(&state), Arc::clone(&stop));
+            std::thread::Builder::new()
+                .name("iw-container".into())
+                .spawn(move || run(&state, transport.as_ref(), &clock, tick, &stop))
+                .map_err(|source| ContainerError::Spawn { source })?
+        };
+        Ok(Self { state, stop, thread: Some(thread) })
+    }
+
+    /// Runs `f` on the container (register agents, resolve, read the lists).
+    pub fn with<R>(&self, f: impl FnOnce(&mut Container) -> R) -> R {
+        f(&mut self.state.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    /// Stops the thread (peers see the lease expire) and waits for it.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+
+    fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(thread) = self.thread.take()
+            && thread.join().is_err()
+        {
+            tracing::error!("container thread panicked");
+        }
+    }
+}
+
+impl Drop for ContainerNode {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+fn run(state: &Mutex<Container>, transport: &dyn FrameTransport, clock: &Clock, tick: Duration, stop: &AtomicBool) {
+    let lock = || state.lock().unwrap_or_else(PoisonError::into_inner);
+    while !stop.load(Ordering::Relaxed) {
+        let out = match transport.recv_timeout(tick) {
+            Ok(Some((from, frame))) => match ContainerMsg::decode(&frame) {
+                Ok(msg) => lock().on_message(&from, msg, clock.now()),
+                Err(e) => {
+                    tracing::warn!(%from, error = %e, "ignoring a control frame");
+                    Vec::new()
+                }
+            },
+            Ok(None) => Vec::new(),
+            Err(e) => {
+                tracing::warn!(error = %e, "container transport failed; carrying on alone");
+                std::thread::sleep(tick);
+                Vec::new()
+            }
+        };
+        let ticked = lock().on_tick(clock.now());
+        for Outgoing { to, msg } in out.into_iter().chain(ticked) {
+            match msg.encode() {
+                Ok(frame) => {
+                    if let Err(e) = transport.send(&to, &frame) {
+                        tracing::debug!(%to, error = %e, "control frame not sent");
+                    }
+                }
+                Err(e) => tracing::error!(error = %e, "control message does not encode"),
+            }
+        }
+    }
+}
