@@ -13,7 +13,7 @@
 use std::str::FromStr;
 
 use crate::BusError;
-use crate::envelope::Envelope;
+use crate::envelope::{Envelope, MsgId};
 use crate::time::Time;
 
 /// What a layer decided about one envelope.
@@ -131,6 +131,21 @@ impl Reason {
         }
     }
 
+    /// True if the frame was refused as not authentic (it may not be what its sender sent):
+    /// layers below must then forget it, so the genuine frame still gets through.
+    pub fn is_authenticity_failure(self) -> bool {
+        matches!(
+            self,
+            Reason::NotSealed
+                | Reason::BadTag
+                | Reason::UnknownPeer
+                | Reason::UnknownSession
+                | Reason::BadSignature
+                | Reason::BadHandshake
+                | Reason::BadFrame
+        )
+    }
+
     fn index(self) -> usize {
         Reason::ALL.iter().position(|r| *r == self).unwrap_or(0)
     }
@@ -207,6 +222,10 @@ pub trait Layer: Send {
     fn next_deadline(&self) -> Option<Time> {
         None
     }
+    /// Told to the layers below the one that dropped an inbound envelope (`id` from `sender`), so
+    /// they can undo what they recorded for it (the communication layer forgets the id and
+    /// withdraws its acknowledgement when the frame was not authentic).
+    fn rejected_above(&mut self, _id: MsgId, _sender: &str, _reason: Reason) {}
     /// Moves rejections the layer decided on its own (not as a verdict, e.g. a message given up
     /// after its last retransmission) into `into`.
     fn drain_rejections(&mut self, _into: &mut Counters) {}
@@ -311,12 +330,16 @@ impl Layer for Stack {
         }
     }
     fn inbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
+        let (id, sender) = (env.header.id, env.header.sender.clone());
         for i in (0..self.layers.len()).rev() {
             match self.layers[i].inbound(env, now) {
                 Verdict::Pass(e) => env = e,
                 Verdict::Drop(r) => {
                     tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
                     self.counters.record(r);
+                    for below in &mut self.layers[i + 1..] {
+                        below.rejected_above(id, &sender, r);
+                    }
                     return Verdict::Drop(r);
                 }
                 Verdict::Consumed => return Verdict::Consumed,
@@ -431,7 +454,6 @@ impl FromStr for LayerSet {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::envelope::MsgId;
 
     /// Drops payloads starting with `x` inbound; on outbound, queues an extra copy for poll.
     struct Picky {

@@ -15,6 +15,11 @@
 //! - **size limit**: a message whose payload exceeds the limit configured for its receiving agent
 //!   is never delivered ([`Reason::TooLarge`]).
 //!
+//! Frames a layer above refuses as not authentic ([`Reason::is_authenticity_failure`]: a
+//! corrupted or forged copy) are forgotten again and not acknowledged, so the sender retransmits
+//! and the genuine frame is delivered; with the security layer on, corruption therefore costs a
+//! retransmission, never a message.
+//!
 //! Not covered here: ordering (temporal layer), authenticity (security layer). An
 //! acknowledgement echoes the last 16 payload bytes of the frame it acknowledges; with the
 //! security layer on these are AEAD tag bytes, so only someone who saw the frame can forge its
@@ -115,6 +120,12 @@ impl Window {
             }
         }
         true
+    }
+
+    fn remove(&mut self, id: MsgId) {
+        if self.ids.remove(&id) {
+            self.order.retain(|x| *x != id);
+        }
     }
 }
 
@@ -262,6 +273,21 @@ impl Layer for CommLayer {
         self.in_flight.values().map(|p| p.next_at).min()
     }
 
+    fn rejected_above(&mut self, id: MsgId, sender: &str, reason: Reason) {
+        if !reason.is_authenticity_failure() {
+            return;
+        }
+        // Not what the sender sent (corrupted, forged): forget it, so that the genuine frame is
+        // neither taken for a duplicate nor left unretransmitted.
+        if let Some(w) = self.seen.get_mut(sender) {
+            w.remove(id);
+        }
+        if let Some(at) = self.acks.iter().rposition(|a| a.header.receiver == sender && a.payload.get(..8) == Some(&id.0.to_be_bytes()[..])) {
+            self.acks.remove(at);
+            self.stats.acks_sent -= 1;
+        }
+    }
+
     fn drain_rejections(&mut self, into: &mut Counters) {
         for _ in 0..std::mem::take(&mut self.undeliverable) {
             into.record(Reason::Undeliverable);
@@ -354,6 +380,19 @@ mod tests {
         assert_eq!(tx.inbound(forged, Time::ZERO), Verdict::Consumed);
         assert_eq!(tx.in_flight(), 1);
         assert_eq!(tx.stats().acks_stray, 1);
+    }
+
+    #[test]
+    fn inauthentic_frame_forgotten_and_not_acknowledged() {
+        let mut rx = CommLayer::new(CommConfig::default());
+        pass(rx.inbound(data(1, b"altered"), Time::ZERO));
+        rx.rejected_above(MsgId(1), "a", Reason::BadTag);
+        assert!(rx.poll_transmit(Time::ZERO).is_none(), "acknowledgement withdrawn");
+        pass(rx.inbound(data(1, b"genuine"), Time::ZERO));
+        // A policy rejection of an authentic frame keeps it acknowledged.
+        rx.rejected_above(MsgId(1), "a", Reason::Stale);
+        assert!(rx.poll_transmit(Time::ZERO).is_some());
+        assert_eq!(rx.inbound(data(1, b"genuine"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
     }
 
     #[test]
