@@ -126,6 +126,14 @@ impl<'a> Frame<'a> {
             .transpose()
     }
 
+    /// `:slot` as an integer, required.
+    pub fn required_integer(&self, slot: &'static str) -> Result<i64, OntologyError> {
+        self.integer(slot)?.ok_or(OntologyError::MissingSlot {
+            concept: self.concept,
+            slot,
+        })
+    }
+
     /// `:slot` as a set or sequence; empty when absent.
     pub fn list(&self, slot: &'static str) -> Result<&'a [Term], OntologyError> {
         match self.get(slot) {

@@ -145,15 +145,9 @@ impl Concept for SensorReading {
                 expected: "sonar-reading or encoder-reading",
                 found: shown(term),
             })?;
-        let ticks = |slot| {
-            f.integer(slot)?.ok_or(OntologyError::MissingSlot {
-                concept: "encoder-reading",
-                slot,
-            })
-        };
         Ok(Self::Encoders {
-            left_ticks: ticks("left")?,
-            right_ticks: ticks("right")?,
+            left_ticks: f.required_integer("left")?,
+            right_ticks: f.required_integer("right")?,
         })
     }
 }
@@ -286,16 +280,9 @@ impl Concept for WheelchairAction {
             "spin" => Self::Spin {
                 angle_rad: frame("spin")?.required_number("angle")?,
             },
-            "wait" => {
-                let f = frame("wait")?;
-                let duration_ms = f
-                    .integer("duration-ms")?
-                    .ok_or(OntologyError::MissingSlot {
-                        concept: "wait",
-                        slot: "duration-ms",
-                    })?;
-                Self::Wait { duration_ms }
-            }
+            "wait" => Self::Wait {
+                duration_ms: frame("wait")?.required_integer("duration-ms")?,
+            },
             "stop" => Self::Stop,
             "open-door" => Self::OpenDoor {
                 door: frame("open-door")?.required_text("door")?,
