@@ -142,35 +142,13 @@ impl Map {
         let to_world = |x: usize, row: usize| Point2::new(x as f64 * resolution_m, (h - row) as f64 * resolution_m);
         let mut walls = Vec::new();
         // horizontal edges at the top of pixel row `row` (between row-1 and row)
-        for row in 0..=h {
-            let mut run: Option<usize> = None;
-            for x in 0..=w {
-                let edge = x < w && solid(x as isize, row as isize) != solid(x as isize, row as isize - 1);
-                match (edge, run) {
-                    (true, None) => run = Some(x),
-                    (false, Some(x0)) => {
-                        walls.push(vec![to_world(x0, row), to_world(x, row)]);
-                        run = None;
-                    }
-                    _ => {}
-                }
-            }
-        }
+        edge_runs(h + 1, w, |row, x| solid(x as isize, row as isize) != solid(x as isize, row as isize - 1), |row, x0, x1| {
+            walls.push(vec![to_world(x0, row), to_world(x1, row)]);
+        });
         // vertical edges at the left of pixel column `col`
-        for col in 0..=w {
-            let mut run: Option<usize> = None;
-            for row in 0..=h {
-                let edge = row < h && solid(col as isize, row as isize) != solid(col as isize - 1, row as isize);
-                match (edge, run) {
-                    (true, None) => run = Some(row),
-                    (false, Some(r0)) => {
-                        walls.push(vec![to_world(col, r0), to_world(col, row)]);
-                        run = None;
-                    }
-                    _ => {}
-                }
-            }
-        }
+        edge_runs(w + 1, h, |col, row| solid(col as isize, row as isize) != solid(col as isize - 1, row as isize), |col, r0, r1| {
+            walls.push(vec![to_world(col, r0), to_world(col, r1)]);
+        });
         if walls.is_empty() {
             return Err(SimError::Image { path: path.display().to_string(), reason: "no dark (occupied) pixels".into() });
         }
@@ -213,6 +191,24 @@ impl Map {
             return (Point2::origin(), Point2::new(1.0, 1.0));
         }
         (min, max)
+    }
+}
+
+/// For each `line` in `0..lines`, finds the maximal runs `start..end` of `0..len` where
+/// `is_edge(line, i)` holds and calls `emit(line, start, end)`.
+fn edge_runs(lines: usize, len: usize, is_edge: impl Fn(usize, usize) -> bool, mut emit: impl FnMut(usize, usize, usize)) {
+    for line in 0..lines {
+        let mut run: Option<usize> = None;
+        for i in 0..=len {
+            match (i < len && is_edge(line, i), run) {
+                (true, None) => run = Some(i),
+                (false, Some(start)) => {
+                    emit(line, start, i);
+                    run = None;
+                }
+                _ => {}
+            }
+        }
     }
 }
 

@@ -38,6 +38,15 @@ pub struct RgbdFrame {
     pub intrinsics: (f64, f64, f64, f64),
 }
 
+impl RgbdFrame {
+    /// Writes the colour image and the 16-bit depth image as PNGs (the TUM RGB-D layout).
+    pub fn save(&self, rgb_path: &Path, depth_path: &Path) -> Result<(), SimError> {
+        let err = |path: &Path, e: image::ImageError| SimError::Image { path: path.display().to_string(), reason: e.to_string() };
+        self.rgb.save(rgb_path).map_err(|e| err(rgb_path, e))?;
+        self.depth.save(depth_path).map_err(|e| err(depth_path, e))
+    }
+}
+
 /// Textures for walls and furniture, picked by surface index.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TextureSet {
