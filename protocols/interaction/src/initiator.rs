@@ -334,6 +334,10 @@ impl Initiator {
         if let Some(last) = &session.last_received {
             message.in_reply_to = last.reply_with.clone();
         }
+        if act == Performative::Cfp {
+            // A new round: answers to the previous round's messages no longer route.
+            self.by_tag.retain(|_, session| *session != index);
+        }
         message.reply_with = Some(self.new_tag(index));
         self.sessions[index].state = state;
         message

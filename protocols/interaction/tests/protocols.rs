@@ -303,6 +303,9 @@ fn iterated_contract_net_runs_a_second_round() {
     assert_eq!(initiator.next_deadline(), Some(second_deadline));
     deliver(&messages, &mut responders, T0 + 3);
     assert_eq!(responders[2].state(), SessionState::Done(Outcome::Rejected));
+    // A replayed first-round bid no longer routes.
+    let stale = initiator.session(&name("b1")).unwrap().last_received().unwrap().clone();
+    assert!(matches!(initiator.handle(&stale, T0 + 4), Err(Error::UnknownReply { .. })));
     // Second round: after the first deadline, before the second.
     bid(&mut initiator, &mut responders[0], 8, DEADLINE + 1);
     bid(&mut initiator, &mut responders[1], 9, DEADLINE + 2);
