@@ -139,7 +139,7 @@ pub struct DriverOutput {
     pub command: VelocityCommand,
     /// Laps completed so far.
     pub laps: usize,
-    /// Distance along the circuit so far (all laps), m.
+    /// Distance along the circuit since the first period (all laps), m.
     pub progress_m: f64,
 }
 
@@ -150,6 +150,7 @@ pub struct HeadGestureDriver {
     circuit: Circuit,
     rng: ChaCha8Rng,
     progress_m: f64,
+    start_m: Option<f64>,
     intended: VecDeque<(u64, VelocityCommand)>,
     tremor: VelocityCommand,
     held: VelocityCommand,
@@ -173,6 +174,7 @@ impl HeadGestureDriver {
             circuit,
             rng: ChaCha8Rng::seed_from_u64(seed),
             progress_m: 0.0,
+            start_m: None,
             intended: VecDeque::new(),
             tremor: VelocityCommand::STOP,
             held: VelocityCommand::STOP,
@@ -203,6 +205,16 @@ impl HeadGestureDriver {
         }
         let dt_s = self.last_ns.map_or(0.0, |last| time_ns.saturating_sub(last) as f64 * 1e-9);
         self.last_ns = Some(time_ns);
+        let start_m = match self.start_m {
+            Some(start) => start,
+            None => {
+                // First period: find the chair anywhere on the loop; laps count from there.
+                let start = self.circuit.project_near(position, 0.0, 0.0, self.circuit.length_m());
+                self.progress_m = start;
+                self.checkpoint = (time_ns, start);
+                *self.start_m.insert(start)
+            }
+        };
         self.progress_m = self.circuit.project_near(position, self.progress_m, 0.5, 1.5).max(self.progress_m - 0.5);
         let intended = self.intend(time_ns, position, heading);
         self.intended.push_back((time_ns, intended));
@@ -216,8 +228,9 @@ impl HeadGestureDriver {
             _ => VelocityCommand::STOP,
         };
         let command = self.head_cap(time_ns, dt_s, delayed);
-        let laps = (self.progress_m / self.circuit.length_m()).floor().max(0.0) as usize;
-        Ok(DriverOutput { command, laps, progress_m: self.progress_m })
+        let driven_m = self.progress_m - start_m;
+        let laps = (driven_m / self.circuit.length_m()).floor().max(0.0) as usize;
+        Ok(DriverOutput { command, laps, progress_m: driven_m })
     }
 
     /// What the person wants now: pure pursuit along the circuit, or backing off when stuck.
