@@ -238,6 +238,13 @@ impl World {
         Ok(self.chair(id)?.in_contact)
     }
 
+    /// Whether the chair's footprint overlaps anything solid right now (never true after a
+    /// simulated step; a placed chair may overlap).
+    pub fn overlapping(&self, id: ChairId) -> Result<bool, SimError> {
+        let pose = self.chair(id)?.t_world_body;
+        Ok(self.footprint_collides(id.0, &pose))
+    }
+
     /// Ground distance travelled, m.
     pub fn distance_m(&self, id: ChairId) -> Result<f64, SimError> {
         Ok(self.chair(id)?.distance_m)

@@ -325,3 +325,30 @@ fn mixed_reality_real_board_plus_virtual_world_nearest_wins() {
     assert_relative_eq!(last.sonar_m[0].unwrap(), 0.5, epsilon = 0.01);
     assert_eq!(board.handle().state().speeds, WheelSpeeds { left_mps: 1.0, right_mps: 1.0 });
 }
+
+#[test]
+fn random_driving_in_the_cluttered_circuit_never_ends_inside_an_obstacle() {
+    let map = Map::load(maps_dir().join("office-circuit.map")).unwrap();
+    let start = map.start("lap").unwrap();
+    let mut world = World::new(map, 21);
+    let ids: Vec<_> = [start, pose(1.6, 4.4, 90.0), pose(7.0, 8.75, 180.0)].into_iter().map(|t| world.add_chair(ChairSpec::default(), t, ChairKind::Simulated)).collect();
+    for &id in &ids {
+        assert!(!world.overlapping(id).unwrap(), "bad test start {id:?}");
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for _ in 0..1500 {
+        for &id in &ids {
+            if rng.random_bool(0.1) {
+                // full speed in a random direction, including spins
+                let v = rng.random_range(-1.5..1.5);
+                world.command(id, WheelSpeeds { left_mps: v + rng.random_range(-1.0..1.0), right_mps: v + rng.random_range(-1.0..1.0) }).unwrap();
+            }
+        }
+        step(&mut world, 0.1);
+        for &id in &ids {
+            assert!(!world.overlapping(id).unwrap(), "chair {id:?} inside an obstacle at {}", world.pose(id).unwrap());
+        }
+    }
+    let total: u64 = ids.iter().map(|&id| world.collisions(id).unwrap()).sum();
+    assert!(total > 0, "random driving should have hit something");
+}
