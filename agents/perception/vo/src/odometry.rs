@@ -64,7 +64,7 @@ impl Default for KeyframeParams {
         KeyframeParams {
             max_translation_m: 0.08,
             max_rotation_rad: 8f64.to_radians(),
-            min_inliers: 80,
+            min_inliers: 30,
             window: 4,
             guided_radius_px: 12.0,
             guided_ratio: 0.85,
