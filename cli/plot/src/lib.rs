@@ -9,6 +9,7 @@ use std::sync::Once;
 pub use plotters;
 
 pub mod paths;
+pub mod trajectory;
 
 static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
 
