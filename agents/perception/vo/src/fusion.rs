@@ -54,12 +54,8 @@ impl OdometryFusion {
 
     /// Prediction with one wheel odometry step.
     pub fn predict(&mut self, step: &OdometryStep) {
-        let current_cov = self.covariance();
-        let (next, _) = step.propagate(&self.current, &current_cov, &self.alpha);
-        let heading = self.current.theta + step.rot1;
-        let (s, c) = heading.sin_cos();
-        let g = Matrix3::new(1.0, 0.0, -step.trans * s, 0.0, 1.0, step.trans * c, 0.0, 0.0, 1.0);
-        let v = Matrix3::new(-step.trans * s, c, 0.0, step.trans * c, s, 0.0, 1.0, 0.0, 1.0);
+        let next = self.current.compose(&step.as_delta());
+        let (g, v) = step.jacobians(self.current.theta);
         let mut f = Matrix6::identity();
         f.fixed_view_mut::<3, 3>(3, 3).copy_from(&g);
         let mut q = Matrix6::zeros();

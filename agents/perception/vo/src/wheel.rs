@@ -97,12 +97,18 @@ impl OdometryStep {
         ))
     }
 
-    /// Applies the step to `pose` and propagates `covariance`: `G P G^T + V M V^T`.
-    pub fn propagate(&self, pose: &Pose2, covariance: &Matrix3<f64>, alpha: &[f64; 4]) -> (Pose2, Matrix3<f64>) {
-        let heading = pose.theta + self.rot1;
-        let (s, c) = heading.sin_cos();
+    /// Jacobians of the motion at heading `theta`: with respect to the pose (G) and to the step's
+    /// (rot1, trans, rot2) (V).
+    pub fn jacobians(&self, theta: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+        let (s, c) = (theta + self.rot1).sin_cos();
         let g = Matrix3::new(1.0, 0.0, -self.trans * s, 0.0, 1.0, self.trans * c, 0.0, 0.0, 1.0);
         let v = Matrix3::new(-self.trans * s, c, 0.0, self.trans * c, s, 0.0, 1.0, 0.0, 1.0);
+        (g, v)
+    }
+
+    /// Applies the step to `pose` and propagates `covariance`: `G P G^T + V M V^T`.
+    pub fn propagate(&self, pose: &Pose2, covariance: &Matrix3<f64>, alpha: &[f64; 4]) -> (Pose2, Matrix3<f64>) {
+        let (g, v) = self.jacobians(pose.theta);
         let next = pose.compose(&self.as_delta());
         (next, g * covariance * g.transpose() + v * self.covariance(alpha) * v.transpose())
     }
