@@ -16,7 +16,7 @@ use crate::error::SlError;
 /// |---------------------------------------------|-----|-----|-----|------|
 /// | predicates, `action`, `done`, `feasible`, sets, sequences, constants, variables | yes | yes | yes | yes |
 /// | `not`, `and`, `or`, `implies`, `equiv`      | no  | yes | yes | yes  |
-/// | `forall`/`exists`, `B`/`U`/`PG`/`I`, `iota`/`any`/`all`, `|`/`;` | no | yes | no | yes |
+/// | `forall`/`exists`, `B`/`U`/`PG`/`I`, `iota`/`any`/`all`, action alternative and sequence | no | yes | no | yes |
 ///
 /// Known JADE quirk reproduced on purpose: JADE's SL1 codec accepts the full grammar while its
 /// SL2 codec rejects quantifiers, modal operators and identifying expressions (SC00008 puts them
