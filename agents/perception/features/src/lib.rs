@@ -209,3 +209,6 @@ impl Detector {
 pub fn detect(kind: DetectorKind, image: &RgbImage, config: &DetectorConfig) -> Result<Features, FeatureError> {
     Detector::new().detect(kind, image, config)
 }
+
+#[cfg(test)]
+mod tests;
