@@ -8,6 +8,7 @@ use std::sync::Once;
 
 pub use plotters;
 
+pub mod boxplot;
 pub mod paths;
 pub mod trajectory;
 
