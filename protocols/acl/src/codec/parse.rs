@@ -62,7 +62,7 @@ impl Param {
 
     fn lookup(name: &str) -> Option<Param> {
         let exact = Self::ALL.iter().find(|(_, n)| *n == name);
-        exact.or_else(|| Self::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(name))).map(|&(p, _)| p)
+        exact.or_else(|| Self::ALL.iter().find(|(_, n)| is_keyword(name, n))).map(|&(p, _)| p)
     }
 }
 
@@ -340,7 +340,7 @@ impl<'a> Parser<'a> {
     fn expect_keyword(&mut self, keyword: &'static str, expected: &'static str) -> Result<(), Error> {
         let token = self.next()?;
         match token.kind {
-            Kind::Word(word) if word == keyword || word.eq_ignore_ascii_case(keyword) => Ok(()),
+            Kind::Word(word) if is_keyword(word, keyword) => Ok(()),
             _ => Err(self.syntax(&token, expected)),
         }
     }
@@ -500,12 +500,12 @@ impl<'a> Parser<'a> {
                 Kind::Word(word) if word.len() > 1 && word.starts_with(':') => &word[1..],
                 _ => return Err(self.syntax(&token, "`:name`, `:addresses`, `:resolvers`, `:X-...` or `)`")),
             };
-            let duplicate = if slot.eq_ignore_ascii_case("name") {
+            let duplicate = if is_keyword(slot, "name") {
                 name.replace(self.next_text()?).is_some()
-            } else if slot.eq_ignore_ascii_case("addresses") {
+            } else if is_keyword(slot, "addresses") {
                 aid.addresses = self.sequence(|parser, token| parser.text_value(token))?;
                 std::mem::replace(&mut seen_addresses, true)
-            } else if slot.eq_ignore_ascii_case("resolvers") {
+            } else if is_keyword(slot, "resolvers") {
                 aid.resolvers = self.sequence(|parser, token| match token.kind {
                     Kind::Open => parser.agent_id(token, depth + 1),
                     _ => Err(parser.syntax(token, "`(agent-identifier ...)` in the resolvers")),
@@ -546,6 +546,11 @@ impl<'a> Parser<'a> {
             items.push(item(self, &token)?);
         }
     }
+}
+
+/// `word` is `keyword` in any case (the usual lower case compared first: it is the hot path).
+fn is_keyword(word: &str, keyword: &str) -> bool {
+    word == keyword || word.eq_ignore_ascii_case(keyword)
 }
 
 /// `X-...` (any case) names a user-defined parameter.
