@@ -76,7 +76,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 response: kp.response,
                 class: kp.class,
             };
-            serde_json::to_writer(&mut out, &line)?;
+            // Serialize first so a closed stdout surfaces as an io::Error (a clean stop).
+            let text = serde_json::to_string(&line)?;
+            out.write_all(text.as_bytes())?;
             out.write_all(b"\n")?;
         }
         out.flush()?;

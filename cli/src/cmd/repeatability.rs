@@ -30,13 +30,12 @@ use super::features::load_rgb;
 
 /// Flags of `intellwheels repeatability`.
 #[derive(clap::Args)]
-#[group(id = "input", required = true, multiple = false)]
 pub struct Args {
     /// Folder of photographs (PNG/JPEG) to relight with LIC, LIS and LCC.
-    #[arg(long, group = "input")]
+    #[arg(long, required_unless_present = "pair", conflicts_with = "pair")]
     images: Option<PathBuf>,
     /// Two photographs of one scene under different real light (reference first).
-    #[arg(long, num_args = 2, value_names = ["A", "B"], group = "input")]
+    #[arg(long, num_args = 2, value_names = ["A", "B"])]
     pair: Option<Vec<PathBuf>>,
     /// Output folder (created if missing).
     #[arg(long)]
