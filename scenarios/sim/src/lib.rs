@@ -24,6 +24,10 @@
 //! # Known limits
 //! - Sonars and the laser see every obstacle whatever its height; sonar specular reflection and
 //!   crosstalk are not modelled.
+//! - The 16-sonar ring covers the sides from 27 cm and every side from 80 cm out, but the corner
+//!   arcs between a tip pair and the lateral row keep small blind spots (as on the prototype).
+//! - The RGB-D camera is a 2.5D column ray caster: vertical walls and extruded furniture, a flat
+//!   floor and ceiling, no shadows.
 //! - Chairs are moved one after another within a step (index order), so two chairs meeting
 //!   head-on are resolved in favour of the lower index.
 #![warn(missing_docs)]
