@@ -1,0 +1,155 @@
+//! The control agent alone on an in-process bus with a mock clock: real ACL in, real replies out.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, AgentHost, Context};
+use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
+use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_control_agent::{ControlAgent, ControlConfig, drive_content};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
+
+/// A body that records every command and integrates them into a pose (unicycle).
+#[derive(Clone, Default)]
+struct Recorder {
+    commands: Arc<Mutex<Vec<WheelSpeeds>>>,
+}
+
+impl Body for Recorder {
+    fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        Ok(SensorFrame::empty(0))
+    }
+    fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
+        self.commands.lock().unwrap().push(speeds);
+        Ok(())
+    }
+}
+
+/// Keeps what it receives; sends what the test queues.
+struct Probe {
+    inbox: Arc<Mutex<Vec<AclMessage>>>,
+    outbox: Arc<Mutex<Vec<AclMessage>>>,
+}
+
+impl Agent for Probe {
+    fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
+        self.inbox.lock().unwrap().push(message);
+    }
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_millis(1))
+    }
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        for m in self.outbox.lock().unwrap().drain(..) {
+            ctx.send(m).unwrap();
+        }
+    }
+}
+
+struct Rig {
+    host: AgentHost,
+    clock: MockController,
+    inbox: Arc<Mutex<Vec<AclMessage>>>,
+    outbox: Arc<Mutex<Vec<AclMessage>>>,
+    body: Recorder,
+}
+
+fn rig() -> Rig {
+    let network = InProcNetwork::new();
+    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
+    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let mut host = AgentHost::new(Arc::new(bus));
+    let body = Recorder::default();
+    let config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
+    host.add(AgentId::new("control"), Box::new(ControlAgent::new(config, Box::new(body.clone())).unwrap())).unwrap();
+    let (inbox, outbox) = (Arc::default(), Arc::default());
+    host.add(AgentId::new("probe"), Box::new(Probe { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox) })).unwrap();
+    Rig { host, clock: controller, inbox, outbox, body }
+}
+
+impl Rig {
+    fn run(&mut self, ms: u64) {
+        for _ in 0..ms / 10 {
+            self.host.step(self.clock.now());
+            self.clock.advance(Duration::from_millis(10));
+        }
+    }
+    fn send(&self, m: AclMessage) {
+        self.outbox.lock().unwrap().push(m.with_receiver(AgentId::new("control")));
+    }
+    fn last_wheels(&self) -> WheelSpeeds {
+        *self.body.commands.lock().unwrap().last().unwrap()
+    }
+    fn performatives(&self) -> Vec<Performative> {
+        self.inbox.lock().unwrap().iter().map(|m| m.performative).collect()
+    }
+}
+
+fn pose(x: f64, y: f64, theta: f64) -> AclMessage {
+    let fact = Fact::AtPose { agent: AgentId::new("probe"), pose: Pose { x_m: x, y_m: y, theta_rad: theta, covariance: nalgebra::Matrix3::zeros() } };
+    WheelchairContent::Inform(fact).fill(AclMessage::new(Performative::Inform))
+}
+
+#[test]
+fn subscribes_to_perception_at_setup() {
+    let mut rig = rig();
+    rig.run(20);
+    let inbox = rig.inbox.lock().unwrap();
+    assert_eq!(inbox[0].performative, Performative::Subscribe);
+    assert_eq!(inbox[0].protocol.as_deref(), Some("fipa-subscribe"));
+}
+
+#[test]
+fn manual_driving_moves_the_chair_and_the_watchdog_stops_it() {
+    let mut rig = rig();
+    for _ in 0..20 {
+        rig.send(AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)));
+        rig.run(100);
+    }
+    let moving = rig.last_wheels();
+    assert!(moving.left_mps > 0.3 && moving.right_mps > 0.3, "{moving:?}");
+    // Commands stop arriving: within the 0.5 s watchdog plus the ramp the wheels are at zero.
+    rig.run(2000);
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
+    assert!(rig.performatives().iter().all(|p| *p != Performative::NotUnderstood));
+}
+
+#[test]
+fn goto_is_agreed_driven_and_reported_done() {
+    let mut rig = rig();
+    let action = WheelchairAction::GotoXy { x_m: 1.0, y_m: 0.0 };
+    let request = WheelchairContent::Request { actor: AgentId::new("control"), action: action.clone() }
+        .fill(AclMessage::new(Performative::Request).with_protocol("fipa-request").with_conversation_id("g1"));
+    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send(request);
+    rig.run(200);
+    assert!(rig.performatives().contains(&Performative::Agree), "{:?}", rig.performatives());
+    assert!(rig.last_wheels().left_mps > 0.0, "drives toward the goal");
+    rig.send(pose(0.98, 0.0, 0.0));
+    rig.run(200);
+    let inbox = rig.inbox.lock().unwrap();
+    let done = inbox.iter().find(|m| m.performative == Performative::Inform).expect("inform done");
+    assert_eq!(done.conversation_id.as_deref(), Some("g1"));
+    assert_eq!(WheelchairContent::from_message(done).unwrap(), WheelchairContent::Done { actor: AgentId::new("control"), action });
+}
+
+#[test]
+fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refused() {
+    let mut rig = rig();
+    let goto = WheelchairContent::Request { actor: AgentId::new("control"), action: WheelchairAction::GotoXy { x_m: 5.0, y_m: 0.0 } }
+        .fill(AclMessage::new(Performative::Request).with_conversation_id("g2"));
+    let door = WheelchairContent::Request { actor: AgentId::new("control"), action: WheelchairAction::OpenDoor { door: "d1".into() } }
+        .fill(AclMessage::new(Performative::Request).with_conversation_id("g3"));
+    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send(goto);
+    rig.send(door);
+    rig.send(AclMessage::new(Performative::Request).with_content("((nonsense"));
+    rig.run(10_000);
+    let got = rig.performatives();
+    assert!(got.contains(&Performative::Refuse), "{got:?}");
+    assert!(got.contains(&Performative::NotUnderstood), "{got:?}");
+    let inbox = rig.inbox.lock().unwrap();
+    assert!(inbox.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some("g2")));
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
+}
