@@ -64,13 +64,16 @@ fn parse(args: &ParseArgs) -> anyhow::Result<ExitCode> {
     let text = read_stdin(DEFAULT_MAX_LEN)?;
     let options = if args.jade_compat { ParseOptions::jade() } else { ParseOptions::default() };
     let message = codec::parse_with(&text, &options).context("invalid ACL message on stdin")?;
-    let mut json = serde_json::to_value(&message)?;
-    if !args.byte_content {
+    let has_bytes = matches!(message.content, Some(iw_acl::Content::Bytes(_)));
+    if has_bytes && !args.byte_content {
+        // Through a map (its keys come out sorted) to drop the Base64 bytes.
+        let mut json = serde_json::to_value(&message)?;
         if let Some(object) = json.as_object_mut() {
             object.remove("byte_content");
         }
+        return write_stdout(&serde_json::to_string(&json)?);
     }
-    write_stdout(&serde_json::to_string(&json)?)
+    write_stdout(&serde_json::to_string(&message)?)
 }
 
 fn print(args: &PrintArgs) -> anyhow::Result<ExitCode> {
