@@ -76,8 +76,8 @@ impl FrameCodec {
         out.extend_from_slice(h.receiver.as_bytes());
         out.extend_from_slice(&env.payload);
         if trailer {
-            let sig = env.signature.ok_or(BusError::MissingSignature { id: h.id })?;
-            out.extend_from_slice(&sig);
+            let sig = env.signature.as_deref().ok_or(BusError::MissingSignature { id: h.id })?;
+            out.extend_from_slice(sig);
         }
         Ok(())
     }
@@ -126,7 +126,7 @@ impl FrameCodec {
         let signature = if trailer > 0 {
             let mut sig = [0u8; SIGNATURE_LEN];
             sig.copy_from_slice(&frame[at..at + SIGNATURE_LEN]);
-            Some(sig)
+            Some(Box::new(sig))
         } else {
             None
         };
@@ -243,7 +243,7 @@ mod tests {
         let mut env = sample();
         env.header.flags = Flags::SIGNED;
         assert!(matches!(codec.encode_to_vec(&env), Err(BusError::MissingSignature { .. })));
-        env.signature = Some([7; SIGNATURE_LEN]);
+        env.signature = Some(Box::new([7; SIGNATURE_LEN]));
         let frame = codec.encode_to_vec(&env).unwrap();
         assert_eq!(codec.decode_datagram(&frame).unwrap(), env);
     }
@@ -281,7 +281,7 @@ mod tests {
             env.header.timestamp = Time(ts);
             env.header.reply_by = Time(rb);
             env.header.flags = Flags(flags);
-            if signature_on_wire(env.header.flags) { env.signature = Some([1; SIGNATURE_LEN]); }
+            if signature_on_wire(env.header.flags) { env.signature = Some(Box::new([1; SIGNATURE_LEN])); }
             let codec = FrameCodec::new();
             let frame = codec.encode_to_vec(&env).unwrap();
             prop_assert_eq!(codec.decode_datagram(&frame).unwrap(), env);

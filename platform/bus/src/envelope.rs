@@ -114,7 +114,7 @@ pub struct Envelope {
     pub payload: Vec<u8>,
     /// The sender's Ed25519 signature over header and plaintext, when [`Flags::SIGNED`]; it is
     /// carried inside the ciphertext and restored by the security layer so it can be forwarded.
-    pub signature: Option<[u8; SIGNATURE_LEN]>,
+    pub signature: Option<Box<[u8; SIGNATURE_LEN]>>,
     /// Local only, never on the wire: the sender identity the security layer authenticated
     /// (`None` until a security layer has verified the frame).
     pub authenticated: Option<String>,

@@ -17,8 +17,8 @@
 //! - the ACL `:sender` is the authenticated envelope sender and the ACL `:receiver` set contains
 //!   the envelope receiver ([`Reason::Mismatch`]; EN 50159 *masquerade*: an authenticated agent
 //!   cannot speak in another's name inside the content).
-//! Malformed text is [`Reason::Malformed`]. Outbound, the same syntax and sender checks stop an
-//! agent from emitting what its peers would refuse.
+//! Malformed text is [`Reason::Malformed`]. Outbound, [`envelope`] builds only consistent
+//! envelopes, and `check_outbound` applies the syntax and sender checks to hand-written text.
 #![warn(missing_docs)]
 
 use std::collections::HashSet;
@@ -65,7 +65,9 @@ pub struct ParserConfig {
     /// Refuse senders the security layer did not authenticate (default true; turn off only in
     /// deployments without the security layer).
     pub require_authenticated: bool,
-    /// Check outgoing messages too (default true).
+    /// Parse and check outgoing messages too (default false: messages built with [`envelope`]
+    /// are well-formed and sender-consistent by construction, and the receiving parser checks
+    /// everything again; turn on for agents that write ACL text by hand).
     pub check_outbound: bool,
     /// ACL parser options (escaping, size and nesting limits).
     pub parse: ParseOptions,
@@ -73,7 +75,7 @@ pub struct ParserConfig {
 
 impl Default for ParserConfig {
     fn default() -> Self {
-        ParserConfig { require_authenticated: true, check_outbound: true, parse: ParseOptions::default() }
+        ParserConfig { require_authenticated: true, check_outbound: false, parse: ParseOptions::default() }
     }
 }
 
@@ -87,6 +89,12 @@ pub enum ParserError {
         /// Its performative.
         performative: String,
     },
+    /// The envelope's receiver is not among the message's receivers.
+    #[error("`{receiver}` is not among the :receiver set of the ACL message; add it with `with_receiver`")]
+    NotAReceiver {
+        /// The receiver asked for.
+        receiver: String,
+    },
     /// The ACL printer refused the message.
     #[error("cannot print ACL message: {0}")]
     Print(#[from] iw_acl::Error),
@@ -98,6 +106,9 @@ pub fn envelope(id: MsgId, msg: &AclMessage, receiver: &str) -> Result<Envelope,
         .sender
         .as_ref()
         .ok_or_else(|| ParserError::NoSender { performative: msg.performative.to_string() })?;
+    if !msg.receivers.iter().any(|r| r.name == receiver) {
+        return Err(ParserError::NotAReceiver { receiver: receiver.to_string() });
+    }
     let text = iw_acl::codec::print_with(msg, &PrintOptions::default())?;
     Ok(Envelope::new(id, sender.name.clone(), receiver, text.into_bytes()))
 }
@@ -196,6 +207,7 @@ mod tests {
     #[test]
     fn rejections() {
         let mut p = layer(&["a", "b"]);
+        p.config.check_outbound = true;
         let good = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
         assert_eq!(p.inbound(good.clone(), Time::ZERO), Verdict::Drop(Reason::Unauthenticated));
         let mut garbage = good.clone();
@@ -210,7 +222,9 @@ mod tests {
         let mut masked = envelope(MsgId(3), &acl("b", "b"), "b").unwrap();
         masked.header.sender = "a".into();
         assert_eq!(p.inbound(authed(masked), Time::ZERO), Verdict::Drop(Reason::Mismatch));
-        let misaddressed = envelope(MsgId(4), &acl("a", "c"), "b").unwrap();
+        assert!(matches!(envelope(MsgId(4), &acl("a", "c"), "b"), Err(ParserError::NotAReceiver { .. })));
+        let mut misaddressed = envelope(MsgId(4), &acl("a", "c"), "c").unwrap();
+        misaddressed.header.receiver = "b".into();
         assert_eq!(p.inbound(authed(misaddressed.clone()), Time::ZERO), Verdict::Drop(Reason::Mismatch));
         assert_eq!(p.outbound(misaddressed, Time::ZERO), Verdict::Drop(Reason::Mismatch));
     }

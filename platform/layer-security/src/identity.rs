@@ -85,7 +85,7 @@ pub fn signed_bytes(env: &Envelope) -> Vec<u8> {
 /// third party does with a forwarded message.
 pub fn verify_envelope(env: &Envelope, sender_key: &PublicKey) -> bool {
     env.header.flags.contains(Flags::SIGNED)
-        && env.signature.is_some_and(|sig| verify(sender_key, &signed_bytes(env), &sig))
+        && env.signature.as_ref().is_some_and(|sig| verify(sender_key, &signed_bytes(env), &sig[..]))
 }
 
 /// Where the security layer looks up agents' public keys: fed by the Local and Global Agent

@@ -482,7 +482,7 @@ impl SecurityLayer {
             if !verify(&key, &signed_bytes(&env), &sig) {
                 return Ok(Verdict::Drop(Reason::BadSignature));
             }
-            env.signature = Some(sig);
+            env.signature = Some(Box::new(sig));
         } else {
             env.payload = ct;
         }

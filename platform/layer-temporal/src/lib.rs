@@ -26,7 +26,7 @@
 //! they cannot be altered.
 #![warn(missing_docs)]
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::HashMap;
 use std::time::Duration;
 
 use iw_bus::{Envelope, Layer, Reason, Time, Verdict};
@@ -72,10 +72,47 @@ pub struct TemporalStats {
     pub reordered: u64,
 }
 
-#[derive(Default)]
+/// Sequence numbers accepted from one sender: a ring of `words * 64` bits ending at `newest`.
 struct SeqWindow {
     newest: u64,
-    accepted: BTreeSet<u64>,
+    bits: Vec<u64>,
+}
+
+impl SeqWindow {
+    fn new(seq: u64, window: u64) -> SeqWindow {
+        let words = usize::try_from(window.div_ceil(64)).unwrap_or(1).max(1);
+        let mut w = SeqWindow { newest: seq, bits: vec![0; words] };
+        w.set(seq);
+        w
+    }
+    fn span(&self) -> u64 {
+        self.bits.len() as u64 * 64
+    }
+    fn slot(&self, seq: u64) -> (usize, u64) {
+        let i = seq % self.span();
+        ((i / 64) as usize, 1 << (i % 64))
+    }
+    fn get(&self, seq: u64) -> bool {
+        let (w, m) = self.slot(seq);
+        self.bits[w] & m != 0
+    }
+    fn set(&mut self, seq: u64) {
+        let (w, m) = self.slot(seq);
+        self.bits[w] |= m;
+    }
+    /// Moves the newest number to `seq` (> newest), clearing the slots it passes.
+    fn advance(&mut self, seq: u64) {
+        if seq - self.newest >= self.span() {
+            self.bits.iter_mut().for_each(|b| *b = 0);
+        } else {
+            for s in self.newest + 1..=seq {
+                let (w, m) = self.slot(s);
+                self.bits[w] &= !m;
+            }
+        }
+        self.newest = seq;
+        self.set(seq);
+    }
 }
 
 /// The temporal layer.
@@ -115,27 +152,26 @@ impl TemporalLayer {
         let window = self.config.seq_window.max(1);
         let strict = self.config.ordering == Ordering::Strict;
         let Some(w) = self.peers.get_mut(sender) else {
-            let mut w = SeqWindow { newest: seq, accepted: BTreeSet::new() };
-            w.accepted.insert(seq);
-            self.peers.insert(sender.to_string(), w);
+            self.peers.insert(sender.to_string(), SeqWindow::new(seq, window));
             return Ok(());
         };
-        if w.accepted.contains(&seq) {
-            return Err(Reason::ReplayedSequence);
-        }
         if seq > w.newest {
-            w.newest = seq;
-            w.accepted.insert(seq);
-            let floor = seq.saturating_sub(window);
-            w.accepted = w.accepted.split_off(&floor);
+            w.advance(seq);
             return Ok(());
         }
-        if seq < w.newest.saturating_sub(window) || strict {
-            self.stats.reordered += u64::from(strict);
+        // Behind the newest: checkable only within the ring.
+        if w.newest - seq >= w.span().min(window) {
+            return Err(Reason::OutOfOrder);
+        }
+        if w.get(seq) {
+            return Err(Reason::ReplayedSequence);
+        }
+        if strict {
+            self.stats.reordered += 1;
             return Err(Reason::OutOfOrder);
         }
         self.stats.reordered += 1;
-        w.accepted.insert(seq);
+        w.set(seq);
         Ok(())
     }
 }
