@@ -1,0 +1,246 @@
+//! The perception agent (thesis 3.3.2): reads one wheelchair body's sensors and publishes where
+//! the chair is, with the uncertainty of the estimate, to the agents that subscribed.
+//!
+//! Organization:
+//! - [`PerceptionConfig`]: the chair's name, drive geometry and motion noise, start pose,
+//!   period; [`VisualConfig`]: an optional RGB-D camera (any [`CameraSource`]) and where it
+//!   sits on the base.
+//! - [`PerceptionAgent::new`] takes them and a `Box<dyn Body + Send>` to read. The composer
+//!   gives it the same body the control agent drives (e.g. a shared handle to the simulator's
+//!   virtual body): this agent only reads.
+//! - [`PerceptionError`]: a configuration that cannot work.
+//!
+//! Estimation: each tick the encoder ticks give a wheel odometry step (probabilistic motion
+//! model) that predicts an EKF ([`OdometryFusion`]); with a camera, each tick also takes one
+//! frame through [`VisualOdometry`] and its planar motion since the previous frame updates the
+//! EKF. Without a camera the covariance only grows, which is what the cognitive agent watches
+//! to route the chair past a landmark (thesis 3.8).
+//!
+//! # Messages
+//! - SUBSCRIBE (`fipa-subscribe`, ontology `IntellWheels-Wheelchair`), content
+//!   `((at-pose ?agent ?pose))`: AGREE, then every [`PerceptionConfig::publish_every`] ticks an
+//!   INFORM `((at-pose (agent-identifier :name CHAIR) (pose :x :y :theta :covariance (sequence
+//!   c00 .. c22))))` in the subscription's conversation. A subscription whose content names
+//!   `sensor-reading` also gets `((sensor-reading CHAIR (sonar-reading :ranges (sequence ...))))`
+//!   (no echo reads as the sonar's maximum range, [`PerceptionConfig::sonar_max_m`]).
+//! - CANCEL in the conversation of a subscription: ends it, INFORM `((done ...))` is not sent
+//!   (FIPA allows silence); other performatives get NOT-UNDERSTOOD.
+//!
+//! Guarantees: a failed body read or camera frame skips that update and is logged, never
+//! panics; the published covariance is the EKF's, symmetric.
+#![warn(missing_docs)]
+
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, Context};
+use iw_body::Body;
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{Fact, Pose, SensorReading, WheelchairContent};
+use iw_vo::{CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualOdometry, VoConfig, WheelOdometry, planar_motion};
+use nalgebra::{Isometry3, Matrix3};
+
+/// A configuration that cannot work.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PerceptionError {
+    /// A parameter that must be positive and finite is not.
+    #[error("perception parameter `{name}` must be positive and finite, got {value}")]
+    BadParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+}
+
+/// An RGB-D camera on the chair.
+pub struct VisualConfig {
+    /// Where frames come from (a live camera, the simulator's renderer or a TUM replay).
+    pub source: Box<dyn CameraSource + Send>,
+    /// Visual odometry settings.
+    pub vo: VoConfig,
+    /// Maps camera coordinates into the base frame.
+    pub t_base_camera: Isometry3<f64>,
+    /// Covariance of one frame-to-frame planar motion (x, y, theta), m² and rad².
+    pub motion_noise: Matrix3<f64>,
+}
+
+/// Who the perception agent is and how it estimates.
+#[derive(Debug, Clone)]
+pub struct PerceptionConfig {
+    /// The chair (its agents' common name) the poses are about, e.g. `chair1`.
+    pub chair: AgentId,
+    /// Drive geometry and motion-model noise.
+    pub drive: DiffDriveParams,
+    /// Where the chair starts in the map frame.
+    pub start: Pose2,
+    /// Covariance of the start pose.
+    pub start_covariance: Matrix3<f64>,
+    /// Sensor period.
+    pub period: Duration,
+    /// Publish every this many ticks (at least 1).
+    pub publish_every: u32,
+    /// Sonar range reported when nothing echoed, m.
+    pub sonar_max_m: f64,
+}
+
+impl PerceptionConfig {
+    /// The prototype's drive, 20 Hz sensing, publishing at 10 Hz, starting at `start` known to 1 cm.
+    pub fn prototype(chair: AgentId, start: Pose2) -> Self {
+        PerceptionConfig {
+            chair,
+            drive: DiffDriveParams::default(),
+            start,
+            start_covariance: Matrix3::from_diagonal(&nalgebra::Vector3::new(1e-4, 1e-4, 1e-4)),
+            period: Duration::from_millis(50),
+            publish_every: 2,
+            sonar_max_m: 3.0,
+        }
+    }
+}
+
+struct Subscription {
+    request: AclMessage,
+    readings: bool,
+}
+
+struct Visual {
+    source: Box<dyn CameraSource + Send>,
+    vo: VisualOdometry,
+    t_base_camera: Isometry3<f64>,
+    motion_noise: Matrix3<f64>,
+    last_t_world_camera: Option<Isometry3<f64>>,
+}
+
+/// The perception agent of one wheelchair.
+pub struct PerceptionAgent {
+    config: PerceptionConfig,
+    body: Box<dyn Body + Send>,
+    wheels: WheelOdometry,
+    fusion: OdometryFusion,
+    visual: Option<Visual>,
+    subscribers: Vec<Subscription>,
+    ticks: u64,
+    last_sonar_m: Vec<f64>,
+}
+
+impl PerceptionAgent {
+    /// A perception agent reading `body`, fusing `visual` when given.
+    pub fn new(config: PerceptionConfig, body: Box<dyn Body + Send>, visual: Option<VisualConfig>) -> Result<Self, PerceptionError> {
+        for (name, value) in [
+            ("wheel_radius_m", config.drive.wheel_radius_m),
+            ("track_m", config.drive.track_m),
+            ("ticks_per_rev", config.drive.ticks_per_rev),
+            ("sonar_max_m", config.sonar_max_m),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(PerceptionError::BadParameter { name, value });
+            }
+        }
+        let visual = visual.map(|v| Visual {
+            vo: VisualOdometry::new(v.vo, v.source.intrinsics().clone()),
+            source: v.source,
+            t_base_camera: v.t_base_camera,
+            motion_noise: v.motion_noise,
+            last_t_world_camera: None,
+        });
+        Ok(PerceptionAgent {
+            wheels: WheelOdometry::new(config.drive, config.start),
+            fusion: OdometryFusion::new(config.start, config.start_covariance, config.drive.alpha),
+            config,
+            body,
+            visual,
+            subscribers: Vec::new(),
+            ticks: 0,
+            last_sonar_m: Vec::new(),
+        })
+    }
+
+    /// The current estimate as the ontology's pose.
+    pub fn pose(&self) -> Pose {
+        let p = self.fusion.pose();
+        let c = self.fusion.covariance();
+        Pose { x_m: p.x, y_m: p.y, theta_rad: p.theta, covariance: (c + c.transpose()) * 0.5 }
+    }
+
+    fn sense(&mut self) {
+        match self.body.read() {
+            Ok(frame) => {
+                if let Some(step) = self.wheels.update(frame.left_ticks, frame.right_ticks) {
+                    self.fusion.predict(&step);
+                }
+                self.last_sonar_m = frame.sonar_m.iter().map(|r| r.unwrap_or(self.config.sonar_max_m)).collect();
+            }
+            Err(err) => tracing::warn!(chair = %self.config.chair.name, error = %err, "body read failed; pose not updated"),
+        }
+        let Some(visual) = self.visual.as_mut() else { return };
+        match visual.source.next_frame() {
+            Some(Ok(frame)) => match visual.vo.process(&frame) {
+                Ok((stamped, _)) => {
+                    if let Some(last) = visual.last_t_world_camera {
+                        let t_previous_current = last.inverse() * stamped.t_world_camera;
+                        let motion = planar_motion(&visual.t_base_camera, &t_previous_current);
+                        self.fusion.update_visual(&motion, &visual.motion_noise);
+                    }
+                    visual.last_t_world_camera = Some(stamped.t_world_camera);
+                }
+                Err(err) => tracing::warn!(error = %err, "visual odometry failed on a frame"),
+            },
+            Some(Err(err)) => tracing::warn!(error = %err, "camera frame unavailable"),
+            None => {}
+        }
+    }
+
+    fn publish(&mut self, ctx: &mut Context<'_>) {
+        let pose = WheelchairContent::Inform(Fact::AtPose { agent: self.config.chair.clone(), pose: self.pose() });
+        let sonar = WheelchairContent::Inform(Fact::Reading {
+            agent: self.config.chair.clone(),
+            reading: SensorReading::Sonar { ranges_m: self.last_sonar_m.clone() },
+        });
+        for sub in &self.subscribers {
+            let _ = ctx.send(pose.fill(sub.request.create_reply().with_performative(Performative::Inform)));
+            if sub.readings && !self.last_sonar_m.is_empty() {
+                let _ = ctx.send(sonar.fill(sub.request.create_reply().with_performative(Performative::Inform)));
+            }
+        }
+    }
+}
+
+impl Agent for PerceptionAgent {
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        match message.performative {
+            Performative::Subscribe => {
+                let text = message.content_text().unwrap_or_default();
+                if !text.contains("at-pose") && !text.contains("sensor-reading") {
+                    let _ = ctx.not_understood(&message, "subscribe to ((at-pose ?agent ?pose)) or sensor-reading");
+                    return;
+                }
+                let readings = text.contains("sensor-reading");
+                let agree = message.create_reply().with_performative(Performative::Agree).with_content(text.to_string());
+                let _ = ctx.send(agree);
+                // One subscription per (subscriber, conversation): a repeated subscribe replaces it.
+                self.subscribers.retain(|s| !(s.request.sender == message.sender && s.request.conversation_id == message.conversation_id));
+                self.subscribers.push(Subscription { request: message, readings });
+            }
+            Performative::Cancel => {
+                self.subscribers.retain(|s| !(s.request.sender == message.sender && s.request.conversation_id == message.conversation_id));
+            }
+            _ => {
+                let _ = ctx.not_understood(&message, "the perception agent takes subscribe and cancel");
+            }
+        }
+    }
+
+    fn tick_period(&self) -> Option<Duration> {
+        Some(self.config.period)
+    }
+
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        self.sense();
+        self.ticks += 1;
+        if self.ticks.is_multiple_of(u64::from(self.config.publish_every.max(1))) {
+            self.publish(ctx);
+        }
+    }
+}

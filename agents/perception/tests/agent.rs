@@ -1,0 +1,113 @@
+//! The perception agent alone on an in-process bus with a mock clock.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, AgentHost, Context};
+use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
+use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{Fact, SensorReading, WheelchairContent};
+use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
+use iw_vo::Pose2;
+
+/// Both wheels advance 100 ticks per read; sonar 0 sees a wall at 1.2 m; every 7th read fails.
+struct Rolling {
+    reads: i64,
+}
+
+impl Body for Rolling {
+    fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        self.reads += 1;
+        if self.reads % 7 == 0 {
+            return Err(BodyError::Virtual { reason: "dropped frame".into() });
+        }
+        let mut frame = SensorFrame::empty(self.reads as u64 * 50_000_000);
+        frame.left_ticks = self.reads * 100;
+        frame.right_ticks = self.reads * 100;
+        frame.sonar_m[0] = Some(1.2);
+        Ok(frame)
+    }
+    fn command(&mut self, _: WheelSpeeds) -> Result<(), BodyError> {
+        Ok(())
+    }
+}
+
+struct Probe {
+    inbox: Arc<Mutex<Vec<AclMessage>>>,
+    outbox: Arc<Mutex<Vec<AclMessage>>>,
+}
+
+impl Agent for Probe {
+    fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
+        self.inbox.lock().unwrap().push(message);
+    }
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_millis(1))
+    }
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        for m in self.outbox.lock().unwrap().drain(..) {
+            ctx.send(m).unwrap();
+        }
+    }
+}
+
+#[test]
+fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
+    let network = InProcNetwork::new();
+    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
+    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let mut host = AgentHost::new(Arc::new(bus));
+    let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
+    host.add(AgentId::new("perception"), Box::new(PerceptionAgent::new(config, Box::new(Rolling { reads: 0 }), None).unwrap())).unwrap();
+    let (inbox, outbox): (Arc<Mutex<Vec<AclMessage>>>, Arc<Mutex<Vec<AclMessage>>>) = (Arc::default(), Arc::default());
+    host.add(AgentId::new("probe"), Box::new(Probe { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox) })).unwrap();
+    let subscribe = |content: &str| {
+        AclMessage::new(Performative::Subscribe)
+            .with_receiver(AgentId::new("perception"))
+            .with_protocol("fipa-subscribe")
+            .with_conversation_id("s1")
+            .with_content(content)
+    };
+    outbox.lock().unwrap().push(subscribe("((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))"));
+    let mut run = |ms: u64| {
+        for _ in 0..ms / 10 {
+            host.step(controller.now());
+            controller.advance(Duration::from_millis(10));
+        }
+    };
+    run(2000);
+    let poses: Vec<_> = {
+        let inbox = inbox.lock().unwrap();
+        assert_eq!(inbox[0].performative, Performative::Agree);
+        let mut sonar_seen = false;
+        let mut poses = Vec::new();
+        for m in inbox.iter().skip(1) {
+            assert_eq!(m.conversation_id.as_deref(), Some("s1"));
+            match WheelchairContent::from_message(m).unwrap() {
+                WheelchairContent::Inform(Fact::AtPose { agent, pose }) => {
+                    assert_eq!(agent.name, "chair1");
+                    poses.push(pose);
+                }
+                WheelchairContent::Inform(Fact::Reading { reading: SensorReading::Sonar { ranges_m }, .. }) => {
+                    sonar_seen = true;
+                    assert_eq!(ranges_m[0], 1.2);
+                }
+                other => panic!("unexpected {other:?}"),
+            }
+        }
+        assert!(sonar_seen);
+        poses
+    };
+    assert!(poses.len() >= 15, "{} poses", poses.len());
+    let (first, last) = (poses.first().unwrap(), poses.last().unwrap());
+    assert!(last.x_m > first.x_m + 0.1, "drives forward: {} -> {}", first.x_m, last.x_m);
+    assert!((last.y_m - 2.0).abs() < 1e-9, "straight along x");
+    assert!(last.covariance[(0, 0)] > first.covariance[(0, 0)], "uncertainty grows without a camera");
+    outbox.lock().unwrap().push(AclMessage::new(Performative::Cancel).with_receiver(AgentId::new("perception")).with_conversation_id("s1"));
+    run(100);
+    let count = inbox.lock().unwrap().len();
+    run(1000);
+    assert_eq!(inbox.lock().unwrap().len(), count, "no informs after cancel");
+}
