@@ -68,7 +68,7 @@ pub fn ate(estimate: &[StampedPose], reference: &[StampedPose], max_dt_s: f64) -
     let mut sorted: Vec<f64> = errors.iter().map(|e| e.1).collect();
     sorted.sort_by(f64::total_cmp);
     let mid = sorted.len() / 2;
-    let median_m = if sorted.len() % 2 == 0 { 0.5 * (sorted[mid - 1] + sorted[mid]) } else { sorted[mid] };
+    let median_m = if sorted.len().is_multiple_of(2) { 0.5 * (sorted[mid - 1] + sorted[mid]) } else { sorted[mid] };
     Ok(Ate {
         rmse_m: (sorted.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
         mean_m: sorted.iter().sum::<f64>() / n,

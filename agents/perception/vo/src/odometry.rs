@@ -152,6 +152,9 @@ pub struct FrameStats {
     pub refine_ms: f64,
 }
 
+/// `t_reference_current` and the inlier pairs `(current index, reference index)`.
+type ReferenceFit = (Isometry3<f64>, Vec<(usize, usize)>);
+
 /// Features of one frame with their camera-frame 3D points.
 struct Observed {
     features: Features,
@@ -259,7 +262,7 @@ impl VisualOdometry {
     }
 
     /// RANSAC + Umeyama between the newest reference and `current`: `t_reference_current` and inliers.
-    fn fit_to_reference(&mut self, current: &Observed, stats: &mut FrameStats) -> Option<(Isometry3<f64>, Vec<(usize, usize)>)> {
+    fn fit_to_reference(&mut self, current: &Observed, stats: &mut FrameStats) -> Option<ReferenceFit> {
         let started = Instant::now();
         let reference = &self.window.back()?.observed;
         let matches = match_features(&current.features, &reference.features, &self.config.match_config);
@@ -285,7 +288,7 @@ impl VisualOdometry {
 
     fn track_thesis(&mut self, current: Observed, stats: &mut FrameStats) {
         if let Some((t_previous_current, _)) = self.fit_to_reference(&current, stats) {
-            self.t_world_camera = self.t_world_camera * t_previous_current;
+            self.t_world_camera *= t_previous_current;
             stats.tracked = true;
         }
         // Algorithm 3 returns the current keypoints as the next call's previous ones.

@@ -103,7 +103,7 @@ fn data_lines(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
     text.lines().enumerate().filter_map(|(i, line)| {
         let line = line.trim();
         (!line.is_empty() && !line.starts_with('#'))
-            .then(|| (i + 1, line.split(|c: char| c == ' ' || c == '\t' || c == ',').filter(|f| !f.is_empty()).collect()))
+            .then(|| (i + 1, line.split([' ', '\t', ',']).filter(|f| !f.is_empty()).collect()))
     })
 }
 
