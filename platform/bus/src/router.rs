@@ -269,10 +269,11 @@ impl Inner {
         while !self.stop.load(Ordering::Acquire) {
             let now = self.clock.now();
             let mut wait = self.config.tick;
-            if let Some(deadline) = lock(&self.stack).next_deadline() {
-                if !self.clock.is_mock() {
-                    wait = wait.min(deadline.since(now));
-                }
+            let deadline = lock(&self.stack).next_deadline();
+            if let Some(deadline) = deadline
+                && !self.clock.is_mock()
+            {
+                wait = wait.min(deadline.since(now));
             }
             match self.transport.recv_timeout(wait) {
                 Ok(Some((from, frame))) => self.on_frame(&from, &frame),

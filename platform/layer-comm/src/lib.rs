@@ -194,10 +194,11 @@ impl CommLayer {
     }
 
     fn window(&mut self, sender: &str) -> &mut Window {
-        if !self.seen.contains_key(sender) && self.seen.len() >= self.config.max_senders.max(1) {
-            if let Some(victim) = self.seen.keys().next().cloned() {
-                self.seen.remove(&victim);
-            }
+        if !self.seen.contains_key(sender)
+            && self.seen.len() >= self.config.max_senders.max(1)
+            && let Some(victim) = self.seen.keys().next().cloned()
+        {
+            self.seen.remove(&victim);
         }
         self.seen.entry(sender.to_string()).or_default()
     }

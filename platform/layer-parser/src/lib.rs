@@ -17,6 +17,7 @@
 //! - the ACL `:sender` is the authenticated envelope sender and the ACL `:receiver` set contains
 //!   the envelope receiver ([`Reason::Mismatch`]; EN 50159 *masquerade*: an authenticated agent
 //!   cannot speak in another's name inside the content).
+//!
 //! Malformed text is [`Reason::Malformed`]. Outbound, [`envelope`] builds only consistent
 //! envelopes, and `check_outbound` applies the syntax and sender checks to hand-written text.
 #![warn(missing_docs)]
@@ -155,10 +156,10 @@ impl Layer for ParserLayer {
     }
 
     fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        if self.config.check_outbound {
-            if let Err(r) = self.check_syntax(&env) {
-                return Verdict::Drop(r);
-            }
+        if self.config.check_outbound
+            && let Err(r) = self.check_syntax(&env)
+        {
+            return Verdict::Drop(r);
         }
         Verdict::Pass(env)
     }

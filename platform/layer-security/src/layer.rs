@@ -186,7 +186,10 @@ fn psk_cipher(psk: &PreSharedKey, salt: &[u8], sender: &str, receiver: &str) -> 
     Aes256Gcm::new_from_slice(&key).map_err(|_| SecurityError::KeyDerivation)
 }
 
-fn split_handshake(payload: &[u8]) -> Option<(u8, [u8; SID_LEN], [u8; 32], [u8; SIGNATURE_LEN])> {
+/// A handshake payload: kind, session id, ephemeral X25519 key, Ed25519 signature.
+type Handshake = (u8, [u8; SID_LEN], [u8; 32], [u8; SIGNATURE_LEN]);
+
+fn split_handshake(payload: &[u8]) -> Option<Handshake> {
     if payload.len() != HANDSHAKE_LEN {
         return None;
     }
@@ -415,10 +418,10 @@ impl SecurityLayer {
         if env.payload.len() != 1 + SID_LEN {
             return Verdict::Drop(Reason::BadHandshake);
         }
-        if let Some(slot) = self.send.get_mut(a).and_then(|m| m.get_mut(b)) {
-            if slot.as_ref().is_some_and(|s| Some(&s.id[..]) == id) {
-                *slot = None;
-            }
+        if let Some(slot) = self.send.get_mut(a).and_then(|m| m.get_mut(b))
+            && slot.as_ref().is_some_and(|s| Some(&s.id[..]) == id)
+        {
+            *slot = None;
         }
         Verdict::Consumed
     }
