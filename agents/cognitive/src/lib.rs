@@ -2,6 +2,8 @@
 //! PDDL-subset planner, then path planning with A* on the world model.
 //!
 //! Organization:
+//! - [`agent`]: the cognitive agent on the bus ([`agent::CognitiveAgent`]), its messages and
+//!   its building map.
 //! - [`pddl`]: reads STRIPS domains and problems written in PDDL (`:strips`, `:typing`,
 //!   `:negative-preconditions`) into [`Domain`] and [`Problem`].
 //! - [`planner`]: grounds them and searches for the shortest plan of intermediate objectives.
@@ -13,6 +15,7 @@
 //! path only crosses free cells and is the cheapest 8-connected path.
 #![warn(missing_docs)]
 
+pub mod agent;
 pub mod grid;
 pub mod pddl;
 pub mod planner;

@@ -1,0 +1,459 @@
+//! The cognitive agent: takes a global goal, plans intermediate objectives (places and doors)
+//! with the PDDL planner, paths with A*, and has the control and door agents carry them out;
+//! re-plans when a door is refused or a path is blocked, and detours past the nearest landmark
+//! when the pose uncertainty grows past a threshold (thesis 3.8).
+//!
+//! # Messages
+//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-request`.
+//! - Understood: REQUEST `((action (agent-identifier :name ME) (go-to :place P)))` from the
+//!   interface or assistant agent. Answer: AGREE (REFUSE for a place not on the map), then INFORM
+//!   `((done (action ME (go-to :place P))))` on arrival or FAILURE `((error-message "..."))` when
+//!   no route is left. A newer goal replaces the running one (the old one gets FAILURE).
+//! - Understood: INFORM `((at-pose agent (pose ...)))` from the perception agent, subscribed at
+//!   setup with SUBSCRIBE `((at-pose ?agent ?pose))` (`fipa-subscribe`) when
+//!   [`CognitiveConfig::perception`] is set.
+//! - Sent to the door agent: REQUEST `((action (agent-identifier :name DOOR) (open-door :door D)))`;
+//!   INFORM done = open; REFUSE or FAILURE = the door is treated as locked and the goal re-planned.
+//! - Sent to the control agent: REQUEST `((action (agent-identifier :name CONTROL)
+//!   (action-sequence :steps (sequence (goto-xy :x :y) ...))))`, one per `move` or `pass-door`
+//!   step; INFORM done = next step; FAILURE = that connection is treated as blocked and the goal
+//!   re-planned. Each step has its own conversation id (`cog-N`); answers to an abandoned step
+//!   are ignored.
+//!
+//! Landmarks: before a motion step, and whenever a pose arrives during one, if the trace of the
+//! pose's x-y covariance exceeds [`CognitiveConfig::uncertainty_m2`] above its value at the last
+//! landmark visit, the step is re-issued via the nearest landmark.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, Context};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use nalgebra::Point2;
+
+use crate::pddl::{Atom, Domain, Literal, Problem, Term};
+use crate::planner::{Step, plan};
+use crate::{GridError, OccupancyGrid};
+
+/// Why the cognitive agent cannot be built.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CognitiveError {
+    /// A connection or door names a place that is not on the map.
+    #[error("the map's {what} names place `{place}`, which is not among its places")]
+    UnknownPlace {
+        /// `connection`, `door`, or `start`.
+        what: &'static str,
+        /// The place.
+        place: String,
+    },
+    /// A place or landmark lies in an obstacle or off the grid.
+    #[error("map point `{name}`: {source}")]
+    BadPoint {
+        /// The place or landmark.
+        name: String,
+        /// Why A* would refuse it.
+        source: GridError,
+    },
+}
+
+/// A door between two places: where the chair crosses it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DoorPassage {
+    /// The door's name (as the door agent knows it).
+    pub name: String,
+    /// One side.
+    pub a: String,
+    /// The other side.
+    pub b: String,
+    /// The middle of the doorway, map frame, m.
+    pub at: Point2<f64>,
+}
+
+/// The building as the strategic layer sees it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BuildingMap {
+    /// Named places and the point the chair drives to in each, map frame, m.
+    pub places: BTreeMap<String, Point2<f64>>,
+    /// Places joined without a door (both directions).
+    pub connections: Vec<(String, String)>,
+    /// Doors between places.
+    pub doors: Vec<DoorPassage>,
+    /// Landmarks the chair can relocalise at, map frame, m.
+    pub landmarks: Vec<Point2<f64>>,
+}
+
+/// Who the cognitive agent talks to and what it knows.
+#[derive(Debug, Clone)]
+pub struct CognitiveConfig {
+    /// The chair's object name in the planning problem, e.g. `chair1`.
+    pub chair: String,
+    /// The chair's control agent.
+    pub control: AgentId,
+    /// The door agent.
+    pub door: AgentId,
+    /// The perception agent to subscribe to for poses.
+    pub perception: Option<AgentId>,
+    /// The planning domain (`domains/building.pddl`).
+    pub domain: Domain,
+    /// Places, connections, doors, landmarks.
+    pub map: BuildingMap,
+    /// The occupancy grid of the map (not inflated).
+    pub grid: OccupancyGrid,
+    /// Obstacles are inflated by this for path planning, m.
+    pub chair_radius_m: f64,
+    /// Where the chair starts (a place of the map).
+    pub start_place: String,
+    /// Trace of the x-y covariance above which the chair detours via a landmark, m².
+    pub uncertainty_m2: f64,
+    /// Planner state budget.
+    pub max_states: usize,
+}
+
+/// The building domain shipped with the crate.
+pub const BUILDING_DOMAIN: &str = include_str!("../domains/building.pddl");
+
+struct Goal {
+    request: AclMessage,
+    actor: AgentId,
+    place: String,
+    plan: Vec<Step>,
+    next: usize,
+}
+
+/// What the agent waits for.
+#[derive(Debug, Clone, PartialEq)]
+enum Pending {
+    Nothing,
+    /// A door to open; the conversation id.
+    Door { conversation: String, door: String },
+    /// A motion step to `to` from `from` (through `door`).
+    Motion { conversation: String, from: String, to: String, door: Option<String>, via_landmark: bool },
+}
+
+/// The cognitive agent of one wheelchair.
+pub struct CognitiveAgent {
+    config: CognitiveConfig,
+    grid: OccupancyGrid,
+    place: String,
+    t_map_base: Option<Point2<f64>>,
+    uncertainty_m2: f64,
+    uncertainty_at_landmark_m2: f64,
+    open_doors: BTreeSet<String>,
+    locked_doors: BTreeSet<String>,
+    blocked: BTreeSet<(String, String)>,
+    goal: Option<Goal>,
+    pending: Pending,
+    conversations: u64,
+}
+
+impl CognitiveAgent {
+    /// A cognitive agent; checks the map against the grid.
+    pub fn new(config: CognitiveConfig) -> Result<Self, CognitiveError> {
+        let grid = config.grid.inflated(config.chair_radius_m);
+        let known = |what, place: &String| {
+            if config.map.places.contains_key(place) {
+                Ok(())
+            } else {
+                Err(CognitiveError::UnknownPlace { what, place: place.clone() })
+            }
+        };
+        known("start", &config.start_place)?;
+        for (a, b) in &config.map.connections {
+            known("connection", a)?;
+            known("connection", b)?;
+        }
+        for door in &config.map.doors {
+            known("door", &door.a)?;
+            known("door", &door.b)?;
+        }
+        let points = config.map.places.iter().map(|(n, p)| (n.clone(), *p));
+        let landmarks = config.map.landmarks.iter().enumerate().map(|(i, p)| (format!("landmark {i}"), *p));
+        for (name, p) in points.chain(landmarks) {
+            grid.astar(p, p).map_err(|source| CognitiveError::BadPoint { name, source })?;
+        }
+        Ok(CognitiveAgent {
+            place: config.start_place.clone(),
+            grid,
+            config,
+            t_map_base: None,
+            uncertainty_m2: 0.0,
+            uncertainty_at_landmark_m2: 0.0,
+            open_doors: BTreeSet::new(),
+            locked_doors: BTreeSet::new(),
+            blocked: BTreeSet::new(),
+            goal: None,
+            pending: Pending::Nothing,
+            conversations: 0,
+        })
+    }
+
+    /// The planning problem from the current place to `place` with what is known of doors and
+    /// blocked connections.
+    fn problem(&self, place: &str) -> Problem {
+        let c = |s: &str| Term::Const(s.to_string());
+        let atom = |predicate: &str, args: Vec<Term>| Atom { predicate: predicate.to_string(), args };
+        let map = &self.config.map;
+        let mut objects = vec![(self.config.chair.clone(), "chair".to_string())];
+        objects.extend(map.places.keys().map(|p| (p.clone(), "place".to_string())));
+        objects.extend(map.doors.iter().map(|d| (d.name.clone(), "door".to_string())));
+        let mut init = vec![atom("at", vec![c(&self.config.chair), c(&self.place)])];
+        let free = |a: &String, b: &String| !self.blocked.contains(&(a.clone(), b.clone()));
+        for (a, b) in &map.connections {
+            for (x, y) in [(a, b), (b, a)] {
+                if free(x, y) {
+                    init.push(atom("connected", vec![c(x), c(y)]));
+                }
+            }
+        }
+        for d in &map.doors {
+            for (x, y) in [(&d.a, &d.b), (&d.b, &d.a)] {
+                if free(x, y) {
+                    init.push(atom("through", vec![c(x), c(y), c(&d.name)]));
+                }
+            }
+            if self.open_doors.contains(&d.name) {
+                init.push(atom("open", vec![c(&d.name)]));
+            }
+            if self.locked_doors.contains(&d.name) {
+                init.push(atom("locked", vec![c(&d.name)]));
+            }
+        }
+        let goal = vec![Literal { positive: true, atom: atom("at", vec![c(&self.config.chair), c(place)]) }];
+        Problem { name: "route".into(), domain: self.config.domain.name.clone(), objects, init, goal }
+    }
+
+    fn conversation(&mut self) -> String {
+        self.conversations += 1;
+        format!("cog-{}", self.conversations)
+    }
+
+    /// Plans from the current place and starts the first step; ends the goal when done or stuck.
+    fn replan(&mut self, ctx: &mut Context<'_>) {
+        let Some(place) = self.goal.as_ref().map(|g| g.place.clone()) else { return };
+        match plan(&self.config.domain, &self.problem(&place), self.config.max_states) {
+            Ok(steps) => {
+                tracing::info!(chair = %self.config.chair, plan = ?steps.iter().map(ToString::to_string).collect::<Vec<_>>(), "planned");
+                if let Some(goal) = self.goal.as_mut() {
+                    goal.plan = steps;
+                    goal.next = 0;
+                }
+                self.advance(ctx);
+            }
+            Err(err) => self.finish(ctx, Err(format!("no route to {place}: {err}"))),
+        }
+    }
+
+    /// Starts the next plan step, or reports the goal reached.
+    fn advance(&mut self, ctx: &mut Context<'_>) {
+        let Some(goal) = self.goal.as_mut() else { return };
+        let Some(step) = goal.plan.get(goal.next).cloned() else {
+            self.finish(ctx, Ok(()));
+            return;
+        };
+        goal.next += 1;
+        match (step.action.as_str(), step.args.as_slice()) {
+            ("open-door", [_, _, _, door]) => {
+                let conversation = self.conversation();
+                let action = WheelchairAction::OpenDoor { door: door.clone() };
+                self.request(ctx, self.config.door.clone(), action, &conversation);
+                self.pending = Pending::Door { conversation, door: door.clone() };
+            }
+            ("move", [_, from, to]) => self.motion(ctx, from.clone(), to.clone(), None),
+            ("pass-door", [_, from, to, door]) => self.motion(ctx, from.clone(), to.clone(), Some(door.clone())),
+            _ => self.finish(ctx, Err(format!("the domain's action {step} is not one this agent executes"))),
+        }
+    }
+
+    /// Sends the control agent the waypoints from here to place `to` (through the door, past a
+    /// landmark when the pose is too uncertain).
+    fn motion(&mut self, ctx: &mut Context<'_>, from: String, to: String, door: Option<String>) {
+        let map = &self.config.map;
+        let here = self.t_map_base.or_else(|| map.places.get(&self.place).copied());
+        let (Some(here), Some(target)) = (here, map.places.get(&to).copied()) else {
+            self.finish(ctx, Err(format!("place `{to}` has no position")));
+            return;
+        };
+        let mut stops = Vec::new();
+        let via_landmark = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
+        if via_landmark {
+            if let Some(landmark) = map.landmarks.iter().min_by(|a, b| (*a - here).norm().total_cmp(&(*b - here).norm())) {
+                stops.push(*landmark);
+            }
+        }
+        if let Some(d) = door.as_ref().and_then(|d| map.doors.iter().find(|p| &p.name == d)) {
+            stops.push(d.at);
+        }
+        stops.push(target);
+        let mut waypoints = Vec::new();
+        let mut start = here;
+        for stop in stops {
+            let leg = self.grid.astar(start, stop).or_else(|_| self.grid.astar(map.places.get(&from).copied().unwrap_or(start), stop));
+            match leg {
+                Ok(path) => waypoints.extend(path.waypoints.into_iter().skip(1)),
+                Err(err) => {
+                    tracing::warn!(from = %from, to = %to, error = %err, "no path on the grid; connection treated as blocked");
+                    self.blocked.insert((from.clone(), to.clone()));
+                    self.replan(ctx);
+                    return;
+                }
+            }
+            start = stop;
+        }
+        let steps = waypoints.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
+        let conversation = self.conversation();
+        self.request(ctx, self.config.control.clone(), WheelchairAction::Sequence { steps }, &conversation);
+        self.pending = Pending::Motion { conversation, from, to, door, via_landmark };
+    }
+
+    fn request(&self, ctx: &mut Context<'_>, to: AgentId, action: WheelchairAction, conversation: &str) {
+        let content = WheelchairContent::Request { actor: to.clone(), action };
+        let message = content.fill(
+            AclMessage::new(Performative::Request)
+                .with_receiver(to)
+                .with_protocol("fipa-request")
+                .with_conversation_id(conversation)
+                .with_reply_with(conversation),
+        );
+        let _ = ctx.send(message);
+    }
+
+    /// Answers the goal's requester and forgets the goal.
+    fn finish(&mut self, ctx: &mut Context<'_>, outcome: Result<(), String>) {
+        self.pending = Pending::Nothing;
+        let Some(goal) = self.goal.take() else { return };
+        let reply = goal.request.create_reply();
+        let message = match outcome {
+            Ok(()) => {
+                let done = WheelchairContent::Done { actor: goal.actor, action: WheelchairAction::GoTo { place: goal.place } };
+                done.fill(reply.with_performative(Performative::Inform))
+            }
+            Err(why) => {
+                tracing::warn!(chair = %self.config.chair, reason = %why, "goal failed");
+                reply.with_performative(Performative::Failure).with_content(error_content(&why))
+            }
+        };
+        let _ = ctx.send(message);
+    }
+
+    fn on_goal(&mut self, ctx: &mut Context<'_>, message: AclMessage, actor: AgentId, place: String) {
+        if !self.config.map.places.contains_key(&place) {
+            let reply = message.create_reply().with_performative(Performative::Refuse);
+            let _ = ctx.send(reply.with_content(error_content(&format!("unknown place `{place}`"))));
+            return;
+        }
+        self.finish(ctx, Err("replaced by a newer goal".into()));
+        let agree = message.create_reply().with_performative(Performative::Agree);
+        let _ = ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        // A new goal is a fresh chance for doors and passages that failed before.
+        self.locked_doors.clear();
+        self.blocked.clear();
+        self.goal = Some(Goal { request: message, actor, place, plan: Vec::new(), next: 0 });
+        self.replan(ctx);
+    }
+
+    fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
+        let conversation = message.conversation_id.as_deref();
+        let performative = message.performative;
+        match self.pending.clone() {
+            Pending::Door { conversation: c, door } if conversation == Some(c.as_str()) => match performative {
+                Performative::Agree => {}
+                Performative::Inform => {
+                    self.open_doors.insert(door);
+                    self.advance(ctx);
+                }
+                _ => {
+                    tracing::info!(door = %door, answer = %performative, "door not opened; re-planning");
+                    self.locked_doors.insert(door);
+                    self.replan(ctx);
+                }
+            },
+            Pending::Motion { conversation: c, from, to, door, via_landmark } if conversation == Some(c.as_str()) => {
+                match performative {
+                    Performative::Agree => {}
+                    Performative::Inform => {
+                        self.place = to;
+                        if via_landmark {
+                            self.uncertainty_at_landmark_m2 = self.uncertainty_m2;
+                        }
+                        if let Some(door) = door {
+                            // The door closes behind the chair.
+                            self.open_doors.remove(&door);
+                        }
+                        self.pending = Pending::Nothing;
+                        self.advance(ctx);
+                    }
+                    _ => {
+                        tracing::info!(from = %from, to = %to, answer = %performative, "motion failed; re-planning");
+                        self.blocked.insert((from, to));
+                        self.replan(ctx);
+                    }
+                }
+            }
+            _ => tracing::debug!(conversation = ?conversation, "answer to an abandoned step"),
+        }
+    }
+
+    fn on_pose(&mut self, ctx: &mut Context<'_>, x_m: f64, y_m: f64, uncertainty_m2: f64) {
+        self.t_map_base = Some(Point2::new(x_m, y_m));
+        let was_below = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
+        self.uncertainty_m2 = uncertainty_m2;
+        let now_above = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
+        if let Pending::Motion { from, to, door, via_landmark: false, .. } = self.pending.clone() {
+            if was_below && now_above && !self.config.map.landmarks.is_empty() {
+                tracing::info!(chair = %self.config.chair, uncertainty_m2, "pose too uncertain; detouring via a landmark");
+                self.motion(ctx, from, to, door);
+            }
+        }
+    }
+}
+
+fn error_content(why: &str) -> String {
+    format!("((error-message \"{}\"))", why.replace('"', "'"))
+}
+
+impl Agent for CognitiveAgent {
+    fn setup(&mut self, ctx: &mut Context<'_>) {
+        if let Some(perception) = self.config.perception.clone() {
+            let subscribe = AclMessage::new(Performative::Subscribe)
+                .with_receiver(perception)
+                .with_protocol("fipa-subscribe")
+                .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
+                .with_language("fipa-sl0")
+                .with_conversation_id(format!("pose-{}", ctx.name()))
+                .with_content("((at-pose ?agent ?pose))");
+            let _ = ctx.send(subscribe);
+        }
+    }
+
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        match message.performative {
+            Performative::Request => match WheelchairContent::from_message(&message) {
+                Ok(WheelchairContent::Request { actor, action: WheelchairAction::GoTo { place } }) => {
+                    self.on_goal(ctx, message, actor, place)
+                }
+                Ok(_) => {
+                    let reply = message.create_reply().with_performative(Performative::Refuse);
+                    let _ = ctx.send(reply.with_content(error_content("the cognitive agent takes go-to goals")));
+                }
+                Err(err) => {
+                    let _ = ctx.not_understood(&message, &err.to_string());
+                }
+            },
+            Performative::Inform => match WheelchairContent::from_message(&message) {
+                Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
+                    let trace = pose.covariance[(0, 0)] + pose.covariance[(1, 1)];
+                    self.on_pose(ctx, pose.x_m, pose.y_m, trace)
+                }
+                _ => self.on_answer(ctx, &message),
+            },
+            Performative::Agree | Performative::Refuse | Performative::Failure | Performative::NotUnderstood => {
+                self.on_answer(ctx, &message)
+            }
+            _ => {
+                let _ = ctx.not_understood(&message, "the cognitive agent takes go-to requests, poses and answers");
+            }
+        }
+    }
+}

@@ -1,0 +1,201 @@
+//! The cognitive agent alone on an in-process bus with a mock clock; scripted door and control
+//! agents answer its real ACL requests.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, AgentHost, Context};
+use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_cognitive::agent::{BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage};
+use iw_cognitive::{Domain, OccupancyGrid};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
+use nalgebra::{Matrix3, Point2};
+
+type Log = Arc<Mutex<Vec<AclMessage>>>;
+type Script = Box<dyn FnMut(&AclMessage) -> Vec<AclMessage> + Send>;
+
+/// Logs what it receives, answers with its script, sends what the test queues.
+struct Scripted {
+    inbox: Log,
+    outbox: Log,
+    script: Script,
+}
+
+impl Agent for Scripted {
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        for reply in (self.script)(&message) {
+            ctx.send(reply).unwrap();
+        }
+        self.inbox.lock().unwrap().push(message);
+    }
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_millis(1))
+    }
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        for m in self.outbox.lock().unwrap().drain(..) {
+            ctx.send(m).unwrap();
+        }
+    }
+}
+
+fn action_of(m: &AclMessage) -> WheelchairAction {
+    match WheelchairContent::from_message(m).unwrap() {
+        WheelchairContent::Request { action, .. } => action,
+        other => panic!("not a request: {other:?}"),
+    }
+}
+
+fn agree_then(m: &AclMessage, last: Performative) -> Vec<AclMessage> {
+    let agree = m.create_reply().with_performative(Performative::Agree);
+    let mut end = m.create_reply().with_performative(last);
+    if last == Performative::Inform {
+        if let WheelchairContent::Request { actor, action } = WheelchairContent::from_message(m).unwrap() {
+            end = WheelchairContent::Done { actor, action }.fill(end);
+        }
+    }
+    vec![agree, end]
+}
+
+struct Rig {
+    host: AgentHost,
+    clock: MockController,
+    user: (Log, Log),
+    door: Log,
+    control: Log,
+}
+
+/// A at the west, B at the east, C in the north; door d1 joins A and B directly, door d2 joins
+/// A and C, and C opens onto B. A 10 m x 10 m empty floor.
+fn rig(door_answers: Script, control_answers: Script) -> Rig {
+    let network = InProcNetwork::new();
+    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
+    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let mut host = AgentHost::new(Arc::new(bus));
+    let places = [("a", Point2::new(1.0, 5.0)), ("b", Point2::new(9.0, 5.0)), ("c", Point2::new(5.0, 9.0))];
+    let map = BuildingMap {
+        places: places.iter().map(|(n, p)| (n.to_string(), *p)).collect(),
+        connections: vec![("c".into(), "b".into())],
+        doors: vec![
+            DoorPassage { name: "d1".into(), a: "a".into(), b: "b".into(), at: Point2::new(5.0, 5.0) },
+            DoorPassage { name: "d2".into(), a: "a".into(), b: "c".into(), at: Point2::new(3.0, 7.0) },
+        ],
+        landmarks: vec![Point2::new(2.0, 2.0), Point2::new(8.0, 8.0)],
+    };
+    let grid = OccupancyGrid::new(100, 100, 0.1, Point2::origin(), vec![false; 10_000]).unwrap();
+    let config = CognitiveConfig {
+        chair: "chair1".into(),
+        control: AgentId::new("control"),
+        door: AgentId::new("door"),
+        perception: None,
+        domain: Domain::parse(BUILDING_DOMAIN).unwrap(),
+        map,
+        grid,
+        chair_radius_m: 0.3,
+        start_place: "a".into(),
+        uncertainty_m2: 0.5,
+        max_states: 10_000,
+    };
+    host.add(AgentId::new("cognitive"), Box::new(CognitiveAgent::new(config).unwrap())).unwrap();
+    let mut scripted = |name: &str, script: Script| {
+        let (inbox, outbox): (Log, Log) = (Arc::default(), Arc::default());
+        host.add(AgentId::new(name), Box::new(Scripted { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox), script })).unwrap();
+        (inbox, outbox)
+    };
+    let user = scripted("user", Box::new(|_| Vec::new()));
+    let door = scripted("door", door_answers).0;
+    let control = scripted("control", control_answers).0;
+    Rig { host, clock: controller, user, door, control }
+}
+
+impl Rig {
+    fn goal(&self, place: &str) {
+        let goal = WheelchairContent::Request { actor: AgentId::new("cognitive"), action: WheelchairAction::GoTo { place: place.into() } };
+        let m = goal.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("cognitive")).with_protocol("fipa-request").with_conversation_id("goal-1"));
+        self.user.1.lock().unwrap().push(m);
+    }
+    fn run(&mut self, steps: usize) {
+        for _ in 0..steps {
+            self.host.step(self.clock.now());
+            self.clock.advance(Duration::from_millis(10));
+        }
+    }
+}
+
+fn waypoints(action: &WheelchairAction) -> Vec<(f64, f64)> {
+    let WheelchairAction::Sequence { steps } = action else { panic!("not a sequence: {action:?}") };
+    steps
+        .iter()
+        .map(|s| match s {
+            WheelchairAction::GotoXy { x_m, y_m } => (*x_m, *y_m),
+            other => panic!("{other:?}"),
+        })
+        .collect()
+}
+
+#[test]
+fn a_refused_door_makes_it_replan_through_the_other_door() {
+    let doors: Script = Box::new(|m| match action_of(m) {
+        WheelchairAction::OpenDoor { door } if door == "d1" => vec![m.create_reply().with_performative(Performative::Refuse)],
+        _ => agree_then(m, Performative::Inform),
+    });
+    let mut rig = rig(doors, Box::new(|m| agree_then(m, Performative::Inform)));
+    rig.goal("b");
+    rig.run(20);
+    let door_requests: Vec<_> = rig.door.lock().unwrap().iter().map(action_of).collect();
+    assert_eq!(
+        door_requests,
+        [WheelchairAction::OpenDoor { door: "d1".into() }, WheelchairAction::OpenDoor { door: "d2".into() }]
+    );
+    let control: Vec<_> = rig.control.lock().unwrap().iter().map(action_of).collect();
+    assert_eq!(control.len(), 2, "pass d2 to c, then move to b: {control:?}");
+    let first = waypoints(&control[0]);
+    assert!(first.iter().any(|p| (p.0 - 3.0).abs() < 0.11 && (p.1 - 7.0).abs() < 0.11), "through d2's doorway: {first:?}");
+    assert_eq!(*first.last().unwrap(), (5.0, 9.0));
+    assert_eq!(*waypoints(&control[1]).last().unwrap(), (9.0, 5.0));
+    let user = rig.user.0.lock().unwrap();
+    let answers: Vec<_> = user.iter().map(|m| m.performative).collect();
+    assert_eq!(answers, [Performative::Agree, Performative::Inform]);
+    assert_eq!(
+        WheelchairContent::from_message(&user[1]).unwrap(),
+        WheelchairContent::Done { actor: AgentId::new("cognitive"), action: WheelchairAction::GoTo { place: "b".into() } }
+    );
+}
+
+#[test]
+fn no_route_left_is_a_failure_and_unknown_places_are_refused() {
+    let refuse_all: Script = Box::new(|m| vec![m.create_reply().with_performative(Performative::Refuse)]);
+    let blocked: Script = Box::new(|m| agree_then(m, Performative::Failure));
+    let mut rig = rig(refuse_all, blocked);
+    rig.goal("nowhere");
+    rig.run(5);
+    rig.goal("b");
+    rig.run(20);
+    let user = rig.user.0.lock().unwrap();
+    let answers: Vec<_> = user.iter().map(|m| m.performative).collect();
+    assert_eq!(answers, [Performative::Refuse, Performative::Agree, Performative::Failure]);
+    assert_eq!(rig.door.lock().unwrap().len(), 2, "both doors tried");
+}
+
+#[test]
+fn growing_uncertainty_routes_the_chair_past_the_nearest_landmark() {
+    // The control agent agrees and never finishes, so the first motion stays pending.
+    let mut rig = rig(Box::new(|m| agree_then(m, Performative::Inform)), Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]));
+    rig.goal("b");
+    rig.run(10);
+    let pose = |var: f64| {
+        let fact = Fact::AtPose { agent: AgentId::new("chair1"), pose: Pose { x_m: 2.5, y_m: 4.0, theta_rad: 0.0, covariance: Matrix3::from_diagonal_element(var) } };
+        WheelchairContent::Inform(fact).fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive")))
+    };
+    rig.user.1.lock().unwrap().push(pose(0.01));
+    rig.run(10);
+    assert_eq!(rig.control.lock().unwrap().len(), 1, "small uncertainty: no detour");
+    rig.user.1.lock().unwrap().push(pose(1.0));
+    rig.run(10);
+    let control = rig.control.lock().unwrap();
+    assert_eq!(control.len(), 2, "re-issued via a landmark");
+    let detour = waypoints(&action_of(&control[1]));
+    assert!(detour.contains(&(2.0, 2.0)), "nearest landmark first: {detour:?}");
+    assert!(!waypoints(&action_of(&control[0])).contains(&(2.0, 2.0)));
+}
