@@ -1,0 +1,182 @@
+//! The door agent: opens and closes the building's doors on request and enforces restricted
+//! areas: only authorised chairs get a restricted door opened; every other request is refused
+//! and recorded.
+//!
+//! Organization:
+//! - [`DoorActuator`]: what moves a door (the composer implements it for the simulator's world
+//!   or for real door controllers); [`ActuatorFault`] when it cannot (a jammed door).
+//! - [`DoorConfig`] / [`DoorPolicy`]: the doors this agent manages and who may open which.
+//! - [`DoorAgent::new`] takes both and a [`RefusalLog`] handle the composer keeps to report refusals.
+//!
+//! # Messages
+//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-request`.
+//! - REQUEST `((action (agent-identifier :name DOOR) (open-door :door D)))` or `(close-door :door
+//!   D)`: AGREE, then INFORM `((done (action DOOR (open-door :door D))))` once the actuator moved
+//!   it, or FAILURE `((error-message "..."))` when the actuator faults. REFUSE
+//!   `((error-message "..."))` for an unknown door or when `D` is restricted and the sender is not
+//!   among its authorised agents (the sender is authenticated by the bus's security layer); the
+//!   refusal is logged (tracing, warn) and appended to the [`RefusalLog`].
+//! - QUERY-REF of a door's state is answered with INFORM `((door-state D open|closed))`; content
+//!   is `((door-state D ?state))`.
+//! - Anything else: NOT-UNDERSTOOD.
+#![warn(missing_docs)]
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::{Arc, Mutex};
+
+use iw_acl::{AclMessage, Performative};
+use iw_agent::{Agent, Context};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{DoorState, Fact, WheelchairAction, WheelchairContent};
+
+/// A door that could not be moved.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("door `{door}` could not be moved: {reason}")]
+pub struct ActuatorFault {
+    /// The door.
+    pub door: String,
+    /// Why (jammed, no power, unknown to the world).
+    pub reason: String,
+}
+
+/// What moves doors.
+pub trait DoorActuator: Send {
+    /// Drives `door` to `open` (true) or closed, returning when it is there.
+    fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault>;
+}
+
+/// Who may open one door.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DoorPolicy {
+    /// Whether only `authorised` agents may open it.
+    pub restricted: bool,
+    /// Agent names allowed to open it when restricted (e.g. `cognitive-chair1`).
+    pub authorised: BTreeSet<String>,
+}
+
+/// The doors the agent manages.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DoorConfig {
+    /// Door name to policy; every door starts closed.
+    pub doors: BTreeMap<String, DoorPolicy>,
+}
+
+/// One refused request.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refusal {
+    /// Bus time, ns.
+    pub time_ns: u64,
+    /// Who asked.
+    pub requester: String,
+    /// Which door.
+    pub door: String,
+    /// Why it was refused.
+    pub reason: String,
+}
+
+/// Refusals the composer (and scenario assertions) can read while the agent runs.
+pub type RefusalLog = Arc<Mutex<Vec<Refusal>>>;
+
+/// The door agent.
+pub struct DoorAgent {
+    config: DoorConfig,
+    actuator: Box<dyn DoorActuator>,
+    open: BTreeSet<String>,
+    refusals: RefusalLog,
+}
+
+impl DoorAgent {
+    /// A door agent driving `actuator`, recording refusals in `refusals`.
+    pub fn new(config: DoorConfig, actuator: Box<dyn DoorActuator>, refusals: RefusalLog) -> Self {
+        DoorAgent { config, actuator, open: BTreeSet::new(), refusals }
+    }
+
+    fn refuse(&mut self, ctx: &mut Context<'_>, message: &AclMessage, door: &str, reason: String) {
+        let requester = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+        tracing::warn!(door, requester = %requester, reason = %reason, "door request refused");
+        if let Ok(mut log) = self.refusals.lock() {
+            log.push(Refusal { time_ns: ctx.now().0, requester, door: door.to_string(), reason: reason.clone() });
+        }
+        let _ = ctx.send(message.create_reply().with_performative(Performative::Refuse).with_content(error_content(&reason)));
+    }
+
+    fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        let (actor, action) = match WheelchairContent::from_message(&message) {
+            Ok(WheelchairContent::Request { actor, action }) => (actor, action),
+            Ok(_) => {
+                let _ = ctx.not_understood(&message, "expected ((action door (open-door :door D)))");
+                return;
+            }
+            Err(err) => {
+                let _ = ctx.not_understood(&message, &err.to_string());
+                return;
+            }
+        };
+        let (door, open) = match &action {
+            WheelchairAction::OpenDoor { door } => (door.clone(), true),
+            WheelchairAction::CloseDoor { door } => (door.clone(), false),
+            _ => {
+                let reply = message.create_reply().with_performative(Performative::Refuse);
+                let _ = ctx.send(reply.with_content(error_content("the door agent only opens and closes doors")));
+                return;
+            }
+        };
+        let Some(policy) = self.config.doors.get(&door) else {
+            self.refuse(ctx, &message, &door, format!("unknown door `{door}`"));
+            return;
+        };
+        let requester = message.sender.as_ref().map(|s| s.name.as_str()).unwrap_or_default();
+        if open && policy.restricted && !policy.authorised.contains(requester) {
+            let reason = format!("`{requester}` is not authorised to open restricted door `{door}`");
+            self.refuse(ctx, &message, &door, reason);
+            return;
+        }
+        let agree = message.create_reply().with_performative(Performative::Agree);
+        let _ = ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        match self.actuator.set(&door, open) {
+            Ok(()) => {
+                if open {
+                    self.open.insert(door);
+                } else {
+                    self.open.remove(&door);
+                }
+                let done = WheelchairContent::Done { actor, action };
+                let _ = ctx.send(done.fill(message.create_reply().with_performative(Performative::Inform)));
+            }
+            Err(fault) => {
+                tracing::warn!(error = %fault, "door actuator fault");
+                let reply = message.create_reply().with_performative(Performative::Failure);
+                let _ = ctx.send(reply.with_content(error_content(&fault.to_string())));
+            }
+        }
+    }
+
+    fn on_query(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        let text = message.content_text().unwrap_or_default();
+        let door = self.config.doors.keys().find(|d| text.split(|c: char| c.is_whitespace() || c == '(' || c == ')').any(|w| w == d.as_str()));
+        let Some(door) = door.cloned() else {
+            let _ = ctx.not_understood(&message, "query ((door-state D ?state)) for a door this agent manages");
+            return;
+        };
+        let state = if self.open.contains(&door) { DoorState::Open } else { DoorState::Closed };
+        let fact = WheelchairContent::Inform(Fact::Door { door, state });
+        let _ = ctx.send(fact.fill(message.create_reply().with_performative(Performative::Inform)));
+    }
+}
+
+fn error_content(why: &str) -> String {
+    format!("((error-message \"{}\"))", why.replace('"', "'"))
+}
+
+impl Agent for DoorAgent {
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        match message.performative {
+            Performative::Request => self.on_request(ctx, message),
+            Performative::QueryRef => self.on_query(ctx, message),
+            _ => {
+                let _ = ctx.not_understood(&message, "the door agent takes requests and query-ref");
+            }
+        }
+    }
+}
+
