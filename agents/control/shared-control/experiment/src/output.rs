@@ -18,6 +18,11 @@ pub struct ModeSummary {
     pub collisions_per_lap: Option<f64>,
     /// Collisions of each driver (the paired samples of the Wilcoxon test).
     pub collisions_per_driver: Vec<u64>,
+    /// Collisions per 100 m driven, each driver: the paired samples of the Wilcoxon tests (raw
+    /// counts would reward a paradigm whose drivers give up early on the lap timeout).
+    pub collisions_per_100m_per_driver: Vec<f64>,
+    /// Collisions per 100 m driven, all drivers.
+    pub collisions_per_100m: f64,
     /// Laps finished, all drivers.
     pub laps_completed: usize,
     /// Laps asked for, all drivers.
@@ -47,9 +52,9 @@ pub struct ModeSummary {
 /// One paired comparison.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Comparison {
-    /// Relative collision reduction of the second paradigm, 1 - b / a (`null` if a had none).
+    /// Relative reduction of collisions per 100 m driven, 1 - b / a (`null` if a had none).
     pub collision_reduction: Option<f64>,
-    /// Wilcoxon signed-rank, one-tailed (first has more collisions), paired per driver.
+    /// Wilcoxon signed-rank on collisions per 100 m, one-tailed (first has more), paired per driver.
     pub wilcoxon: Wilcoxon,
 }
 
@@ -62,7 +67,8 @@ pub struct Summary {
     pub shared: ModeSummary,
     /// VFH+ shared control.
     pub vfh: ModeSummary,
-    /// Exact one-tailed Wilcoxon signed-rank p, manual vs shared collisions paired per driver.
+    /// Exact one-tailed Wilcoxon signed-rank p, manual vs shared collisions per 100 m, paired per
+    /// driver.
     pub wilcoxon_p: f64,
     /// Manual vs shared.
     pub manual_vs_shared: Comparison,
@@ -91,6 +97,8 @@ fn mode_summary(trials: &[&Trial], laps_per_trial: usize) -> ModeSummary {
         collisions,
         collisions_per_lap: (laps_completed > 0).then(|| collisions as f64 / laps_completed as f64),
         collisions_per_driver: trials.iter().map(|t| t.collisions).collect(),
+        collisions_per_100m_per_driver: trials.iter().map(|t| per_100m(t.collisions, t.distance_m)).collect(),
+        collisions_per_100m: per_100m(collisions, trials.iter().map(|t| t.distance_m).sum()),
         laps_completed,
         laps_attempted: trials.len() * laps_per_trial,
         trials_timed_out: trials.iter().filter(|t| t.timed_out).count(),
@@ -110,12 +118,14 @@ fn mode_summary(trials: &[&Trial], laps_per_trial: usize) -> ModeSummary {
     }
 }
 
+fn per_100m(collisions: u64, distance_m: f64) -> f64 {
+    if distance_m > 0.0 { 100.0 * collisions as f64 / distance_m } else { 0.0 }
+}
+
 fn compare(a: &ModeSummary, b: &ModeSummary) -> Result<Comparison, ExperimentError> {
-    let x: Vec<f64> = a.collisions_per_driver.iter().map(|&c| c as f64).collect();
-    let y: Vec<f64> = b.collisions_per_driver.iter().map(|&c| c as f64).collect();
     Ok(Comparison {
-        collision_reduction: (a.collisions > 0).then(|| 1.0 - b.collisions as f64 / a.collisions as f64),
-        wilcoxon: wilcoxon_signed_rank(&x, &y, Alternative::Greater)?,
+        collision_reduction: (a.collisions_per_100m > 0.0).then(|| 1.0 - b.collisions_per_100m / a.collisions_per_100m),
+        wilcoxon: wilcoxon_signed_rank(&a.collisions_per_100m_per_driver, &b.collisions_per_100m_per_driver, Alternative::Greater)?,
     })
 }
 
