@@ -1,6 +1,7 @@
 //! The logger agent's store: a permanent, append-only, crash-safe log of every message exchanged.
 //!
 //! Organization:
+//! - [`agent`]: the logger agent on the bus ([`agent::LoggerAgent`]): how copies reach it, queries.
 //! - [`store`]: [`LogStore`], checksummed records in segment files, the fsync policy and recovery.
 //! - [`entry`]: [`LoggedMessage`], what one record holds, and [`Query`], how records are selected.
 //!
@@ -10,6 +11,7 @@
 //! silently.
 #![warn(missing_docs)]
 
+pub mod agent;
 pub mod entry;
 pub mod store;
 
