@@ -1,0 +1,40 @@
+//! FIPA HTTP message transport (SC00084) with the XML envelope (SC00085), so foreign FIPA
+//! platforms such as JADE can reach our agents and ours can reach theirs.
+//!
+//! A message travels as one HTTP/1.1 POST whose `multipart/mixed` body holds the XML envelope
+//! first and the ACL string payload last; the receiving platform answers `200 OK` with an empty
+//! body as soon as it has the message, and replies later with its own POST to the sender's
+//! `:addresses`.
+//!
+//! # Organization
+//! - [`envelope`]: [`Envelope`] and its XML codec (JADE's and FIPA's date forms).
+//! - [`wire`]: HTTP framing and multipart parsing/encoding as pure byte functions.
+//! - [`client`]: [`MtpClient`], posts one message in the form JADE accepts.
+//! - [`server`]: [`MtpServer`], a tokio HTTP/1.1 server handing each message to a channel.
+//! - [`gateway`]: [`Gateway`], the platform side: local agents by name, outbound routing by
+//!   receiver address, FAILURE with an MTS error for unknown receivers, like JADE's AMS.
+//! - [`Error`]: every failure with the offending input.
+//!
+//! # Guarantees
+//! - No input from a socket makes the server panic; heads above [`wire::MAX_HEAD_LEN`], bodies
+//!   above [`wire::MAX_BODY_LEN`] and envelopes above [`envelope::MAX_ENVELOPE_LEN`] are refused.
+//! - Replays of JADE's captured posts are accepted and answered `HTTP/1.1 200 OK` with
+//!   `Content-Length: 0`; an unquoted boundary or LF-only line endings (which JADE drops or never
+//!   answers) get `400 Bad Request` and a logged reason.
+//! - The client writes an absolute-form request line, a quoted boundary after ` ;`, CRLF line
+//!   endings, an exact `payload-length` and no `payload-encoding`.
+//! - Servers bind where told; [`server::LOOPBACK`] is the default of the callers in this project.
+#![warn(missing_docs)]
+
+pub mod client;
+pub mod envelope;
+mod error;
+pub mod gateway;
+pub mod server;
+pub mod wire;
+
+pub use client::MtpClient;
+pub use envelope::Envelope;
+pub use error::Error;
+pub use gateway::Gateway;
+pub use server::{Delivery, MtpServer};
