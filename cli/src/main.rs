@@ -40,6 +40,9 @@ enum Command {
     Features(cmd::features::Args),
     /// Thesis chapter 5: RGB-D visual odometry on a TUM-layout sequence.
     Vo(cmd::vo::Args),
+    /// Run scripted scenarios (docs/scenario-format.md).
+    #[command(subcommand)]
+    Scenario(cmd::scenario::Command),
     /// Thesis experiments run in the simulator.
     #[command(subcommand)]
     Experiment(cmd::experiment::Command),
@@ -63,6 +66,7 @@ fn main() -> ExitCode {
         Some(Command::Repeatability(a)) => cmd::repeatability::run(a),
         Some(Command::Features(a)) => cmd::features::run(a),
         Some(Command::Vo(a)) => cmd::vo::run(a),
+        Some(Command::Scenario(c)) => cmd::scenario::run(c),
         Some(Command::Experiment(c)) => cmd::experiment::run(c),
     };
     match result {

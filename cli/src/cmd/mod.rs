@@ -6,6 +6,7 @@ pub mod demo;
 pub mod experiment;
 pub mod features;
 pub mod repeatability;
+pub mod scenario;
 pub mod sl;
 pub mod vo;
 
