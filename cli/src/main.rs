@@ -43,6 +43,9 @@ enum Command {
     /// Run scripted scenarios (docs/scenario-format.md).
     #[command(subcommand)]
     Scenario(cmd::scenario::Command),
+    /// The logger agent's message log: query it, replay it.
+    #[command(subcommand)]
+    Log(cmd::log::Command),
     /// Thesis experiments run in the simulator.
     #[command(subcommand)]
     Experiment(cmd::experiment::Command),
@@ -68,6 +71,7 @@ fn main() -> ExitCode {
         Some(Command::Vo(a)) => cmd::vo::run(a),
         Some(Command::Scenario(c)) => cmd::scenario::run(c),
         Some(Command::Experiment(c)) => cmd::experiment::run(c),
+        Some(Command::Log(c)) => cmd::log::run(c),
     };
     match result {
         Ok(code) => code,
