@@ -139,7 +139,7 @@ impl PerceptionAgent {
             }
         }
         let visual = visual.map(|v| Visual {
-            vo: VisualOdometry::new(v.vo, v.source.intrinsics().clone()),
+            vo: VisualOdometry::new(v.vo, *v.source.intrinsics()),
             source: v.source,
             t_base_camera: v.t_base_camera,
             motion_noise: v.motion_noise,
