@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand};
 
 /// IntellWheels: a FIPA multi-agent platform for intelligent wheelchairs.
 ///
-/// With no subcommand it runs the mixed-reality demo on the embedded sample building.
+/// With no subcommand it runs the fleet demo on the embedded sample building.
 #[derive(Parser)]
 #[command(name = "intellwheels", version, about, long_about = None)]
 struct Cli {
@@ -23,9 +23,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the mixed-reality demo (the default when no subcommand is given).
+    /// Run the fleet demo on the embedded sample building (the default with no subcommand).
     Demo(cmd::demo::Args),
-    /// FIPA-ACL messages: parse, print, send to another platform.
+    /// FIPA-ACL messages: parse and print the string representation.
     #[command(subcommand)]
     Acl(cmd::acl::Command),
     /// FIPA-SL content: parse at a given SL level.
