@@ -24,9 +24,12 @@
 //! use iw_bus::transport::FrameTransport;
 //! let a = UdpTransport::bind("127.0.0.1:0")?;
 //! let b = UdpTransport::bind("127.0.0.1:0")?;
-//! let config = ImpairConfig { seed: 7, drop: 0.2, duplicate: 0.1, reorder: 0.1, ..Default::default() };
+//! // Corrupt every datagram; a real test sets e.g. `drop: 0.2, duplicate: 0.1, reorder: 0.1`.
+//! let config = ImpairConfig { seed: 7, corrupt: 1.0, ..Default::default() };
 //! let proxy = ImpairProxy::start(a.socket_addr()?, b.socket_addr()?, config)?;
-//! a.send(&proxy.peer_addr(), b"to b, maybe")?; // b sees it coming from proxy.peer_addr()
+//! a.send(&proxy.peer_addr(), b"to b, altered")?; // b sees it coming from proxy.peer_addr()
+//! let (_from, frame) = b.recv_timeout(std::time::Duration::from_secs(5))?.ok_or("nothing relayed")?;
+//! assert_ne!(frame, b"to b, altered");
 //! let stats = proxy.stop();
 //! assert_eq!(stats.received, 1);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
