@@ -39,6 +39,16 @@ impl<'a> Frame<'a> {
                     Arguments::Named(p) => (p, &[]),
                     Arguments::Positional(t) => (&[], t),
                 };
+                // A bare `:X-` would be dropped as neither a known nor a user slot: refuse it, as
+                // the ACL codec does, rather than lose the value.
+                if let Some(p) = params.iter().find(|p| p.name.eq_ignore_ascii_case("x-")) {
+                    return Err(OntologyError::BadValue {
+                        concept,
+                        slot: "X-",
+                        value: shown(&p.value),
+                        reason: "a user-defined slot needs a name after `X-`",
+                    });
+                }
                 Ok(Self {
                     concept,
                     params,

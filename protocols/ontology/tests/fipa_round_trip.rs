@@ -17,7 +17,8 @@ fn agent() -> impl Strategy<Value = AgentId> {
     (
         "[a-z][a-z0-9]{0,6}@[A-Z][a-zA-Z]{0,6}",
         prop::collection::vec("http://[a-z0-9.:]{1,12}/acc", 0..3),
-        prop::option::of(("[A-Z][a-z-]{0,8}", word())),
+        // A second letter keeps `X-` + key from collapsing to `X-X-` (an empty key).
+        prop::option::of(("[A-Z][a-z][a-z-]{0,7}", word())),
     )
         .prop_map(|(n, addrs, user)| {
             let aid = addrs
@@ -178,4 +179,11 @@ fn failure_keeps_actions_outside_the_ontology() {
         msg.to_content().to_string(),
         text.replace("\"boom\"", "boom")
     );
+}
+
+#[test]
+fn nameless_user_slot_is_refused_not_dropped() {
+    let text = "((done (action (agent-identifier :name a@A :X- a) (register (df-agent-description)))))";
+    let err = ManagementContent::parse(text, iw_sl::Level::Sl0).unwrap_err();
+    assert!(err.to_string().contains("needs a name after `X-`"), "{err}");
 }
