@@ -90,10 +90,10 @@ impl DetectorConfig {
         if !(self.lsac_min_average.is_finite() && self.lsac_min_average >= 0.5) {
             return bad("lsac_min_average", self.lsac_min_average.to_string(), "expected a finite value >= 0.5");
         }
-        if let Some((lower, upper)) = self.soft_band {
-            if lower >= upper {
-                return bad("soft_band", format!("({lower}, {upper})"), "expected lower < upper");
-            }
+        if let Some((lower, upper)) = self.soft_band
+            && lower >= upper
+        {
+            return bad("soft_band", format!("({lower}, {upper})"), "expected lower < upper");
         }
         Ok(())
     }
@@ -128,7 +128,7 @@ impl MatchConfig {
                 reason: "expected 0 < ratio <= 1",
             });
         }
-        if !(self.max_distance > 0.0) {
+        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
             return Err(FeatureError::InvalidConfig {
                 field: "max_distance",
                 value: self.max_distance.to_string(),

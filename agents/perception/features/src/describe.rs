@@ -10,13 +10,30 @@ use std::f32::consts::{FRAC_PI_3, TAU};
 
 use rayon::prelude::*;
 
+use crate::integral::FIXED;
 use crate::{IntegralImage, Keypoint};
 
 /// Haar wavelet responses `(dx, dy)` of side `side` (even, px) centred on pixel `(x, y)`.
+#[inline(always)]
 fn haar(ii: &IntegralImage, x: isize, y: isize, side: isize) -> (f32, f32) {
     let h = side / 2;
-    let dx = ii.box_sum_clipped(x, y - h, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x, y + h);
-    let dy = ii.box_sum_clipped(x - h, y, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x + h, y);
+    if x < h || y < h || x + h > ii.width() as isize || y + h > ii.height() as isize {
+        let dx = ii.box_sum_clipped(x, y - h, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x, y + h);
+        let dy = ii.box_sum_clipped(x - h, y, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x + h, y);
+        return (dx, dy);
+    }
+    // Inside the image: the four half boxes share a 3x3 grid of table corners.
+    let (s, t) = (ii.stride(), ii.table());
+    let (x, y, h) = (x as usize, y as usize, h as usize);
+    let row = |r: usize| {
+        let i = r * s + x - h;
+        let corners = &t[i..=i + 2 * h];
+        (corners[0], corners[h], corners[2 * h])
+    };
+    let ((a0, a1, a2), (b0, _, b2), (c0, c1, c2)) = (row(y - h), row(y), row(y + h));
+    let sum = |br: u32, tr: u32, bl: u32, tl: u32| br.wrapping_sub(tr).wrapping_sub(bl).wrapping_add(tl) as i32 as f32 / FIXED;
+    let dx = sum(c2, a2, c1, a1) - sum(c1, a1, c0, a0);
+    let dy = sum(c2, b2, c0, b0) - sum(b2, a2, b0, a0);
     (dx, dy)
 }
 
@@ -25,40 +42,78 @@ fn even_side(v: f32) -> isize {
     ((v / 2.0).round() as isize * 2).max(2)
 }
 
+/// `v.round() as isize` (half away from zero) without the `roundf` call baseline x86-64 makes:
+/// `|v| + 0.5` is exact in `f64`, and truncation is then the rounding.
+#[inline]
+fn round_px(v: f32) -> isize {
+    let magnitude = (f64::from(v.abs()) + 0.5) as isize;
+    if v < 0.0 { -magnitude } else { magnitude }
+}
+
+/// Gaussian weights, computed once per frame: orientation (sigma 2s on the 13x13 sample grid)
+/// and descriptor (sigma 3.3s on the 20x20 grid).
+struct Weights {
+    orientation: [[f32; 13]; 13],
+    descriptor: [[f32; 20]; 20],
+}
+
+impl Weights {
+    fn new() -> Self {
+        let mut w = Weights { orientation: [[0.0; 13]; 13], descriptor: [[0.0; 20]; 20] };
+        for j in -6i32..=6 {
+            for i in -6i32..=6 {
+                let d2 = (i * i + j * j) as f32;
+                w.orientation[(j + 6) as usize][(i + 6) as usize] = (-d2 / (2.0 * 2.0 * 2.0)).exp();
+            }
+        }
+        for (row, weights) in w.descriptor.iter_mut().enumerate() {
+            for (col, weight) in weights.iter_mut().enumerate() {
+                let u = (col / 5) as f32 * 5.0 + (col % 5) as f32 - 9.5;
+                let v = (row / 5) as f32 * 5.0 + (row % 5) as f32 - 9.5;
+                *weight = (-(u * u + v * v) / (2.0 * 3.3 * 3.3)).exp();
+            }
+        }
+        w
+    }
+}
+
 /// Fills each keypoint's orientation (unless `upright`) and returns the descriptors.
 pub(crate) fn describe(ii: &IntegralImage, keypoints: &mut [Keypoint], upright: bool) -> Vec<[f32; 64]> {
+    let weights = Weights::new();
     keypoints
         .par_iter_mut()
         .map(|kp| {
             if !upright {
-                kp.orientation = orientation(ii, kp);
+                kp.orientation = orientation(ii, kp, &weights);
             }
-            descriptor(ii, kp)
+            descriptor(ii, kp, &weights)
         })
         .collect()
 }
 
 /// Dominant orientation, radians in `(-pi, pi]`, image axes (x right, y down).
-pub(crate) fn orientation(ii: &IntegralImage, kp: &Keypoint) -> f32 {
+fn orientation(ii: &IntegralImage, kp: &Keypoint, weights: &Weights) -> f32 {
     let s = kp.scale;
     let side = even_side(4.0 * s);
-    let mut samples: Vec<(f32, f32, f32)> = Vec::with_capacity(113);
+    let mut samples = [(0.0f32, 0.0f32, 0.0f32); 113];
+    let mut n = 0;
     for j in -6i32..=6 {
         for i in -6i32..=6 {
-            let d2 = (i * i + j * j) as f32;
-            if d2 >= 36.0 {
+            if i * i + j * j >= 36 {
                 continue;
             }
-            let weight = (-d2 / (2.0 * 2.0 * 2.0)).exp();
-            let px = (kp.x + i as f32 * s).round() as isize;
-            let py = (kp.y + j as f32 * s).round() as isize;
+            let weight = weights.orientation[(j + 6) as usize][(i + 6) as usize];
+            let px = round_px(kp.x + i as f32 * s);
+            let py = round_px(kp.y + j as f32 * s);
             let (dx, dy) = haar(ii, px, py, side);
             let (dx, dy) = (dx * weight, dy * weight);
             if dx != 0.0 || dy != 0.0 {
-                samples.push((dy.atan2(dx).rem_euclid(TAU), dx, dy));
+                samples[n] = (dy.atan2(dx).rem_euclid(TAU), dx, dy);
+                n += 1;
             }
         }
     }
+    let samples = &mut samples[..n];
     if samples.is_empty() {
         return 0.0;
     }
@@ -91,7 +146,7 @@ pub(crate) fn orientation(ii: &IntegralImage, kp: &Keypoint) -> f32 {
 }
 
 /// The 64-element descriptor in the keypoint's frame, unit length (all zero on a flat patch).
-pub(crate) fn descriptor(ii: &IntegralImage, kp: &Keypoint) -> [f32; 64] {
+fn descriptor(ii: &IntegralImage, kp: &Keypoint, weights: &Weights) -> [f32; 64] {
     let s = kp.scale;
     let side = even_side(2.0 * s);
     let (sin, cos) = kp.orientation.sin_cos();
@@ -103,9 +158,9 @@ pub(crate) fn descriptor(ii: &IntegralImage, kp: &Keypoint) -> [f32; 64] {
                 // Sample centre in keypoint units: u along the orientation, v across it.
                 let u = cell_col * 5.0 + b as f32 - 9.5;
                 let v = cell_row * 5.0 + a as f32 - 9.5;
-                let px = (kp.x + (u * cos - v * sin) * s).round() as isize;
-                let py = (kp.y + (u * sin + v * cos) * s).round() as isize;
-                let weight = (-(u * u + v * v) / (2.0 * 3.3 * 3.3)).exp();
+                let px = round_px(kp.x + (u * cos - v * sin) * s);
+                let py = round_px(kp.y + (u * sin + v * cos) * s);
+                let weight = weights.descriptor[(k / 4) * 5 + a][(k % 4) * 5 + b];
                 let (dx, dy) = haar(ii, px, py, side);
                 let du = weight * (dx * cos + dy * sin);
                 let dv = weight * (-dx * sin + dy * cos);

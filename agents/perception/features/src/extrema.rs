@@ -32,11 +32,18 @@ pub(crate) fn find(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Keypoint>
     tasks
         .par_iter()
         .flat_map_iter(|&(octave, level, c0, c1, r)| {
-            (c0..=c1).filter_map(move |c| {
-                is_maximum(space, octave, level, c, r, config.threshold)
-                    .then(|| interpolate(space, octave, level, c, r, config.threshold))
-                    .flatten()
-            })
+            let m = &space.layers[octave * levels + level];
+            // Most samples fail the threshold: scan the row first, test neighbours only then.
+            let row = &m.responses[r * m.cols + c0..=r * m.cols + c1];
+            row.iter()
+                .enumerate()
+                .filter(|&(_, &v)| v > config.threshold)
+                .filter_map(move |(i, _)| {
+                    let c = c0 + i;
+                    is_maximum(space, octave, level, c, r, config.threshold)
+                        .then(|| interpolate(space, octave, level, c, r, config.threshold))
+                        .flatten()
+                })
         })
         .collect()
 }
@@ -50,8 +57,9 @@ fn is_maximum(space: &ScaleSpace, octave: usize, level: usize, c: usize, r: usiz
     for l in level - 1..=level + 1 {
         let layer = &space.layers[base + l];
         for rr in r - 1..=r + 1 {
-            for cc in c - 1..=c + 1 {
-                if (l, rr, cc) != (level, r, c) && layer.at(cc, rr) >= v {
+            let row = &layer.responses[rr * layer.cols + c - 1..=rr * layer.cols + c + 1];
+            for (cc, &other) in (c - 1..=c + 1).zip(row) {
+                if other >= v && (l, rr, cc) != (level, r, c) {
                     return false;
                 }
             }

@@ -60,7 +60,10 @@ fn luma([r, g, b]: [u8; 3]) -> f32 {
     luma_f32([f32::from(r), f32::from(g), f32::from(b)])
 }
 
+/// BT.601 luma weights of red, green and blue.
+pub(crate) const LUMA_WEIGHTS: [f32; 3] = [0.299, 0.587, 0.114];
+
 /// BT.601 luma of float channels.
-pub(crate) fn luma_f32([r, g, b]: [f32; 3]) -> f32 {
-    0.299 * r + 0.587 * g + 0.114 * b
+fn luma_f32([r, g, b]: [f32; 3]) -> f32 {
+    LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b
 }

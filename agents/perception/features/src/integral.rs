@@ -42,21 +42,39 @@ impl IntegralImage {
         if with_squares {
             self.squares.resize(stride * (h + 1), 0);
         }
-        for (y, row) in image.as_slice().chunks_exact(w.max(1)).take(h).enumerate() {
+        if w == 0 {
+            return;
+        }
+        for (y, row) in image.as_slice().chunks_exact(w).take(h).enumerate() {
             let (above, here) = self.sum.split_at_mut((y + 1) * stride);
-            let above = &above[y * stride..];
-            let mut run: u32 = 0;
-            let mut run_sq: u64 = 0;
-            for (x, &v) in row.iter().enumerate() {
-                let q = to_fixed(v);
-                run = run.wrapping_add(q);
-                here[x + 1] = above[x + 1].wrapping_add(run);
-                if with_squares {
-                    run_sq = run_sq.wrapping_add(u64::from(q) * u64::from(q));
-                    let i = (y + 1) * stride + x + 1;
-                    self.squares[i] = self.squares[i - stride].wrapping_add(run_sq);
-                }
+            accumulate_row(&above[y * stride + 1..], &mut here[1..stride], row.iter().map(|&v| to_fixed(v)));
+        }
+        if with_squares {
+            for (y, row) in image.as_slice().chunks_exact(w).take(h).enumerate() {
+                let (above, here) = self.squares.split_at_mut((y + 1) * stride);
+                let squares = row.iter().map(|&v| u64::from(to_fixed(v)) * u64::from(to_fixed(v)));
+                accumulate_row(&above[y * stride + 1..], &mut here[1..stride], squares);
             }
+        }
+    }
+
+    /// Recomputes in place from channel `channel` (0 red, 1 green, 2 blue) of an RGB image: the
+    /// same table as [`compute`](Self::compute) on that channel as `f32`, without the copy.
+    pub fn compute_channel(&mut self, image: &image::RgbImage, channel: usize) {
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        self.width = w;
+        self.height = h;
+        let stride = w + 1;
+        self.sum.clear();
+        self.sum.resize(stride * (h + 1), 0);
+        self.squares.clear();
+        if w == 0 {
+            return;
+        }
+        for (y, row) in image.as_raw().chunks_exact(3 * w).take(h).enumerate() {
+            let (above, here) = self.sum.split_at_mut((y + 1) * stride);
+            let fixed = row.chunks_exact(3).map(|px| u32::from(px[channel]) * FIXED as u32);
+            accumulate_row(&above[y * stride + 1..], &mut here[1..stride], fixed);
         }
     }
 
@@ -78,6 +96,11 @@ impl IntegralImage {
     /// The raw table (fixed point, wrapping).
     pub(crate) fn table(&self) -> &[u32] {
         &self.sum
+    }
+
+    /// The raw table of squares (fixed point squared, wrapping; empty without squares).
+    pub(crate) fn squares_table(&self) -> &[u64] {
+        &self.squares
     }
 
     /// Whether the integral of squares was computed.
@@ -124,9 +147,39 @@ impl IntegralImage {
     }
 }
 
+/// `here[x] = above[x] + samples[0..=x]`, wrapping: one row of the running table.
+fn accumulate_row<T: Copy + Default + WrappingAdd>(above: &[T], here: &mut [T], samples: impl Iterator<Item = T>) {
+    let mut run = T::default();
+    for ((out, &up), q) in here.iter_mut().zip(above).zip(samples) {
+        run = run.wrapping_add(q);
+        *out = up.wrapping_add(run);
+    }
+}
+
+/// The wrapping addition of the table's integer types.
+trait WrappingAdd {
+    fn wrapping_add(self, other: Self) -> Self;
+}
+
+impl WrappingAdd for u32 {
+    fn wrapping_add(self, other: Self) -> Self {
+        u32::wrapping_add(self, other)
+    }
+}
+
+impl WrappingAdd for u64 {
+    fn wrapping_add(self, other: Self) -> Self {
+        u64::wrapping_add(self, other)
+    }
+}
+
+/// Fixed-point sample, rounded half away from zero (as `f32::round`): the sample is clamped to
+/// `[0, 16368]`, so `t + 0.5` is exact in `f64` and truncation is the rounding, without the
+/// `roundf` call baseline x86-64 would make.
 fn to_fixed(v: f32) -> u32 {
-    // NaN clamps to 0 through `max`; the cast then cannot overflow.
-    (v.max(0.0).min(MAX_SAMPLE) * FIXED).round() as u32
+    // NaN stays NaN through `clamp` and the saturating cast turns it into 0.
+    let t = v.clamp(0.0, MAX_SAMPLE) * FIXED;
+    (f64::from(t) + 0.5) as u32
 }
 
 #[cfg(test)]
@@ -156,6 +209,32 @@ mod tests {
         assert_eq!(ii.box_sum(3, 3, 5, 5), (109 + 107 + 132 + 124) as f32);
         let sq: i32 = [109, 107, 132, 124].iter().map(|v| v * v).sum();
         assert_eq!(ii.box_sum_squares(3, 3, 5, 5), Some(f64::from(sq)));
+    }
+
+    #[test]
+    fn fixed_point_rounding_matches_f32_round() {
+        let mut v = -3.0f32;
+        while v < 1030.0 {
+            for x in [v, v.next_up(), v.next_down(), v + 1.0 / 32.0] {
+                assert_eq!(to_fixed(x), (x.clamp(0.0, MAX_SAMPLE) * FIXED).round() as u32, "{x}");
+            }
+            v += 1.0 / 64.0;
+        }
+        assert_eq!(to_fixed(f32::NAN), 0);
+    }
+
+    #[test]
+    fn channel_table_equals_the_table_of_the_channel_image() {
+        let rgb = image::RgbImage::from_fn(37, 23, |x, y| image::Rgb([(x * 7 + y) as u8, (x * y) as u8, 255 - x as u8]));
+        for c in 0..3 {
+            let mut plane = GrayImage32::new(37, 23);
+            for (o, px) in plane.as_mut_slice().iter_mut().zip(rgb.pixels()) {
+                *o = f32::from(px.0[c]);
+            }
+            let mut direct = IntegralImage::default();
+            direct.compute_channel(&rgb, c);
+            assert_eq!(direct.sum, IntegralImage::from_image(&plane, false).sum, "channel {c}");
+        }
     }
 
     #[test]

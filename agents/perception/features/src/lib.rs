@@ -35,6 +35,7 @@ mod hessian;
 mod image32;
 mod integral;
 mod matching;
+mod simd;
 mod working;
 
 pub use config::{DetectorConfig, LsacSpace, MatchConfig};
