@@ -4,6 +4,8 @@ use std::fmt;
 use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
+use time::macros::date;
+use time::{Date, Month};
 
 use crate::Error;
 
@@ -42,18 +44,21 @@ impl FipaDateTime {
     /// The absolute UTC date-time (designator `Z`) of a Unix time in milliseconds.
     /// Saturates to years 0..=9999.
     pub fn from_unix_ms(unix_ms: i64) -> Self {
-        let min = days_from_civil(0, 1, 1) * MS_PER_DAY;
-        let max = (days_from_civil(10_000, 1, 1)) * MS_PER_DAY - 1;
-        let unix_ms = unix_ms.clamp(min, max);
+        let first = days_since_epoch(date!(0000 - 01 - 01)) * MS_PER_DAY;
+        let last = (days_since_epoch(date!(9999 - 12 - 31)) + 1) * MS_PER_DAY - 1;
+        let unix_ms = unix_ms.clamp(first, last);
         let days = unix_ms.div_euclid(MS_PER_DAY);
         let ms_of_day = unix_ms.rem_euclid(MS_PER_DAY);
-        let (year, month, day) = civil_from_days(days);
-        // The clamp above keeps every narrowing below in range.
+        // The clamp above keeps the date and every narrowing below in range.
+        let date = i32::try_from(days + UNIX_EPOCH_JULIAN_DAY)
+            .ok()
+            .and_then(|jd| Date::from_julian_day(jd).ok())
+            .unwrap_or(Date::MIN);
         Self {
             sign: None,
-            year: year as u16,
-            month: month as u8,
-            day: day as u8,
+            year: date.year() as u16,
+            month: u8::from(date.month()),
+            day: date.day(),
             hour: (ms_of_day / 3_600_000) as u8,
             minute: (ms_of_day / 60_000 % 60) as u8,
             second: (ms_of_day / 1000 % 60) as u8,
@@ -76,7 +81,12 @@ impl FipaDateTime {
                 if sign == '-' { now_unix_ms - offset } else { now_unix_ms + offset }
             }
             None => {
-                let days = days_from_civil(i64::from(self.year), i64::from(self.month), i64::from(self.day));
+                // Fields out of range (only possible in a value built by hand: parsing checks
+                // them) saturate to the nearest real date.
+                let month = Month::try_from(self.month.clamp(1, 12)).unwrap_or(Month::January);
+                let year = i32::from(self.year);
+                let day = self.day.clamp(1, month.length(year));
+                let days = Date::from_calendar_date(year, month, day).map_or(0, days_since_epoch);
                 days * MS_PER_DAY + time_ms - i64::from(zone_offset_hours(self.zone)) * 3_600_000
             }
         }
@@ -89,7 +99,8 @@ impl FipaDateTime {
             if !(1..=12).contains(&self.month) {
                 return Err(bad("month must be 01..12"));
             }
-            if self.day == 0 || self.day > days_in_month(self.year, self.month) {
+            let month = Month::try_from(self.month).map_err(|_| bad("month must be 01..12"))?;
+            if self.day == 0 || self.day > month.length(i32::from(self.year)) {
                 return Err(bad("day out of range for the month"));
             }
         }
@@ -113,42 +124,11 @@ fn zone_offset_hours(zone: Option<char>) -> i32 {
     }
 }
 
-fn is_leap(year: u16) -> bool {
-    (year.is_multiple_of(4) && !year.is_multiple_of(100)) || year.is_multiple_of(400)
-}
+/// Julian day number of 1970-01-01 (`time` counts dates in Julian days).
+const UNIX_EPOCH_JULIAN_DAY: i64 = 2_440_588;
 
-fn days_in_month(year: u16, month: u8) -> u8 {
-    match month {
-        2 if is_leap(year) => 29,
-        2 => 28,
-        4 | 6 | 9 | 11 => 30,
-        _ => 31,
-    }
-}
-
-/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
-fn days_from_civil(year: i64, month: i64, day: i64) -> i64 {
-    let y = if month <= 2 { year - 1 } else { year };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let mp = (month + 9) % 12;
-    let doy = (153 * mp + 2) / 5 + day - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
-
-/// Inverse of [`days_from_civil`].
-fn civil_from_days(days: i64) -> (i64, i64, i64) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    (year, month, day)
+fn days_since_epoch(date: Date) -> i64 {
+    i64::from(date.to_julian_day()) - UNIX_EPOCH_JULIAN_DAY
 }
 
 impl fmt::Display for FipaDateTime {

@@ -5,6 +5,7 @@
 //! (`BinaryOp::And`), so callers never compare operator strings.
 
 use serde::{Deserialize, Serialize};
+use time::{Date, Month, OffsetDateTime, PrimitiveDateTime, Time};
 
 /// SL content: the parenthesised tuple `(expr+)` an ACL `:content` carries.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -473,67 +474,44 @@ impl DateTime {
         second: u32,
         milli: u32,
     ) -> Option<Self> {
-        let in_range = (1..=12).contains(&month) && (0..=9999).contains(&year);
-        if !in_range || day == 0 || day > days_in_month(year, month) || hour > 23 || minute > 59 {
+        if !(0..=9999).contains(&year) {
             return None;
         }
-        if second > 59 || milli > 999 {
-            return None;
-        }
-        let days = days_from_civil(year, month, day);
-        let secs = days * 86_400 + i64::from(hour * 3600 + minute * 60 + second);
+        let month = Month::try_from(u8::try_from(month).ok()?).ok()?;
+        let date = Date::from_calendar_date(i32::try_from(year).ok()?, month, u8::try_from(day).ok()?).ok()?;
+        let time = Time::from_hms_milli(
+            u8::try_from(hour).ok()?,
+            u8::try_from(minute).ok()?,
+            u8::try_from(second).ok()?,
+            u16::try_from(milli).ok()?,
+        )
+        .ok()?;
+        let at = PrimitiveDateTime::new(date, time).assume_utc();
         Some(Self {
-            unix_ms: secs * 1000 + i64::from(milli),
+            unix_ms: i64::try_from(at.unix_timestamp_nanos() / 1_000_000).ok()?,
         })
     }
 
     /// Calendar fields in UTC: (year, month, day, hour, minute, second, milli, weekday 0=Sunday).
+    /// Instants beyond the calendar's range (years past +-9999) saturate to its ends.
     pub fn to_utc_fields(self) -> (i64, u32, u32, u32, u32, u32, u32, u32) {
-        let ms = self.unix_ms.rem_euclid(1000) as u32;
-        let secs = self.unix_ms.div_euclid(1000);
-        let days = secs.div_euclid(86_400);
-        let sod = secs.rem_euclid(86_400) as u32;
-        let (y, m, d) = civil_from_days(days);
-        let weekday = (days + 4).rem_euclid(7) as u32; // 1970-01-01 was a Thursday
-        (y, m, d, sod / 3600, sod / 60 % 60, sod % 60, ms, weekday)
+        let at = OffsetDateTime::from_unix_timestamp_nanos(i128::from(self.unix_ms) * 1_000_000)
+            .unwrap_or(if self.unix_ms < 0 {
+                PrimitiveDateTime::MIN.assume_utc()
+            } else {
+                PrimitiveDateTime::MAX.assume_utc()
+            });
+        (
+            i64::from(at.year()),
+            u32::from(u8::from(at.month())),
+            u32::from(at.day()),
+            u32::from(at.hour()),
+            u32::from(at.minute()),
+            u32::from(at.second()),
+            u32::from(at.millisecond()),
+            u32::from(at.weekday().number_days_from_sunday()),
+        )
     }
-}
-
-fn is_leap(year: i64) -> bool {
-    (year % 4 == 0 && year % 100 != 0) || year % 400 == 0
-}
-
-fn days_in_month(year: i64, month: u32) -> u32 {
-    match month {
-        2 if is_leap(year) => 29,
-        2 => 28,
-        4 | 6 | 9 | 11 => 30,
-        _ => 31,
-    }
-}
-
-/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
-fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
-    let y = if month <= 2 { year - 1 } else { year };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(month);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(day) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
-
-fn civil_from_days(days: i64) -> (i64, u32, u32) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    (y, m, d)
 }
 
 #[cfg(test)]
