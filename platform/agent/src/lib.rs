@@ -8,6 +8,8 @@
 //! - [`AgentHost`]: owns the agents of a container; [`AgentHost::step`] runs them once at a
 //!   given time (simulated time: scenarios run faster than real time and deterministically), and
 //!   [`AgentHost::run_until`] paces steps with the bus clock (real time).
+//! - [`gateway`]: a [`GatewayAgent`] that lets code outside the agent world (tests, the CLI, the
+//!   dashboard) speak as an agent through a [`GatewayHandle`].
 //!
 //! Guarantees: agents only meet through ACL messages on the bus (an agent never holds another);
 //! a message that is not well-formed ACL is counted and answered with nothing (its sender cannot
@@ -21,6 +23,9 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_bus::{Bus, BusError, Mailbox, Time};
+
+pub mod gateway;
+pub use gateway::{GatewayAgent, GatewayHandle};
 
 /// Rounds of local delivery within one [`AgentHost::step`]; a longer chain continues next step.
 pub const MAX_ROUNDS_PER_STEP: usize = 16;
@@ -333,6 +338,32 @@ mod tests {
         // Ticks at 0, 100 and 200 ms of the 250 ms run; each answered within its own step.
         assert_eq!(*answers.lock().unwrap(), ["INFORM ping 1", "INFORM ping 2", "INFORM ping 3"]);
         assert_eq!(host.stats(), HostStats { delivered: 6, sent: 6, malformed: 0, send_failures: 0 });
+    }
+
+    #[test]
+    fn a_gateway_speaks_for_outside_code_and_reports_refused_sends() {
+        let (mut host, clock) = host();
+        let (agent, handle) = gateway::gateway(Duration::from_millis(10));
+        host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
+        host.add(AgentId::new("outside@c1"), Box::new(agent)).unwrap();
+        handle.send(
+            AclMessage::new(Performative::Request)
+                .with_receiver(AgentId::new("echo@c1"))
+                .with_content("hello"),
+        );
+        handle.send(AclMessage::new(Performative::Inform).with_content("to no one"));
+        for _ in 0..3 {
+            host.step(clock.now());
+            clock.advance(Duration::from_millis(10));
+        }
+        let received = handle.take_received();
+        assert_eq!(received.len(), 1);
+        assert_eq!(received[0].performative, Performative::Inform);
+        assert_eq!(received[0].content_text(), Some("hello"));
+        assert_eq!(received[0].sender.as_ref().map(|s| s.name.as_str()), Some("echo@c1"));
+        assert_eq!(received[0].receivers[0].name, "outside@c1", "the reply came back to the gateway");
+        assert!(matches!(handle.take_send_errors().as_slice(), [AgentError::NoReceiver { .. }]));
+        assert!(handle.take_received().is_empty(), "taken once");
     }
 
     #[test]
