@@ -236,14 +236,13 @@ impl AgentHost {
                         }
                     }
                 }
-                if round == 0 {
-                    if let (Some(due), Some(period)) = (slot.next_tick, slot.agent.tick_period()) {
-                        if now >= due {
-                            slot.agent.tick(&mut ctx);
-                            // Catch up at most one period late, never in a burst.
-                            slot.next_tick = Some(due.plus(period).max(now));
-                        }
-                    }
+                if round == 0
+                    && let (Some(due), Some(period)) = (slot.next_tick, slot.agent.tick_period())
+                    && now >= due
+                {
+                    slot.agent.tick(&mut ctx);
+                    // Catch up at most one period late, never in a burst.
+                    slot.next_tick = Some(due.plus(period).max(now));
                 }
                 self.stats.sent += sent;
                 activity |= sent > 0;
