@@ -63,6 +63,20 @@ pub enum Error {
         /// Why.
         reason: String,
     },
+    /// TLS setup or handshake failure.
+    #[error("TLS: {reason}")]
+    Tls {
+        /// What failed.
+        reason: String,
+    },
+    /// A peer took longer than allowed.
+    #[error("{peer} sent nothing for {seconds} s")]
+    Timeout {
+        /// Address of the peer.
+        peer: String,
+        /// The limit, in seconds.
+        seconds: u64,
+    },
     /// Socket failure.
     #[error("I/O with {peer}: {source}")]
     Io {

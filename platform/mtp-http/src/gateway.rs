@@ -1,42 +1,113 @@
-//! The platform side of the transport: local agents by name, routing by receiver address, and
-//! the AMS's FAILURE for receivers this platform does not host (as JADE's AMS answers).
+//! The platform side of the transport (the Agent Communication Channel): messages arriving over
+//! HTTP are delivered to local agents on the platform's [`Bus`] by agent identifier, and what
+//! local agents send to foreign agents is posted to those agents' addresses.
+//!
+//! Each foreign agent the gateway knows is a proxy mailbox on the bus under the agent's full
+//! name: local agents simply send to `wheelchair1@RustPlatform`, and the proxy's task posts
+//! what arrives there, adding this platform's address to the sender so replies find their way
+//! back. A message for a receiver this platform does not host gets the AMS's FAILURE with an
+//! `MTS-error`, as JADE's AMS answers.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, PoisonError, Weak};
 
-use iw_acl::{AclMessage, AgentId, Performative};
+use iw_acl::{AclMessage, AgentId};
+use iw_bus::{Bus, BusError, Mailbox};
 use tokio::sync::mpsc;
+use tokio_rustls::rustls::ServerConfig;
 
-use crate::server::{Delivery, MtpServer};
+use crate::server::{Delivery, LOOPBACK, MtpServer};
 use crate::{Error, MtpClient};
 
-/// Messages queued per local agent before the server waits for it.
-const AGENT_QUEUE: usize = 64;
+/// Messages received but not yet delivered before the server waits.
+const INBOUND_QUEUE: usize = 256;
 
-/// A platform reachable over HTTP: owns the server, the local agents' inboxes and the client.
-#[derive(Debug)]
+/// Default most foreign agents with a proxy at once.
+pub const DEFAULT_MAX_FOREIGN: usize = 1024;
+
+/// Called with a foreign agent's name when it gets a proxy, so the platform can admit it to its
+/// agent registry (the parser layer lets through only registered senders).
+pub type Admit = Arc<dyn Fn(&str) + Send + Sync>;
+
+/// How a gateway runs.
+#[derive(Clone)]
+pub struct GatewayConfig {
+    /// This platform's name (the part after `@` in its agents' names).
+    pub platform: String,
+    /// Where the server listens: loopback ([`LOOPBACK`]) unless the platform must be reachable
+    /// from other hosts.
+    pub bind: SocketAddr,
+    /// Serve `https://` with this configuration ([`crate::tls::server_config`]).
+    pub tls: Option<Arc<ServerConfig>>,
+    /// The client posting to foreign platforms (give it roots to reach `https://` ones).
+    pub client: MtpClient,
+    /// Most foreign agents with a proxy; messages from further ones are refused.
+    pub max_foreign: usize,
+    /// Admits foreign agents to the platform's registry.
+    pub admit: Option<Admit>,
+}
+
+impl std::fmt::Debug for GatewayConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GatewayConfig")
+            .field("platform", &self.platform)
+            .field("bind", &self.bind)
+            .field("tls", &self.tls.is_some())
+            .field("max_foreign", &self.max_foreign)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GatewayConfig {
+    /// Platform `platform` on loopback, plain HTTP, no admission hook.
+    pub fn new(platform: impl Into<String>) -> Self {
+        Self {
+            platform: platform.into(),
+            bind: LOOPBACK,
+            tls: None,
+            client: MtpClient::new(),
+            max_foreign: DEFAULT_MAX_FOREIGN,
+            admit: None,
+        }
+    }
+}
+
+/// A platform reachable over HTTP: the server, the bus it delivers on, the proxies of foreign
+/// agents and the client.
 pub struct Gateway {
     platform: String,
     server: MtpServer,
-    agents: Mutex<HashMap<String, mpsc::Sender<AclMessage>>>,
+    bus: Arc<Bus>,
     client: MtpClient,
+    foreign: Mutex<HashMap<String, AgentId>>,
+    max_foreign: usize,
+    admit: Option<Admit>,
+}
+
+impl std::fmt::Debug for Gateway {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gateway").field("platform", &self.platform).field("url", &self.url()).finish_non_exhaustive()
+    }
 }
 
 impl Gateway {
-    /// Starts platform `platform` listening on `bind` (use [`crate::server::LOOPBACK`] unless the
-    /// platform must be reachable from other hosts).
-    pub async fn start(platform: impl Into<String>, bind: SocketAddr) -> Result<Arc<Self>, Error> {
-        let (tx, mut rx) = mpsc::channel::<Delivery>(AGENT_QUEUE);
-        let server = MtpServer::bind(bind, tx).await?;
+    /// Starts the server of `config` delivering on `bus` (must run inside a tokio runtime).
+    pub async fn start(config: GatewayConfig, bus: Arc<Bus>) -> Result<Arc<Self>, Error> {
+        let (tx, mut rx) = mpsc::channel::<Delivery>(INBOUND_QUEUE);
+        let server = MtpServer::bind(config.bind, config.tls, tx).await?;
         let gateway = Arc::new(Self {
-            platform: platform.into(),
+            platform: config.platform,
             server,
-            agents: Mutex::new(HashMap::new()),
-            client: MtpClient,
+            bus,
+            client: config.client,
+            foreign: Mutex::new(HashMap::new()),
+            max_foreign: config.max_foreign,
+            admit: config.admit,
         });
         let weak = Arc::downgrade(&gateway);
         tokio::spawn(async move {
+            // One message at a time, so a conversation's messages keep their order.
             while let Some(delivery) = rx.recv().await {
                 let Some(gateway) = weak.upgrade() else { return };
                 gateway.dispatch(delivery).await;
@@ -50,103 +121,136 @@ impl Gateway {
         self.server.url()
     }
 
-    /// The full identifier (`local@platform` with our address) of a local agent name.
+    /// This platform's name.
+    pub fn platform(&self) -> &str {
+        &self.platform
+    }
+
+    /// The full identifier of local agent `local_name` (`local_name@platform` with our address).
     pub fn aid(&self, local_name: &str) -> AgentId {
         AgentId::new(format!("{local_name}@{}", self.platform)).with_address(self.url())
     }
 
-    /// Hosts agent `local_name`; its messages arrive on the returned inbox.
-    pub fn register(&self, local_name: &str) -> mpsc::Receiver<AclMessage> {
-        let (tx, rx) = mpsc::channel(AGENT_QUEUE);
-        self.lock().insert(format!("{local_name}@{}", self.platform), tx);
-        rx
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, mpsc::Sender<AclMessage>>> {
-        self.agents.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
-    /// Sends `message`: local receivers get it directly, foreign ones by a POST to their first
-    /// address. Returns the first failure after trying every receiver.
-    pub async fn send(&self, message: AclMessage) -> Result<(), Error> {
-        let mut result = Ok(());
-        for receiver in &message.receivers {
-            if let Err(e) = self.route(receiver, &message).await {
-                tracing::warn!(receiver = %receiver, error = %e, "delivery failed");
-                if result.is_ok() {
-                    result = Err(e);
-                }
+    /// Makes foreign agent `aid` reachable from the bus under its name (its addresses say where
+    /// to post). Learning new addresses of a known agent replaces the old ones.
+    pub fn add_foreign(self: &Arc<Self>, aid: &AgentId) -> Result<(), Error> {
+        let mut foreign = self.foreign.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(known) = foreign.get_mut(&aid.name) {
+            if !aid.addresses.is_empty() {
+                known.addresses.clone_from(&aid.addresses);
             }
+            return Ok(());
         }
-        result
-    }
-
-    async fn route(&self, receiver: &AgentId, message: &AclMessage) -> Result<(), Error> {
-        let local = self.lock().get(&receiver.name).cloned();
-        if let Some(inbox) = local {
-            return inbox
-                .send(message.clone())
-                .await
-                .map_err(|_| Error::Unreachable { agent: receiver.name.clone(), reason: "agent stopped".into() });
+        if foreign.len() >= self.max_foreign {
+            return Err(Error::Unreachable {
+                agent: aid.name.clone(),
+                reason: format!("this platform already proxies its limit of {} foreign agents", self.max_foreign),
+            });
         }
-        let url = receiver.addresses.first().ok_or_else(|| Error::Unreachable {
-            agent: receiver.name.clone(),
-            reason: "Foreign agent unreachable: no transport address".into(),
+        let mailbox = self.bus.register(&aid.name).map_err(|e| Error::Unreachable {
+            agent: aid.name.clone(),
+            reason: match e {
+                BusError::AgentExists { .. } => "the name is a local agent's; a foreign agent cannot take it".into(),
+                other => other.to_string(),
+            },
         })?;
-        self.client.send(url, message, vec![receiver.clone()]).await
+        foreign.insert(aid.name.clone(), aid.clone());
+        drop(foreign);
+        if let Some(admit) = &self.admit {
+            admit(&aid.name);
+        }
+        tokio::spawn(proxy(Arc::downgrade(self), aid.name.clone(), mailbox));
+        Ok(())
     }
 
-    /// Delivers a received message to its local receivers; the AMS answers FAILURE for others.
-    async fn dispatch(&self, delivery: Delivery) {
-        let receivers = delivery.envelope.receivers().to_vec();
-        for receiver in receivers {
-            let inbox = self.lock().get(&receiver.name).cloned();
-            match inbox {
-                Some(inbox) => {
-                    let _ = inbox.send(delivery.message.clone()).await;
-                }
-                None => {
-                    let failure = self.not_found(&delivery.message, &receiver);
-                    if let Err(e) = self.send(failure).await {
-                        tracing::warn!(receiver = %receiver, error = %e, "could not report unknown receiver");
-                    }
-                }
+    /// Delivers a received message to each receiver on the bus; the AMS answers FAILURE for
+    /// receivers this platform does not host.
+    async fn dispatch(self: &Arc<Self>, delivery: Delivery) {
+        let Delivery { envelope, mut message } = delivery;
+        let Some(sender) = message.sender.clone().or_else(|| envelope.from.clone()) else {
+            tracing::warn!(envelope = ?envelope, "message without a sender dropped: no one to answer");
+            return;
+        };
+        let mut sender = sender;
+        if sender.addresses.is_empty()
+            && let Some(from) = envelope.from.as_ref().filter(|f| f.name == sender.name)
+        {
+            sender.addresses.clone_from(&from.addresses);
+        }
+        message.sender = Some(sender.clone());
+        if let Err(e) = self.add_foreign(&sender) {
+            tracing::warn!(sender = %sender.name, error = %e, "message from a foreign agent refused");
+            return;
+        }
+        let payload = iw_acl::codec::print(&message).into_bytes();
+        for receiver in envelope.receivers() {
+            let reason = match self.bus.send(&sender.name, &receiver.name, payload.clone()) {
+                Ok(_) => continue,
+                Err(BusError::NoRoute { .. }) => format!("Agent not found: {}", receiver.name),
+                Err(e) => format!("Delivery failed: {e}"),
+            };
+            tracing::info!(receiver = %receiver.name, %reason, "undeliverable message");
+            let failure = iw_ams_df::delivery_failure(&message, receiver, self.aid("ams"), &reason);
+            if let Err(e) = self.post(&failure, &sender).await {
+                tracing::warn!(sender = %sender.name, error = %e, "could not report an undeliverable message");
             }
         }
     }
 
-    /// The AMS's FAILURE for a message to an agent this platform does not host, in JADE's words.
-    fn not_found(&self, message: &AclMessage, receiver: &AgentId) -> AclMessage {
-        let sender = message.sender.clone().unwrap_or_default();
-        let content = format!(
-            "((action {} (ACLMessage)) (MTS-error {} (internal-error \"Agent not found: {}\")))",
-            sl_aid(&sender),
-            sl_aid(receiver),
-            receiver.name.replace('"', "\\\"")
-        );
-        message
-            .create_reply()
-            .with_performative(Performative::Failure)
-            .with_sender(self.aid("ams"))
-            .with_content(content)
-            .with_language("fipa-sl")
+    /// Posts `message` to foreign agent `to`, trying its addresses in order (never our own).
+    async fn post(&self, message: &AclMessage, to: &AgentId) -> Result<(), Error> {
+        let own = self.url();
+        let mut last = Error::Unreachable { agent: to.name.clone(), reason: "Foreign agent unreachable: no transport address".into() };
+        for url in to.addresses.iter().filter(|u| **u != own) {
+            match self.client.send(url, message, vec![to.clone()]).await {
+                Ok(()) => return Ok(()),
+                Err(e) => last = e,
+            }
+        }
+        Err(last)
+    }
+
+    /// Posts what a local agent sent to foreign agent `name`; tells the local sender (from the
+    /// AMS) when that fails.
+    async fn forward(&self, name: &str, mut message: AclMessage) {
+        let Some(to) = self.foreign.lock().unwrap_or_else(PoisonError::into_inner).get(name).cloned() else { return };
+        let own = self.url();
+        if let Some(sender) = message.sender.as_mut()
+            && !sender.addresses.contains(&own)
+        {
+            sender.addresses.push(own);
+        }
+        if let Err(e) = self.post(&message, &to).await {
+            tracing::warn!(receiver = %name, error = %e, "post to a foreign agent failed");
+            let Some(sender) = message.sender.clone() else { return };
+            if self.foreign.lock().unwrap_or_else(PoisonError::into_inner).contains_key(&sender.name) {
+                return; // Relayed for another foreign agent: nobody local to tell.
+            }
+            let failure = iw_ams_df::delivery_failure(&message, &to, self.aid("ams"), &format!("Foreign agent unreachable: {e}"));
+            let payload = iw_acl::codec::print(&failure).into_bytes();
+            if let Err(e) = self.bus.send(&format!("ams@{}", self.platform), &sender.name, payload) {
+                tracing::warn!(sender = %sender.name, error = %e, "could not report a failed post");
+            }
+        }
     }
 }
 
-/// An agent identifier as an SL term (name and addresses).
-fn sl_aid(aid: &AgentId) -> String {
-    let mut out = format!("(agent-identifier :name {}", sl_word(&aid.name));
-    if !aid.addresses.is_empty() {
-        let urls: Vec<String> = aid.addresses.iter().map(|u| sl_word(u)).collect();
-        out.push_str(&format!(" :addresses (sequence {})", urls.join(" ")));
+impl Drop for Gateway {
+    fn drop(&mut self) {
+        // Ends the proxies' mailboxes, and so their tasks.
+        for name in self.foreign.get_mut().unwrap_or_else(PoisonError::into_inner).keys() {
+            self.bus.deregister(name);
+        }
     }
-    out.push(')');
-    out
 }
 
-fn sl_word(text: &str) -> String {
-    let plain = !text.is_empty()
-        && !text.starts_with(|c: char| c == '#' || c.is_ascii_digit() || c == '-' || c == '@')
-        && text.chars().all(|c| !c.is_whitespace() && !"()\"".contains(c));
-    if plain { text.to_owned() } else { format!("\"{}\"", text.replace('"', "\\\"")) }
+/// Posts, in order, what arrives in foreign agent `name`'s mailbox.
+async fn proxy(gateway: Weak<Gateway>, name: String, mut mailbox: Mailbox) {
+    while let Some(envelope) = mailbox.recv().await {
+        let Some(gateway) = gateway.upgrade() else { return };
+        match envelope.payload_str().map(iw_acl::codec::parse) {
+            Some(Ok(message)) => gateway.forward(&name, message).await,
+            _ => tracing::warn!(receiver = %name, "payload for a foreign agent is not ACL; dropped"),
+        }
+    }
 }

@@ -9,10 +9,15 @@
 //! # Organization
 //! - [`envelope`]: [`Envelope`] and its XML codec (JADE's and FIPA's date forms).
 //! - [`wire`]: HTTP framing and multipart parsing/encoding as pure byte functions.
-//! - [`client`]: [`MtpClient`], posts one message in the form JADE accepts.
+//! - [`client`]: [`MtpClient`], posts one message in the form JADE accepts, keeping
+//!   connections alive when the peer allows it.
 //! - [`server`]: [`MtpServer`], a tokio HTTP/1.1 server handing each message to a channel.
-//! - [`gateway`]: [`Gateway`], the platform side: local agents by name, outbound routing by
-//!   receiver address, FAILURE with an MTS error for unknown receivers, like JADE's AMS.
+//! - [`tls`]: rustls configurations for `https://` servers and clients.
+//! - [`gateway`]: [`Gateway`], [`GatewayConfig`]: the platform side on an `iw_bus::Bus`:
+//!   delivery to local agents by name, proxies posting to foreign agents' addresses, FAILURE
+//!   with an MTS error from the AMS for unknown receivers, like JADE's.
+//! - [`platform`]: [`HttpPlatform`], the AMS, the DF and given agents behind a gateway in one
+//!   call, and [`platform::Echo`], the echo agent of the JADE captures.
 //! - [`Error`]: every failure with the offending input.
 //!
 //! # Guarantees
@@ -23,18 +28,24 @@
 //!   answers) get `400 Bad Request` and a logged reason.
 //! - The client writes an absolute-form request line, a quoted boundary after ` ;`, CRLF line
 //!   endings, an exact `payload-length` and no `payload-encoding`.
-//! - Servers bind where told; [`server::LOOPBACK`] is the default of the callers in this project.
+//! - Servers bind where told; [`GatewayConfig::new`] binds [`server::LOOPBACK`]. Silent
+//!   connections are closed after [`server::IDLE_TIMEOUT`]; the client gives up after
+//!   [`client::ANSWER_TIMEOUT`].
+//! - A foreign agent cannot take a local agent's name: its messages are refused.
 #![warn(missing_docs)]
 
 pub mod client;
 pub mod envelope;
 mod error;
 pub mod gateway;
+pub mod platform;
 pub mod server;
+pub mod tls;
 pub mod wire;
 
 pub use client::MtpClient;
 pub use envelope::Envelope;
 pub use error::Error;
-pub use gateway::Gateway;
+pub use gateway::{Gateway, GatewayConfig};
+pub use platform::HttpPlatform;
 pub use server::{Delivery, MtpServer};

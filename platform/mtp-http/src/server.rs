@@ -1,19 +1,28 @@
 //! The receiving side: an HTTP/1.1 server on tokio that accepts FIPA MTP posts.
 
 use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
 
 use iw_acl::AclMessage;
 use iw_acl::codec::{ParseOptions, parse_with};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::TcpListener;
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
+use tokio_rustls::TlsAcceptor;
+use tokio_rustls::rustls::ServerConfig;
 
 use crate::envelope::Envelope;
+use crate::tls::BoxedIo;
 use crate::{Error, wire};
 
 /// The loopback address to bind to unless configured otherwise (port chosen by the OS).
 pub const LOOPBACK: SocketAddr = SocketAddr::new(std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST), 0);
+
+/// Longest a connection may stay silent (in a handshake, a request, or between kept-alive
+/// requests) before the server closes it, so idle or stalled peers cannot pile up.
+pub const IDLE_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// One message received: its transport envelope and the parsed ACL payload.
 #[derive(Clone, Debug)]
@@ -28,21 +37,35 @@ pub struct Delivery {
 #[derive(Debug)]
 pub struct MtpServer {
     local_addr: SocketAddr,
+    secure: bool,
     task: JoinHandle<()>,
 }
 
 impl MtpServer {
-    /// Binds `addr` and hands every accepted message to `sink`.
-    pub async fn bind(addr: SocketAddr, sink: mpsc::Sender<Delivery>) -> Result<Self, Error> {
+    /// Binds `addr` and hands every accepted message to `sink`; serves `https://` when given a
+    /// TLS configuration (see [`crate::tls::server_config`]).
+    pub async fn bind(addr: SocketAddr, tls: Option<Arc<ServerConfig>>, sink: mpsc::Sender<Delivery>) -> Result<Self, Error> {
         let listener = TcpListener::bind(addr).await.map_err(|source| Error::Io { peer: addr.to_string(), source })?;
         let local_addr = listener.local_addr().map_err(|source| Error::Io { peer: addr.to_string(), source })?;
+        let secure = tls.is_some();
+        let acceptor = tls.map(TlsAcceptor::from);
         let task = tokio::spawn(async move {
             loop {
                 match listener.accept().await {
                     Ok((stream, peer)) => {
                         let sink = sink.clone();
+                        let acceptor = acceptor.clone();
                         tokio::spawn(async move {
-                            if let Err(e) = serve_connection(stream, &sink).await {
+                            let _ = stream.set_nodelay(true);
+                            let served = match acceptor {
+                                None => serve_connection(Box::new(stream), &peer, &sink).await,
+                                Some(acceptor) => match tokio::time::timeout(IDLE_TIMEOUT, acceptor.accept(stream)).await {
+                                    Ok(Ok(tls)) => serve_connection(Box::new(tls), &peer, &sink).await,
+                                    Ok(Err(e)) => Err(Error::Tls { reason: format!("handshake with {peer}: {e}") }),
+                                    Err(_) => Err(Error::Timeout { peer: peer.to_string(), seconds: IDLE_TIMEOUT.as_secs() }),
+                                },
+                            };
+                            if let Err(e) = served {
                                 tracing::warn!(%peer, error = %e, "HTTP MTP connection closed");
                             }
                         });
@@ -51,7 +74,7 @@ impl MtpServer {
                 }
             }
         });
-        Ok(Self { local_addr, task })
+        Ok(Self { local_addr, secure, task })
     }
 
     /// The bound socket address.
@@ -59,9 +82,10 @@ impl MtpServer {
         self.local_addr
     }
 
-    /// The FIPA transport address of this server (`http://ip:port/acc`).
+    /// The FIPA transport address of this server (`http://ip:port/acc`, or `https://`).
     pub fn url(&self) -> String {
-        format!("http://{}/acc", self.local_addr)
+        let scheme = if self.secure { "https" } else { "http" };
+        format!("{scheme}://{}/acc", self.local_addr)
     }
 }
 
@@ -71,10 +95,9 @@ impl Drop for MtpServer {
     }
 }
 
-/// Serves requests on one connection until the peer closes or asks to.
-async fn serve_connection(mut stream: TcpStream, sink: &mpsc::Sender<Delivery>) -> Result<(), Error> {
-    let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
-    let io = |source| Error::Io { peer: peer.clone(), source };
+/// Serves requests on one connection until the peer closes, asks to, or stays silent too long.
+async fn serve_connection(mut stream: BoxedIo, peer: &SocketAddr, sink: &mpsc::Sender<Delivery>) -> Result<(), Error> {
+    let io = |source| Error::Io { peer: peer.to_string(), source };
     let mut buf = Vec::with_capacity(4096);
     loop {
         let head_end = loop {
@@ -83,7 +106,7 @@ async fn serve_connection(mut stream: TcpStream, sink: &mpsc::Sender<Delivery>) 
                 Ok(None) => {}
                 Err(e) => return reject(&mut stream, e).await,
             }
-            if read_more(&mut stream, &mut buf).await.map_err(io)? == 0 {
+            if read_more(&mut stream, &mut buf, peer).await.map_err(io)? == 0 {
                 return Ok(());
             }
         };
@@ -92,7 +115,7 @@ async fn serve_connection(mut stream: TcpStream, sink: &mpsc::Sender<Delivery>) 
             Err(e) => return reject(&mut stream, e).await,
         };
         while buf.len() < head_end + head.content_length {
-            if read_more(&mut stream, &mut buf).await.map_err(io)? == 0 {
+            if read_more(&mut stream, &mut buf, peer).await.map_err(io)? == 0 {
                 return Err(Error::Http { reason: format!("body ends after {} of {} bytes", buf.len() - head_end, head.content_length) });
             }
         }
@@ -102,6 +125,7 @@ async fn serve_connection(mut stream: TcpStream, sink: &mpsc::Sender<Delivery>) 
             Err(e) => return reject(&mut stream, e).await,
         };
         stream.write_all(&wire::encode_response(200, "OK", head.close)).await.map_err(io)?;
+        stream.flush().await.map_err(io)?;
         if sink.send(delivery).await.is_err() {
             return Ok(());
         }
@@ -111,16 +135,20 @@ async fn serve_connection(mut stream: TcpStream, sink: &mpsc::Sender<Delivery>) 
     }
 }
 
-async fn read_more(stream: &mut TcpStream, buf: &mut Vec<u8>) -> std::io::Result<usize> {
+/// Reads what the peer sent next; a silence longer than [`IDLE_TIMEOUT`] is a timeout error.
+async fn read_more(stream: &mut BoxedIo, buf: &mut Vec<u8>, peer: &SocketAddr) -> std::io::Result<usize> {
     let mut chunk = [0u8; 8192];
-    let n = stream.read(&mut chunk).await?;
+    let n = tokio::time::timeout(IDLE_TIMEOUT, stream.read(&mut chunk))
+        .await
+        .map_err(|_| std::io::Error::new(std::io::ErrorKind::TimedOut, format!("{peer} silent for {} s", IDLE_TIMEOUT.as_secs())))??;
     buf.extend_from_slice(&chunk[..n]);
     Ok(n)
 }
 
 /// Answers 400, closes, and returns the reason so the caller logs it.
-async fn reject(stream: &mut TcpStream, error: Error) -> Result<(), Error> {
+async fn reject(stream: &mut BoxedIo, error: Error) -> Result<(), Error> {
     let _ = stream.write_all(&wire::encode_response(400, "Bad Request", true)).await;
+    let _ = stream.flush().await;
     Err(error)
 }
 

@@ -178,55 +178,96 @@ pub fn encode_response(status: u16, reason: &str, close: bool) -> Vec<u8> {
     format!("HTTP/1.1 {status} {reason}\r\nContent-Length: 0\r\nConnection: {connection}\r\n\r\n").into_bytes()
 }
 
-/// Parses the status code of a response head.
-pub fn parse_status(head: &[u8]) -> Result<u16, Error> {
+/// A parsed response head.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ResponseHead {
+    /// Status code.
+    pub status: u16,
+    /// `Content-Length`, if given.
+    pub content_length: Option<usize>,
+    /// Whether the connection cannot carry another request: `Connection: close`, HTTP/1.0, or a
+    /// body without a length.
+    pub close: bool,
+}
+
+/// Parses a response head (status line and headers, up to the blank line).
+pub fn parse_response_head(head: &[u8]) -> Result<ResponseHead, Error> {
     let text = String::from_utf8_lossy(head);
-    let line = text.lines().next().unwrap_or("");
+    let mut lines = text.split("\r\n");
+    let line = lines.next().unwrap_or("");
     let mut parts = line.split(' ');
-    match (parts.next(), parts.next().map(str::parse::<u16>)) {
-        (Some(v), Some(Ok(code))) if v.starts_with("HTTP/1.") => Ok(code),
-        _ => Err(http_error(format!("malformed status line {line:?}"))),
+    let (version, status) = match (parts.next(), parts.next().map(str::parse::<u16>)) {
+        (Some(v), Some(Ok(code))) if v.starts_with("HTTP/1.") => (v, code),
+        _ => return Err(http_error(format!("malformed status line {line:?}"))),
+    };
+    let mut response = ResponseHead { status, content_length: None, close: version == "HTTP/1.0" };
+    for (name, value) in lines.filter_map(|l| l.split_once(':')) {
+        let value = value.trim();
+        match name.trim().to_ascii_lowercase().as_str() {
+            "content-length" => {
+                let len = value.parse().map_err(|_| http_error(format!("Content-Length {value:?} is not a number")))?;
+                response.content_length = Some(len);
+            }
+            "connection" => response.close = value.eq_ignore_ascii_case("close"),
+            _ => {}
+        }
     }
+    if response.content_length.is_none() {
+        response.close = true;
+    }
+    Ok(response)
 }
 
 fn http_error(reason: String) -> Error {
     Error::Http { reason }
 }
 
-/// An `http://host:port/path` address of a FIPA platform.
+/// An `http://` or `https://` `host:port/path` address of a FIPA platform.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Url {
+    /// Whether the address is `https://` (TLS).
+    pub secure: bool,
     /// Host name or IP literal.
     pub host: String,
-    /// TCP port (80 when the URL has none).
+    /// TCP port (80, or 443 for https, when the URL has none).
     pub port: u16,
     /// Path, starting with `/`.
     pub path: String,
 }
 
 impl Url {
-    /// Parses an `http://` URL.
+    /// Parses an `http://` or `https://` URL.
     pub fn parse(text: &str) -> Result<Self, Error> {
         let bad = |why: &str| Error::Address { address: text.to_owned(), reason: why.to_owned() };
-        let rest = text.strip_prefix("http://").ok_or_else(|| bad("only http:// addresses are supported"))?;
+        let (secure, rest) = match (text.strip_prefix("http://"), text.strip_prefix("https://")) {
+            (Some(rest), _) => (false, rest),
+            (_, Some(rest)) => (true, rest),
+            _ => return Err(bad("only http:// and https:// addresses are supported")),
+        };
         let (authority, path) = match rest.find('/') {
             Some(i) => (&rest[..i], &rest[i..]),
             None => (rest, "/"),
         };
         let (host, port) = match authority.rsplit_once(':') {
             Some((h, p)) => (h, p.parse().map_err(|_| bad("port is not a number"))?),
-            None => (authority, 80),
+            None => (authority, if secure { 443 } else { 80 }),
         };
         if host.is_empty() {
             return Err(bad("no host"));
         }
-        Ok(Self { host: host.to_owned(), port, path: path.to_owned() })
+        Ok(Self { secure, host: host.to_owned(), port, path: path.to_owned() })
+    }
+
+    /// `host:port`, the key of a connection.
+    pub fn authority(&self) -> String {
+        format!("{}:{}", self.host, self.port)
     }
 }
 
 impl std::fmt::Display for Url {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "http://{}:{}{}", self.host, self.port, self.path)
+        let scheme = if self.secure { "https" } else { "http" };
+        write!(f, "{scheme}://{}:{}{}", self.host, self.port, self.path)
     }
 }
 
@@ -252,7 +293,12 @@ mod tests {
     fn rejects_unquoted_boundary_and_lf_only() {
         assert!(boundary_of("multipart/mixed ; boundary=abc").is_err());
         assert!(find_head_end(b"POST /acc HTTP/1.1\nHost: x\n\nbody").is_err());
-        assert!(Url::parse("https://x/acc").is_err());
+        assert!(Url::parse("ftp://x/acc").is_err());
+        assert_eq!(Url::parse("https://x/acc").unwrap().port, 443);
+        let jade = b"HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nConnection: close\r\n\r\n";
+        assert!(parse_response_head(jade).unwrap().close);
+        let ours = encode_response(200, "OK", false);
+        assert_eq!(parse_response_head(&ours).unwrap(), ResponseHead { status: 200, content_length: Some(0), close: false });
     }
 
     proptest! {
@@ -261,7 +307,7 @@ mod tests {
             let _ = split_multipart(&body, &b);
             let _ = parse_request_head(&body);
             let _ = find_head_end(&body);
-            let _ = parse_status(&body);
+            let _ = parse_response_head(&body);
         }
 
         #[test]

@@ -3,14 +3,16 @@
 
 use std::time::Duration;
 
+use iw_acl::codec::{ParseOptions, parse_with, print};
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_mtp_http::server::LOOPBACK;
-use iw_mtp_http::{Envelope, Gateway, MtpClient, wire};
+use iw_mtp_http::platform::Echo;
+use iw_mtp_http::{Envelope, GatewayConfig, HttpPlatform, MtpClient, wire};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::time::timeout;
 
 const WAIT: Duration = Duration::from_secs(10);
+const STEP: Duration = Duration::from_micros(200);
 
 async fn post_raw(url: &str, bytes: &[u8]) -> Vec<u8> {
     let target = wire::Url::parse(url).unwrap();
@@ -21,36 +23,17 @@ async fn post_raw(url: &str, bytes: &[u8]) -> Vec<u8> {
     answer
 }
 
-/// Echo agent as JADE's in the captures: REQUEST -> AGREE + INFORM done, QUERY-REF -> INFORM.
-fn spawn_echo(gateway: std::sync::Arc<Gateway>) {
-    let mut inbox = gateway.register("echo");
-    tokio::spawn(async move {
-        while let Some(msg) = inbox.recv().await {
-            let me = gateway.aid("echo");
-            let reply = msg.create_reply().with_sender(me);
-            let replies = match msg.performative {
-                Performative::Request => vec![
-                    reply.clone().with_performative(Performative::Agree),
-                    reply.with_performative(Performative::Inform).with_content(format!(
-                        "((done {}))",
-                        msg.content_text().unwrap_or("").trim().strip_prefix('(').and_then(|c| c.strip_suffix(')')).unwrap_or("")
-                    )),
-                ],
-                Performative::QueryRef => vec![reply.with_performative(Performative::Inform).with_content("echo")],
-                _ => vec![],
-            };
-            for r in replies {
-                gateway.send(r).await.unwrap();
-            }
-        }
-    });
+/// JADE's platform of the captures, as ours: AMS, DF and the echo agent.
+async fn wheelchair_test() -> HttpPlatform {
+    let echo: Box<dyn iw_agent::Agent> = Box::new(Echo);
+    HttpPlatform::start(GatewayConfig::new("WheelchairTest"), vec![("echo".into(), echo)], STEP).await.unwrap()
 }
 
 #[tokio::test]
 async fn replays_every_captured_request() {
     let Some(dir) = iw_testdata::require("replays_every_captured_request", "fipa/wire/to-jade") else { return };
-    let gateway = Gateway::start("WheelchairTest", LOOPBACK).await.unwrap();
-    spawn_echo(gateway.clone());
+    let platform = wheelchair_test().await;
+    let gateway = platform.gateway();
     let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
     files.sort();
     let mut replayed = 0;
@@ -118,37 +101,97 @@ fn client_writes_what_jade_accepts() {
     assert!(text.ends_with(&format!("\r\n--{boundary}--\r\n")));
 }
 
-#[tokio::test]
-async fn two_platforms_request_and_unknown_receiver() {
-    let jade_like = Gateway::start("WheelchairTest", LOOPBACK).await.unwrap();
-    spawn_echo(jade_like.clone());
-    let ours = Gateway::start("RustPlatform", LOOPBACK).await.unwrap();
-    let mut inbox = ours.register("wheelchair1");
-    let echo = AgentId::new("echo@WheelchairTest").with_address(jade_like.url());
-    let request = AclMessage::new(Performative::Request)
-        .with_sender(ours.aid("wheelchair1"))
-        .with_receiver(echo)
-        .with_content("((action (agent-identifier :name echo@WheelchairTest) (move-to :room kitchen)))")
-        .with_protocol("fipa-request")
-        .with_conversation_id("conv-0001")
-        .with_reply_with("req-0001");
-    ours.send(request).await.unwrap();
-    let agree = timeout(WAIT, inbox.recv()).await.unwrap().unwrap();
-    let inform = timeout(WAIT, inbox.recv()).await.unwrap().unwrap();
-    assert_eq!((agree.performative, inform.performative), (Performative::Agree, Performative::Inform));
-    assert_eq!(inform.conversation_id.as_deref(), Some("conv-0001"));
-    assert!(inform.content_text().unwrap().starts_with("((done (action"));
+/// The next message in `inbox`, within [`WAIT`].
+async fn recv(inbox: &mut iw_bus::Mailbox) -> AclMessage {
+    let envelope = timeout(WAIT, inbox.recv()).await.expect("an answer within the wait").unwrap();
+    iw_acl::codec::parse(envelope.payload_str().unwrap()).unwrap()
+}
 
-    let nobody = AgentId::new("nobody@WheelchairTest").with_address(jade_like.url());
-    let hello = AclMessage::new(Performative::Inform).with_sender(ours.aid("wheelchair1")).with_receiver(nobody).with_content("hello");
-    ours.send(hello).await.unwrap();
-    let failure = timeout(WAIT, inbox.recv()).await.unwrap().unwrap();
-    assert_eq!(failure.performative, Performative::Failure);
-    assert_eq!(failure.sender.as_ref().unwrap().name, "ams@WheelchairTest");
-    assert!(failure.content_text().unwrap().contains("MTS-error"));
-    assert!(failure.content_text().unwrap().contains("Agent not found: nobody@WheelchairTest"));
+/// The ACL payload of a capture from JADE.
+fn jade_says(relative: &str) -> AclMessage {
+    let path = iw_testdata::require("jade_says", relative).unwrap();
+    let bytes = std::fs::read(path).unwrap();
+    let end = wire::find_head_end(&bytes).unwrap().unwrap();
+    let head = wire::parse_request_head(&bytes[..end]).unwrap();
+    iw_mtp_http::server::decode(&head, &bytes[end..]).unwrap().message
+}
 
-    // A foreign receiver without an address cannot be reached.
-    let lost = AclMessage::new(Performative::Inform).with_sender(ours.aid("wheelchair1")).with_receiver(AgentId::new("x@Elsewhere"));
-    assert!(ours.send(lost).await.unwrap_err().to_string().contains("Foreign agent unreachable"));
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_captured_conversation_answers_like_jade() {
+    if iw_testdata::require("every_captured_conversation_answers_like_jade", "fipa/wire/acl").is_none() {
+        return;
+    }
+    let jade_like = wheelchair_test().await;
+    let rust = HttpPlatform::start(GatewayConfig::new("RustPlatform"), Vec::new(), STEP).await.unwrap();
+    let ours = rust.gateway().clone();
+    // wheelchair1 is a bare mailbox on RustPlatform's bus, so the test reads what it receives.
+    let me = ours.aid("wheelchair1");
+    let mut inbox = rust.bus().register(&me.name).unwrap();
+    let (jade_url, our_url) = (jade_like.gateway().url(), ours.url());
+    let localise = |text: &str| text.replace("http://127.0.0.1:7778/acc", &jade_url).replace("http://127.0.0.1:9000/acc", &our_url);
+    let send = |case: &str| {
+        let path = iw_testdata::require("captured", &format!("fipa/wire/acl/{case}.acl")).unwrap();
+        let text = localise(&std::fs::read_to_string(path).unwrap());
+        let mut message = parse_with(&text, &ParseOptions::jade()).unwrap();
+        for receiver in &mut message.receivers {
+            receiver.addresses = vec![jade_url.clone()];
+            ours.add_foreign(receiver).unwrap();
+        }
+        rust.bus().send(&me.name, &message.receivers[0].name, print(&message).into_bytes()).unwrap();
+    };
+    let same_as_jade = |ours: &AclMessage, capture: &str| {
+        let jade = jade_says(&format!("fipa/wire/from-jade/{capture}.raw"));
+        assert_eq!(ours.performative, jade.performative, "{capture}");
+        assert_eq!(ours.content_text().map(|c| c.to_owned()), jade.content_text().map(localise), "{capture}");
+        assert_eq!(
+            (&ours.language, &ours.ontology, &ours.protocol, &ours.in_reply_to, &ours.conversation_id),
+            (&jade.language, &jade.ontology, &jade.protocol, &jade.in_reply_to, &jade.conversation_id),
+            "{capture}"
+        );
+        assert_eq!(ours.sender.as_ref().unwrap().name, jade.sender.as_ref().unwrap().name);
+        assert_eq!(ours.sender.as_ref().unwrap().addresses, std::slice::from_ref(&jade_url), "replies carry the sender's address");
+    };
+
+    send("01-request");
+    same_as_jade(&recv(&mut inbox).await, "01a-agree-to-request");
+    same_as_jade(&recv(&mut inbox).await, "01b-inform-done-to-request");
+    send("02-query-ref");
+    same_as_jade(&recv(&mut inbox).await, "02-inform-to-query-ref");
+    send("07-df-subscribe"); // Nothing matches yet: the DF says nothing until 06.
+    send("03-df-search");
+    same_as_jade(&recv(&mut inbox).await, "03-df-search-result-inform");
+    send("04-ams-search");
+    let ams = recv(&mut inbox).await;
+    assert_eq!((ams.performative, ams.sender.as_ref().unwrap().name.as_str()), (Performative::Inform, "ams@WheelchairTest"));
+    for agent in ["ams@WheelchairTest", "df@WheelchairTest", "echo@WheelchairTest"] {
+        assert!(ams.content_text().unwrap().contains(&format!(":name {agent} ")), "{agent} listed: {ams:?}");
+    }
+    send("05-unknown-receiver");
+    let failure = recv(&mut inbox).await;
+    let jade_failure = jade_says("fipa/wire/from-jade/05-ams-failure-unknown-receiver.raw");
+    assert_eq!((failure.performative, &failure.sender.as_ref().unwrap().name), (jade_failure.performative, &jade_failure.sender.as_ref().unwrap().name));
+    assert_eq!((&failure.language, &failure.conversation_id), (&jade_failure.language, &jade_failure.conversation_id));
+    assert!(failure.content_text().unwrap().contains("(MTS-error (agent-identifier :name nobody@WheelchairTest"), "{failure:?}");
+    assert!(failure.content_text().unwrap().contains("(internal-error \"Agent not found: nobody@WheelchairTest\")"), "{failure:?}");
+    send("06-df-register");
+    same_as_jade(&recv(&mut inbox).await, "06-df-register-inform-done");
+    same_as_jade(&recv(&mut inbox).await, "07-df-subscribe-notification-inform");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn foreign_names_and_addresses_are_checked() {
+    let platform = wheelchair_test().await;
+    let gateway = platform.gateway();
+    let err = gateway.add_foreign(&AgentId::new("echo@WheelchairTest").with_address("http://127.0.0.1:1/acc")).unwrap_err();
+    assert!(err.to_string().contains("local agent"), "{err}");
+    // A local agent writing to a foreign agent without an address hears from its own AMS.
+    let mut inbox = platform.bus().register("tester@WheelchairTest").unwrap();
+    let lost = AgentId::new("x@Elsewhere");
+    gateway.add_foreign(&lost).unwrap();
+    let hello = AclMessage::new(Performative::Inform).with_sender(AgentId::new("tester@WheelchairTest")).with_receiver(lost).with_content("hello");
+    platform.bus().send("tester@WheelchairTest", "x@Elsewhere", print(&hello).into_bytes()).unwrap();
+    let envelope = timeout(WAIT, inbox.recv()).await.unwrap().unwrap();
+    let failure = iw_acl::codec::parse(envelope.payload_str().unwrap()).unwrap();
+    assert_eq!((failure.performative, failure.sender.as_ref().unwrap().name.as_str()), (Performative::Failure, "ams@WheelchairTest"));
+    assert!(failure.content_text().unwrap().contains("Foreign agent unreachable"), "{:?}", failure.content_text());
 }

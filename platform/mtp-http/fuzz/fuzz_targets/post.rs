@@ -1,4 +1,4 @@
-//! Any bytes as an HTTP MTP post: head, multipart body, envelope and ACL must never panic, and
+//! Any bytes as an HTTP MTP post or answer: head, multipart body, envelope and ACL must never panic, and
 //! an envelope that parses must re-parse to itself after printing.
 #![no_main]
 
@@ -16,4 +16,5 @@ fuzz_target!(|data: &[u8]| {
     {
         let _ = server::decode(&head, &data[end..]);
     }
+    let _ = wire::parse_response_head(data);
 });

@@ -1,0 +1,141 @@
+//! A whole FIPA platform reachable over HTTP in one call: the AMS, the DF and the caller's
+//! agents on an in-process bus, stepped on their own thread, behind a [`Gateway`]. What the
+//! `acl send` tests and the round-trip bench talk to, and what a foreign platform such as JADE
+//! can use.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, AgentHost, Context};
+use iw_ams_df::{Ams, Df, WhitePages};
+use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
+use iw_ontology::OntologyContent;
+use iw_ontology::fipa::{AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest, ServiceDescription};
+
+use crate::{Error, Gateway, GatewayConfig};
+
+/// A running platform; dropping it stops its agents and its server.
+pub struct HttpPlatform {
+    bus: Arc<Bus>,
+    gateway: Arc<Gateway>,
+    pages: WhitePages,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for HttpPlatform {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HttpPlatform").field("gateway", &self.gateway).finish_non_exhaustive()
+    }
+}
+
+impl HttpPlatform {
+    /// Starts platform `config.platform` hosting `ams`, `df` and `agents` (local name, agent),
+    /// each named `local@platform` with the gateway's address, stepped every `period`. The bus
+    /// runs no EN 50159 layers: the HTTP side is for interoperability (use TLS for secrecy).
+    pub async fn start(config: GatewayConfig, agents: Vec<(String, Box<dyn Agent>)>, period: Duration) -> Result<Self, Error> {
+        let network = InProcNetwork::new();
+        let transport = network.endpoint(&config.platform).map_err(|e| Error::Unreachable {
+            agent: config.platform.clone(),
+            reason: format!("in-process transport: {e}"),
+        })?;
+        let bus = Bus::start(Stack::new(), Arc::new(transport), Clock::system(), BusConfig::default())
+            .map_err(|e| Error::Unreachable { agent: config.platform.clone(), reason: e.to_string() })?;
+        let bus = Arc::new(bus);
+        let gateway = Gateway::start(config, bus.clone()).await?;
+        let mut host = AgentHost::new(bus.clone());
+        let pages = WhitePages::new();
+        let services: Vec<(String, Box<dyn Agent>)> =
+            vec![("ams".into(), Box::new(Ams::new(pages.clone()))), ("df".into(), Box::new(Df::new()))];
+        for (local, agent) in services.into_iter().chain(agents) {
+            let aid = gateway.aid(&local);
+            pages.host(&mut host, aid, agent).map_err(|e| Error::Unreachable { agent: local, reason: e.to_string() })?;
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let stop = stop.clone();
+            std::thread::Builder::new()
+                .name(format!("platform-{}", gateway.platform()))
+                .spawn(move || host.run_until(period, &stop))
+                .map_err(|source| Error::Io { peer: "agent host thread".into(), source })?
+        };
+        Ok(Self { bus, gateway, pages, stop, thread: Some(thread) })
+    }
+
+    /// The gateway (address, foreign agents).
+    pub fn gateway(&self) -> &Arc<Gateway> {
+        &self.gateway
+    }
+
+    /// The platform's bus (to register mailboxes beside the hosted agents).
+    pub fn bus(&self) -> &Arc<Bus> {
+        &self.bus
+    }
+
+    /// The AMS's agent list.
+    pub fn pages(&self) -> &WhitePages {
+        &self.pages
+    }
+}
+
+impl Drop for HttpPlatform {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Release);
+        if let Some(thread) = self.thread.take()
+            && thread.join().is_err()
+        {
+            tracing::error!("agent host thread panicked");
+        }
+    }
+}
+
+/// The echo agent of the JADE captures, for interoperability tests: REQUEST gets AGREE then
+/// INFORM `((done <content>))`, QUERY-REF gets INFORM `(echo "<content>")`. At setup it
+/// registers service `echo-service` of type `wheelchair-echo` with the platform's DF.
+#[derive(Debug, Default)]
+pub struct Echo;
+
+impl Agent for Echo {
+    fn setup(&mut self, ctx: &mut Context<'_>) {
+        let platform = ctx.aid().platform().unwrap_or_default().to_owned();
+        let df = AgentId::new(format!("df@{platform}"));
+        let description = DfAgentDescription {
+            name: Some(ctx.aid().clone()),
+            services: vec![ServiceDescription {
+                name: Some("echo-service".into()),
+                service_type: Some("wheelchair-echo".into()),
+                ..ServiceDescription::default()
+            }],
+            ..DfAgentDescription::default()
+        };
+        let register = ManagementContent::Request(ManagementRequest {
+            actor: df.clone(),
+            action: ManagementAction::Register { description: AgentDescription::Df(description) },
+        });
+        let request = AclMessage::new(Performative::Request).with_receiver(df).with_protocol("fipa-request");
+        // A failure is logged and counted by the host; the echo works without the DF.
+        let _ = ctx.send(register.fill(request));
+    }
+
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        let content = message.content_text().unwrap_or_default().to_owned();
+        let reply = message.create_reply();
+        let replies = match message.performative {
+            Performative::Request => vec![
+                reply.clone().with_performative(Performative::Agree),
+                reply.with_performative(Performative::Inform).with_content(format!("((done {content}))")),
+            ],
+            Performative::QueryRef => {
+                let quoted = content.replace('\\', "\\\\").replace('"', "\\\"");
+                vec![reply.with_performative(Performative::Inform).with_content(format!("(echo \"{quoted}\")"))]
+            }
+            _ => Vec::new(),
+        };
+        for reply in replies {
+            let _ = ctx.send(reply);
+        }
+    }
+}
