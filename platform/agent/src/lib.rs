@@ -10,6 +10,8 @@
 //!   [`AgentHost::run_until`] paces steps with the bus clock (real time).
 //! - [`gateway`]: a [`GatewayAgent`] that lets code outside the agent world (tests, the CLI, the
 //!   dashboard) speak as an agent through a [`GatewayHandle`].
+//! - [`Tap`]: sees every message the host's agents send (the logger agent's copies are made
+//!   from it), installed with [`AgentHost::set_tap`].
 //!
 //! Guarantees: agents only meet through ACL messages on the bus (an agent never holds another);
 //! a message that is not well-formed ACL is counted and answered with nothing (its sender cannot
@@ -69,6 +71,10 @@ pub trait Agent: Send {
     fn take_down(&mut self, _ctx: &mut Context<'_>) {}
 }
 
+/// Called with every message an agent of the host sent (after the bus accepted it for at
+/// least one receiver) and the time of the step; it must not block.
+pub type Tap = Box<dyn FnMut(&AclMessage, Time) + Send>;
+
 /// An agent's view of the platform during one call.
 pub struct Context<'a> {
     aid: &'a AgentId,
@@ -76,6 +82,7 @@ pub struct Context<'a> {
     now: Time,
     sent: &'a mut u64,
     failed: &'a mut u64,
+    tap: &'a mut Option<Tap>,
 }
 
 impl Context<'_> {
@@ -103,13 +110,17 @@ impl Context<'_> {
             return Err(self.keep(err));
         }
         let text = iw_acl::codec::print(&message);
-        for receiver in &message.receivers {
+        for (i, receiver) in message.receivers.iter().enumerate() {
             if let Err(source) = self.bus.send(&self.aid.name, &receiver.name, text.clone().into_bytes()) {
+                if i > 0 {
+                    self.tapped(&message);
+                }
                 let err = AgentError::Bus { agent: self.aid.name.clone(), source };
                 return Err(self.keep(err));
             }
             *self.sent += 1;
         }
+        self.tapped(&message);
         Ok(())
     }
 
@@ -120,6 +131,12 @@ impl Context<'_> {
         reply.content = None;
         let reply = reply.with_content(format!("((error-message \"{}\"))", reason.replace('"', "'")));
         self.send(reply)
+    }
+
+    fn tapped(&mut self, message: &AclMessage) {
+        if let Some(tap) = self.tap.as_mut() {
+            tap(message, self.now);
+        }
     }
 
     fn keep(&mut self, err: AgentError) -> AgentError {
@@ -155,12 +172,18 @@ pub struct AgentHost {
     bus: Arc<Bus>,
     slots: Vec<Slot>,
     stats: HostStats,
+    tap: Option<Tap>,
 }
 
 impl AgentHost {
     /// A host with no agents on `bus`.
     pub fn new(bus: Arc<Bus>) -> AgentHost {
-        AgentHost { bus, slots: Vec::new(), stats: HostStats::default() }
+        AgentHost { bus, slots: Vec::new(), stats: HostStats::default(), tap: None }
+    }
+
+    /// Shows every message the agents send from now on to `tap` (replacing any earlier one).
+    pub fn set_tap(&mut self, tap: Tap) {
+        self.tap = Some(tap);
     }
 
     /// The bus the agents talk on.
@@ -183,7 +206,7 @@ impl AgentHost {
         let Some(index) = self.slots.iter().position(|s| s.aid.name == name) else { return false };
         let mut slot = self.slots.remove(index);
         let mut sent = 0;
-        let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures };
+        let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures, tap: &mut self.tap };
         slot.agent.take_down(&mut ctx);
         self.stats.sent += sent;
         self.bus.deregister(name);
@@ -209,7 +232,7 @@ impl AgentHost {
             let mut activity = false;
             for slot in &mut self.slots {
                 let mut sent = 0;
-                let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures };
+                let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures, tap: &mut self.tap };
                 if !slot.started {
                     slot.started = true;
                     slot.agent.setup(&mut ctx);
@@ -380,5 +403,27 @@ mod tests {
         assert!(host.remove("echo@c1", clock.now()));
         host.step(clock.now().plus(Duration::from_millis(100)));
         assert_eq!(host.stats().send_failures, 1, "sending to a removed agent is reported");
+    }
+
+    #[test]
+    fn the_tap_sees_every_message_sent_once_with_its_step_time() {
+        let (mut host, clock) = host();
+        let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let record = seen.clone();
+        host.set_tap(Box::new(move |m: &AclMessage, t: Time| {
+            record.lock().unwrap().push((m.performative, m.sender.clone().map(|s| s.name), t));
+        }));
+        let answers = Arc::new(std::sync::Mutex::new(Vec::new()));
+        host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
+        host.add(AgentId::new("pinger@c1"), Box::new(Pinger { asked: 0, answers })).unwrap();
+        host.step(clock.now());
+        clock.advance(Duration::from_millis(100));
+        host.step(clock.now());
+        let seen = seen.lock().unwrap();
+        assert_eq!(seen.len() as u64, host.stats().sent, "{seen:?}");
+        let t0 = Time::from_ns(1_000_000_000);
+        assert_eq!(seen[0], (Performative::Request, Some("pinger@c1".to_string()), t0));
+        assert_eq!(seen[1], (Performative::Inform, Some("echo@c1".to_string()), t0));
+        assert_eq!(seen[3].2, t0.plus(Duration::from_millis(100)));
     }
 }

@@ -1,51 +1,63 @@
 //! Containers per wheelchair and the fleet that composes them (thesis 3.3.3): each chair's
 //! micro agents in their own container, the service agents in another, all talking FIPA-ACL
-//! over real bus frames.
+//! over real bus frames, stepped in simulated time over the simulator's world.
 //!
 //! # Organization
-//! - [`ChairContainer`]: one [`AgentHost`] on its own [`Bus`] with a chair's perception and
-//!   control agents over one [`iw_body::Body`] (here the simulator's [`VirtualBody`], wrapped by
-//!   [`FaultyBody`] so a sensor failure can be injected).
-//! - [`ServiceContainer`]: the service agents; today the [`Operator`] (staff giving goals).
+//! - [`compose`]: the agents of a chair ([`compose::chair_agents`]: perception, control,
+//!   cognitive, interface) and of the services ([`compose::service_agents`]: door, logger,
+//!   watcher, assistant) from a configuration, independent of the network, plus the
+//!   [`compose::Building`] the cognitive agents plan on and the logger tap
+//!   ([`compose::log_tap`]). `intellwheels spawn` hosts the same agents in processes.
+//! - [`ChairContainer`]: one [`AgentHost`] on its own [`Bus`] with a chair's agents over one
+//!   [`iw_body::Body`]: virtual (the simulator's [`VirtualBody`]), real (the [`SerialBody`]
+//!   driver talking to a [`BoardEmulator`] on a pty, its dead-reckoned pose fed into the world)
+//!   or mixed (the same, with the virtual sonars merged in), wrapped by [`FaultyBody`] so a
+//!   sensor failure can be injected.
+//! - [`ServiceContainer`]: the service agents and the staff [`Console`] that hands staff goals
+//!   to the assistant.
 //! - [`Fleet`]: the world, the containers and the [`LockstepNetwork`] between their buses, on
-//!   one mock clock. [`Fleet::new`], [`Fleet::goal`], [`Fleet::step`], [`Fleet::snapshot`];
-//!   faults: [`Fleet::set_link`], [`Fleet::kill_agent`], [`Fleet::set_sensor_failure`],
-//!   [`Fleet::jam_door`].
-//! - [`plan`]: the map as an occupancy grid, A* paths as action sequences.
+//!   one mock clock. [`Fleet::new`] / [`Fleet::with_options`], [`Fleet::goal`] /
+//!   [`Fleet::goal_place`], [`Fleet::step`], [`Fleet::snapshot`]; faults: [`Fleet::set_link`],
+//!   [`Fleet::kill_agent`], [`Fleet::set_sensor_failure`], [`Fleet::jam_door`]; the log:
+//!   [`Fleet::messages_sent`] against [`Fleet::messages_logged`].
+//! - [`plan`]: the map as an occupancy grid.
 //!
 //! # Guarantees
 //! - Deterministic: each step runs the containers in a fixed order at one simulated instant, then
 //!   releases the frames between containers and waits until every one is in its mailbox, then
-//!   steps the world; the same map, seed and calls give the same run.
+//!   steps the world; the same map, seed and calls give the same run (a real body's board
+//!   emulator advances one control period per read, whatever the wall clock).
 //! - Containers share nothing but frames: a chair's agents and a service agent never hold each
 //!   other; a killed agent or a downed link affects only what it carries.
-//!
-//! Agent names are `control@CHAIR`, `perception@CHAIR` and `operator@services`; a container's
-//! endpoint is named after the chair (or `services`).
+//! - Every message an agent sends is copied to the logger agent (a host tap), so the log can be
+//!   counted against the traffic.
 #![warn(missing_docs)]
 
+pub mod compose;
+mod console;
 mod network;
-mod operator;
 pub mod plan;
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use iw_acl::{AclMessage, AgentId, Performative};
+use iw_acl::AclMessage;
 use iw_agent::{AgentHost, HostStats};
-use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
+use iw_body::{BoardEmulator, Body, BodyError, MixedBody, Odometry, SensorFrame, SerialBody, VirtualSensors, WheelGeometry, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, MockController, Stack, Time};
-use iw_control_agent::{ControlAgent, ControlConfig};
+use iw_door::{ActuatorFault, DoorActuator, Refusal, RefusalLog};
+use iw_interface::{Display, InputQueue, Recognizer};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::WheelchairContent;
-use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
-use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SharedWorld, VirtualBody, World};
-use iw_vo::Pose2;
+use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+use iw_sim::{ChairId, ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
 use nalgebra::{Isometry2, Point2};
 
+use compose::{Building, ServiceConfig, SharedBody, agent_id};
+pub use console::{Console, Desk, GoalEvent, SharedDesk};
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
-pub use operator::{Desk, GoalEvent, Operator, SharedDesk};
 
 /// The service container's endpoint name.
 pub const SERVICES: &str = "services";
@@ -133,6 +145,32 @@ pub struct ChairConfig {
     pub t_world_body: Isometry2<f64>,
 }
 
+/// What a chair's body is (thesis 3.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BodyKind {
+    /// The simulator drives it.
+    #[default]
+    Virtual,
+    /// The serial driver and the interface board (emulated on a pty); its dead-reckoned pose is
+    /// fed into the world, which it does not sense.
+    Real,
+    /// Real, with the virtual sonars of its ghost in the world merged in (nearest wins).
+    Mixed,
+}
+
+/// What a fleet is built with besides its map and chairs.
+#[derive(Debug, Clone, Default)]
+pub struct FleetOptions {
+    /// Chairs whose body is not virtual.
+    pub bodies: BTreeMap<String, BodyKind>,
+    /// Restricted doors (map door id) and the chairs allowed through each.
+    pub restricted: BTreeMap<String, BTreeSet<String>>,
+    /// The logger agent's log file; a fresh file in the temporary directory (removed with the
+    /// fleet) when absent.
+    pub log_path: Option<PathBuf>,
+}
+
 fn bus_for(network: &LockstepNetwork, clock: &Clock, container: &str) -> Result<Arc<Bus>, FleetError> {
     let setup = |reason: String| FleetError::Setup { container: container.to_string(), reason };
     let transport = network.endpoint(container).map_err(|e| setup(e.to_string()))?;
@@ -141,44 +179,97 @@ fn bus_for(network: &LockstepNetwork, clock: &Clock, container: &str) -> Result<
     Ok(Arc::new(bus))
 }
 
+/// Routes `host`'s bus to the agents of the other containers.
+fn route(host: &AgentHost, container: &str, chairs: &[String]) {
+    for (agent, peer) in compose::remote_agents(container, chairs) {
+        host.bus().add_route(&agent, iw_bus::transport::PeerAddr(peer));
+    }
+}
+
+/// What the taps of all containers see: the traffic count and each chair's last route.
+#[derive(Default)]
+struct Traffic {
+    sent: AtomicU64,
+    paths: Mutex<BTreeMap<String, Vec<[f64; 2]>>>,
+}
+
+impl Traffic {
+    fn saw(&self, message: &AclMessage) {
+        self.sent.fetch_add(1, Ordering::AcqRel);
+        let from_cognitive = message.sender.as_ref().and_then(|s| s.name.strip_prefix("cognitive@"));
+        let (Some(chair), Ok(WheelchairContent::Request { action: WheelchairAction::Sequence { steps }, .. })) =
+            (from_cognitive, WheelchairContent::from_message(message))
+        else {
+            return;
+        };
+        let points = steps
+            .iter()
+            .filter_map(|s| match s {
+                WheelchairAction::GotoXy { x_m, y_m } => Some([*x_m, *y_m]),
+                _ => None,
+            })
+            .collect();
+        self.paths.lock().unwrap_or_else(PoisonError::into_inner).insert(chair.to_string(), points);
+    }
+}
+
+fn tap_into(host: &mut AgentHost, traffic: &Arc<Traffic>) {
+    let traffic = traffic.clone();
+    let tap = compose::log_tap(host.bus().clone(), agent_id("logger", SERVICES), move |m| traffic.saw(m));
+    host.set_tap(tap);
+}
+
+/// The real chair's virtual side when it senses nothing virtual: its ghost is placed at the
+/// pose the real chair reports (virtual chairs see it, collisions are counted), no readings.
+struct PoseFeed(GhostSensors);
+
+impl VirtualSensors for PoseFeed {
+    fn sense_at(&mut self, t_world_body: Isometry2<f64>, time_ns: u64) -> Result<SensorFrame, BodyError> {
+        self.0.sense_at(t_world_body, time_ns)?;
+        Ok(SensorFrame::empty(time_ns))
+    }
+}
+
+/// The body of a chair and, for a real or mixed one, the board emulator it talks to.
+fn body_for(
+    kind: BodyKind,
+    name: &str,
+    world: &SharedWorld,
+    id: ChairId,
+    t_world_body: Isometry2<f64>,
+    failed: Arc<AtomicBool>,
+) -> Result<(SharedBody, Option<BoardEmulator>), FleetError> {
+    let setup = |reason: String| FleetError::Setup { container: name.to_string(), reason };
+    if kind == BodyKind::Virtual {
+        return Ok((SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), failed)), None));
+    }
+    let geometry = WheelGeometry::default();
+    let board = BoardEmulator::spawn(geometry, compose::CONTROL_PERIOD.as_nanos() as u64).map_err(|e| setup(e.to_string()))?;
+    let serial = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2)).map_err(|e| setup(e.to_string()))?;
+    let odometry = Odometry::new(geometry, t_world_body);
+    let ghost = GhostSensors::new(world.clone(), id);
+    let body = if kind == BodyKind::Mixed {
+        SharedBody::new(FaultyBody::new(MixedBody::new(serial, ghost, odometry), failed))
+    } else {
+        SharedBody::new(FaultyBody::new(MixedBody::new(serial, PoseFeed(ghost), odometry), failed))
+    };
+    Ok((body, Some(board)))
+}
+
 /// A chair's container: its agents on its own bus.
 pub struct ChairContainer {
     name: String,
     id: ChairId,
+    kind: BodyKind,
     host: AgentHost,
     sensor_failed: Arc<AtomicBool>,
+    inputs: InputQueue,
+    display: Arc<Mutex<Display>>,
+    // dropped after the host (fields drop in order), so the driver never outlives its board
+    _board: Option<BoardEmulator>,
 }
 
 impl ChairContainer {
-    /// Composes the perception and control agents of chair `name` over `body`, on a bus of
-    /// `network`.
-    pub fn new(
-        name: &str,
-        network: &LockstepNetwork,
-        clock: &Clock,
-        body: impl Body + Clone + Send + 'static,
-        id: ChairId,
-        start: Pose2,
-    ) -> Result<Self, FleetError> {
-        let setup = |reason: String| FleetError::Setup { container: name.to_string(), reason };
-        let mut host = AgentHost::new(bus_for(network, clock, name)?);
-        let sensor_failed = Arc::new(AtomicBool::new(false));
-        let perception_id = AgentId::new(format!("perception@{name}"));
-        let perception = PerceptionAgent::new(
-            PerceptionConfig::prototype(AgentId::new(name), start),
-            Box::new(FaultyBody::new(body.clone(), sensor_failed.clone())),
-            None,
-        )
-        .map_err(|e| setup(e.to_string()))?;
-        let control_config = ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
-        let control = ControlAgent::new(control_config, Box::new(FaultyBody::new(body, sensor_failed.clone())))
-            .map_err(|e| setup(e.to_string()))?;
-        host.add(perception_id, Box::new(perception)).map_err(|e| setup(e.to_string()))?;
-        host.add(AgentId::new(format!("control@{name}")), Box::new(control)).map_err(|e| setup(e.to_string()))?;
-        host.bus().add_route(&format!("operator@{SERVICES}"), iw_bus::transport::PeerAddr(SERVICES.into()));
-        Ok(ChairContainer { name: name.to_string(), id: ChairId(id.0), host, sensor_failed })
-    }
-
     /// The chair's name.
     pub fn name(&self) -> &str {
         &self.name
@@ -194,16 +285,25 @@ impl ChairContainer {
 pub struct ServiceContainer {
     host: AgentHost,
     desk: SharedDesk,
+    refusals: RefusalLog,
 }
 
-impl ServiceContainer {
-    /// The operator agent on its own bus of `network`.
-    pub fn new(network: &LockstepNetwork, clock: &Clock) -> Result<Self, FleetError> {
-        let mut host = AgentHost::new(bus_for(network, clock, SERVICES)?);
-        let desk = SharedDesk::default();
-        host.add(AgentId::new(format!("operator@{SERVICES}")), Box::new(Operator::new(desk.clone())))
-            .map_err(|e| FleetError::Setup { container: SERVICES.into(), reason: e.to_string() })?;
-        Ok(ServiceContainer { host, desk })
+/// Moves the world's doors for the door agent; a jammed door faults.
+struct WorldDoors {
+    world: SharedWorld,
+    /// The door agent's door names to map door ids.
+    ids: BTreeMap<String, String>,
+    jammed: Arc<Mutex<BTreeSet<String>>>,
+}
+
+impl DoorActuator for WorldDoors {
+    fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
+        let fault = |reason: String| ActuatorFault { door: door.to_string(), reason };
+        let id = self.ids.get(door).ok_or_else(|| fault("not a door of the map".into()))?;
+        if self.jammed.lock().unwrap_or_else(PoisonError::into_inner).contains(id) {
+            return Err(fault("jammed".into()));
+        }
+        self.world.lock().unwrap_or_else(PoisonError::into_inner).set_door(id, open).map_err(|e| fault(e.to_string()))
     }
 }
 
@@ -247,7 +347,20 @@ pub struct Snapshot {
 
 struct Goal {
     target: Point2<f64>,
-    path: Vec<Point2<f64>>,
+}
+
+/// The log file of a fleet; a temporary one is removed with the fleet.
+struct LogFile {
+    path: PathBuf,
+    temporary: bool,
+}
+
+impl Drop for LogFile {
+    fn drop(&mut self) {
+        if self.temporary {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
 }
 
 /// The world, its chairs' containers and the service container, stepped together.
@@ -255,41 +368,106 @@ pub struct Fleet {
     world: SharedWorld,
     clock: MockController,
     network: LockstepNetwork,
+    building: Building,
     chairs: Vec<ChairContainer>,
     goals: Vec<Option<Goal>>,
     services: ServiceContainer,
-    jammed: Vec<String>,
+    jammed: Arc<Mutex<BTreeSet<String>>>,
+    traffic: Arc<Traffic>,
     conversations: u64,
+    log: LogFile,
 }
 
 impl Fleet {
-    /// A fleet of `chairs` on `map`; `seed` drives the simulator's noise.
+    /// A fleet of virtual `chairs` on `map`; `seed` drives the simulator's noise.
     pub fn new(map: Map, seed: u64, chairs: &[ChairConfig]) -> Result<Self, FleetError> {
+        Self::with_options(map, seed, chairs, FleetOptions::default())
+    }
+
+    /// A fleet of `chairs` on `map` with real or mixed bodies, restricted doors and a log path
+    /// as `options` say.
+    pub fn with_options(map: Map, seed: u64, chairs: &[ChairConfig], options: FleetOptions) -> Result<Self, FleetError> {
+        let mut names: Vec<String> = Vec::new();
+        for c in chairs {
+            if c.name == SERVICES || names.contains(&c.name) || c.name.contains('@') || c.name.is_empty() {
+                return Err(FleetError::DuplicateChair { name: c.name.clone() });
+            }
+            names.push(c.name.clone());
+        }
+        if let Some(unknown) = options.bodies.keys().find(|n| !names.contains(n)) {
+            return Err(FleetError::NoSuchChair { name: unknown.clone() });
+        }
         let (clock, controller) = Clock::mock(Time::from_ns(0));
         let network = LockstepNetwork::new();
+        let building = Building::from_map(map.clone())?;
         let mut world = World::new(map, seed);
         let ids: Vec<ChairId> = chairs
             .iter()
-            .map(|c| world.add_chair(ChairSpec::default(), c.t_world_body, ChairKind::Simulated))
+            .map(|c| {
+                let kind = options.bodies.get(&c.name).copied().unwrap_or_default();
+                let sim_kind = if kind == BodyKind::Virtual { ChairKind::Simulated } else { ChairKind::Tracked };
+                world.add_chair(ChairSpec::default(), c.t_world_body, sim_kind)
+            })
             .collect();
         let world = iw_sim::shared(world);
-        let services = ServiceContainer::new(&network, &clock)?;
-        let mut containers: Vec<ChairContainer> = Vec::new();
+        let traffic = Arc::new(Traffic::default());
+        let log = match options.log_path {
+            Some(path) => LogFile { path, temporary: false },
+            None => {
+                static FLEETS: AtomicU64 = AtomicU64::new(0);
+                let n = FLEETS.fetch_add(1, Ordering::AcqRel);
+                let path = std::env::temp_dir().join(format!("iw-fleet-{}-{n}.log", std::process::id()));
+                let _ = std::fs::remove_file(&path); // a stale file of a dead process with our pid
+                LogFile { path, temporary: true }
+            }
+        };
+        let jammed = Arc::new(Mutex::new(BTreeSet::new()));
+
+        let mut host = AgentHost::new(bus_for(&network, &clock, SERVICES)?);
+        let service_config = ServiceConfig { restricted: options.restricted, ..ServiceConfig::new(names.clone(), log.path.clone()) };
+        let ids_by_name = building.map.doors.iter().map(|d| (compose::door_name(&d.id), d.id.clone())).collect();
+        let doors = WorldDoors { world: world.clone(), ids: ids_by_name, jammed: jammed.clone() };
+        let service_agents = compose::service_agents(&service_config, &building, Box::new(doors))?;
+        let add_err = |container: &str| {
+            let container = container.to_string();
+            move |e: iw_agent::AgentError| FleetError::Setup { container: container.clone(), reason: e.to_string() }
+        };
+        for (aid, agent) in service_agents.agents {
+            host.add(aid, agent).map_err(add_err(SERVICES))?;
+        }
+        let desk = SharedDesk::default();
+        host.add(agent_id("staff", SERVICES), Box::new(Console::new(desk.clone(), agent_id("assistant", SERVICES))))
+            .map_err(add_err(SERVICES))?;
+        route(&host, SERVICES, &names);
+        tap_into(&mut host, &traffic);
+        let services = ServiceContainer { host, desk, refusals: service_agents.refusals };
+
+        let mut containers = Vec::new();
         for (config, id) in chairs.iter().zip(ids) {
-            if config.name == SERVICES || containers.iter().any(|c| c.name == config.name) {
-                return Err(FleetError::DuplicateChair { name: config.name.clone() });
+            let name = &config.name;
+            let kind = options.bodies.get(name).copied().unwrap_or_default();
+            let sensor_failed = Arc::new(AtomicBool::new(false));
+            let (body, board) = body_for(kind, name, &world, id, config.t_world_body, sensor_failed.clone())?;
+            let agents = compose::chair_agents(name, &config.t_world_body, &building, body, Recognizer::new(1500))?;
+            let mut host = AgentHost::new(bus_for(&network, &clock, name)?);
+            for (aid, agent) in agents.agents {
+                host.add(aid, agent).map_err(add_err(name))?;
             }
-            let t = config.t_world_body;
-            let start = Pose2 { x: t.translation.x, y: t.translation.y, theta: t.rotation.angle() };
-            let body = VirtualBody::new(world.clone(), id);
-            containers.push(ChairContainer::new(&config.name, &network, &clock, body, id, start)?);
-            let peer = iw_bus::transport::PeerAddr(config.name.clone());
-            for agent in ["control", "perception"] {
-                services.host.bus().add_route(&format!("{agent}@{}", config.name), peer.clone());
-            }
+            route(&host, name, &names);
+            tap_into(&mut host, &traffic);
+            containers.push(ChairContainer {
+                name: name.clone(),
+                id,
+                kind,
+                host,
+                sensor_failed,
+                inputs: agents.inputs,
+                display: agents.display,
+                _board: board,
+            });
         }
         let goals = containers.iter().map(|_| None).collect();
-        Ok(Fleet { world, clock: controller, network, chairs: containers, goals, services, jammed: Vec::new(), conversations: 0 })
+        Ok(Fleet { world, clock: controller, network, building, chairs: containers, goals, services, jammed, traffic, conversations: 0, log })
     }
 
     fn index(&self, chair: &str) -> Result<usize, FleetError> {
@@ -297,7 +475,7 @@ impl Fleet {
     }
 
     fn world(&self) -> std::sync::MutexGuard<'_, World> {
-        self.world.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+        self.world.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     /// Simulated time, s.
@@ -305,51 +483,61 @@ impl Fleet {
         self.clock.now().0 as f64 * 1e-9
     }
 
-    /// Plans a path for `chair` to `target` around walls, furniture and closed doors, and has the
-    /// operator request it from the chair's control agent. Returns the goal's conversation id.
+    /// The building the cognitive agents plan on (places, doors, connections).
+    pub fn building(&self) -> &Building {
+        &self.building
+    }
+
+    /// Sends `chair` to the place at `target` (within 0.5 m of a place of the map; see
+    /// [`Fleet::goal_place`]). Errors when `target` is not a place.
     pub fn goal(&mut self, chair: &str, target: Point2<f64>) -> Result<String, FleetError> {
+        let place = self.building.place_at(target)?;
+        self.goal_place(chair, &place)
+    }
+
+    /// Staff send `chair` to `place`: the console asks the assistant, which asks the chair's
+    /// cognitive agent; it plans (PDDL, then A*), has doors opened and the control agent drive.
+    /// Returns the goal's conversation id; its answers arrive in [`Fleet::goal_events`].
+    pub fn goal_place(&mut self, chair: &str, place: &str) -> Result<String, FleetError> {
         let i = self.index(chair)?;
-        let (grid, here) = {
-            let world = self.world();
-            let grid = plan::occupancy(world.map(), |door| !world.door_is_open(door).unwrap_or(false))?;
-            (grid, world.pose(self.chairs[i].id)?.translation.vector)
-        };
-        let path = grid
-            .astar(Point2::from(here), target)
-            .map_err(|e| FleetError::Plan { reason: format!("{chair} to ({:.2}, {:.2}): {e}", target.x, target.y) })?;
-        let points = plan::waypoints(&path, 1.0);
+        let target = self.building.destinations().find(|(n, _)| *n == place).map(|(_, p)| *p).ok_or_else(|| FleetError::Plan {
+            reason: format!("no place `{place}` (places: {})", self.building.destinations().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")),
+        })?;
         self.conversations += 1;
         let conversation = format!("goal-{}-{}", chair, self.conversations);
-        let actor = AgentId::new(format!("control@{chair}"));
-        let request = WheelchairContent::Request { actor: actor.clone(), action: plan::drive_along(&points) }.fill(
-            AclMessage::new(Performative::Request)
-                .with_receiver(actor)
-                .with_protocol("fipa-request")
-                .with_conversation_id(conversation.clone()),
-        );
-        operator::desk(&self.services.desk).outbox.push_back(request);
-        self.goals[i] = Some(Goal { target, path: points });
+        console::desk(&self.services.desk).outbox.push_back((conversation.clone(), chair.to_string(), place.to_string()));
+        self.goals[i] = Some(Goal { target });
         Ok(conversation)
+    }
+
+    fn step_hosts(&mut self, now: Time) -> u64 {
+        let mut delivered = 0;
+        for chair in &mut self.chairs {
+            delivered += chair.host.step(now);
+        }
+        delivered += self.services.host.step(now);
+        self.network.settle();
+        delivered
     }
 
     /// Advances everything by `dt`: the containers at this instant, the frames between them,
     /// then the world.
     pub fn step(&mut self, dt: Duration) {
         let now = self.clock.now();
-        for chair in &mut self.chairs {
-            chair.host.step(now);
-        }
-        self.services.host.step(now);
-        self.network.settle();
-        {
-            let mut world = self.world();
-            for door in &self.jammed {
-                // a jammed door stays as it is whatever anyone asks
-                let _ = world.set_door(door, false);
-            }
-            iw_sim::step(&mut world, dt.as_secs_f64());
-        }
+        self.step_hosts(now);
+        iw_sim::step(&mut self.world(), dt.as_secs_f64());
         self.clock.advance(dt);
+    }
+
+    /// Lets the agents answer what is in flight without time passing (at most `rounds` rounds,
+    /// fewer once nothing is delivered), e.g. so the logger has the last messages of a run.
+    pub fn quiesce(&mut self, rounds: usize) {
+        let now = self.clock.now();
+        for _ in 0..rounds {
+            if self.step_hosts(now) == 0 {
+                break;
+            }
+        }
     }
 
     /// Takes a container's link to the others down (`up == false`) or restores it.
@@ -382,30 +570,70 @@ impl Fleet {
         Ok(())
     }
 
-    /// Closes `door` and keeps it closed from now on.
+    /// Closes `door` (a map door id) and keeps it closed from now on: the door agent's
+    /// actuator faults on it.
     pub fn jam_door(&mut self, door: &str) -> Result<(), FleetError> {
         self.world().set_door(door, false)?;
-        self.jammed.push(door.to_string());
+        self.jammed.lock().unwrap_or_else(PoisonError::into_inner).insert(door.to_string());
         Ok(())
     }
 
-    /// Opens or closes `door` (refused if jammed open is asked: it stays closed).
+    /// Opens or closes `door` by hand (a jammed door stays closed).
     pub fn set_door(&mut self, door: &str, open: bool) -> Result<(), FleetError> {
-        if open && self.jammed.iter().any(|d| d == door) {
+        if open && self.jammed.lock().unwrap_or_else(PoisonError::into_inner).contains(door) {
+            self.world().door_is_open(door)?;
             return Ok(());
         }
         self.world().set_door(door, open)?;
         Ok(())
     }
 
-    /// The answers the operator got, in order.
+    /// The answers the staff console got, in order.
     pub fn goal_events(&self) -> Vec<GoalEvent> {
-        operator::desk(&self.services.desk).events.clone()
+        console::desk(&self.services.desk).events.clone()
+    }
+
+    /// The door agent's refusals so far.
+    pub fn door_refusals(&self) -> Vec<Refusal> {
+        self.services.refusals.lock().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+
+    /// Where raw inputs for `chair`'s interface agent go (joystick, voice, ...).
+    pub fn inputs(&self, chair: &str) -> Result<InputQueue, FleetError> {
+        Ok(self.chairs[self.index(chair)?].inputs.clone())
+    }
+
+    /// What `chair`'s interface agent shows.
+    pub fn display(&self, chair: &str) -> Result<Display, FleetError> {
+        Ok(self.chairs[self.index(chair)?].display.lock().unwrap_or_else(PoisonError::into_inner).clone())
+    }
+
+    /// `chair`'s body kind.
+    pub fn body_kind(&self, chair: &str) -> Result<BodyKind, FleetError> {
+        Ok(self.chairs[self.index(chair)?].kind)
     }
 
     /// Every frame between containers so far.
     pub fn exchanges(&self) -> Vec<Exchange> {
         self.network.exchanges()
+    }
+
+    /// Messages the agents sent so far (each once, whatever its receivers; the logger's own
+    /// copies and queries not counted).
+    pub fn messages_sent(&self) -> u64 {
+        self.traffic.sent.load(Ordering::Acquire)
+    }
+
+    /// Records in the logger agent's log, read back from its file.
+    pub fn messages_logged(&self) -> Result<u64, FleetError> {
+        let records = iw_logger::read_records(&self.log.path, iw_logger::DEFAULT_MAX_RECORD_LEN)
+            .map_err(|e| FleetError::Setup { container: SERVICES.into(), reason: format!("reading the log: {e}") })?;
+        Ok(records.len() as u64)
+    }
+
+    /// The logger agent's log file.
+    pub fn log_path(&self) -> &std::path::Path {
+        &self.log.path
     }
 
     /// Per-container agent host statistics, chairs first then `services`.
@@ -423,6 +651,7 @@ impl Fleet {
 
     /// The fleet now.
     pub fn snapshot(&self) -> Snapshot {
+        let paths = self.traffic.paths.lock().unwrap_or_else(PoisonError::into_inner).clone();
         let world = self.world();
         let chairs = self
             .chairs
@@ -438,7 +667,7 @@ impl Fleet {
                     collisions: world.collisions(c.id).unwrap_or(0),
                     distance_m: world.distance_m(c.id).unwrap_or(0.0),
                     goal: goal.as_ref().map(|g| [g.target.x, g.target.y]),
-                    path: goal.as_ref().map(|g| g.path.iter().map(|p| [p.x, p.y]).collect()).unwrap_or_default(),
+                    path: paths.get(&c.name).cloned().unwrap_or_default(),
                     agents: c.agents(),
                 }
             })

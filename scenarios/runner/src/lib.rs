@@ -142,7 +142,8 @@ pub enum Fault {
         at_s: f64,
         /// A chair name or `services`.
         container: String,
-        /// `control`, `perception` or `operator`.
+        /// The agent's role: `perception`, `control`, `cognitive`, `interface` in a chair;
+        /// `door`, `logger`, `watcher`, `assistant`, `staff` in `services`.
         agent: String,
     },
     /// Every sensor read of a chair fails from `at_s` for `for_s` (forever if absent).
@@ -496,8 +497,17 @@ pub fn run(scenario: &Scenario) -> Result<Report, ScenarioError> {
 
 /// [`run`], calling `progress(step, steps)` after each step.
 pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)) -> Result<Report, ScenarioError> {
-    let map = scenario.load_map()?;
+    let mut map = scenario.load_map()?;
     scenario.validate(&map)?;
+    // A goal given as a point becomes a place of the map, so the cognitive agents can plan to it.
+    for (i, g) in scenario.goals.iter().enumerate() {
+        if let Some([x, y]) = g.xy {
+            let position = Point2::new(x, y);
+            if !map.places.iter().any(|p| (p.position - position).norm() <= 0.5) {
+                map.places.push(iw_sim::Place { name: format!("goal-{i}"), position });
+            }
+        }
+    }
     let path = scenario.source.display().to_string();
     let fleet_err = |time_s: f64| {
         let path = path.clone();

@@ -16,10 +16,17 @@ fn every_scenario_file_passes() {
         .collect();
     files.sort();
     assert!(files.len() >= 5, "{files:?}");
+    let mut failed = Vec::new();
     for file in files {
         let report = iw_scenario::run(&iw_scenario::Scenario::load(&file).unwrap()).unwrap();
-        assert!(report.passed, "{}:\n{}", file.display(), report.render());
+        let collisions: u64 = report.chairs.iter().map(|c| c.collisions).sum();
+        let goals = report.outcomes.iter().filter(|o| o.assertion.contains("goal-reached") && o.passed).count();
+        println!("{}: {} ({goals} goal-reached assertions held, {collisions} collisions)", report.name, if report.passed { "PASS" } else { "FAIL" });
+        if !report.passed {
+            failed.push(format!("{}:\n{}", file.display(), report.render()));
+        }
     }
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
 }
 
 #[test]

@@ -1,0 +1,449 @@
+//! The composition of a chair's agents and of the service agents from a configuration, free of
+//! any network: the in-process [`crate::Fleet`] and the multi-process containers of
+//! `intellwheels spawn` host the same agents, each on its own bus and transport.
+//!
+//! Agent names: `cognitive@CHAIR`, `control@CHAIR`, `perception@CHAIR`, `interface@CHAIR` in a
+//! chair's container; `door@services`, `logger@services`, `watcher@services`,
+//! `assistant@services` in the service container. [`remote_agents`] says which agents a
+//! container must route to which other container.
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId};
+use iw_agent::{Agent, Tap};
+use iw_assistant::{AssistantAgent, AssistantConfig};
+use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
+use iw_bus::Bus;
+use iw_cognitive::agent::{BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage};
+use iw_cognitive::{Domain, OccupancyGrid};
+use iw_control_agent::{ControlAgent, ControlConfig};
+use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
+use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
+use iw_logger::SyncPolicy;
+use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
+use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
+use iw_sim::Map;
+use iw_vo::Pose2;
+use iw_watcher::{WatcherAgent, WatcherConfig};
+use nalgebra::{Isometry2, Point2, Vector2};
+
+use crate::{FleetError, SERVICES, plan};
+
+/// The clearance the cognitive agent keeps from walls and furniture when it plans, m: the
+/// chair's half width less a few centimetres (the grid rounds it up a cell), so a 1 m doorway
+/// stays passable.
+pub const CHAIR_RADIUS_M: f64 = 0.3;
+
+/// Heading error above which a chair turns on the spot before driving to a point, rad.
+pub const TURN_IN_PLACE_RAD: f64 = 0.3;
+
+/// The control and sensing period of a chair's agents (a real board advances this per read).
+pub const CONTROL_PERIOD: Duration = Duration::from_millis(50);
+
+/// An agent's name in a container: `ROLE@CONTAINER`.
+pub fn agent_id(role: &str, container: &str) -> AgentId {
+    AgentId::new(format!("{role}@{container}"))
+}
+
+/// The roles of a chair's container, in the order they are hosted.
+pub const CHAIR_ROLES: [&str; 4] = ["perception", "control", "cognitive", "interface"];
+
+/// The roles of the service container, in the order they are hosted.
+pub const SERVICE_ROLES: [&str; 4] = ["door", "logger", "watcher", "assistant"];
+
+/// The name the door agent and the planner give a map door: the map's door ids may equal place
+/// names (`office`), and the planner keeps one namespace.
+pub fn door_name(map_door: &str) -> String {
+    format!("{map_door}-door")
+}
+
+/// Which agents of other containers `container` must route to, as (agent, its container):
+/// a chair reaches the service agents, the services reach every chair's agents.
+pub fn remote_agents(container: &str, chairs: &[String]) -> Vec<(String, String)> {
+    if container == SERVICES {
+        chairs
+            .iter()
+            .flat_map(|c| CHAIR_ROLES.iter().map(move |r| (agent_id(r, c).name, c.clone())))
+            .collect()
+    } else {
+        SERVICE_ROLES.iter().map(|r| (agent_id(r, SERVICES).name, SERVICES.to_string())).collect()
+    }
+}
+
+/// The building as the agents know it, derived once from the map: the strategic layer's places,
+/// connections and doors, and the grid it paths on.
+#[derive(Debug, Clone)]
+pub struct Building {
+    /// The map it was derived from.
+    pub map: Map,
+    /// Places, connections (same room, no door between), door passages, landmarks.
+    pub plan: BuildingMap,
+    /// The places of `plan` that are not the map's but a door's sides (`DOOR-side-1`,
+    /// `DOOR-side-2`), where the chair lines up with the doorway.
+    pub approaches: BTreeSet<String>,
+    /// Walls and furniture, doors left out (the planner decides about doors), not inflated.
+    pub grid: OccupancyGrid,
+    /// The planning domain.
+    pub domain: Domain,
+}
+
+impl Building {
+    /// Derives the building from `map`: two places are connected when one can drive between them
+    /// with every door closed; a door joins two places of its own in front of it, one on each
+    /// side. Places named `landmark...` are landmarks (relocalisation points), not destinations.
+    pub fn from_map(map: Map) -> Result<Self, FleetError> {
+        let plan_err = |reason: String| FleetError::Plan { reason };
+        let domain = Domain::parse(BUILDING_DOMAIN).map_err(|e| plan_err(format!("building domain: {e}")))?;
+        let grid = plan::raster(&map, |_| false)?;
+        let rooms = Rooms::of(&map)?;
+        let mut places = BTreeMap::new();
+        let mut landmarks = Vec::new();
+        for place in &map.places {
+            if place.name.starts_with("landmark") {
+                landmarks.push(place.position);
+            } else {
+                places.insert(place.name.clone(), place.position);
+            }
+        }
+        let passable = grid.inflated(CHAIR_RADIUS_M);
+        let mut doors = Vec::new();
+        let mut approaches = BTreeSet::new();
+        for door in &map.doors {
+            let name = door_name(&door.id);
+            let mid = nalgebra::center(&door.a, &door.b);
+            let along = door.b - door.a;
+            let normal = Vector2::new(-along.y, along.x).normalize();
+            // A point in front of the doorway on each side, so the chair lines up before it
+            // drives through (and out of the way again after).
+            let approach = |sign: f64| {
+                [0.9, 0.8, 0.7, 0.6, 0.5].iter().find_map(|d| {
+                    let p = mid + normal * sign * *d;
+                    let (c, r) = passable.cell_of(&p)?;
+                    (!passable.is_occupied(c, r)).then_some(p)
+                })
+            };
+            match (approach(1.0), approach(-1.0)) {
+                (Some(p), Some(q)) if rooms.at(&p) != rooms.at(&q) && free_near(&passable, mid).is_some() => {
+                    // on the straight line between the two sides, so the chair drives through
+                    // without turning in the doorway
+                    let at = nalgebra::center(&p, &q);
+                    let (a, b) = (format!("{name}-side-1"), format!("{name}-side-2"));
+                    for (side, point) in [(&a, p), (&b, q)] {
+                        if places.insert(side.clone(), point).is_some() {
+                            return Err(plan_err(format!("place `{side}` clashes with the planner's name for a side of door `{}`", door.id)));
+                        }
+                        approaches.insert(side.clone());
+                    }
+                    doors.push(DoorPassage { name, a, b, at });
+                }
+                _ => tracing::warn!(door = %door.id, "door too narrow or with one room on both sides; the planner will not use it"),
+            }
+        }
+        let room_of: BTreeMap<&String, Option<usize>> = places.iter().map(|(n, p)| (n, rooms.at(p))).collect();
+        let mut connections = Vec::new();
+        for (a, ra) in &room_of {
+            for (b, rb) in &room_of {
+                if a < b && ra.is_some() && ra == rb {
+                    connections.push(((*a).clone(), (*b).clone()));
+                }
+            }
+        }
+        Ok(Building { map, plan: BuildingMap { places, connections, doors, landmarks }, approaches, grid, domain })
+    }
+
+    /// The building as chair `chair` starting at `t_world_body` plans on: with a place of its
+    /// own there (`CHAIR-start`, returned too), connected to the places of its room (to the
+    /// nearest place if it starts outside every room), so its first goal is always driven to.
+    pub fn with_start(&self, chair: &str, t_world_body: &Isometry2<f64>) -> Result<(BuildingMap, String), FleetError> {
+        let p = Point2::from(t_world_body.translation.vector);
+        let start = format!("{chair}-start");
+        if self.plan.places.contains_key(&start) {
+            return Err(FleetError::Plan { reason: format!("place `{start}` clashes with the start place of chair `{chair}`") });
+        }
+        let rooms = Rooms::of(&self.map)?;
+        let room = rooms.at(&p);
+        let mut neighbours: Vec<String> =
+            self.plan.places.iter().filter(|(_, q)| room.is_some() && rooms.at(q) == room).map(|(n, _)| n.clone()).collect();
+        if neighbours.is_empty() {
+            let nearest = self.plan.places.iter().min_by(|a, b| (a.1 - p).norm().total_cmp(&(b.1 - p).norm()));
+            neighbours.extend(nearest.map(|(n, _)| n.clone()));
+        }
+        let mut plan = self.plan.clone();
+        plan.places.insert(start.clone(), p);
+        plan.connections.extend(neighbours.into_iter().map(|n| (start.clone(), n)));
+        Ok((plan, start))
+    }
+
+    /// The map's places (destinations), without the doors' sides.
+    pub fn destinations(&self) -> impl Iterator<Item = (&String, &Point2<f64>)> {
+        self.plan.places.iter().filter(|(n, _)| !self.approaches.contains(*n))
+    }
+
+    /// The place at `target` (within 0.5 m), for goals given as points.
+    pub fn place_at(&self, target: Point2<f64>) -> Result<String, FleetError> {
+        self.destinations()
+            .filter(|(_, p)| (**p - target).norm() <= 0.5)
+            .min_by(|a, b| (a.1 - target).norm().total_cmp(&(b.1 - target).norm()))
+            .map(|(n, _)| n.clone())
+            .ok_or_else(|| FleetError::Plan {
+                reason: format!(
+                    "({:.2}, {:.2}) is not a place of the map (places: {})",
+                    target.x,
+                    target.y,
+                    self.destinations().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            })
+    }
+}
+
+/// The centre of the free cell of `grid` nearest to `p`, within 0.3 m: the doorway's middle may
+/// fall on a cell boundary next to the inflated door posts.
+fn free_near(grid: &OccupancyGrid, p: Point2<f64>) -> Option<Point2<f64>> {
+    let (col, row) = grid.cell_of(&p)?;
+    let reach = (0.3 / plan::RESOLUTION_M).round() as i64;
+    (-reach..=reach)
+        .flat_map(|dr| (-reach..=reach).map(move |dc| (col + dc, row + dr)))
+        .filter(|(c, r)| !grid.is_occupied(*c, *r))
+        .map(|(c, r)| grid.centre(c, r))
+        .min_by(|a, b| (a - p).norm().total_cmp(&(b - p).norm()))
+}
+
+/// The rooms of a map: connected free regions (4-connected) with every door shut, on a grid
+/// slightly inflated so no rasterised wall leaks.
+struct Rooms {
+    grid: OccupancyGrid,
+    label: Vec<Option<usize>>,
+}
+
+impl Rooms {
+    fn of(map: &Map) -> Result<Rooms, FleetError> {
+        let grid = plan::raster(map, |_| true)?.inflated(plan::RESOLUTION_M * 1.5);
+        let (width, height) = grid.size();
+        let mut label = vec![None; width * height];
+        let mut next = 0;
+        for start in 0..width * height {
+            let (col, row) = ((start % width) as i64, (start / width) as i64);
+            if label[start].is_some() || grid.is_occupied(col, row) {
+                continue;
+            }
+            let mut queue = VecDeque::from([(col, row)]);
+            label[start] = Some(next);
+            while let Some((c, r)) = queue.pop_front() {
+                for (dc, dr) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+                    let (nc, nr) = (c + dc, r + dr);
+                    if !grid.is_occupied(nc, nr) {
+                        let i = nr as usize * width + nc as usize;
+                        if label[i].is_none() {
+                            label[i] = Some(next);
+                            queue.push_back((nc, nr));
+                        }
+                    }
+                }
+            }
+            next += 1;
+        }
+        Ok(Rooms { grid, label })
+    }
+
+    fn at(&self, p: &Point2<f64>) -> Option<usize> {
+        let (col, row) = self.grid.cell_of(p)?;
+        self.label[row as usize * self.grid.size().0 + col as usize]
+    }
+}
+
+/// One body shared by the agents of a chair (perception reads, control reads and commands).
+/// The board is read at most once between two commands, so a serial board that advances one
+/// control period per read is advanced once per period however many agents read it.
+#[derive(Clone)]
+pub struct SharedBody {
+    inner: Arc<Mutex<Cached>>,
+}
+
+/// A body and the frame read since its last command.
+type Cached = (Box<dyn Body + Send>, Option<SensorFrame>);
+
+impl SharedBody {
+    /// Shares `body`.
+    pub fn new(body: impl Body + Send + 'static) -> Self {
+        SharedBody { inner: Arc::new(Mutex::new((Box::new(body), None))) }
+    }
+}
+
+impl Body for SharedBody {
+    fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        let mut guard = self.inner.lock().unwrap_or_else(PoisonError::into_inner);
+        let (body, cached) = &mut *guard;
+        if let Some(frame) = cached {
+            return Ok(frame.clone());
+        }
+        let frame = body.read()?;
+        *cached = Some(frame.clone());
+        Ok(frame)
+    }
+
+    fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
+        let mut guard = self.inner.lock().unwrap_or_else(PoisonError::into_inner);
+        guard.1 = None;
+        guard.0.command(speeds)
+    }
+}
+
+/// A chair's agents, ready to be added to its container's host, and the handles the container
+/// keeps (inputs for the interface agent, what the on-chair display shows).
+pub struct ChairAgents {
+    /// The agents with their names, in [`CHAIR_ROLES`] order.
+    pub agents: Vec<(AgentId, Box<dyn Agent>)>,
+    /// Where device drivers (or a dashboard) push raw inputs for the interface agent.
+    pub inputs: InputQueue,
+    /// What the interface agent shows.
+    pub display: Arc<Mutex<Display>>,
+}
+
+/// Composes chair `name`'s perception, control, cognitive and interface agents over `body`,
+/// starting at `t_world_body` in `building`; `recognizer` holds the user's bound input sequences.
+pub fn chair_agents(
+    name: &str,
+    t_world_body: &Isometry2<f64>,
+    building: &Building,
+    body: SharedBody,
+    recognizer: Recognizer<iw_interface::Command>,
+) -> Result<ChairAgents, FleetError> {
+    let setup = |reason: String| FleetError::Setup { container: name.to_string(), reason };
+    let start = Pose2 { x: t_world_body.translation.x, y: t_world_body.translation.y, theta: t_world_body.rotation.angle() };
+    let perception_id = agent_id("perception", name);
+    let control_id = agent_id("control", name);
+    let cognitive_id = agent_id("cognitive", name);
+    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(body.clone()), None)
+        .map_err(|e| setup(e.to_string()))?;
+    let mut control_config = ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
+    // Indoors the chair turns on the spot before it drives, so its long front does not sweep
+    // into door posts when it lines up with a doorway.
+    control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
+    let control = ControlAgent::new(control_config, Box::new(body)).map_err(|e| setup(e.to_string()))?;
+    let (plan, start_place) = building.with_start(name, t_world_body)?;
+    let cognitive = CognitiveAgent::new(CognitiveConfig {
+        chair: name.to_string(),
+        control: control_id.clone(),
+        door: agent_id("door", SERVICES),
+        perception: Some(perception_id.clone()),
+        domain: building.domain.clone(),
+        map: plan,
+        grid: building.grid.clone(),
+        chair_radius_m: CHAIR_RADIUS_M,
+        start_place,
+        uncertainty_m2: 0.5,
+        max_states: 20_000,
+    })
+    .map_err(|e| setup(e.to_string()))?;
+    let inputs = InputQueue::default();
+    let display = Arc::new(Mutex::new(Display::default()));
+    let interface = InterfaceAgent::new(
+        InterfaceConfig { cognitive: cognitive_id.clone(), control: control_id.clone(), tick: Duration::from_millis(50) },
+        recognizer,
+        inputs.clone(),
+        display.clone(),
+    );
+    let agents: Vec<(AgentId, Box<dyn Agent>)> = vec![
+        (perception_id, Box::new(perception)),
+        (control_id, Box::new(control)),
+        (cognitive_id, Box::new(cognitive)),
+        (agent_id("interface", name), Box::new(interface)),
+    ];
+    Ok(ChairAgents { agents, inputs, display })
+}
+
+/// What the service container is given.
+#[derive(Debug, Clone)]
+pub struct ServiceConfig {
+    /// The chairs of the fleet (their container names).
+    pub chairs: Vec<String>,
+    /// The logger agent's log file.
+    pub log_path: PathBuf,
+    /// When the log is forced to disk.
+    pub sync: SyncPolicy,
+    /// Restricted doors (map door id) and the chairs allowed through each; every other door
+    /// opens for anyone.
+    pub restricted: BTreeMap<String, BTreeSet<String>>,
+    /// How long a watcher grant lasts before it is taken back.
+    pub lease: Duration,
+}
+
+impl ServiceConfig {
+    /// No restricted doors, the log synced every 64 records (and every logger tick), 10 s leases.
+    pub fn new(chairs: Vec<String>, log_path: PathBuf) -> Self {
+        ServiceConfig { chairs, log_path, sync: SyncPolicy::EveryN(64), restricted: BTreeMap::new(), lease: Duration::from_secs(10) }
+    }
+}
+
+/// The service agents and what the container keeps of them.
+pub struct ServiceAgents {
+    /// The agents with their names, in [`SERVICE_ROLES`] order.
+    pub agents: Vec<(AgentId, Box<dyn Agent>)>,
+    /// The door agent's refusals.
+    pub refusals: RefusalLog,
+}
+
+/// Composes the door, logger, watcher and assistant agents of `building`; `doors` moves the
+/// doors (the simulator's world or door controllers).
+pub fn service_agents(config: &ServiceConfig, building: &Building, doors: Box<dyn DoorActuator>) -> Result<ServiceAgents, FleetError> {
+    let setup = |reason: String| FleetError::Setup { container: SERVICES.to_string(), reason };
+    for door in config.restricted.keys() {
+        if !building.map.doors.iter().any(|d| &d.id == door) {
+            return Err(setup(format!("restricted door `{door}` is not a door of the map")));
+        }
+    }
+    let policies = building
+        .map
+        .doors
+        .iter()
+        .map(|d| {
+            let authorised = config.restricted.get(&d.id);
+            let policy = DoorPolicy {
+                restricted: authorised.is_some(),
+                authorised: authorised.into_iter().flatten().map(|chair| agent_id("cognitive", chair).name).collect(),
+            };
+            (door_name(&d.id), policy)
+        })
+        .collect();
+    let refusals = RefusalLog::default();
+    let door = DoorAgent::new(DoorConfig { doors: policies }, doors, refusals.clone());
+    let logger = LoggerAgent::open(&LoggerConfig { path: config.log_path.clone(), policy: config.sync, sync_period: Duration::from_millis(500) })
+        .map_err(|e| setup(format!("log {}: {e}", config.log_path.display())))?;
+    let watcher = WatcherAgent::new(WatcherConfig {
+        passages: building.map.doors.iter().map(|d| door_name(&d.id)).collect(),
+        lease: config.lease,
+        period: Duration::from_millis(100),
+    })
+    .map_err(|e| setup(e.to_string()))?;
+    let assistant = AssistantAgent::new(AssistantConfig {
+        chairs: config.chairs.iter().map(|c| (c.clone(), agent_id("cognitive", c))).collect(),
+        staff: BTreeSet::new(),
+    });
+    let agents: Vec<(AgentId, Box<dyn Agent>)> = vec![
+        (agent_id("door", SERVICES), Box::new(door)),
+        (agent_id("logger", SERVICES), Box::new(logger)),
+        (agent_id("watcher", SERVICES), Box::new(watcher)),
+        (agent_id("assistant", SERVICES), Box::new(assistant)),
+    ];
+    Ok(ServiceAgents { agents, refusals })
+}
+
+/// A tap for a container's host that sends the logger a copy of every message its agents send
+/// (not the logger's own copies and queries), so the log holds every message exchanged; also
+/// calls `also` with each message (counting, dashboards). Copies cross the bus like any message.
+pub fn log_tap(bus: Arc<Bus>, logger: AgentId, mut also: impl FnMut(&AclMessage) + Send + 'static) -> Tap {
+    Box::new(move |message: &AclMessage, now| {
+        if message.ontology.as_deref().is_some_and(|o| o.eq_ignore_ascii_case(LOG_ONTOLOGY)) {
+            return;
+        }
+        also(message);
+        let copy = copy_for_logger(message, &logger, now.0);
+        let sender = message.sender.as_ref().map_or("unknown", |s| s.name.as_str());
+        if let Err(err) = bus.send(sender, &logger.name, iw_acl::codec::print(&copy).into_bytes()) {
+            tracing::warn!(error = %err, "copy for the logger not sent");
+        }
+    })
+}
