@@ -32,10 +32,13 @@ use nalgebra::{Isometry2, Point2, Vector2};
 
 use crate::{FleetError, SERVICES, plan};
 
-/// The clearance the cognitive agent keeps from walls and furniture when it plans, m: the
-/// chair's half width less a few centimetres (the grid rounds it up a cell), so a 1 m doorway
-/// stays passable.
+/// The clearance a doorway must leave the chair's centre, m: the chair's half width less a few
+/// centimetres (the grid rounds it up a cell), so a 1 m doorway stays passable.
 pub const CHAIR_RADIUS_M: f64 = 0.3;
+
+/// The clearance the cognitive agent keeps from walls and furniture elsewhere, m: room for the
+/// chair's long front to turn on the spot.
+pub const WALL_CLEARANCE_M: f64 = 0.3;
 
 /// Heading error above which a chair turns on the spot before driving to a point, rad.
 pub const TURN_IN_PLACE_RAD: f64 = 0.3;
@@ -84,7 +87,9 @@ pub struct Building {
     /// The places of `plan` that are not the map's but a door's sides (`DOOR-side-1`,
     /// `DOOR-side-2`), where the chair lines up with the doorway.
     pub approaches: BTreeSet<String>,
-    /// Walls and furniture, doors left out (the planner decides about doors), not inflated.
+    /// Where the chair's centre may go: walls and furniture inflated by [`WALL_CLEARANCE_M`],
+    /// with a straight lane carved through each usable doorway from one of its sides to the
+    /// other; doors left out (the planner decides about doors).
     pub grid: OccupancyGrid,
     /// The planning domain.
     pub domain: Domain,
@@ -151,6 +156,9 @@ impl Building {
                 }
             }
         }
+        let lanes: Vec<(Point2<f64>, Point2<f64>)> =
+            doors.iter().map(|d| (places[&d.a], places[&d.b])).collect();
+        let grid = carve_lanes(&grid.inflated(WALL_CLEARANCE_M), &lanes)?;
         Ok(Building { map, plan: BuildingMap { places, connections, doors, landmarks }, approaches, grid, domain })
     }
 
@@ -197,6 +205,23 @@ impl Building {
                 ),
             })
     }
+}
+
+/// `grid` with every cell within half a cell of a lane's segment freed.
+fn carve_lanes(grid: &OccupancyGrid, lanes: &[(Point2<f64>, Point2<f64>)]) -> Result<OccupancyGrid, FleetError> {
+    let (width, height) = grid.size();
+    let mut occupied: Vec<bool> = (0..width * height).map(|i| grid.is_occupied((i % width) as i64, (i / width) as i64)).collect();
+    for (a, b) in lanes {
+        let steps = ((b - a).norm() / (plan::RESOLUTION_M / 4.0)).ceil().max(1.0) as usize;
+        for k in 0..=steps {
+            let p = a + (b - a) * (k as f64 / steps as f64);
+            if let Some((col, row)) = grid.cell_of(&p) {
+                occupied[row as usize * width + col as usize] = false;
+            }
+        }
+    }
+    let origin = grid.centre(0, 0) - Vector2::repeat(plan::RESOLUTION_M / 2.0);
+    OccupancyGrid::new(width, height, plan::RESOLUTION_M, origin, occupied).map_err(|e| FleetError::Plan { reason: e.to_string() })
 }
 
 /// The centre of the free cell of `grid` nearest to `p`, within 0.3 m: the doorway's middle may
@@ -332,7 +357,8 @@ pub fn chair_agents(
         domain: building.domain.clone(),
         map: plan,
         grid: building.grid.clone(),
-        chair_radius_m: CHAIR_RADIUS_M,
+        // the building's grid is inflated already (with lanes through the doorways)
+        chair_radius_m: 0.0,
         start_place,
         uncertainty_m2: 0.5,
         max_states: 20_000,

@@ -18,7 +18,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use iw_fleet::{ChairConfig, Fleet, FleetError};
+use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetError, FleetOptions};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
 use serde::{Deserialize, Serialize};
@@ -85,13 +85,21 @@ pub struct ChairEntry {
     /// Or an explicit pose: x m, y m, heading degrees.
     #[serde(default)]
     pub pose: Option<[f64; 3]>,
-    /// `virtual` (the only body a simulated scenario drives).
-    #[serde(default = "virtual_body")]
-    pub body: String,
+    /// `virtual` (default), `real` (the serial driver against the interface board emulated on a
+    /// pty, its pose fed into the world) or `mixed` (real, plus the virtual sonars).
+    #[serde(default)]
+    pub body: BodyKind,
 }
 
-fn virtual_body() -> String {
-    "virtual".into()
+/// A restricted door: only the listed chairs get it opened; the door agent refuses the others.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RestrictedEntry {
+    /// The door id.
+    pub door: String,
+    /// The chairs allowed through.
+    #[serde(default)]
+    pub authorised: Vec<String>,
 }
 
 /// A goal given to a chair at a time.
@@ -183,8 +191,8 @@ pub enum Assertion {
         #[serde(default)]
         chair: Option<String>,
     },
-    /// The chair's last goal is within `within_m` (default 0.5 m) by `by_s`, and its control
-    /// agent reported it done.
+    /// The chair's last goal is within `within_m` (default 0.5 m) by `by_s`, and its cognitive
+    /// agent reported it done (relayed by the assistant).
     GoalReached {
         /// The chair.
         chair: String,
@@ -194,7 +202,8 @@ pub enum Assertion {
         #[serde(default = "half_metre")]
         within_m: f64,
     },
-    /// The chair's control agent reported a goal failed (FAILURE) by `by_s`.
+    /// The chair's cognitive agent reported a goal failed (FAILURE, relayed by the assistant) by
+    /// `by_s`.
     GoalFailed {
         /// The chair.
         chair: String,
@@ -213,6 +222,21 @@ pub enum Assertion {
         /// The minimum.
         at_least: u64,
     },
+    /// The door agent refused to open `door` for `chair` (restricted) and logged the refusal.
+    DoorRefused {
+        /// The chair.
+        chair: String,
+        /// The door id.
+        door: String,
+    },
+    /// The door agent answered FAILURE for `door` (it could not move it: jammed).
+    DoorFailed {
+        /// The door id.
+        door: String,
+    },
+    /// Every message the agents sent is in the logger agent's log (counted against the traffic
+    /// at the end, once in-flight messages are delivered).
+    AllMessagesLogged,
 }
 
 fn half_metre() -> f64 {
@@ -250,6 +274,9 @@ pub struct Scenario {
     /// Injected faults.
     #[serde(default, rename = "fault")]
     pub faults: Vec<Fault>,
+    /// Restricted doors.
+    #[serde(default, rename = "restricted")]
+    pub restricted: Vec<RestrictedEntry>,
     /// What must hold.
     #[serde(default, rename = "assert")]
     pub assertions: Vec<Assertion>,
@@ -312,8 +339,14 @@ impl Scenario {
         let container = |entry: String, name: &str| if name == iw_fleet::SERVICES { Ok(()) } else { chair(entry, name) };
         for (i, c) in self.chairs.iter().enumerate() {
             self.start_of(c, map).map_err(|reason| self.invalid(format!("chair[{i}]"), reason))?;
-            if c.body != "virtual" {
-                return Err(self.invalid(format!("chair[{i}]"), format!("body `{}`: a simulated scenario drives virtual bodies only", c.body)));
+            if c.name.is_empty() || c.name == iw_fleet::SERVICES || c.name.contains('@') || self.chairs[..i].iter().any(|o| o.name == c.name) {
+                return Err(self.invalid(format!("chair[{i}]"), format!("name `{}` is empty, reserved, has `@` or is used twice", c.name)));
+            }
+        }
+        for (i, r) in self.restricted.iter().enumerate() {
+            door(format!("restricted[{i}]"), &r.door)?;
+            for c in &r.authorised {
+                chair(format!("restricted[{i}]"), c)?;
             }
         }
         for (i, g) in self.goals.iter().enumerate() {
@@ -367,7 +400,12 @@ impl Scenario {
                     chair(entry.clone(), c)?;
                     time(entry, *from_s)?;
                 }
-                Assertion::NoCollision { chair: None } | Assertion::MessagesDropped { .. } => {}
+                Assertion::DoorRefused { chair: c, door: d } => {
+                    chair(entry.clone(), c)?;
+                    door(entry, d)?;
+                }
+                Assertion::DoorFailed { door: d } => door(entry, d)?,
+                Assertion::NoCollision { chair: None } | Assertion::MessagesDropped { .. } | Assertion::AllMessagesLogged => {}
             }
         }
         Ok(())
@@ -442,6 +480,10 @@ pub struct Report {
     pub messages: u64,
     /// Frames lost to link faults.
     pub dropped: u64,
+    /// Messages the agents sent (each once).
+    pub sent: u64,
+    /// Records in the logger agent's log.
+    pub logged: u64,
     /// Every frame between containers: `sender -> receiver [dropped]: ACL`.
     pub trace: Vec<String>,
 }
@@ -466,6 +508,7 @@ impl Report {
             ));
         }
         out.push_str(&format!("  {} messages between containers, {} dropped\n", self.messages, self.dropped));
+        out.push_str(&format!("  {} messages sent by agents, {} in the log\n", self.sent, self.logged));
         for o in &self.outcomes {
             out.push_str(&format!("  [{}] {}: {}\n", if o.passed { "PASS" } else { "FAIL" }, o.assertion, o.detail));
         }
@@ -489,6 +532,9 @@ struct Watch {
     reached_at: Option<f64>,
     max_speed: f64,
 }
+
+/// Rounds of message delivery without time passing at the end of a run.
+const MAX_QUIESCE_ROUNDS: usize = 16;
 
 /// Runs `scenario` to its end and checks its assertions.
 pub fn run(scenario: &Scenario) -> Result<Report, ScenarioError> {
@@ -538,7 +584,12 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
     // stable: entries at one time keep file order (goals, doors, faults)
     schedule.sort_by(|a, b| a.0.total_cmp(&b.0));
 
-    let mut fleet = Fleet::new(map, scenario.seed, &configs).map_err(fleet_err(0.0))?;
+    let options = FleetOptions {
+        bodies: scenario.chairs.iter().map(|c| (c.name.clone(), c.body)).collect(),
+        restricted: scenario.restricted.iter().map(|r| (r.door.clone(), r.authorised.iter().cloned().collect())).collect(),
+        log_path: None,
+    };
+    let mut fleet = Fleet::with_options(map, scenario.seed, &configs, options).map_err(fleet_err(0.0))?;
     let dt = Duration::from_millis(scenario.step_ms);
     let steps = (scenario.duration_s * 1000.0 / scenario.step_ms as f64).ceil() as u64;
     let mut timeline = Vec::new();
@@ -618,6 +669,11 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
         progress(step + 1, steps);
     }
 
+    // what is in flight reaches its receivers (and the log) without time passing
+    fleet.quiesce(MAX_QUIESCE_ROUNDS);
+    let sent = fleet.messages_sent();
+    let logged = fleet.messages_logged().map_err(fleet_err(fleet.time_s()))?;
+    let refusals = fleet.door_refusals();
     let snapshot = fleet.snapshot();
     let events = fleet.goal_events();
     let exchanges = fleet.exchanges();
@@ -667,6 +723,23 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
                     (watch.max_speed < 0.02, format!("highest speed afterwards {:.3} m/s", watch.max_speed))
                 }
                 Assertion::MessagesDropped { at_least } => (dropped >= *at_least, format!("{dropped} dropped")),
+                Assertion::DoorRefused { chair, door } => {
+                    let requester = format!("cognitive@{chair}");
+                    let name = iw_fleet::compose::door_name(door);
+                    match refusals.iter().find(|r| r.requester == requester && r.door == name) {
+                        Some(r) => (true, format!("refused at {:.2} s: {}", r.time_ns as f64 * 1e-9, r.reason)),
+                        None => (false, format!("{} refusals, none of `{name}` for {requester}", refusals.len())),
+                    }
+                }
+                Assertion::DoorFailed { door } => {
+                    let name = iw_fleet::compose::door_name(door);
+                    let failures = exchanges
+                        .iter()
+                        .filter(|e| e.sender == "door@services" && e.acl.starts_with("(FAILURE") && e.acl.contains(&name))
+                        .count();
+                    (failures > 0, format!("{failures} FAILURE answers about `{name}`"))
+                }
+                Assertion::AllMessagesLogged => (sent > 0 && logged == sent, format!("{sent} messages sent, {logged} in the log")),
             };
             Outcome { assertion: text, passed, detail }
         })
@@ -690,6 +763,8 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
         timeline,
         messages: exchanges.len() as u64,
         dropped,
+        sent,
+        logged,
         trace,
     })
 }
