@@ -74,7 +74,7 @@ pub enum ScenarioError {
 }
 
 /// A chair of the scenario.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ChairEntry {
     /// Its name (its container's name).
@@ -92,7 +92,7 @@ pub struct ChairEntry {
 }
 
 /// A restricted door: only the listed chairs get it opened; the door agent refuses the others.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RestrictedEntry {
     /// The door id.
@@ -103,7 +103,7 @@ pub struct RestrictedEntry {
 }
 
 /// A goal given to a chair at a time.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct GoalEntry {
     /// When, s.
@@ -119,7 +119,7 @@ pub struct GoalEntry {
 }
 
 /// A door opened or closed at a time.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DoorEntry {
     /// When, s.
@@ -131,7 +131,7 @@ pub struct DoorEntry {
 }
 
 /// An injected fault.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum Fault {
     /// A container's link to the others is down from `at_s` for `for_s` (forever if absent).
@@ -182,7 +182,7 @@ impl Fault {
 }
 
 /// What must hold.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum Assertion {
     /// The chair (every chair if absent) never touches anything.
@@ -244,7 +244,7 @@ fn half_metre() -> f64 {
 }
 
 /// A scenario file.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
     /// Its name.
