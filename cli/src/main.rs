@@ -25,7 +25,7 @@ struct Cli {
 enum Command {
     /// Run the fleet demo on the embedded sample building (the default with no subcommand).
     Demo(cmd::demo::Args),
-    /// FIPA-ACL messages: parse and print the string representation.
+    /// FIPA-ACL messages: parse and print the string representation, send one over HTTP.
     #[command(subcommand)]
     Acl(cmd::acl::Command),
     /// FIPA-SL content: parse at a given SL level.

@@ -1,4 +1,5 @@
-//! `intellwheels acl ...`: FIPA-ACL messages between their string form (SC00070) and JSON.
+//! `intellwheels acl ...`: FIPA-ACL messages between their string form (SC00070) and JSON, and
+//! one message sent to another FIPA platform over HTTP ([`send`]).
 //!
 //! One variant per subcommand in [`Command`], each with its own args struct and function.
 
@@ -9,6 +10,8 @@ use anyhow::Context;
 use iw_acl::AclMessage;
 use iw_acl::codec::{self, DEFAULT_MAX_LEN, ParseOptions, PrintOptions};
 
+mod send;
+
 /// The `acl` subcommands.
 #[derive(clap::Subcommand)]
 pub enum Command {
@@ -16,6 +19,9 @@ pub enum Command {
     Parse(ParseArgs),
     /// Read a message as JSON on stdin and print its ACL string form.
     Print(PrintArgs),
+    /// Send one message to an agent of another FIPA platform over HTTP and print every reply
+    /// (performative and content, one per line) until the conversation ends or the timeout.
+    Send(Box<send::SendArgs>),
 }
 
 /// Flags of `acl parse`.
@@ -41,6 +47,7 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
         Command::Parse(args) => parse(&args),
         Command::Print(args) => print(&args),
+        Command::Send(args) => send::run(&args),
     }
 }
 
