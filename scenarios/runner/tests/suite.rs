@@ -44,6 +44,14 @@ fn a_false_assertion_fails_and_runs_are_deterministic() {
 }
 
 #[test]
+fn runs_with_real_bodies_on_a_pty_are_deterministic() {
+    let scenario = iw_scenario::Scenario::load(scenarios_dir().join("mixed-reality.toml")).unwrap();
+    let first = iw_scenario::run(&scenario).unwrap();
+    let second = iw_scenario::run(&scenario).unwrap();
+    assert_eq!(first, second, "same seed, same report and trace, whatever the board emulator's thread timing");
+}
+
+#[test]
 fn bad_files_are_errors_naming_the_entry() {
     let path = scenarios_dir().join("bad.toml");
     let text = "name = \"x\"\nmap = \"maps/sample-building.map\"\nduration_s = 5\n[[chair]]\nname = \"c\"\nstart = \"nowhere\"\n";
