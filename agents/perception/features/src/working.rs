@@ -5,6 +5,7 @@ use rayon::prelude::*;
 
 use crate::image32::LUMA_WEIGHTS;
 use crate::integral::FIXED;
+use crate::simd;
 use crate::{DetectorConfig, DetectorKind, FeatureClass, GrayImage32, IntegralImage, Keypoint, LsacSpace};
 
 /// Buffers reused frame after frame.
@@ -118,13 +119,45 @@ fn local_average_row(ii: &IntegralImage, y: usize, radii: &[usize; 3], out: &mut
         let (left, right) = (inner_cols.start - r, inner_cols.start + r + 1);
         ([slice(bottom, right), slice(top, right), slice(bottom, left), slice(top, left)], ((2 * r + 1) * (2 * r + 1)) as f32)
     });
-    for (i, o) in out[inner_cols].iter_mut().enumerate() {
+    average_interior(simd::has_avx2(), &corners, &mut out[inner_cols]);
+}
+
+/// Table corners (bottom-right, top-right, bottom-left, top-left rows) and area of one box
+/// radius, for a run of unclipped pixels.
+type BoxRun<'a> = ([&'a [u32]; 4], f32);
+
+/// The mean of the three box means for a run of unclipped pixels, with AVX2 when `avx2` says
+/// the CPU has it (same float operations in the same order either way).
+fn average_interior(avx2: bool, corners: &[BoxRun<'_>; 3], out: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` is true only when `simd::has_avx2` found AVX2 on this CPU.
+        return unsafe { average_interior_avx2(corners, out) };
+    }
+    let _ = avx2;
+    average_interior_portable(corners, out);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn average_interior_avx2(corners: &[BoxRun<'_>; 3], out: &mut [f32]) {
+    average_interior_portable(corners, out);
+}
+
+#[inline(always)]
+fn average_interior_portable<'a>(corners: &[BoxRun<'a>; 3], out: &mut [f32]) {
+    let n = out.len();
+    let cut = |(rows, area): &BoxRun<'a>| -> BoxRun<'a> { (rows.map(|r| &r[..n]), *area) };
+    let [([br0, tr0, bl0, tl0], area0), ([br1, tr1, bl1, tl1], area1), ([br2, tr2, bl2, tl2], area2)] = corners.each_ref().map(cut);
+    let mean = |br: u32, tr: u32, bl: u32, tl: u32, area: f32| {
+        br.wrapping_sub(tr).wrapping_sub(bl).wrapping_add(tl) as i32 as f32 / FIXED / area
+    };
+    for i in 0..n {
         let mut total = 0.0;
-        for ([br, tr, bl, tl], area) in &corners {
-            let fixed = br[i].wrapping_sub(tr[i]).wrapping_sub(bl[i]).wrapping_add(tl[i]) as i32;
-            total += fixed as f32 / FIXED / area;
-        }
-        *o = total / radii.len() as f32;
+        total += mean(br0[i], tr0[i], bl0[i], tl0[i], area0);
+        total += mean(br1[i], tr1[i], bl1[i], tl1[i], area1);
+        total += mean(br2[i], tr2[i], bl2[i], tl2[i], area2);
+        out[i] = total / 3.0;
     }
 }
 
