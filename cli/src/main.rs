@@ -49,6 +49,8 @@ enum Command {
     /// Thesis experiments run in the simulator.
     #[command(subcommand)]
     Experiment(cmd::experiment::Command),
+    /// Run one container process (a chair's agents or the services) over UDP or shared memory.
+    Spawn(cmd::spawn::Args),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +74,7 @@ fn main() -> ExitCode {
         Some(Command::Scenario(c)) => cmd::scenario::run(c),
         Some(Command::Experiment(c)) => cmd::experiment::run(c),
         Some(Command::Log(c)) => cmd::log::run(c),
+        Some(Command::Spawn(a)) => cmd::spawn::run(a),
     };
     match result {
         Ok(code) => code,

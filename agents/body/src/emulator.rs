@@ -10,6 +10,7 @@ use std::io::{ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 
@@ -33,6 +34,8 @@ pub struct BoardState {
     pub commands: u64,
     /// Frames the board rejected (bad checksum etc.).
     pub rejected: u64,
+    /// Times the watchdog zeroed the speed references because none arrived in time.
+    pub watchdog_stops: u64,
     /// Sub-tick remainder of the integration, per wheel.
     residual_ticks: (f64, f64),
     corrupt_next: bool,
@@ -80,6 +83,13 @@ impl BoardEmulator {
     /// Opens a pty pair and serves the protocol on it; drivers open [`Self::port_name`].
     /// `period_ns` is how far the board clock advances per sensor request.
     pub fn spawn(geometry: WheelGeometry, period_ns: u64) -> Result<Self, BodyError> {
+        Self::spawn_with_watchdog(geometry, period_ns, None)
+    }
+
+    /// As [`Self::spawn`], with the board's hardware watchdog: when no speed reference arrives
+    /// for `watchdog` (wall-clock time, as on the board), the references drop to zero, so a
+    /// chair whose computer died stops.
+    pub fn spawn_with_watchdog(geometry: WheelGeometry, period_ns: u64, watchdog: Option<Duration>) -> Result<Self, BodyError> {
         let (mut master, slave) =
             TTYPort::pair().map_err(|source| BodyError::Port { port: "<pty pair>".to_string(), source })?;
         let port_name = slave.name().unwrap_or_default();
@@ -91,6 +101,7 @@ impl BoardEmulator {
             speeds: WheelSpeeds::STOP,
             commands: 0,
             rejected: 0,
+            watchdog_stops: 0,
             residual_ticks: (0.0, 0.0),
             corrupt_next: false,
         })));
@@ -98,7 +109,7 @@ impl BoardEmulator {
         let (thread_handle, thread_stop) = (handle.clone(), stop.clone());
         let thread = std::thread::Builder::new()
             .name("iw-board-emulator".into())
-            .spawn(move || serve(&mut master, &thread_handle, &thread_stop, geometry, period_ns))
+            .spawn(move || serve(&mut master, &thread_handle, &thread_stop, geometry, period_ns, watchdog))
             .map_err(|source| BodyError::Io { port: port_name.clone(), source })?;
         Ok(Self { port_name, handle, stop, thread: Some(thread), _slave: slave })
     }
@@ -123,10 +134,20 @@ impl Drop for BoardEmulator {
     }
 }
 
-fn serve(master: &mut TTYPort, handle: &BoardHandle, stop: &AtomicBool, geometry: WheelGeometry, period_ns: u64) {
+fn serve(master: &mut TTYPort, handle: &BoardHandle, stop: &AtomicBool, geometry: WheelGeometry, period_ns: u64, watchdog: Option<Duration>) {
     let mut decoder = Decoder::new();
     let mut chunk = [0u8; 256];
+    let mut last_reference = (Instant::now(), 0);
     while !stop.load(Ordering::Relaxed) {
+        if let Some(limit) = watchdog {
+            let mut state = handle.lock();
+            if state.commands != last_reference.1 {
+                last_reference = (Instant::now(), state.commands);
+            } else if last_reference.0.elapsed() > limit && state.speeds != WheelSpeeds::STOP {
+                state.speeds = WheelSpeeds::STOP;
+                state.watchdog_stops += 1;
+            }
+        }
         match master.read(&mut chunk) {
             Ok(0) => continue,
             Ok(n) => decoder.push(&chunk[..n]),

