@@ -12,7 +12,7 @@ use iw_agent::{Agent, Context};
 use iw_bus::Time;
 use iw_cognitive::OccupancyGrid;
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use nalgebra::Point2;
 
 use crate::event::Event;
@@ -22,6 +22,20 @@ pub type Roster = Arc<Mutex<BTreeSet<String>>>;
 
 /// Spacing of the waypoints sent to a chair, m.
 const WAYPOINT_SPACING_M: f64 = 1.0;
+
+/// The points of an A* path the control agent drives to one after the other: a point every
+/// `spacing_m` along the path, and its end.
+fn waypoints(path: &[Point2<f64>], spacing_m: f64) -> Vec<Point2<f64>> {
+    let mut kept: Vec<Point2<f64>> = Vec::new();
+    let mut last = path.first().copied();
+    for (i, here) in path.iter().enumerate().skip(1) {
+        if i + 1 == path.len() || last.is_some_and(|l| (here - l).norm() >= spacing_m) {
+            kept.push(*here);
+            last = Some(*here);
+        }
+    }
+    kept
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum GoalState {
@@ -86,9 +100,9 @@ impl Dispatcher {
             Ok(path) => path,
             Err(e) => return self.emit(failed(format!("no path to `{}`: {e}", goal.place))),
         };
-        let points = iw_fleet::plan::waypoints(&path, WAYPOINT_SPACING_M);
+        let steps = waypoints(&path.waypoints, WAYPOINT_SPACING_M).into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
         let actor = AgentId::new(format!("control@{chair}"));
-        let request = WheelchairContent::Request { actor: actor.clone(), action: iw_fleet::plan::drive_along(&points) }.fill(
+        let request = WheelchairContent::Request { actor: actor.clone(), action: WheelchairAction::Sequence { steps } }.fill(
             AclMessage::new(Performative::Request)
                 .with_receiver(actor)
                 .with_protocol("fipa-request")

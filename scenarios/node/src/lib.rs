@@ -11,7 +11,6 @@
 //!   agents, runs the container (heartbeats, election, list sync) and steps the agents in real
 //!   time until asked to stop; then shuts down cleanly.
 //! - [`Event`]: what a running container reports, one JSON line each.
-//! - [`SharedBody`]: one body for a chair's perception and control agents.
 //! - [`write_identity`]: a new identity key file.
 //!
 //! # Design
@@ -35,13 +34,11 @@
 //! - The identity key file is written with mode 0600 and fsynced.
 #![warn(missing_docs)]
 
-mod body;
 mod config;
 mod dispatcher;
 mod event;
 mod runtime;
 
-pub use body::SharedBody;
 pub use config::{
     BodyKind, BodySection, ContainerSection, GoalSpec, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
     WorldSection,

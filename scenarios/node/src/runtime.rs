@@ -12,6 +12,7 @@ use iw_agent::AgentHost;
 use iw_body::{Body, MixedBody, Odometry, SerialBody, WheelGeometry};
 use iw_bus::transport::{FrameTransport, PeerAddr};
 use iw_bus::{Bus, BusConfig, Clock, LayerSet};
+use iw_fleet::compose::SharedBody;
 use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode};
 use iw_control_agent::{ControlAgent, ControlConfig};
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
@@ -24,12 +25,15 @@ use nalgebra::{Isometry2, Vector2};
 
 use crate::config::{BodyKind, SpawnConfig, TransportKind};
 use crate::dispatcher::{Dispatcher, Roster};
-use crate::{Event, NodeError, Role, SERVICES, SharedBody};
+use crate::{Event, NodeError, Role, SERVICES};
 
 /// The sample care building shipped with the sources, used when no map is configured.
 const SAMPLE_BUILDING: &str = include_str!("../../maps/sample-building.map");
 /// How long the container thread waits for a control frame before it ticks.
 const CONTROL_TICK: Duration = Duration::from_millis(10);
+/// Clearance the services' planner keeps from walls, furniture and closed doors, m (the chair's
+/// half width plus a margin).
+const CLEARANCE_M: f64 = 0.4;
 /// Longest simulated step after a stall, s (the simulator never leaps).
 const MAX_SIM_STEP_S: f64 = 0.2;
 
@@ -122,43 +126,42 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
         SerialBody::open(&config.body.port, config.body.baud, Duration::from_millis(config.body.timeout_ms))
             .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
     };
-    let (body, world): (Box<dyn Body + Send>, Option<SharedWorld>) = match config.body.kind {
-        BodyKind::Serial => (Box::new(serial()?), None),
+    let (body, world) = match config.body.kind {
+        BodyKind::Serial => (SharedBody::new(serial()?), None),
         BodyKind::Virtual | BodyKind::Mixed => {
             let mut world = World::new(load_map(&config.world.map)?, config.world.seed);
             let kind = if config.body.kind == BodyKind::Virtual { ChairKind::Simulated } else { ChairKind::Tracked };
             let id = world.add_chair(ChairSpec::default(), t_world_body, kind);
             let world = iw_sim::shared(world);
-            let body: Box<dyn Body + Send> = if config.body.kind == BodyKind::Virtual {
-                Box::new(VirtualBody::new(world.clone(), id))
+            let body = if config.body.kind == BodyKind::Virtual {
+                SharedBody::new(VirtualBody::new(world.clone(), id))
             } else {
                 let ghost = GhostSensors::new(world.clone(), id);
-                Box::new(MixedBody::new(serial()?, ghost, Odometry::new(WheelGeometry::default(), t_world_body)))
+                SharedBody::new(MixedBody::new(serial()?, ghost, Odometry::new(WheelGeometry::default(), t_world_body)))
             };
             (body, Some(world))
         }
     };
-    let driver = SharedBody::new(body);
     let setup = |reason: String| NodeError::Setup { container: name.into(), reason };
     let start = Pose2 { x, y, theta: heading_deg.to_radians() };
     let perception_id = AgentId::new(format!("perception@{name}"));
-    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(driver.observer()), None)
+    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(body.clone()), None)
         .map_err(|e| setup(e.to_string()))?;
     let control_config = ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
-    let halt = driver.observer();
-    let control = ControlAgent::new(control_config, Box::new(driver)).map_err(|e| setup(e.to_string()))?;
+    let control = ControlAgent::new(control_config, Box::new(body.clone())).map_err(|e| setup(e.to_string()))?;
     Ok(ChairParts {
         agents: vec![(perception_id, Box::new(perception)), (AgentId::new(format!("control@{name}")), Box::new(control))],
         world,
-        body: halt,
+        body,
     })
 }
 
 fn service_agents(config: &SpawnConfig, roster: Roster, events: Sender<Event>) -> Result<Agents, NodeError> {
     let map_name = if config.world.map.is_empty() { "embedded sample building" } else { &config.world.map };
     let map = load_map(&config.world.map)?;
-    let grid = iw_fleet::plan::occupancy(&map, |door| map.doors.iter().any(|d| d.id == door && !d.open))
-        .map_err(|e| NodeError::Map { map: map_name.into(), reason: e.to_string() })?;
+    let grid = iw_fleet::plan::raster(&map, |door| map.doors.iter().any(|d| d.id == door && !d.open))
+        .map_err(|e| NodeError::Map { map: map_name.into(), reason: e.to_string() })?
+        .inflated(CLEARANCE_M);
     let goals = config
         .services
         .goals
@@ -324,8 +327,8 @@ impl Runtime {
     fn shutdown(mut self) {
         let now = self.host.bus().clock().now();
         self.host.shutdown(now);
-        if let Some(body) = &self.body
-            && let Err(e) = body.halt()
+        if let Some(body) = &mut self.body
+            && let Err(e) = body.stop()
         {
             tracing::error!(container = %self.name, error = %e, "could not send the body a last stop");
         }
