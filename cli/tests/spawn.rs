@@ -201,3 +201,16 @@ fn bad_flags_and_files_are_clear_errors() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("identity key"), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+#[test]
+fn containers_over_iceoryx2_join_and_a_goal_is_done() {
+    let tag = format!("iwt-{}", std::process::id());
+    let (services_inbox, chair_inbox) = (format!("{tag}-services"), format!("{tag}-chair"));
+    let mut services = Proc::spawn(&["--services", "--transport", "iceoryx2", "--listen", &services_inbox, "--goal", "chair-s:3.0,6.0"]);
+    services.wait_for("services ready", |e| e["event"] == "ready");
+    let mut chair = Proc::spawn(&["--chair", "chair-s", "--transport", "iceoryx2", "--listen", &chair_inbox, "--peer", &services_inbox]);
+    services.wait_for("chair-s's goal done", |e| is(e, "goal", "chair", "chair-s") && e["performative"] == "INFORM");
+    assert!(chair.terminate().success());
+    services.wait_for("chair-s's control agent leaving", |e| is(e, "left", "agent", "control@chair-s"));
+    assert!(services.terminate().success());
+}
