@@ -1,0 +1,21 @@
+//! The dashboard, served on the interface agent's side: an on-chair display and a staff view in a
+//! browser, fed compact JSON state over a websocket; what the page asks for comes back as
+//! [`Action`]s for the interface side to send on the bus like any agent.
+//!
+//! Organization:
+//! - [`Dashboard`]: the HTTP + websocket server (its own thread and tokio runtime);
+//!   [`Dashboard::publish`] hands it the state, [`Dashboard::try_action`] takes the page's asks.
+//! - [`DashboardConfig`]: where it binds and its access token.
+//! - [`MapView`], [`State`], [`ChairView`], [`ChairDisplay`], [`MessageView`], [`ContainerView`],
+//!   [`FeatureView`]: what the page is sent (the map once, the state at each publish).
+//! - [`Action`]: what the page may ask.
+//!
+//! Routes: `/` (staff view; `/?chair=NAME` is that chair's on-board display), `/map.json`, `/ws`.
+//! It binds 127.0.0.1 by default; any other address needs a token, which every request must then
+//! carry as `?token=` or an `Authorization: Bearer` header (401 otherwise).
+
+mod server;
+mod state;
+
+pub use server::{Dashboard, DashboardConfig, DashboardError};
+pub use state::{Action, ChairDisplay, ChairView, ContainerView, DoorView, FeatureView, MapView, MessageView, PlaceView, State, round_cm};

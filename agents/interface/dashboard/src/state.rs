@@ -1,0 +1,173 @@
+//! What the page is sent and what it may ask. Field names are short and numbers rounded to the
+//! centimetre (or milliradian) so a 100-chair frame stays small at 10 Hz.
+
+use serde::{Deserialize, Serialize};
+
+/// Rounds `x` to 0.01 (cm for metres, 0.01 rad for angles), as `f32` so it prints short.
+/// Non-finite values become 0.
+pub fn round_cm(x: f64) -> f32 {
+    if x.is_finite() { ((x * 100.0).round() / 100.0) as f32 } else { 0.0 }
+}
+
+/// The static building, sent once at `/map.json`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct MapView {
+    /// Building name.
+    pub name: String,
+    /// Wall polylines (and furniture outlines), m.
+    pub walls: Vec<Vec<[f32; 2]>>,
+    /// Doors.
+    pub doors: Vec<DoorView>,
+    /// Named places a goal can be set to.
+    pub places: Vec<PlaceView>,
+    /// Sonar mounts in the chair's body frame: x, y (m), heading (rad); ray `i` of a chair's
+    /// `s` starts at mount `i`.
+    pub sonars: Vec<[f32; 3]>,
+}
+
+/// A door of the map: its id and hinge (`a`) and free (`b`) ends, m.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct DoorView {
+    pub id: String,
+    pub a: [f32; 2],
+    pub b: [f32; 2],
+}
+
+/// A named place, m.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct PlaceView {
+    pub name: String,
+    pub at: [f32; 2],
+}
+
+/// One frame of the dashboard.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct State {
+    /// Simulated time, s.
+    pub t: f32,
+    /// Whether the simulation is paused.
+    pub paused: bool,
+    /// The chairs.
+    pub chairs: Vec<ChairView>,
+    /// Door id and whether it is open.
+    pub doors: Vec<(String, bool)>,
+    /// The agents of each container (AMS view).
+    pub containers: Vec<ContainerView>,
+    /// The last messages between containers, oldest first.
+    pub msgs: Vec<MessageView>,
+    /// Door refusals and answers to the page's actions, oldest first (`door: reason`).
+    pub notices: Vec<String>,
+    /// Messages sent so far.
+    pub sent: u64,
+    /// The current visual-odometry frame's features, when the perception agent publishes them.
+    pub features: Option<FeatureView>,
+}
+
+/// One chair in a frame.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ChairView {
+    /// Name (its container).
+    pub n: String,
+    /// Body kind: `virtual`, `real`, `mixed`.
+    pub k: String,
+    /// Pose x, y (m), heading (rad).
+    pub p: [f32; 3],
+    /// Linear (m/s) and angular (rad/s) speed.
+    pub v: [f32; 2],
+    /// Sonar ranges, m, in mount order; -1 for no echo.
+    pub s: Vec<f32>,
+    /// Goal, m.
+    pub g: Option<[f32; 2]>,
+    /// Planned path, m.
+    pub path: Vec<[f32; 2]>,
+    /// Pose uncertainty (1-sigma position), m.
+    pub u: f32,
+    /// Collisions so far.
+    pub c: u64,
+    /// What the chair's own screen shows.
+    pub d: ChairDisplay,
+}
+
+/// The on-chair display of one chair.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ChairDisplay {
+    /// The current action (last command sent, or `idle`).
+    pub action: String,
+    /// The goal's place name, if any.
+    pub goal: Option<String>,
+    /// Shared control is intervening (an obstacle is close).
+    pub warn: bool,
+    /// Input sequence being recognised: steps entered, steps in the sequence.
+    pub seq: Option<(usize, usize)>,
+    /// The last answer the chair got.
+    pub answer: Option<String>,
+}
+
+/// A container and its agents.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ContainerView {
+    pub name: String,
+    pub agents: Vec<String>,
+}
+
+/// One message between containers, sniffer-style.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct MessageView {
+    /// Sender agent.
+    pub from: String,
+    /// Receiver agent.
+    pub to: String,
+    /// Performative.
+    pub act: String,
+    /// Conversation id, if any.
+    pub conv: String,
+    /// Dropped by a link fault.
+    pub dropped: bool,
+}
+
+/// Features of the current VO frame, in image pixels.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct FeatureView {
+    /// Image width and height, px.
+    pub size: [u32; 2],
+    /// Hard features (drawn red).
+    pub hard: Vec<[f32; 2]>,
+    /// Soft features (drawn green).
+    pub soft: Vec<[f32; 2]>,
+}
+
+/// What the page may ask; sent as JSON `{"do":"goal",...}` over the websocket.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(tag = "do", rename_all = "kebab-case")]
+pub enum Action {
+    /// Send `chair` towards the place nearest to (`x`, `y`), m.
+    Goal { chair: String, x: f64, y: f64 },
+    /// Ask the door agent to open (or close) `door`.
+    Door { door: String, open: bool },
+    /// Pause or resume the simulation.
+    Pause { paused: bool },
+    /// Advance a paused simulation by one step.
+    Step,
+    /// Fail (or restore) every sensor of `chair`.
+    Fault { chair: String, failed: bool },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn actions_parse_from_the_page_shape() {
+        let goal: Action = serde_json::from_str(r#"{"do":"goal","chair":"chair-0","x":3.5,"y":2}"#).unwrap();
+        assert_eq!(goal, Action::Goal { chair: "chair-0".into(), x: 3.5, y: 2.0 });
+        let step: Action = serde_json::from_str(r#"{"do":"step"}"#).unwrap();
+        assert_eq!(step, Action::Step);
+        assert!(serde_json::from_str::<Action>(r#"{"do":"explode"}"#).is_err());
+    }
+
+    #[test]
+    fn rounding_keeps_numbers_short() {
+        assert_eq!(serde_json::to_string(&round_cm(1.23456)).unwrap(), "1.23");
+        assert_eq!(round_cm(f64::NAN), 0.0);
+    }
+}
