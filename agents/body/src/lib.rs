@@ -12,6 +12,8 @@
 //! - [`protocol`]: the framed binary protocol spoken with the interface board (CRC-32 per frame).
 //! - [`BoardEmulator`]: the interface board emulated on a pseudo-terminal, so tests and demos
 //!   run the real [`SerialBody`] driver over a real tty.
+//! - [`layout`]: the chair's [`layout::Footprint`] and its sonar poses (figure 3.4), shared by the
+//!   simulator and the control agent.
 //! - [`WheelGeometry`] and [`Odometry`]: ticks to metres, dead reckoning of `t_world_body`.
 //!
 //! # Guarantees
@@ -21,6 +23,7 @@
 #![warn(missing_docs)]
 
 mod emulator;
+pub mod layout;
 mod mixed;
 mod odometry;
 pub mod protocol;

@@ -36,6 +36,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
+use iw_body::layout::Footprint;
 use iw_body::{Body, SensorFrame};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
@@ -77,30 +78,31 @@ pub struct ControlConfig {
     pub tactical: TacticalParams,
     /// Potential-field constants (thesis equations 3.1-3.4).
     pub shared: PotentialFieldParams,
+    /// The chair's footprint (the turning-in-place guard and wall clearances use it).
+    pub footprint: Footprint,
     /// Where each of the body's sonars sits, in its order (`iw_body::SONAR_COUNT` of them).
     pub sonar_mounts: Vec<SensorMount>,
     /// Manual commands older than this stop the chair, ms.
     pub watchdog_ms: u64,
     /// Control period.
     pub period: Duration,
-    /// A task that makes less than 5 cm of progress in this long fails as blocked, ms.
+    /// A task during which the chair travels less than [`BLOCKED_TRAVEL_M`] and turns less than
+    /// [`BLOCKED_TURN_RAD`] net for this long fails as blocked, ms.
     pub blocked_after_ms: u64,
     /// Travel of a wall-following action before it is done, m.
     pub wall_length_m: f64,
 }
 
 impl ControlConfig {
-    /// The prototype's defaults: 16 sonars evenly around a 0.35 m ring, 0.56 m track, 1 m/s
-    /// wheels, 0.5 s watchdog, 20 Hz.
+    /// The prototype's defaults: its footprint and the 16 sonars of thesis figure 3.4 where the
+    /// simulator puts them too ([`Footprint::PROTOTYPE`]), 0.56 m track, 1 m/s wheels, 0.5 s
+    /// watchdog, 20 Hz.
     pub fn prototype(perception: Option<AgentId>) -> Result<Self, ControlError> {
-        let sonar_mounts = (0..iw_body::SONAR_COUNT)
-            .map(|i| {
-                let angle = i as f64 * std::f64::consts::TAU / iw_body::SONAR_COUNT as f64;
-                Isometry2::new(nalgebra::Vector2::new(0.35 * angle.cos(), 0.35 * angle.sin()), angle)
-            })
-            .collect();
+        let footprint = Footprint::PROTOTYPE;
+        let sonar_mounts = footprint.sonar_mounts().to_vec();
         Ok(ControlConfig {
             perception,
+            footprint,
             drive: DiffDrive::new(0.56, 1.0, 1.5)?,
             tactical: TacticalParams::default(),
             shared: PotentialFieldParams::default(),
@@ -111,6 +113,18 @@ impl ControlConfig {
             wall_length_m: 3.0,
         })
     }
+}
+
+/// Net travel below which a task window counts as no progress, m.
+pub const BLOCKED_TRAVEL_M: f64 = 0.05;
+/// Net heading change below which a task window counts as no progress, rad.
+pub const BLOCKED_TURN_RAD: f64 = 0.5;
+
+/// Whether the chair moved from `anchor` to `now` by more than jitter: [`BLOCKED_TRAVEL_M`] of
+/// travel or [`BLOCKED_TURN_RAD`] of net turn (wrapped, so +-pi is no turn).
+fn progressed(anchor: &Isometry2<f64>, now: &Isometry2<f64>) -> bool {
+    (now.translation.vector - anchor.translation.vector).norm() > BLOCKED_TRAVEL_M
+        || anchor.rotation.angle_to(&now.rotation).abs() > BLOCKED_TURN_RAD
 }
 
 /// What the agent is doing.
@@ -226,14 +240,15 @@ impl ControlAgent {
         }
     }
 
-    /// Wall clearances from the side sonars (those facing 45..135 degrees left or right).
+    /// Wall clearances from the chair's centre line, from the side sonars (those facing 45..135
+    /// degrees left or right): the lateral offset of each echo in the body frame.
     fn walls(&self, frame: &SensorFrame) -> (Option<f64>, Option<f64>) {
         let mut left: Option<f64> = None;
         let mut right: Option<f64> = None;
         for (mount, range) in self.config.sonar_mounts.iter().zip(frame.sonar_m.iter()) {
             let Some(range) = *range else { continue };
             let angle = mount.rotation.angle();
-            let clearance = range + mount.translation.vector.norm();
+            let clearance = (mount * nalgebra::Point2::new(range, 0.0)).y.abs();
             let keep = |slot: &mut Option<f64>| *slot = Some(slot.map_or(clearance, |c: f64| c.min(clearance)));
             if (0.78..=2.36).contains(&angle) {
                 keep(&mut left);
@@ -251,13 +266,13 @@ impl ControlAgent {
         let Some(t_world_chair) = self.t_map_base else { return Some(VelocityCommand::STOP) };
         let input = TacticalInput { time_ns: now_ns, t_world_chair, left_wall_m, right_wall_m };
         let outcome = task.sequence.step(&input);
-        let (moved, since) = match task.progress_at {
-            Some((at, since)) => ((at.translation.vector - t_world_chair.translation.vector).norm(), since),
-            None => (f64::INFINITY, now_ns),
+        let since = match task.progress_at {
+            Some((anchor, since)) if !progressed(&anchor, &t_world_chair) => since,
+            _ => {
+                task.progress_at = Some((t_world_chair, now_ns));
+                now_ns
+            }
         };
-        if moved > 0.05 || (t_world_chair.rotation.angle() - task.progress_at.map_or(0.0, |p| p.0.rotation.angle())).abs() > 0.1 {
-            task.progress_at = Some((t_world_chair, now_ns));
-        }
         let blocked = now_ns.saturating_sub(since) > self.config.blocked_after_ms.saturating_mul(1_000_000)
             && !task.is_waiting();
         match outcome {

@@ -15,11 +15,13 @@ use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
 #[derive(Clone, Default)]
 struct Recorder {
     commands: Arc<Mutex<Vec<WheelSpeeds>>>,
+    /// The sonar ranges every read returns.
+    sonar_m: Arc<Mutex<[Option<f64>; iw_body::SONAR_COUNT]>>,
 }
 
 impl Body for Recorder {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
-        Ok(SensorFrame::empty(0))
+        Ok(SensorFrame { sonar_m: *self.sonar_m.lock().unwrap(), ..SensorFrame::empty(0) })
     }
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
         self.commands.lock().unwrap().push(speeds);
@@ -152,4 +154,61 @@ fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refu
     let inbox = rig.inbox.lock().unwrap();
     assert!(inbox.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some("g2")));
     assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
+}
+
+/// Sends the pose every 100 ms for `ms` while the chair turns through `headings` (cycled).
+fn hold_pose(rig: &mut Rig, ms: u64, headings: &[f64]) {
+    for k in 0..ms / 100 {
+        rig.send(pose(0.0, 0.0, headings[k as usize % headings.len()]));
+        rig.run(100);
+    }
+}
+
+fn goto_far(id: &str) -> AclMessage {
+    WheelchairContent::Request { actor: AgentId::new("control"), action: WheelchairAction::GotoXy { x_m: 5.0, y_m: 0.0 } }
+        .fill(AclMessage::new(Performative::Request).with_conversation_id(id))
+}
+
+fn failed(rig: &Rig, id: &str) -> bool {
+    rig.inbox.lock().unwrap().iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some(id))
+}
+
+#[test]
+fn a_wall_on_the_right_steers_the_chair_left_not_into_it() {
+    // Thesis figure 3.4, as the simulator lays the sonars out: S3-S6 (indices 2-5) look right
+    // from the right bar. A wall 25 cm to the right echoes on them while the user drives ahead.
+    let mut rig = rig();
+    {
+        let mut sonar = rig.body.sonar_m.lock().unwrap();
+        for k in 2..=5 {
+            sonar[k] = Some(0.25);
+        }
+    }
+    for _ in 0..10 {
+        rig.send(AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)));
+        rig.run(100);
+    }
+    let wheels = rig.last_wheels();
+    assert!(wheels.right_mps > wheels.left_mps + 0.01, "the chair must turn away from the wall (left): {wheels:?}");
+}
+
+#[test]
+fn wiggling_in_place_without_travel_is_blocked() {
+    // The heading jitters by +-0.2 rad with no travel: no real progress, so the task fails.
+    let mut rig = rig();
+    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send(goto_far("jitter"));
+    hold_pose(&mut rig, 10_000, &[0.0, 0.2, -0.2]);
+    assert!(failed(&rig, "jitter"), "{:?}", rig.performatives());
+}
+
+#[test]
+fn turning_in_place_is_progress() {
+    // Turning steadily in place (0.2 rad/s, 2 rad in 10 s) is progress: not blocked.
+    let mut rig2 = self::rig();
+    rig2.send(pose(0.0, 0.0, 0.0));
+    rig2.send(goto_far("turn"));
+    let headings: Vec<f64> = (0..100).map(|k| -0.02 * k as f64).collect();
+    hold_pose(&mut rig2, 10_000, &headings);
+    assert!(!failed(&rig2, "turn"), "{:?}", rig2.performatives());
 }

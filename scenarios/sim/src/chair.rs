@@ -112,7 +112,7 @@ impl Default for ChairSpec {
     /// A mid-size rear-wheel-drive powered wheelchair, 0.65 x 1.1 m, with the IntellWheels
     /// sensor bars.
     fn default() -> Self {
-        let (front_m, rear_m, half_width_m) = (0.75, 0.35, 0.325);
+        let iw_body::layout::Footprint { front_m, rear_m, half_width_m } = iw_body::layout::Footprint::PROTOTYPE;
         Self {
             front_m,
             rear_m,
@@ -143,37 +143,11 @@ impl Default for ChairSpec {
     }
 }
 
-/// The sensor-bar layout of thesis figure 3.4 (body frame: x forward, y left, origin at the
-/// drive axle centre). Right bar: S1 (ahead) and S2 (45 deg right) on the front tip, S3-S6
-/// facing right 22 cm apart front to back, S7 (135 deg right) and S8 (behind) on the rear tip.
-/// Left bar mirrors it back to front: S9 (behind), S10, S11-S14 facing left rear to front, S15,
-/// S16 (ahead). Lateral cones of 45 deg 22 cm apart overlap from 0.22 / (2 tan 22.5) = 27 cm;
-/// the two forward cones, 0.65 m apart, close the gap straight ahead at 0.325 / tan 22.5 = 80 cm:
-/// the 27-80 cm safety perimeter of the thesis.
+/// The sensor-bar layout of thesis figure 3.4 for a footprint (body frame: x forward, y left,
+/// origin at the drive axle centre): [`iw_body::layout::Footprint::sonar_mounts`], the layout
+/// the control agent uses too.
 pub fn sonar_layout(front_m: f64, rear_m: f64, half_width_m: f64) -> [SonarMount; SONAR_COUNT] {
-    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
-    let mid = (front_m - rear_m) / 2.0;
-    let lateral = [mid + 0.33, mid + 0.11, mid - 0.11, mid - 0.33];
-    let at = |x: f64, y: f64, heading: f64| SonarMount { t_body_sonar: Isometry2::new(Vector2::new(x, y), heading) };
-    let (f, r, w) = (front_m, -rear_m, half_width_m);
-    [
-        at(f, -w, 0.0),
-        at(f - 0.03, -w, -FRAC_PI_4),
-        at(lateral[0], -w, -FRAC_PI_2),
-        at(lateral[1], -w, -FRAC_PI_2),
-        at(lateral[2], -w, -FRAC_PI_2),
-        at(lateral[3], -w, -FRAC_PI_2),
-        at(r + 0.03, -w, -3.0 * FRAC_PI_4),
-        at(r, -w, PI),
-        at(r, w, PI),
-        at(r + 0.03, w, 3.0 * FRAC_PI_4),
-        at(lateral[3], w, FRAC_PI_2),
-        at(lateral[2], w, FRAC_PI_2),
-        at(lateral[1], w, FRAC_PI_2),
-        at(lateral[0], w, FRAC_PI_2),
-        at(f - 0.03, w, FRAC_PI_4),
-        at(f, w, 0.0),
-    ]
+    iw_body::layout::Footprint { front_m, rear_m, half_width_m }.sonar_mounts().map(|t_body_sonar| SonarMount { t_body_sonar })
 }
 
 impl ChairSpec {
