@@ -31,7 +31,7 @@ mod serial;
 
 pub use emulator::{BoardEmulator, BoardHandle, BoardState};
 pub use mixed::{MixedBody, VirtualSensors, merge_nearest};
-pub use odometry::{Odometry, WheelGeometry};
+pub use odometry::{Odometry, WheelGeometry, WheelTravel};
 pub use serial::SerialBody;
 
 /// Number of sonars on the IntellWheels prototype (thesis figure 3.4).

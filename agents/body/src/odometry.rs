@@ -30,7 +30,18 @@ impl WheelGeometry {
     }
 }
 
-/// Dead reckoning of `t_world_body` from cumulative encoder ticks.
+/// How far each drive wheel rolled between two readings, m (nominal geometry).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WheelTravel {
+    /// Left wheel, m (negative backwards).
+    pub left_m: f64,
+    /// Right wheel, m (negative backwards).
+    pub right_m: f64,
+}
+
+/// Dead reckoning of `t_world_body` from cumulative encoder ticks: the one implementation the
+/// mixed body and the perception agent's probabilistic wheel odometry (`iw_vo::WheelOdometry`)
+/// both integrate with.
 #[derive(Debug, Clone)]
 pub struct Odometry {
     geometry: WheelGeometry,
@@ -49,20 +60,30 @@ impl Odometry {
         self.t_world_body
     }
 
+    /// The geometry the ticks are read against.
+    pub fn geometry(&self) -> &WheelGeometry {
+        &self.geometry
+    }
+
     /// Integrates the tick increments since the previous frame (midpoint rule) and returns the
     /// new pose estimate.
     pub fn update(&mut self, frame: &SensorFrame) -> Isometry2<f64> {
-        if let Some((l0, r0)) = self.last_ticks {
-            let k = self.geometry.m_per_tick();
-            let dl = frame.left_ticks.wrapping_sub(l0) as f64 * k;
-            let dr = frame.right_ticks.wrapping_sub(r0) as f64 * k;
-            let ds = (dl + dr) / 2.0;
-            let dtheta = (dr - dl) / self.geometry.track_m;
-            let t_prev_curr = Isometry2::new(Vector2::new(ds * (dtheta / 2.0).cos(), ds * (dtheta / 2.0).sin()), dtheta);
-            self.t_world_body *= t_prev_curr;
-        }
-        self.last_ticks = Some((frame.left_ticks, frame.right_ticks));
+        self.advance(frame.left_ticks, frame.right_ticks);
         self.t_world_body
+    }
+
+    /// Integrates cumulative tick counts (midpoint rule: half the turn before the straight part,
+    /// half after) and returns each wheel's travel since the previous call; `None` on the first
+    /// call, which only latches the counters. Counters may wrap.
+    pub fn advance(&mut self, left_ticks: i64, right_ticks: i64) -> Option<WheelTravel> {
+        let (l0, r0) = self.last_ticks.replace((left_ticks, right_ticks))?;
+        let k = self.geometry.m_per_tick();
+        let travel = WheelTravel { left_m: left_ticks.wrapping_sub(l0) as f64 * k, right_m: right_ticks.wrapping_sub(r0) as f64 * k };
+        let ds = (travel.left_m + travel.right_m) / 2.0;
+        let dtheta = (travel.right_m - travel.left_m) / self.geometry.track_m;
+        let t_prev_curr = Isometry2::new(Vector2::new(ds * (dtheta / 2.0).cos(), ds * (dtheta / 2.0).sin()), dtheta);
+        self.t_world_body *= t_prev_curr;
+        Some(travel)
     }
 }
 

@@ -4,7 +4,8 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, AgentHost, Context};
+use iw_agent::gateway::{GatewayHandle, gateway};
+use iw_agent::AgentHost;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
 use iw_control_agent::{ControlAgent, ControlConfig, drive_content};
@@ -29,31 +30,11 @@ impl Body for Recorder {
     }
 }
 
-/// Keeps what it receives; sends what the test queues.
-struct Probe {
-    inbox: Arc<Mutex<Vec<AclMessage>>>,
-    outbox: Arc<Mutex<Vec<AclMessage>>>,
-}
-
-impl Agent for Probe {
-    fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
-        self.inbox.lock().unwrap().push(message);
-    }
-    fn tick_period(&self) -> Option<Duration> {
-        Some(Duration::from_millis(1))
-    }
-    fn tick(&mut self, ctx: &mut Context<'_>) {
-        for m in self.outbox.lock().unwrap().drain(..) {
-            ctx.send(m).unwrap();
-        }
-    }
-}
-
 struct Rig {
     host: AgentHost,
     clock: MockController,
-    inbox: Arc<Mutex<Vec<AclMessage>>>,
-    outbox: Arc<Mutex<Vec<AclMessage>>>,
+    probe: GatewayHandle,
+    received: Vec<AclMessage>,
     body: Recorder,
 }
 
@@ -65,9 +46,9 @@ fn rig() -> Rig {
     let body = Recorder::default();
     let config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
     host.add(AgentId::new("control"), Box::new(ControlAgent::new(config, Box::new(body.clone())).unwrap())).unwrap();
-    let (inbox, outbox) = (Arc::default(), Arc::default());
-    host.add(AgentId::new("probe"), Box::new(Probe { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox) })).unwrap();
-    Rig { host, clock: controller, inbox, outbox, body }
+    let (agent, probe) = gateway(Duration::from_millis(1));
+    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    Rig { host, clock: controller, probe, received: Vec::new(), body }
 }
 
 impl Rig {
@@ -76,15 +57,17 @@ impl Rig {
             self.host.step(self.clock.now());
             self.clock.advance(Duration::from_millis(10));
         }
+        self.received.extend(self.probe.take_received());
+        assert!(self.probe.take_send_errors().is_empty());
     }
     fn send(&self, m: AclMessage) {
-        self.outbox.lock().unwrap().push(m.with_receiver(AgentId::new("control")));
+        self.probe.send(m.with_receiver(AgentId::new("control")));
     }
     fn last_wheels(&self) -> WheelSpeeds {
         *self.body.commands.lock().unwrap().last().unwrap()
     }
     fn performatives(&self) -> Vec<Performative> {
-        self.inbox.lock().unwrap().iter().map(|m| m.performative).collect()
+        self.received.iter().map(|m| m.performative).collect()
     }
 }
 
@@ -97,7 +80,7 @@ fn pose(x: f64, y: f64, theta: f64) -> AclMessage {
 fn subscribes_to_perception_at_setup() {
     let mut rig = rig();
     rig.run(20);
-    let inbox = rig.inbox.lock().unwrap();
+    let inbox = &rig.received;
     assert_eq!(inbox[0].performative, Performative::Subscribe);
     assert_eq!(inbox[0].protocol.as_deref(), Some("fipa-subscribe"));
 }
@@ -130,7 +113,7 @@ fn goto_is_agreed_driven_and_reported_done() {
     assert!(rig.last_wheels().left_mps > 0.0, "drives toward the goal");
     rig.send(pose(0.98, 0.0, 0.0));
     rig.run(200);
-    let inbox = rig.inbox.lock().unwrap();
+    let inbox = &rig.received;
     let done = inbox.iter().find(|m| m.performative == Performative::Inform).expect("inform done");
     assert_eq!(done.conversation_id.as_deref(), Some("g1"));
     assert_eq!(WheelchairContent::from_message(done).unwrap(), WheelchairContent::Done { actor: AgentId::new("control"), action });
@@ -151,7 +134,7 @@ fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refu
     let got = rig.performatives();
     assert!(got.contains(&Performative::Refuse), "{got:?}");
     assert!(got.contains(&Performative::NotUnderstood), "{got:?}");
-    let inbox = rig.inbox.lock().unwrap();
+    let inbox = &rig.received;
     assert!(inbox.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some("g2")));
     assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
 }
@@ -170,7 +153,7 @@ fn goto_far(id: &str) -> AclMessage {
 }
 
 fn failed(rig: &Rig, id: &str) -> bool {
-    rig.inbox.lock().unwrap().iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some(id))
+    rig.received.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some(id))
 }
 
 #[test]

@@ -2,45 +2,25 @@
 //! stored, queries answered, and every message survives a crash with a torn tail.
 
 use std::io::Write;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, AgentHost, Context};
+use iw_agent::AgentHost;
+use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
 use iw_logger::{LoggedMessage, Query, SyncPolicy};
 
-struct Probe {
-    inbox: Arc<Mutex<Vec<AclMessage>>>,
-    outbox: Arc<Mutex<Vec<AclMessage>>>,
-}
-
-impl Agent for Probe {
-    fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
-        self.inbox.lock().unwrap().push(message);
-    }
-    fn tick_period(&self) -> Option<Duration> {
-        Some(Duration::from_millis(1))
-    }
-    fn tick(&mut self, ctx: &mut Context<'_>) {
-        for m in self.outbox.lock().unwrap().drain(..) {
-            ctx.send(m).unwrap();
-        }
-    }
-}
-
-type Mailbag = Arc<Mutex<Vec<AclMessage>>>;
-
-fn host(config: &LoggerConfig, name: &str) -> (AgentHost, MockController, Mailbag, Mailbag) {
+fn host(config: &LoggerConfig, name: &str) -> (AgentHost, MockController, GatewayHandle) {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
     let bus = Bus::start(Stack::new(), Arc::new(network.endpoint(name).unwrap()), clock, BusConfig::default()).unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
     host.add(AgentId::new("logger"), Box::new(LoggerAgent::open(config).unwrap())).unwrap();
-    let (inbox, outbox): (Mailbag, Mailbag) = (Arc::default(), Arc::default());
-    host.add(AgentId::new("probe"), Box::new(Probe { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox) })).unwrap();
-    (host, controller, inbox, outbox)
+    let (agent, probe) = gateway(Duration::from_millis(1));
+    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    (host, controller, probe)
 }
 
 fn run(host: &mut AgentHost, clock: &MockController, steps: usize) {
@@ -62,28 +42,30 @@ fn query(q: &Query) -> AclMessage {
 fn every_message_survives_a_crash_and_queries_find_them() {
     let dir = tempfile::tempdir().unwrap();
     let config = LoggerConfig { path: dir.path().join("bus.log"), policy: SyncPolicy::Always, sync_period: Duration::from_millis(100) };
-    let (mut host, clock, _inbox, outbox) = host(&config, "c1");
+    let (mut host, clock, probe) = host(&config, "c1");
     for i in 0..50u64 {
         let original = AclMessage::new(if i % 2 == 0 { Performative::Request } else { Performative::Inform })
             .with_sender(AgentId::new(format!("chair{}", i % 3)))
             .with_receiver(AgentId::new("door"))
             .with_conversation_id(format!("c{i}"))
             .with_content(format!("((open-door \"d{i}\"))"));
-        outbox.lock().unwrap().push(copy_for_logger(&original, &AgentId::new("logger"), 1_000 + i));
+        probe.send(copy_for_logger(&original, &AgentId::new("logger"), 1_000 + i));
     }
     // A carbon copy: the logger is simply one more receiver.
-    outbox.lock().unwrap().push(AclMessage::new(Performative::Cfp).with_receiver(AgentId::new("logger")).with_content("cc"));
+    probe.send(AclMessage::new(Performative::Cfp).with_receiver(AgentId::new("logger")).with_content("cc"));
     run(&mut host, &clock, 5);
+    assert!(probe.take_send_errors().is_empty());
     // Crash: no take-down, and a half-written record at the end of the file.
     std::mem::forget(host);
     std::fs::OpenOptions::new().append(true).open(&config.path).unwrap().write_all(&[7, 0, 0, 0, 1, 2]).unwrap();
 
-    let (mut host, clock, inbox, outbox) = self::host(&config, "c2");
-    outbox.lock().unwrap().push(query(&Query::default()));
-    outbox.lock().unwrap().push(query(&Query { sender: Some("chair1".into()), performative: Some("INFORM".into()), ..Query::default() }));
-    outbox.lock().unwrap().push(AclMessage::new(Performative::Request).with_receiver(AgentId::new("logger")).with_ontology(LOG_ONTOLOGY).with_content("not json"));
+    let (mut host, clock, probe) = self::host(&config, "c2");
+    probe.send(query(&Query::default()));
+    probe.send(query(&Query { sender: Some("chair1".into()), performative: Some("INFORM".into()), ..Query::default() }));
+    probe.send(AclMessage::new(Performative::Request).with_receiver(AgentId::new("logger")).with_ontology(LOG_ONTOLOGY).with_content("not json"));
     run(&mut host, &clock, 3);
-    let inbox = inbox.lock().unwrap();
+    assert!(probe.take_send_errors().is_empty());
+    let inbox = probe.take_received();
     let answers: Vec<_> = inbox.iter().map(|m| m.performative).collect();
     assert_eq!(answers, [Performative::Inform, Performative::Inform, Performative::NotUnderstood]);
     let all: Vec<LoggedMessage> = serde_json::from_str(inbox[0].content_text().unwrap()).unwrap();

@@ -1,10 +1,11 @@
 //! The perception agent alone on an in-process bus with a mock clock.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, AgentHost, Context};
+use iw_agent::AgentHost;
+use iw_agent::gateway::gateway;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
 use iw_ontology::OntologyContent;
@@ -34,25 +35,6 @@ impl Body for Rolling {
     }
 }
 
-struct Probe {
-    inbox: Arc<Mutex<Vec<AclMessage>>>,
-    outbox: Arc<Mutex<Vec<AclMessage>>>,
-}
-
-impl Agent for Probe {
-    fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
-        self.inbox.lock().unwrap().push(message);
-    }
-    fn tick_period(&self) -> Option<Duration> {
-        Some(Duration::from_millis(1))
-    }
-    fn tick(&mut self, ctx: &mut Context<'_>) {
-        for m in self.outbox.lock().unwrap().drain(..) {
-            ctx.send(m).unwrap();
-        }
-    }
-}
-
 #[test]
 fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     let network = InProcNetwork::new();
@@ -61,8 +43,8 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     let mut host = AgentHost::new(Arc::new(bus));
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
     host.add(AgentId::new("perception"), Box::new(PerceptionAgent::new(config, Box::new(Rolling { reads: 0 }), None).unwrap())).unwrap();
-    let (inbox, outbox): (Arc<Mutex<Vec<AclMessage>>>, Arc<Mutex<Vec<AclMessage>>>) = (Arc::default(), Arc::default());
-    host.add(AgentId::new("probe"), Box::new(Probe { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox) })).unwrap();
+    let (agent, probe) = gateway(Duration::from_millis(1));
+    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
     let subscribe = |content: &str| {
         AclMessage::new(Performative::Subscribe)
             .with_receiver(AgentId::new("perception"))
@@ -70,7 +52,7 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
             .with_conversation_id("s1")
             .with_content(content)
     };
-    outbox.lock().unwrap().push(subscribe("((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))"));
+    probe.send(subscribe("((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))"));
     let mut run = |ms: u64| {
         for _ in 0..ms / 10 {
             host.step(controller.now());
@@ -79,7 +61,8 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     };
     run(2000);
     let poses: Vec<_> = {
-        let inbox = inbox.lock().unwrap();
+        assert!(probe.take_send_errors().is_empty());
+        let inbox = probe.take_received();
         assert_eq!(inbox[0].performative, Performative::Agree);
         let mut sonar_seen = false;
         let mut poses = Vec::new();
@@ -105,9 +88,9 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     assert!(last.x_m > first.x_m + 0.1, "drives forward: {} -> {}", first.x_m, last.x_m);
     assert!((last.y_m - 2.0).abs() < 1e-9, "straight along x");
     assert!(last.covariance[(0, 0)] > first.covariance[(0, 0)], "uncertainty grows without a camera");
-    outbox.lock().unwrap().push(AclMessage::new(Performative::Cancel).with_receiver(AgentId::new("perception")).with_conversation_id("s1"));
+    probe.send(AclMessage::new(Performative::Cancel).with_receiver(AgentId::new("perception")).with_conversation_id("s1"));
     run(100);
-    let count = inbox.lock().unwrap().len();
+    probe.take_received();
     run(1000);
-    assert_eq!(inbox.lock().unwrap().len(), count, "no informs after cancel");
+    assert_eq!(probe.take_received().len(), 0, "no informs after cancel");
 }

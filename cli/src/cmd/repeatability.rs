@@ -20,7 +20,8 @@ use std::process::ExitCode;
 use anyhow::Context;
 use image::RgbImage;
 use indicatif::{ProgressBar, ProgressStyle};
-use iw_features::experiment::{Collection, Relight, Summary, repeatability, wilcoxon};
+use iw_stats::{Alternative, wilcoxon_signed_rank};
+use iw_features::experiment::{Collection, Relight, Summary, repeatability};
 use iw_features::{Detector, DetectorConfig, DetectorKind, Keypoint};
 use iw_plot::boxplot::{BoxPanel, BoxSeries, plot_boxes};
 use rayon::prelude::*;
@@ -169,6 +170,19 @@ fn values(rows: &[Row], collection: Collection, kind: DetectorKind, f: impl Fn(&
     rows.iter().filter(|r| r.collection == collection && r.kind == kind).map(f).collect()
 }
 
+/// Wilcoxon signed-rank test of `b - a` (normal approximation, as the thesis's detector tables):
+/// `{n, w_plus, z, p_two_sided, p_greater}`, or null when no pair differs.
+fn wilcoxon(a: &[f64], b: &[f64]) -> anyhow::Result<Value> {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let two = wilcoxon_signed_rank(b, a, Alternative::TwoSided).context("Wilcoxon test of the repeatabilities")?;
+    if two.n == 0 {
+        return Ok(Value::Null);
+    }
+    let greater = wilcoxon_signed_rank(b, a, Alternative::Greater).context("Wilcoxon test of the repeatabilities")?;
+    Ok(json!({ "n": two.n, "w_plus": two.w_plus, "z": two.z, "p_two_sided": two.p_normal, "p_greater": greater.p_normal }))
+}
+
 fn count_ratio(r: &Row) -> f64 {
     r.relit_keypoints as f64 / r.reference_keypoints.max(1) as f64
 }
@@ -224,8 +238,8 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
             let w = wilcoxon(
                 &values(rows, collection, a, |r| r.repeatability),
                 &values(rows, collection, b, |r| r.repeatability),
-            );
-            tests.insert(format!("{} - {}", b.name(), a.name()), serde_json::to_value(w)?);
+            )?;
+            tests.insert(format!("{} - {}", b.name(), a.name()), w);
         }
         stats.insert("wilcoxon".into(), Value::Object(tests));
         println!("| {} | {} |", collection.name().to_uppercase(), cells.join(" | "));

@@ -17,7 +17,6 @@
 //!   chair when commands stop arriving.
 //! - [`driver`]: [`driver::HeadGestureDriver`], a seeded model of a person steering with a head cap
 //!   (delay, tremor noise, coarse quantised steering) along a circuit.
-//! - [`stats`]: [`stats::wilcoxon_signed_rank`], exact and normal-approximation p values.
 //!
 //! Guarantees:
 //! - With no obstacle inside the safety range the user's command comes out unchanged, bit for bit
@@ -34,7 +33,6 @@ pub mod driver;
 mod error;
 mod manual;
 mod potential;
-pub mod stats;
 pub mod tactical;
 mod vfh;
 

@@ -1,5 +1,5 @@
 //! The thesis's illumination experiments (4.6): synthetic relighting collections, the
-//! repeatability protocol (eq. 4.66, after Schmid et al.) and the Wilcoxon signed-rank test.
+//! repeatability protocol (eq. 4.66, after Schmid et al.); the Wilcoxon signed-rank test is `iw_stats`.
 //!
 //! Protocol, identity geometry: a relit keypoint corresponds to an unused reference keypoint
 //! within [`DIST_TOL_PX`] px and a size ratio within [`SIZE_TOL`], one-to-one, nearest pairs
@@ -164,70 +164,6 @@ impl Summary {
     }
 }
 
-/// Result of a Wilcoxon signed-rank test of paired samples `b - a`.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct Wilcoxon {
-    /// Pairs with a non-zero difference (zeros dropped, Wilcoxon's method).
-    pub n: usize,
-    /// Sum of the ranks of the positive differences.
-    pub w_plus: f64,
-    /// Normal approximation with tie correction; negative when `b` tends to be smaller.
-    pub z: f64,
-    /// Two-sided p-value.
-    pub p_two_sided: f64,
-    /// One-sided p-value for "b greater than a".
-    pub p_greater: f64,
-}
-
-/// Wilcoxon signed-rank test of `b` against `a` (paired, same length; extra items ignored).
-/// `None` when no pair differs.
-pub fn wilcoxon(a: &[f64], b: &[f64]) -> Option<Wilcoxon> {
-    let mut d: Vec<f64> = a.iter().zip(b).map(|(x, y)| y - x).filter(|v| *v != 0.0 && v.is_finite()).collect();
-    if d.is_empty() {
-        return None;
-    }
-    d.sort_by(|x, y| x.abs().total_cmp(&y.abs()));
-    let n = d.len();
-    let (mut w_plus, mut tie_term) = (0.0, 0.0);
-    let mut i = 0;
-    while i < n {
-        let mut j = i;
-        while j + 1 < n && d[j + 1].abs() == d[i].abs() {
-            j += 1;
-        }
-        let rank = (i + j) as f64 / 2.0 + 1.0;
-        let t = (j - i + 1) as f64;
-        tie_term += t * t * t - t;
-        w_plus += d[i..=j].iter().filter(|v| **v > 0.0).count() as f64 * rank;
-        i = j + 1;
-    }
-    let nf = n as f64;
-    let mean = nf * (nf + 1.0) / 4.0;
-    let var = nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0 - tie_term / 48.0;
-    let z = if var > 0.0 { (w_plus - mean) / var.sqrt() } else { 0.0 };
-    Some(Wilcoxon { n, w_plus, z, p_two_sided: (2.0 * normal_sf(z.abs())).min(1.0), p_greater: normal_sf(z) })
-}
-
-/// Upper tail `P(Z > z)` of the standard normal.
-fn normal_sf(z: f64) -> f64 {
-    0.5 * erfc(z / std::f64::consts::SQRT_2)
-}
-
-/// Complementary error function (Numerical Recipes' Chebyshev fit, relative error < 1.2e-7).
-fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let poly = -z * z - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let r = t * poly.exp();
-    if x >= 0.0 { r } else { 2.0 - r }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -260,18 +196,5 @@ mod tests {
     fn summary_matches_numpy() {
         let s = Summary::of(&[1.0, 2.0, 3.0, 4.0]);
         assert_eq!((s.median, s.mean, s.iqr, s.n), (2.5, 2.5, 1.5, 4));
-    }
-
-    #[test]
-    fn wilcoxon_matches_scipy() {
-        // scipy.stats.wilcoxon(a, b, correction=False, method="approx") gives p = 0.074462:
-        // W+ = 45 over n = 10 without ties, z = (45 - 27.5) / sqrt(96.25).
-        let a = [0.0; 10];
-        let b = [1.0, 2.0, -3.0, 4.0, 5.0, 6.0, -7.0, 8.0, 9.0, 10.0];
-        let w = wilcoxon(&a, &b).unwrap();
-        assert_eq!(w.w_plus, 45.0);
-        assert!((w.z - (45.0 - 27.5) / 96.25f64.sqrt()).abs() < 1e-12);
-        assert!((w.p_two_sided - 0.074_461_83).abs() < 1e-6, "{}", w.p_two_sided);
-        assert!(wilcoxon(&a, &a).is_none());
     }
 }

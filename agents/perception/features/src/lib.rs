@@ -11,7 +11,7 @@
 //! - [`match_features`] with [`MatchConfig`]: brute force, Lowe ratio test, mutual check, hard
 //!   features matched against all, opposite Laplacian signs skipped.
 //! - [`experiment`]: the thesis's illumination collections (LIC, LIS, LCC), the repeatability
-//!   protocol (eq. 4.66) and the Wilcoxon signed-rank test used to compare detectors.
+//!   protocol (eq. 4.66); detectors are compared with `iw_stats`' Wilcoxon signed-rank test.
 //! - [`GrayImage32`], [`IntegralImage`]: typed buffers the pipeline works on.
 //!
 //! # Guarantees

@@ -2,7 +2,8 @@
 //! model (Thrun, Burgard, Fox, "Probabilistic Robotics", 5.4; thesis 3.3.2): the pose estimate
 //! carries a covariance that grows with the distance travelled and the angle turned.
 
-use nalgebra::{Matrix3, Vector3};
+use iw_body::{Odometry, WheelGeometry};
+use nalgebra::{Isometry2, Matrix3, Vector2, Vector3};
 
 /// A planar pose: position in metres and heading in radians (counter-clockwise from x).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
@@ -63,6 +64,13 @@ impl Default for DiffDriveParams {
     }
 }
 
+impl DiffDriveParams {
+    /// The drive geometry alone.
+    pub fn geometry(&self) -> WheelGeometry {
+        WheelGeometry { track_m: self.track_m, wheel_radius_m: self.wheel_radius_m, ticks_per_rev: self.ticks_per_rev }
+    }
+}
+
 /// One motion step in the odometry model's terms: turn, drive straight, turn.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct OdometryStep {
@@ -114,36 +122,37 @@ impl OdometryStep {
     }
 }
 
-/// Dead reckoning from cumulative encoder counts.
+/// Dead reckoning from cumulative encoder counts (`iw_body::Odometry`) with the covariance of the
+/// probabilistic motion model.
 #[derive(Debug, Clone)]
 pub struct WheelOdometry {
     params: DiffDriveParams,
-    last_ticks: Option<(i64, i64)>,
-    pose: Pose2,
+    dead_reckoning: Odometry,
     covariance: Matrix3<f64>,
 }
 
 impl WheelOdometry {
     /// Starts at `pose` with zero uncertainty.
     pub fn new(params: DiffDriveParams, pose: Pose2) -> Self {
-        WheelOdometry { params, last_ticks: None, pose, covariance: Matrix3::zeros() }
+        let start = Isometry2::new(Vector2::new(pose.x, pose.y), pose.theta);
+        WheelOdometry { params, dead_reckoning: Odometry::new(params.geometry(), start), covariance: Matrix3::zeros() }
     }
 
     /// Feeds the cumulative tick counts of both wheels; returns the step since the last call
     /// (`None` on the first call, which only latches the counters).
     pub fn update(&mut self, left_ticks: i64, right_ticks: i64) -> Option<OdometryStep> {
-        let previous = self.last_ticks.replace((left_ticks, right_ticks))?;
-        let m_per_tick = std::f64::consts::TAU * self.params.wheel_radius_m / self.params.ticks_per_rev;
-        let left = left_ticks.wrapping_sub(previous.0) as f64 * m_per_tick;
-        let right = right_ticks.wrapping_sub(previous.1) as f64 * m_per_tick;
-        let step = OdometryStep::from_wheels(left, right, self.params.track_m);
-        (self.pose, self.covariance) = step.propagate(&self.pose, &self.covariance, &self.params.alpha);
+        let before = self.pose();
+        let travel = self.dead_reckoning.advance(left_ticks, right_ticks)?;
+        let step = OdometryStep::from_wheels(travel.left_m, travel.right_m, self.params.track_m);
+        // The pose is the dead reckoning's; the model contributes the covariance.
+        self.covariance = step.propagate(&before, &self.covariance, &self.params.alpha).1;
         Some(step)
     }
 
     /// Dead-reckoned pose.
     pub fn pose(&self) -> Pose2 {
-        self.pose
+        let t = self.dead_reckoning.t_world_body();
+        Pose2::new(t.translation.x, t.translation.y, t.rotation.angle())
     }
 
     /// Covariance of (x, y, theta).

@@ -43,6 +43,9 @@ pub enum ExperimentError {
     /// A controller or the driver model refused its input.
     #[error("control: {0}")]
     Control(#[from] ControlError),
+    /// The paired samples could not be tested.
+    #[error("statistics: {0}")]
+    Stats(#[from] iw_stats::StatsError),
     /// The map has no route to drive.
     #[error("map has no route `{name}` (routes: {available}); add `route {name} closed x1 y1 x2 y2 ...`")]
     NoRoute {

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use iw_plot::paths::{Outline, PathFigure, PathSeries, plot_paths};
 use iw_plot::plotters::prelude::*;
-use iw_shared_control::stats::{Alternative, Wilcoxon, wilcoxon_signed_rank};
+use iw_stats::{Alternative, Wilcoxon, wilcoxon_signed_rank};
 use iw_sim::Map;
 
 use crate::{Config, ExperimentError, Mode, Report, Trial};

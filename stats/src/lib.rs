@@ -5,8 +5,30 @@
 //! exact p value enumerates all `2^n` sign patterns of the observed ranks (by dynamic programming
 //! over doubled ranks, so ties stay exact); the normal approximation uses the tie-corrected variance
 //! without continuity correction, which is what SPSS reports and what the thesis's figures match.
+//!
+//! One implementation for every experiment: the shared-control study (manual vs shared) and the
+//! detector repeatability comparison (`intellwheels repeatability`).
 
-use crate::ControlError;
+/// Why a test could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StatsError {
+    /// The paired samples have different lengths.
+    #[error("paired samples differ in length: {left} vs {right}")]
+    UnpairedSamples {
+        /// First sample length.
+        left: usize,
+        /// Second sample length.
+        right: usize,
+    },
+    /// A difference is NaN or infinite.
+    #[error("pair {index}: difference {value} is not finite")]
+    NotFinite {
+        /// Index of the pair.
+        index: usize,
+        /// The difference.
+        value: f64,
+    },
+}
 
 /// The alternative hypothesis about `x - y`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -50,15 +72,15 @@ impl Wilcoxon {
 pub const EXACT_MAX_N: usize = 200;
 
 /// Wilcoxon signed-rank test of the paired samples `x` and `y`.
-pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64], alternative: Alternative) -> Result<Wilcoxon, ControlError> {
+pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64], alternative: Alternative) -> Result<Wilcoxon, StatsError> {
     if x.len() != y.len() {
-        return Err(ControlError::UnpairedSamples { left: x.len(), right: y.len() });
+        return Err(StatsError::UnpairedSamples { left: x.len(), right: y.len() });
     }
     let mut diffs = Vec::with_capacity(x.len());
     for (index, (a, b)) in x.iter().zip(y).enumerate() {
         let d = a - b;
         if !d.is_finite() {
-            return Err(ControlError::BadReading { sensor: "sample", index, value: d });
+            return Err(StatsError::NotFinite { index, value: d });
         }
         if d != 0.0 {
             diffs.push(d);
@@ -199,7 +221,19 @@ mod tests {
     }
 
     #[test]
-    fn unpaired_is_an_error() {
+    fn unpaired_or_non_finite_is_an_error() {
         assert!(wilcoxon_signed_rank(&[1.0], &[], Alternative::Greater).is_err());
+        assert!(matches!(wilcoxon_signed_rank(&[f64::NAN], &[0.0], Alternative::Greater), Err(StatsError::NotFinite { index: 0, .. })));
+    }
+
+    #[test]
+    fn normal_approximation_without_ties_matches_scipy() {
+        // scipy.stats.wilcoxon(d, correction=False, method="approx") gives p = 0.074462:
+        // W+ = 45 over n = 10 without ties, z = (45 - 27.5) / sqrt(96.25).
+        let d = [1.0, 2.0, -3.0, 4.0, 5.0, 6.0, -7.0, 8.0, 9.0, 10.0];
+        let w = wilcoxon_signed_rank(&d, &[0.0; 10], Alternative::TwoSided).unwrap();
+        assert_eq!(w.w_plus, 45.0);
+        assert!(close(w.z, (45.0 - 27.5) / 96.25f64.sqrt(), 1e-12));
+        assert!(close(w.p_normal, 0.074_461_83, 1e-6), "{}", w.p_normal);
     }
 }
