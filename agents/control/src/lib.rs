@@ -27,6 +27,10 @@
 //!   perception agent. At setup the agent SUBSCRIBEs (`fipa-subscribe`) to
 //!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`.
 //!
+//! Driving: the potential field (thesis 3.6) corrects the command, then [`ArcGuard`] scales or
+//! steers it so the footprint swept until the chair stops (turning in place too) stays clear of
+//! the sonar echoes.
+//!
 //! Guarantees: the body is commanded every tick; with no fresh command (manual) or no task the
 //! watchdog ramps the wheels to zero; a body read error stops the chair and fails the task; no
 //! message content can panic the agent.
@@ -42,7 +46,7 @@ use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
 use iw_shared_control::tactical::{Action, ActionSequence, SequenceStatus, Side, TacticalInput, TacticalParams};
-use iw_shared_control::{PotentialField, PotentialFieldParams, SensorMount, SharedController, SharedInput, VelocityCommand};
+use iw_shared_control::{ArcGuard, ArcGuardParams, PotentialField, PotentialFieldParams, SensorMount, SharedController, SharedInput, VelocityCommand};
 use iw_sl::{ActionExpression, ContentExpression, Level, Term};
 use nalgebra::Isometry2;
 
@@ -78,8 +82,11 @@ pub struct ControlConfig {
     pub tactical: TacticalParams,
     /// Potential-field constants (thesis equations 3.1-3.4).
     pub shared: PotentialFieldParams,
-    /// The chair's footprint (the turning-in-place guard and wall clearances use it).
+    /// The chair's footprint (the arc guard and wall clearances use it).
     pub footprint: Footprint,
+    /// The footprint guard applied after the potential field: the chair's rectangle swept along
+    /// the commanded arc (turning in place included) until stopped must stay clear of echoes.
+    pub guard: ArcGuardParams,
     /// Where each of the body's sonars sits, in its order (`iw_body::SONAR_COUNT` of them).
     pub sonar_mounts: Vec<SensorMount>,
     /// Manual commands older than this stop the chair, ms.
@@ -103,6 +110,7 @@ impl ControlConfig {
         Ok(ControlConfig {
             perception,
             footprint,
+            guard: ArcGuardParams::default(),
             drive: DiffDrive::new(0.56, 1.0, 1.5)?,
             tactical: TacticalParams::default(),
             shared: PotentialFieldParams::default(),
@@ -149,6 +157,7 @@ pub struct ControlAgent {
     body: Box<dyn Body + Send>,
     basic: BasicControl,
     field: PotentialField,
+    guard: ArcGuard,
     mode: Mode,
     t_map_base: Option<Isometry2<f64>>,
     manual_watchdog: Watchdog,
@@ -162,8 +171,9 @@ impl ControlAgent {
         }
         ActionSequence::new(config.tactical, [])?;
         let field = PotentialField::new(config.shared, config.sonar_mounts.clone())?;
+        let guard = ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?;
         let basic = BasicControl::new(config.drive, config.watchdog_ms.saturating_mul(1_000_000));
-        Ok(ControlAgent { body, basic, field, mode: Mode::Idle, t_map_base: None, manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)), config })
+        Ok(ControlAgent { body, basic, field, guard, mode: Mode::Idle, t_map_base: None, manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)), config })
     }
 
     fn handle_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
@@ -387,7 +397,8 @@ impl Agent for ControlAgent {
         let command = match user {
             Some(user) => {
                 let input = SharedInput { user, speed_mps: user.linear_mps.abs(), sonar_m: &frame.sonar_m, points_chair: &[] };
-                self.field.step(&input).map(|out| out.command).unwrap_or(VelocityCommand::STOP)
+                let field = self.field.step(&input).map(|out| out.command).unwrap_or(VelocityCommand::STOP);
+                self.guard.step(&SharedInput { user: field, ..input }).map(|out| out.command).unwrap_or(VelocityCommand::STOP)
             }
             None => VelocityCommand::STOP,
         };

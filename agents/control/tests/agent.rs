@@ -195,3 +195,24 @@ fn turning_in_place_is_progress() {
     hold_pose(&mut rig2, 10_000, &headings);
     assert!(!failed(&rig2, "turn"), "{:?}", rig2.performatives());
 }
+
+#[test]
+fn spinning_towards_a_wall_beside_the_chair_is_held_back() {
+    // A wall 10 cm to the right: a clockwise spin would swing the 0.75 m front into it. The
+    // body here does not turn, so the guard keeps judging the same wall: it may let the chair
+    // creep (the arc until stopped stays clear) but not spin as asked.
+    let mut rig = rig();
+    {
+        let mut sonar = rig.body.sonar_m.lock().unwrap();
+        for k in 2..=5 {
+            sonar[k] = Some(0.1);
+        }
+    }
+    for _ in 0..10 {
+        rig.send(AclMessage::new(Performative::Request).with_content(drive_content("control", 0.0, -0.8)));
+        rig.run(100);
+    }
+    let wheels = rig.last_wheels();
+    let clockwise_radps = (wheels.left_mps - wheels.right_mps) / 0.56;
+    assert!(clockwise_radps <= 0.4, "the chair still spins clockwise into the wall: {wheels:?}");
+}

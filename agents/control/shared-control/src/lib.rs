@@ -10,7 +10,8 @@
 //! - [`VelocityCommand`]: linear and angular speed, the currency of all layers; [`MotionIntent`] maps
 //!   it to the direction the chair is about to travel and back.
 //! - [`SharedController`]: one trait, `step(&SharedInput) -> SharedOutput`, with
-//!   [`PotentialField`] (thesis equations 3.1-3.4), [`Vfh`] (VFH+) and [`Manual`] (pass-through).
+//!   [`PotentialField`] (thesis equations 3.1-3.4), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint
+//!   swept along the commanded arc, turning in place included) and [`Manual`] (pass-through).
 //! - [`tactical`]: basic actions (follow line, spin, turn to angle, go to XY, follow left/right wall,
 //!   wait, stop) and [`tactical::ActionSequence`], each next action starting when the current is done.
 //! - [`basic`]: differential-drive kinematics with limits and a [`basic::Watchdog`] that stops the
@@ -31,6 +32,7 @@ pub mod basic;
 mod command;
 pub mod driver;
 mod error;
+mod guard;
 mod manual;
 mod potential;
 pub mod tactical;
@@ -38,6 +40,7 @@ mod vfh;
 
 pub use command::{MotionIntent, VelocityCommand};
 pub use error::ControlError;
+pub use guard::{ArcGuard, ArcGuardParams};
 pub use manual::Manual;
 pub use potential::{PotentialField, PotentialFieldParams};
 pub use vfh::{Vfh, VfhParams};
