@@ -27,8 +27,8 @@
 //!   perception agent. At setup the agent SUBSCRIBEs (`fipa-subscribe`) to
 //!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`.
 //!
-//! Driving: the potential field (thesis 3.6) corrects the command, then [`ArcGuard`] scales or
-//! steers it so the footprint swept until the chair stops (turning in place too) stays clear of
+//! Driving: the potential field (thesis 3.6) corrects the user's manual command (not the
+//! tactical layer's, whose path the planner keeps clear); then [`ArcGuard`] scales or steers either so the footprint swept until the chair stops (turning in place too) stays clear of
 //! the sonar echoes.
 //!
 //! Guarantees: the body is commanded every tick; with no fresh command (manual) or no task the
@@ -389,16 +389,20 @@ impl Agent for ControlAgent {
                 self.mode = Mode::Idle;
             }
         }
-        let user = match &self.mode {
-            Mode::Manual { user } => Some(*user),
-            Mode::Task(_) => self.run_task(ctx, &frame),
-            Mode::Idle => None,
+        // The user's commands go through the potential field (thesis 3.6); the tactical layer's
+        // own commands do not (its path is planned clear), only through the arc guard.
+        let (user, shared) = match &self.mode {
+            Mode::Manual { user } => (Some(*user), true),
+            Mode::Task(_) => (self.run_task(ctx, &frame), false),
+            Mode::Idle => (None, false),
         };
         let command = match user {
             Some(user) => {
                 let input = SharedInput { user, speed_mps: user.linear_mps.abs(), sonar_m: &frame.sonar_m, points_chair: &[] };
-                let field = self.field.step(&input).map(|out| out.command).unwrap_or(VelocityCommand::STOP);
-                self.guard.step(&SharedInput { user: field, ..input }).map(|out| out.command).unwrap_or(VelocityCommand::STOP)
+                let corrected = if shared { self.field.step(&input).map(|out| out.command) } else { Ok(user) };
+                corrected
+                    .and_then(|c| self.guard.step(&SharedInput { user: c, ..input }).map(|out| out.command))
+                    .unwrap_or(VelocityCommand::STOP)
             }
             None => VelocityCommand::STOP,
         };

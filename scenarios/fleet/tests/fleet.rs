@@ -37,7 +37,9 @@ fn a_goal_through_a_door_is_planned_opened_and_driven() {
     assert_eq!(answer.as_deref(), Some("INFORM"), "at {:.1} s: {:?}", snapshot.time_s, snapshot.chairs[0]);
     let chair = &snapshot.chairs[0];
     assert_eq!(chair.collisions, 0);
-    assert!((chair.pose[0] - 4.5).hypot(chair.pose[1] - 2.5) < 0.3, "in the office: {:?}", chair.pose);
+    // The chair steers by dead reckoning with the simulated encoder errors (tyre compression up
+    // to 3 %, slip) over about 7 m: its true pose may sit a few decimetres from the place.
+    assert!((chair.pose[0] - 4.5).hypot(chair.pose[1] - 2.5) < 0.45, "in the office: {:?}", chair.pose);
     fleet.quiesce(8);
     let log = iw_logger::read_records(fleet.log_path(), iw_logger::DEFAULT_MAX_RECORD_LEN).unwrap();
     let logged: Vec<iw_logger::LoggedMessage> = log.iter().map(|r| iw_logger::LoggedMessage::from_record(r).unwrap()).collect();
