@@ -333,6 +333,80 @@ fn masquerade_authenticated_agent_cannot_sign_acl_as_another() {
     assert_eq!(link.counters().get(Reason::Mismatch), 1);
 }
 
+/// Container control traffic (join, heartbeat, election, GAL) passes the temporal and security
+/// layers under the deployment's group key, on real UDP sockets: a container without the key
+/// cannot join, win the election, or put an entry of its own (its key for our agent) in the GAL,
+/// whether it speaks plaintext, unsealed envelopes or sealed ones under a wrong key.
+#[test]
+fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries() {
+    use iw_bus::transport::{FrameTransport, PeerAddr};
+    use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerMsg, ContainerNode, GlobalAgentList, Part};
+    use iw_stack::GuardedTransport;
+
+    let clock = Clock::system();
+    let guarded = |name: &str, key: [u8; 32]| {
+        Arc::new(GuardedTransport::new(Arc::new(UdpTransport::bind("127.0.0.1:0").expect("bind")), name, key, clock.clone()).expect("guard"))
+    };
+    let entry = |name: &str, key: u8, addr: &str| AgentEntry { name: name.into(), public_key: vec![key; 32], addr: PeerAddr(addr.into()) };
+    let start = |id: u64, transport: Arc<dyn FrameTransport>, seeds: Vec<PeerAddr>, agent: AgentEntry| {
+        let config = ContainerConfig { heartbeat_ms: 20, lease_ms: 200, ..ContainerConfig::new(ContainerId(id), transport.local_addr().clone(), seeds) };
+        let mut container = Container::new(config);
+        container.register(agent);
+        ContainerNode::start(container, transport, clock.clone(), Duration::from_millis(5)).expect("container")
+    };
+    let group = [7u8; 32];
+    let a_guard = guarded("container-1.1", group);
+    let a_addr = a_guard.local_addr().clone();
+    let a = start(1, a_guard.clone(), vec![], entry("door", 1, "bus-a"));
+    let b = start(2, guarded("container-2.1", group), vec![a_addr.clone()], entry("nav", 2, "bus-b"));
+    // Id 0 would win the election; it claims `door` with its own key and adds `spy`.
+    let rogue = start(0, guarded("container-0.1", [9u8; 32]), vec![a_addr.clone()], entry("door", 9, "bus-rogue"));
+
+    let mut gal = GlobalAgentList::default();
+    gal.merge_part(ContainerId(0), Part { generation: 99, agents: vec![entry("door", 9, "bus-rogue"), entry("spy", 9, "bus-rogue")] });
+    let forged = [
+        ContainerMsg::Gal { leader: ContainerId(0), gal },
+        ContainerMsg::Lal { id: ContainerId(0), part: Part { generation: 99, agents: vec![entry("spy", 9, "bus-rogue")] } },
+        ContainerMsg::Heartbeat { id: ContainerId(0), leader: ContainerId(0), lal_generation: 99, gal_versions: Default::default() },
+    ];
+    let codec = FrameCodec::new();
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut joined = false;
+    while Instant::now() < deadline {
+        for msg in &forged {
+            let json = msg.encode().expect("encodes");
+            let unsealed = codec.encode_to_vec(&Envelope::new(iw_bus::MsgId(1), "container-0.1", iw_stack::GROUP, json.clone())).expect("encodes");
+            for frame in [&json, &unsealed] {
+                socket.send_to(frame, a_addr.0.as_str()).expect("send");
+            }
+        }
+        joined = a.with(|c| c.gal().lookup("nav").is_some()) && b.with(|c| c.gal().lookup("door").is_some());
+        if joined && a_guard.counters().get(Reason::BadTag) > 0 {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let counters = a_guard.counters();
+    println!("[masquerade-container] rejections at container 1: {counters}");
+    assert!(joined, "the container with the group key joined");
+    for node in [&a, &b] {
+        node.with(|c| {
+            assert_eq!(c.leader(), ContainerId(1), "the rogue won no election");
+            assert!(!c.live_peers().contains(&ContainerId(0)), "the rogue is not a live peer");
+            assert!(c.gal().lookup("spy").is_none(), "the rogue's agent is not in the GAL");
+            let (owner, door) = c.gal().lookup("door").expect("door listed");
+            assert_eq!((owner, door.public_key.as_slice()), (ContainerId(1), &[1u8; 32][..]), "door keeps its own key");
+        });
+    }
+    assert!(counters.get(Reason::BadFrame) > 0, "plaintext control frames refused");
+    assert!(counters.get(Reason::NotSealed) > 0, "unsealed envelopes refused");
+    assert!(counters.get(Reason::BadTag) > 0, "frames sealed under another key refused");
+    rogue.stop();
+    b.stop();
+    a.stop();
+}
+
 // ---- system level: two processes, real UDP, impairment proxy ----------------------------------
 
 struct Peer {

@@ -35,6 +35,10 @@ pub struct SecurityConfig {
     /// Peers (agent names) reached in pre-shared-key mode, with their key; every other peer is
     /// reached in public-key mode. Both ends list each other with the same key.
     pub pre_shared: HashMap<String, PreSharedKey>,
+    /// A key shared by a closed group (e.g. the containers of one deployment, for their control
+    /// traffic): every peer not in `pre_shared` is reached and accepted in pre-shared-key mode
+    /// with it. `None` (default): public-key mode for them.
+    pub group_key: Option<PreSharedKey>,
     /// Sign every message so third parties can verify it.
     pub sign_all: bool,
     /// Receivers whose messages are signed even when `sign_all` is off.
@@ -51,6 +55,7 @@ impl Default for SecurityConfig {
     fn default() -> Self {
         SecurityConfig {
             pre_shared: HashMap::new(),
+            group_key: None,
             sign_all: false,
             sign_for: HashSet::new(),
             handshake_timeout: Duration::from_secs(1),
@@ -236,6 +241,11 @@ impl SecurityLayer {
         let mut b = [0u8; N];
         self.rng.fill(&mut b).map_err(|_| SecurityError::Rng)?;
         Ok(b)
+    }
+
+    /// The pre-shared key `peer` is reached with, if any.
+    fn psk_of(&self, peer: &str) -> Option<PreSharedKey> {
+        self.config.pre_shared.get(peer).copied().or(self.config.group_key)
     }
 
     fn wants_signature(&self, env: &Envelope) -> bool {
@@ -439,7 +449,7 @@ impl SecurityLayer {
         let mut ct = body.split_off(NONCE_LEN);
         let nonce: [u8; NONCE_LEN] = body.as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
         if psk_mode {
-            let Some(psk) = self.config.pre_shared.get(&s).copied() else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+            let Some(psk) = self.psk_of(&s) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
             let cached = nested_get(&self.psk_recv, &s, &r).and_then(|q| q.iter().find(|(salt, _)| salt[..] == key_id[..]));
             let fresh;
             let cipher = match cached {
@@ -507,7 +517,7 @@ impl Layer for SecurityLayer {
     }
 
     fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
-        match self.config.pre_shared.get(&env.header.receiver).copied() {
+        match self.psk_of(&env.header.receiver) {
             Some(psk) => or_log(self.seal_psk(env, psk).map(Verdict::Pass)),
             None => or_log(self.outbound_pk(env, now)),
         }

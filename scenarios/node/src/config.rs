@@ -100,13 +100,17 @@ pub struct SecuritySection {
     /// The container's Ed25519 identity, a PKCS#8 file (`intellwheels spawn --keygen FILE`
     /// writes one). Empty: a fresh key each start (development only).
     pub identity_key: String,
+    /// The deployment's group key for container control traffic (join, heartbeat, election,
+    /// GAL): a file of 64 hex digits that every container shares. Empty: control traffic is not
+    /// authenticated (development only).
+    pub control_key: String,
     /// Bus layers: `all`, `none`, or a comma list of `comm`, `security`, `temporal`, `parser`.
     pub layers: String,
 }
 
 impl Default for SecuritySection {
     fn default() -> Self {
-        SecuritySection { identity_key: String::new(), layers: "all".into() }
+        SecuritySection { identity_key: String::new(), control_key: String::new(), layers: "all".into() }
     }
 }
 

@@ -102,6 +102,14 @@ pub enum NodeError {
         /// Why.
         reason: String,
     },
+    /// The control group key file cannot be read or is not 64 hex digits.
+    #[error("control key {path}: {reason}")]
+    ControlKey {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
     /// A transport address that cannot be bound or derived.
     #[error("transport address `{addr}`: {reason}")]
     Transport {

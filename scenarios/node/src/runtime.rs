@@ -17,7 +17,7 @@ use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, Containe
 use iw_control_agent::{ControlAgent, ControlConfig};
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
 use iw_sim::{ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
-use iw_stack::{Identity, Platform, PublicKey, StackConfig};
+use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
 use iw_transport_net::UdpTransport;
 use iw_transport_shm::ShmTransport;
 use iw_vo::Pose2;
@@ -85,6 +85,26 @@ fn load_identity(path: &str) -> Result<Identity, NodeError> {
     let bad = |reason: String| NodeError::Key { path: path.into(), reason };
     let pkcs8 = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
     Identity::from_pkcs8(&pkcs8).map_err(|e| bad(e.to_string()))
+}
+
+/// The group key that guards container control traffic, read from `path` (64 hex digits);
+/// `None` when no file is configured.
+fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
+    if path.is_empty() {
+        tracing::warn!("no security.control_key: container control traffic is not authenticated");
+        return Ok(None);
+    }
+    let bad = |reason: String| NodeError::ControlKey { path: path.into(), reason };
+    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+    let hex = text.trim();
+    if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(bad(format!("expected 64 hex digits, found {} characters", hex.chars().count())));
+    }
+    let mut key = [0u8; 32];
+    for (i, byte) in key.iter_mut().enumerate() {
+        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|e| bad(e.to_string()))?;
+    }
+    Ok(Some(key))
 }
 
 fn load_map(path: &str) -> Result<Map, NodeError> {
@@ -216,6 +236,7 @@ impl Runtime {
         let setup = |reason: String| NodeError::Setup { container: name.clone(), reason };
         let layers: LayerSet = config.security.layers.parse().map_err(|e: iw_bus::BusError| NodeError::Config { file: "security.layers".into(), reason: e.to_string() })?;
         let identity = Arc::new(load_identity(&config.security.identity_key)?);
+        let control_key = load_control_key(&config.security.control_key)?;
         let roster: Roster = Arc::new(Mutex::new(BTreeSet::new()));
         let (agents, world, body) = match role {
             Role::Chair { name } => {
@@ -262,6 +283,13 @@ impl Runtime {
         for agent in &agent_names {
             container.register(AgentEntry { name: agent.clone(), public_key: identity.public_key().to_vec(), addr: PeerAddr(advertise.clone()) });
         }
+        let control_transport: Arc<dyn FrameTransport> = match control_key {
+            Some(key) => Arc::new(
+                GuardedTransport::new(control_transport, &format!("container-{id}.{incarnation}"), key, clock.clone())
+                    .map_err(|e| setup(e.to_string()))?,
+            ),
+            None => control_transport,
+        };
         let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK).map_err(|e| setup(e.to_string()))?;
         // a closed receiver only means nobody is listening to reports
         let _ = events.send(Event::Ready { container: name.clone(), id, bus: advertise, agents: agent_names });
@@ -344,5 +372,26 @@ impl Runtime {
             container.stop();
         }
         let _ = self.events.send(Event::Stopped { container: self.name.clone() });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn control_key_file_is_64_hex_digits() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("control.key");
+        std::fs::write(&path, format!("{}\n", "0f".repeat(32))).unwrap();
+        assert_eq!(load_control_key(path.to_str().unwrap()).unwrap(), Some([0x0f; 32]));
+        assert_eq!(load_control_key("").unwrap(), None);
+        for bad in ["0f".repeat(31), "zz".repeat(32), "é".repeat(64)] {
+            std::fs::write(&path, &bad).unwrap();
+            let err = load_control_key(path.to_str().unwrap()).unwrap_err().to_string();
+            assert!(err.contains("control.key") && err.contains("64 hex digits"), "{err}");
+        }
+        let missing = dir.path().join("missing.key");
+        assert!(load_control_key(missing.to_str().unwrap()).unwrap_err().to_string().contains("missing.key"));
     }
 }

@@ -6,6 +6,9 @@
 //! - [`StackConfig`]: which layers and each layer's settings; [`build`] makes the stack.
 //! - [`Platform`]: the key directory and agent registry shared by the stacks of one platform;
 //!   [`Node`]: one container's identity and agents.
+//! - [`GuardedTransport`]: a frame transport through the temporal and security layers under a
+//!   group key, for traffic between containers rather than agents (join, heartbeat, election,
+//!   GAL).
 //! - Re-exports of the layer crates' main types, so users need only this crate.
 //!
 //! # Guarantees
@@ -17,10 +20,14 @@
 
 use std::sync::Arc;
 
+mod guarded;
+
+pub use guarded::{GROUP, GuardedTransport};
+
 pub use iw_bus::{LayerKind, LayerSet, Stack};
 pub use iw_layer_comm::{CommConfig, CommLayer};
 pub use iw_layer_parser::{AgentRegistry, ParserConfig, ParserLayer, Registry};
-pub use iw_layer_security::{Directory, Identity, KeyDirectory, PublicKey, SecurityConfig, SecurityError, SecurityLayer};
+pub use iw_layer_security::{Directory, Identity, KeyDirectory, PreSharedKey, PublicKey, SecurityConfig, SecurityError, SecurityLayer};
 pub use iw_layer_temporal::{Ordering, TemporalConfig, TemporalLayer};
 
 /// Which layers, and the settings of each.
