@@ -5,7 +5,10 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use iw_shared_control_experiment::{Config, Summary, office_circuit, write_outputs};
-use iw_sim::Map;
+use iw_features::{DetectorConfig, DetectorKind};
+use iw_sim::vo::{TrialConfig, TrialPoint, run_trial, sim_vo_config, waypoints_ahead};
+use iw_sim::{ChairKind, ChairSpec, Map, TextureSet, World};
+use iw_vo::Pipeline;
 
 /// The `experiment` subcommands.
 #[derive(clap::Subcommand)]
@@ -13,6 +16,51 @@ pub enum Command {
     /// Thesis 3.7.1: simulated head-gesture drivers on a cluttered office circuit, manual vs the
     /// thesis's potential-field shared control vs VFH+; writes OUT/summary.json and path plots.
     SharedControl(SharedControlArgs),
+    /// Thesis 3.3.2 and chapter 5: a chair drives a textured map with encoder errors; wheel
+    /// odometry, RGB-D visual odometry on the rendered frames and their EKF against the
+    /// simulator's exact pose. Prints the position RMSEs; `--plot` draws the four paths.
+    Odometry(OdometryArgs),
+}
+
+/// Flags of `experiment odometry`.
+#[derive(clap::Args)]
+pub struct OdometryArgs {
+    /// Camera frames (10 per simulated second at the default step).
+    #[arg(long, default_value_t = 80)]
+    frames: usize,
+    /// Cruise speed, m/s.
+    #[arg(long, default_value_t = 0.4)]
+    speed: f64,
+    /// Detectors to run, one trial each on the same drive (lsac-surf, surf, ln-surf).
+    #[arg(long, value_delimiter = ',', default_value = "lsac-surf")]
+    detectors: Vec<DetectorKind>,
+    /// `thesis` (frame-to-frame) or `keyframe` visual odometry.
+    #[arg(long, default_value = "keyframe")]
+    pipeline: Pipeline,
+    /// Detector threshold as a fraction of its 640x480 default (default 0.25 at 320x240).
+    #[arg(long)]
+    threshold_scale: Option<f32>,
+    /// Change the light at this frame (with `--light`).
+    #[arg(long)]
+    light_at: Option<usize>,
+    /// Light level from `--light-at` on (1 nominal, 0 dark).
+    #[arg(long, default_value_t = 0.4)]
+    light: f64,
+    /// Folder of photographs for walls and furniture (png/jpg); default: procedural textures.
+    #[arg(long)]
+    textures: Option<PathBuf>,
+    /// Map file with a start and a route of the same name; default: the embedded office circuit.
+    #[arg(long)]
+    map: Option<PathBuf>,
+    /// Start pose and route to follow.
+    #[arg(long, default_value = "lap")]
+    route: String,
+    /// Seed of the encoder errors (tyre compression, slip).
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Top view of truth, wheel, VO and fused paths (PNG; first detector's trial).
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 /// Flags of `experiment shared-control`.
@@ -45,7 +93,79 @@ pub struct SharedControlArgs {
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
         Command::SharedControl(args) => shared_control(args),
+        Command::Odometry(args) => odometry(args),
     }
+}
+
+fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(args.frames >= 2, "--frames must be at least 2");
+    anyhow::ensure!(args.speed.is_finite() && args.speed > 0.0, "--speed must be positive, got {}", args.speed);
+    anyhow::ensure!(!args.detectors.is_empty(), "--detectors names none");
+    let map = match &args.map {
+        Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
+        None => office_circuit()?,
+    };
+    let start = map.start(&args.route).with_context(|| format!("the map has no start named `{}`", args.route))?;
+    let route = map.route(&args.route).with_context(|| format!("the map has no route named `{}`", args.route))?;
+    let waypoints = waypoints_ahead(&start, route);
+    let textures = match &args.textures {
+        Some(dir) => Some(TextureSet::load_dir(dir)?),
+        None => None,
+    };
+    let mut trials = Vec::new();
+    println!("{:<10} {:>12} {:>12} {:>12} {:>10} {:>10} {:>12}", "detector", "wheel RMSE", "VO RMSE", "fused RMSE", "VO frames", "VO fps", "render ms");
+    for &detector in &args.detectors {
+        let mut world = World::new(map.clone(), args.seed);
+        if let Some(t) = &textures {
+            world.set_textures(t.clone());
+        }
+        let id = world.add_chair(ChairSpec::default(), start, ChairKind::Simulated);
+        let world = iw_sim::shared(world);
+        let config = TrialConfig {
+            frames: args.frames,
+            speed_mps: args.speed,
+            vo: {
+                let mut vo = sim_vo_config(detector, args.pipeline);
+                if let Some(factor) = args.threshold_scale {
+                    vo.detector_config.threshold = DetectorConfig::for_kind(detector).threshold * factor;
+                }
+                vo
+            },
+            light_change: args.light_at.map(|at| (at, args.light)),
+            ..TrialConfig::default()
+        };
+        let trial = run_trial(&world, id, &waypoints, &config)?;
+        println!(
+            "{:<10} {:>10.1} cm {:>9.1} cm {:>9.1} cm {:>10} {:>10.1} {:>12.1}",
+            detector.to_string(),
+            trial.rmse_wheel_m() * 100.0,
+            trial.rmse_vo_m() * 100.0,
+            trial.rmse_fused_m() * 100.0,
+            format!("{}/{}", trial.vo_frames, trial.points.len()),
+            trial.vo_fps(),
+            trial.render_seconds * 1e3 / trial.points.len().max(1) as f64
+        );
+        trials.push((detector, trial));
+    }
+    if let (Some(path), Some((detector, trial))) = (&args.plot, trials.first()) {
+        let series = |name: &str, pick: &dyn Fn(&TrialPoint) -> iw_vo::Pose2| iw_plot::trajectory::Trajectory {
+            name: name.to_string(),
+            samples: trial.points.iter().map(|p| (p.time_s, [pick(p).x, pick(p).y, pick(p).theta])).collect(),
+        };
+        let title = format!(
+            "odometry in the simulator ({detector}): wheel {:.1} cm, VO {:.1} cm, fused {:.1} cm RMSE (z panel: heading, rad)",
+            trial.rmse_wheel_m() * 100.0,
+            trial.rmse_vo_m() * 100.0,
+            trial.rmse_fused_m() * 100.0
+        );
+        iw_plot::trajectory::plot_trajectories(
+            path,
+            &title,
+            &[series("ground truth", &|p| p.truth), series("wheel odometry", &|p| p.wheel), series("visual odometry", &|p| p.vo), series("fused (EKF)", &|p| p.fused)],
+        )?;
+        println!("wrote {}", path.display());
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {

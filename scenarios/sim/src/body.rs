@@ -16,7 +16,7 @@ pub fn shared(world: World) -> SharedWorld {
     Arc::new(Mutex::new(world))
 }
 
-fn lock(world: &SharedWorld) -> MutexGuard<'_, World> {
+pub(crate) fn lock(world: &SharedWorld) -> MutexGuard<'_, World> {
     // the world holds plain data; a panicked holder cannot leave it unusable
     world.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }

@@ -11,6 +11,8 @@
 //! - [`ChairSpec`]: footprint, drive limits, encoder errors, and the sensor layout of thesis
 //!   figure 3.4 ([`sonar_layout`]).
 //! - [`TextureSet`], [`RgbdFrame`]: the RGB-D camera's photographs and output.
+//! - [`vo`] (feature `vo`): the RGB-D camera as an `iw_vo::CameraSource` ([`vo::SimCamera`])
+//!   and the odometry trial: wheel odometry, visual odometry and their EKF against ground truth.
 //! - [`VirtualBody`] (an [`iw_body::Body`] driving a simulated chair) and [`GhostSensors`] (an
 //!   [`iw_body::VirtualSensors`] placing a real chair's virtual body, for mixed reality).
 //!
@@ -37,6 +39,8 @@ mod chair;
 mod geom;
 mod map;
 mod render;
+#[cfg(feature = "vo")]
+pub mod vo;
 mod world;
 
 pub use body::{GhostSensors, SharedWorld, VirtualBody, shared};
