@@ -1,28 +1,38 @@
 //! `intellwheels` (no subcommand) and `intellwheels demo`: the mixed-reality demo with no setup.
 //!
-//! The embedded sample building, the service container and a few virtual chairs, each in its own
-//! container, talking FIPA-ACL over real bus frames in simulated time. Chairs get goals; one is
-//! sent to the bathroom behind a door that stays closed (jammed), so its door request is refused
-//! and the goal cannot be planned. Ends with a summary and a JSON-lines log of every frame
-//! exchanged between containers.
+//! The embedded sample building, the service container, three virtual chairs and one mixed chair
+//! (the serial driver on a pty against the emulated interface board, virtual sonars merged in),
+//! each in its own container, talking FIPA-ACL over real bus frames in simulated time. Staff send
+//! the goals through the assistant; one chair is sent to the bathroom behind a restricted door it
+//! is not authorised through, so the door agent refuses and logs it. The dashboard runs
+//! throughout (its URL is printed); page actions go to the fleet as goals, door and fault asks.
+//! Runs faster than real time, or in real time and until Ctrl-C with `--serve`. Ends with a
+//! summary and a JSON-lines log of every frame exchanged between containers.
 
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::fs::File;
 use std::io::{BufWriter, Write};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
-use iw_fleet::{ChairConfig, Fleet};
+use iw_dashboard::{Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView, MapView, MessageView, PlaceView, State, round_cm};
+use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 /// The sample care building shipped with the sources (`scenarios/maps/sample-building.map`).
 const SAMPLE_BUILDING: &str = include_str!("../../../scenarios/maps/sample-building.map");
 
-/// The door the demo keeps closed.
-const JAMMED_DOOR: &str = "bathroom";
+/// The restricted door: only [`AUTHORISED`] may have it opened.
+const RESTRICTED_DOOR: &str = "bathroom";
+/// The chair allowed through [`RESTRICTED_DOOR`].
+const AUTHORISED: &str = "chair-3";
 
 /// Flags of `intellwheels demo`.
 #[derive(clap::Args)]
@@ -39,19 +49,30 @@ pub struct Args {
     /// Where to write the message log (default: a fresh folder in the temporary directory).
     #[arg(long)]
     log_dir: Option<PathBuf>,
+    /// Keep running in real time for the browser until Ctrl-C (or SIGTERM).
+    #[arg(long)]
+    serve: bool,
+    /// Where the dashboard listens (any address but loopback needs --token).
+    #[arg(long, default_value = "127.0.0.1:0")]
+    bind: SocketAddr,
+    /// The dashboard's access token (required for a non-loopback --bind).
+    #[arg(long)]
+    token: Option<String>,
 }
 
-/// One chair of the demo: where it starts and the named place it is sent to.
+/// One chair of the demo: where it starts, its body and the named place it is sent to.
 struct Mission {
     name: &'static str,
     start: (f64, f64, f64),
+    body: BodyKind,
     place: &'static str,
 }
 
-const MISSIONS: [Mission; 3] = [
-    Mission { name: "chair-0", start: (1.0, 6.0, 0.0), place: "dining-hall" },
-    Mission { name: "chair-1", start: (15.0, 8.2, 180.0), place: "bedroom2" },
-    Mission { name: "chair-2", start: (4.5, 2.5, 90.0), place: "bathroom" },
+const MISSIONS: [Mission; 4] = [
+    Mission { name: "chair-0", start: (1.0, 6.0, 0.0), body: BodyKind::Virtual, place: "dining-hall" },
+    Mission { name: "chair-1", start: (15.0, 8.2, 180.0), body: BodyKind::Virtual, place: "bedroom2" },
+    Mission { name: "chair-2", start: (4.5, 2.5, 90.0), body: BodyKind::Virtual, place: "bathroom" },
+    Mission { name: "chair-3", start: (17.5, 6.0, 180.0), body: BodyKind::Mixed, place: "therapy" },
 ];
 
 /// What became of one chair's goal.
@@ -80,10 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(args.max_time_s > 0.0 && args.max_time_s.is_finite(), "--max-time-s must be positive, got {}", args.max_time_s);
     anyhow::ensure!(args.step_ms > 0 && args.step_ms <= 1000, "--step-ms must be in 1..=1000, got {}", args.step_ms);
     let map = Map::parse(SAMPLE_BUILDING, "sample-building.map").context("embedded sample building")?;
-    let places: Vec<Point2<f64>> = MISSIONS
-        .iter()
-        .map(|m| map.place(m.place).with_context(|| format!("the sample building has no place `{}`", m.place)))
-        .collect::<anyhow::Result<_>>()?;
+    let map_view = map_view(&map);
     let chairs: Vec<ChairConfig> = MISSIONS
         .iter()
         .map(|m| ChairConfig {
@@ -91,34 +109,43 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             t_world_body: Isometry2::new(Vector2::new(m.start.0, m.start.1), m.start.2.to_radians()),
         })
         .collect();
-    let mut fleet = Fleet::new(map, args.seed, &chairs).context("composing the fleet")?;
-    fleet.jam_door(JAMMED_DOOR).context("jamming the demo door")?;
-
     let log_dir = match args.log_dir {
         Some(dir) => dir,
         None => std::env::temp_dir().join(format!("intellwheels-demo-{}", std::process::id())),
     };
     std::fs::create_dir_all(&log_dir).with_context(|| format!("creating {}", log_dir.display()))?;
+    let options = FleetOptions {
+        bodies: MISSIONS.iter().filter(|m| m.body != BodyKind::Virtual).map(|m| (m.name.to_string(), m.body)).collect(),
+        restricted: BTreeMap::from([(RESTRICTED_DOOR.to_string(), BTreeSet::from([AUTHORISED.to_string()]))]),
+        log_path: Some(log_dir.join("agents.log")),
+    };
+    let mut fleet = Fleet::with_options(map, args.seed, &chairs, options).context("composing the fleet")?;
+    let dashboard = Dashboard::start(DashboardConfig { bind: args.bind, token: args.token.clone() }, &map_view).context("starting the dashboard")?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone()).context("installing the signal handler")?;
+    }
 
-    println!("IntellWheels demo: sample care building, {} chairs, services container", MISSIONS.len());
+    let virtual_count = MISSIONS.iter().filter(|m| m.body == BodyKind::Virtual).count();
+    println!(
+        "IntellWheels demo: sample care building, {virtual_count} virtual chairs + {} mixed, services container; door `{RESTRICTED_DOOR}` restricted to {AUTHORISED}",
+        MISSIONS.len() - virtual_count
+    );
+    println!("dashboard: {}", dashboard.url());
     let mut outcomes = Vec::new();
     let mut conversations = Vec::new();
-    for (mission, target) in MISSIONS.iter().zip(&places) {
-        if mission.place == JAMMED_DOOR {
-            // the chair asks for the door first; a jammed door stays shut whatever it is asked
-            fleet.set_door(JAMMED_DOOR, true)?;
-        }
-        match fleet.goal(mission.name, *target) {
+    let mut goal_places: BTreeMap<String, String> = BTreeMap::new();
+    for mission in &MISSIONS {
+        match fleet.goal_place(mission.name, mission.place) {
             Ok(conversation) => {
-                println!("  {} -> {} ({:.1}, {:.1}): request {conversation}", mission.name, mission.place, target.x, target.y);
+                println!("  {} ({}) -> {}: request {conversation} via the assistant", mission.name, kind_name(mission.body), mission.place);
+                goal_places.insert(mission.name.to_string(), mission.place.to_string());
                 outcomes.push(Outcome::Pending);
                 conversations.push(Some(conversation));
             }
             Err(err) => {
-                let door_open = fleet.snapshot().doors.iter().any(|(d, open)| d == JAMMED_DOOR && *open);
-                let reason = if door_open { err.to_string() } else { format!("door `{JAMMED_DOOR}` refused to open: {err}") };
-                println!("  {} -> {}: refused ({reason})", mission.name, mission.place);
-                outcomes.push(Outcome::Refused { reason });
+                println!("  {} -> {}: refused ({err})", mission.name, mission.place);
+                outcomes.push(Outcome::Refused { reason: err.to_string() });
                 conversations.push(None);
             }
         }
@@ -131,17 +158,55 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         ProgressStyle::with_template("{spinner} sim {msg} [{bar:30}] {percent}% ({elapsed})")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    for _ in 0..total_steps {
-        fleet.step(step);
-        bar.inc(1);
-        settle_outcomes(&fleet, &conversations, &mut outcomes);
-        let done = outcomes.iter().filter(|o| !matches!(o, Outcome::Pending)).count();
-        bar.set_message(format!("{:5.1} s, {done}/{} goals settled", fleet.time_s(), outcomes.len()));
-        if done == outcomes.len() {
+    if args.serve {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let mut notices = VecDeque::new();
+    let mut paused = false;
+    let mut steps = 0u64;
+    let mut last_publish: Option<Instant> = None;
+    let started = Instant::now();
+    while !stop.load(Ordering::Acquire) {
+        let mut single_step = false;
+        while let Some(action) = dashboard.try_action() {
+            match apply(&mut fleet, &action, &mut goal_places) {
+                Ok(Some(text)) => push_notice(&mut notices, text),
+                Ok(None) => {}
+                Err(err) => push_notice(&mut notices, format!("{action:?}: {err}")),
+            }
+            match action {
+                Action::Pause { paused: p } => paused = p,
+                Action::Step => single_step = true,
+                _ => {}
+            }
+        }
+        let mission_over = steps >= total_steps || outcomes.iter().all(|o| !matches!(o, Outcome::Pending));
+        if mission_over && !args.serve {
             break;
+        }
+        if !paused || single_step {
+            fleet.step(step);
+            steps += 1;
+            bar.inc(1);
+            settle_outcomes(&fleet, &conversations, &mut outcomes);
+            let done = outcomes.iter().filter(|o| !matches!(o, Outcome::Pending)).count();
+            bar.set_message(format!("{:5.1} s, {done}/{} goals settled", fleet.time_s(), outcomes.len()));
+        }
+        if last_publish.is_none_or(|t| t.elapsed() >= Duration::from_millis(100)) {
+            let refusals: Vec<String> = fleet.door_refusals().iter().map(|r| format!("door {} refused {}: {}", r.door, r.requester, r.reason)).collect();
+            let mut shown: Vec<String> = refusals;
+            shown.extend(notices.iter().cloned());
+            dashboard.publish(&dashboard_state(&fleet, paused, &goal_places, shown)).context("publishing the dashboard state")?;
+            last_publish = Some(Instant::now());
+        }
+        if args.serve {
+            // real time: step k is due at k * step of wall time
+            let due = started + step * u32::try_from(steps).unwrap_or(u32::MAX);
+            std::thread::sleep(due.saturating_duration_since(Instant::now()).max(Duration::from_millis(1)));
         }
     }
     bar.finish_and_clear();
+    fleet.quiesce(50);
 
     let exchanges = fleet.exchanges();
     let log_path = log_dir.join("messages.jsonl");
@@ -161,19 +226,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
         })
         .collect();
+    let refusals = fleet.door_refusals();
+    let sent = fleet.messages_sent();
+    let logged = fleet.messages_logged().context("reading the logger agent's log")?;
     let summary_path = log_dir.join("summary.json");
     let summary = serde_json::json!({
         "time_s": snapshot.time_s,
         "chairs": reports,
         "messages": exchanges.len(),
         "dropped": exchanges.iter().filter(|e| e.dropped).count(),
+        "messages_sent": sent,
+        "messages_logged": logged,
+        "door_refusals": refusals.iter().map(|r| serde_json::json!({"door": r.door, "requester": r.requester, "reason": r.reason})).collect::<Vec<_>>(),
         "doors": snapshot.doors,
     });
     write_synced(&summary_path, serde_json::to_string_pretty(&summary)?.as_bytes())?;
 
     let reached = reports.iter().filter(|r| matches!(r.outcome, Outcome::Reached { .. })).count();
     let collisions: u64 = reports.iter().map(|r| r.collisions).sum();
-    println!("Summary after {:.1} s simulated:", snapshot.time_s);
+    println!("Summary after {:.1} s simulated ({:.1} s wall):", snapshot.time_s, started.elapsed().as_secs_f64());
     for r in &reports {
         let outcome = match &r.outcome {
             Outcome::Pending => "not reached in time".to_string(),
@@ -183,11 +254,137 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         };
         println!("  {:8} {:12} {outcome}; {:.1} m driven, {} collisions", r.name, r.goal, r.distance_m, r.collisions);
     }
+    for r in &refusals {
+        println!("  door {} refused {}: {}", r.door, r.requester, r.reason);
+    }
     println!("  goals reached: {reached}/{}", reports.len());
     println!("  collisions:    {collisions}");
-    println!("  messages:      {} between containers ({} dropped)", exchanges.len(), summary["dropped"]);
-    println!("  log:           {} (summary: {})", log_path.display(), summary_path.display());
+    println!("  messages:      {sent} sent, {logged} logged by the logger agent; {} frames between containers ({} dropped)", exchanges.len(), summary["dropped"]);
+    println!("  log:           {} (agents' log: {}; summary: {})", log_path.display(), fleet.log_path().display(), summary_path.display());
     Ok(ExitCode::SUCCESS)
+}
+
+fn kind_name(kind: BodyKind) -> String {
+    serde_json::to_value(kind).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_else(|| format!("{kind:?}"))
+}
+
+fn push_notice(notices: &mut VecDeque<String>, text: String) {
+    notices.push_back(text);
+    while notices.len() > 20 {
+        notices.pop_front();
+    }
+}
+
+/// Carries out what the page asked, as staff would: goals through the assistant (to the place
+/// nearest the click), doors and faults on the fleet. Returns a notice for the page.
+fn apply(fleet: &mut Fleet, action: &Action, goal_places: &mut BTreeMap<String, String>) -> anyhow::Result<Option<String>> {
+    match action {
+        Action::Goal { chair, x, y } => {
+            anyhow::ensure!(x.is_finite() && y.is_finite(), "goal ({x}, {y}) is not a point");
+            let click = Point2::new(*x, *y);
+            let place = fleet
+                .building()
+                .destinations()
+                .min_by(|a, b| (a.1 - click).norm().total_cmp(&(b.1 - click).norm()))
+                .map(|(n, _)| n.clone())
+                .context("the building has no places")?;
+            let conversation = fleet.goal_place(chair, &place)?;
+            goal_places.insert(chair.clone(), place.clone());
+            Ok(Some(format!("{chair} -> {place}: request {conversation}")))
+        }
+        Action::Door { door, open } => {
+            fleet.set_door(door, *open)?;
+            Ok(Some(format!("door {door}: asked to {}", if *open { "open" } else { "close" })))
+        }
+        Action::Fault { chair, failed } => {
+            fleet.set_sensor_failure(chair, *failed)?;
+            Ok(Some(format!("{chair}: sensors {}", if *failed { "failed" } else { "restored" })))
+        }
+        Action::Pause { .. } | Action::Step => Ok(None),
+    }
+}
+
+/// The building as the page draws it.
+fn map_view(map: &Map) -> MapView {
+    let pt = |p: &Point2<f64>| [round_cm(p.x), round_cm(p.y)];
+    MapView {
+        name: map.name.clone(),
+        walls: map.walls.iter().map(|w| w.iter().map(pt).collect()).collect(),
+        doors: map.doors.iter().map(|d| DoorView { id: d.id.clone(), a: pt(&d.a), b: pt(&d.b) }).collect(),
+        places: map.places.iter().map(|p| PlaceView { name: p.name.clone(), at: pt(&p.position) }).collect(),
+        sonars: iw_sim::ChairSpec::default()
+            .sonars
+            .iter()
+            .map(|m| [round_cm(m.t_body_sonar.translation.x), round_cm(m.t_body_sonar.translation.y), round_cm(m.t_body_sonar.rotation.angle())])
+            .collect(),
+    }
+}
+
+/// Sonar range below which the display warns that shared control steers away (the thesis'
+/// 27-80 cm safety perimeter), m.
+const WARN_RANGE_M: f64 = 0.8;
+
+/// The fleet as the page shows it.
+fn dashboard_state(fleet: &Fleet, paused: bool, goal_places: &BTreeMap<String, String>, notices: Vec<String>) -> State {
+    let snapshot = fleet.snapshot();
+    let chairs = snapshot
+        .chairs
+        .iter()
+        .map(|c| {
+            let kind = fleet.body_kind(&c.name).unwrap_or_default();
+            let display = fleet.display(&c.name).ok();
+            let pt = |p: &[f64; 2]| [round_cm(p[0]), round_cm(p[1])];
+            ChairView {
+                n: c.name.clone(),
+                k: kind_name(kind),
+                p: [round_cm(c.pose[0]), round_cm(c.pose[1]), round_cm(c.pose[2])],
+                v: [round_cm(c.twist[0]), round_cm(c.twist[1])],
+                s: c.sonar_m.iter().map(|r| r.map_or(-1.0, round_cm)).collect(),
+                g: c.goal.as_ref().map(pt),
+                path: c.path.iter().map(pt).collect(),
+                // the world's pose is ground truth for a virtual chair; a real or mixed one is
+                // dead-reckoned: 1 % of the distance driven as its drift bound
+                u: if kind == BodyKind::Virtual { 0.0 } else { round_cm(0.01 * c.distance_m) },
+                c: c.collisions,
+                d: ChairDisplay {
+                    action: display.as_ref().and_then(|d| d.last_command.as_ref()).map_or_else(
+                        || if c.twist[0].abs() > 0.01 || c.twist[1].abs() > 0.01 { "driving".to_string() } else { "idle".to_string() },
+                        |cmd| format!("{cmd:?}"),
+                    ),
+                    goal: goal_places.get(&c.name).cloned(),
+                    warn: c.twist[0].abs() > 0.01 && c.sonar_m.iter().flatten().any(|r| *r < WARN_RANGE_M),
+                    seq: display.as_ref().and_then(|d| d.progress),
+                    answer: display.and_then(|d| d.last_answer),
+                },
+            }
+        })
+        .collect();
+    let mut containers: Vec<ContainerView> = snapshot.chairs.iter().map(|c| ContainerView { name: c.name.clone(), agents: c.agents.clone() }).collect();
+    containers.push(ContainerView { name: "services".into(), agents: snapshot.services.clone() });
+    State {
+        t: snapshot.time_s as f32,
+        paused,
+        chairs,
+        doors: snapshot.doors.clone(),
+        containers,
+        msgs: snapshot.recent.iter().map(message_view).collect(),
+        notices,
+        sent: fleet.messages_sent(),
+        features: None,
+    }
+}
+
+/// The sniffer line of one frame: its performative and conversation read off the ACL text.
+fn message_view(e: &iw_fleet::Exchange) -> MessageView {
+    let act = e.acl.trim_start().trim_start_matches('(').split_whitespace().next().unwrap_or("").to_ascii_lowercase();
+    let conv = e
+        .acl
+        .split(":conversation-id")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .map(|c| c.trim_matches(|ch| ch == '"' || ch == ')').to_string())
+        .unwrap_or_default();
+    MessageView { from: e.sender.clone(), to: e.receiver.clone(), act, conv, dropped: e.dropped }
 }
 
 /// Records the final answer (done, failure, refuse) of each pending goal.
