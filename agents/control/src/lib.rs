@@ -46,7 +46,7 @@ use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
 use iw_shared_control::tactical::{Action, ActionSequence, SequenceStatus, Side, TacticalInput, TacticalParams};
-use iw_shared_control::{ArcGuard, ArcGuardParams, PotentialField, PotentialFieldParams, SensorMount, SharedController, SharedInput, VelocityCommand};
+use iw_shared_control::{ArcGuard, ArcGuardParams, Guarded, PotentialField, PotentialFieldParams, SensorMount, SharedController, SharedInput, VelocityCommand};
 use iw_sl::{ActionExpression, ContentExpression, Level, Term};
 use nalgebra::Isometry2;
 
@@ -156,8 +156,8 @@ pub struct ControlAgent {
     config: ControlConfig,
     body: Box<dyn Body + Send>,
     basic: BasicControl,
-    field: PotentialField,
-    guard: ArcGuard,
+    /// The potential field, then the arc guard; tactical commands take only `shared.guard`.
+    shared: Guarded<PotentialField>,
     mode: Mode,
     t_map_base: Option<Isometry2<f64>>,
     manual_watchdog: Watchdog,
@@ -170,10 +170,12 @@ impl ControlAgent {
             return Err(ControlError::Mounts { mounts: config.sonar_mounts.len(), expected: iw_body::SONAR_COUNT });
         }
         ActionSequence::new(config.tactical, [])?;
-        let field = PotentialField::new(config.shared, config.sonar_mounts.clone())?;
-        let guard = ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?;
+        let shared = Guarded {
+            inner: PotentialField::new(config.shared, config.sonar_mounts.clone())?,
+            guard: ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?,
+        };
         let basic = BasicControl::new(config.drive, config.watchdog_ms.saturating_mul(1_000_000));
-        Ok(ControlAgent { body, basic, field, guard, mode: Mode::Idle, t_map_base: None, manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)), config })
+        Ok(ControlAgent { body, basic, shared, mode: Mode::Idle, t_map_base: None, manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)), config })
     }
 
     fn handle_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
@@ -399,10 +401,8 @@ impl Agent for ControlAgent {
         let command = match user {
             Some(user) => {
                 let input = SharedInput { user, speed_mps: user.linear_mps.abs(), sonar_m: &frame.sonar_m, points_chair: &[] };
-                let corrected = if shared { self.field.step(&input).map(|out| out.command) } else { Ok(user) };
-                corrected
-                    .and_then(|c| self.guard.step(&SharedInput { user: c, ..input }).map(|out| out.command))
-                    .unwrap_or(VelocityCommand::STOP)
+                let out = if shared { self.shared.step(&input) } else { self.shared.guard.step(&input) };
+                out.map_or(VelocityCommand::STOP, |out| out.command)
             }
             None => VelocityCommand::STOP,
         };

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use iw_shared_control_experiment::{Config, Summary, office_circuit, write_outputs};
+use iw_shared_control_experiment::{Config, Mode, Summary, office_circuit, write_outputs};
 use iw_features::{DetectorConfig, DetectorKind};
 use iw_sim::vo::{TrialConfig, TrialPoint, run_trial, sim_vo_config, waypoints_ahead};
 use iw_sim::{ChairKind, ChairSpec, Map, TextureSet, World};
@@ -14,7 +14,8 @@ use iw_vo::Pipeline;
 #[derive(clap::Subcommand)]
 pub enum Command {
     /// Thesis 3.7.1: simulated head-gesture drivers on a cluttered office circuit, manual vs the
-    /// thesis's potential-field shared control vs VFH+; writes OUT/summary.json and path plots.
+    /// thesis's potential-field shared control vs VFH+ vs the control agent's guarded field;
+    /// writes OUT/summary.json and path plots.
     SharedControl(SharedControlArgs),
     /// Thesis 3.3.2 and chapter 5: a chair drives a textured map with encoder errors; wheel
     /// odometry, RGB-D visual odometry on the rendered frames and their EKF against the
@@ -183,7 +184,7 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
         lap_timeout_s: args.lap_timeout_s,
         ..Config::default()
     };
-    let bar = indicatif::ProgressBar::new((args.drivers * 3) as u64);
+    let bar = indicatif::ProgressBar::new((args.drivers * Mode::ALL.len()) as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} trials ({elapsed}, eta {eta}) {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -204,7 +205,8 @@ fn print_table(s: &Summary) {
         "{:<8} {:>10} {:>10} {:>6} {:>10} {:>12} {:>12} {:>12}",
         "mode", "collisions", "per lap", "laps", "lap time", "interv.rate", "rate near", "rate free"
     );
-    for (name, m) in [("manual", &s.manual), ("shared", &s.shared), ("vfh", &s.vfh)] {
+    for mode in Mode::ALL {
+        let (name, m) = (mode.key(), s.mode(mode));
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
         println!(
             "{:<8} {:>10} {:>10} {:>6} {:>10} {:>12.3} {:>12.3} {:>12.3}",
@@ -218,11 +220,13 @@ fn print_table(s: &Summary) {
             m.intervention_rate_free
         );
     }
-    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.0}%", 100.0 * v));
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}%", 100.0 * v));
     println!(
-        "collision reduction vs manual: shared {}, vfh {}; Wilcoxon manual > shared (one-tailed, exact) p = {:.4}",
+        "collision reduction vs manual: shared {}, vfh {}, guarded {}; Wilcoxon manual > shared (one-tailed, exact) p = {:.4}, manual > guarded p = {:.4}",
         pct(s.manual_vs_shared.collision_reduction),
         pct(s.manual_vs_vfh.collision_reduction),
-        s.wilcoxon_p
+        pct(s.manual_vs_guarded.collision_reduction),
+        s.wilcoxon_p,
+        s.manual_vs_guarded.wilcoxon.p()
     );
 }

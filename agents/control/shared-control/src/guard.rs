@@ -54,7 +54,7 @@ impl ArcGuard {
         check_positive("decel_mps2", params.decel_mps2)?;
         check_positive("angular_decel_radps2", params.angular_decel_radps2)?;
         check_positive("sample_s", params.sample_s)?;
-        if !(params.margin_m >= 0.0) || !(params.reaction_s >= 0.0) {
+        if params.margin_m.is_nan() || params.margin_m < 0.0 || params.reaction_s.is_nan() || params.reaction_s < 0.0 {
             return Err(ControlError::BadParameter { name: "margin_m/reaction_s", value: params.margin_m.min(params.reaction_s), why: "must be >= 0" });
         }
         Ok(Self { params, footprint, mounts })
@@ -147,6 +147,25 @@ impl SharedController for ArcGuard {
     }
 }
 
+/// A shared controller whose command then passes the [`ArcGuard`]: the control agent's policy for
+/// the user's commands (the thesis's potential field, then the footprint sweep it lacks).
+#[derive(Debug, Clone)]
+pub struct Guarded<C> {
+    /// The controller that corrects the user's command first.
+    pub inner: C,
+    /// The sweep applied to whatever `inner` produced.
+    pub guard: ArcGuard,
+}
+
+impl<C: SharedController> SharedController for Guarded<C> {
+    fn step(&mut self, input: &SharedInput<'_>) -> Result<SharedOutput, ControlError> {
+        let first = self.inner.step(input)?;
+        let second = self.guard.step(&SharedInput { user: first.command, ..*input })?;
+        let active = first.intervention.active_readings + second.intervention.active_readings;
+        Ok(SharedOutput { command: second.command, intervention: Intervention::between(input.user, second.command, active) })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -169,6 +188,18 @@ mod tests {
         // driving along the wall is left alone
         let (out, changed) = g.limit(VelocityCommand::new(0.5, 0.0), &wall);
         assert!(!changed && out == VelocityCommand::new(0.5, 0.0));
+    }
+
+    #[test]
+    fn guarded_reports_the_change_against_the_users_command() {
+        // Sonars S1.. all echo at 0.2 m: spinning in place would sweep the corners through them.
+        let mut g = Guarded { inner: crate::Manual, guard: guard() };
+        let sonar = [Some(0.2); iw_body::SONAR_COUNT];
+        let user = VelocityCommand::new(0.0, -0.8);
+        let out = g.step(&SharedInput { user, speed_mps: 0.0, sonar_m: &sonar, points_chair: &[] }).unwrap();
+        assert_ne!(out.command, user);
+        assert_eq!(out.intervention, Intervention::between(user, out.command, out.intervention.active_readings));
+        assert!(out.intervention.changed() && out.intervention.active_readings > 0);
     }
 
     #[test]

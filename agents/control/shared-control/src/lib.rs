@@ -11,7 +11,7 @@
 //!   it to the direction the chair is about to travel and back.
 //! - [`SharedController`]: one trait, `step(&SharedInput) -> SharedOutput`, with
 //!   [`PotentialField`] (thesis equations 3.1-3.4), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint
-//!   swept along the commanded arc, turning in place included) and [`Manual`] (pass-through).
+//!   swept along the commanded arc, turning in place included), [`Guarded`] (a controller, then the guard) and [`Manual`] (pass-through).
 //! - [`tactical`]: basic actions (follow line, spin, turn to angle, go to XY, follow left/right wall,
 //!   wait, stop) and [`tactical::ActionSequence`], each next action starting when the current is done.
 //! - [`basic`]: differential-drive kinematics with limits and a [`basic::Watchdog`] that stops the
@@ -40,7 +40,7 @@ mod vfh;
 
 pub use command::{MotionIntent, VelocityCommand};
 pub use error::ControlError;
-pub use guard::{ArcGuard, ArcGuardParams};
+pub use guard::{ArcGuard, ArcGuardParams, Guarded};
 pub use manual::Manual;
 pub use potential::{PotentialField, PotentialFieldParams};
 pub use vfh::{Vfh, VfhParams};

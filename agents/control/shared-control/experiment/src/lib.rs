@@ -1,7 +1,8 @@
 //! The obstacle-avoidance experiment of thesis 3.7.1, run with simulated volunteers: each
 //! [`iw_shared_control::driver::HeadGestureDriver`] drives laps of a cluttered office circuit in
-//! the [`iw_sim`] world three times with the same seeds, manually, with the thesis's
-//! potential-field shared control, and with the VFH+ baseline. Collisions come from the
+//! the [`iw_sim`] world four times with the same seeds: manually, with the thesis's
+//! potential-field shared control, with the VFH+ baseline, and with the control agent's policy
+//! (the potential field, then the arc guard's footprint sweep). Collisions come from the
 //! simulator's contact counter; interventions from comparing the user's command with the one sent
 //! to the wheels; "near obstacles" from the true clearance between the chair's footprint and the
 //! map.
@@ -23,7 +24,7 @@ pub use output::{Summary, write_outputs};
 use iw_shared_control::basic::{BasicControl, DiffDrive};
 use iw_shared_control::driver::{Circuit, DriverProfile, HeadGestureDriver};
 use iw_shared_control::{
-    ControlError, Intervention, Manual, PotentialField, PotentialFieldParams, SharedController, SharedInput, Vfh,
+    ArcGuard, ArcGuardParams, ControlError, Guarded, Intervention, Manual, PotentialField, PotentialFieldParams, SharedController, SharedInput, Vfh,
     VfhParams,
 };
 use iw_sim::{ChairKind, ChairSpec, Map, SimError, World};
@@ -80,11 +81,14 @@ pub enum Mode {
     Shared,
     /// VFH+ on the sonars and the laser scanner.
     Vfh,
+    /// The control agent's policy: the potential field, then the arc guard's footprint sweep on
+    /// the same sonars and laser points.
+    Guarded,
 }
 
 impl Mode {
     /// All modes, in report order.
-    pub const ALL: [Mode; 3] = [Mode::Manual, Mode::Shared, Mode::Vfh];
+    pub const ALL: [Mode; 4] = [Mode::Manual, Mode::Shared, Mode::Vfh, Mode::Guarded];
 
     /// The key used in `summary.json` and file names.
     pub fn key(self) -> &'static str {
@@ -92,6 +96,7 @@ impl Mode {
             Mode::Manual => "manual",
             Mode::Shared => "shared",
             Mode::Vfh => "vfh",
+            Mode::Guarded => "guarded",
         }
     }
 }
@@ -225,6 +230,10 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
     let mut controller: Box<dyn SharedController> = match mode {
         Mode::Manual => Box::new(Manual),
         Mode::Shared => Box::new(PotentialField::new(PotentialFieldParams::default(), mounts)?),
+        Mode::Guarded => Box::new(Guarded {
+            inner: PotentialField::new(PotentialFieldParams::default(), mounts.clone())?,
+            guard: ArcGuard::new(ArcGuardParams::default(), iw_body::layout::Footprint { front_m: spec.front_m, rear_m: spec.rear_m, half_width_m: spec.half_width_m }, mounts)?,
+        }),
         Mode::Vfh => Box::new(Vfh::new(
             VfhParams { robot_radius_m: spec.half_width_m, ..VfhParams::default() },
             mounts,
@@ -281,7 +290,7 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
         basic.command(shared.command, now_ns)?;
         world.command(id, basic.output(now_ns))?;
         account(&mut trial, &obstacles, &spec, pose, &shared.intervention, config);
-        if trial.periods % record_every == 0 {
+        if trial.periods.is_multiple_of(record_every) {
             trial.path.push((pose.translation.x, pose.translation.y));
         }
         let before = world.collisions(id)?;

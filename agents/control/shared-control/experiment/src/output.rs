@@ -67,6 +67,8 @@ pub struct Summary {
     pub shared: ModeSummary,
     /// VFH+ shared control.
     pub vfh: ModeSummary,
+    /// The control agent's policy: potential field, then the arc guard.
+    pub guarded: ModeSummary,
     /// Exact one-tailed Wilcoxon signed-rank p, manual vs shared collisions per 100 m, paired per
     /// driver.
     pub wilcoxon_p: f64,
@@ -76,6 +78,10 @@ pub struct Summary {
     pub manual_vs_vfh: Comparison,
     /// VFH+ vs shared (is shared ahead of the baseline?).
     pub vfh_vs_shared: Comparison,
+    /// Manual vs the guarded potential field.
+    pub manual_vs_guarded: Comparison,
+    /// VFH+ vs the guarded potential field.
+    pub vfh_vs_guarded: Comparison,
     /// Map driven.
     pub map: String,
     /// Configuration.
@@ -130,22 +136,35 @@ fn compare(a: &ModeSummary, b: &ModeSummary) -> Result<Comparison, ExperimentErr
 }
 
 impl Summary {
+    /// The totals of one paradigm.
+    pub fn mode(&self, mode: Mode) -> &ModeSummary {
+        match mode {
+            Mode::Manual => &self.manual,
+            Mode::Shared => &self.shared,
+            Mode::Vfh => &self.vfh,
+            Mode::Guarded => &self.guarded,
+        }
+    }
+
     /// Aggregates a report.
     pub fn from_report(report: &Report) -> Result<Summary, ExperimentError> {
         let of = |mode: Mode| {
             let trials: Vec<&Trial> = report.trials.iter().filter(|t| t.mode == mode).collect();
             mode_summary(&trials, report.config.laps)
         };
-        let (manual, shared, vfh) = (of(Mode::Manual), of(Mode::Shared), of(Mode::Vfh));
+        let (manual, shared, vfh, guarded) = (of(Mode::Manual), of(Mode::Shared), of(Mode::Vfh), of(Mode::Guarded));
         let manual_vs_shared = compare(&manual, &shared)?;
         Ok(Summary {
             wilcoxon_p: manual_vs_shared.wilcoxon.p(),
             manual_vs_vfh: compare(&manual, &vfh)?,
             vfh_vs_shared: compare(&vfh, &shared)?,
+            manual_vs_guarded: compare(&manual, &guarded)?,
+            vfh_vs_guarded: compare(&vfh, &guarded)?,
             manual_vs_shared,
             manual,
             shared,
             vfh,
+            guarded,
             map: report.map_name.clone(),
             config: report.config.clone(),
         })
@@ -165,7 +184,7 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
     std::fs::write(path, bytes).map_err(|source| ExperimentError::Io { path: path.display().to_string(), source })
 }
 
-/// Writes `summary.json`, `trials.json`, `paths-{manual,shared,vfh}.png` and `collisions.png`
+/// Writes `summary.json`, `trials.json`, `paths-{manual,shared,vfh,guarded}.png` and `collisions.png`
 /// into `out_dir` (created if needed); returns the summary.
 pub fn write_outputs(report: &Report, map: &Map, out_dir: &Path) -> Result<Summary, ExperimentError> {
     std::fs::create_dir_all(out_dir)
@@ -176,11 +195,7 @@ pub fn write_outputs(report: &Report, map: &Map, out_dir: &Path) -> Result<Summa
     let route = map.route(&report.config.route);
     for mode in Mode::ALL {
         let trials: Vec<&Trial> = report.trials.iter().filter(|t| t.mode == mode).collect();
-        let s = match mode {
-            Mode::Manual => &summary.manual,
-            Mode::Shared => &summary.shared,
-            Mode::Vfh => &summary.vfh,
-        };
+        let s = summary.mode(mode);
         let figure = PathFigure {
             title: format!(
                 "{}: {} drivers x {} laps, {} collisions",
@@ -209,14 +224,22 @@ pub fn write_outputs(report: &Report, map: &Map, out_dir: &Path) -> Result<Summa
 fn plot_collisions(path: &Path, summary: &Summary) -> Result<(), ExperimentError> {
     iw_plot::register_fonts();
     let err = |e: &dyn std::fmt::Display| iw_plot::PlotError::draw(path, e);
-    let modes = [("manual", &summary.manual, RED), ("shared", &summary.shared, BLUE), ("vfh", &summary.vfh, RGBColor(0, 150, 0))];
+    let colours = [RED, BLUE, RGBColor(0, 150, 0), RGBColor(230, 140, 0)];
+    let modes: Vec<_> = Mode::ALL.iter().zip(colours).map(|(&m, colour)| (m.key(), summary.mode(m), colour)).collect();
     let drivers = summary.manual.collisions_per_driver.len();
     let top = modes.iter().flat_map(|m| m.1.collisions_per_driver.iter()).copied().max().unwrap_or(0).max(1) as f64;
     let root = BitMapBackend::new(path, (1000, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut chart = ChartBuilder::on(&root)
         .margin(15)
-        .caption(format!("Collisions per driver (Wilcoxon manual > shared, p = {:.4})", summary.wilcoxon_p), ("sans-serif", 22))
+        .caption(
+            format!(
+                "Collisions per driver (Wilcoxon manual > shared p = {:.4}, manual > guarded p = {:.4})",
+                summary.wilcoxon_p,
+                summary.manual_vs_guarded.wilcoxon.p()
+            ),
+            ("sans-serif", 20),
+        )
         .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(0.0..drivers as f64, 0.0..top * 1.1)
@@ -235,8 +258,8 @@ fn plot_collisions(path: &Path, summary: &Summary) -> Result<(), ExperimentError
         let colour = *colour;
         chart
             .draw_series(s.collisions_per_driver.iter().enumerate().map(|(d, &c)| {
-                let x0 = d as f64 + 0.1 + 0.27 * k as f64;
-                Rectangle::new([(x0, 0.0), (x0 + 0.25, c as f64)], colour.filled())
+                let x0 = d as f64 + 0.1 + 0.2 * k as f64;
+                Rectangle::new([(x0, 0.0), (x0 + 0.18, c as f64)], colour.filled())
             }))
             .map_err(|e| err(&e))?
             .label(format!("{label} ({} total)", s.collisions))

@@ -11,12 +11,12 @@ fn small_run_writes_the_contract_summary_and_plots() {
         done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     })
     .unwrap();
-    assert_eq!(done.into_inner(), 6);
+    assert_eq!(done.into_inner(), 2 * Mode::ALL.len());
     let dir = tempfile::tempdir().unwrap();
     write_outputs(&report, &map, dir.path()).unwrap();
     let text = std::fs::read_to_string(dir.path().join("summary.json")).unwrap();
     let json: serde_json::Value = serde_json::from_str(&text).unwrap();
-    for mode in ["manual", "shared", "vfh"] {
+    for mode in ["manual", "shared", "vfh", "guarded"] {
         assert!(json[mode]["collisions"].is_u64(), "{mode}: {text}");
         assert!(json[mode]["intervention_rate"].is_f64());
         assert!(dir.path().join(format!("paths-{mode}.png")).exists());
