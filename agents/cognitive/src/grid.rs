@@ -56,7 +56,12 @@ pub struct OccupancyGrid {
     resolution_m: f64,
     origin: Point2<f64>,
     occupied: Vec<bool>,
+    /// Clearance below which a cell costs more to cross, cells (0: plain shortest paths).
+    comfort_cells: f64,
 }
+
+/// How much more a step costs right next to an obstacle than at the comfort distance.
+const CLOSE_COST: f64 = 3.0;
 
 /// A planned path: waypoints in the world frame, first the start, last the goal.
 #[derive(Debug, Clone, PartialEq)]
@@ -83,7 +88,16 @@ impl OccupancyGrid {
         if occupied.len() != expected {
             return Err(GridError::BadSize { width, height, expected, got: occupied.len() });
         }
-        Ok(OccupancyGrid { width, height, resolution_m, origin, occupied })
+        Ok(OccupancyGrid { width, height, resolution_m, origin, occupied, comfort_cells: 0.0 })
+    }
+
+    /// The same grid planning paths that keep away from obstacles: a step closer than
+    /// `comfort_m` to an occupied cell costs up to [`CLOSE_COST`] times more (linearly), and a
+    /// straight leg of the pruned path may not cost more than the cells it replaces. Paths
+    /// then run down the middle of corridors and round corners with room for a chair's front.
+    pub fn with_comfort(mut self, comfort_m: f64) -> Self {
+        self.comfort_cells = if comfort_m.is_finite() { (comfort_m / self.resolution_m).max(0.0) } else { 0.0 };
+        self
     }
 
     /// Width and height, cells.
@@ -149,16 +163,34 @@ impl OccupancyGrid {
         };
         let s = endpoint("start", start)?;
         let g = endpoint("goal", goal)?;
-        let cells = self.astar_cells(s, g).ok_or(GridError::NoPath)?;
+        let clearance = self.clearance();
+        let cells = self.astar_cells(s, g, clearance.as_deref()).ok_or(GridError::NoPath)?;
         let length_m = cells
             .windows(2)
             .map(|w| (((w[1].0 - w[0].0).pow(2) + (w[1].1 - w[0].1).pow(2)) as f64).sqrt())
             .sum::<f64>()
             * self.resolution_m;
+        // Cost per cell of length of standing in a cell (1 without comfort).
+        let weight = |c: (i64, i64)| match (&clearance, self.index(c.0, c.1)) {
+            (Some(d), Some(i)) => 1.0 + CLOSE_COST * (1.0 - d[i] / self.comfort_cells).max(0.0),
+            _ => 1.0,
+        };
+        let mut cost_to = vec![0.0; cells.len()];
+        for i in 1..cells.len() {
+            let (a, b) = (cells[i - 1], cells[i]);
+            cost_to[i] = cost_to[i - 1] + (((b.0 - a.0).pow(2) + (b.1 - a.1).pow(2)) as f64).sqrt() * weight(b);
+        }
+        // A shortcut may not cost more than the cells it replaces (so it keeps their clearance).
+        let shortcut_cost = |a: (i64, i64), b: (i64, i64)| {
+            let length = (((b.0 - a.0).pow(2) + (b.1 - a.1).pow(2)) as f64).sqrt();
+            let samples: Vec<f64> = self.cells_on(a, b).map(weight).collect();
+            length * samples.iter().sum::<f64>() / samples.len().max(1) as f64
+        };
         let mut waypoints = vec![start];
         let mut anchor = 0;
         for i in 1..cells.len() {
-            if !self.line_of_sight(cells[anchor], cells[i]) {
+            let keeps_clear = clearance.is_none() || shortcut_cost(cells[anchor], cells[i]) <= cost_to[i] - cost_to[anchor] + 1e-9;
+            if !(keeps_clear && self.line_of_sight(cells[anchor], cells[i])) {
                 waypoints.push(self.centre(cells[i - 1].0, cells[i - 1].1));
                 anchor = i - 1;
             }
@@ -167,7 +199,49 @@ impl OccupancyGrid {
         Ok(Path2 { waypoints, length_m })
     }
 
-    fn astar_cells(&self, s: (i64, i64), g: (i64, i64)) -> Option<Vec<(i64, i64)>> {
+    /// Distance of every cell to the nearest occupied cell (outside the grid counts as
+    /// occupied), cells, by a two-pass chamfer transform; `None` for plain shortest paths.
+    fn clearance(&self) -> Option<Vec<f64>> {
+        if self.comfort_cells <= 0.0 {
+            return None;
+        }
+        let (w, h) = (self.width as i64, self.height as i64);
+        let mut d: Vec<f64> = self.occupied.iter().map(|&o| if o { 0.0 } else { f64::INFINITY }).collect();
+        let diagonal = std::f64::consts::SQRT_2;
+        let relax = |d: &mut Vec<f64>, c: i64, r: i64, neighbours: &[(i64, i64, f64)]| {
+            let i = (r * w + c) as usize;
+            for &(dc, dr, step) in neighbours {
+                let (nc, nr) = (c + dc, r + dr);
+                let from = if nc < 0 || nr < 0 || nc >= w || nr >= h { 0.0 } else { d[(nr * w + nc) as usize] };
+                d[i] = d[i].min(from + step);
+            }
+        };
+        let before = [(-1, 0, 1.0), (0, -1, 1.0), (-1, -1, diagonal), (1, -1, diagonal)];
+        let after = [(1, 0, 1.0), (0, 1, 1.0), (1, 1, diagonal), (-1, 1, diagonal)];
+        for r in 0..h {
+            for c in 0..w {
+                relax(&mut d, c, r, &before);
+            }
+        }
+        for r in (0..h).rev() {
+            for c in (0..w).rev() {
+                relax(&mut d, c, r, &after);
+            }
+        }
+        Some(d)
+    }
+
+    /// The cells the segment between two cell centres passes (sampled at a quarter cell).
+    fn cells_on(&self, a: (i64, i64), b: (i64, i64)) -> impl Iterator<Item = (i64, i64)> {
+        let (dx, dy) = ((b.0 - a.0) as f64, (b.1 - a.1) as f64);
+        let steps = (dx.abs().max(dy.abs()) * 4.0).ceil().max(1.0) as i64;
+        (0..=steps).map(move |k| {
+            let t = k as f64 / steps as f64;
+            ((a.0 as f64 + 0.5 + t * dx).floor() as i64, (a.1 as f64 + 0.5 + t * dy).floor() as i64)
+        })
+    }
+
+    fn astar_cells(&self, s: (i64, i64), g: (i64, i64), clearance: Option<&[f64]>) -> Option<Vec<(i64, i64)>> {
         #[derive(PartialEq)]
         struct Open(f64, usize);
         impl Eq for Open {}
@@ -212,7 +286,10 @@ impl OccupancyGrid {
                     continue;
                 }
                 let Some(j) = self.index(nc, nr) else { continue };
-                let step = if dc != 0 && dr != 0 { std::f64::consts::SQRT_2 } else { 1.0 };
+                let mut step = if dc != 0 && dr != 0 { std::f64::consts::SQRT_2 } else { 1.0 };
+                if let Some(d) = clearance {
+                    step *= 1.0 + CLOSE_COST * (1.0 - d[j] / self.comfort_cells).max(0.0);
+                }
                 let candidate = cost[i] + step;
                 if candidate < cost[j] {
                     cost[j] = candidate;
@@ -274,6 +351,22 @@ mod tests {
     }
 
     #[test]
+    fn comfort_keeps_the_path_in_the_middle_of_a_corridor() {
+        let wall = "####################";
+        let free = "....................";
+        let g = grid(&[wall, free, free, free, free, free, wall]);
+        let (start, goal) = (g.centre(1, 1), g.centre(18, 1));
+        // Shortest: straight along the wall.
+        assert_eq!(g.astar(start, goal).unwrap().waypoints, vec![start, goal]);
+        // With comfort: over to the middle row (y = 3.5 cells) and back, never nearer the walls
+        // than the start and goal rows.
+        let path = g.clone().with_comfort(1.5).astar(start, goal).unwrap();
+        let inner = &path.waypoints[1..path.waypoints.len() - 1];
+        assert!(inner.iter().any(|p| (p.y - 1.75).abs() < 1e-9), "{:?}", path.waypoints);
+        assert!(path.waypoints.iter().all(|p| p.y >= 0.75 - 1e-9 && p.y <= 2.75 + 1e-9), "{:?}", path.waypoints);
+    }
+
+    #[test]
     fn endpoints_and_dead_ends_are_reported() {
         let g = grid(&["..#..", "..#..", "..#.."]);
         assert_eq!(g.astar(g.centre(0, 0), g.centre(4, 0)), Err(GridError::NoPath));
@@ -310,7 +403,7 @@ mod tests {
                     if !seen[i] { seen[i] = true; stack.push((nc, nr)); }
                 }
             }
-            match g.astar_cells((0, 0), (7, 7)) {
+            match g.astar_cells((0, 0), (7, 7), None) {
                 Some(path) => {
                     prop_assert!(seen[63]);
                     prop_assert!(path.iter().all(|&(c, r)| !g.is_occupied(c, r)));

@@ -3,9 +3,11 @@
 //! The embedded sample building, the service container, three virtual chairs and one mixed chair
 //! (the serial driver on a pty against the emulated interface board, virtual sonars merged in),
 //! each in its own container, talking FIPA-ACL over real bus frames in simulated time. Staff send
-//! the goals through the assistant; one chair is sent to the bathroom behind a restricted door it
-//! is not authorised through, so the door agent refuses and logs it. The dashboard runs
-//! throughout (its URL is printed); page actions go to the fleet as goals, door and fault asks.
+//! the goals through the assistant; one chair is sent to the staff office behind a restricted door
+//! it is not authorised through, so the door agent refuses and logs it. The missions are laid out
+//! so no two chairs meet head-on in the corridor: chairs do not yet yield to each other there.
+//! The dashboard runs throughout (its URL is printed); page actions go to the fleet as goals, door
+//! and fault asks.
 //! Runs faster than real time, or in real time and until Ctrl-C with `--serve`. Ends with a
 //! summary and a JSON-lines log of every frame exchanged between containers.
 
@@ -30,9 +32,9 @@ use nalgebra::{Isometry2, Point2, Vector2};
 const SAMPLE_BUILDING: &str = include_str!("../../../scenarios/maps/sample-building.map");
 
 /// The restricted door: only [`AUTHORISED`] may have it opened.
-const RESTRICTED_DOOR: &str = "bathroom";
+const RESTRICTED_DOOR: &str = "office";
 /// The chair allowed through [`RESTRICTED_DOOR`].
-const AUTHORISED: &str = "chair-3";
+const AUTHORISED: &str = "chair-0";
 
 /// Flags of `intellwheels demo`.
 #[derive(clap::Args)]
@@ -60,19 +62,24 @@ pub struct Args {
     token: Option<String>,
 }
 
-/// One chair of the demo: where it starts, its body and the named place it is sent to.
+/// One chair of the demo: where it starts, its body, the named place staff send it to and when.
 struct Mission {
     name: &'static str,
     start: (f64, f64, f64),
     body: BodyKind,
     place: &'static str,
+    /// Simulated time at which the goal is sent, s.
+    at_s: f64,
 }
 
+/// Staged so that no chair waits at a door or stands refused in the corridor while another
+/// needs to pass: chair-0 crosses the building first, chair-2 is refused behind it, chair-1
+/// leaves its bedroom once chair-0 has turned into the dining hall.
 const MISSIONS: [Mission; 4] = [
-    Mission { name: "chair-0", start: (1.0, 6.0, 0.0), body: BodyKind::Virtual, place: "dining-hall" },
-    Mission { name: "chair-1", start: (15.0, 8.2, 180.0), body: BodyKind::Virtual, place: "bedroom2" },
-    Mission { name: "chair-2", start: (4.5, 2.5, 90.0), body: BodyKind::Virtual, place: "bathroom" },
-    Mission { name: "chair-3", start: (17.5, 6.0, 180.0), body: BodyKind::Mixed, place: "therapy" },
+    Mission { name: "chair-0", start: (1.0, 6.0, 0.0), body: BodyKind::Virtual, place: "dining-hall", at_s: 0.0 },
+    Mission { name: "chair-1", start: (7.5, 8.5, -90.0), body: BodyKind::Virtual, place: "bathroom", at_s: 25.0 },
+    Mission { name: "chair-2", start: (2.5, 8.5, -90.0), body: BodyKind::Virtual, place: "office", at_s: 12.0 },
+    Mission { name: "chair-3", start: (17.5, 6.0, 180.0), body: BodyKind::Mixed, place: "therapy", at_s: 0.0 },
 ];
 
 /// What became of one chair's goal.
@@ -82,8 +89,8 @@ enum Outcome {
     Pending,
     /// The control agent informed it was done.
     Reached { time_s: f64 },
-    /// The control agent (or the platform) answered failure or refuse.
-    Failed { performative: String },
+    /// The chair's agents (or the platform) answered failure or refuse, and why.
+    Failed { performative: String, reason: Option<String> },
     /// It could not be sent: the way is shut (the door refused to open).
     Refused { reason: String },
 }
@@ -132,24 +139,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         MISSIONS.len() - virtual_count
     );
     println!("dashboard: {}", dashboard.url());
-    let mut outcomes = Vec::new();
-    let mut conversations = Vec::new();
+    let mut outcomes = vec![Outcome::Pending; MISSIONS.len()];
+    let mut conversations: Vec<Option<String>> = vec![None; MISSIONS.len()];
+    let mut sent = [false; MISSIONS.len()];
     let mut goal_places: BTreeMap<String, String> = BTreeMap::new();
-    for mission in &MISSIONS {
-        match fleet.goal_place(mission.name, mission.place) {
-            Ok(conversation) => {
-                println!("  {} ({}) -> {}: request {conversation} via the assistant", mission.name, kind_name(mission.body), mission.place);
-                goal_places.insert(mission.name.to_string(), mission.place.to_string());
-                outcomes.push(Outcome::Pending);
-                conversations.push(Some(conversation));
-            }
-            Err(err) => {
-                println!("  {} -> {}: refused ({err})", mission.name, mission.place);
-                outcomes.push(Outcome::Refused { reason: err.to_string() });
-                conversations.push(None);
-            }
-        }
-    }
 
     let step = Duration::from_millis(args.step_ms);
     let total_steps = (args.max_time_s * 1000.0 / args.step_ms as f64).ceil() as u64;
@@ -183,6 +176,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let mission_over = steps >= total_steps || outcomes.iter().all(|o| !matches!(o, Outcome::Pending));
         if mission_over && !args.serve {
             break;
+        }
+        for (k, mission) in MISSIONS.iter().enumerate() {
+            if sent[k] || fleet.time_s() < mission.at_s {
+                continue;
+            }
+            sent[k] = true;
+            let line = match fleet.goal_place(mission.name, mission.place) {
+                Ok(conversation) => {
+                    goal_places.insert(mission.name.to_string(), mission.place.to_string());
+                    let line = format!("{} ({}) -> {}: request {conversation} via the assistant", mission.name, kind_name(mission.body), mission.place);
+                    conversations[k] = Some(conversation);
+                    line
+                }
+                Err(err) => {
+                    outcomes[k] = Outcome::Refused { reason: err.to_string() };
+                    format!("{} -> {}: refused ({err})", mission.name, mission.place)
+                }
+            };
+            bar.suspend(|| println!("  {:5.1} s  {line}", fleet.time_s()));
         }
         if !paused || single_step {
             fleet.step(step);
@@ -249,7 +261,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let outcome = match &r.outcome {
             Outcome::Pending => "not reached in time".to_string(),
             Outcome::Reached { time_s } => format!("reached at {time_s:.1} s"),
-            Outcome::Failed { performative } => format!("control answered {performative}"),
+            Outcome::Failed { performative, reason } => match reason {
+                Some(reason) => format!("{performative}: {reason}"),
+                None => format!("{performative} (no reason given)"),
+            },
             Outcome::Refused { reason } => format!("refused: {reason}"),
         };
         println!("  {:8} {:12} {outcome}; {:.1} m driven, {} collisions", r.name, r.goal, r.distance_m, r.collisions);
@@ -397,7 +412,7 @@ fn settle_outcomes(fleet: &Fleet, conversations: &[Option<String>], outcomes: &m
             if p == "inform" {
                 *outcome = Outcome::Reached { time_s: event.time_s };
             } else if p == "failure" || p == "refuse" || p == "not-understood" {
-                *outcome = Outcome::Failed { performative: p };
+                *outcome = Outcome::Failed { performative: p, reason: event.reason.clone() };
             }
         }
     }

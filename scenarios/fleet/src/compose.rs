@@ -38,7 +38,11 @@ pub const CHAIR_RADIUS_M: f64 = 0.3;
 
 /// The clearance the cognitive agent keeps from walls and furniture elsewhere, m: room for the
 /// chair's long front to turn on the spot.
-pub const WALL_CLEARANCE_M: f64 = 0.3;
+pub const WALL_CLEARANCE_M: f64 = 0.5;
+
+/// Paths keep this far from the inflated walls and furniture where there is room, m: down the
+/// middle of corridors, and round corners wide enough for the chair's front.
+pub const PATH_COMFORT_M: f64 = 1.0;
 
 /// Heading error above which a chair turns on the spot before driving to a point, rad.
 pub const TURN_IN_PLACE_RAD: f64 = 0.3;
@@ -158,7 +162,7 @@ impl Building {
         }
         let lanes: Vec<(Point2<f64>, Point2<f64>)> =
             doors.iter().map(|d| (places[&d.a], places[&d.b])).collect();
-        let grid = carve_lanes(&grid.inflated(WALL_CLEARANCE_M), &lanes)?;
+        let grid = carve_lanes(&grid.inflated(WALL_CLEARANCE_M), &lanes)?.with_comfort(PATH_COMFORT_M);
         Ok(Building { map, plan: BuildingMap { places, connections, doors, landmarks }, approaches, grid, domain })
     }
 

@@ -22,6 +22,23 @@ pub struct GoalEvent {
     pub performative: String,
     /// When, s of simulated time.
     pub time_s: f64,
+    /// The `error-message` of a FAILURE or REFUSE, if it carries one.
+    pub reason: Option<String>,
+}
+
+/// The text of `((error-message "..."))` content, as the platform's agents explain a FAILURE or
+/// REFUSE.
+fn error_message(message: &AclMessage) -> Option<String> {
+    let content = iw_sl::parse(message.content_text()?, iw_sl::Level::Full).ok()?;
+    content.expressions.into_iter().find_map(|e| match e {
+        iw_sl::ContentExpression::Formula(iw_sl::Formula::Atomic { predicate, mut args }) if predicate == "error-message" && args.len() == 1 => {
+            match args.pop() {
+                Some(iw_sl::Term::Constant { value: iw_sl::Constant::String(text) }) => Some(text),
+                _ => None,
+            }
+        }
+        _ => None,
+    })
 }
 
 /// What the fleet and the console agent share.
@@ -52,9 +69,9 @@ impl Console {
         Console { desk, assistant }
     }
 
-    fn record(&self, ctx: &Context<'_>, conversation: String, from: String, performative: Performative) {
+    fn record(&self, ctx: &Context<'_>, conversation: String, from: String, performative: Performative, reason: Option<String>) {
         let time_s = ctx.now().0 as f64 * 1e-9;
-        desk(&self.desk).events.push(GoalEvent { conversation, from, performative: performative.to_string(), time_s });
+        desk(&self.desk).events.push(GoalEvent { conversation, from, performative: performative.to_string(), time_s, reason });
     }
 }
 
@@ -62,7 +79,7 @@ impl Agent for Console {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let from = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
-        self.record(ctx, conversation, from, message.performative);
+        self.record(ctx, conversation, from, message.performative, error_message(&message));
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
@@ -76,7 +93,7 @@ impl Agent for Console {
             );
             if ctx.send(request).is_err() {
                 let me = ctx.name().to_string();
-                self.record(ctx, conversation, me, Performative::Failure);
+                self.record(ctx, conversation, me, Performative::Failure, Some("the request could not be sent".into()));
             }
         }
     }

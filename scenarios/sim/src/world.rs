@@ -257,9 +257,12 @@ impl World {
     }
 
     /// Places a chair (mixed reality: the real chair's pose). Overlaps are counted as collisions
-    /// but the pose is taken as given; sensors are recomputed at once.
+    /// but the pose is taken as given; sensors are recomputed at once; the displacement counts as
+    /// distance travelled.
     pub fn place(&mut self, id: ChairId, t_world_body: Isometry2<f64>) -> Result<(), SimError> {
-        self.chair_mut(id)?.t_world_body = t_world_body;
+        let chair = self.chair_mut(id)?;
+        chair.distance_m += (t_world_body.translation.vector - chair.t_world_body.translation.vector).norm();
+        chair.t_world_body = t_world_body;
         let hit = self.footprint_collides(id.0, &t_world_body);
         let near = hit || self.footprint_collides_within(id.0, &t_world_body, CONTACT_RELEASE_M);
         let chair = &mut self.chairs[id.0];
