@@ -182,9 +182,19 @@ impl Layer for TemporalLayer {
     }
 
     fn outbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
-        let next = self.next_seq.entry(env.header.sender.clone()).or_insert(now.as_ns());
-        env.header.seq = *next;
-        *next = next.wrapping_add(1);
+        // Look the sender up by reference: its name is copied only the first time.
+        env.header.seq = match self.next_seq.get_mut(&env.header.sender) {
+            Some(next) => {
+                let seq = *next;
+                *next = seq.wrapping_add(1);
+                seq
+            }
+            None => {
+                let seq = now.as_ns();
+                self.next_seq.insert(env.header.sender.clone(), seq.wrapping_add(1));
+                seq
+            }
+        };
         env.header.timestamp = now;
         Verdict::Pass(env)
     }
