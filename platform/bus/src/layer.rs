@@ -330,15 +330,16 @@ impl Layer for Stack {
         }
     }
     fn inbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
-        let (id, sender) = (env.header.id, env.header.sender.clone());
+        let (id, sender) = (env.header.id, SavedName::of(&env.header.sender));
         for i in (0..self.layers.len()).rev() {
             match self.layers[i].inbound(env, now) {
                 Verdict::Pass(e) => env = e,
                 Verdict::Drop(r) => {
                     tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
                     self.counters.record(r);
+                    let sender = sender.as_str();
                     for below in &mut self.layers[i + 1..] {
-                        below.rejected_above(id, &sender, r);
+                        below.rejected_above(id, sender, r);
                     }
                     return Verdict::Drop(r);
                 }
@@ -358,6 +359,37 @@ impl Layer for Stack {
             return Some(Time::ZERO);
         }
         self.layers.iter().filter_map(|l| l.next_deadline()).min()
+    }
+}
+
+/// A copy of a sender's name kept while the envelope goes up the layers (a layer that drops it
+/// consumes it, and the layers below must still be told whose it was): on the stack for the
+/// usual short names, so the common path does not allocate.
+enum SavedName {
+    Short { bytes: [u8; SavedName::SHORT], len: u8 },
+    Long(String),
+}
+
+impl SavedName {
+    const SHORT: usize = 64;
+
+    fn of(name: &str) -> SavedName {
+        match u8::try_from(name.len()) {
+            Ok(len) if name.len() <= SavedName::SHORT => {
+                let mut bytes = [0u8; SavedName::SHORT];
+                bytes[..name.len()].copy_from_slice(name.as_bytes());
+                SavedName::Short { bytes, len }
+            }
+            _ => SavedName::Long(name.to_owned()),
+        }
+    }
+
+    fn as_str(&self) -> &str {
+        match self {
+            // A whole `str` copied byte for byte: always valid UTF-8.
+            SavedName::Short { bytes, len } => std::str::from_utf8(&bytes[..usize::from(*len)]).unwrap_or_default(),
+            SavedName::Long(name) => name,
+        }
     }
 }
 
