@@ -33,6 +33,7 @@ use std::collections::{HashMap, HashSet, VecDeque};
 use std::time::Duration;
 
 use iw_bus::{Counters, Envelope, Flags, IdGen, Layer, MsgId, Reason, Time, Verdict};
+use rustc_hash::FxHashMap;
 
 /// Bytes of the acknowledged frame's payload an acknowledgement echoes.
 const ECHO_LEN: usize = 16;
@@ -134,7 +135,8 @@ impl Window {
 pub struct CommLayer {
     config: CommConfig,
     seen: HashMap<String, Window>,
-    in_flight: HashMap<MsgId, Pending>,
+    /// Keyed by our own message ids (acknowledgements only look up), hence the fast hash.
+    in_flight: FxHashMap<MsgId, Pending>,
     /// No frame in flight is due before this (a lower bound; exact after a scan found none due).
     earliest: Time,
     acks: VecDeque<Envelope>,
@@ -149,7 +151,7 @@ impl CommLayer {
         CommLayer {
             config,
             seen: HashMap::new(),
-            in_flight: HashMap::new(),
+            in_flight: FxHashMap::default(),
             earliest: Time::ZERO,
             acks: VecDeque::new(),
             ids: IdGen::new(),

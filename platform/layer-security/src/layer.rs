@@ -11,6 +11,7 @@ use ring::aead::{AES_256_GCM, Aad, LessSafeKey, Nonce, UnboundKey};
 use ring::agreement::{EphemeralPrivateKey, UnparsedPublicKey, X25519, agree_ephemeral};
 use ring::hkdf;
 use ring::rand::{SecureRandom, SystemRandom};
+use rustc_hash::FxHashMap;
 
 use crate::SecurityError;
 use crate::identity::{Identity, KeyDirectory, signed_bytes, verify};
@@ -110,11 +111,14 @@ struct Pending {
     started: Time,
 }
 
-type Nested<V> = HashMap<String, HashMap<String, V>>;
+/// Per (sender, receiver) state. Entries are only ever made for local senders or for peers
+/// that authenticated (a signed key agreement, a pre-shared key), so a fast unkeyed hash is
+/// safe here: outsiders cannot choose the keys.
+type Nested<V> = FxHashMap<String, FxHashMap<String, V>>;
 
 fn nested<'a, V: Default>(m: &'a mut Nested<V>, a: &str, b: &str) -> &'a mut V {
     if !m.contains_key(a) {
-        m.insert(a.to_string(), HashMap::new());
+        m.insert(a.to_string(), FxHashMap::default());
     }
     let inner = m.get_mut(a).unwrap_or_else(|| unreachable!("inserted above"));
     if !inner.contains_key(b) {
@@ -277,11 +281,11 @@ impl SecurityLayer {
             config,
             rng: SystemRandom::new(),
             ids: IdGen::new(),
-            send: HashMap::new(),
-            pending: HashMap::new(),
-            recv: HashMap::new(),
-            psk_send: HashMap::new(),
-            psk_recv: HashMap::new(),
+            send: FxHashMap::default(),
+            pending: FxHashMap::default(),
+            recv: FxHashMap::default(),
+            psk_send: FxHashMap::default(),
+            psk_recv: FxHashMap::default(),
             outbox: VecDeque::new(),
             aad: Vec::with_capacity(64),
             restart_due: None,
