@@ -330,14 +330,15 @@ impl Layer for Stack {
         }
     }
     fn inbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
-        let (id, sender) = (env.header.id, SavedName::of(&env.header.sender));
+        // Needed only if a dropping layer has layers below it.
+        let (id, sender) = (env.header.id, (self.layers.len() > 1).then(|| SavedName::of(&env.header.sender)));
         for i in (0..self.layers.len()).rev() {
             match self.layers[i].inbound(env, now) {
                 Verdict::Pass(e) => env = e,
                 Verdict::Drop(r) => {
                     tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
                     self.counters.record(r);
-                    let sender = sender.as_str();
+                    let sender = sender.as_ref().map_or("", SavedName::as_str);
                     for below in &mut self.layers[i + 1..] {
                         below.rejected_above(id, sender, r);
                     }
