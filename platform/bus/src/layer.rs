@@ -307,6 +307,18 @@ impl Stack {
         Some(env)
     }
 
+    /// Layer `i` dropped an inbound envelope: count it and tell the layers below.
+    #[cold]
+    #[inline(never)]
+    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: Option<&SavedName>, r: Reason) {
+        tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
+        self.counters.record(r);
+        let sender = sender.map_or("", SavedName::as_str);
+        for below in &mut self.layers[i + 1..] {
+            below.rejected_above(id, sender, r);
+        }
+    }
+
     fn collect_transmits(&mut self, now: Time) {
         for i in 0..self.layers.len() {
             while let Some(env) = self.layers[i].poll_transmit(now) {
@@ -336,12 +348,7 @@ impl Layer for Stack {
             match self.layers[i].inbound(env, now) {
                 Verdict::Pass(e) => env = e,
                 Verdict::Drop(r) => {
-                    tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
-                    self.counters.record(r);
-                    let sender = sender.as_ref().map_or("", SavedName::as_str);
-                    for below in &mut self.layers[i + 1..] {
-                        below.rejected_above(id, sender, r);
-                    }
+                    self.inbound_dropped(i, id, sender.as_ref(), r);
                     return Verdict::Drop(r);
                 }
                 Verdict::Consumed => return Verdict::Consumed,
