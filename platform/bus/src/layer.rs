@@ -229,6 +229,12 @@ pub trait Layer: Send {
     /// Moves rejections the layer decided on its own (not as a verdict, e.g. a message given up
     /// after its last retransmission) into `into`.
     fn drain_rejections(&mut self, _into: &mut Counters) {}
+    /// False if the layer never originates frames (`poll_transmit` is always `None`) nor decides
+    /// rejections on its own (`drain_rejections` adds nothing): a [`Stack`] then does not ask
+    /// it for either. Default true.
+    fn originates(&self) -> bool {
+        true
+    }
 }
 
 /// The no-op layer: passes everything both ways. Use it where a layer is switched off.
@@ -245,12 +251,17 @@ impl Layer for PassThrough {
     fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
         Verdict::Pass(env)
     }
+    fn originates(&self) -> bool {
+        false
+    }
 }
 
 /// Layers in order, top (agent side) first; itself a [`Layer`]. Counts every rejection.
 #[derive(Default)]
 pub struct Stack {
     layers: Vec<Box<dyn Layer>>,
+    /// Indexes of the layers that may originate frames or rejections ([`Layer::originates`]).
+    originating: Vec<usize>,
     counters: Counters,
     outbox: std::collections::VecDeque<Envelope>,
 }
@@ -272,11 +283,14 @@ impl Stack {
     /// Adds `layer` below the ones already pushed (closer to the transport).
     #[must_use]
     pub fn push(mut self, layer: impl Layer + 'static) -> Stack {
-        self.layers.push(Box::new(layer));
+        self.push_boxed(Box::new(layer));
         self
     }
     /// Adds a boxed layer below the ones already pushed.
     pub fn push_boxed(&mut self, layer: Box<dyn Layer>) {
+        if layer.originates() {
+            self.originating.push(self.layers.len());
+        }
         self.layers.push(layer);
     }
     /// Names of the layers, top first.
@@ -320,7 +334,8 @@ impl Stack {
     }
 
     fn collect_transmits(&mut self, now: Time) {
-        for i in 0..self.layers.len() {
+        for k in 0..self.originating.len() {
+            let i = self.originating[k];
             while let Some(env) = self.layers[i].poll_transmit(now) {
                 if let Some(env) = self.down_from(i + 1, env, now) {
                     self.outbox.push_back(env);

@@ -173,6 +173,10 @@ impl Layer for ParserLayer {
             Err(r) => Verdict::Drop(r),
         }
     }
+
+    fn originates(&self) -> bool {
+        false
+    }
 }
 
 #[cfg(test)]

@@ -212,6 +212,10 @@ impl Layer for TemporalLayer {
             Err(r) => Verdict::Drop(r),
         }
     }
+
+    fn originates(&self) -> bool {
+        false
+    }
 }
 
 #[cfg(test)]
