@@ -178,16 +178,19 @@ fn name_lens(h: &Header) -> Result<(u8, u8), BusError> {
     Ok((s, r))
 }
 
+/// Appends the fixed header up to the names' lengths (assembled in place, appended at once).
 fn write_fixed(h: &Header, s_len: u8, r_len: u8, out: &mut Vec<u8>) {
-    out.extend_from_slice(&MAGIC);
-    out.push(WIRE_VERSION);
-    out.push(h.flags.0);
-    out.extend_from_slice(&h.id.0.to_be_bytes());
-    out.extend_from_slice(&h.seq.to_be_bytes());
-    out.extend_from_slice(&h.timestamp.0.to_be_bytes());
-    out.extend_from_slice(&h.reply_by.0.to_be_bytes());
-    out.push(s_len);
-    out.push(r_len);
+    let mut fixed = [0u8; FIXED_LEN - 4];
+    fixed[..2].copy_from_slice(&MAGIC);
+    fixed[2] = WIRE_VERSION;
+    fixed[3] = h.flags.0;
+    fixed[4..12].copy_from_slice(&h.id.0.to_be_bytes());
+    fixed[12..20].copy_from_slice(&h.seq.to_be_bytes());
+    fixed[20..28].copy_from_slice(&h.timestamp.0.to_be_bytes());
+    fixed[28..36].copy_from_slice(&h.reply_by.0.to_be_bytes());
+    fixed[36] = s_len;
+    fixed[37] = r_len;
+    out.extend_from_slice(&fixed);
 }
 
 fn name(frame: &[u8], at: &mut usize, len: usize, field: &'static str) -> Result<String, BusError> {

@@ -229,6 +229,12 @@ pub trait Layer: Send {
     /// Moves rejections the layer decided on its own (not as a verdict, e.g. a message given up
     /// after its last retransmission) into `into`.
     fn drain_rejections(&mut self, _into: &mut Counters) {}
+    /// False if the layer never originates frames (`poll_transmit` is always `None`) nor decides
+    /// rejections on its own (`drain_rejections` adds nothing): a [`Stack`] then does not ask
+    /// it for either. Default true.
+    fn originates(&self) -> bool {
+        true
+    }
 }
 
 /// The no-op layer: passes everything both ways. Use it where a layer is switched off.
@@ -245,12 +251,17 @@ impl Layer for PassThrough {
     fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
         Verdict::Pass(env)
     }
+    fn originates(&self) -> bool {
+        false
+    }
 }
 
 /// Layers in order, top (agent side) first; itself a [`Layer`]. Counts every rejection.
 #[derive(Default)]
 pub struct Stack {
     layers: Vec<Box<dyn Layer>>,
+    /// Indexes of the layers that may originate frames or rejections ([`Layer::originates`]).
+    originating: Vec<usize>,
     counters: Counters,
     outbox: std::collections::VecDeque<Envelope>,
 }
@@ -272,11 +283,14 @@ impl Stack {
     /// Adds `layer` below the ones already pushed (closer to the transport).
     #[must_use]
     pub fn push(mut self, layer: impl Layer + 'static) -> Stack {
-        self.layers.push(Box::new(layer));
+        self.push_boxed(Box::new(layer));
         self
     }
     /// Adds a boxed layer below the ones already pushed.
     pub fn push_boxed(&mut self, layer: Box<dyn Layer>) {
+        if layer.originates() {
+            self.originating.push(self.layers.len());
+        }
         self.layers.push(layer);
     }
     /// Names of the layers, top first.
@@ -307,8 +321,21 @@ impl Stack {
         Some(env)
     }
 
+    /// Layer `i` dropped an inbound envelope: count it and tell the layers below.
+    #[cold]
+    #[inline(never)]
+    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: Option<&SavedName>, r: Reason) {
+        tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
+        self.counters.record(r);
+        let sender = sender.map_or("", SavedName::as_str);
+        for below in &mut self.layers[i + 1..] {
+            below.rejected_above(id, sender, r);
+        }
+    }
+
     fn collect_transmits(&mut self, now: Time) {
-        for i in 0..self.layers.len() {
+        for k in 0..self.originating.len() {
+            let i = self.originating[k];
             while let Some(env) = self.layers[i].poll_transmit(now) {
                 if let Some(env) = self.down_from(i + 1, env, now) {
                     self.outbox.push_back(env);
@@ -330,16 +357,13 @@ impl Layer for Stack {
         }
     }
     fn inbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
-        let (id, sender) = (env.header.id, env.header.sender.clone());
+        // Needed only if a dropping layer has layers below it.
+        let (id, sender) = (env.header.id, (self.layers.len() > 1).then(|| SavedName::of(&env.header.sender)));
         for i in (0..self.layers.len()).rev() {
             match self.layers[i].inbound(env, now) {
                 Verdict::Pass(e) => env = e,
                 Verdict::Drop(r) => {
-                    tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
-                    self.counters.record(r);
-                    for below in &mut self.layers[i + 1..] {
-                        below.rejected_above(id, &sender, r);
-                    }
+                    self.inbound_dropped(i, id, sender.as_ref(), r);
                     return Verdict::Drop(r);
                 }
                 Verdict::Consumed => return Verdict::Consumed,
@@ -358,6 +382,37 @@ impl Layer for Stack {
             return Some(Time::ZERO);
         }
         self.layers.iter().filter_map(|l| l.next_deadline()).min()
+    }
+}
+
+/// A copy of a sender's name kept while the envelope goes up the layers (a layer that drops it
+/// consumes it, and the layers below must still be told whose it was): on the stack for the
+/// usual short names, so the common path does not allocate.
+enum SavedName {
+    Short { bytes: [u8; SavedName::SHORT], len: u8 },
+    Long(String),
+}
+
+impl SavedName {
+    const SHORT: usize = 64;
+
+    fn of(name: &str) -> SavedName {
+        match u8::try_from(name.len()) {
+            Ok(len) if name.len() <= SavedName::SHORT => {
+                let mut bytes = [0u8; SavedName::SHORT];
+                bytes[..name.len()].copy_from_slice(name.as_bytes());
+                SavedName::Short { bytes, len }
+            }
+            _ => SavedName::Long(name.to_owned()),
+        }
+    }
+
+    fn as_str(&self) -> &str {
+        match self {
+            // A whole `str` copied byte for byte: always valid UTF-8.
+            SavedName::Short { bytes, len } => std::str::from_utf8(&bytes[..usize::from(*len)]).unwrap_or_default(),
+            SavedName::Long(name) => name,
+        }
     }
 }
 

@@ -162,12 +162,22 @@ impl Bus {
             lock(&self.inner.stack).record(Reason::NoRoute);
             return Err(BusError::NoRoute { receiver });
         }
-        let now = self.inner.clock.now();
-        let out = lock(&self.inner.stack).outbound(env, now);
-        if let Verdict::Pass(env) = out {
-            self.inner.dispatch(env)?;
-        }
-        self.inner.flush_transmits()
+        // One lock for the message: down the stack, back up for a local receiver, and whatever
+        // the layers originate meanwhile; delivery and sending happen after it is released.
+        let mut out = Outcome::default();
+        let remote = {
+            let mut stack = lock(&self.inner.stack);
+            let now = self.inner.clock.now();
+            let remote = match stack.outbound(env, now) {
+                Verdict::Pass(env) => self.inner.route_locked(&mut stack, env, &mut out.deliver),
+                Verdict::Drop(_) | Verdict::Consumed => None,
+            };
+            self.inner.collect_locked(&mut stack, &mut out);
+            remote
+        };
+        let sent = remote.map_or(Ok(()), |env| self.inner.send_remote(env));
+        self.inner.finish(out);
+        sent
     }
 
     /// Rejections so far, per reason (all layers and the bus itself).
@@ -204,17 +214,44 @@ impl Inner {
         self.routes.read().unwrap_or_else(PoisonError::into_inner).get(agent).cloned()
     }
 
-    /// An envelope that passed the stack outbound: loop it back up for a local receiver, or
-    /// encode and send it.
-    fn dispatch(&self, env: Envelope) -> Result<(), BusError> {
+    /// An envelope that passed the stack outbound (the stack is locked): run it back up for a
+    /// local receiver (queued in `deliver` if it passes), or hand it back to be sent.
+    fn route_locked(&self, stack: &mut Stack, env: Envelope, deliver: &mut Vec<Envelope>) -> Option<Envelope> {
         if self.is_local(&env.header.receiver) {
             let now = self.clock.now();
-            let up = lock(&self.stack).inbound(env, now);
-            if let Verdict::Pass(env) = up {
-                self.deliver(env);
+            if let Verdict::Pass(env) = stack.inbound(env, now) {
+                deliver.push(env);
             }
-            return Ok(());
+            return None;
         }
+        Some(env)
+    }
+
+    /// Takes everything the layers originated that is due now (the stack is locked).
+    fn collect_locked(&self, stack: &mut Stack, out: &mut Outcome) {
+        loop {
+            let now = self.clock.now();
+            let Some(env) = stack.poll_transmit(now) else { return };
+            if let Some(env) = self.route_locked(stack, env, &mut out.deliver) {
+                out.send.push(env);
+            }
+        }
+    }
+
+    /// Delivers and sends what a locked pass through the stack produced.
+    fn finish(&self, out: Outcome) {
+        for env in out.deliver {
+            self.deliver(env);
+        }
+        for env in out.send {
+            if let Err(e) = self.send_remote(env) {
+                tracing::warn!(error = %e, "layer-originated frame not sent");
+            }
+        }
+    }
+
+    /// Encodes an envelope for a remote receiver and hands it to the transport.
+    fn send_remote(&self, env: Envelope) -> Result<(), BusError> {
         let Some(addr) = self.route(&env.header.receiver) else {
             lock(&self.stack).record(Reason::NoRoute);
             return Err(BusError::NoRoute { receiver: env.header.receiver });
@@ -237,55 +274,70 @@ impl Inner {
         }
     }
 
-    /// Sends everything the layers originated that is due now.
-    fn flush_transmits(&self) -> Result<(), BusError> {
-        loop {
-            let now = self.clock.now();
-            let next = lock(&self.stack).poll_transmit(now);
-            let Some(env) = next else { return Ok(()) };
-            if let Err(e) = self.dispatch(env) {
-                tracing::warn!(error = %e, "layer-originated frame not sent");
-            }
-        }
-    }
-
-    fn on_frame(&self, from: &PeerAddr, frame: &[u8]) {
-        let env = match self.config.codec.decode_datagram(frame) {
-            Ok(env) => env,
-            Err(e) => {
-                tracing::debug!(%from, error = %e, "undecodable frame");
-                lock(&self.stack).record(Reason::BadFrame);
-                return;
-            }
-        };
-        let now = self.clock.now();
-        let up = lock(&self.stack).inbound(env, now);
-        if let Verdict::Pass(env) = up {
-            self.deliver(env);
-        }
-    }
-
     fn pump(&self) {
+        let mut deadline = lock(&self.stack).next_deadline();
+        let mut frames = Vec::new();
         while !self.stop.load(Ordering::Acquire) {
             let now = self.clock.now();
             let mut wait = self.config.tick;
-            let deadline = lock(&self.stack).next_deadline();
             if let Some(deadline) = deadline
                 && !self.clock.is_mock()
             {
                 wait = wait.min(deadline.since(now));
             }
+            let mut failed = None;
             match self.transport.recv_timeout(wait) {
-                Ok(Some((from, frame))) => self.on_frame(&from, &frame),
+                Ok(Some(frame)) => frames.push(frame),
                 Ok(None) => {}
-                Err(e) => {
-                    tracing::warn!(error = %e, "transport receive failed; pump stops");
-                    return;
+                Err(e) => failed = Some(e),
+            }
+            // Take every frame already waiting before going back to sleep.
+            while failed.is_none() && !frames.is_empty() && frames.len() < MAX_BATCH {
+                match self.transport.recv_timeout(Duration::ZERO) {
+                    Ok(Some(frame)) => frames.push(frame),
+                    Ok(None) => break,
+                    Err(e) => failed = Some(e),
                 }
             }
-            if let Err(e) = self.flush_transmits() {
-                tracing::warn!(error = %e, "flushing layer frames failed");
+            let decoded: Vec<_> = frames.drain(..).map(|(from, frame)| (from, self.config.codec.decode_datagram(&frame))).collect();
+            // One lock for the whole batch and what the layers originate in answer.
+            let mut out = Outcome::default();
+            {
+                let mut stack = lock(&self.stack);
+                for (from, env) in decoded {
+                    match env {
+                        Ok(env) => {
+                            let now = self.clock.now();
+                            if let Verdict::Pass(env) = stack.inbound(env, now) {
+                                out.deliver.push(env);
+                            }
+                        }
+                        Err(e) => {
+                            tracing::debug!(%from, error = %e, "undecodable frame");
+                            stack.record(Reason::BadFrame);
+                        }
+                    }
+                }
+                self.collect_locked(&mut stack, &mut out);
+                deadline = stack.next_deadline();
+            }
+            self.finish(out);
+            if let Some(e) = failed {
+                tracing::warn!(error = %e, "transport receive failed; pump stops");
+                return;
             }
         }
     }
 }
+
+/// Frames the pump takes in one go before it runs them through the stack.
+const MAX_BATCH: usize = 64;
+
+/// What one locked pass through the stack produced: envelopes for local mailboxes, and
+/// envelopes for the transport.
+#[derive(Default)]
+struct Outcome {
+    deliver: Vec<Envelope>,
+    send: Vec<Envelope>,
+}
+

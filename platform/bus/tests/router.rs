@@ -55,3 +55,29 @@ fn undecodable_frames_are_counted() {
         std::thread::sleep(Duration::from_millis(1));
     }
 }
+
+#[test]
+fn a_burst_of_waiting_frames_is_delivered_in_order() {
+    use iw_bus::transport::FrameTransport;
+    use iw_bus::{FrameCodec, MsgId};
+    let net = InProcNetwork::new();
+    let sender = net.endpoint("x").unwrap();
+    let bus = Bus::start(Stack::new(), Arc::new(net.endpoint("bus").unwrap()), Clock::system(), BusConfig::default()).unwrap();
+    let mut b = bus.register("b").unwrap();
+    // More frames than the pump takes in one batch, queued before it can take any, with an
+    // undecodable one in the middle.
+    let codec = FrameCodec::new();
+    for n in 0..200u64 {
+        if n == 100 {
+            sender.send(bus.local_addr(), b"not a frame").unwrap();
+        }
+        let frame = codec.encode_to_vec(&Envelope::new(MsgId(n), "x", "b", n.to_be_bytes().to_vec())).unwrap();
+        sender.send(bus.local_addr(), &frame).unwrap();
+    }
+    for n in 0..200u64 {
+        assert_eq!(wait(&mut b).payload, n.to_be_bytes());
+    }
+    assert_eq!(bus.counters().get(Reason::BadFrame), 1);
+    assert_eq!(bus.counters().total(), 1);
+    bus.shutdown();
+}

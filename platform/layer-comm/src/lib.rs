@@ -28,10 +28,12 @@
 //! sequence window reject such late replays.
 #![warn(missing_docs)]
 
+use std::collections::hash_map::Entry;
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::time::Duration;
 
 use iw_bus::{Counters, Envelope, Flags, IdGen, Layer, MsgId, Reason, Time, Verdict};
+use rustc_hash::FxHashMap;
 
 /// Bytes of the acknowledged frame's payload an acknowledgement echoes.
 const ECHO_LEN: usize = 16;
@@ -133,7 +135,10 @@ impl Window {
 pub struct CommLayer {
     config: CommConfig,
     seen: HashMap<String, Window>,
-    in_flight: HashMap<MsgId, Pending>,
+    /// Keyed by our own message ids (acknowledgements only look up), hence the fast hash.
+    in_flight: FxHashMap<MsgId, Pending>,
+    /// No frame in flight is due before this (a lower bound; exact after a scan found none due).
+    earliest: Time,
     acks: VecDeque<Envelope>,
     ids: IdGen,
     stats: CommStats,
@@ -146,7 +151,8 @@ impl CommLayer {
         CommLayer {
             config,
             seen: HashMap::new(),
-            in_flight: HashMap::new(),
+            in_flight: FxHashMap::default(),
+            earliest: Time::ZERO,
             acks: VecDeque::new(),
             ids: IdGen::new(),
             stats: CommStats::default(),
@@ -174,33 +180,40 @@ impl CommLayer {
     }
 
     fn on_ack(&mut self, ack: &Envelope) {
-        let matched = ack
-            .payload
-            .get(..8)
-            .and_then(|b| b.try_into().ok())
-            .map(|b: [u8; 8]| MsgId(u64::from_be_bytes(b)))
-            .filter(|id| {
-                self.in_flight.get(id).is_some_and(|p| {
-                    p.env.header.receiver == ack.header.sender && echo(&p.env.payload) == &ack.payload[8..]
-                })
-            });
-        match matched {
-            Some(id) => {
-                self.in_flight.remove(&id);
+        let id = ack.payload.get(..8).and_then(|b| b.try_into().ok()).map(|b: [u8; 8]| MsgId(u64::from_be_bytes(b)));
+        let entry = id.map(|id| self.in_flight.entry(id));
+        match entry {
+            Some(Entry::Occupied(p))
+                if p.get().env.header.receiver == ack.header.sender && echo(&p.get().env.payload) == &ack.payload[8..] =>
+            {
+                p.remove();
                 self.stats.acks_matched += 1;
             }
-            None => self.stats.acks_stray += 1,
+            _ => self.stats.acks_stray += 1,
         }
     }
 
-    fn window(&mut self, sender: &str) -> &mut Window {
-        if !self.seen.contains_key(sender)
-            && self.seen.len() >= self.config.max_senders.max(1)
+    /// Records `id` in `sender`'s window; false if it was already there. Looks the sender up
+    /// once, and copies its name only for a sender not seen before.
+    fn remember(&mut self, sender: &str, id: MsgId) -> bool {
+        let cap = self.config.dedup_window;
+        if let Some(w) = self.seen.get_mut(sender) {
+            return w.insert(id, cap);
+        }
+        if self.seen.len() >= self.config.max_senders.max(1)
             && let Some(victim) = self.seen.keys().next().cloned()
         {
             self.seen.remove(&victim);
         }
-        self.seen.entry(sender.to_string()).or_default()
+        let mut w = Window::default();
+        let fresh = w.insert(id, cap);
+        self.seen.insert(sender.to_string(), w);
+        fresh
+    }
+
+    /// The payload limit of `agent`, without hashing when no agent has its own limit.
+    fn limit_for(&self, agent: &str) -> usize {
+        if self.config.max_payload.is_empty() { self.config.default_max_payload } else { self.config.limit_for(agent) }
     }
 }
 
@@ -217,12 +230,13 @@ impl Layer for CommLayer {
         if env.header.flags.contains(Flags::ACK) {
             return Verdict::Pass(env);
         }
-        let limit = self.config.limit_for(&env.header.receiver);
+        let limit = self.limit_for(&env.header.receiver);
         if env.payload.len() > limit {
             tracing::debug!(receiver = %env.header.receiver, len = env.payload.len(), limit, "outbound too large");
             return Verdict::Drop(Reason::TooLarge);
         }
         let next_at = now.plus(self.config.rto(1));
+        self.earliest = if self.in_flight.is_empty() { next_at } else { self.earliest.min(next_at) };
         self.in_flight.insert(env.header.id, Pending { env: env.clone(), next_at, attempts: 1 });
         Verdict::Pass(env)
     }
@@ -234,11 +248,10 @@ impl Layer for CommLayer {
         }
         // Acknowledge first: the sender must stop retransmitting even what we then reject.
         self.queue_ack(&env, now);
-        let cap = self.config.dedup_window;
-        if !self.window(&env.header.sender).insert(env.header.id, cap) {
+        if !self.remember(&env.header.sender, env.header.id) {
             return Verdict::Drop(Reason::Duplicate);
         }
-        let limit = self.config.limit_for(&env.header.receiver);
+        let limit = self.limit_for(&env.header.receiver);
         if env.payload.len() > limit {
             tracing::debug!(receiver = %env.header.receiver, len = env.payload.len(), limit, "inbound too large");
             return Verdict::Drop(Reason::TooLarge);
@@ -250,7 +263,24 @@ impl Layer for CommLayer {
         if let Some(ack) = self.acks.pop_front() {
             return Some(ack);
         }
-        let due = self.in_flight.iter().filter(|(_, p)| p.next_at <= now).map(|(id, _)| *id).next()?;
+        // No frame is due before `earliest`: skip the scan (it grows with the frames in flight).
+        if self.in_flight.is_empty() || now < self.earliest {
+            return None;
+        }
+        let mut due = None;
+        let mut earliest = None::<Time>;
+        for (id, p) in &self.in_flight {
+            if p.next_at <= now {
+                due = Some(*id);
+                break;
+            }
+            earliest = Some(earliest.map_or(p.next_at, |e| e.min(p.next_at)));
+        }
+        let Some(due) = due else {
+            // Nothing due: every frame's time was seen, so this is the exact earliest.
+            self.earliest = earliest.unwrap_or(self.earliest);
+            return None;
+        };
         let give_up = self.in_flight.get(&due).is_some_and(|p| p.attempts >= self.config.max_attempts);
         if give_up {
             if let Some(p) = self.in_flight.remove(&due) {

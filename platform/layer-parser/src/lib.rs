@@ -22,12 +22,12 @@
 //! envelopes, and `check_outbound` applies the syntax and sender checks to hand-written text.
 #![warn(missing_docs)]
 
-use std::collections::HashSet;
 use std::sync::{Arc, PoisonError, RwLock};
 
 use iw_acl::AclMessage;
 use iw_acl::codec::{ParseOptions, PrintOptions};
 use iw_bus::{Envelope, Layer, MsgId, Reason, Time, Verdict};
+use rustc_hash::FxHashSet;
 
 /// Who is on the platform.
 pub trait AgentRegistry: Send + Sync {
@@ -36,8 +36,11 @@ pub trait AgentRegistry: Send + Sync {
 }
 
 /// A shared, updatable [`AgentRegistry`] (clones share one set).
+///
+/// Names are put in by the platform only (outsiders merely look theirs up), so the set uses a
+/// fast unkeyed hash.
 #[derive(Debug, Clone, Default)]
-pub struct Registry(Arc<RwLock<HashSet<String>>>);
+pub struct Registry(Arc<RwLock<FxHashSet<String>>>);
 
 impl Registry {
     /// An empty registry.
@@ -169,6 +172,10 @@ impl Layer for ParserLayer {
             Ok(()) => Verdict::Pass(env),
             Err(r) => Verdict::Drop(r),
         }
+    }
+
+    fn originates(&self) -> bool {
+        false
     }
 }
 

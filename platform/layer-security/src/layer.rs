@@ -11,6 +11,7 @@ use ring::aead::{AES_256_GCM, Aad, LessSafeKey, Nonce, UnboundKey};
 use ring::agreement::{EphemeralPrivateKey, UnparsedPublicKey, X25519, agree_ephemeral};
 use ring::hkdf;
 use ring::rand::{SecureRandom, SystemRandom};
+use rustc_hash::FxHashMap;
 
 use crate::SecurityError;
 use crate::identity::{Identity, KeyDirectory, signed_bytes, verify};
@@ -110,11 +111,14 @@ struct Pending {
     started: Time,
 }
 
-type Nested<V> = HashMap<String, HashMap<String, V>>;
+/// Per (sender, receiver) state. Entries are only ever made for local senders or for peers
+/// that authenticated (a signed key agreement, a pre-shared key), so a fast unkeyed hash is
+/// safe here: outsiders cannot choose the keys.
+type Nested<V> = FxHashMap<String, FxHashMap<String, V>>;
 
 fn nested<'a, V: Default>(m: &'a mut Nested<V>, a: &str, b: &str) -> &'a mut V {
     if !m.contains_key(a) {
-        m.insert(a.to_string(), HashMap::new());
+        m.insert(a.to_string(), FxHashMap::default());
     }
     let inner = m.get_mut(a).unwrap_or_else(|| unreachable!("inserted above"));
     if !inner.contains_key(b) {
@@ -133,12 +137,56 @@ fn nonce_bytes(counter: u64) -> [u8; NONCE_LEN] {
     n
 }
 
-fn aad_of(env: &Envelope) -> Vec<u8> {
-    let mut aad = Vec::with_capacity(64);
+fn nested_get_mut<'a, V>(m: &'a mut Nested<V>, a: &str, b: &str) -> Option<&'a mut V> {
+    m.get_mut(a).and_then(|x| x.get_mut(b))
+}
+
+/// Replaces the contents of `aad` (a buffer kept between messages) with the associated data of
+/// `header`.
+fn write_aad_into(header: &iw_bus::Header, aad: &mut Vec<u8>) {
+    aad.clear();
     // Names over 255 bytes never get this far (the codec refuses them); if one did, the
     // shorter associated data would still be identical on both ends of a local loop.
-    let _ = write_aad(&env.header, &mut aad);
-    aad
+    let _ = write_aad(header, aad);
+}
+
+/// Sets the flags, signs if asked (the signature is sealed after the payload), and writes the
+/// associated data of the sealed header into `aad`.
+fn prepare(config: &SecurityConfig, identity: &Identity, aad: &mut Vec<u8>, env: &mut Envelope, mode: Flags) -> Option<[u8; SIGNATURE_LEN]> {
+    let mut flags = env.header.flags.with(Flags::SEALED).with(mode);
+    let wants_signature = config.sign_all || (!config.sign_for.is_empty() && config.sign_for.contains(&env.header.receiver));
+    let sig = if wants_signature {
+        flags = flags.with(Flags::SIGNED);
+        Some(identity.sign(&signed_bytes(env)))
+    } else {
+        None
+    };
+    env.header.flags = flags;
+    env.signature = None;
+    write_aad_into(&env.header, aad);
+    sig
+}
+
+/// A sealed payload, built in one allocation: key id, nonce, then `plain` and the signature
+/// sealed in place by `seal` (which returns the tag), then the tag.
+fn sealed_payload(
+    key_id: &[u8],
+    nonce: &[u8; NONCE_LEN],
+    plain: &[u8],
+    sig: Option<&[u8; SIGNATURE_LEN]>,
+    seal: impl FnOnce(&mut [u8]) -> Result<[u8; TAG_LEN], SecurityError>,
+) -> Result<Vec<u8>, SecurityError> {
+    let sig_len = sig.map_or(0, |s| s.len());
+    let mut out = Vec::with_capacity(key_id.len() + NONCE_LEN + plain.len() + sig_len + TAG_LEN);
+    out.extend_from_slice(key_id);
+    out.extend_from_slice(nonce);
+    out.extend_from_slice(plain);
+    if let Some(sig) = sig {
+        out.extend_from_slice(sig);
+    }
+    let tag = seal(&mut out[key_id.len() + NONCE_LEN..])?;
+    out.extend_from_slice(&tag);
+    Ok(out)
 }
 
 fn length_prefixed(parts: &[&[u8]]) -> Vec<u8> {
@@ -217,6 +265,11 @@ pub struct SecurityLayer {
     psk_send: Nested<Option<PskSend>>,
     psk_recv: Nested<VecDeque<([u8; SALT_LEN], Aes256Gcm)>>,
     outbox: VecDeque<Envelope>,
+    /// Associated data of the frame being sealed or opened (kept to save an allocation each).
+    aad: Vec<u8>,
+    /// No pending key agreement times out before this (a lower bound, exact after each scan);
+    /// `None`: none pending.
+    restart_due: Option<Time>,
 }
 
 impl SecurityLayer {
@@ -228,12 +281,14 @@ impl SecurityLayer {
             config,
             rng: SystemRandom::new(),
             ids: IdGen::new(),
-            send: HashMap::new(),
-            pending: HashMap::new(),
-            recv: HashMap::new(),
-            psk_send: HashMap::new(),
-            psk_recv: HashMap::new(),
+            send: FxHashMap::default(),
+            pending: FxHashMap::default(),
+            recv: FxHashMap::default(),
+            psk_send: FxHashMap::default(),
+            psk_recv: FxHashMap::default(),
             outbox: VecDeque::new(),
+            aad: Vec::with_capacity(64),
+            restart_due: None,
         }
     }
 
@@ -245,70 +300,54 @@ impl SecurityLayer {
 
     /// The pre-shared key `peer` is reached with, if any.
     fn psk_of(&self, peer: &str) -> Option<PreSharedKey> {
+        if self.config.pre_shared.is_empty() {
+            return self.config.group_key;
+        }
         self.config.pre_shared.get(peer).copied().or(self.config.group_key)
     }
 
-    fn wants_signature(&self, env: &Envelope) -> bool {
-        self.config.sign_all || self.config.sign_for.contains(&env.header.receiver)
-    }
-
-    /// Sets the flags, signs if asked, and returns the plaintext to seal (payload + signature).
-    fn prepare(&self, env: &mut Envelope, mode: Flags) -> Vec<u8> {
-        let mut flags = env.header.flags.with(Flags::SEALED).with(mode);
-        let sig = if self.wants_signature(env) {
-            flags = flags.with(Flags::SIGNED);
-            Some(self.identity.sign(&signed_bytes(env)))
-        } else {
-            None
-        };
-        env.header.flags = flags;
-        env.signature = None;
-        let mut plain = std::mem::take(&mut env.payload);
-        if let Some(sig) = sig {
-            plain.extend_from_slice(&sig);
-        }
-        plain
-    }
-
     fn seal_psk(&mut self, mut env: Envelope, psk: PreSharedKey) -> Result<Envelope, SecurityError> {
-        let mut plain = self.prepare(&mut env, Flags::PRE_SHARED);
-        let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
-        if nested_get(&self.psk_send, &s, &r).is_none_or(Option::is_none) {
+        let (s, r) = (env.header.sender.as_str(), env.header.receiver.as_str());
+        if nested_get(&self.psk_send, s, r).is_none_or(Option::is_none) {
             let salt = self.random::<SALT_LEN>()?;
-            let cipher = psk_cipher(&psk, &salt, &s, &r)?;
-            *nested(&mut self.psk_send, &s, &r) = Some(PskSend { salt, cipher, counter: 0 });
+            let cipher = psk_cipher(&psk, &salt, s, r)?;
+            *nested(&mut self.psk_send, s, r) = Some(PskSend { salt, cipher, counter: 0 });
         }
-        let aad = aad_of(&env);
-        let sess = nested(&mut self.psk_send, &s, &r).as_mut().ok_or(SecurityError::KeyDerivation)?;
+        let sess = nested_get_mut(&mut self.psk_send, &env.header.sender, &env.header.receiver)
+            .and_then(Option::as_mut)
+            .ok_or(SecurityError::KeyDerivation)?;
+        let sig = prepare(&self.config, &self.identity, &mut self.aad, &mut env, Flags::PRE_SHARED);
         let nonce = nonce_bytes(sess.counter);
         sess.counter += 1;
-        sess.cipher
-            .encrypt_in_place(aes_gcm::Nonce::from_slice(&nonce), &aad, &mut plain)
-            .map_err(|_| SecurityError::KeyDerivation)?;
-        let mut payload = Vec::with_capacity(SALT_LEN + NONCE_LEN + plain.len());
-        payload.extend_from_slice(&sess.salt);
-        payload.extend_from_slice(&nonce);
-        payload.extend_from_slice(&plain);
-        env.payload = payload;
+        let cipher = &sess.cipher;
+        let aad = &self.aad[..];
+        env.payload = sealed_payload(&sess.salt, &nonce, &env.payload, sig.as_ref(), |in_out| {
+            cipher
+                .encrypt_in_place_detached(aes_gcm::Nonce::from_slice(&nonce), aad, in_out)
+                .map(|tag| tag.into())
+                .map_err(|_| SecurityError::KeyDerivation)
+        })?;
         Ok(env)
     }
 
-    fn seal_pk(&mut self, mut env: Envelope) -> Result<Envelope, SecurityError> {
-        let mut plain = self.prepare(&mut env, Flags::NONE);
-        let aad = aad_of(&env);
-        let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
-        let sess = nested(&mut self.send, &s, &r).as_mut().ok_or(SecurityError::KeyDerivation)?;
+    /// Seals `env` under the session from its sender to its receiver, if there is one
+    /// (`Err(env)` back otherwise).
+    fn seal_pk(&mut self, mut env: Envelope) -> Result<Result<Envelope, Envelope>, SecurityError> {
+        let Some(sess) = nested_get_mut(&mut self.send, &env.header.sender, &env.header.receiver).and_then(Option::as_mut) else {
+            return Ok(Err(env));
+        };
+        let sig = prepare(&self.config, &self.identity, &mut self.aad, &mut env, Flags::NONE);
         let nonce = nonce_bytes(sess.counter);
         sess.counter += 1;
-        sess.key
-            .seal_in_place_append_tag(Nonce::assume_unique_for_key(nonce), Aad::from(&aad), &mut plain)
-            .map_err(|_| SecurityError::KeyDerivation)?;
-        let mut payload = Vec::with_capacity(SID_LEN + NONCE_LEN + plain.len());
-        payload.extend_from_slice(&sess.id);
-        payload.extend_from_slice(&nonce);
-        payload.extend_from_slice(&plain);
-        env.payload = payload;
-        Ok(env)
+        let key = &sess.key;
+        let aad = &self.aad[..];
+        env.payload = sealed_payload(&sess.id, &nonce, &env.payload, sig.as_ref(), |in_out| {
+            let tag = key
+                .seal_in_place_separate_tag(Nonce::assume_unique_for_key(nonce), Aad::from(aad), in_out)
+                .map_err(|_| SecurityError::KeyDerivation)?;
+            tag.as_ref().try_into().map_err(|_| SecurityError::KeyDerivation)
+        })?;
+        Ok(Ok(env))
     }
 
     fn handshake_env(&mut self, sender: &str, receiver: &str, payload: Vec<u8>, now: Time) -> Envelope {
@@ -335,14 +374,17 @@ impl SecurityLayer {
         let slot = nested(&mut self.pending, a, b);
         let queued = slot.take().map(|p| p.queued).unwrap_or_default();
         *slot = Some(Pending { id, eph: Some(eph), eph_pub, queued, started: now });
+        let due = now.plus(self.config.handshake_timeout);
+        self.restart_due = Some(self.restart_due.map_or(due, |d| d.min(due)));
         Ok(())
     }
 
     fn outbound_pk(&mut self, env: Envelope, now: Time) -> Result<Verdict, SecurityError> {
+        let env = match self.seal_pk(env)? {
+            Ok(sealed) => return Ok(Verdict::Pass(sealed)),
+            Err(env) => env,
+        };
         let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
-        if nested_get(&self.send, a, b).is_some_and(Option::is_some) {
-            return self.seal_pk(env).map(Verdict::Pass);
-        }
         if self.directory.public_key(b).is_none() {
             return Ok(Verdict::Drop(Reason::UnknownPeer));
         }
@@ -414,7 +456,7 @@ impl SecurityLayer {
         let Ok(key) = key else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
         *nested(&mut self.send, &a, &b) = Some(SendSession { id, key: key?, counter: 0 });
         for queued in p.queued {
-            let sealed = self.seal_pk(queued)?;
+            let sealed = self.seal_pk(queued)?.map_err(|_| SecurityError::KeyDerivation)?;
             self.outbox.push_back(sealed);
         }
         Ok(Verdict::Consumed)
@@ -437,69 +479,70 @@ impl SecurityLayer {
     }
 
     fn open(&mut self, mut env: Envelope, now: Time) -> Result<Verdict, SecurityError> {
-        let aad = aad_of(&env);
-        let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
+        write_aad_into(&env.header, &mut self.aad);
         let psk_mode = env.header.flags.contains(Flags::PRE_SHARED);
         let id_len = if psk_mode { SALT_LEN } else { SID_LEN };
-        if env.payload.len() < id_len + NONCE_LEN + TAG_LEN {
+        let len = env.payload.len();
+        if len < id_len + NONCE_LEN + TAG_LEN {
             return Ok(Verdict::Drop(Reason::BadTag));
         }
-        let mut body = env.payload.split_off(id_len);
-        let key_id = std::mem::take(&mut env.payload);
-        let mut ct = body.split_off(NONCE_LEN);
-        let nonce: [u8; NONCE_LEN] = body.as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
+        // Payload: key id, nonce, ciphertext, tag. Opened in place: the plaintext ends up at
+        // the front of the same buffer.
+        let body = id_len + NONCE_LEN;
+        let nonce: [u8; NONCE_LEN] = env.payload[id_len..body].try_into().map_err(|_| SecurityError::KeyDerivation)?;
+        let (s, r) = (env.header.sender.as_str(), env.header.receiver.as_str());
+        let aad = &self.aad[..];
         if psk_mode {
-            let Some(psk) = self.psk_of(&s) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
-            let cached = nested_get(&self.psk_recv, &s, &r).and_then(|q| q.iter().find(|(salt, _)| salt[..] == key_id[..]));
-            let fresh;
-            let cipher = match cached {
-                Some((_, c)) => c,
-                None => {
-                    fresh = psk_cipher(&psk, &key_id, &s, &r)?;
-                    &fresh
-                }
+            let Some(psk) = self.psk_of(s) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+            let salt: [u8; SALT_LEN] = env.payload[..SALT_LEN].try_into().map_err(|_| SecurityError::KeyDerivation)?;
+            let cached = nested_get(&self.psk_recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == salt));
+            let fresh = match cached {
+                Some(_) => None,
+                None => Some(psk_cipher(&psk, &salt, s, r)?),
             };
-            if cipher.decrypt_in_place(aes_gcm::Nonce::from_slice(&nonce), &aad, &mut ct).is_err() {
+            let Some(cipher) = cached.map(|(_, c)| c).or(fresh.as_ref()) else { return Err(SecurityError::KeyDerivation) };
+            let (ct, tag) = env.payload[body..].split_at_mut(len - body - TAG_LEN);
+            if cipher.decrypt_in_place_detached(aes_gcm::Nonce::from_slice(&nonce), aad, ct, aes_gcm::Tag::from_slice(tag)).is_err() {
                 return Ok(Verdict::Drop(Reason::BadTag));
             }
-            if cached.is_none() {
-                let salt: [u8; SALT_LEN] = key_id.as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
-                let cipher = psk_cipher(&psk, &salt, &s, &r)?;
+            if let Some(cipher) = fresh {
                 let kept = self.config.sessions_kept.max(1);
-                let q = nested(&mut self.psk_recv, &s, &r);
+                let q = nested(&mut self.psk_recv, s, r);
                 q.push_back((salt, cipher));
                 while q.len() > kept {
                     q.pop_front();
                 }
             }
+            env.payload.truncate(len - TAG_LEN);
+            env.payload.drain(..body);
         } else {
-            let session = nested_get(&self.recv, &s, &r).and_then(|q| q.iter().find(|(sid, _)| sid[..] == key_id[..]));
+            let sid: [u8; SID_LEN] = env.payload[..SID_LEN].try_into().map_err(|_| SecurityError::KeyDerivation)?;
+            let session = nested_get(&self.recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == sid));
             let Some((_, key)) = session else {
-                let payload = [&[REKEY][..], &key_id].concat();
+                let payload = [&[REKEY][..], &sid].concat();
+                let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
                 let rekey = self.handshake_env(&r, &s, payload, now);
                 self.outbox.push_back(rekey);
                 return Ok(Verdict::Drop(Reason::UnknownSession));
             };
-            let plain_len = match key.open_in_place(Nonce::assume_unique_for_key(nonce), Aad::from(&aad), &mut ct) {
+            let plain_len = match key.open_within(Nonce::assume_unique_for_key(nonce), Aad::from(aad), &mut env.payload, body..) {
                 Ok(p) => p.len(),
                 Err(_) => return Ok(Verdict::Drop(Reason::BadTag)),
             };
-            ct.truncate(plain_len);
+            env.payload.truncate(plain_len);
         }
         env.header.flags = env.header.flags.without(Flags::SEALED).without(Flags::PRE_SHARED);
         if env.header.flags.contains(Flags::SIGNED) {
-            let Some(at) = ct.len().checked_sub(SIGNATURE_LEN) else { return Ok(Verdict::Drop(Reason::BadSignature)) };
-            let sig: [u8; SIGNATURE_LEN] = ct.split_off(at).as_slice().try_into().map_err(|_| SecurityError::KeyDerivation)?;
-            env.payload = ct;
-            let Some(key) = self.directory.public_key(&s) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+            let Some(at) = env.payload.len().checked_sub(SIGNATURE_LEN) else { return Ok(Verdict::Drop(Reason::BadSignature)) };
+            let sig: [u8; SIGNATURE_LEN] = env.payload[at..].try_into().map_err(|_| SecurityError::KeyDerivation)?;
+            env.payload.truncate(at);
+            let Some(key) = self.directory.public_key(&env.header.sender) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
             if !verify(&key, &signed_bytes(&env), &sig) {
                 return Ok(Verdict::Drop(Reason::BadSignature));
             }
             env.signature = Some(Box::new(sig));
-        } else {
-            env.payload = ct;
         }
-        env.authenticated = Some(s);
+        env.authenticated = Some(env.header.sender.clone());
         Ok(Verdict::Pass(env))
     }
 }
@@ -540,7 +583,12 @@ impl Layer for SecurityLayer {
     }
 
     fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
-        if self.outbox.is_empty() {
+        // No agreement can have timed out before `restart_due` (see its field): skip the scan.
+        let may_be_due = match self.restart_due {
+            None => false,
+            Some(due) => self.config.handshake_timeout.is_zero() || now >= due,
+        };
+        if self.outbox.is_empty() && may_be_due {
             let timeout = self.config.handshake_timeout;
             let stale: Vec<(String, String)> = self
                 .pending
@@ -555,6 +603,7 @@ impl Layer for SecurityLayer {
                     tracing::error!(error = %e, "cannot restart key agreement");
                 }
             }
+            self.restart_due = self.pending.values().flat_map(|m| m.values()).filter_map(|p| p.as_ref().map(|p| p.started.plus(timeout))).min();
         }
         self.outbox.pop_front()
     }

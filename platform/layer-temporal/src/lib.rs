@@ -30,6 +30,7 @@ use std::collections::HashMap;
 use std::time::Duration;
 
 use iw_bus::{Envelope, Layer, Reason, Time, Verdict};
+use rustc_hash::FxHashMap;
 
 /// What to do with a message behind the newest accepted one from its sender.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -118,7 +119,9 @@ impl SeqWindow {
 /// The temporal layer.
 pub struct TemporalLayer {
     config: TemporalConfig,
-    next_seq: HashMap<String, u64>,
+    /// Next sequence number per local sender (only local names: a fast unkeyed hash is safe;
+    /// `peers` is keyed by names from the network and keeps the keyed default).
+    next_seq: FxHashMap<String, u64>,
     peers: HashMap<String, SeqWindow>,
     stats: TemporalStats,
 }
@@ -126,7 +129,7 @@ pub struct TemporalLayer {
 impl TemporalLayer {
     /// A layer with the given limits.
     pub fn new(config: TemporalConfig) -> TemporalLayer {
-        TemporalLayer { config, next_seq: HashMap::new(), peers: HashMap::new(), stats: TemporalStats::default() }
+        TemporalLayer { config, next_seq: FxHashMap::default(), peers: HashMap::new(), stats: TemporalStats::default() }
     }
     /// What it saw so far.
     pub fn stats(&self) -> TemporalStats {
@@ -182,9 +185,19 @@ impl Layer for TemporalLayer {
     }
 
     fn outbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
-        let next = self.next_seq.entry(env.header.sender.clone()).or_insert(now.as_ns());
-        env.header.seq = *next;
-        *next = next.wrapping_add(1);
+        // Look the sender up by reference: its name is copied only the first time.
+        env.header.seq = match self.next_seq.get_mut(&env.header.sender) {
+            Some(next) => {
+                let seq = *next;
+                *next = seq.wrapping_add(1);
+                seq
+            }
+            None => {
+                let seq = now.as_ns();
+                self.next_seq.insert(env.header.sender.clone(), seq.wrapping_add(1));
+                seq
+            }
+        };
         env.header.timestamp = now;
         Verdict::Pass(env)
     }
@@ -198,6 +211,10 @@ impl Layer for TemporalLayer {
             Ok(()) => Verdict::Pass(env),
             Err(r) => Verdict::Drop(r),
         }
+    }
+
+    fn originates(&self) -> bool {
+        false
     }
 }
 
