@@ -10,7 +10,8 @@ use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
 /// Largest UDP payload over IPv4 (65 535 minus the IP and UDP headers), bytes.
 pub const UDP_MAX_PAYLOAD: usize = 65_507;
 
-/// Shortest read timeout the kernel accepts; a zero `recv_timeout` is rounded up to it.
+/// Shortest read timeout the kernel accepts. It rounds any timeout up to a scheduler tick
+/// (milliseconds), so a zero `recv_timeout` polls instead of waiting.
 const MIN_READ_TIMEOUT: Duration = Duration::from_micros(1);
 
 /// A UDP endpoint carrying one frame per datagram.
@@ -58,6 +59,23 @@ impl UdpTransport {
             context: "reading the local UDP address".into(),
             source,
         })
+    }
+
+    /// Whether a datagram (or a pending socket error) is waiting, without blocking.
+    fn readable_now(&self) -> Result<bool, TransportError> {
+        use std::os::fd::AsRawFd;
+        let mut fd = libc::pollfd { fd: self.socket.as_raw_fd(), events: libc::POLLIN, revents: 0 };
+        // SAFETY: `fd` is one valid pollfd naming a socket this transport owns for the whole call;
+        // a zero timeout makes poll return at once.
+        let ready = unsafe { libc::poll(&mut fd, 1, 0) };
+        if ready < 0 {
+            let source = std::io::Error::last_os_error();
+            if source.kind() == ErrorKind::Interrupted {
+                return Ok(false);
+            }
+            return Err(TransportError::Io { context: "polling a UDP socket".into(), source });
+        }
+        Ok(ready > 0)
     }
 
     fn set_read_timeout(&self, timeout: Duration) -> Result<(), TransportError> {
@@ -114,6 +132,9 @@ impl FrameTransport for UdpTransport {
     }
 
     fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+        if timeout.is_zero() && !self.readable_now()? {
+            return Ok(None);
+        }
         self.set_read_timeout(timeout)?;
         let mut buf = [0u8; UDP_MAX_PAYLOAD + 1];
         loop {
@@ -162,6 +183,14 @@ mod tests {
         let a = UdpTransport::bind("127.0.0.1:0").unwrap();
         assert!(a.recv_timeout(Duration::from_millis(5)).unwrap().is_none());
         assert!(a.recv_timeout(Duration::ZERO).unwrap().is_none());
+        // A datagram already waiting is returned by a zero-timeout poll.
+        let b = UdpTransport::bind("127.0.0.1:0").unwrap();
+        b.send(a.local_addr(), b"waiting").unwrap();
+        let got = (0..1000).find_map(|_| {
+            std::thread::yield_now();
+            a.recv_timeout(Duration::ZERO).unwrap()
+        });
+        assert_eq!(got.map(|(_, frame)| frame), Some(b"waiting".to_vec()));
     }
 
     #[test]
