@@ -181,7 +181,9 @@ impl PerceptionAgent {
                     if let Some(last) = visual.last_t_world_camera {
                         let t_previous_current = last.inverse() * stamped.t_world_camera;
                         let motion = planar_motion(&visual.t_base_camera, &t_previous_current);
-                        self.fusion.update_visual(&motion, &visual.motion_noise);
+                        if !self.fusion.update_visual(&motion, &visual.motion_noise) {
+                            tracing::debug!(chair = %self.config.chair.name, "visual motion outside the gate: not fused");
+                        }
                     }
                     visual.last_t_world_camera = Some(stamped.t_world_camera);
                 }

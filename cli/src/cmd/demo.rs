@@ -125,6 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bodies: MISSIONS.iter().filter(|m| m.body != BodyKind::Virtual).map(|m| (m.name.to_string(), m.body)).collect(),
         restricted: BTreeMap::from([(RESTRICTED_DOOR.to_string(), BTreeSet::from([AUTHORISED.to_string()]))]),
         log_path: Some(log_dir.join("agents.log")),
+        visual_odometry: true,
     };
     let mut fleet = Fleet::with_options(map, args.seed, &chairs, options).context("composing the fleet")?;
     let dashboard = Dashboard::start(DashboardConfig { bind: args.bind, token: args.token.clone() }, &map_view).context("starting the dashboard")?;

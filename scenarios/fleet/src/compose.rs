@@ -24,7 +24,7 @@ use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_logger::SyncPolicy;
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
-use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
+use iw_perception_agent::{PerceptionAgent, PerceptionConfig, VisualConfig};
 use iw_sim::Map;
 use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
@@ -332,12 +332,14 @@ pub struct ChairAgents {
 }
 
 /// Composes chair `name`'s perception, control, cognitive and interface agents over `body`,
-/// starting at `t_world_body` in `building`; `recognizer` holds the user's bound input sequences.
+/// starting at `t_world_body` in `building`; `visual` is the perception agent's RGB-D camera, if
+/// any; `recognizer` holds the user's bound input sequences.
 pub fn chair_agents(
     name: &str,
     t_world_body: &Isometry2<f64>,
     building: &Building,
     body: SharedBody,
+    visual: Option<VisualConfig>,
     recognizer: Recognizer<iw_interface::Command>,
 ) -> Result<ChairAgents, FleetError> {
     let setup = |reason: String| FleetError::Setup { container: name.to_string(), reason };
@@ -345,7 +347,7 @@ pub fn chair_agents(
     let perception_id = agent_id("perception", name);
     let control_id = agent_id("control", name);
     let cognitive_id = agent_id("cognitive", name);
-    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(body.clone()), None)
+    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(body.clone()), visual)
         .map_err(|e| setup(e.to_string()))?;
     let mut control_config = ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep

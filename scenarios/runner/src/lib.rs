@@ -262,6 +262,9 @@ pub struct Scenario {
     /// Fixed step, ms.
     #[serde(default = "default_step_ms")]
     pub step_ms: u64,
+    /// Virtual chairs' perception agents run RGB-D visual odometry on the rendered camera.
+    #[serde(default)]
+    pub visual_odometry: bool,
     /// The chairs.
     #[serde(rename = "chair")]
     pub chairs: Vec<ChairEntry>,
@@ -588,6 +591,7 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
         bodies: scenario.chairs.iter().map(|c| (c.name.clone(), c.body)).collect(),
         restricted: scenario.restricted.iter().map(|r| (r.door.clone(), r.authorised.iter().cloned().collect())).collect(),
         log_path: None,
+        visual_odometry: scenario.visual_odometry,
     };
     let mut fleet = Fleet::with_options(map, scenario.seed, &configs, options).map_err(fleet_err(0.0))?;
     let dt = Duration::from_millis(scenario.step_ms);

@@ -59,6 +59,7 @@ prop_compose! {
         seed in any::<u64>().prop_map(|s| s >> 1), // TOML integers are i64
         duration_s in time(),
         step_ms in 1..1000u64,
+        visual_odometry in any::<bool>(),
         chairs in proptest::collection::vec(chair(), 0..3),
         goals in proptest::collection::vec((time(), name(), proptest::option::of(name()), proptest::option::of(proptest::array::uniform2(-50.0..50.0f64))), 0..3),
         doors in proptest::collection::vec((time(), name(), any::<bool>()), 0..3),
@@ -73,6 +74,7 @@ prop_compose! {
             seed,
             duration_s,
             step_ms,
+            visual_odometry,
             chairs,
             goals: goals.into_iter().map(|(at_s, chair, place, xy)| GoalEntry { at_s, chair, place, xy }).collect(),
             doors: doors.into_iter().map(|(at_s, door, open)| DoorEntry { at_s, door, open }).collect(),

@@ -66,7 +66,9 @@ impl OdometryFusion {
 
     /// Update with the visual odometry's motion since the previous visual update (`motion` in the
     /// clone's frame, `noise` its covariance); then clones the current pose for the next one.
-    pub fn update_visual(&mut self, motion: &Pose2, noise: &Matrix3<f64>) {
+    /// A motion whose innovation lies outside the 99.9 % chi-square gate (a tracking failure,
+    /// such as a fast spin in front of a bare wall) is not fused; returns whether it was.
+    pub fn update_visual(&mut self, motion: &Pose2, noise: &Matrix3<f64>) -> bool {
         let predicted = self.clone.between(&self.current);
         let (s, c) = self.clone.theta.sin_cos();
         let (dx, dy) = (self.current.x - self.clone.x, self.current.y - self.clone.y);
@@ -77,7 +79,9 @@ impl OdometryFusion {
         );
         let innovation = Vector3::new(motion.x - predicted.x, motion.y - predicted.y, wrap_angle(motion.theta - predicted.theta));
         let s_mat = h * self.covariance * h.transpose() + noise;
-        if let Some(s_inv) = s_mat.try_inverse() {
+        let s_inv = s_mat.try_inverse().filter(|s_inv| (innovation.transpose() * s_inv * innovation)[0] <= VISUAL_GATE_CHI2);
+        let fused = s_inv.is_some();
+        if let Some(s_inv) = s_inv {
             let k: SMatrix<f64, 6, 3> = self.covariance * h.transpose() * s_inv;
             let x = to_vec(&self.clone, &self.current) + k * innovation;
             self.clone = Pose2::new(x[0], x[1], x[2]);
@@ -88,8 +92,13 @@ impl OdometryFusion {
         }
         let current_cov = self.covariance();
         *self = OdometryFusion::new(self.current, current_cov, self.alpha);
+        fused
     }
 }
+
+/// The chi-square value with 3 degrees of freedom that 99.9 % of consistent innovations stay
+/// under.
+const VISUAL_GATE_CHI2: f64 = 16.27;
 
 #[cfg(test)]
 mod tests {
