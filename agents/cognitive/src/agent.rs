@@ -277,10 +277,10 @@ impl CognitiveAgent {
         };
         let mut stops = Vec::new();
         let via_landmark = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
-        if via_landmark {
-            if let Some(landmark) = map.landmarks.iter().min_by(|a, b| (*a - here).norm().total_cmp(&(*b - here).norm())) {
-                stops.push(*landmark);
-            }
+        if via_landmark
+            && let Some(landmark) = map.landmarks.iter().min_by(|a, b| (*a - here).norm().total_cmp(&(*b - here).norm()))
+        {
+            stops.push(*landmark);
         }
         if let Some(d) = door.as_ref().and_then(|d| map.doors.iter().find(|p| &p.name == d)) {
             stops.push(d.at);
@@ -400,11 +400,13 @@ impl CognitiveAgent {
         let was_below = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
         self.uncertainty_m2 = uncertainty_m2;
         let now_above = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
-        if let Pending::Motion { from, to, door, via_landmark: false, .. } = self.pending.clone() {
-            if was_below && now_above && !self.config.map.landmarks.is_empty() {
-                tracing::info!(chair = %self.config.chair, uncertainty_m2, "pose too uncertain; detouring via a landmark");
-                self.motion(ctx, from, to, door);
-            }
+        if let Pending::Motion { from, to, door, via_landmark: false, .. } = self.pending.clone()
+            && was_below
+            && now_above
+            && !self.config.map.landmarks.is_empty()
+        {
+            tracing::info!(chair = %self.config.chair, uncertainty_m2, "pose too uncertain; detouring via a landmark");
+            self.motion(ctx, from, to, door);
         }
     }
 }

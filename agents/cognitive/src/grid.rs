@@ -392,7 +392,7 @@ mod tests {
             cells[63] = false;
             let g = OccupancyGrid::new(8, 8, 1.0, Point2::origin(), cells).unwrap();
             // Reachability by flood fill with the same moves.
-            let mut seen = vec![false; 64];
+            let mut seen = [false; 64];
             let mut stack = vec![(0i64, 0i64)];
             seen[0] = true;
             while let Some((c, r)) = stack.pop() {

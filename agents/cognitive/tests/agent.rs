@@ -50,10 +50,10 @@ fn action_of(m: &AclMessage) -> WheelchairAction {
 fn agree_then(m: &AclMessage, last: Performative) -> Vec<AclMessage> {
     let agree = m.create_reply().with_performative(Performative::Agree);
     let mut end = m.create_reply().with_performative(last);
-    if last == Performative::Inform {
-        if let WheelchairContent::Request { actor, action } = WheelchairContent::from_message(m).unwrap() {
-            end = WheelchairContent::Done { actor, action }.fill(end);
-        }
+    if last == Performative::Inform
+        && let WheelchairContent::Request { actor, action } = WheelchairContent::from_message(m).unwrap()
+    {
+        end = WheelchairContent::Done { actor, action }.fill(end);
     }
     vec![agree, end]
 }

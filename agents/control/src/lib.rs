@@ -385,11 +385,11 @@ impl Agent for ControlAgent {
                 return;
             }
         };
-        if let Mode::Manual { .. } = self.mode {
-            if self.manual_watchdog.expired(now_ns) {
-                tracing::info!("watchdog: manual commands stopped arriving; stopping");
-                self.mode = Mode::Idle;
-            }
+        if let Mode::Manual { .. } = self.mode
+            && self.manual_watchdog.expired(now_ns)
+        {
+            tracing::info!("watchdog: manual commands stopped arriving; stopping");
+            self.mode = Mode::Idle;
         }
         // The user's commands go through the potential field (thesis 3.6); the tactical layer's
         // own commands do not (its path is planned clear), only through the arc guard.
