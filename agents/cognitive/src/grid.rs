@@ -165,26 +165,19 @@ impl OccupancyGrid {
         let g = endpoint("goal", goal)?;
         let clearance = self.clearance();
         let cells = self.astar_cells(s, g, clearance.as_deref()).ok_or(GridError::NoPath)?;
-        let length_m = cells
-            .windows(2)
-            .map(|w| (((w[1].0 - w[0].0).pow(2) + (w[1].1 - w[0].1).pow(2)) as f64).sqrt())
-            .sum::<f64>()
-            * self.resolution_m;
-        // Cost per cell of length of standing in a cell (1 without comfort).
+        let length_m = cells.windows(2).map(|w| cell_distance(w[0], w[1])).sum::<f64>() * self.resolution_m;
         let weight = |c: (i64, i64)| match (&clearance, self.index(c.0, c.1)) {
-            (Some(d), Some(i)) => 1.0 + CLOSE_COST * (1.0 - d[i] / self.comfort_cells).max(0.0),
+            (Some(d), Some(i)) => self.weight(d[i]),
             _ => 1.0,
         };
         let mut cost_to = vec![0.0; cells.len()];
         for i in 1..cells.len() {
-            let (a, b) = (cells[i - 1], cells[i]);
-            cost_to[i] = cost_to[i - 1] + (((b.0 - a.0).pow(2) + (b.1 - a.1).pow(2)) as f64).sqrt() * weight(b);
+            cost_to[i] = cost_to[i - 1] + cell_distance(cells[i - 1], cells[i]) * weight(cells[i]);
         }
         // A shortcut may not cost more than the cells it replaces (so it keeps their clearance).
         let shortcut_cost = |a: (i64, i64), b: (i64, i64)| {
-            let length = (((b.0 - a.0).pow(2) + (b.1 - a.1).pow(2)) as f64).sqrt();
             let samples: Vec<f64> = self.cells_on(a, b).map(weight).collect();
-            length * samples.iter().sum::<f64>() / samples.len().max(1) as f64
+            cell_distance(a, b) * samples.iter().sum::<f64>() / samples.len().max(1) as f64
         };
         let mut waypoints = vec![start];
         let mut anchor = 0;
@@ -197,6 +190,12 @@ impl OccupancyGrid {
         }
         waypoints.push(goal);
         Ok(Path2 { waypoints, length_m })
+    }
+
+    /// What a unit of length costs in a cell `clearance` cells from the nearest obstacle (1 at
+    /// the comfort distance and beyond).
+    fn weight(&self, clearance: f64) -> f64 {
+        1.0 + CLOSE_COST * (1.0 - clearance / self.comfort_cells).max(0.0)
     }
 
     /// Distance of every cell to the nearest occupied cell (outside the grid counts as
@@ -286,10 +285,7 @@ impl OccupancyGrid {
                     continue;
                 }
                 let Some(j) = self.index(nc, nr) else { continue };
-                let mut step = if dc != 0 && dr != 0 { std::f64::consts::SQRT_2 } else { 1.0 };
-                if let Some(d) = clearance {
-                    step *= 1.0 + CLOSE_COST * (1.0 - d[j] / self.comfort_cells).max(0.0);
-                }
+                let step = cell_distance((c, r), (nc, nr)) * clearance.map_or(1.0, |d| self.weight(d[j]));
                 let candidate = cost[i] + step;
                 if candidate < cost[j] {
                     cost[j] = candidate;
@@ -314,6 +310,11 @@ impl OccupancyGrid {
                 .all(|(ox, oy)| !self.is_occupied((x + ox).floor() as i64, (y + oy).floor() as i64))
         })
     }
+}
+
+/// Distance between two cell centres, cells.
+fn cell_distance(a: (i64, i64), b: (i64, i64)) -> f64 {
+    (((b.0 - a.0).pow(2) + (b.1 - a.1).pow(2)) as f64).sqrt()
 }
 
 #[cfg(test)]
