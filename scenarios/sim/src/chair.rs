@@ -151,6 +151,12 @@ pub fn sonar_layout(front_m: f64, rear_m: f64, half_width_m: f64) -> [SonarMount
 }
 
 impl ChairSpec {
+    /// The footprint rectangle as the body crate describes it (what the control agent's guard
+    /// and sonar layout take).
+    pub fn body_footprint(&self) -> iw_body::layout::Footprint {
+        iw_body::layout::Footprint { front_m: self.front_m, rear_m: self.rear_m, half_width_m: self.half_width_m }
+    }
+
     /// Footprint corners in the body frame, counter-clockwise.
     pub fn footprint(&self) -> [Point2<f64>; 4] {
         [

@@ -232,7 +232,7 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
         Mode::Shared => Box::new(PotentialField::new(PotentialFieldParams::default(), mounts)?),
         Mode::Guarded => Box::new(Guarded {
             inner: PotentialField::new(PotentialFieldParams::default(), mounts.clone())?,
-            guard: ArcGuard::new(ArcGuardParams::default(), iw_body::layout::Footprint { front_m: spec.front_m, rear_m: spec.rear_m, half_width_m: spec.half_width_m }, mounts)?,
+            guard: ArcGuard::new(ArcGuardParams::default(), spec.body_footprint(), mounts)?,
         }),
         Mode::Vfh => Box::new(Vfh::new(
             VfhParams { robot_radius_m: spec.half_width_m, ..VfhParams::default() },
