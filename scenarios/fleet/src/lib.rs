@@ -469,10 +469,7 @@ impl Fleet {
             let kind = options.bodies.get(name).copied().unwrap_or_default();
             let sensor_failed = Arc::new(AtomicBool::new(false));
             let (body, board) = body_for(kind, name, &world, id, config.t_world_body, sensor_failed.clone())?;
-            let visual = match options.visual_odometry && kind == BodyKind::Virtual {
-                true => Some(sim_camera(&world, id, name)?),
-                false => None,
-            };
+            let visual = if options.visual_odometry && kind == BodyKind::Virtual { Some(sim_camera(&world, id, name)?) } else { None };
             let agents = compose::chair_agents(name, &config.t_world_body, &building, body, visual, Recognizer::new(1500))?;
             let mut host = AgentHost::new(bus_for(&network, &clock, name)?);
             for (aid, agent) in agents.agents {
