@@ -19,12 +19,20 @@
 //!   step; INFORM done = next step; FAILURE = that connection is treated as blocked and the goal
 //!   re-planned. Each step has its own conversation id (`cog-N`); answers to an abandoned step
 //!   are ignored.
+//! - Sent to the watcher agent, when [`CognitiveConfig::watcher`] is set and a motion crosses one
+//!   of the map's narrow passages: the chair first drives to [`crate::passage::WAIT_BACK_M`]
+//!   before the passage and stops, REQUESTs `((action W (pass :passage P :direction D)))`, drives
+//!   through on INFORM done, and CANCELs in that conversation once clear of it. REFUSE or
+//!   NOT-UNDERSTOOD (the passage is not watched), or no AGREE within [`PASS_ANSWER_TIMEOUT`]
+//!   (the watcher is unreachable), or no grant within [`CognitiveConfig::pass_wait`]: the chair
+//!   goes on, its own guard keeping it safe.
 //!
 //! Landmarks: before a motion step, and whenever a pose arrives during one, if the trace of the
 //! pose's x-y covariance exceeds [`CognitiveConfig::uncertainty_m2`] above its value at the last
 //! landmark visit, the step is re-issued via the nearest landmark.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
@@ -32,6 +40,7 @@ use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use nalgebra::Point2;
 
+use crate::passage::{Leg, NarrowPassage, legs, touched};
 use crate::pddl::{Atom, Domain, Literal, Problem, Term};
 use crate::planner::{Step, plan};
 use crate::{GridError, OccupancyGrid};
@@ -82,6 +91,8 @@ pub struct BuildingMap {
     pub doors: Vec<DoorPassage>,
     /// Landmarks the chair can relocalise at, map frame, m.
     pub landmarks: Vec<Point2<f64>>,
+    /// Narrow passages the watcher lets chairs through one direction at a time.
+    pub passages: Vec<NarrowPassage>,
 }
 
 /// Who the cognitive agent talks to and what it knows.
@@ -95,6 +106,10 @@ pub struct CognitiveConfig {
     pub door: AgentId,
     /// The perception agent to subscribe to for poses.
     pub perception: Option<AgentId>,
+    /// The watcher agent to ask for narrow passages; `None` drives straight through them.
+    pub watcher: Option<AgentId>,
+    /// Longest wait for the watcher's grant before the chair goes on regardless.
+    pub pass_wait: Duration,
     /// The planning domain (`domains/building.pddl`).
     pub domain: Domain,
     /// Places, connections, doors, landmarks.
@@ -111,6 +126,9 @@ pub struct CognitiveConfig {
     pub max_states: usize,
 }
 
+/// How long the watcher has to agree to a pass request before it is taken for unreachable.
+pub const PASS_ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
+
 /// The building domain shipped with the crate.
 pub const BUILDING_DOMAIN: &str = include_str!("../domains/building.pddl");
 
@@ -122,14 +140,25 @@ struct Goal {
     next: usize,
 }
 
+/// A motion step of the plan: to place `to` from `from` (through `door`).
+#[derive(Debug, Clone, PartialEq)]
+struct Motion {
+    from: String,
+    to: String,
+    door: Option<String>,
+    via_landmark: bool,
+}
+
 /// What the agent waits for.
 #[derive(Debug, Clone, PartialEq)]
 enum Pending {
     Nothing,
     /// A door to open; the conversation id.
     Door { conversation: String, door: String },
-    /// A motion step to `to` from `from` (through `door`).
-    Motion { conversation: String, from: String, to: String, door: Option<String>, via_landmark: bool },
+    /// The control agent driving a leg of `motion`.
+    Drive { conversation: String, motion: Motion },
+    /// The watcher's grant of `passage` for `motion`, asked at `asked_ns` (bus time).
+    Pass { conversation: String, motion: Motion, passage: String, direction: &'static str, asked_ns: u64, agreed: bool },
 }
 
 /// The cognitive agent of one wheelchair.
@@ -145,6 +174,10 @@ pub struct CognitiveAgent {
     blocked: BTreeSet<(String, String)>,
     goal: Option<Goal>,
     pending: Pending,
+    /// What is left of the motion step under way.
+    legs: VecDeque<Leg>,
+    /// Passages granted to this chair: passage -> (conversation, direction).
+    held: BTreeMap<String, (String, &'static str)>,
     conversations: u64,
 }
 
@@ -185,6 +218,8 @@ impl CognitiveAgent {
             blocked: BTreeSet::new(),
             goal: None,
             pending: Pending::Nothing,
+            legs: VecDeque::new(),
+            held: BTreeMap::new(),
             conversations: 0,
         })
     }
@@ -301,10 +336,74 @@ impl CognitiveAgent {
             }
             start = stop;
         }
-        let steps = waypoints.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
-        let conversation = self.conversation();
-        self.request(ctx, self.config.control.clone(), WheelchairAction::Sequence { steps }, &conversation);
-        self.pending = Pending::Motion { conversation, from, to, door, via_landmark };
+        let motion = Motion { from, to, door, via_landmark };
+        if self.config.watcher.is_none() {
+            self.legs = VecDeque::from([Leg::Drive(waypoints)]);
+            self.next_leg(ctx, motion);
+            return;
+        }
+        let path: Vec<Point2<f64>> = std::iter::once(here).chain(waypoints).collect();
+        // A passage held from before that this path does not enter is let go now.
+        let touched = touched(&path, &self.config.map.passages);
+        let stale: Vec<String> = self.held.keys().filter(|p| !touched.contains(p.as_str())).cloned().collect();
+        for passage in stale {
+            self.release(ctx, &passage);
+        }
+        let held = self.held.keys().cloned().collect();
+        self.legs = legs(&path, &self.config.map.passages, &held).into();
+        self.next_leg(ctx, motion);
+    }
+
+    /// Starts the next leg of `motion`, or completes the motion step when none is left.
+    fn next_leg(&mut self, ctx: &mut Context<'_>, motion: Motion) {
+        loop {
+            match self.legs.pop_front() {
+                None => {
+                    self.place = motion.to;
+                    if motion.via_landmark {
+                        self.uncertainty_at_landmark_m2 = self.uncertainty_m2;
+                    }
+                    if let Some(door) = motion.door {
+                        // The door closes behind the chair.
+                        self.open_doors.remove(&door);
+                    }
+                    self.pending = Pending::Nothing;
+                    self.advance(ctx);
+                    return;
+                }
+                Some(Leg::Drive(points)) => {
+                    let steps = points.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
+                    let conversation = self.conversation();
+                    self.request(ctx, self.config.control.clone(), WheelchairAction::Sequence { steps }, &conversation);
+                    self.pending = Pending::Drive { conversation, motion };
+                    return;
+                }
+                Some(Leg::Acquire { passage, direction }) => {
+                    let Some(watcher) = self.config.watcher.clone() else { continue };
+                    let conversation = self.conversation();
+                    let action = WheelchairAction::Pass { passage: passage.clone(), direction: direction.to_string() };
+                    self.request(ctx, watcher, action, &conversation);
+                    tracing::info!(chair = %self.config.chair, passage = %passage, direction, "waiting for the passage");
+                    self.pending = Pending::Pass { conversation, motion, passage, direction, asked_ns: ctx.now().0, agreed: false };
+                    return;
+                }
+                Some(Leg::Release { passage }) => self.release(ctx, &passage),
+            }
+        }
+    }
+
+    /// Lets the watcher know the chair is out of `passage` (if it holds it).
+    fn release(&mut self, ctx: &mut Context<'_>, passage: &str) {
+        let (Some((conversation, direction)), Some(watcher)) = (self.held.remove(passage), self.config.watcher.clone()) else { return };
+        self.cancel_pass(ctx, watcher, passage, direction, &conversation);
+    }
+
+    /// CANCEL of the pass request in `conversation`: releases a grant or leaves the queue.
+    fn cancel_pass(&self, ctx: &mut Context<'_>, watcher: AgentId, passage: &str, direction: &str, conversation: &str) {
+        let action = WheelchairAction::Pass { passage: passage.to_string(), direction: direction.to_string() };
+        let content = WheelchairContent::Request { actor: watcher.clone(), action };
+        let cancel = AclMessage::new(Performative::Cancel).with_receiver(watcher).with_protocol("fipa-request").with_conversation_id(conversation);
+        let _ = ctx.send(content.fill(cancel));
     }
 
     fn request(&self, ctx: &mut Context<'_>, to: AgentId, action: WheelchairAction, conversation: &str) {
@@ -321,7 +420,16 @@ impl CognitiveAgent {
 
     /// Answers the goal's requester and forgets the goal.
     fn finish(&mut self, ctx: &mut Context<'_>, outcome: Result<(), String>) {
-        self.pending = Pending::Nothing;
+        if let Pending::Pass { conversation, passage, direction, .. } = std::mem::replace(&mut self.pending, Pending::Nothing)
+            && let Some(watcher) = self.config.watcher.clone()
+        {
+            self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
+        }
+        self.legs.clear();
+        let held: Vec<String> = self.held.keys().cloned().collect();
+        for passage in held {
+            self.release(ctx, &passage);
+        }
         let Some(goal) = self.goal.take() else { return };
         let reply = goal.request.create_reply();
         let message = match outcome {
@@ -369,27 +477,32 @@ impl CognitiveAgent {
                     self.replan(ctx);
                 }
             },
-            Pending::Motion { conversation: c, from, to, door, via_landmark } if conversation == Some(c.as_str()) => {
-                match performative {
-                    Performative::Agree => {}
-                    Performative::Inform => {
-                        self.place = to;
-                        if via_landmark {
-                            self.uncertainty_at_landmark_m2 = self.uncertainty_m2;
-                        }
-                        if let Some(door) = door {
-                            // The door closes behind the chair.
-                            self.open_doors.remove(&door);
-                        }
-                        self.pending = Pending::Nothing;
-                        self.advance(ctx);
-                    }
-                    _ => {
-                        tracing::info!(from = %from, to = %to, answer = %performative, "motion failed; re-planning");
-                        self.blocked.insert((from, to));
-                        self.replan(ctx);
-                    }
+            Pending::Drive { conversation: c, motion } if conversation == Some(c.as_str()) => match performative {
+                Performative::Agree => {}
+                Performative::Inform => self.next_leg(ctx, motion),
+                _ => {
+                    tracing::info!(from = %motion.from, to = %motion.to, answer = %performative, "motion failed; re-planning");
+                    self.blocked.insert((motion.from, motion.to));
+                    self.replan(ctx);
                 }
+            },
+            Pending::Pass { conversation: c, motion, passage, direction, asked_ns, .. } if conversation == Some(c.as_str()) => match performative {
+                Performative::Agree => {
+                    self.pending = Pending::Pass { conversation: c, motion, passage, direction, asked_ns, agreed: true };
+                }
+                Performative::Inform => {
+                    tracing::info!(chair = %self.config.chair, passage = %passage, "passage granted");
+                    self.held.insert(passage, (c, direction));
+                    self.next_leg(ctx, motion);
+                }
+                _ => {
+                    tracing::warn!(passage = %passage, answer = %performative, "the watcher does not keep this passage; going on");
+                    self.next_leg(ctx, motion);
+                }
+            },
+            _ if performative == Performative::Failure => {
+                // A grant taken back (its lease ran out) while the chair is still on its way.
+                self.held.retain(|_, (c, _)| Some(c.as_str()) != conversation);
             }
             _ => tracing::debug!(conversation = ?conversation, "answer to an abandoned step"),
         }
@@ -400,7 +513,7 @@ impl CognitiveAgent {
         let was_below = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
         self.uncertainty_m2 = uncertainty_m2;
         let now_above = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
-        if let Pending::Motion { from, to, door, via_landmark: false, .. } = self.pending.clone()
+        if let Pending::Drive { motion: Motion { from, to, door, via_landmark: false }, .. } = self.pending.clone()
             && was_below
             && now_above
             && !self.config.map.landmarks.is_empty()
@@ -427,6 +540,24 @@ impl Agent for CognitiveAgent {
                 .with_content("((at-pose ?agent ?pose))");
             let _ = ctx.send(subscribe);
         }
+    }
+
+    fn tick_period(&self) -> Option<Duration> {
+        self.config.watcher.as_ref().map(|_| Duration::from_millis(200))
+    }
+
+    /// Gives up waiting for a watcher that does not answer or does not grant in time.
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        let Pending::Pass { conversation, motion, passage, direction, asked_ns, agreed } = self.pending.clone() else { return };
+        let waited = Duration::from_nanos(ctx.now().0.saturating_sub(asked_ns));
+        if (agreed || waited < PASS_ANSWER_TIMEOUT) && waited < self.config.pass_wait {
+            return;
+        }
+        tracing::warn!(chair = %self.config.chair, passage = %passage, agreed, waited_s = waited.as_secs_f64(), "no grant from the watcher; going on");
+        if let Some(watcher) = self.config.watcher.clone() {
+            self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
+        }
+        self.next_leg(ctx, motion);
     }
 
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {

@@ -7,6 +7,8 @@
 //! - [`pddl`]: reads STRIPS domains and problems written in PDDL (`:strips`, `:typing`,
 //!   `:negative-preconditions`) into [`Domain`] and [`Problem`].
 //! - [`planner`]: grounds them and searches for the shortest plan of intermediate objectives.
+//! - [`passage`]: cuts a path into legs at narrow passages, which the watcher agent grants one
+//!   direction at a time.
 //! - [`grid`]: [`OccupancyGrid`] and A* between metric points, with obstacles inflated by the
 //!   chair's radius.
 //!
@@ -17,9 +19,11 @@
 
 pub mod agent;
 pub mod grid;
+pub mod passage;
 pub mod pddl;
 pub mod planner;
 
 pub use grid::{GridError, OccupancyGrid, Path2};
+pub use passage::{Leg, NarrowPassage};
 pub use pddl::{Domain, PddlError, Problem};
 pub use planner::{plan, Plan, PlanError, Step};

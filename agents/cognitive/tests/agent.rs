@@ -1,5 +1,5 @@
-//! The cognitive agent alone on an in-process bus with a mock clock; scripted door and control
-//! agents answer its real ACL requests.
+//! The cognitive agent alone on an in-process bus with a mock clock; scripted door, control and
+//! watcher agents answer its real ACL requests.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -8,7 +8,7 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
 use iw_cognitive::agent::{BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage};
-use iw_cognitive::{Domain, OccupancyGrid};
+use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
 use nalgebra::{Matrix3, Point2};
@@ -64,11 +64,17 @@ struct Rig {
     user: (Log, Log),
     door: Log,
     control: Log,
+    watcher: Log,
 }
 
 /// A at the west, B at the east, C in the north; door d1 joins A and B directly, door d2 joins
-/// A and C, and C opens onto B. A 10 m x 10 m empty floor.
+/// A and C, and C opens onto B; the narrow passage `gap` runs 2 m west to east through d1.
+/// A 10 m x 10 m empty floor.
 fn rig(door_answers: Script, control_answers: Script) -> Rig {
+    rig_with_watcher(door_answers, control_answers, Box::new(|_| Vec::new()))
+}
+
+fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answers: Script) -> Rig {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
     let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
@@ -82,6 +88,7 @@ fn rig(door_answers: Script, control_answers: Script) -> Rig {
             DoorPassage { name: "d2".into(), a: "a".into(), b: "c".into(), at: Point2::new(3.0, 7.0) },
         ],
         landmarks: vec![Point2::new(2.0, 2.0), Point2::new(8.0, 8.0)],
+        passages: vec![NarrowPassage { name: "gap".into(), a: Point2::new(4.0, 5.0), b: Point2::new(6.0, 5.0), width_m: 1.2 }],
     };
     let grid = OccupancyGrid::new(100, 100, 0.1, Point2::origin(), vec![false; 10_000]).unwrap();
     let config = CognitiveConfig {
@@ -89,6 +96,8 @@ fn rig(door_answers: Script, control_answers: Script) -> Rig {
         control: AgentId::new("control"),
         door: AgentId::new("door"),
         perception: None,
+        watcher: Some(AgentId::new("watcher")),
+        pass_wait: Duration::from_secs(5),
         domain: Domain::parse(BUILDING_DOMAIN).unwrap(),
         map,
         grid,
@@ -106,7 +115,8 @@ fn rig(door_answers: Script, control_answers: Script) -> Rig {
     let user = scripted("user", Box::new(|_| Vec::new()));
     let door = scripted("door", door_answers).0;
     let control = scripted("control", control_answers).0;
-    Rig { host, clock: controller, user, door, control }
+    let watcher = scripted("watcher", watcher_answers).0;
+    Rig { host, clock: controller, user, door, control, watcher }
 }
 
 impl Rig {
@@ -149,7 +159,7 @@ fn a_refused_door_makes_it_replan_through_the_other_door() {
         [WheelchairAction::OpenDoor { door: "d1".into() }, WheelchairAction::OpenDoor { door: "d2".into() }]
     );
     let control: Vec<_> = rig.control.lock().unwrap().iter().map(action_of).collect();
-    assert_eq!(control.len(), 2, "pass d2 to c, then move to b: {control:?}");
+    assert_eq!(control.len(), 2, "pass d2 to c, then move to b (not through the gap): {control:?}");
     let first = waypoints(&control[0]);
     assert!(first.iter().any(|p| (p.0 - 3.0).abs() < 0.11 && (p.1 - 7.0).abs() < 0.11), "through d2's doorway: {first:?}");
     assert_eq!(*first.last().unwrap(), (5.0, 9.0));
@@ -198,4 +208,48 @@ fn growing_uncertainty_routes_the_chair_past_the_nearest_landmark() {
     let detour = waypoints(&action_of(&control[1]));
     assert!(detour.contains(&(2.0, 2.0)), "nearest landmark first: {detour:?}");
     assert!(!waypoints(&action_of(&control[0])).contains(&(2.0, 2.0)));
+}
+
+#[test]
+fn a_passage_is_waited_for_driven_through_and_released() {
+    let mut rig = rig_with_watcher(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| if m.performative == Performative::Request { agree_then(m, Performative::Inform) } else { Vec::new() }),
+    );
+    rig.goal("b");
+    rig.run(20);
+    let control: Vec<_> = rig.control.lock().unwrap().iter().map(|m| waypoints(&action_of(m))).collect();
+    assert_eq!(control.len(), 3, "to the wait point, through the gap, on to b: {control:?}");
+    let wait = control[0].last().unwrap();
+    assert!((wait.0 - 3.0).abs() < 0.1 && (wait.1 - 5.0).abs() < 0.1, "stops 1 m before the gap: {control:?}");
+    let clear = control[1].last().unwrap();
+    assert!((clear.0 - 6.8).abs() < 0.1, "drives until 0.8 m past it: {control:?}");
+    assert_eq!(*control[2].last().unwrap(), (9.0, 5.0));
+    let watcher = rig.watcher.lock().unwrap();
+    let asked: Vec<_> = watcher.iter().map(|m| (m.performative, action_of(m))).collect();
+    let pass = WheelchairAction::Pass { passage: "gap".into(), direction: "forward".into() };
+    assert_eq!(asked, [(Performative::Request, pass.clone()), (Performative::Cancel, pass)]);
+    assert_eq!(watcher[0].conversation_id, watcher[1].conversation_id, "the cancel releases that grant");
+    let answers: Vec<_> = rig.user.0.lock().unwrap().iter().map(|m| m.performative).collect();
+    assert_eq!(answers, [Performative::Agree, Performative::Inform]);
+}
+
+#[test]
+fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
+    // The watcher agrees and never grants: the chair waits at the gap for `pass_wait` (5 s).
+    let mut rig = rig_with_watcher(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| if m.performative == Performative::Request { vec![m.create_reply().with_performative(Performative::Agree)] } else { Vec::new() }),
+    );
+    rig.goal("b");
+    rig.run(300);
+    assert_eq!(rig.control.lock().unwrap().len(), 1, "still waiting before the gap after 3 s");
+    rig.run(300);
+    assert_eq!(rig.control.lock().unwrap().len(), 3, "gone on after 5 s");
+    let watcher: Vec<_> = rig.watcher.lock().unwrap().iter().map(|m| m.performative).collect();
+    assert_eq!(watcher, [Performative::Request, Performative::Cancel], "left the queue");
+    let answers: Vec<_> = rig.user.0.lock().unwrap().iter().map(|m| m.performative).collect();
+    assert_eq!(answers, [Performative::Agree, Performative::Inform]);
 }

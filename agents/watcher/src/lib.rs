@@ -1,30 +1,34 @@
 //! The watcher agent: traffic control at doors and narrow passages. Chairs ask to pass a named
-//! passage; the watcher grants it to one chair at a time, first come first served, and takes a
-//! grant back when its lease runs out, so a chair that never releases cannot block the others
-//! and no two chairs meet head-on inside a passage.
+//! passage in a direction; the watcher lets chairs through one direction at a time (several
+//! chairs may follow each other the same way, never meet head-on inside), first come first
+//! served, and takes a grant back when its lease runs out, so a chair that never releases cannot
+//! block the others.
 //!
-//! Organization: [`WatcherConfig`] (passages and lease), [`WatcherAgent::new`], [`parse_pass`]
-//! / [`pass_content`] for the `pass` action (not in the wheelchair ontology), [`WatcherError`].
+//! Organization: [`WatcherConfig`] (passages and lease), [`WatcherAgent::new`], [`WatcherError`].
 //!
 //! # Messages
-//! - REQUEST (`fipa-request`) `((action (agent-identifier :name W) (pass :passage P :direction
-//!   D)))`: AGREE at once (queued), then INFORM `((done (action ... (pass ...))))` in the same
+//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-request`.
+//! - REQUEST `((action (agent-identifier :name W) (pass :passage P :direction D)))`: AGREE at
+//!   once (queued), then INFORM `((done (action W (pass :passage P :direction D))))` in the same
 //!   conversation when granted. REFUSE for an unknown passage or a chair already holding or
-//!   queued for it.
+//!   queued for it; NOT-UNDERSTOOD for any other content.
 //! - CANCEL in the request's conversation: releases the grant (or leaves the queue).
 //! - When a lease expires the holder gets FAILURE `((error-message "lease expired"))` and the
-//!   next chair is granted.
+//!   queue moves on.
 //!
-//! Guarantees: at most one chair holds a passage at any time (property-tested); grants follow
-//! request order; every queued request is granted within (queue length x lease).
+//! Guarantees: the chairs holding a passage at any time all cross it in the same direction
+//! (property-tested); grants follow request order, so a chair waiting to go one way is never
+//! overtaken by later chairs going the other way; every queued request is granted within
+//! (queue length x lease).
 #![warn(missing_docs)]
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
-use iw_acl::{AclMessage, Performative};
+use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
-use iw_sl::{ActionExpression, ContentExpression, Level, Term};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
 /// A configuration that cannot work.
 #[derive(Debug, thiserror::Error)]
@@ -49,48 +53,36 @@ pub struct WatcherConfig {
     pub period: Duration,
 }
 
-struct Grant {
+/// A `pass` request: the message (for the reply) and what it asks.
+struct Ask {
     request: AclMessage,
+    actor: AgentId,
+    passage: String,
+    direction: String,
+}
+
+struct Grant {
+    ask: Ask,
     since_ns: u64,
 }
 
 #[derive(Default)]
 struct Passage {
-    holder: Option<Grant>,
-    queue: VecDeque<AclMessage>,
+    /// Chairs inside, all going one direction.
+    holders: Vec<Grant>,
+    queue: VecDeque<Ask>,
+}
+
+impl Passage {
+    fn involves(&self, chair: &Option<AgentId>) -> bool {
+        self.holders.iter().any(|g| &g.ask.request.sender == chair) || self.queue.iter().any(|q| &q.request.sender == chair)
+    }
 }
 
 /// The watcher agent.
 pub struct WatcherAgent {
     config: WatcherConfig,
     passages: BTreeMap<String, Passage>,
-}
-
-/// The `pass` request content for watcher `watcher`.
-pub fn pass_content(watcher: &str, passage: &str, direction: &str) -> String {
-    format!(
-        "((action (agent-identifier :name {}) (pass :passage {} :direction {})))",
-        Term::string(watcher),
-        Term::string(passage),
-        Term::string(direction)
-    )
-}
-
-/// The passage and direction of a `pass` request.
-pub fn parse_pass(message: &AclMessage) -> Option<(String, String)> {
-    let content = iw_sl::parse(message.content_text()?, Level::Sl0).ok()?;
-    let [ContentExpression::Action(ActionExpression::Action { act, .. })] = content.expressions.as_slice() else {
-        return None;
-    };
-    let Term::Functional { symbol, args } = act else { return None };
-    if !symbol.eq_ignore_ascii_case("pass") {
-        return None;
-    }
-    let text = |name: &str| match args.get(name)?.as_constant()? {
-        iw_sl::Constant::String(s) => Some(s.clone()),
-        _ => None,
-    };
-    Some((text("passage")?, text("direction").unwrap_or_default()))
 }
 
 fn same_asker(a: &AclMessage, b: &AclMessage) -> bool {
@@ -107,54 +99,62 @@ impl WatcherAgent {
         Ok(WatcherAgent { config, passages })
     }
 
-    /// Grants free passages to the first in their queue.
+    /// Admits the head of each queue while it goes the way of the chairs already inside.
     fn grant(&mut self, ctx: &mut Context<'_>) {
         let now_ns = ctx.now().0;
         for (name, passage) in &mut self.passages {
-            if passage.holder.is_some() {
-                continue;
+            while let Some(head) = passage.queue.front() {
+                if passage.holders.first().is_some_and(|g| g.ask.direction != head.direction) {
+                    break;
+                }
+                let Some(ask) = passage.queue.pop_front() else { break };
+                tracing::debug!(passage = %name, direction = %ask.direction, chair = ?ask.request.sender.as_ref().map(|s| &s.name), "granted");
+                let done = WheelchairContent::Done {
+                    actor: ask.actor.clone(),
+                    action: WheelchairAction::Pass { passage: ask.passage.clone(), direction: ask.direction.clone() },
+                };
+                let _ = ctx.send(done.fill(ask.request.create_reply().with_performative(Performative::Inform)));
+                passage.holders.push(Grant { ask, since_ns: now_ns });
             }
-            let Some(request) = passage.queue.pop_front() else { continue };
-            tracing::debug!(passage = %name, chair = ?request.sender.as_ref().map(|s| &s.name), "granted");
-            // `((action ...))` -> `((done (action ...)))`: the request's one expression, done.
-            let text = request.content_text().unwrap_or_default().trim();
-            let action = text.strip_prefix('(').and_then(|t| t.strip_suffix(')')).unwrap_or(text);
-            let content = format!("((done {action}))");
-            let _ = ctx.send(request.create_reply().with_performative(Performative::Inform).with_content(content));
-            passage.holder = Some(Grant { request, since_ns: now_ns });
         }
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let Some((name, _direction)) = parse_pass(&message) else {
-            let _ = ctx.not_understood(&message, "expected ((action watcher (pass :passage P :direction D)))");
-            return;
+        let ask = match WheelchairContent::from_message(&message) {
+            Ok(WheelchairContent::Request { actor, action: WheelchairAction::Pass { passage, direction } }) => {
+                Ask { request: message, actor, passage, direction }
+            }
+            Ok(_) => {
+                let _ = ctx.not_understood(&message, "the watcher takes (pass :passage P :direction D) requests");
+                return;
+            }
+            Err(err) => {
+                let _ = ctx.not_understood(&message, &err.to_string());
+                return;
+            }
         };
         let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let reply = message.create_reply().with_performative(Performative::Refuse);
+            let reply = ask.request.create_reply().with_performative(Performative::Refuse);
             let _ = ctx.send(reply.with_content(format!("((error-message \"{why}\"))")));
         };
-        let Some(passage) = self.passages.get_mut(&name) else {
+        let Some(passage) = self.passages.get_mut(&ask.passage) else {
             refuse(ctx, "unknown passage");
             return;
         };
-        let sender = &message.sender;
-        if passage.holder.as_ref().is_some_and(|g| &g.request.sender == sender) || passage.queue.iter().any(|q| &q.sender == sender) {
+        if passage.involves(&ask.request.sender) {
             refuse(ctx, "already holding or queued for this passage");
             return;
         }
-        let agree = message.create_reply().with_performative(Performative::Agree);
-        let _ = ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
-        passage.queue.push_back(message);
+        let agree = ask.request.create_reply().with_performative(Performative::Agree);
+        let _ = ctx.send(agree.with_content(ask.request.content_text().unwrap_or_default().to_string()));
+        passage.queue.push_back(ask);
         self.grant(ctx);
     }
 
     fn on_cancel(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
         for passage in self.passages.values_mut() {
-            if passage.holder.as_ref().is_some_and(|g| same_asker(&g.request, message)) {
-                passage.holder = None;
-            }
-            passage.queue.retain(|q| !same_asker(q, message));
+            passage.holders.retain(|g| !same_asker(&g.ask.request, message));
+            passage.queue.retain(|q| !same_asker(&q.request, message));
         }
         self.grant(ctx);
     }
@@ -179,9 +179,11 @@ impl Agent for WatcherAgent {
         let now_ns = ctx.now().0;
         let lease_ns = u64::try_from(self.config.lease.as_nanos()).unwrap_or(u64::MAX);
         for (name, passage) in &mut self.passages {
-            if let Some(grant) = passage.holder.take_if(|g| now_ns.saturating_sub(g.since_ns) >= lease_ns) {
-                tracing::warn!(passage = %name, "lease expired; granting the next chair");
-                let reply = grant.request.create_reply().with_performative(Performative::Failure);
+            let (expired, live): (Vec<Grant>, Vec<Grant>) = passage.holders.drain(..).partition(|g| now_ns.saturating_sub(g.since_ns) >= lease_ns);
+            passage.holders = live;
+            for grant in expired {
+                tracing::warn!(passage = %name, "lease expired; the queue moves on");
+                let reply = grant.ask.request.create_reply().with_performative(Performative::Failure);
                 let _ = ctx.send(reply.with_content("((error-message \"lease expired\"))"));
             }
         }

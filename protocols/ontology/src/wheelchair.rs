@@ -202,6 +202,14 @@ pub enum WheelchairAction {
         /// The door.
         door: String,
     },
+    /// `(pass :passage corridor :direction forward)`: asked of the watcher agent, to drive
+    /// through a door or narrow passage that chairs share in one direction at a time.
+    Pass {
+        /// The passage, as the map names it.
+        passage: String,
+        /// Which way the chair crosses it (`forward` along the passage's axis or `backward`).
+        direction: String,
+    },
     /// `(action-sequence :steps (sequence a1 a2 ...))`: the steps one after the other.
     Sequence {
         /// The steps, in order.
@@ -239,6 +247,10 @@ impl Concept for WheelchairAction {
             Self::CloseDoor { door } => FrameBuilder::new("close-door")
                 .text("door", Some(door))
                 .build(),
+            Self::Pass { passage, direction } => FrameBuilder::new("pass")
+                .text("passage", Some(passage))
+                .text("direction", Some(direction))
+                .build(),
             Self::Sequence { steps } => FrameBuilder::new("action-sequence")
                 .term(
                     "steps",
@@ -250,7 +262,7 @@ impl Concept for WheelchairAction {
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         const EXPECTED: &str = "a wheelchair action (goto-xy, go-to, follow-line, follow-left-wall, \
-                                follow-right-wall, spin, wait, stop, open-door, close-door, action-sequence)";
+                                follow-right-wall, spin, wait, stop, open-door, close-door, pass, action-sequence)";
         let Term::Functional { symbol, .. } = term else {
             return Err(OntologyError::UnexpectedTerm {
                 expected: EXPECTED,
@@ -290,6 +302,13 @@ impl Concept for WheelchairAction {
             "close-door" => Self::CloseDoor {
                 door: frame("close-door")?.required_text("door")?,
             },
+            "pass" => {
+                let f = frame("pass")?;
+                Self::Pass {
+                    passage: f.required_text("passage")?,
+                    direction: f.required_text("direction")?,
+                }
+            }
             "action-sequence" => Self::Sequence {
                 steps: frame("action-sequence")?.concepts("steps")?,
             },

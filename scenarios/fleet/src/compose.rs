@@ -18,7 +18,7 @@ use iw_assistant::{AssistantAgent, AssistantConfig};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::Bus;
 use iw_cognitive::agent::{BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage};
-use iw_cognitive::{Domain, OccupancyGrid};
+use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_control_agent::{ControlAgent, ControlConfig};
 use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
@@ -43,6 +43,14 @@ pub const WALL_CLEARANCE_M: f64 = 0.5;
 /// Paths keep this far from the inflated walls and furniture where there is room, m: down the
 /// middle of corridors, and round corners wide enough for the chair's front.
 pub const PATH_COMFORT_M: f64 = 1.0;
+
+/// How long a watcher grant of a passage lasts before it is taken back: a chair crosses a
+/// 15 m corridor in about 40 s.
+pub const PASS_LEASE: Duration = Duration::from_secs(60);
+
+/// Longest a chair waits for a passage before it goes on under its own guard: a full lease of
+/// the chair inside, and its way out.
+pub const PASS_WAIT: Duration = Duration::from_secs(75);
 
 /// Heading error above which a chair turns on the spot before driving to a point, rad.
 pub const TURN_IN_PLACE_RAD: f64 = 0.3;
@@ -163,7 +171,12 @@ impl Building {
         let lanes: Vec<(Point2<f64>, Point2<f64>)> =
             doors.iter().map(|d| (places[&d.a], places[&d.b])).collect();
         let grid = carve_lanes(&grid.inflated(WALL_CLEARANCE_M), &lanes)?.with_comfort(PATH_COMFORT_M);
-        Ok(Building { map, plan: BuildingMap { places, connections, doors, landmarks }, approaches, grid, domain })
+        let passages = map
+            .passages
+            .iter()
+            .map(|p| NarrowPassage { name: p.name.clone(), a: p.a, b: p.b, width_m: p.width_m })
+            .collect();
+        Ok(Building { map, plan: BuildingMap { places, connections, doors, landmarks, passages }, approaches, grid, domain })
     }
 
     /// The building as chair `chair` starting at `t_world_body` plans on: with a place of its
@@ -360,6 +373,8 @@ pub fn chair_agents(
         control: control_id.clone(),
         door: agent_id("door", SERVICES),
         perception: Some(perception_id.clone()),
+        watcher: Some(agent_id("watcher", SERVICES)),
+        pass_wait: PASS_WAIT,
         domain: building.domain.clone(),
         map: plan,
         grid: building.grid.clone(),
@@ -404,9 +419,10 @@ pub struct ServiceConfig {
 }
 
 impl ServiceConfig {
-    /// No restricted doors, the log synced every 64 records (and every logger tick), 10 s leases.
+    /// No restricted doors, the log synced every 64 records (and every logger tick),
+    /// [`PASS_LEASE`] leases.
     pub fn new(chairs: Vec<String>, log_path: PathBuf) -> Self {
-        ServiceConfig { chairs, log_path, sync: SyncPolicy::EveryN(64), restricted: BTreeMap::new(), lease: Duration::from_secs(10) }
+        ServiceConfig { chairs, log_path, sync: SyncPolicy::EveryN(64), restricted: BTreeMap::new(), lease: PASS_LEASE }
     }
 }
 
@@ -445,7 +461,7 @@ pub fn service_agents(config: &ServiceConfig, building: &Building, doors: Box<dy
     let logger = LoggerAgent::open(&LoggerConfig { path: config.log_path.clone(), policy: config.sync, sync_period: Duration::from_millis(500) })
         .map_err(|e| setup(format!("log {}: {e}", config.log_path.display())))?;
     let watcher = WatcherAgent::new(WatcherConfig {
-        passages: building.map.doors.iter().map(|d| door_name(&d.id)).collect(),
+        passages: building.plan.passages.iter().map(|p| p.name.clone()).collect(),
         lease: config.lease,
         period: Duration::from_millis(100),
     })

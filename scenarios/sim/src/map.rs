@@ -46,6 +46,21 @@ pub struct Area {
     pub polygon: Vec<Point2<f64>>,
 }
 
+/// A named narrow passage (a corridor, a doorway) that chairs cross one direction at a time:
+/// the strip of `width_m` around the axis from `a` to `b`. The map only describes it; the
+/// watcher agent keeps the traffic, and crossing from `a`'s end towards `b`'s is `forward`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NarrowPassage {
+    /// Name, as chairs ask the watcher for it.
+    pub name: String,
+    /// One end of the axis, m.
+    pub a: Point2<f64>,
+    /// The other end, m.
+    pub b: Point2<f64>,
+    /// Width of the strip, m.
+    pub width_m: f64,
+}
+
 /// A named point: a place or landmark (dining hall, bedroom, lift).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Place {
@@ -91,6 +106,8 @@ pub struct Map {
     pub doors: Vec<Door>,
     /// Restricted areas.
     pub restricted: Vec<Area>,
+    /// Narrow passages kept one-way at a time.
+    pub passages: Vec<NarrowPassage>,
     /// Named places and landmarks.
     pub places: Vec<Place>,
     /// Named start poses.
@@ -353,6 +370,16 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
             let area = name(pos, "restricted")?;
             map.restricted.push(Area { name: area, polygon: points(&pos[1..], 3, "restricted")? });
         }
+        "passage" => {
+            args.check_options(&["width"])?;
+            let passage = name(pos, "passage")?;
+            if pos.len() != 5 {
+                return Err(format!("passage: expected `passage NAME x1 y1 x2 y2 width=W`, got {} tokens", pos.len()));
+            }
+            let width_m = positive(args.option("width").ok_or("passage: missing `width=`")?, "passage width")?;
+            let axis = points(&pos[1..5], 2, "passage")?;
+            map.passages.push(NarrowPassage { name: passage, a: axis[0], b: axis[1], width_m });
+        }
         "place" => {
             args.check_options(&[])?;
             let place = name(pos, "place")?;
@@ -380,7 +407,7 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
             };
             map.routes.push(Route { name: route, points: points(coords, 2, "route")?, closed });
         }
-        other => return Err(format!("unknown keyword `{other}` (expected name, wall_height, wall, box, polygon, door, restricted, place, start, route)")),
+        other => return Err(format!("unknown keyword `{other}` (expected name, wall_height, wall, box, polygon, door, restricted, passage, place, start, route)")),
     }
     Ok(())
 }
@@ -394,7 +421,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    const SAMPLE: &str = "name test room\nwall closed 0 0 10 0 10 8 0 8 # outer\nbox 5 4 1 2 angle=90 name=table\npolygon 1 1 2 1 1.5 2 height=1.8\ndoor d1 3 0 4 0 open\nrestricted stairs 8 6 10 6 10 8 8 8\nplace kitchen 2 6\nstart s0 1 1 90\nroute lap closed 1 1 9 1 9 7 1 7\n";
+    const SAMPLE: &str = "name test room\nwall closed 0 0 10 0 10 8 0 8 # outer\nbox 5 4 1 2 angle=90 name=table\npolygon 1 1 2 1 1.5 2 height=1.8\ndoor d1 3 0 4 0 open\nrestricted stairs 8 6 10 6 10 8 8 8\npassage hall 1 4 9 4 width=2\nplace kitchen 2 6\nstart s0 1 1 90\nroute lap closed 1 1 9 1 9 7 1 7\n";
 
     #[test]
     fn sample_parses() {
@@ -404,6 +431,7 @@ mod tests {
         assert_eq!(m.furniture.len(), 2);
         assert_eq!(m.furniture[1].height_m, 1.8);
         assert!(m.doors[0].open);
+        assert_eq!((m.passages[0].name.as_str(), m.passages[0].width_m), ("hall", 2.0));
         assert_eq!(m.place("kitchen"), Some(Point2::new(2.0, 6.0)));
         assert!((m.start("s0").unwrap().rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         assert!(m.route("lap").unwrap().closed);
@@ -421,6 +449,8 @@ mod tests {
         assert_eq!(e, "w.map:1: wall: `x` is not a number");
         let e = Map::parse("wall 0 0 1 1\ndoor a 0 0 1 0 ajar", "d.map").unwrap_err().to_string();
         assert!(e.contains("d.map:2:") && e.contains("ajar"), "{e}");
+        let e = Map::parse("passage p 0 0 1 0", "p.map").unwrap_err().to_string();
+        assert_eq!(e, "p.map:1: passage: missing `width=`");
         let e = Map::parse("sofa 1 2", "k.map").unwrap_err().to_string();
         assert!(e.contains("unknown keyword `sofa`"), "{e}");
     }
@@ -433,8 +463,8 @@ mod tests {
 
         #[test]
         fn no_panic_on_keyword_soup(lines in proptest::collection::vec(
-            (prop::sample::select(vec!["wall", "box", "polygon", "door", "restricted", "place", "start", "route", "wall_height", "name"]),
-             proptest::collection::vec(prop::sample::select(vec!["0", "1", "-2.5", "closed", "open", "x", "angle=30", "height=-1", "nan", "1e9", "d1"]), 0..9)), 0..8)) {
+            (prop::sample::select(vec!["wall", "box", "polygon", "door", "restricted", "passage", "place", "start", "route", "wall_height", "name"]),
+             proptest::collection::vec(prop::sample::select(vec!["0", "1", "-2.5", "closed", "open", "x", "angle=30", "height=-1", "width=1.5", "nan", "1e9", "d1"]), 0..9)), 0..8)) {
             let text: String = lines.iter().map(|(k, args)| format!("{k} {}\n", args.join(" "))).collect();
             let _ = Map::parse(&text, "soup.map");
         }
