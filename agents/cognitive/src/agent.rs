@@ -126,6 +126,10 @@ pub struct CognitiveConfig {
     pub max_states: usize,
 }
 
+/// A passage is let go when a pose is this close to its release point, m (poses come at a few
+/// hertz, the chair drives at about half a metre a second).
+pub const RELEASE_RADIUS_M: f64 = 0.6;
+
 /// How long the watcher has to agree to a pass request before it is taken for unreachable.
 pub const PASS_ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
 
@@ -178,6 +182,8 @@ pub struct CognitiveAgent {
     legs: VecDeque<Leg>,
     /// Passages granted to this chair: passage -> (conversation, direction).
     held: BTreeMap<String, (String, &'static str)>,
+    /// Passages to let go when the chair gets to a point of the drive under way.
+    releases: Vec<(String, Point2<f64>)>,
     conversations: u64,
 }
 
@@ -220,6 +226,7 @@ impl CognitiveAgent {
             pending: Pending::Nothing,
             legs: VecDeque::new(),
             held: BTreeMap::new(),
+            releases: Vec::new(),
             conversations: 0,
         })
     }
@@ -350,7 +357,9 @@ impl CognitiveAgent {
             self.release(ctx, &passage);
         }
         let held = self.held.keys().cloned().collect();
+        self.releases.clear();
         self.legs = legs(&path, &self.config.map.passages, &held).into();
+        tracing::debug!(chair = %self.config.chair, legs = ?self.legs, "motion legs");
         self.next_leg(ctx, motion);
     }
 
@@ -371,7 +380,18 @@ impl CognitiveAgent {
                     self.advance(ctx);
                     return;
                 }
-                Some(Leg::Drive(points)) => {
+                Some(Leg::Drive(mut points)) => {
+                    // The chair drives on past a release point; the passage is let go when a
+                    // pose shows it there (or when the drive ends), so it does not stop.
+                    while let Some(Leg::Release { .. }) = self.legs.front() {
+                        let Some(Leg::Release { passage }) = self.legs.pop_front() else { break };
+                        self.releases.push((passage, points.last().copied().unwrap_or_else(Point2::origin)));
+                        if let Some(Leg::Drive(_)) = self.legs.front()
+                            && let Some(Leg::Drive(more)) = self.legs.pop_front()
+                        {
+                            points.extend(more);
+                        }
+                    }
                     let steps = points.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
                     let conversation = self.conversation();
                     self.request(ctx, self.config.control.clone(), WheelchairAction::Sequence { steps }, &conversation);
@@ -426,6 +446,7 @@ impl CognitiveAgent {
             self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
         }
         self.legs.clear();
+        self.releases.clear();
         let held: Vec<String> = self.held.keys().cloned().collect();
         for passage in held {
             self.release(ctx, &passage);
@@ -479,9 +500,15 @@ impl CognitiveAgent {
             },
             Pending::Drive { conversation: c, motion } if conversation == Some(c.as_str()) => match performative {
                 Performative::Agree => {}
-                Performative::Inform => self.next_leg(ctx, motion),
+                Performative::Inform => {
+                    for (passage, _) in std::mem::take(&mut self.releases) {
+                        self.release(ctx, &passage);
+                    }
+                    self.next_leg(ctx, motion)
+                }
                 _ => {
-                    tracing::info!(from = %motion.from, to = %motion.to, answer = %performative, "motion failed; re-planning");
+                    let why = message.content_text().unwrap_or_default();
+                    tracing::info!(chair = %self.config.chair, from = %motion.from, to = %motion.to, answer = %performative, why, "motion failed; re-planning");
                     self.blocked.insert((motion.from, motion.to));
                     self.replan(ctx);
                 }
@@ -510,6 +537,13 @@ impl CognitiveAgent {
 
     fn on_pose(&mut self, ctx: &mut Context<'_>, x_m: f64, y_m: f64, uncertainty_m2: f64) {
         self.t_map_base = Some(Point2::new(x_m, y_m));
+        let here = Point2::new(x_m, y_m);
+        tracing::trace!(chair = %self.config.chair, t_s = ctx.now().0 as f64 * 1e-9, x_m, y_m, "pose");
+        let (passed, ahead): (Vec<_>, Vec<_>) = std::mem::take(&mut self.releases).into_iter().partition(|(_, at)| (at - here).norm() <= RELEASE_RADIUS_M);
+        self.releases = ahead;
+        for (passage, _) in passed {
+            self.release(ctx, &passage);
+        }
         let was_below = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
         self.uncertainty_m2 = uncertainty_m2;
         let now_above = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;

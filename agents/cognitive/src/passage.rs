@@ -19,6 +19,10 @@ pub const WAIT_BACK_M: f64 = 1.0;
 /// chair is out too.
 pub const CLEAR_M: f64 = 0.8;
 
+/// A path that leaves a passage and comes back into it within this, m, is still crossing it
+/// (a bulge into a side opening): the chair keeps it rather than let go where it is in the way.
+pub const REENTRY_M: f64 = 5.0;
+
 /// Spacing at which a path is checked against passages, m.
 const SAMPLE_M: f64 = 0.05;
 
@@ -144,9 +148,17 @@ pub fn legs(path: &[Point2<f64>], passages: &[NarrowPassage], held: &BTreeSet<St
             continue;
         };
         let entry = s_of(k);
+        let inside = |j: usize| passage.contains(&line.point_at(s_of(j)));
         let mut exit_k = k;
-        while exit_k <= samples && passage.contains(&line.point_at(s_of(exit_k))) {
-            exit_k += 1;
+        loop {
+            while exit_k <= samples && inside(exit_k) {
+                exit_k += 1;
+            }
+            let back = (exit_k..=samples).take_while(|&j| s_of(j) - s_of(exit_k) <= REENTRY_M).find(|&j| inside(j));
+            match back {
+                Some(j) => exit_k = j,
+                None => break,
+            }
         }
         let exit = s_of(exit_k);
         if !held.contains(&passage.name) {
@@ -215,6 +227,17 @@ mod tests {
         let legs = legs(&path, &[corridor()], &BTreeSet::new());
         assert_eq!(legs[0], Leg::Acquire { passage: "corridor".into(), direction: "backward" });
         assert!(matches!(&legs[2], Leg::Release { .. }), "{legs:?}");
+    }
+
+    #[test]
+    fn a_bulge_out_of_the_passage_is_still_one_crossing() {
+        // Out through the side for 2 m (into a doorway) and back in: held throughout.
+        let path = [Point2::new(0.0, 6.0), Point2::new(6.0, 6.0), Point2::new(6.0, 7.5), Point2::new(6.5, 7.5), Point2::new(6.5, 6.0), Point2::new(14.0, 6.0)];
+        let acquires = |path: &[Point2<f64>]| legs(path, &[corridor()], &BTreeSet::new()).iter().filter(|l| matches!(l, Leg::Acquire { .. })).count();
+        assert_eq!(acquires(&path), 1);
+        // Far apart, two crossings.
+        let path = [Point2::new(0.0, 6.0), Point2::new(6.0, 6.0), Point2::new(6.0, 12.0), Point2::new(7.0, 12.0), Point2::new(7.0, 6.0), Point2::new(14.0, 6.0)];
+        assert_eq!(acquires(&path), 2);
     }
 
     #[test]

@@ -139,7 +139,7 @@ fn progressed(anchor: &Isometry2<f64>, now: &Isometry2<f64>) -> bool {
 enum Mode {
     Idle,
     Manual { user: VelocityCommand },
-    Task(Task),
+    Task(Box<Task>),
 }
 
 struct Task {
@@ -217,7 +217,7 @@ impl ControlAgent {
         };
         self.preempt(ctx, "preempted by a newer request");
         reply(ctx, &message, Performative::Agree, "");
-        self.mode = Mode::Task(Task { request: message, actor, action, sequence, progress_at: None });
+        self.mode = Mode::Task(Box::new(Task { request: message, actor, action, sequence, progress_at: None }));
     }
 
     /// Maps an ontology action to tactical actions; `Err` names what cannot be driven.

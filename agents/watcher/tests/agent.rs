@@ -139,9 +139,9 @@ proptest! {
                 }
                 read[c] = inbox.len();
             }
-            for p in 0..PASSAGES.len() {
+            for (p, name) in PASSAGES.iter().enumerate() {
                 let directions: std::collections::BTreeSet<usize> = (0..CHAIRS).filter_map(|c| holds.get(&(c, p)).copied().flatten()).collect();
-                prop_assert!(directions.len() <= 1, "{} held both ways", PASSAGES[p]);
+                prop_assert!(directions.len() <= 1, "{name} held both ways");
             }
         }
     }

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
-use iw_dashboard::{Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView, MapView, MessageView, PlaceView, State, round_cm};
+use iw_dashboard::{Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView, MapView, MessageView, PassageView, PlaceView, State, round_cm};
 use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -328,6 +328,7 @@ fn map_view(map: &Map) -> MapView {
         walls: map.walls.iter().map(|w| w.iter().map(pt).collect()).collect(),
         doors: map.doors.iter().map(|d| DoorView { id: d.id.clone(), a: pt(&d.a), b: pt(&d.b) }).collect(),
         places: map.places.iter().map(|p| PlaceView { name: p.name.clone(), at: pt(&p.position) }).collect(),
+        passages: map.passages.iter().map(|p| PassageView { name: p.name.clone(), a: pt(&p.a), b: pt(&p.b), w: round_cm(p.width_m) }).collect(),
         sonars: iw_sim::ChairSpec::default()
             .sonars
             .iter()

@@ -20,6 +20,9 @@ pub struct MapView {
     pub doors: Vec<DoorView>,
     /// Named places a goal can be set to.
     pub places: Vec<PlaceView>,
+    /// Narrow passages the watcher keeps one-way at a time.
+    #[serde(default)]
+    pub passages: Vec<PassageView>,
     /// Sonar mounts in the chair's body frame: x, y (m), heading (rad); ray `i` of a chair's
     /// `s` starts at mount `i`.
     pub sonars: Vec<[f32; 3]>,
@@ -31,6 +34,15 @@ pub struct DoorView {
     pub id: String,
     pub a: [f32; 2],
     pub b: [f32; 2],
+}
+
+/// A narrow passage: its name and the strip `w` wide around the axis from `a` to `b`, m.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct PassageView {
+    pub name: String,
+    pub a: [f32; 2],
+    pub b: [f32; 2],
+    pub w: f32,
 }
 
 /// A named place, m.

@@ -83,7 +83,7 @@ fn chair(i: usize) -> ChairView {
     ChairView {
         n: format!("chair-{i}"),
         k: "virtual".into(),
-        p: [12.34 + f, 5.67, -3.14],
+        p: [12.34 + f, 5.67, -3.1],
         v: [0.55, -0.12],
         s: (0..16).map(|s| if s % 3 == 0 { -1.0 } else { 1.23 + s as f32 / 100.0 }).collect(),
         g: Some([20.5, 7.25]),
