@@ -22,7 +22,8 @@
 //! - Sent to the watcher agent, when [`CognitiveConfig::watcher`] is set and a motion crosses one
 //!   of the map's narrow passages: the chair first drives to [`crate::passage::WAIT_BACK_M`]
 //!   before the passage and stops, REQUESTs `((action W (pass :passage P :direction D)))`, drives
-//!   through on INFORM done, and CANCELs in that conversation once clear of it. REFUSE or
+//!   through on INFORM done, and CANCELs in that conversation once a pose shows it clear (it
+//!   does not stop there). REFUSE or
 //!   NOT-UNDERSTOOD (the passage is not watched), or no AGREE within [`PASS_ANSWER_TIMEOUT`]
 //!   (the watcher is unreachable), or no grant within [`CognitiveConfig::pass_wait`]: the chair
 //!   goes on, its own guard keeping it safe.
@@ -536,8 +537,8 @@ impl CognitiveAgent {
     }
 
     fn on_pose(&mut self, ctx: &mut Context<'_>, x_m: f64, y_m: f64, uncertainty_m2: f64) {
-        self.t_map_base = Some(Point2::new(x_m, y_m));
         let here = Point2::new(x_m, y_m);
+        self.t_map_base = Some(here);
         tracing::trace!(chair = %self.config.chair, t_s = ctx.now().0 as f64 * 1e-9, x_m, y_m, "pose");
         let (passed, ahead): (Vec<_>, Vec<_>) = std::mem::take(&mut self.releases).into_iter().partition(|(_, at)| (at - here).norm() <= RELEASE_RADIUS_M);
         self.releases = ahead;
