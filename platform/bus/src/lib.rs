@@ -10,7 +10,8 @@
 //!   (`iw-layer-comm`, `iw-layer-security`, `iw-layer-temporal`, `iw-layer-parser`) and
 //!   `iw-stack` assembles them from a [`LayerSet`].
 //! - [`Bus`], [`BusConfig`], [`Mailbox`]: routing by agent name to local mailboxes (tokio
-//!   channels) or to remote endpoints over any [`transport::FrameTransport`].
+//!   channels) or to remote endpoints over any [`transport::FrameTransport`]; an agent thread
+//!   blocked on its mailbox receives from the transport itself (see [`Mailbox`]).
 //! - [`InProcNetwork`], [`InProcTransport`]: the in-process transport.
 //! - [`FaultyTransport`], [`Impairments`]: a seeded fault injector for tests.
 //! - [`Time`], [`Clock`], [`MockController`]: nanosecond time and the clock handle.

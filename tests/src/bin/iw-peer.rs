@@ -59,8 +59,9 @@ fn try_main() -> anyhow::Result<()> {
             let mut seen: HashMap<u64, u64> = HashMap::new();
             let mut report = Report::default();
             while !stop.load(Ordering::Acquire) {
-                let Some(env) = mailbox.try_recv() else {
-                    std::thread::sleep(Duration::from_micros(200));
+                // Waiting here, this thread receives from the socket itself (and sends the
+                // acknowledgements and retransmissions due meanwhile).
+                let Some(env) = mailbox.recv_timeout(Duration::from_millis(5)) else {
                     continue;
                 };
                 report.delivered += 1;
