@@ -381,17 +381,24 @@ impl CognitiveAgent {
                     self.advance(ctx);
                     return;
                 }
-                Some(Leg::Drive(mut points)) => {
-                    // The chair drives on past a release point; the passage is let go when a
-                    // pose shows it there (or when the drive ends), so it does not stop.
-                    while let Some(Leg::Release { .. }) = self.legs.front() {
-                        let Some(Leg::Release { passage }) = self.legs.pop_front() else { break };
-                        self.releases.push((passage, points.last().copied().unwrap_or_else(Point2::origin)));
-                        if let Some(Leg::Drive(_)) = self.legs.front()
-                            && let Some(Leg::Drive(more)) = self.legs.pop_front()
-                        {
-                            points.extend(more);
+                Some(leg @ (Leg::Drive(_) | Leg::Release { .. })) => {
+                    // Drives up to the next passage to ask for, in one go: the chair drives on
+                    // past release points, and a passage is let go when a pose shows the chair
+                    // there (or when the drive ends).
+                    self.legs.push_front(leg);
+                    let mut points = Vec::new();
+                    while let Some(Leg::Drive(_) | Leg::Release { .. }) = self.legs.front() {
+                        match self.legs.pop_front() {
+                            Some(Leg::Drive(more)) => points.extend(more),
+                            Some(Leg::Release { passage, at }) => self.releases.push((passage, at)),
+                            _ => {}
                         }
+                    }
+                    if points.is_empty() {
+                        for (passage, _) in std::mem::take(&mut self.releases) {
+                            self.release(ctx, &passage);
+                        }
+                        continue;
                     }
                     let steps = points.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
                     let conversation = self.conversation();
@@ -408,7 +415,6 @@ impl CognitiveAgent {
                     self.pending = Pending::Pass { conversation, motion, passage, direction, asked_ns: ctx.now().0, agreed: false };
                     return;
                 }
-                Some(Leg::Release { passage }) => self.release(ctx, &passage),
             }
         }
     }

@@ -72,10 +72,12 @@ pub enum Leg {
         /// `forward` or `backward`.
         direction: &'static str,
     },
-    /// Tell the watcher the chair is out.
+    /// Tell the watcher the chair is out, once it is at `at` (the chair does not stop there).
     Release {
         /// The passage.
         passage: String,
+        /// Where the chair is clear of it, map frame, m.
+        at: Point2<f64>,
     },
 }
 
@@ -113,7 +115,13 @@ impl<'a> Polyline<'a> {
         p + (q - p) * t
     }
 
-    /// The waypoints driven from arc length `s0` to `s1`: the vertices between, then `s1`'s point.
+    /// The vertices after arc length `s0` up to and including `s1`.
+    fn vertices(&self, s0: f64, s1: f64) -> Vec<Point2<f64>> {
+        self.points.iter().zip(&self.at).filter(|&(_, &a)| a > s0 + 1e-9 && a <= s1 + 1e-9).map(|(p, _)| *p).collect()
+    }
+
+    /// The waypoints of a drive from arc length `s0` that stops at `s1`: the vertices between,
+    /// then `s1`'s point.
     fn between(&self, s0: f64, s1: f64) -> Vec<Point2<f64>> {
         let mut out: Vec<Point2<f64>> =
             self.points.iter().zip(&self.at).filter(|&(_, &a)| a > s0 + 1e-9 && a < s1 - 1e-9).map(|(p, _)| *p).collect();
@@ -172,15 +180,17 @@ pub fn legs(path: &[Point2<f64>], passages: &[NarrowPassage], held: &BTreeSet<St
         }
         let ends_inside = exit_k > samples;
         let clear = (exit + CLEAR_M).min(length);
-        if clear > driven {
-            out.push(Leg::Drive(line.between(driven, clear)));
-            driven = clear;
+        // Only the path's own vertices: the chair drives on past the release point.
+        let through = line.vertices(driven, clear);
+        if !through.is_empty() {
+            out.push(Leg::Drive(through));
         }
+        driven = driven.max(clear);
         if ends_inside {
             break;
         }
         held.remove(&passage.name);
-        out.push(Leg::Release { passage: passage.name.clone() });
+        out.push(Leg::Release { passage: passage.name.clone(), at: line.point_at(clear) });
         // Past the clearance, so the same passage is not seen again as the chair leaves it.
         k = ((clear / SAMPLE_M).floor() as usize + 1).max(exit_k);
     }
@@ -210,15 +220,13 @@ mod tests {
     fn a_crossing_waits_outside_acquires_and_releases_once_clear() {
         let path = [Point2::new(0.0, 6.0), Point2::new(14.0, 6.0), Point2::new(14.0, 9.0)];
         let legs = legs(&path, &[corridor()], &BTreeSet::new());
-        let [Leg::Drive(to_wait), Leg::Acquire { direction, .. }, Leg::Drive(through), Leg::Release { .. }, Leg::Drive(rest)] = legs.as_slice()
-        else {
+        let [Leg::Drive(to_wait), Leg::Acquire { direction, .. }, Leg::Release { at, .. }, Leg::Drive(rest)] = legs.as_slice() else {
             panic!("{legs:?}");
         };
         assert_eq!(*direction, "forward");
         assert!((to_wait.last().unwrap().x - 1.0).abs() < 0.06, "waits 1 m before x = 2: {to_wait:?}");
-        assert!((through.last().unwrap().x - 12.8).abs() < 0.06, "released 0.8 m past x = 12: {through:?}");
-        assert_eq!(through.last().unwrap().y, 6.0);
-        assert_eq!(rest, &vec![Point2::new(14.0, 6.0), Point2::new(14.0, 9.0)]);
+        assert!((at.x - 12.8).abs() < 0.06 && at.y == 6.0, "released 0.8 m past x = 12: {at:?}");
+        assert_eq!(rest, &vec![Point2::new(14.0, 6.0), Point2::new(14.0, 9.0)], "no waypoint added past the wait point");
     }
 
     #[test]
@@ -226,7 +234,7 @@ mod tests {
         let path = [Point2::new(5.0, 6.0), Point2::new(0.0, 6.0)];
         let legs = legs(&path, &[corridor()], &BTreeSet::new());
         assert_eq!(legs[0], Leg::Acquire { passage: "corridor".into(), direction: "backward" });
-        assert!(matches!(&legs[2], Leg::Release { .. }), "{legs:?}");
+        assert!(matches!(&legs[1], Leg::Release { .. }), "{legs:?}");
     }
 
     #[test]
@@ -252,7 +260,7 @@ mod tests {
     fn a_held_passage_is_only_released_and_a_path_outside_is_one_drive() {
         let held = BTreeSet::from(["corridor".to_string()]);
         let path = [Point2::new(5.0, 6.0), Point2::new(0.0, 6.0)];
-        assert!(matches!(legs(&path, &[corridor()], &held).as_slice(), [Leg::Drive(_), Leg::Release { .. }, Leg::Drive(_)]));
+        assert!(matches!(legs(&path, &[corridor()], &held).as_slice(), [Leg::Release { .. }, Leg::Drive(_)]));
         let outside = [Point2::new(0.0, 0.0), Point2::new(5.0, 1.0)];
         assert_eq!(legs(&outside, &[corridor()], &BTreeSet::new()), vec![Leg::Drive(vec![Point2::new(5.0, 1.0)])]);
         assert!(touched(&outside, &[corridor()]).is_empty());
