@@ -328,9 +328,13 @@ impl<'a> Parser<'a> {
                     .map_or_else(|_| Constant::String(s.to_owned()), Constant::Integer),
             ),
             Tok::Hex(s) => constant(Constant::String(s.to_owned())),
+            // Like an integer beyond i64, a float beyond f64 keeps its text: an infinity has
+            // no SL spelling to print back.
             Tok::Float(s) => constant(
-                s.parse()
-                    .map_or_else(|_| Constant::String(s.to_owned()), Constant::Float),
+                s.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .map_or_else(|| Constant::String(s.to_owned()), Constant::Float),
             ),
             Tok::DateTime(s) => constant(
                 parse_datetime(s)

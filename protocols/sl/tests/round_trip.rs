@@ -246,3 +246,13 @@ fn strings_that_sl_cannot_quote_become_byte_strings() {
     let back = parse(&c.to_string(), Level::Sl0).unwrap();
     assert_eq!(back.to_string(), c.to_string());
 }
+
+/// Found by `cargo fuzz run parse_print`: a float literal beyond f64 parsed as infinity, which
+/// prints as the string `"Infinity"` and read back as a different tree.
+#[test]
+fn a_float_beyond_f64_keeps_its_text_and_round_trips() {
+    let content = parse("((p 4e444444444 -4e999 1e3))", Level::Full).unwrap();
+    let printed = content.to_string();
+    assert_eq!(parse(&printed, Level::Full).unwrap(), content, "{printed}");
+    assert!(printed.contains("\"4e444444444\"") && printed.contains("\"-4e999\"") && printed.contains("1000"), "{printed}");
+}
