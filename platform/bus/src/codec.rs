@@ -93,6 +93,37 @@ impl FrameCodec {
     /// `Ok(None)` if `buf` holds only part of a frame, `Err` if the bytes cannot be a frame
     /// (the stream is then corrupt and should be closed).
     pub fn decode(&self, buf: &[u8]) -> Result<Option<(Envelope, usize)>, BusError> {
+        let Some((env, range)) = self.decode_header(buf)? else { return Ok(None) };
+        let len = range.end + env.trailer_len();
+        Ok(Some((Envelope { payload: buf[range].to_vec(), ..env }, len)))
+    }
+
+    /// Decodes one whole datagram: exactly one frame, nothing missing, nothing after it.
+    pub fn decode_datagram(&self, buf: &[u8]) -> Result<Envelope, BusError> {
+        match self.decode(buf)? {
+            Some((env, used)) if used == buf.len() => Ok(env),
+            Some((_, used)) => Err(BusError::TrailingBytes { extra: buf.len() - used }),
+            None => Err(BusError::Truncated { have: buf.len() }),
+        }
+    }
+
+    /// As [`FrameCodec::decode_datagram`], keeping the frame's buffer as the payload's (moved to
+    /// its front): no allocation for a frame the transport handed over as its own.
+    pub fn decode_datagram_owned(&self, mut buf: Vec<u8>) -> Result<Envelope, BusError> {
+        let Some((env, range)) = self.decode_header(&buf)? else { return Err(BusError::Truncated { have: buf.len() }) };
+        let used = range.end + env.trailer_len();
+        if used != buf.len() {
+            return Err(BusError::TrailingBytes { extra: buf.len() - used });
+        }
+        let payload_len = range.len();
+        buf.copy_within(range, 0);
+        buf.truncate(payload_len);
+        Ok(Envelope { payload: buf, ..env })
+    }
+
+    /// Decodes everything but the payload, which is left empty: `Ok(Some((envelope, payload
+    /// range in buf)))`; the signature trailer, if any, follows the range.
+    fn decode_header(&self, buf: &[u8]) -> Result<Option<(Envelope, std::ops::Range<usize>)>, BusError> {
         if buf.len() >= 2 && buf[..2] != MAGIC {
             return Err(BusError::BadMagic { found: [buf[0], buf[1]] });
         }
@@ -121,7 +152,7 @@ impl FrameCodec {
         let mut at = FIXED_LEN;
         let sender = name(frame, &mut at, s_len, "sender")?;
         let receiver = name(frame, &mut at, r_len, "receiver")?;
-        let payload = frame[at..at + payload_len].to_vec();
+        let payload = at..at + payload_len;
         at += payload_len;
         let signature = if trailer > 0 {
             let mut sig = [0u8; SIGNATURE_LEN];
@@ -139,16 +170,14 @@ impl FrameCodec {
             sender,
             receiver,
         };
-        Ok(Some((Envelope { header, payload, signature, authenticated: None }, len)))
+        Ok(Some((Envelope { header, payload: Vec::new(), signature, authenticated: None }, payload)))
     }
+}
 
-    /// Decodes one whole datagram: exactly one frame, nothing missing, nothing after it.
-    pub fn decode_datagram(&self, buf: &[u8]) -> Result<Envelope, BusError> {
-        match self.decode(buf)? {
-            Some((env, used)) if used == buf.len() => Ok(env),
-            Some((_, used)) => Err(BusError::TrailingBytes { extra: buf.len() - used }),
-            None => Err(BusError::Truncated { have: buf.len() }),
-        }
+impl Envelope {
+    /// Length of the signature trailer this envelope's frame carries, bytes.
+    fn trailer_len(&self) -> usize {
+        if signature_on_wire(self.header.flags) { SIGNATURE_LEN } else { 0 }
     }
 }
 
@@ -287,7 +316,15 @@ mod tests {
             if signature_on_wire(env.header.flags) { env.signature = Some(Box::new([1; SIGNATURE_LEN])); }
             let codec = FrameCodec::new();
             let frame = codec.encode_to_vec(&env).unwrap();
-            prop_assert_eq!(codec.decode_datagram(&frame).unwrap(), env);
+            prop_assert_eq!(&codec.decode_datagram(&frame).unwrap(), &env);
+            prop_assert_eq!(codec.decode_datagram_owned(frame).unwrap(), env);
+        }
+
+        #[test]
+        fn owned_decode_agrees(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
+            let codec = FrameCodec::new();
+            let by_ref = codec.decode_datagram(&bytes).map_err(|e| e.to_string());
+            prop_assert_eq!(codec.decode_datagram_owned(bytes).map_err(|e| e.to_string()), by_ref);
         }
     }
 }

@@ -326,10 +326,10 @@ impl Bus {
             let mut stack = lock(&self.inner.stack);
             let now = self.inner.clock.now();
             let remote = match stack.outbound(env, now) {
-                Verdict::Pass(env) => self.inner.route_locked(&mut stack, env, &mut out.deliver),
+                Verdict::Pass(env) => self.inner.route_locked(&mut stack, env, now, &mut out.deliver),
                 Verdict::Drop(_) | Verdict::Consumed => None,
             };
-            self.inner.collect_locked(&mut stack, &mut out);
+            self.inner.collect_locked(&mut stack, now, &mut out);
             remote
         };
         let sent = remote.map_or(Ok(()), |env| self.inner.send_remote(env));
@@ -372,10 +372,10 @@ impl Inner {
     }
 
     /// An envelope that passed the stack outbound (the stack is locked): run it back up for a
-    /// local receiver (queued in `deliver` if it passes), or hand it back to be sent.
-    fn route_locked(&self, stack: &mut Stack, env: Envelope, deliver: &mut Vec<Envelope>) -> Option<Envelope> {
+    /// local receiver (queued in `deliver` if it passes), or hand it back to be sent. `now` is
+    /// the time read once for the whole locked pass (a clock read costs as much as a layer).
+    fn route_locked(&self, stack: &mut Stack, env: Envelope, now: Time, deliver: &mut Vec<Envelope>) -> Option<Envelope> {
         if self.is_local(&env.header.receiver) {
-            let now = self.clock.now();
             if let Verdict::Pass(env) = stack.inbound(env, now) {
                 deliver.push(env);
             }
@@ -384,12 +384,10 @@ impl Inner {
         Some(env)
     }
 
-    /// Takes everything the layers originated that is due now (the stack is locked).
-    fn collect_locked(&self, stack: &mut Stack, out: &mut Outcome) {
-        loop {
-            let now = self.clock.now();
-            let Some(env) = stack.poll_transmit(now) else { return };
-            if let Some(env) = self.route_locked(stack, env, &mut out.deliver) {
+    /// Takes everything the layers originated that is due at `now` (the stack is locked).
+    fn collect_locked(&self, stack: &mut Stack, now: Time, out: &mut Outcome) {
+        while let Some(env) = stack.poll_transmit(now) {
+            if let Some(env) = self.route_locked(stack, env, now, &mut out.deliver) {
                 out.send.push(env);
             }
         }
@@ -541,15 +539,16 @@ impl Inner {
             }
         }
         let received = frames.len();
-        let decoded: Vec<_> = frames.drain(..).map(|(from, frame)| (from, self.config.codec.decode_datagram(&frame))).collect();
-        // One lock for the whole batch and what the layers originate in answer.
+        let decoded: Vec<_> = frames.drain(..).map(|(from, frame)| (from, self.config.codec.decode_datagram_owned(frame))).collect();
+        // One lock and one clock read for the whole batch and what the layers originate in
+        // answer.
         let mut out = Outcome::default();
         {
             let mut stack = lock(&self.stack);
+            let now = self.clock.now();
             for (from, env) in decoded {
                 match env {
                     Ok(env) => {
-                        let now = self.clock.now();
                         if let Verdict::Pass(env) = stack.inbound(env, now) {
                             out.deliver.push(env);
                         }
@@ -563,7 +562,7 @@ impl Inner {
             // Left uncollected, the layers' frames make their next deadline now: whoever runs
             // the next round does not wait for them.
             if !leader.is_some_and(|me| out.deliver.iter().any(|env| env.header.receiver == me)) {
-                self.collect_locked(&mut stack, &mut out);
+                self.collect_locked(&mut stack, now, &mut out);
             }
             let next = stack.next_deadline().map_or(NO_DEADLINE, Time::as_ns);
             self.next_deadline.store(next, Ordering::Release);
