@@ -192,16 +192,11 @@ impl ControlAgent {
             }
             return;
         }
-        let (actor, action) = match WheelchairContent::from_message(&message) {
-            Ok(WheelchairContent::Request { actor, action }) => (actor, action),
-            Ok(_) => {
-                let _ = ctx.not_understood(&message, "expected ((action actor act))");
-                return;
-            }
-            Err(err) => {
-                let _ = ctx.not_understood(&message, &err.to_string());
-                return;
-            }
+        let Some((actor, action)) = ctx.understand(&message, "expected ((action actor act))", |c| match c {
+            WheelchairContent::Request { actor, action } => Some((actor, action)),
+            _ => None,
+        }) else {
+            return;
         };
         let mut steps = Vec::new();
         if let Err(refused) = self.tactical_actions(&action, &mut steps) {

@@ -101,16 +101,11 @@ impl DoorAgent {
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let (actor, action) = match WheelchairContent::from_message(&message) {
-            Ok(WheelchairContent::Request { actor, action }) => (actor, action),
-            Ok(_) => {
-                let _ = ctx.not_understood(&message, "expected ((action door (open-door :door D)))");
-                return;
-            }
-            Err(err) => {
-                let _ = ctx.not_understood(&message, &err.to_string());
-                return;
-            }
+        let Some((actor, action)) = ctx.understand(&message, "expected ((action door (open-door :door D)))", |c| match c {
+            WheelchairContent::Request { actor, action } => Some((actor, action)),
+            _ => None,
+        }) else {
+            return;
         };
         let (door, open) = match &action {
             WheelchairAction::OpenDoor { door } => (door.clone(), true),

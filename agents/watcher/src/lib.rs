@@ -120,19 +120,13 @@ impl WatcherAgent {
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let ask = match WheelchairContent::from_message(&message) {
-            Ok(WheelchairContent::Request { actor, action: WheelchairAction::Pass { passage, direction } }) => {
-                Ask { request: message, actor, passage, direction }
-            }
-            Ok(_) => {
-                let _ = ctx.not_understood(&message, "the watcher takes (pass :passage P :direction D) requests");
-                return;
-            }
-            Err(err) => {
-                let _ = ctx.not_understood(&message, &err.to_string());
-                return;
-            }
+        let Some((actor, passage, direction)) = ctx.understand(&message, "the watcher takes (pass :passage P :direction D) requests", |c| match c {
+            WheelchairContent::Request { actor, action: WheelchairAction::Pass { passage, direction } } => Some((actor, passage, direction)),
+            _ => None,
+        }) else {
+            return;
         };
+        let ask = Ask { request: message, actor, passage, direction };
         let refuse = |ctx: &mut Context<'_>, why: &str| {
             let reply = ask.request.create_reply().with_performative(Performative::Refuse);
             let _ = ctx.send(reply.with_content(format!("((error-message \"{why}\"))")));

@@ -25,6 +25,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_bus::{Bus, BusError, Mailbox, Time};
+use iw_ontology::OntologyContent;
 
 pub mod gateway;
 pub use gateway::{GatewayAgent, GatewayHandle};
@@ -131,6 +132,21 @@ impl Context<'_> {
         reply.content = None;
         let reply = reply.with_content(format!("((error-message \"{}\"))", reason.replace('"', "'")));
         self.send(reply)
+    }
+
+    /// The part of `message`'s ontology content that `pick` wants, or `None` after answering
+    /// NOT-UNDERSTOOD: with the parse error, or with `expected` when the content is of another
+    /// kind than `pick` takes.
+    pub fn understand<C: OntologyContent, T>(&mut self, message: &AclMessage, expected: &str, pick: impl FnOnce(C) -> Option<T>) -> Option<T> {
+        let why = match C::from_message(message) {
+            Ok(content) => match pick(content) {
+                Some(wanted) => return Some(wanted),
+                None => expected.to_string(),
+            },
+            Err(err) => err.to_string(),
+        };
+        let _ = self.not_understood(message, &why);
+        None
     }
 
     fn tapped(&mut self, message: &AclMessage) {
