@@ -16,7 +16,9 @@
 //! Guarantees: agents only meet through ACL messages on the bus (an agent never holds another);
 //! a message that is not well-formed ACL is counted and answered with nothing (its sender cannot
 //! be trusted); a step delivers every message that local agents send each other during it, up
-//! to [`MAX_ROUNDS_PER_STEP`] rounds, so a step is a consistent instant.
+//! to [`MAX_ROUNDS_PER_STEP`] rounds, so a step is a consistent instant; within a round an agent
+//! gets the messages waiting for it in sender order (each sender's in the order sent), so the
+//! outcome of a step does not hang on the arrival order of frames from different containers.
 #![warn(missing_docs)]
 
 use std::sync::Arc;
@@ -254,7 +256,14 @@ impl AgentHost {
                     slot.agent.setup(&mut ctx);
                     slot.next_tick = slot.agent.tick_period().map(|_| now);
                 }
+                // What waits is handled in sender order (stable: each sender's messages keep
+                // theirs), so a step does not depend on which container's frames won a race.
+                let mut waiting = Vec::new();
                 while let Some(envelope) = slot.mailbox.try_recv() {
+                    waiting.push(envelope);
+                }
+                waiting.sort_by(|a, b| a.header.sender.cmp(&b.header.sender));
+                for envelope in waiting {
                     activity = true;
                     let parsed = envelope.payload_str().map(iw_acl::codec::parse);
                     match parsed {
@@ -441,5 +450,28 @@ mod tests {
         assert_eq!(seen[0], (Performative::Request, Some("pinger@c1".to_string()), t0));
         assert_eq!(seen[1], (Performative::Inform, Some("echo@c1".to_string()), t0));
         assert_eq!(seen[3].2, t0.plus(Duration::from_millis(100)));
+    }
+
+    /// Records the sender and content of everything it is given.
+    struct Recorder(Arc<std::sync::Mutex<Vec<String>>>);
+    impl Agent for Recorder {
+        fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
+            let from = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+            self.0.lock().unwrap().push(format!("{from} {}", message.content_text().unwrap_or_default()));
+        }
+    }
+
+    #[test]
+    fn a_step_hands_waiting_messages_over_in_sender_order_keeping_each_senders_order() {
+        let (mut host, controller) = host();
+        let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
+        host.add(AgentId::new("rec@c1"), Box::new(Recorder(seen.clone()))).unwrap();
+        // Arrival order: b, a, b, a.
+        for (from, text) in [("b@c1", "b1"), ("a@c1", "a1"), ("b@c1", "b2"), ("a@c1", "a2")] {
+            let m = AclMessage::new(Performative::Inform).with_sender(AgentId::new(from)).with_receiver(AgentId::new("rec@c1")).with_content(text);
+            host.bus.send(from, "rec@c1", iw_acl::codec::print(&m).into_bytes()).unwrap();
+        }
+        host.step(controller.now());
+        assert_eq!(*seen.lock().unwrap(), ["a@c1 a1", "a@c1 a2", "b@c1 b1", "b@c1 b2"]);
     }
 }

@@ -72,7 +72,7 @@ impl LockstepNetwork {
             inner: self.inner.endpoint(name)?,
             shared: self.shared.clone(),
             stash: Mutex::new(VecDeque::new()),
-            holding: Mutex::new(false),
+            handed: Mutex::new(0),
         })
     }
 
@@ -115,13 +115,15 @@ pub struct LockstepTransport {
     shared: Arc<Shared>,
     /// Frames that arrived while the network was closed.
     stash: Mutex<VecDeque<Frame>>,
-    /// The pump holds a frame it got from us: it is processed when the pump asks again.
-    holding: Mutex<bool>,
+    /// Frames handed to the pump and not yet known to be in their mailboxes. The pump asks with
+    /// a zero timeout only while it gathers a batch, and delivers the batch before it waits for
+    /// the next frame: an ask that may wait means every frame handed before is delivered.
+    handed: Mutex<i64>,
 }
 
 impl LockstepTransport {
     fn hand_over(&self, frame: Frame) -> Option<Frame> {
-        *self.holding.lock().unwrap_or_else(PoisonError::into_inner) = true;
+        *self.handed.lock().unwrap_or_else(PoisonError::into_inner) += 1;
         Some(frame)
     }
 }
@@ -156,12 +158,9 @@ impl FrameTransport for LockstepTransport {
     }
 
     fn recv_timeout(&self, timeout: Duration) -> Result<Option<Frame>, TransportError> {
-        {
-            let mut holding = self.holding.lock().unwrap_or_else(PoisonError::into_inner);
-            if *holding {
-                *holding = false;
-                self.shared.in_flight.fetch_sub(1, Ordering::AcqRel);
-            }
+        if !timeout.is_zero() {
+            let mut handed = self.handed.lock().unwrap_or_else(PoisonError::into_inner);
+            self.shared.in_flight.fetch_sub(std::mem::take(&mut *handed), Ordering::AcqRel);
         }
         if lock(&self.shared.state).open {
             let stashed = self.stash.lock().unwrap_or_else(PoisonError::into_inner).pop_front();
