@@ -395,9 +395,7 @@ impl CognitiveAgent {
                         }
                     }
                     if points.is_empty() {
-                        for (passage, _) in std::mem::take(&mut self.releases) {
-                            self.release(ctx, &passage);
-                        }
+                        self.release_reached(ctx, |_| true);
                         continue;
                     }
                     let steps = points.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
@@ -416,6 +414,16 @@ impl CognitiveAgent {
                     return;
                 }
             }
+        }
+    }
+
+    /// Lets go of the passages of the drive under way whose release point `reached` says the
+    /// chair is at.
+    fn release_reached(&mut self, ctx: &mut Context<'_>, reached: impl Fn(&Point2<f64>) -> bool) {
+        let (passed, ahead): (Vec<_>, Vec<_>) = std::mem::take(&mut self.releases).into_iter().partition(|(_, at)| reached(at));
+        self.releases = ahead;
+        for (passage, _) in passed {
+            self.release(ctx, &passage);
         }
     }
 
@@ -508,9 +516,7 @@ impl CognitiveAgent {
             Pending::Drive { conversation: c, motion } if conversation == Some(c.as_str()) => match performative {
                 Performative::Agree => {}
                 Performative::Inform => {
-                    for (passage, _) in std::mem::take(&mut self.releases) {
-                        self.release(ctx, &passage);
-                    }
+                    self.release_reached(ctx, |_| true);
                     self.next_leg(ctx, motion)
                 }
                 _ => {
@@ -546,11 +552,7 @@ impl CognitiveAgent {
         let here = Point2::new(x_m, y_m);
         self.t_map_base = Some(here);
         tracing::trace!(chair = %self.config.chair, t_s = ctx.now().0 as f64 * 1e-9, x_m, y_m, "pose");
-        let (passed, ahead): (Vec<_>, Vec<_>) = std::mem::take(&mut self.releases).into_iter().partition(|(_, at)| (at - here).norm() <= RELEASE_RADIUS_M);
-        self.releases = ahead;
-        for (passage, _) in passed {
-            self.release(ctx, &passage);
-        }
+        self.release_reached(ctx, |at| (at - here).norm() <= RELEASE_RADIUS_M);
         let was_below = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
         self.uncertainty_m2 = uncertainty_m2;
         let now_above = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;

@@ -72,7 +72,7 @@ impl LockstepNetwork {
             inner: self.inner.endpoint(name)?,
             shared: self.shared.clone(),
             stash: Mutex::new(VecDeque::new()),
-            handed: Mutex::new(0),
+            handed: AtomicI64::new(0),
         })
     }
 
@@ -118,12 +118,12 @@ pub struct LockstepTransport {
     /// Frames handed to the pump and not yet known to be in their mailboxes. The pump asks with
     /// a zero timeout only while it gathers a batch, and delivers the batch before it waits for
     /// the next frame: an ask that may wait means every frame handed before is delivered.
-    handed: Mutex<i64>,
+    handed: AtomicI64,
 }
 
 impl LockstepTransport {
     fn hand_over(&self, frame: Frame) -> Option<Frame> {
-        *self.handed.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+        self.handed.fetch_add(1, Ordering::AcqRel);
         Some(frame)
     }
 }
@@ -159,8 +159,7 @@ impl FrameTransport for LockstepTransport {
 
     fn recv_timeout(&self, timeout: Duration) -> Result<Option<Frame>, TransportError> {
         if !timeout.is_zero() {
-            let mut handed = self.handed.lock().unwrap_or_else(PoisonError::into_inner);
-            self.shared.in_flight.fetch_sub(std::mem::take(&mut *handed), Ordering::AcqRel);
+            self.shared.in_flight.fetch_sub(self.handed.swap(0, Ordering::AcqRel), Ordering::AcqRel);
         }
         if lock(&self.shared.state).open {
             let stashed = self.stash.lock().unwrap_or_else(PoisonError::into_inner).pop_front();
