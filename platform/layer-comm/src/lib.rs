@@ -24,6 +24,13 @@
 //! acknowledgement echoes the last 16 payload bytes of the frame it acknowledges; with the
 //! security layer on these are AEAD tag bytes, so only someone who saw the frame can forge its
 //! acknowledgement (and such an attacker could drop the frame anyway).
+//!
+//! # Acknowledgement frames
+//! Acknowledgements waiting to go out to the same agent from the same agent share one frame
+//! (up to [`ACKS_PER_FRAME`] of them): a burst of messages costs one acknowledgement frame, not
+//! one each. Its payload is a run of entries, each the acknowledged message id (8 bytes, big
+//! endian) and the echo (16 bytes; a payload shorter than that is echoed right-aligned after
+//! zeros).
 //! Ids older than the window are no longer recognised: the temporal layer's age limit and
 //! sequence window reject such late replays.
 #![warn(missing_docs)]
@@ -37,6 +44,13 @@ use rustc_hash::FxHashMap;
 
 /// Bytes of the acknowledged frame's payload an acknowledgement echoes.
 const ECHO_LEN: usize = 16;
+
+/// Bytes of one acknowledgement entry: the message id and the echo.
+const ACK_ENTRY_LEN: usize = 8 + ECHO_LEN;
+
+/// Acknowledgements one frame carries at most: 1152 payload bytes, so a frame of them still fits
+/// an Ethernet datagram unfragmented.
+pub const ACKS_PER_FRAME: usize = 48;
 
 /// Settings of the communication layer. Durations are simulated or real time alike.
 #[derive(Debug, Clone, PartialEq)]
@@ -91,6 +105,8 @@ pub struct CommStats {
     pub retransmissions: u64,
     /// Acknowledgements sent (including repeats for duplicates).
     pub acks_sent: u64,
+    /// Frames those acknowledgements went out in (several share a frame).
+    pub ack_frames: u64,
     /// Acknowledgements that matched a frame in flight.
     pub acks_matched: u64,
     /// Acknowledgements for nothing in flight (late repeats, or forged).
@@ -168,28 +184,41 @@ impl CommLayer {
         self.in_flight.len()
     }
 
+    /// Queues the acknowledgement of `acked`, in a frame already waiting for the same pair of
+    /// agents if one has room.
     fn queue_ack(&mut self, acked: &Envelope, now: Time) {
-        let mut payload = Vec::with_capacity(8 + ECHO_LEN);
-        payload.extend_from_slice(&acked.header.id.0.to_be_bytes());
-        payload.extend_from_slice(echo(&acked.payload));
-        let mut ack = Envelope::new(self.ids.next_id(), acked.header.receiver.clone(), acked.header.sender.clone(), payload);
+        let (from, to) = (&acked.header.receiver, &acked.header.sender);
+        self.stats.acks_sent += 1;
+        let room = self.acks.iter_mut().rev().find(|a| {
+            a.payload.len() < ACKS_PER_FRAME * ACK_ENTRY_LEN && a.header.sender == *from && a.header.receiver == *to
+        });
+        if let Some(ack) = room {
+            push_entry(&mut ack.payload, acked);
+            return;
+        }
+        let mut payload = Vec::with_capacity(4 * ACK_ENTRY_LEN);
+        push_entry(&mut payload, acked);
+        let mut ack = Envelope::new(self.ids.next_id(), from.as_str(), to.as_str(), payload);
         ack.header.flags = Flags::ACK;
         ack.header.timestamp = now;
         self.acks.push_back(ack);
-        self.stats.acks_sent += 1;
+        self.stats.ack_frames += 1;
     }
 
     fn on_ack(&mut self, ack: &Envelope) {
-        let id = ack.payload.get(..8).and_then(|b| b.try_into().ok()).map(|b: [u8; 8]| MsgId(u64::from_be_bytes(b)));
-        let entry = id.map(|id| self.in_flight.entry(id));
-        match entry {
-            Some(Entry::Occupied(p))
-                if p.get().env.header.receiver == ack.header.sender && echo(&p.get().env.payload) == &ack.payload[8..] =>
-            {
-                p.remove();
-                self.stats.acks_matched += 1;
+        let entries = ack.payload.chunks(ACK_ENTRY_LEN);
+        for entry in entries {
+            let Some((id, echoed)) = split_entry(entry) else {
+                self.stats.acks_stray += 1;
+                continue;
+            };
+            match self.in_flight.entry(id) {
+                Entry::Occupied(p) if p.get().env.header.receiver == ack.header.sender && echo(&p.get().env.payload) == echoed => {
+                    p.remove();
+                    self.stats.acks_matched += 1;
+                }
+                _ => self.stats.acks_stray += 1,
             }
-            _ => self.stats.acks_stray += 1,
         }
     }
 
@@ -217,8 +246,24 @@ impl CommLayer {
     }
 }
 
-fn echo(payload: &[u8]) -> &[u8] {
-    &payload[payload.len().saturating_sub(ECHO_LEN)..]
+/// The last [`ECHO_LEN`] bytes of `payload`, right-aligned after zeros if it is shorter.
+fn echo(payload: &[u8]) -> [u8; ECHO_LEN] {
+    let tail = &payload[payload.len().saturating_sub(ECHO_LEN)..];
+    let mut out = [0u8; ECHO_LEN];
+    out[ECHO_LEN - tail.len()..].copy_from_slice(tail);
+    out
+}
+
+/// Appends the acknowledgement entry of `acked` to an acknowledgement payload.
+fn push_entry(payload: &mut Vec<u8>, acked: &Envelope) {
+    payload.extend_from_slice(&acked.header.id.0.to_be_bytes());
+    payload.extend_from_slice(&echo(&acked.payload));
+}
+
+/// An entry's message id and echo; `None` for a short (malformed) entry.
+fn split_entry(entry: &[u8]) -> Option<(MsgId, &[u8])> {
+    let (id, echoed) = entry.split_first_chunk::<8>()?;
+    (echoed.len() == ECHO_LEN).then_some((MsgId(u64::from_be_bytes(*id)), echoed))
 }
 
 impl Layer for CommLayer {
@@ -313,8 +358,18 @@ impl Layer for CommLayer {
         if let Some(w) = self.seen.get_mut(sender) {
             w.remove(id);
         }
-        if let Some(at) = self.acks.iter().rposition(|a| a.header.receiver == sender && a.payload.get(..8) == Some(&id.0.to_be_bytes()[..])) {
-            self.acks.remove(at);
+        let entry_of = |a: &Envelope| {
+            (a.header.receiver == sender)
+                .then(|| a.payload.chunks(ACK_ENTRY_LEN).rposition(|e| split_entry(e).is_some_and(|(acked, _)| acked == id)))
+                .flatten()
+        };
+        if let Some((at, entry)) = self.acks.iter().enumerate().rev().find_map(|(at, a)| entry_of(a).map(|e| (at, e))) {
+            let ack = &mut self.acks[at];
+            ack.payload.drain(entry * ACK_ENTRY_LEN..(entry + 1) * ACK_ENTRY_LEN);
+            if ack.payload.is_empty() {
+                self.acks.remove(at);
+                self.stats.ack_frames -= 1;
+            }
             self.stats.acks_sent -= 1;
         }
     }
@@ -346,8 +401,9 @@ mod tests {
         let mut rx = CommLayer::new(CommConfig::default());
         pass(rx.inbound(data(1, b"hello"), Time::ZERO));
         assert_eq!(rx.inbound(data(1, b"hello"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
-        assert!(rx.poll_transmit(Time::ZERO).unwrap().header.flags.contains(Flags::ACK));
-        assert!(rx.poll_transmit(Time::ZERO).unwrap().header.flags.contains(Flags::ACK));
+        let ack = rx.poll_transmit(Time::ZERO).unwrap();
+        assert!(ack.header.flags.contains(Flags::ACK));
+        assert_eq!(ack.payload.len(), 2 * ACK_ENTRY_LEN, "the repeat is acknowledged again");
         assert!(rx.poll_transmit(Time::ZERO).is_none());
     }
 
@@ -424,6 +480,59 @@ mod tests {
         rx.rejected_above(MsgId(1), "a", Reason::Stale);
         assert!(rx.poll_transmit(Time::ZERO).is_some());
         assert_eq!(rx.inbound(data(1, b"genuine"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+    }
+
+    #[test]
+    fn acknowledgements_of_a_burst_share_frames() {
+        let mut tx = CommLayer::new(CommConfig::default());
+        let mut rx = CommLayer::new(CommConfig::default());
+        let n = ACKS_PER_FRAME as u64 + 2;
+        for id in 0..n {
+            // Payloads shorter and longer than the echo.
+            let sent = pass(tx.outbound(data(id, &b"0123456789abcdefghij"[..(id % 20) as usize + 1]), Time::ZERO));
+            pass(rx.inbound(sent, Time::ZERO));
+        }
+        // Another sender's acknowledgement goes in its own frame.
+        pass(rx.inbound(Envelope::new(MsgId(1), "c", "b", b"x".to_vec()), Time::ZERO));
+        let frames: Vec<_> = std::iter::from_fn(|| rx.poll_transmit(Time::ZERO)).collect();
+        let sizes: Vec<_> = frames.iter().map(|f| (f.header.receiver.as_str(), f.payload.len() / ACK_ENTRY_LEN)).collect();
+        assert_eq!(sizes, [("a", ACKS_PER_FRAME), ("a", 2), ("c", 1)]);
+        assert_eq!((rx.stats().acks_sent, rx.stats().ack_frames), (n + 1, 3));
+        for f in frames.into_iter().take(2) {
+            assert_eq!(tx.inbound(f, Time::ZERO), Verdict::Consumed);
+        }
+        assert_eq!(tx.in_flight(), 0);
+        assert_eq!(tx.stats().acks_matched, n);
+    }
+
+    #[test]
+    fn withdrawn_acknowledgement_leaves_the_others_in_its_frame() {
+        let mut tx = CommLayer::new(CommConfig::default());
+        let mut rx = CommLayer::new(CommConfig::default());
+        for id in 1..=3 {
+            pass(rx.inbound(pass(tx.outbound(data(id, b"payload"), Time::ZERO)), Time::ZERO));
+        }
+        rx.rejected_above(MsgId(2), "a", Reason::BadTag);
+        let ack = rx.poll_transmit(Time::ZERO).unwrap();
+        assert!(rx.poll_transmit(Time::ZERO).is_none());
+        assert_eq!(tx.inbound(ack, Time::ZERO), Verdict::Consumed);
+        assert_eq!(tx.in_flight(), 1, "message 2 is still unacknowledged");
+        assert_eq!(tx.stats().acks_matched, 2);
+    }
+
+    #[test]
+    fn ack_with_a_wrong_echo_in_a_shared_frame_matches_only_the_others() {
+        let mut tx = CommLayer::new(CommConfig::default());
+        let mut rx = CommLayer::new(CommConfig::default());
+        pass(rx.inbound(pass(tx.outbound(data(1, b"first"), Time::ZERO)), Time::ZERO));
+        pass(rx.inbound(pass(tx.outbound(data(2, b"second"), Time::ZERO)), Time::ZERO));
+        let mut ack = rx.poll_transmit(Time::ZERO).unwrap();
+        let last = ack.payload.len() - 1;
+        ack.payload[last] ^= 1;
+        ack.payload.push(0);
+        assert_eq!(tx.inbound(ack, Time::ZERO), Verdict::Consumed);
+        assert_eq!(tx.in_flight(), 1);
+        assert_eq!((tx.stats().acks_matched, tx.stats().acks_stray), (1, 2), "a wrong echo, a short entry");
     }
 
     #[test]
