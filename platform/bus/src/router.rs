@@ -33,13 +33,13 @@
 //! at the latest when the lease runs out).
 
 use std::cell::RefCell;
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, RwLock, TryLockError, Weak};
 use std::task::{Context, Poll, Wake, Waker};
 use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
+use rustc_hash::FxHashMap;
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
@@ -208,9 +208,11 @@ struct Inner {
     transport: Arc<dyn FrameTransport>,
     clock: Clock,
     config: BusConfig,
-    local: RwLock<HashMap<String, mpsc::Sender<Envelope>>>,
+    /// Local agents' mailboxes. Names are put in by the platform only (frames merely look them
+    /// up), so the map uses a fast unkeyed hash, as does `routes`.
+    local: RwLock<FxHashMap<String, mpsc::Sender<Envelope>>>,
     /// Shared addresses: sending takes one without copying it.
-    routes: RwLock<HashMap<String, Arc<PeerAddr>>>,
+    routes: RwLock<FxHashMap<String, Arc<PeerAddr>>>,
     ids: Mutex<IdGen>,
     /// Set by shutdown, or when a transport receive fails: nobody receives any more.
     stop: AtomicBool,
@@ -251,8 +253,8 @@ impl Bus {
             transport,
             clock,
             config,
-            local: RwLock::new(HashMap::new()),
-            routes: RwLock::new(HashMap::new()),
+            local: RwLock::default(),
+            routes: RwLock::default(),
             ids: Mutex::new(IdGen::new()),
             stop: AtomicBool::new(false),
             pump_role: Mutex::new(()),
@@ -314,11 +316,10 @@ impl Bus {
 
     /// Sends a prepared envelope (its id must be fresh for its sender).
     pub fn send_envelope(&self, env: Envelope) -> Result<(), BusError> {
-        let receiver = &env.header.receiver;
-        if !self.inner.is_local(receiver) && self.inner.route(receiver).is_none() {
+        let Some(destination) = self.inner.destination(&env.header.receiver) else {
             lock(&self.inner.stack).record(Reason::NoRoute);
             return Err(BusError::NoRoute { receiver: env.header.receiver });
-        }
+        };
         // One lock for the message: down the stack, back up for a local receiver, and whatever
         // the layers originate meanwhile; delivery and sending happen after it is released.
         let mut out = Outcome::default();
@@ -326,13 +327,13 @@ impl Bus {
             let mut stack = lock(&self.inner.stack);
             let now = self.inner.clock.now();
             let remote = match stack.outbound(env, now) {
-                Verdict::Pass(env) => self.inner.route_locked(&mut stack, env, now, &mut out.deliver),
+                Verdict::Pass(env) => Inner::route_locked(&mut stack, destination, env, now, &mut out.deliver),
                 Verdict::Drop(_) | Verdict::Consumed => None,
             };
             self.inner.collect_locked(&mut stack, now, &mut out);
             remote
         };
-        let sent = remote.map_or(Ok(()), |env| self.inner.send_remote(env));
+        let sent = remote.map_or(Ok(()), |(addr, env)| self.inner.send_remote(&addr, &env));
         self.inner.finish(out);
         sent
     }
@@ -363,32 +364,46 @@ impl Drop for Bus {
 }
 
 impl Inner {
-    fn is_local(&self, agent: &str) -> bool {
-        self.local.read().unwrap_or_else(PoisonError::into_inner).contains_key(agent)
-    }
-
-    fn route(&self, agent: &str) -> Option<Arc<PeerAddr>> {
-        self.routes.read().unwrap_or_else(PoisonError::into_inner).get(agent).cloned()
+    /// Where envelopes for `agent` go: its local mailbox, else its route; `None` without either.
+    fn destination(&self, agent: &str) -> Option<Destination> {
+        if self.local.read().unwrap_or_else(PoisonError::into_inner).contains_key(agent) {
+            return Some(Destination::Local);
+        }
+        self.routes.read().unwrap_or_else(PoisonError::into_inner).get(agent).cloned().map(Destination::Remote)
     }
 
     /// An envelope that passed the stack outbound (the stack is locked): run it back up for a
-    /// local receiver (queued in `deliver` if it passes), or hand it back to be sent. `now` is
-    /// the time read once for the whole locked pass (a clock read costs as much as a layer).
-    fn route_locked(&self, stack: &mut Stack, env: Envelope, now: Time, deliver: &mut Vec<Envelope>) -> Option<Envelope> {
-        if self.is_local(&env.header.receiver) {
-            if let Verdict::Pass(env) = stack.inbound(env, now) {
-                deliver.push(env);
+    /// local receiver (queued in `deliver` if it passes), or hand it back with its address to be
+    /// sent. `now` is the time read once for the whole locked pass (a clock read costs as much
+    /// as a layer).
+    fn route_locked(
+        stack: &mut Stack,
+        destination: Destination,
+        env: Envelope,
+        now: Time,
+        deliver: &mut Vec<Envelope>,
+    ) -> Option<(Arc<PeerAddr>, Envelope)> {
+        match destination {
+            Destination::Local => {
+                if let Verdict::Pass(env) = stack.inbound(env, now) {
+                    deliver.push(env);
+                }
+                None
             }
-            return None;
+            Destination::Remote(addr) => Some((addr, env)),
         }
-        Some(env)
     }
 
     /// Takes everything the layers originated that is due at `now` (the stack is locked).
     fn collect_locked(&self, stack: &mut Stack, now: Time, out: &mut Outcome) {
         while let Some(env) = stack.poll_transmit(now) {
-            if let Some(env) = self.route_locked(stack, env, now, &mut out.deliver) {
-                out.send.push(env);
+            let Some(destination) = self.destination(&env.header.receiver) else {
+                tracing::debug!(receiver = %env.header.receiver, "layer-originated frame has no route");
+                stack.record(Reason::NoRoute);
+                continue;
+            };
+            if let Some(remote) = Self::route_locked(stack, destination, env, now, &mut out.deliver) {
+                out.send.push(remote);
             }
         }
     }
@@ -398,23 +413,19 @@ impl Inner {
         for env in out.deliver {
             self.deliver(env);
         }
-        for env in out.send {
-            if let Err(e) = self.send_remote(env) {
+        for (addr, env) in out.send {
+            if let Err(e) = self.send_remote(&addr, &env) {
                 tracing::warn!(error = %e, "layer-originated frame not sent");
             }
         }
     }
 
     /// Encodes an envelope for a remote receiver and hands it to the transport.
-    fn send_remote(&self, env: Envelope) -> Result<(), BusError> {
-        let Some(addr) = self.route(&env.header.receiver) else {
-            lock(&self.stack).record(Reason::NoRoute);
-            return Err(BusError::NoRoute { receiver: env.header.receiver });
-        };
+    fn send_remote(&self, addr: &PeerAddr, env: &Envelope) -> Result<(), BusError> {
         // This thread's frame buffer; a fresh one while the thread is being torn down.
         FRAME
-            .try_with(|frame| self.encode_and_send(&addr, &env, &mut frame.borrow_mut()))
-            .unwrap_or_else(|_| self.encode_and_send(&addr, &env, &mut Vec::new()))
+            .try_with(|frame| self.encode_and_send(addr, env, &mut frame.borrow_mut()))
+            .unwrap_or_else(|_| self.encode_and_send(addr, env, &mut Vec::new()))
     }
 
     fn encode_and_send(&self, addr: &PeerAddr, env: &Envelope, frame: &mut Vec<u8>) -> Result<(), BusError> {
@@ -605,6 +616,14 @@ const MAX_BATCH: usize = 64;
 #[derive(Default)]
 struct Outcome {
     deliver: Vec<Envelope>,
-    send: Vec<Envelope>,
+    send: Vec<(Arc<PeerAddr>, Envelope)>,
+}
+
+/// Where the envelopes for one agent go.
+enum Destination {
+    /// Its mailbox on this bus.
+    Local,
+    /// The endpoint of its route.
+    Remote(Arc<PeerAddr>),
 }
 
