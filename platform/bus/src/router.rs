@@ -101,13 +101,23 @@ impl Mailbox {
     /// The calling thread receives from the transport itself while it waits (see the module
     /// documentation). Not from inside an async runtime: it would block the runtime's thread.
     pub fn blocking_recv(&mut self) -> Option<Envelope> {
-        self.recv_until(None)
+        self.recv_within(None)
     }
 
     /// As [`Mailbox::blocking_recv`], giving up after `timeout` (`None` then too).
     pub fn recv_timeout(&mut self, timeout: Duration) -> Option<Envelope> {
-        // A timeout beyond what `Instant` can represent is no timeout.
-        self.recv_until(Instant::now().checked_add(timeout))
+        self.recv_within(Some(timeout))
+    }
+
+    /// An envelope already waiting, without reading the clock (a busy agent's usual case); else
+    /// [`Mailbox::recv_until`] the end of `timeout` (`None`: no timeout).
+    fn recv_within(&mut self, timeout: Option<Duration>) -> Option<Envelope> {
+        match self.rx.try_recv() {
+            Ok(env) => Some(env),
+            Err(TryRecvError::Disconnected) => None,
+            // A timeout beyond what `Instant` can represent is no timeout.
+            Err(TryRecvError::Empty) => self.recv_until(timeout.and_then(|t| Instant::now().checked_add(t))),
+        }
     }
 
     /// Leads the pump, or follows, until an envelope is here, the stream ends or `deadline`.
