@@ -158,19 +158,19 @@ impl Link {
     }
 
     /// Runs `env` down `side`'s stack at `now` and returns the frame it would send (not sent).
-    pub fn seal(&mut self, side: Side, env: Envelope, now: Time) -> Option<Vec<u8>> {
+    pub fn seal(&mut self, side: Side, mut env: Envelope, now: Time) -> Option<Vec<u8>> {
         let codec = self.codec;
-        match self.end(side).stack.outbound(env, now) {
-            Verdict::Pass(env) => codec.encode_to_vec(&env).ok(),
+        match self.end(side).stack.outbound(&mut env, now) {
+            Verdict::Pass => codec.encode_to_vec(&env).ok(),
             _ => None,
         }
     }
 
     /// Sends a prepared envelope from `side` through its stack.
-    pub fn send_envelope(&mut self, side: Side, env: Envelope, now: Time) {
+    pub fn send_envelope(&mut self, side: Side, mut env: Envelope, now: Time) {
         let codec = self.codec;
         let end = self.end(side);
-        if let Verdict::Pass(env) = end.stack.outbound(env, now) {
+        if let Verdict::Pass = end.stack.outbound(&mut env, now) {
             let to = iw_bus::transport::PeerAddr(env.header.receiver.clone());
             let frame = codec.encode_to_vec(&env).expect("layers make encodable envelopes");
             // A receiver without an endpoint is a lost frame, as on a real network.
@@ -197,8 +197,8 @@ impl Link {
             while let Ok(Some((_, frame))) = end.transport.recv_timeout(Duration::ZERO) {
                 moved = true;
                 match codec.decode_datagram(&frame) {
-                    Ok(env) => {
-                        if let Verdict::Pass(env) = end.stack.inbound(env, now) {
+                    Ok(mut env) => {
+                        if let Verdict::Pass = end.stack.inbound(&mut env, now) {
                             end.delivered.push(env);
                         }
                     }

@@ -541,8 +541,8 @@ fn udp_system_corruption_insertion_delay_masquerade_repetition_rejected() {
         let m = rogue.node(&["a"]).expect("identity");
         rogue.register("b", [0; 32]);
         let mut stack = rogue.stack(&m, &StackConfig::with_layers("security".parse().expect("layers")));
-        let env = Envelope::new(iw_bus::MsgId(2), "a", "b", acl("a", "b", 10_001));
-        let _ = iw_bus::Layer::outbound(&mut stack, env, Clock::system().now());
+        let mut env = Envelope::new(iw_bus::MsgId(2), "a", "b", acl("a", "b", 10_001));
+        let _ = iw_bus::Layer::outbound(&mut stack, &mut env, Clock::system().now());
         while let Some(hello) = iw_bus::Layer::poll_transmit(&mut stack, Clock::system().now()) {
             socket.send_to(&codec.encode_to_vec(&hello).expect("encodable"), peer).expect("send");
         }

@@ -84,7 +84,7 @@ impl Flags {
 }
 
 /// The fields every layer reads; all of them are bound to the payload by the security layer.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Header {
     /// Unique per sender (communication layer).
     pub id: MsgId,
@@ -105,8 +105,9 @@ pub struct Header {
 /// Length of an Ed25519 signature, bytes.
 pub const SIGNATURE_LEN: usize = 64;
 
-/// One message on the bus.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// One message on the bus. The default (id 0, no names, empty payload) is what a layer leaves
+/// behind when it takes an envelope it keeps ([`std::mem::take`]).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Envelope {
     /// Routing, ordering and freshness fields.
     pub header: Header,

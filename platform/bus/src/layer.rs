@@ -1,8 +1,16 @@
 //! The layer trait, the verdicts and rejection reasons, and the [`Stack`] that chains layers.
 //!
 //! A layer sees each envelope twice: on the way down ([`Layer::outbound`], agent to transport)
-//! and on the way up ([`Layer::inbound`], transport to agent). It passes it on, possibly
-//! transformed, drops it with a [`Reason`], or consumes it (acknowledgements, handshakes).
+//! and on the way up ([`Layer::inbound`], transport to agent). It borrows the envelope, may
+//! transform it in place, and answers with a [`Verdict`]: pass it on, drop it with a [`Reason`],
+//! or consume it (acknowledgements, handshakes). The envelope stays its caller's, who forwards it
+//! only on [`Verdict::Pass`]; a layer that keeps an envelope (held until a key is agreed) takes
+//! it out with [`std::mem::take`], and one that needs a copy (for retransmission) clones it.
+//!
+//! On the way up a layer leaves the id and the sender as they arrived (the security layer binds
+//! them to the payload, which it opens in place): after a drop, the layers below are told them
+//! ([`Layer::rejected_above`]) and must recognise the frame they saw.
+//!
 //! Frames a layer originates itself (acknowledgements, retransmissions, held messages released
 //! after a key agreement) wait in its outbox until [`Layer::poll_transmit`] hands them on; a
 //! [`Stack`] sends them down through the layers below the one that made them.
@@ -16,16 +24,19 @@ use crate::BusError;
 use crate::envelope::{Envelope, MsgId};
 use crate::time::Time;
 
-/// What a layer decided about one envelope.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// What a layer decided about the envelope it was lent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[must_use]
 pub enum Verdict {
-    /// Hand it to the next layer (or the transport, or the agent).
-    Pass(Envelope),
-    /// Rejected: never delivered, counted under the reason.
+    /// Hand the envelope, as the layer left it, to the next layer (or the transport, or the
+    /// agent).
+    Pass,
+    /// Rejected: never delivered, counted under the reason. The envelope is left in place (its
+    /// id and sender as they arrived, see [`Layer::rejected_above`]), for the caller to discard.
     Drop(Reason),
     /// Used by the layer itself (an acknowledgement, a handshake, a message held until a key is
-    /// agreed): not a rejection, not counted.
+    /// agreed): not a rejection, not counted. The layer may have taken the envelope, leaving a
+    /// default one for the caller to discard.
     Consumed,
 }
 
@@ -208,10 +219,11 @@ impl std::fmt::Display for Counters {
 pub trait Layer: Send {
     /// A short name for logs ("comm", "security", ...).
     fn name(&self) -> &'static str;
-    /// An envelope on its way from an agent to the transport.
-    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict;
-    /// An envelope on its way from the transport to an agent.
-    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict;
+    /// An envelope on its way from an agent to the transport, transformed in place.
+    fn outbound(&mut self, env: &mut Envelope, now: Time) -> Verdict;
+    /// An envelope on its way from the transport to an agent, transformed in place (payload,
+    /// flags, signature, `authenticated`; never the id or the sender).
+    fn inbound(&mut self, env: &mut Envelope, now: Time) -> Verdict;
     /// The next frame this layer originates (acknowledgement, retransmission, released message),
     /// due at or before `now`; `None` when there is nothing to send now.
     fn poll_transmit(&mut self, _now: Time) -> Option<Envelope> {
@@ -245,11 +257,11 @@ impl Layer for PassThrough {
     fn name(&self) -> &'static str {
         "pass-through"
     }
-    fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        Verdict::Pass(env)
+    fn outbound(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+        Verdict::Pass
     }
-    fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        Verdict::Pass(env)
+    fn inbound(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+        Verdict::Pass
     }
     fn originates(&self) -> bool {
         false
@@ -306,28 +318,29 @@ impl Stack {
         self.counters.record(reason);
     }
 
-    fn down_from(&mut self, first: usize, mut env: Envelope, now: Time) -> Option<Envelope> {
+    /// Runs `env` down the layers from `first`: true if it passed them all (a drop is counted).
+    fn down_from(&mut self, first: usize, env: &mut Envelope, now: Time) -> bool {
         for i in first..self.layers.len() {
             match self.layers[i].outbound(env, now) {
-                Verdict::Pass(e) => env = e,
+                Verdict::Pass => {}
                 Verdict::Drop(r) => {
                     tracing::debug!(layer = self.layers[i].name(), reason = %r, "outbound drop");
                     self.counters.record(r);
-                    return None;
+                    return false;
                 }
-                Verdict::Consumed => return None,
+                Verdict::Consumed => return false,
             }
         }
-        Some(env)
+        true
     }
 
-    /// Layer `i` dropped an inbound envelope: count it and tell the layers below.
+    /// Layer `i` dropped an inbound envelope (`id` from `sender`, as it arrived): count it and
+    /// tell the layers below.
     #[cold]
     #[inline(never)]
-    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: Option<&SavedName>, r: Reason) {
+    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: &str, r: Reason) {
         tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
         self.counters.record(r);
-        let sender = sender.map_or("", SavedName::as_str);
         for below in &mut self.layers[i + 1..] {
             below.rejected_above(id, sender, r);
         }
@@ -336,8 +349,8 @@ impl Stack {
     fn collect_transmits(&mut self, now: Time) {
         for k in 0..self.originating.len() {
             let i = self.originating[k];
-            while let Some(env) = self.layers[i].poll_transmit(now) {
-                if let Some(env) = self.down_from(i + 1, env, now) {
+            while let Some(mut env) = self.layers[i].poll_transmit(now) {
+                if self.down_from(i + 1, &mut env, now) {
                     self.outbox.push_back(env);
                 }
             }
@@ -350,26 +363,24 @@ impl Layer for Stack {
     fn name(&self) -> &'static str {
         "stack"
     }
-    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
-        match self.down_from(0, env, now) {
-            Some(env) => Verdict::Pass(env),
-            None => Verdict::Consumed,
-        }
+    /// A drop is counted here and reported as [`Verdict::Consumed`] (nothing to forward).
+    fn outbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
+        if self.down_from(0, env, now) { Verdict::Pass } else { Verdict::Consumed }
     }
-    fn inbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
-        // Needed only if a dropping layer has layers below it.
-        let (id, sender) = (env.header.id, (self.layers.len() > 1).then(|| SavedName::of(&env.header.sender)));
+    fn inbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         for i in (0..self.layers.len()).rev() {
             match self.layers[i].inbound(env, now) {
-                Verdict::Pass(e) => env = e,
+                Verdict::Pass => {}
                 Verdict::Drop(r) => {
-                    self.inbound_dropped(i, id, sender.as_ref(), r);
+                    // The layers leave the id and the sender as they arrived (see `Layer`):
+                    // these are what the layers below saw.
+                    self.inbound_dropped(i, env.header.id, &env.header.sender, r);
                     return Verdict::Drop(r);
                 }
                 Verdict::Consumed => return Verdict::Consumed,
             }
         }
-        Verdict::Pass(env)
+        Verdict::Pass
     }
     fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
         if self.outbox.is_empty() {
@@ -382,37 +393,6 @@ impl Layer for Stack {
             return Some(Time::ZERO);
         }
         self.layers.iter().filter_map(|l| l.next_deadline()).min()
-    }
-}
-
-/// A copy of a sender's name kept while the envelope goes up the layers (a layer that drops it
-/// consumes it, and the layers below must still be told whose it was): on the stack for the
-/// usual short names, so the common path does not allocate.
-enum SavedName {
-    Short { bytes: [u8; SavedName::SHORT], len: u8 },
-    Long(String),
-}
-
-impl SavedName {
-    const SHORT: usize = 64;
-
-    fn of(name: &str) -> SavedName {
-        match u8::try_from(name.len()) {
-            Ok(len) if name.len() <= SavedName::SHORT => {
-                let mut bytes = [0u8; SavedName::SHORT];
-                bytes[..name.len()].copy_from_slice(name.as_bytes());
-                SavedName::Short { bytes, len }
-            }
-            _ => SavedName::Long(name.to_owned()),
-        }
-    }
-
-    fn as_str(&self) -> &str {
-        match self {
-            // A whole `str` copied byte for byte: always valid UTF-8.
-            SavedName::Short { bytes, len } => std::str::from_utf8(&bytes[..usize::from(*len)]).unwrap_or_default(),
-            SavedName::Long(name) => name,
-        }
     }
 }
 
@@ -518,12 +498,12 @@ mod tests {
         fn name(&self) -> &'static str {
             "picky"
         }
-        fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+        fn outbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
             self.echo = Some(env.clone());
-            Verdict::Pass(env)
+            Verdict::Pass
         }
-        fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-            if env.payload.first() == Some(&b'x') { Verdict::Drop(Reason::Malformed) } else { Verdict::Pass(env) }
+        fn inbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
+            if env.payload.first() == Some(&b'x') { Verdict::Drop(Reason::Malformed) } else { Verdict::Pass }
         }
         fn poll_transmit(&mut self, _now: Time) -> Option<Envelope> {
             self.echo.take()
@@ -536,12 +516,12 @@ mod tests {
         fn name(&self) -> &'static str {
             "mark"
         }
-        fn outbound(&mut self, mut env: Envelope, _now: Time) -> Verdict {
+        fn outbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
             env.payload.push(self.0);
-            Verdict::Pass(env)
+            Verdict::Pass
         }
-        fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-            Verdict::Pass(env)
+        fn inbound(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+            Verdict::Pass
         }
     }
 
@@ -552,14 +532,15 @@ mod tests {
     #[test]
     fn stack_orders_counts_and_forwards_transmits_below_origin() {
         let mut s = Stack::new().push(Mark(b'1')).push(Picky { echo: None }).push(Mark(b'2'));
-        let Verdict::Pass(out) = s.outbound(env(b"m"), Time::ZERO) else { panic!() };
+        let mut out = env(b"m");
+        assert_eq!(s.outbound(&mut out, Time::ZERO), Verdict::Pass);
         assert_eq!(out.payload, b"m12");
         // The echo was made by the middle layer: it passes only the layer below it.
         // (not "m112": it does not pass the layer above its origin again).
         assert_eq!(s.poll_transmit(Time::ZERO).unwrap().payload, b"m12");
         assert!(s.poll_transmit(Time::ZERO).is_none());
-        assert_eq!(s.inbound(env(b"x"), Time::ZERO), Verdict::Drop(Reason::Malformed));
-        assert!(matches!(s.inbound(env(b"ok"), Time::ZERO), Verdict::Pass(_)));
+        assert_eq!(s.inbound(&mut env(b"x"), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert_eq!(s.inbound(&mut env(b"ok"), Time::ZERO), Verdict::Pass);
         assert_eq!(s.counters().get(Reason::Malformed), 1);
         assert_eq!(s.counters().to_string(), "malformed=1");
     }
@@ -567,9 +548,12 @@ mod tests {
     #[test]
     fn pass_through_and_empty_stack_pass() {
         let mut p = PassThrough;
-        assert_eq!(p.inbound(env(b"a"), Time::ZERO), Verdict::Pass(env(b"a")));
+        let mut e = env(b"a");
+        assert_eq!(p.inbound(&mut e, Time::ZERO), Verdict::Pass);
+        assert_eq!(e, env(b"a"));
         let mut s = Stack::new();
-        assert_eq!(s.outbound(env(b"a"), Time::ZERO), Verdict::Pass(env(b"a")));
+        assert_eq!(s.outbound(&mut e, Time::ZERO), Verdict::Pass);
+        assert_eq!(e, env(b"a"));
     }
 
     #[test]

@@ -325,7 +325,7 @@ impl Bus {
     }
 
     /// Sends a prepared envelope (its id must be fresh for its sender).
-    pub fn send_envelope(&self, env: Envelope) -> Result<(), BusError> {
+    pub fn send_envelope(&self, mut env: Envelope) -> Result<(), BusError> {
         let Some(destination) = self.inner.destination(&env.header.receiver) else {
             lock(&self.inner.stack).record(Reason::NoRoute);
             return Err(BusError::NoRoute { receiver: env.header.receiver });
@@ -336,8 +336,8 @@ impl Bus {
         let remote = {
             let mut stack = lock(&self.inner.stack);
             let now = self.inner.clock.now();
-            let remote = match stack.outbound(env, now) {
-                Verdict::Pass(env) => Inner::route_locked(&mut stack, destination, env, now, &mut out.deliver),
+            let remote = match stack.outbound(&mut env, now) {
+                Verdict::Pass => Inner::route_locked(&mut stack, destination, env, now, &mut out.deliver),
                 Verdict::Drop(_) | Verdict::Consumed => None,
             };
             self.inner.collect_locked(&mut stack, now, &mut out);
@@ -389,13 +389,13 @@ impl Inner {
     fn route_locked(
         stack: &mut Stack,
         destination: Destination,
-        env: Envelope,
+        mut env: Envelope,
         now: Time,
         deliver: &mut Vec<Envelope>,
     ) -> Option<(Arc<PeerAddr>, Envelope)> {
         match destination {
             Destination::Local => {
-                if let Verdict::Pass(env) = stack.inbound(env, now) {
+                if let Verdict::Pass = stack.inbound(&mut env, now) {
                     deliver.push(env);
                 }
                 None
@@ -569,8 +569,8 @@ impl Inner {
             let now = self.clock.now();
             for (from, env) in decoded {
                 match env {
-                    Ok(env) => {
-                        if let Verdict::Pass(env) = stack.inbound(env, now) {
+                    Ok(mut env) => {
+                        if let Verdict::Pass = stack.inbound(&mut env, now) {
                             out.deliver.push(env);
                         }
                     }

@@ -216,11 +216,11 @@ impl Layer for Ticker {
     fn name(&self) -> &'static str {
         "ticker"
     }
-    fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        Verdict::Pass(env)
+    fn outbound(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+        Verdict::Pass
     }
-    fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        Verdict::Pass(env)
+    fn inbound(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+        Verdict::Pass
     }
     fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
         if now < self.next {
@@ -321,14 +321,14 @@ impl Layer for Acker {
     fn name(&self) -> &'static str {
         "acker"
     }
-    fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        Verdict::Pass(env)
+    fn outbound(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+        Verdict::Pass
     }
-    fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+    fn inbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
         if env.payload != b"ack" {
             self.pending.push(Envelope::new(env.header.id, env.header.receiver.clone(), env.header.sender.clone(), b"ack".to_vec()));
         }
-        Verdict::Pass(env)
+        Verdict::Pass
     }
     fn poll_transmit(&mut self, _now: Time) -> Option<Envelope> {
         self.pending.pop()

@@ -271,9 +271,9 @@ impl Layer for CommLayer {
         "comm"
     }
 
-    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
+    fn outbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         if env.header.flags.contains(Flags::ACK) {
-            return Verdict::Pass(env);
+            return Verdict::Pass;
         }
         let limit = self.limit_for(&env.header.receiver);
         if env.payload.len() > limit {
@@ -283,16 +283,16 @@ impl Layer for CommLayer {
         let next_at = now.plus(self.config.rto(1));
         self.earliest = if self.in_flight.is_empty() { next_at } else { self.earliest.min(next_at) };
         self.in_flight.insert(env.header.id, Pending { env: env.clone(), next_at, attempts: 1 });
-        Verdict::Pass(env)
+        Verdict::Pass
     }
 
-    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict {
+    fn inbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         if env.header.flags.contains(Flags::ACK) {
-            self.on_ack(&env);
+            self.on_ack(env);
             return Verdict::Consumed;
         }
         // Acknowledge first: the sender must stop retransmitting even what we then reject.
-        self.queue_ack(&env, now);
+        self.queue_ack(env, now);
         if !self.remember(&env.header.sender, env.header.id) {
             return Verdict::Drop(Reason::Duplicate);
         }
@@ -301,7 +301,7 @@ impl Layer for CommLayer {
             tracing::debug!(receiver = %env.header.receiver, len = env.payload.len(), limit, "inbound too large");
             return Verdict::Drop(Reason::TooLarge);
         }
-        Verdict::Pass(env)
+        Verdict::Pass
     }
 
     fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {
@@ -389,9 +389,18 @@ mod tests {
         Envelope::new(MsgId(id), "a", "b", payload.to_vec())
     }
 
-    fn pass(v: Verdict) -> Envelope {
-        match v {
-            Verdict::Pass(e) => e,
+    /// `env` as `layer` passed it outbound.
+    fn pass_out(layer: &mut CommLayer, mut env: Envelope, now: Time) -> Envelope {
+        match layer.outbound(&mut env, now) {
+            Verdict::Pass => env,
+            other => panic!("expected pass, got {other:?}"),
+        }
+    }
+
+    /// `env` as `layer` passed it inbound.
+    fn pass_in(layer: &mut CommLayer, mut env: Envelope, now: Time) -> Envelope {
+        match layer.inbound(&mut env, now) {
+            Verdict::Pass => env,
             other => panic!("expected pass, got {other:?}"),
         }
     }
@@ -399,8 +408,8 @@ mod tests {
     #[test]
     fn duplicate_dropped_but_reacknowledged() {
         let mut rx = CommLayer::new(CommConfig::default());
-        pass(rx.inbound(data(1, b"hello"), Time::ZERO));
-        assert_eq!(rx.inbound(data(1, b"hello"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        pass_in(&mut rx, data(1, b"hello"), Time::ZERO);
+        assert_eq!(rx.inbound(&mut data(1, b"hello"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
         let ack = rx.poll_transmit(Time::ZERO).unwrap();
         assert!(ack.header.flags.contains(Flags::ACK));
         assert_eq!(ack.payload.len(), 2 * ACK_ENTRY_LEN, "the repeat is acknowledged again");
@@ -411,11 +420,11 @@ mod tests {
     fn window_is_bounded() {
         let mut rx = CommLayer::new(CommConfig { dedup_window: 2, ..CommConfig::default() });
         for id in 1..=3 {
-            pass(rx.inbound(data(id, b"x"), Time::ZERO));
+            pass_in(&mut rx, data(id, b"x"), Time::ZERO);
         }
         // Id 1 left the window: recognised no more (the temporal layer catches such replays).
-        pass(rx.inbound(data(1, b"x"), Time::ZERO));
-        assert_eq!(rx.inbound(data(3, b"x"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        pass_in(&mut rx, data(1, b"x"), Time::ZERO);
+        assert_eq!(rx.inbound(&mut data(3, b"x"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
     }
 
     #[test]
@@ -423,7 +432,7 @@ mod tests {
         let cfg = CommConfig { initial_rto: Duration::from_millis(10), max_rto: Duration::from_millis(40), ..CommConfig::default() };
         let mut tx = CommLayer::new(cfg);
         let mut rx = CommLayer::new(CommConfig::default());
-        let sent = pass(tx.outbound(data(7, b"payload"), Time::ZERO));
+        let sent = pass_out(&mut tx, data(7, b"payload"), Time::ZERO);
         let ms = |m| Time::ZERO.plus(Duration::from_millis(m));
         assert!(tx.poll_transmit(ms(9)).is_none());
         assert_eq!(tx.next_deadline(), Some(ms(10)));
@@ -431,9 +440,9 @@ mod tests {
         assert!(tx.poll_transmit(ms(29)).is_none(), "second timeout doubles to 20 ms");
         assert_eq!(tx.poll_transmit(ms(30)).unwrap(), sent);
         assert_eq!(tx.next_deadline(), Some(ms(70)), "third timeout capped at 40 ms");
-        pass(rx.inbound(sent, ms(31)));
-        let ack = rx.poll_transmit(ms(31)).unwrap();
-        assert_eq!(tx.inbound(ack, ms(32)), Verdict::Consumed);
+        pass_in(&mut rx, sent, ms(31));
+        let mut ack = rx.poll_transmit(ms(31)).unwrap();
+        assert_eq!(tx.inbound(&mut ack, ms(32)), Verdict::Consumed);
         assert_eq!(tx.in_flight(), 0);
         assert!(tx.poll_transmit(ms(1000)).is_none());
         assert_eq!(tx.stats().retransmissions, 2);
@@ -443,7 +452,7 @@ mod tests {
     fn gives_up_and_counts_undeliverable() {
         let cfg = CommConfig { max_attempts: 3, initial_rto: Duration::from_millis(1), ..CommConfig::default() };
         let mut tx = CommLayer::new(cfg);
-        pass(tx.outbound(data(1, b"x"), Time::ZERO));
+        pass_out(&mut tx, data(1, b"x"), Time::ZERO);
         let mut t = Time::ZERO;
         let mut sends = 1;
         for _ in 0..20 {
@@ -461,10 +470,10 @@ mod tests {
     #[test]
     fn forged_ack_without_echo_is_ignored() {
         let mut tx = CommLayer::new(CommConfig::default());
-        pass(tx.outbound(data(5, b"secret tag bytes 0123456789"), Time::ZERO));
+        pass_out(&mut tx, data(5, b"secret tag bytes 0123456789"), Time::ZERO);
         let mut forged = Envelope::new(MsgId(99), "b", "a", 5u64.to_be_bytes().to_vec());
         forged.header.flags = Flags::ACK;
-        assert_eq!(tx.inbound(forged, Time::ZERO), Verdict::Consumed);
+        assert_eq!(tx.inbound(&mut forged, Time::ZERO), Verdict::Consumed);
         assert_eq!(tx.in_flight(), 1);
         assert_eq!(tx.stats().acks_stray, 1);
     }
@@ -472,14 +481,14 @@ mod tests {
     #[test]
     fn inauthentic_frame_forgotten_and_not_acknowledged() {
         let mut rx = CommLayer::new(CommConfig::default());
-        pass(rx.inbound(data(1, b"altered"), Time::ZERO));
+        pass_in(&mut rx, data(1, b"altered"), Time::ZERO);
         rx.rejected_above(MsgId(1), "a", Reason::BadTag);
         assert!(rx.poll_transmit(Time::ZERO).is_none(), "acknowledgement withdrawn");
-        pass(rx.inbound(data(1, b"genuine"), Time::ZERO));
+        pass_in(&mut rx, data(1, b"genuine"), Time::ZERO);
         // A policy rejection of an authentic frame keeps it acknowledged.
         rx.rejected_above(MsgId(1), "a", Reason::Stale);
         assert!(rx.poll_transmit(Time::ZERO).is_some());
-        assert_eq!(rx.inbound(data(1, b"genuine"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        assert_eq!(rx.inbound(&mut data(1, b"genuine"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
     }
 
     #[test]
@@ -489,17 +498,17 @@ mod tests {
         let n = ACKS_PER_FRAME as u64 + 2;
         for id in 0..n {
             // Payloads shorter and longer than the echo.
-            let sent = pass(tx.outbound(data(id, &b"0123456789abcdefghij"[..(id % 20) as usize + 1]), Time::ZERO));
-            pass(rx.inbound(sent, Time::ZERO));
+            let sent = pass_out(&mut tx, data(id, &b"0123456789abcdefghij"[..(id % 20) as usize + 1]), Time::ZERO);
+            pass_in(&mut rx, sent, Time::ZERO);
         }
         // Another sender's acknowledgement goes in its own frame.
-        pass(rx.inbound(Envelope::new(MsgId(1), "c", "b", b"x".to_vec()), Time::ZERO));
+        pass_in(&mut rx, Envelope::new(MsgId(1), "c", "b", b"x".to_vec()), Time::ZERO);
         let frames: Vec<_> = std::iter::from_fn(|| rx.poll_transmit(Time::ZERO)).collect();
         let sizes: Vec<_> = frames.iter().map(|f| (f.header.receiver.as_str(), f.payload.len() / ACK_ENTRY_LEN)).collect();
         assert_eq!(sizes, [("a", ACKS_PER_FRAME), ("a", 2), ("c", 1)]);
         assert_eq!((rx.stats().acks_sent, rx.stats().ack_frames), (n + 1, 3));
-        for f in frames.into_iter().take(2) {
-            assert_eq!(tx.inbound(f, Time::ZERO), Verdict::Consumed);
+        for mut f in frames.into_iter().take(2) {
+            assert_eq!(tx.inbound(&mut f, Time::ZERO), Verdict::Consumed);
         }
         assert_eq!(tx.in_flight(), 0);
         assert_eq!(tx.stats().acks_matched, n);
@@ -510,12 +519,12 @@ mod tests {
         let mut tx = CommLayer::new(CommConfig::default());
         let mut rx = CommLayer::new(CommConfig::default());
         for id in 1..=3 {
-            pass(rx.inbound(pass(tx.outbound(data(id, b"payload"), Time::ZERO)), Time::ZERO));
+            pass_in(&mut rx, pass_out(&mut tx, data(id, b"payload"), Time::ZERO), Time::ZERO);
         }
         rx.rejected_above(MsgId(2), "a", Reason::BadTag);
-        let ack = rx.poll_transmit(Time::ZERO).unwrap();
+        let mut ack = rx.poll_transmit(Time::ZERO).unwrap();
         assert!(rx.poll_transmit(Time::ZERO).is_none());
-        assert_eq!(tx.inbound(ack, Time::ZERO), Verdict::Consumed);
+        assert_eq!(tx.inbound(&mut ack, Time::ZERO), Verdict::Consumed);
         assert_eq!(tx.in_flight(), 1, "message 2 is still unacknowledged");
         assert_eq!(tx.stats().acks_matched, 2);
     }
@@ -524,13 +533,13 @@ mod tests {
     fn ack_with_a_wrong_echo_in_a_shared_frame_matches_only_the_others() {
         let mut tx = CommLayer::new(CommConfig::default());
         let mut rx = CommLayer::new(CommConfig::default());
-        pass(rx.inbound(pass(tx.outbound(data(1, b"first"), Time::ZERO)), Time::ZERO));
-        pass(rx.inbound(pass(tx.outbound(data(2, b"second"), Time::ZERO)), Time::ZERO));
+        pass_in(&mut rx, pass_out(&mut tx, data(1, b"first"), Time::ZERO), Time::ZERO);
+        pass_in(&mut rx, pass_out(&mut tx, data(2, b"second"), Time::ZERO), Time::ZERO);
         let mut ack = rx.poll_transmit(Time::ZERO).unwrap();
         let last = ack.payload.len() - 1;
         ack.payload[last] ^= 1;
         ack.payload.push(0);
-        assert_eq!(tx.inbound(ack, Time::ZERO), Verdict::Consumed);
+        assert_eq!(tx.inbound(&mut ack, Time::ZERO), Verdict::Consumed);
         assert_eq!(tx.in_flight(), 1);
         assert_eq!((tx.stats().acks_matched, tx.stats().acks_stray), (1, 2), "a wrong echo, a short entry");
     }
@@ -540,9 +549,9 @@ mod tests {
         let mut cfg = CommConfig::default();
         cfg.max_payload.insert("b".into(), 4);
         let mut rx = CommLayer::new(cfg.clone());
-        assert_eq!(rx.inbound(data(1, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
-        pass(rx.inbound(data(2, b"1234"), Time::ZERO));
+        assert_eq!(rx.inbound(&mut data(1, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
+        pass_in(&mut rx, data(2, b"1234"), Time::ZERO);
         let mut tx = CommLayer::new(cfg);
-        assert_eq!(tx.outbound(data(3, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
+        assert_eq!(tx.outbound(&mut data(3, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
     }
 }

@@ -158,18 +158,18 @@ impl Layer for ParserLayer {
         "parser"
     }
 
-    fn outbound(&mut self, env: Envelope, _now: Time) -> Verdict {
+    fn outbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
         if self.config.check_outbound
-            && let Err(r) = self.check_syntax(&env)
+            && let Err(r) = self.check_syntax(env)
         {
             return Verdict::Drop(r);
         }
-        Verdict::Pass(env)
+        Verdict::Pass
     }
 
-    fn inbound(&mut self, env: Envelope, _now: Time) -> Verdict {
-        match self.check_inbound(&env) {
-            Ok(()) => Verdict::Pass(env),
+    fn inbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
+        match self.check_inbound(env) {
+            Ok(()) => Verdict::Pass,
             Err(r) => Verdict::Drop(r),
         }
     }
@@ -207,9 +207,9 @@ mod tests {
     #[test]
     fn registered_authenticated_well_formed_passes() {
         let mut p = layer(&["a", "b"]);
-        let env = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
-        let Verdict::Pass(env) = p.outbound(env, Time::ZERO) else { panic!() };
-        assert!(matches!(p.inbound(authed(env), Time::ZERO), Verdict::Pass(_)));
+        let mut env = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
+        assert_eq!(p.outbound(&mut env, Time::ZERO), Verdict::Pass);
+        assert_eq!(p.inbound(&mut authed(env), Time::ZERO), Verdict::Pass);
     }
 
     #[test]
@@ -217,24 +217,24 @@ mod tests {
         let mut p = layer(&["a", "b"]);
         p.config.check_outbound = true;
         let good = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
-        assert_eq!(p.inbound(good.clone(), Time::ZERO), Verdict::Drop(Reason::Unauthenticated));
+        assert_eq!(p.inbound(&mut good.clone(), Time::ZERO), Verdict::Drop(Reason::Unauthenticated));
         let mut garbage = good.clone();
         garbage.payload = b"(inform :sender".to_vec();
-        assert_eq!(p.inbound(authed(garbage), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert_eq!(p.inbound(&mut authed(garbage), Time::ZERO), Verdict::Drop(Reason::Malformed));
         let mut binary = good.clone();
         binary.payload = vec![0xff, 0xfe];
-        assert_eq!(p.inbound(authed(binary), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert_eq!(p.inbound(&mut authed(binary), Time::ZERO), Verdict::Drop(Reason::Malformed));
         let stranger = envelope(MsgId(2), &acl("x", "b"), "b").unwrap();
-        assert_eq!(p.inbound(authed(stranger), Time::ZERO), Verdict::Drop(Reason::Unregistered));
+        assert_eq!(p.inbound(&mut authed(stranger), Time::ZERO), Verdict::Drop(Reason::Unregistered));
         // `a` authenticated, but the content claims to be from `b`.
         let mut masked = envelope(MsgId(3), &acl("b", "b"), "b").unwrap();
         masked.header.sender = "a".into();
-        assert_eq!(p.inbound(authed(masked), Time::ZERO), Verdict::Drop(Reason::Mismatch));
+        assert_eq!(p.inbound(&mut authed(masked), Time::ZERO), Verdict::Drop(Reason::Mismatch));
         assert!(matches!(envelope(MsgId(4), &acl("a", "c"), "b"), Err(ParserError::NotAReceiver { .. })));
         let mut misaddressed = envelope(MsgId(4), &acl("a", "c"), "c").unwrap();
         misaddressed.header.receiver = "b".into();
-        assert_eq!(p.inbound(authed(misaddressed.clone()), Time::ZERO), Verdict::Drop(Reason::Mismatch));
-        assert_eq!(p.outbound(misaddressed, Time::ZERO), Verdict::Drop(Reason::Mismatch));
+        assert_eq!(p.inbound(&mut authed(misaddressed.clone()), Time::ZERO), Verdict::Drop(Reason::Mismatch));
+        assert_eq!(p.outbound(&mut misaddressed, Time::ZERO), Verdict::Drop(Reason::Mismatch));
     }
 
     #[test]
@@ -242,8 +242,8 @@ mod tests {
         let reg = Registry::new();
         reg.insert("a");
         let mut p = ParserLayer::new(Arc::new(reg), ParserConfig { require_authenticated: false, ..Default::default() });
-        let env = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
-        assert!(matches!(p.inbound(env, Time::ZERO), Verdict::Pass(_)));
+        let mut env = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
+        assert_eq!(p.inbound(&mut env, Time::ZERO), Verdict::Pass);
     }
 
     #[test]

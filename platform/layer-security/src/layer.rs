@@ -306,7 +306,8 @@ impl SecurityLayer {
         self.config.pre_shared.get(peer).copied().or(self.config.group_key)
     }
 
-    fn seal_psk(&mut self, mut env: Envelope, psk: PreSharedKey) -> Result<Envelope, SecurityError> {
+    /// Seals `env` in place under the pre-shared key `psk`.
+    fn seal_psk(&mut self, env: &mut Envelope, psk: PreSharedKey) -> Result<(), SecurityError> {
         let (s, r) = (env.header.sender.as_str(), env.header.receiver.as_str());
         if nested_get(&self.psk_send, s, r).is_none_or(Option::is_none) {
             let salt = self.random::<SALT_LEN>()?;
@@ -316,7 +317,7 @@ impl SecurityLayer {
         let sess = nested_get_mut(&mut self.psk_send, &env.header.sender, &env.header.receiver)
             .and_then(Option::as_mut)
             .ok_or(SecurityError::KeyDerivation)?;
-        let sig = prepare(&self.config, &self.identity, &mut self.aad, &mut env, Flags::PRE_SHARED);
+        let sig = prepare(&self.config, &self.identity, &mut self.aad, env, Flags::PRE_SHARED);
         let nonce = nonce_bytes(sess.counter);
         sess.counter += 1;
         let cipher = &sess.cipher;
@@ -327,16 +328,16 @@ impl SecurityLayer {
                 .map(|tag| tag.into())
                 .map_err(|_| SecurityError::KeyDerivation)
         })?;
-        Ok(env)
+        Ok(())
     }
 
-    /// Seals `env` under the session from its sender to its receiver, if there is one
-    /// (`Err(env)` back otherwise).
-    fn seal_pk(&mut self, mut env: Envelope) -> Result<Result<Envelope, Envelope>, SecurityError> {
+    /// Seals `env` in place under the session from its sender to its receiver, if there is one
+    /// (`false`, and `env` untouched, otherwise).
+    fn seal_pk(&mut self, env: &mut Envelope) -> Result<bool, SecurityError> {
         let Some(sess) = nested_get_mut(&mut self.send, &env.header.sender, &env.header.receiver).and_then(Option::as_mut) else {
-            return Ok(Err(env));
+            return Ok(false);
         };
-        let sig = prepare(&self.config, &self.identity, &mut self.aad, &mut env, Flags::NONE);
+        let sig = prepare(&self.config, &self.identity, &mut self.aad, env, Flags::NONE);
         let nonce = nonce_bytes(sess.counter);
         sess.counter += 1;
         let key = &sess.key;
@@ -347,7 +348,7 @@ impl SecurityLayer {
                 .map_err(|_| SecurityError::KeyDerivation)?;
             tag.as_ref().try_into().map_err(|_| SecurityError::KeyDerivation)
         })?;
-        Ok(Ok(env))
+        Ok(true)
     }
 
     fn handshake_env(&mut self, sender: &str, receiver: &str, payload: Vec<u8>, now: Time) -> Envelope {
@@ -379,11 +380,10 @@ impl SecurityLayer {
         Ok(())
     }
 
-    fn outbound_pk(&mut self, env: Envelope, now: Time) -> Result<Verdict, SecurityError> {
-        let env = match self.seal_pk(env)? {
-            Ok(sealed) => return Ok(Verdict::Pass(sealed)),
-            Err(env) => env,
-        };
+    fn outbound_pk(&mut self, env: &mut Envelope, now: Time) -> Result<Verdict, SecurityError> {
+        if self.seal_pk(env)? {
+            return Ok(Verdict::Pass);
+        }
         let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
         if self.directory.public_key(b).is_none() {
             return Ok(Verdict::Drop(Reason::UnknownPeer));
@@ -398,7 +398,8 @@ impl SecurityLayer {
             tracing::warn!(sender = %a, receiver = %b, "key agreement pending, queue full");
             return Ok(Verdict::Drop(Reason::UnknownPeer));
         }
-        p.queued.push_back(env);
+        // Held until the key is agreed: taken from the caller, who is told it was consumed.
+        p.queued.push_back(std::mem::take(env));
         Ok(Verdict::Consumed)
     }
 
@@ -455,9 +456,11 @@ impl SecurityLayer {
         let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_b), |shared| session_key(shared, &eph_a, &eph_b, &a, &b));
         let Ok(key) = key else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
         *nested(&mut self.send, &a, &b) = Some(SendSession { id, key: key?, counter: 0 });
-        for queued in p.queued {
-            let sealed = self.seal_pk(queued)?.map_err(|_| SecurityError::KeyDerivation)?;
-            self.outbox.push_back(sealed);
+        for mut queued in p.queued {
+            if !self.seal_pk(&mut queued)? {
+                return Err(SecurityError::KeyDerivation);
+            }
+            self.outbox.push_back(queued);
         }
         Ok(Verdict::Consumed)
     }
@@ -478,7 +481,8 @@ impl SecurityLayer {
         Verdict::Consumed
     }
 
-    fn open(&mut self, mut env: Envelope, now: Time) -> Result<Verdict, SecurityError> {
+    /// Opens `env` in place (plaintext payload, flags cleared, signature restored).
+    fn open(&mut self, env: &mut Envelope, now: Time) -> Result<Verdict, SecurityError> {
         write_aad_into(&env.header, &mut self.aad);
         let psk_mode = env.header.flags.contains(Flags::PRE_SHARED);
         let id_len = if psk_mode { SALT_LEN } else { SID_LEN };
@@ -537,13 +541,13 @@ impl SecurityLayer {
             let sig: [u8; SIGNATURE_LEN] = env.payload[at..].try_into().map_err(|_| SecurityError::KeyDerivation)?;
             env.payload.truncate(at);
             let Some(key) = self.directory.public_key(&env.header.sender) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
-            if !verify(&key, &signed_bytes(&env), &sig) {
+            if !verify(&key, &signed_bytes(env), &sig) {
                 return Ok(Verdict::Drop(Reason::BadSignature));
             }
             env.signature = Some(Box::new(sig));
         }
         env.authenticated = Some(env.header.sender.clone());
-        Ok(Verdict::Pass(env))
+        Ok(Verdict::Pass)
     }
 }
 
@@ -559,20 +563,20 @@ impl Layer for SecurityLayer {
         "security"
     }
 
-    fn outbound(&mut self, env: Envelope, now: Time) -> Verdict {
+    fn outbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         match self.psk_of(&env.header.receiver) {
-            Some(psk) => or_log(self.seal_psk(env, psk).map(Verdict::Pass)),
+            Some(psk) => or_log(self.seal_psk(env, psk).map(|()| Verdict::Pass)),
             None => or_log(self.outbound_pk(env, now)),
         }
     }
 
-    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict {
+    fn inbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         let flags = env.header.flags;
         if flags.contains(Flags::HANDSHAKE) {
             return match env.payload.first() {
-                Some(&HELLO) => or_log(self.on_hello(&env, now)),
-                Some(&REPLY) => or_log(self.on_reply(&env)),
-                Some(&REKEY) => self.on_rekey(&env),
+                Some(&HELLO) => or_log(self.on_hello(env, now)),
+                Some(&REPLY) => or_log(self.on_reply(env)),
+                Some(&REKEY) => self.on_rekey(env),
                 _ => Verdict::Drop(Reason::BadHandshake),
             };
         }

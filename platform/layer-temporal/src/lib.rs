@@ -184,7 +184,7 @@ impl Layer for TemporalLayer {
         "temporal"
     }
 
-    fn outbound(&mut self, mut env: Envelope, now: Time) -> Verdict {
+    fn outbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         // Look the sender up by reference: its name is copied only the first time.
         env.header.seq = match self.next_seq.get_mut(&env.header.sender) {
             Some(next) => {
@@ -199,16 +199,16 @@ impl Layer for TemporalLayer {
             }
         };
         env.header.timestamp = now;
-        Verdict::Pass(env)
+        Verdict::Pass
     }
 
-    fn inbound(&mut self, env: Envelope, now: Time) -> Verdict {
-        if let Err(r) = self.check_time(&env, now) {
+    fn inbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
+        if let Err(r) = self.check_time(env, now) {
             tracing::debug!(sender = %env.header.sender, ts = %env.header.timestamp, %now, reason = %r, "temporal drop");
             return Verdict::Drop(r);
         }
         match self.check_seq(&env.header.sender, env.header.seq) {
-            Ok(()) => Verdict::Pass(env),
+            Ok(()) => Verdict::Pass,
             Err(r) => Verdict::Drop(r),
         }
     }
@@ -228,8 +228,9 @@ mod tests {
     }
 
     fn stamped(tx: &mut TemporalLayer, at: Time) -> Envelope {
-        match tx.outbound(Envelope::new(MsgId(1), "a", "b", b"x".to_vec()), at) {
-            Verdict::Pass(e) => e,
+        let mut e = Envelope::new(MsgId(1), "a", "b", b"x".to_vec());
+        match tx.outbound(&mut e, at) {
+            Verdict::Pass => e,
             v => panic!("{v:?}"),
         }
     }
@@ -237,12 +238,12 @@ mod tests {
     #[test]
     fn stamps_and_accepts_fresh() {
         let mut tx = TemporalLayer::new(TemporalConfig::default());
-        let e1 = stamped(&mut tx, ms(0));
+        let mut e1 = stamped(&mut tx, ms(0));
         let e2 = stamped(&mut tx, ms(1));
         assert_eq!(e1.header.timestamp, ms(0));
         assert_eq!(e2.header.seq, e1.header.seq + 1);
         let mut rx = TemporalLayer::new(TemporalConfig::default());
-        assert!(matches!(rx.inbound(e1, ms(5)), Verdict::Pass(_)));
+        assert_eq!(rx.inbound(&mut e1, ms(5)), Verdict::Pass);
     }
 
     #[test]
@@ -250,16 +251,16 @@ mod tests {
         let cfg = TemporalConfig { max_age: Duration::from_millis(100), max_skew: Duration::from_millis(10), ..Default::default() };
         let mut tx = TemporalLayer::new(cfg);
         let mut rx = TemporalLayer::new(cfg);
-        let old = stamped(&mut tx, ms(0));
-        assert_eq!(rx.inbound(old.clone(), ms(111)), Verdict::Drop(Reason::Stale));
-        assert!(matches!(rx.inbound(old, ms(110)), Verdict::Pass(_)), "within age + skew");
-        let future = stamped(&mut tx, ms(500));
-        assert_eq!(rx.inbound(future.clone(), ms(489)), Verdict::Drop(Reason::FromFuture));
-        assert!(matches!(rx.inbound(future, ms(490)), Verdict::Pass(_)), "skew tolerated");
+        let mut old = stamped(&mut tx, ms(0));
+        assert_eq!(rx.inbound(&mut old.clone(), ms(111)), Verdict::Drop(Reason::Stale));
+        assert_eq!(rx.inbound(&mut old, ms(110)), Verdict::Pass, "within age + skew");
+        let mut future = stamped(&mut tx, ms(500));
+        assert_eq!(rx.inbound(&mut future.clone(), ms(489)), Verdict::Drop(Reason::FromFuture));
+        assert_eq!(rx.inbound(&mut future, ms(490)), Verdict::Pass, "skew tolerated");
         let mut due = stamped(&mut tx, ms(600));
         due.header.reply_by = ms(620);
-        assert_eq!(rx.inbound(due.clone(), ms(631)), Verdict::Drop(Reason::PastReplyBy));
-        assert!(matches!(rx.inbound(due, ms(630)), Verdict::Pass(_)));
+        assert_eq!(rx.inbound(&mut due.clone(), ms(631)), Verdict::Drop(Reason::PastReplyBy));
+        assert_eq!(rx.inbound(&mut due, ms(630)), Verdict::Pass);
     }
 
     #[test]
@@ -267,14 +268,14 @@ mod tests {
         let mut tx = TemporalLayer::new(TemporalConfig::default());
         let e: Vec<_> = (0..3).map(|_| stamped(&mut tx, ms(0))).collect();
         let mut rx = TemporalLayer::new(TemporalConfig::default());
-        assert!(matches!(rx.inbound(e[0].clone(), ms(1)), Verdict::Pass(_)));
-        assert!(matches!(rx.inbound(e[2].clone(), ms(1)), Verdict::Pass(_)));
-        assert!(matches!(rx.inbound(e[1].clone(), ms(1)), Verdict::Pass(_)));
+        assert_eq!(rx.inbound(&mut e[0].clone(), ms(1)), Verdict::Pass);
+        assert_eq!(rx.inbound(&mut e[2].clone(), ms(1)), Verdict::Pass);
+        assert_eq!(rx.inbound(&mut e[1].clone(), ms(1)), Verdict::Pass);
         assert_eq!(rx.stats().reordered, 1);
-        assert_eq!(rx.inbound(e[1].clone(), ms(1)), Verdict::Drop(Reason::ReplayedSequence));
+        assert_eq!(rx.inbound(&mut e[1].clone(), ms(1)), Verdict::Drop(Reason::ReplayedSequence));
         let mut strict = TemporalLayer::new(TemporalConfig { ordering: Ordering::Strict, ..Default::default() });
-        assert!(matches!(strict.inbound(e[2].clone(), ms(1)), Verdict::Pass(_)));
-        assert_eq!(strict.inbound(e[1].clone(), ms(1)), Verdict::Drop(Reason::OutOfOrder));
+        assert_eq!(strict.inbound(&mut e[2].clone(), ms(1)), Verdict::Pass);
+        assert_eq!(strict.inbound(&mut e[1].clone(), ms(1)), Verdict::Drop(Reason::OutOfOrder));
     }
 
     #[test]
@@ -282,10 +283,10 @@ mod tests {
         let mut rx = TemporalLayer::new(TemporalConfig::default());
         let mut first = TemporalLayer::new(TemporalConfig::default());
         for _ in 0..10 {
-            assert!(matches!(rx.inbound(stamped(&mut first, ms(0)), ms(0)), Verdict::Pass(_)));
+            assert_eq!(rx.inbound(&mut stamped(&mut first, ms(0)), ms(0)), Verdict::Pass);
         }
         let mut restarted = TemporalLayer::new(TemporalConfig::default());
-        assert!(matches!(rx.inbound(stamped(&mut restarted, ms(1)), ms(1)), Verdict::Pass(_)));
+        assert_eq!(rx.inbound(&mut stamped(&mut restarted, ms(1)), ms(1)), Verdict::Pass);
     }
 
     #[test]
@@ -294,7 +295,7 @@ mod tests {
         let mut tx = TemporalLayer::new(cfg);
         let e: Vec<_> = (0..10).map(|_| stamped(&mut tx, ms(0))).collect();
         let mut rx = TemporalLayer::new(cfg);
-        assert!(matches!(rx.inbound(e[9].clone(), ms(0)), Verdict::Pass(_)));
-        assert_eq!(rx.inbound(e[0].clone(), ms(0)), Verdict::Drop(Reason::OutOfOrder));
+        assert_eq!(rx.inbound(&mut e[9].clone(), ms(0)), Verdict::Pass);
+        assert_eq!(rx.inbound(&mut e[0].clone(), ms(0)), Verdict::Drop(Reason::OutOfOrder));
     }
 }

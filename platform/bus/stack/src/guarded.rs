@@ -68,9 +68,9 @@ impl FrameTransport for GuardedTransport {
         let sealed = {
             let mut state = self.lock();
             let (stack, ids) = &mut *state;
-            let env = Envelope::new(ids.next_id(), self.name.as_str(), GROUP, frame.to_vec());
-            match stack.outbound(env, self.clock.now()) {
-                Verdict::Pass(env) => env,
+            let mut env = Envelope::new(ids.next_id(), self.name.as_str(), GROUP, frame.to_vec());
+            match stack.outbound(&mut env, self.clock.now()) {
+                Verdict::Pass => env,
                 // Nothing is held back in pre-shared-key mode; a refusal is a layer failure.
                 Verdict::Drop(_) | Verdict::Consumed => {
                     return Err(TransportError::Middleware { context: format!("guarding a control frame for {to}"), message: "refused by the layers".into() });
@@ -88,8 +88,8 @@ impl FrameTransport for GuardedTransport {
             let Some((from, bytes)) = self.inner.recv_timeout(left)? else { return Ok(None) };
             let mut state = self.lock();
             match self.codec.decode_datagram(&bytes) {
-                Ok(env) => match state.0.inbound(env, self.clock.now()) {
-                    Verdict::Pass(env) => return Ok(Some((from, env.payload))),
+                Ok(mut env) => match state.0.inbound(&mut env, self.clock.now()) {
+                    Verdict::Pass => return Ok(Some((from, env.payload))),
                     Verdict::Drop(reason) => tracing::debug!(%from, %reason, "control frame refused"),
                     Verdict::Consumed => {}
                 },

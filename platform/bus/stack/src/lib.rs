@@ -155,14 +155,14 @@ mod tests {
                 to_b.push(e);
             }
             let mut busy = !to_b.is_empty();
-            for e in to_b.drain(..) {
-                if let Verdict::Pass(e) = b.inbound(e, now) {
+            for mut e in to_b.drain(..) {
+                if let Verdict::Pass = b.inbound(&mut e, now) {
                     got.push(e);
                 }
             }
-            while let Some(e) = b.poll_transmit(now) {
+            while let Some(mut e) = b.poll_transmit(now) {
                 busy = true;
-                let _ = a.inbound(e, now);
+                let _ = a.inbound(&mut e, now);
             }
             if !busy {
                 return got;
@@ -181,7 +181,8 @@ mod tests {
             let now = Time::from_ns(1_000_000_000);
             let mut out = Vec::new();
             for n in 0..5 {
-                if let Verdict::Pass(e) = a.outbound(Envelope::new(MsgId(n), "a", "b", acl(n)), now) {
+                let mut e = Envelope::new(MsgId(n), "a", "b", acl(n));
+                if let Verdict::Pass = a.outbound(&mut e, now) {
                     out.push(e);
                 }
             }

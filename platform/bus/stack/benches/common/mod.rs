@@ -46,7 +46,8 @@ impl Exchange {
         let now = Time::from_ns(1_700_000_000_000_000_000);
         self.id += 1;
         let mut delivered = 0;
-        if let Verdict::Pass(e) = self.a.outbound(Envelope::new(MsgId(self.id), "a", "b", self.payload.clone()), now) {
+        let mut e = Envelope::new(MsgId(self.id), "a", "b", self.payload.clone());
+        if let Verdict::Pass = self.a.outbound(&mut e, now) {
             self.wire.push(e);
         }
         loop {
@@ -56,13 +57,13 @@ impl Exchange {
             if self.wire.is_empty() {
                 break;
             }
-            for e in self.wire.drain(..) {
-                if let Verdict::Pass(e) = self.b.inbound(e, now) {
+            for mut e in self.wire.drain(..) {
+                if let Verdict::Pass = self.b.inbound(&mut e, now) {
                     delivered += black_box(e).payload.len();
                 }
             }
-            while let Some(back) = self.b.poll_transmit(now) {
-                let _ = self.a.inbound(back, now);
+            while let Some(mut back) = self.b.poll_transmit(now) {
+                let _ = self.a.inbound(&mut back, now);
             }
         }
         delivered
