@@ -33,7 +33,7 @@ pub fn check(text: &str) -> Result<AclSummary<'_>, Error> {
 /// and no Base64 content over 1 KiB; beyond that it allocates only for the excess. Errors
 /// allocate their message.
 pub fn check_with<'a>(text: &'a str, options: &ParseOptions) -> Result<AclSummary<'a>, Error> {
-    run(text, options, &mut SummaryBuilder).map(|checked| checked.summary)
+    run(text, options, &mut SummaryBuilder)
 }
 
 /// What [`check_with`] keeps of a well-formed message: its performative and the `:name`s of its
@@ -142,66 +142,58 @@ impl<'a> Keys<'a> {
     }
 }
 
-/// A message under check: the summary plus what duplicate detection needs.
-struct Checked<'a> {
-    summary: AclSummary<'a>,
-    keys: Keys<'a>,
-}
-
 /// An identifier under check: its name, unescaped only if it is kept.
 #[derive(Default)]
 struct CheckedAgent<'a> {
     name: Option<RawText<'a>>,
-    keys: Keys<'a>,
 }
 
 /// Builds the [`AclSummary`] of [`check_with`], checking what it does not keep.
 struct SummaryBuilder;
 
 impl<'a> Build<'a> for SummaryBuilder {
-    type Message = Checked<'a>;
+    type Message = AclSummary<'a>;
     type Agent = CheckedAgent<'a>;
     type UserParams = Keys<'a>;
 
-    fn message(&mut self, performative: Performative) -> Checked<'a> {
-        let summary = AclSummary { performative, sender: None, receivers: Names::default() };
-        Checked { summary, keys: Keys::default() }
+    fn message(&mut self, performative: Performative) -> AclSummary<'a> {
+        AclSummary { performative, sender: None, receivers: Names::default() }
     }
 
     fn agent(&mut self) -> CheckedAgent<'a> {
         CheckedAgent::default()
     }
 
-    fn message_params(message: &mut Self::Message) -> &mut Self::UserParams {
-        &mut message.keys
-    }
-
-    fn agent_params(agent: &mut Self::Agent) -> &mut Self::UserParams {
-        &mut agent.keys
+    fn user_params(&mut self) -> Keys<'a> {
+        Keys::default()
     }
 
     fn user_param(&mut self, keys: &mut Keys<'a>, key: &'a str, _value: RawText<'a>) -> bool {
         keys.insert(key)
     }
 
-    fn agent_param(&mut self, message: &mut Checked<'a>, param: Param, agent: CheckedAgent<'a>) {
+    fn message_params(&mut self, _message: &mut AclSummary<'a>, _keys: Keys<'a>) {}
+
+    fn agent_params(&mut self, _agent: &mut CheckedAgent<'a>, _keys: Keys<'a>) {}
+
+    fn agent_param(&mut self, message: &mut AclSummary<'a>, param: Param, agent: CheckedAgent<'a>) {
         let name = || agent.name.map_or(Cow::Borrowed(""), RawText::into_cow);
         match param {
-            Param::Sender => message.summary.sender = Some(name()),
-            Param::Receiver => message.summary.receivers.push(name()),
+            Param::Sender => message.sender = Some(name()),
+            Param::Receiver => message.receivers.push(name()),
             _ => {}
         }
     }
 
-    fn text_param(&mut self, _message: &mut Checked<'a>, _param: Param, _value: RawText<'a>) {}
+    fn text_param(&mut self, _message: &mut AclSummary<'a>, _param: Param, _value: RawText<'a>) {}
 
-    fn content(&mut self, _message: &mut Checked<'a>, _content: RawContent<'a>) {}
+    fn content(&mut self, _message: &mut AclSummary<'a>, _content: RawContent<'a>) {}
 
-    fn reply_by(&mut self, _message: &mut Checked<'a>, _deadline: FipaDateTime) {}
+    fn reply_by(&mut self, _message: &mut AclSummary<'a>, _deadline: FipaDateTime) {}
 
-    fn remove_jade_marker(&mut self, _message: &mut Checked<'a>) {}
+    fn remove_jade_marker(&mut self, _message: &mut AclSummary<'a>) {}
 
-    fn base64_content(&mut self, _message: &mut Checked<'a>, content: RawText<'a>) -> Result<(), Error> {
+    fn base64_content(&mut self, _message: &mut AclSummary<'a>, content: RawText<'a>) -> Result<(), Error> {
         check_base64(&content.into_cow())
     }
 
