@@ -119,11 +119,14 @@ impl<T, const N: usize> Inline<T, N> {
 
 type Names<'a> = Inline<Cow<'a, str>, { AclSummary::INLINE_RECEIVERS }>;
 
+/// User parameters kept in place per message or identifier; more go to the heap.
+const INLINE_KEYS: usize = 8;
+
 /// User parameter keys seen in one message or identifier, for duplicate detection: the first
-/// few compared in place, the rest in a tree (a message of many parameters stays linear-log).
+/// few compared in place, the rest in a tree (so that many parameters cost n log n, not n^2).
 #[derive(Default)]
 struct Keys<'a> {
-    first: Inline<&'a str, 8>,
+    first: Inline<&'a str, INLINE_KEYS>,
     more: BTreeSet<&'a str>,
 }
 
@@ -133,7 +136,7 @@ impl<'a> Keys<'a> {
         if self.first.iter().any(|&seen| seen == key) {
             return false;
         }
-        if self.first.len() < 8 {
+        if self.first.len() < INLINE_KEYS {
             self.first.push(key);
             true
         } else {
