@@ -8,7 +8,8 @@
 //! - [`envelope`]: prints an [`AclMessage`] into an envelope addressed to one receiver.
 //!
 //! # Guarantees
-//! An envelope reaches an agent only if its payload parses as FIPA-ACL (SC00070, via `iw-acl`),
+//! An envelope reaches an agent only if its payload parses as FIPA-ACL (SC00070, via `iw-acl`'s
+//! `check_with`, the parser's verdict without building the message),
 //! names a sender, and
 //! - the sender is registered on the platform ([`Reason::Unregistered`]; EN 50159 *insertion*:
 //!   an unknown application gets nothing through);
@@ -129,17 +130,19 @@ impl ParserLayer {
         ParserLayer { registry, config }
     }
 
-    fn check_syntax(&self, env: &Envelope) -> Result<AclMessage, Reason> {
+    /// Well-formed ACL whose `:sender` is the envelope's sender and whose `:receiver` set holds
+    /// the envelope's receiver. Only checks (`check_with`): the message itself is not built.
+    fn check_syntax(&self, env: &Envelope) -> Result<(), Reason> {
         let text = env.payload_str().ok_or(Reason::Malformed)?;
-        let msg = iw_acl::codec::parse_with(text, &self.config.parse).map_err(|e| {
+        let summary = iw_acl::codec::check_with(text, &self.config.parse).map_err(|e| {
             tracing::debug!(sender = %env.header.sender, error = %e, "malformed ACL");
             Reason::Malformed
         })?;
-        let sender = msg.sender.as_ref().ok_or(Reason::Malformed)?;
-        if sender.name != env.header.sender || !msg.receivers.iter().any(|r| r.name == env.header.receiver) {
+        let sender = summary.sender().ok_or(Reason::Malformed)?;
+        if sender != env.header.sender || !summary.has_receiver(&env.header.receiver) {
             return Err(Reason::Mismatch);
         }
-        Ok(msg)
+        Ok(())
     }
 
     fn check_inbound(&self, env: &Envelope) -> Result<(), Reason> {
@@ -149,7 +152,7 @@ impl ParserLayer {
         if !self.registry.is_registered(&env.header.sender) {
             return Err(Reason::Unregistered);
         }
-        self.check_syntax(env).map(drop)
+        self.check_syntax(env)
     }
 }
 

@@ -1,5 +1,7 @@
-//! ACL string codec speed: parse and print of JADE's timing message (`bench-message-470B.acl`)
-//! and of a typical ~380-byte INFORM reply. JADE 4.6.5 on the same 470 bytes: 55 k decodes/s,
+//! ACL string codec speed: parse, check and print of JADE's timing message
+//! (`bench-message-470B.acl`), of a typical ~380-byte INFORM reply and of a 300-byte REQUEST as
+//! the bus benches send. `check` is `codec::check_with`, the parser layer's well-formedness and
+//! sender/receiver check, which reads the same grammar without building the message. JADE 4.6.5 on the same 470 bytes: 55 k decodes/s,
 //! 405 k encodes/s (shared/fipa/README.md). Peer measured in the same run: serde_json reading
 //! the same message as JSON (`json-peer`), a well-tuned parser on the same data.
 //!
@@ -23,6 +25,15 @@ const TYPICAL: &str = r#"(INFORM
  :content "((= (iota ?p (pose wheelchair1 ?p)) (pose :x 3.25 :y -1.5 :theta 0.785)))"
  :language fipa-sl :ontology wheelchair-ontology :protocol fipa-query
  :conversation-id conv-4711 :in-reply-to q-4711)"#;
+
+/// The bus benches' message: a REQUEST from `ping` to `echo` with its content padded to 300 bytes.
+fn bus_message() -> String {
+    let head = "(request :sender (agent-identifier :name ping) :receiver (set (agent-identifier :name echo)) \
+                :language fipa-sl :ontology wheelchair :conversation-id bench :content \"";
+    let text = format!("{head}{}\")", "x".repeat(300 - head.len() - 2));
+    assert_eq!(text.len(), 300);
+    text
+}
 
 /// The calling thread's CPU time in nanoseconds.
 struct ThreadCpuTime;
@@ -86,7 +97,7 @@ fn bench_cpu(c: &mut Criterion<ThreadCpuTime>) {
 }
 
 fn bench<M: Measurement>(c: &mut Criterion<M>, group_name: &str) {
-    let mut inputs = vec![("typical-380B", TYPICAL.to_owned())];
+    let mut inputs = vec![("typical-380B", TYPICAL.to_owned()), ("bus-300B", bus_message())];
     if let Some(path) = iw_testdata::require("acl codec bench", "fipa/vectors/bench-message-470B.acl") {
         inputs.insert(0, ("jade-470B", std::fs::read_to_string(path).expect("readable bench message")));
     }
@@ -98,6 +109,9 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, group_name: &str) {
         group.bench_function(format!("parse/{name}/{}B", text.len()), |b| b.iter(|| codec::parse(black_box(text))));
         let jade = ParseOptions::jade();
         group.bench_function(format!("parse-jade/{name}"), |b| b.iter(|| codec::parse_with(black_box(text), &jade)));
+        let standard = ParseOptions::default();
+        group.bench_function(format!("check/{name}"), |b| b.iter(|| codec::check_with(black_box(text), &standard)));
+        group.bench_function(format!("check-jade/{name}"), |b| b.iter(|| codec::check_with(black_box(text), &jade)));
         let json = serde_json::to_string(&message).expect("serializable");
         group.bench_function(format!("json-peer-parse/{name}/{}B", json.len()), |b| {
             b.iter(|| serde_json::from_str::<iw_acl::AclMessage>(black_box(&json)))

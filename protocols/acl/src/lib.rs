@@ -9,7 +9,9 @@
 //! - [`AgentId`]: agent identifiers with addresses, resolvers and user slots.
 //! - [`AclMessage`], [`Content`]: the message; [`AclMessage::create_reply`] answers one.
 //! - [`FipaDateTime`]: `reply-by` and other FIPA date-times.
-//! - [`codec`]: [`codec::parse`] and [`codec::print`], with a JADE-compatible [`codec::Escaping`].
+//! - [`codec`]: [`codec::parse`] and [`codec::print`], with a JADE-compatible [`codec::Escaping`];
+//!   [`codec::check_with`] gives `parse`'s verdict and errors with only an [`codec::AclSummary`]
+//!   of the names, without building (or allocating for) the message.
 //! - [`Error`]: every failure, with line, column and the offending input where there is one.
 //!
 //! # Guarantees
@@ -17,6 +19,8 @@
 //!   configured) and identifiers nested deeper than [`codec::DEFAULT_MAX_DEPTH`] are refused.
 //! - `parse(&print(&m)) == m` for every message `m` (standard escaping); with JADE escaping the
 //!   printer refuses, rather than corrupts, the strings JADE cannot carry (those ending in a backslash).
+//! - [`codec::check_with`] is `Ok` exactly when [`codec::parse_with`] is, with the same [`Error`]
+//!   otherwise (one parser builds both; property-tested and fuzzed against each other).
 //! - Agrees with JADE 4.6.5 on the FIPA test vectors kept beside the project (`shared/fipa`).
 //! - serde: [`AclMessage`] serializes to the JSON shape of those vectors.
 #![warn(missing_docs)]

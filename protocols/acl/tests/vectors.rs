@@ -4,6 +4,9 @@ use iw_acl::codec::{self, ParseOptions, PrintOptions};
 use iw_acl::{AclMessage, Content, Error};
 use serde_json::Value;
 
+mod common;
+use common::assert_check_agrees;
+
 fn rows(test: &str, file: &str) -> Option<Vec<Value>> {
     let path = iw_testdata::require(test, &format!("fipa/vectors/{file}"))?;
     let text = std::fs::read_to_string(&path).unwrap();
@@ -141,6 +144,36 @@ fn jade_replies_captured_on_the_wire_parse() {
         count += 1;
     }
     assert!(count >= 9);
+}
+
+/// `check_with` agrees with `parse_with`, in both escapings, on every text above.
+#[test]
+fn check_agrees_with_parse_on_every_vector() {
+    let mut texts = Vec::new();
+    if let Some(rows) = rows("check_agrees_with_parse_on_every_vector", "acl-decode.jsonl") {
+        for row in &rows {
+            texts.extend(["input", "jade_reencoded"].iter().filter_map(|key| row[*key].as_str()).map(str::to_owned));
+        }
+    }
+    if let Some(rows) = rows("check_agrees_with_parse_on_every_vector", "acl-encode.jsonl") {
+        texts.extend(rows.iter().filter_map(|row| row["jade_encoded"].as_str()).map(str::to_owned));
+    }
+    if let Some(path) = iw_testdata::require("check_agrees_with_parse_on_every_vector", "fipa/vectors/negative-pade-output.txt") {
+        texts.push(std::fs::read_to_string(path).unwrap());
+    }
+    for dir in ["fipa/wire/acl", "fipa/wire/from-jade"] {
+        let Some(dir) = iw_testdata::require("check_agrees_with_parse_on_every_vector", dir) else { continue };
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let raw = String::from_utf8(std::fs::read(entry.unwrap().path()).unwrap()).unwrap();
+            texts.push(raw.rsplit("\r\n\r\n").next().unwrap().split("\r\n--").next().unwrap().to_owned());
+            texts.push(raw);
+        }
+    }
+    for text in &texts {
+        assert_check_agrees(text, &ParseOptions::default());
+        assert_check_agrees(text, &ParseOptions::jade());
+    }
+    eprintln!("check_with agreed with parse_with on {} vector texts", texts.len());
 }
 
 fn base64_of(bytes: &[u8]) -> String {

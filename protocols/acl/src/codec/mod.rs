@@ -9,14 +9,20 @@
 //!  :X-battery 87)                                   <- user parameter, `X-` prefix
 //! ```
 //!
+//! [`check_with`] runs the same parser without building the message: the same verdict and
+//! errors as [`parse_with`], plus an [`AclSummary`] of the sender and receiver names, borrowed.
+//!
 //! Byte content travels as JADE sends it: `:X-JADE-Encoding Base64` plus the Base64 text as
 //! `:content`; SC00070's `#N"bytes` form is read too.
 
+mod check;
 mod parse;
 mod print;
 
-use base64::Engine as _;
+use base64::engine::general_purpose::STANDARD;
+use base64::{DecodeSliceError, Engine as _};
 
+pub use check::{AclSummary, check, check_with};
 pub use parse::{parse, parse_with};
 pub use print::{print, print_into, print_with};
 
@@ -45,7 +51,7 @@ pub enum Escaping {
     Jade,
 }
 
-/// Options for [`parse_with`].
+/// Options for [`parse_with`] and [`check_with`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
 pub struct ParseOptions {
@@ -92,8 +98,25 @@ impl PrintOptions {
 
 /// Decodes standard Base64 (JADE's byte-content form).
 pub(crate) fn decode_base64(text: &str) -> Result<Vec<u8>, Error> {
-    base64::engine::general_purpose::STANDARD.decode(text.trim()).map_err(|err| Error::InvalidBase64 {
-        reason: err.to_string(),
-        start: text.chars().take(24).collect(),
-    })
+    STANDARD.decode(text.trim()).map_err(|err| base64_error(&err, text))
+}
+
+/// Whether [`decode_base64`] would succeed, with its error if not; up to 1 KiB of decoded
+/// bytes without allocating.
+pub(crate) fn check_base64(text: &str) -> Result<(), Error> {
+    let mut buffer = [0u8; 1024];
+    let trimmed = text.trim();
+    // With room for the decoder's estimate, `decode_slice` fails exactly as `decode` does.
+    if base64::decoded_len_estimate(trimmed.len()) > buffer.len() {
+        return decode_base64(text).map(drop);
+    }
+    match STANDARD.decode_slice(trimmed, &mut buffer) {
+        Ok(_) => Ok(()),
+        Err(DecodeSliceError::DecodeError(err)) => Err(base64_error(&err, text)),
+        Err(DecodeSliceError::OutputSliceTooSmall) => decode_base64(text).map(drop),
+    }
+}
+
+fn base64_error(err: &base64::DecodeError, text: &str) -> Error {
+    Error::InvalidBase64 { reason: err.to_string(), start: text.chars().take(24).collect() }
 }
