@@ -554,4 +554,72 @@ mod tests {
         let mut tx = CommLayer::new(cfg);
         assert_eq!(tx.outbound(&mut data(3, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
     }
+
+    mod shared_ack_frames {
+        use super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            /// However messages from several senders interleave, and whichever of them prove
+            /// inauthentic above: every other message is acknowledged exactly once, no frame mixes
+            /// pairs of agents or exceeds its limit, and the withdrawn ones stay in flight.
+            #[test]
+            fn every_message_acknowledged_once(ops in prop::collection::vec((0usize..3, 0usize..40, any::<bool>()), 0..200)) {
+                let names = ["s0", "s1", "s2"];
+                let mut tx: Vec<_> = names.iter().map(|_| CommLayer::new(CommConfig::default())).collect();
+                let mut rx = CommLayer::new(CommConfig::default());
+                let mut withdrawn = [0usize; 3];
+                for (n, (s, len, inauthentic)) in ops.iter().copied().enumerate() {
+                    let payload: Vec<u8> = (0..len).map(|i| (i * 7 + n) as u8).collect();
+                    let env = Envelope::new(MsgId(n as u64), names[s], "r", payload);
+                    let sent = pass_out(&mut tx[s], env, Time::ZERO);
+                    pass_in(&mut rx, sent, Time::ZERO);
+                    if inauthentic {
+                        rx.rejected_above(MsgId(n as u64), names[s], Reason::BadTag);
+                        withdrawn[s] += 1;
+                    }
+                }
+                while let Some(mut ack) = rx.poll_transmit(Time::ZERO) {
+                    prop_assert!(ack.payload.len() <= ACKS_PER_FRAME * ACK_ENTRY_LEN);
+                    prop_assert!(!ack.payload.is_empty() && ack.payload.len() % ACK_ENTRY_LEN == 0);
+                    let s = names.iter().position(|n| *n == ack.header.receiver).expect("acknowledges a sender");
+                    prop_assert_eq!(tx[s].inbound(&mut ack, Time::ZERO), Verdict::Consumed);
+                }
+                for s in 0..3 {
+                    prop_assert_eq!(tx[s].in_flight(), withdrawn[s]);
+                    prop_assert_eq!(tx[s].stats().acks_stray, 0);
+                }
+                let sent = ops.len() - withdrawn.iter().sum::<usize>();
+                prop_assert_eq!(rx.stats().acks_sent as usize, sent);
+            }
+
+            /// Any acknowledgement payload: no panic, and it releases exactly the messages in
+            /// flight whose id and echo one of its whole entries names.
+            #[test]
+            fn arbitrary_ack_payload_releases_only_matching_entries(
+                lens in prop::collection::vec(0usize..40, 1..6),
+                noise in prop::collection::vec(any::<u8>(), 0..120),
+                genuine in prop::collection::vec(any::<bool>(), 6),
+            ) {
+                let mut tx = CommLayer::new(CommConfig::default());
+                let mut payload = Vec::new();
+                let mut expected = 0;
+                for (id, len) in lens.iter().enumerate() {
+                    let env = pass_out(&mut tx, data(id as u64, &vec![id as u8 + 1; *len]), Time::ZERO);
+                    if genuine[id] {
+                        push_entry(&mut payload, &env);
+                        expected += 1;
+                    }
+                }
+                payload.extend_from_slice(&noise);
+                let mut ack = Envelope::new(MsgId(1000), "b", "a", payload);
+                ack.header.flags = Flags::ACK;
+                prop_assert_eq!(tx.inbound(&mut ack, Time::ZERO), Verdict::Consumed);
+                // Noise names a message in flight with its echo only by a 2^-128 accident.
+                prop_assert_eq!(tx.stats().acks_matched, expected as u64);
+                prop_assert_eq!(tx.in_flight(), lens.len() - expected);
+            }
+        }
+    }
+
 }
