@@ -92,7 +92,7 @@ impl OccupancyGrid {
     }
 
     /// The same grid planning paths that keep away from obstacles: a step closer than
-    /// `comfort_m` to an occupied cell costs up to [`CLOSE_COST`] times more (linearly), and a
+    /// `comfort_m` to an occupied cell costs up to `CLOSE_COST` (3) times more (linearly), and a
     /// straight leg of the pruned path may not cost more than the cells it replaces. Paths
     /// then run down the middle of corridors and round corners with room for a chair's front.
     pub fn with_comfort(mut self, comfort_m: f64) -> Self {

@@ -7,7 +7,7 @@
 //! - [`Ams`], [`WhitePages`]: the AMS agent and the agent list it serves (register, deregister,
 //!   modify, search of ams-agent-descriptions with their life-cycle state); the container lists
 //!   the agents it hosts through [`WhitePages::host`].
-//! - [`Df`], [`matches`]: the DF agent (register, deregister, modify, search with
+//! - [`Df`], [`matches()`]: the DF agent (register, deregister, modify, search with
 //!   `:max-results`, fipa-subscribe with notifications, cancel) and its template matching.
 //! - [`MAX_RESULTS`]: the most descriptions one search returns.
 //! - [`delivery_failure`]: the AMS's FAILURE with an `MTS-error` for a message that could not be

@@ -1,4 +1,4 @@
-//! The ACL string representation (SC00070, `fipa.acl.rep.string.std`): [`parse`] and [`print`].
+//! The ACL string representation (SC00070, `fipa.acl.rep.string.std`): [`parse`] and [`print()`].
 //!
 //! ```text
 //! (REQUEST                                          <- performative, any case
