@@ -206,8 +206,7 @@ impl CommLayer {
     }
 
     fn on_ack(&mut self, ack: &Envelope) {
-        let entries = ack.payload.chunks(ACK_ENTRY_LEN);
-        for entry in entries {
+        for entry in ack.payload.chunks(ACK_ENTRY_LEN) {
             let Some((id, echoed)) = split_entry(entry) else {
                 self.stats.acks_stray += 1;
                 continue;
