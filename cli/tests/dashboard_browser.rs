@@ -26,19 +26,21 @@ impl Drop for Demo {
     }
 }
 
+const TEST: &str = "the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click";
+
 #[test]
 fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
     let browser_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
     let Some(chromium) = chromium() else {
-        println!("SKIP: no chromium (apt-get install chromium; .ci/run does it)");
+        iw_testdata::skip(TEST, "no chromium (apt-get install chromium; .ci/run does it)");
         return;
     };
     if !browser_dir.join("node_modules/playwright-core").exists() {
-        println!("SKIP: playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)");
+        iw_testdata::skip(TEST, "playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)");
         return;
     }
     if Command::new("node").arg("--version").output().is_err() {
-        println!("SKIP: no node");
+        iw_testdata::skip(TEST, "no node");
         return;
     }
     let log_dir = tempfile::tempdir().unwrap();

@@ -114,13 +114,18 @@ pub enum BodyError {
     /// A frame on the link was malformed (bad checksum, unknown type, wrong length).
     #[error("interface board frame rejected: {0}")]
     Protocol(#[from] protocol::ProtocolError),
-    /// No complete sensor frame arrived within the timeout.
-    #[error("no sensor frame from `{port}` within {timeout_ms} ms")]
+    /// No complete sensor frame arrived within the timeout. The byte counts tell a silent link
+    /// (0 received) from a garbled one (bytes received, skipped as noise).
+    #[error("no sensor frame from `{port}` within {timeout_ms} ms ({received} bytes received, {skipped} skipped as noise)")]
     Timeout {
         /// Port path.
         port: String,
         /// How long we waited.
         timeout_ms: u64,
+        /// Bytes read from the port during this wait.
+        received: u64,
+        /// Bytes the decoder discarded during this wait.
+        skipped: u64,
     },
     /// A wheel speed reference cannot be encoded (not finite or beyond the wire range).
     #[error("wheel speed {value_mps} m/s is not finite or beyond +-{limit_mps} m/s")]

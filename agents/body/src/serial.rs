@@ -62,6 +62,7 @@ impl Body for SerialBody {
         self.send(&Message::RequestSensors)?;
         // I/O deadline of the driver itself, not control logic: wall time is what the tty obeys.
         let deadline = Instant::now() + self.timeout;
+        let (mut received, skipped_before) = (0u64, self.decoder.skipped_bytes());
         let mut chunk = [0u8; 256];
         loop {
             while let Some(message) = self.decoder.decode()? {
@@ -71,10 +72,18 @@ impl Body for SerialBody {
                 tracing::debug!(port = %self.name, ?message, "ignoring non-sensor frame from board");
             }
             if Instant::now() >= deadline {
-                return Err(BodyError::Timeout { port: self.name.clone(), timeout_ms: self.timeout.as_millis() as u64 });
+                return Err(BodyError::Timeout {
+                    port: self.name.clone(),
+                    timeout_ms: self.timeout.as_millis() as u64,
+                    received,
+                    skipped: self.decoder.skipped_bytes() - skipped_before,
+                });
             }
             match self.port.read(&mut chunk) {
-                Ok(n) => self.decoder.push(&chunk[..n]),
+                Ok(n) => {
+                    received += n as u64;
+                    self.decoder.push(&chunk[..n]);
+                }
                 Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => {}
                 Err(source) => return Err(BodyError::Io { port: self.name.clone(), source }),
             }

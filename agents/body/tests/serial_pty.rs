@@ -99,3 +99,21 @@ fn the_board_watchdog_stops_the_wheels_when_references_stop_arriving() {
     body.command(forward).unwrap();
     assert!(eventually(Duration::from_secs(10), || handle.state().speeds == forward), "a new reference drives again");
 }
+
+#[test]
+fn a_silent_or_garbled_link_times_out_and_says_which() {
+    use serialport::SerialPort;
+    use std::io::Write;
+    // A bare pty: nothing answers on the master side unless the test writes.
+    let (mut master, slave) = serialport::TTYPort::pair().expect("pty pair");
+    let mut body = SerialBody::open(&slave.name().expect("slave path"), 115_200, Duration::from_millis(100)).expect("open slave tty");
+    match body.read() {
+        Err(err @ BodyError::Timeout { received: 0, skipped: 0, .. }) => assert!(err.to_string().contains("0 bytes received"), "{err}"),
+        other => panic!("expected a silent timeout, got {other:?}"),
+    }
+    master.write_all(&[0x55; 40]).and_then(|()| master.flush()).expect("line noise");
+    match body.read() {
+        Err(BodyError::Timeout { received: 40, skipped, .. }) => assert!(skipped > 0, "noise must count as skipped"),
+        other => panic!("expected a garbled timeout, got {other:?}"),
+    }
+}

@@ -22,10 +22,18 @@ pub fn require(test: &str, relative: &str) -> Option<PathBuf> {
     match shared().map(|dir| dir.join(relative)) {
         Some(path) if path.exists() => Some(path),
         _ => {
-            eprintln!(
-                "SKIP {test}: shared data `{relative}` not found (set INTELLWHEELS_SHARED or place shared/ beside the clone)"
+            skip(
+                test,
+                &format!("shared data `{relative}` not found (set INTELLWHEELS_SHARED or place shared/ beside the clone)"),
             );
             None
         }
     }
+}
+
+/// Prints `SKIP <test>: <why>` on stderr where the test run's reader sees it: libtest captures
+/// `println!`/`eprintln!` of a passing test, but not writes to the stderr handle itself.
+pub fn skip(test: &str, why: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "SKIP {test}: {why}");
 }
