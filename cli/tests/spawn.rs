@@ -109,11 +109,15 @@ fn keygen(dir: &Path, name: &str) -> String {
     path.display().to_string()
 }
 
-/// Polls the board until `f` holds; panics after LIMIT.
-fn board_until(board: &BoardEmulator, what: &str, f: impl Fn(&iw_body::BoardState) -> bool) {
+/// Polls the board until `f` holds; panics after LIMIT with the board state and what the
+/// services saw (a goal failure there names the reason).
+fn board_until(board: &BoardEmulator, services: &mut Proc, what: &str, f: impl Fn(&iw_body::BoardState) -> bool) {
     let deadline = Instant::now() + LIMIT;
     while !f(&board.handle().state()) {
-        assert!(Instant::now() < deadline, "board never {what}: {:?}", board.handle().state());
+        if Instant::now() >= deadline {
+            services.seen.extend(services.events.try_iter());
+            panic!("board never {what}: {:?}\nservices saw {:#?}", board.handle().state(), services.seen);
+        }
         std::thread::sleep(Duration::from_millis(10));
     }
 }
@@ -152,11 +156,11 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     }
     chair_a.wait_for("the services seen by chair-a", |e| is(e, "joined", "agent", "dispatcher@services"));
     services.wait_for("chair-a's goal agreed", |e| is(e, "goal", "chair", "chair-a") && e["performative"] == "AGREE");
-    board_until(&board, "drove", |s| s.speeds != WheelSpeeds::STOP);
+    board_until(&board, &mut services, "drove", |s| s.speeds != WheelSpeeds::STOP);
 
     chair_a.child.kill().unwrap(); // SIGKILL: no take-down, no last stop
     chair_a.child.wait().unwrap();
-    board_until(&board, "stopped by its watchdog", |s| s.speeds == WheelSpeeds::STOP && s.watchdog_stops >= 1);
+    board_until(&board, &mut services, "stopped by its watchdog", |s| s.speeds == WheelSpeeds::STOP && s.watchdog_stops >= 1);
     services.wait_for("chair-a's control agent leaving", |e| is(e, "left", "agent", "control@chair-a"));
 
     // The rest carries on: chair-b keeps exchanging messages and gets its goal done, and a chair
