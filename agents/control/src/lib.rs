@@ -98,6 +98,10 @@ pub struct ControlConfig {
     pub blocked_after_ms: u64,
     /// Travel of a wall-following action before it is done, m.
     pub wall_length_m: f64,
+    /// How long the body may stay unreadable before the running task fails, ms. The wheels stop
+    /// at the first failed read; a task survives a shorter fault (one corrupted serial frame)
+    /// and resumes from rest.
+    pub body_fault_ms: u64,
 }
 
 impl ControlConfig {
@@ -119,6 +123,7 @@ impl ControlConfig {
             period: Duration::from_millis(50),
             blocked_after_ms: 8000,
             wall_length_m: 3.0,
+            body_fault_ms: 500,
         })
     }
 }
@@ -161,6 +166,8 @@ pub struct ControlAgent {
     mode: Mode,
     t_map_base: Option<Isometry2<f64>>,
     manual_watchdog: Watchdog,
+    /// When the body's reads started failing, while they fail, ns.
+    body_fault_since_ns: Option<u64>,
 }
 
 impl ControlAgent {
@@ -175,7 +182,16 @@ impl ControlAgent {
             guard: ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?,
         };
         let basic = BasicControl::new(config.drive, config.watchdog_ms.saturating_mul(1_000_000));
-        Ok(ControlAgent { body, basic, shared, mode: Mode::Idle, t_map_base: None, manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)), config })
+        Ok(ControlAgent {
+            body,
+            basic,
+            shared,
+            mode: Mode::Idle,
+            t_map_base: None,
+            manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)),
+            body_fault_since_ns: None,
+            config,
+        })
     }
 
     fn handle_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
@@ -369,14 +385,23 @@ impl Agent for ControlAgent {
     fn tick(&mut self, ctx: &mut Context<'_>) {
         let now_ns = ctx.now().0;
         let frame = match self.body.read() {
-            Ok(frame) => frame,
+            Ok(frame) => {
+                self.body_fault_since_ns = None;
+                frame
+            }
             Err(err) => {
-                tracing::warn!(error = %err, "body read failed; stopping");
+                let _ = self.body.stop();
+                self.basic.halt(now_ns);
+                let since = *self.body_fault_since_ns.get_or_insert(now_ns);
+                if now_ns.saturating_sub(since) < self.config.body_fault_ms.saturating_mul(1_000_000) {
+                    tracing::warn!(error = %err, "body read failed; wheels stopped, task held");
+                    return;
+                }
+                tracing::warn!(error = %err, fault_ms = self.config.body_fault_ms, "body unreadable; task failed");
                 self.preempt(ctx, &format!("body: {err}"));
                 if let Mode::Manual { .. } = self.mode {
                     self.mode = Mode::Idle;
                 }
-                let _ = self.body.stop();
                 return;
             }
         };

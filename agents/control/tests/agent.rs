@@ -18,10 +18,17 @@ struct Recorder {
     commands: Arc<Mutex<Vec<WheelSpeeds>>>,
     /// The sonar ranges every read returns.
     sonar_m: Arc<Mutex<[Option<f64>; iw_body::SONAR_COUNT]>>,
+    /// How many of the next reads time out, as a silent serial link does.
+    failing_reads: Arc<Mutex<u32>>,
 }
 
 impl Body for Recorder {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        let mut failing = self.failing_reads.lock().unwrap();
+        if *failing > 0 {
+            *failing -= 1;
+            return Err(BodyError::Timeout { port: "/dev/test".into(), timeout_ms: 200, received: 0, skipped: 0 });
+        }
         Ok(SensorFrame { sonar_m: *self.sonar_m.lock().unwrap(), ..SensorFrame::empty(0) })
     }
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
@@ -137,6 +144,42 @@ fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refu
     let inbox = &rig.received;
     assert!(inbox.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some("g2")));
     assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
+}
+
+#[test]
+fn a_short_body_fault_stops_the_wheels_and_the_task_resumes_from_rest() {
+    let mut rig = rig();
+    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send(goto_far("g4"));
+    rig.run(3000);
+    let cruising = rig.last_wheels();
+    assert!(cruising.left_mps > 0.4, "{cruising:?}");
+    // Four control periods (200 ms) without a sensor frame: under the 500 ms the task survives.
+    *rig.body.failing_reads.lock().unwrap() = 4;
+    let before = rig.body.commands.lock().unwrap().len();
+    rig.run(200);
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP, "the first failed read stops the wheels");
+    rig.run(100);
+    let after: Vec<WheelSpeeds> = rig.body.commands.lock().unwrap()[before..].to_vec();
+    let resumed = after.iter().find(|w| w.left_mps > 0.0).expect("the task drives again");
+    // 1.5 m/s^2 over one 50 ms period from rest, not the cruising speed again.
+    assert!(resumed.left_mps <= 0.08, "resumed at {resumed:?} after {after:?}");
+    assert!(!failed(&rig, "g4"), "{:?}", rig.performatives());
+}
+
+#[test]
+fn a_body_unreadable_beyond_the_fault_window_fails_the_task() {
+    let mut rig = rig();
+    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send(goto_far("g5"));
+    rig.run(1000);
+    *rig.body.failing_reads.lock().unwrap() = 20;
+    rig.run(1000);
+    let failure = rig.received.iter().find(|m| m.performative == Performative::Failure).expect("the task fails");
+    assert_eq!(failure.conversation_id.as_deref(), Some("g5"));
+    assert!(failure.content_text().unwrap_or_default().contains("no sensor frame"), "{failure:?}");
+    rig.run(1000);
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP, "no task, no motion after the link returns");
 }
 
 /// Sends the pose every 100 ms for `ms` while the chair turns through `headings` (cycled).

@@ -112,6 +112,15 @@ impl BasicControl {
         self.watchdog.expired(now_ns)
     }
 
+    /// The wheels were stopped outside this layer (a body fault, an emergency stop): forget the
+    /// target and the ramp state, so the next output ramps up from rest instead of jumping back
+    /// to the speed the chair had before.
+    pub fn halt(&mut self, now_ns: u64) {
+        self.target = WheelSpeeds::default();
+        self.output = WheelSpeeds::default();
+        self.last_output_ns = Some(now_ns);
+    }
+
     /// The wheel speed references to send at `now_ns`: ramped towards the last command, or towards
     /// zero once the watchdog has fired.
     pub fn output(&mut self, now_ns: u64) -> WheelSpeeds {
@@ -143,6 +152,23 @@ mod tests {
         // Curvature kept: w / v = 1 still.
         let c = d.command(fast);
         assert!((c.angular_radps / c.linear_mps - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn after_a_halt_the_output_ramps_up_from_rest() {
+        let mut basic = BasicControl::new(drive(), 500_000_000);
+        let mut now = 0;
+        for _ in 0..30 {
+            now += 100_000_000;
+            basic.command(VelocityCommand::new(0.6, 0.0), now).unwrap();
+            basic.output(now);
+        }
+        assert!((basic.output(now).left_mps - 0.6).abs() < 1e-12);
+        basic.halt(now);
+        now += 100_000_000;
+        basic.command(VelocityCommand::new(0.6, 0.0), now).unwrap();
+        // one 100 ms step at 1 m/s^2 from rest, not back to 0.6 m/s
+        assert!((basic.output(now).left_mps - 0.1).abs() < 1e-9, "{:?}", basic.output(now));
     }
 
     #[test]
