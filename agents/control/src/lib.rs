@@ -397,7 +397,7 @@ impl Agent for ControlAgent {
                     tracing::warn!(error = %err, "body read failed; wheels stopped, task held");
                     return;
                 }
-                tracing::warn!(error = %err, fault_ms = self.config.body_fault_ms, "body unreadable; task failed");
+                tracing::warn!(error = %err, fault_ms = self.config.body_fault_ms, "body unreadable past the fault window; chair stopped, task failed");
                 self.preempt(ctx, &format!("body: {err}"));
                 if let Mode::Manual { .. } = self.mode {
                     self.mode = Mode::Idle;
