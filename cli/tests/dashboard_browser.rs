@@ -13,7 +13,10 @@ fn chromium() -> Option<PathBuf> {
     if let Some(path) = std::env::var_os("CHROMIUM") {
         return Some(PathBuf::from(path));
     }
-    ["/usr/bin/chromium", "/usr/bin/chromium-browser"].into_iter().map(PathBuf::from).find(|p| p.exists())
+    ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
+        .into_iter()
+        .map(PathBuf::from)
+        .find(|p| p.exists())
 }
 
 /// Kills the demo if the test fails half way.
@@ -32,11 +35,17 @@ const TEST: &str = "the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_cl
 fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
     let browser_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
     let Some(chromium) = chromium() else {
-        iw_testdata::skip(TEST, "no chromium (apt-get install chromium; .ci/run does it)");
+        iw_testdata::skip(
+            TEST,
+            "no chromium (apt-get install chromium; .ci/run does it)",
+        );
         return;
     };
     if !browser_dir.join("node_modules/playwright-core").exists() {
-        iw_testdata::skip(TEST, "playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)");
+        iw_testdata::skip(
+            TEST,
+            "playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)",
+        );
         return;
     }
     if Command::new("node").arg("--version").output().is_err() {
@@ -62,7 +71,8 @@ fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
     std::thread::spawn(move || lines.for_each(drop));
     println!("dashboard at {url}");
 
-    let screenshot = std::env::temp_dir().join(format!("intellwheels-dashboard-{}.png", std::process::id()));
+    let screenshot =
+        std::env::temp_dir().join(format!("intellwheels-dashboard-{}.png", std::process::id()));
     let out = Command::new("node")
         .current_dir(&browser_dir)
         .arg("dashboard.mjs")
@@ -80,13 +90,22 @@ fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
 
     // SIGTERM ends a serving demo cleanly, with its summary
     let pid = demo.0.id().to_string();
-    assert!(Command::new("kill").args(["-TERM", &pid]).status().expect("kill").success());
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &pid])
+            .status()
+            .expect("kill")
+            .success()
+    );
     let mut waited = Duration::ZERO;
     let status = loop {
         if let Some(status) = demo.0.try_wait().expect("wait") {
             break status;
         }
-        assert!(waited < Duration::from_secs(20), "the demo did not stop on SIGTERM");
+        assert!(
+            waited < Duration::from_secs(20),
+            "the demo did not stop on SIGTERM"
+        );
         std::thread::sleep(Duration::from_millis(100));
         waited += Duration::from_millis(100);
     };

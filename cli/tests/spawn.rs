@@ -47,13 +47,18 @@ impl Proc {
         let (tx, events) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                let value: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("not a JSON event: {line}: {e}"));
+                let value: Value = serde_json::from_str(&line)
+                    .unwrap_or_else(|e| panic!("not a JSON event: {line}: {e}"));
                 if tx.send(value).is_err() {
                     return;
                 }
             }
         });
-        Proc { child, events, seen: Vec::new() }
+        Proc {
+            child,
+            events,
+            seen: Vec::new(),
+        }
     }
 
     /// Waits for an event matching `want` (also among those already seen); panics after LIMIT.
@@ -68,22 +73,32 @@ impl Proc {
     fn wait_new(&mut self, what: &str, want: impl Fn(&Value) -> bool) -> Value {
         let deadline = Instant::now() + LIMIT;
         loop {
-            match self.events.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
+            match self
+                .events
+                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+            {
                 Ok(v) => {
                     self.seen.push(v.clone());
                     if want(&v) {
                         return v;
                     }
                 }
-                Err(RecvTimeoutError::Timeout) => panic!("no {what} within {LIMIT:?}; saw {:#?}", self.seen),
-                Err(RecvTimeoutError::Disconnected) => panic!("stdout closed before {what}; saw {:#?}", self.seen),
+                Err(RecvTimeoutError::Timeout) => {
+                    panic!("no {what} within {LIMIT:?}; saw {:#?}", self.seen)
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    panic!("stdout closed before {what}; saw {:#?}", self.seen)
+                }
             }
         }
     }
 
     /// Sends SIGTERM and waits for the exit status.
     fn terminate(&mut self) -> std::process::ExitStatus {
-        let status = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status().unwrap();
+        let status = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap();
         assert!(status.success(), "kill -TERM");
         self.child.wait().unwrap()
     }
@@ -102,21 +117,45 @@ fn is(event: &Value, kind: &str, field: &str, value: &str) -> bool {
 
 fn keygen(dir: &Path, name: &str) -> String {
     let path = dir.join(format!("{name}.pk8"));
-    let out = Command::new(env!("CARGO_BIN_EXE_intellwheels")).args(["spawn", "--keygen"]).arg(&path).output().unwrap();
-    assert!(out.status.success(), "keygen: {}", String::from_utf8_lossy(&out.stderr));
-    let again = Command::new(env!("CARGO_BIN_EXE_intellwheels")).args(["spawn", "--keygen"]).arg(&path).output().unwrap();
-    assert!(!again.status.success(), "keygen must refuse to overwrite a key");
+    let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+        .args(["spawn", "--keygen"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "keygen: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let again = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+        .args(["spawn", "--keygen"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        !again.status.success(),
+        "keygen must refuse to overwrite a key"
+    );
     path.display().to_string()
 }
 
 /// Polls the board until `f` holds; panics after LIMIT with the board state and what the
 /// services saw (a goal failure there names the reason).
-fn board_until(board: &BoardEmulator, services: &mut Proc, what: &str, f: impl Fn(&iw_body::BoardState) -> bool) {
+fn board_until(
+    board: &BoardEmulator,
+    services: &mut Proc,
+    what: &str,
+    f: impl Fn(&iw_body::BoardState) -> bool,
+) {
     let deadline = Instant::now() + LIMIT;
     while !f(&board.handle().state()) {
         if Instant::now() >= deadline {
             services.seen.extend(services.events.try_iter());
-            panic!("board never {what}: {:?}\nservices saw {:#?}", board.handle().state(), services.seen);
+            panic!(
+                "board never {what}: {:?}\nservices saw {:#?}",
+                board.handle().state(),
+                services.seen
+            );
         }
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -125,8 +164,16 @@ fn board_until(board: &BoardEmulator, services: &mut Proc, what: &str, f: impl F
 #[test]
 fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     let dir = tempfile::tempdir().unwrap();
-    let keys: Vec<String> = ["services", "chair-a", "chair-b", "chair-c"].iter().map(|n| keygen(dir.path(), n)).collect();
-    let board = BoardEmulator::spawn_with_watchdog(WheelGeometry::default(), 50_000_000, Some(Duration::from_millis(300))).expect("pty");
+    let keys: Vec<String> = ["services", "chair-a", "chair-b", "chair-c"]
+        .iter()
+        .map(|n| keygen(dir.path(), n))
+        .collect();
+    let board = BoardEmulator::spawn_with_watchdog(
+        WheelGeometry::default(),
+        50_000_000,
+        Some(Duration::from_millis(300)),
+    )
+    .expect("pty");
     let services_addr = format!("127.0.0.1:{}", free_port_pair());
 
     let mut services = Proc::spawn(&[
@@ -145,40 +192,106 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     services.wait_for("services ready", |e| e["event"] == "ready");
     let a_addr = format!("127.0.0.1:{}", free_port_pair());
     let serial = format!("serial:{}", board.port_name());
-    let mut chair_a = Proc::spawn(&["--chair", "chair-a", "--body", &serial, "--start", "1.0,6.0,0", "--listen", &a_addr, "--peer", &services_addr, "--key", &keys[1]]);
+    let mut chair_a = Proc::spawn(&[
+        "--chair",
+        "chair-a",
+        "--body",
+        &serial,
+        "--start",
+        "1.0,6.0,0",
+        "--listen",
+        &a_addr,
+        "--peer",
+        &services_addr,
+        "--key",
+        &keys[1],
+    ]);
     chair_a.wait_for("chair-a ready", |e| e["event"] == "ready");
     let b_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut chair_b = Proc::spawn(&["--chair", "chair-b", "--body", "virtual", "--start", "1.0,6.0,0", "--listen", &b_addr, "--peer", &services_addr, "--key", &keys[2]]);
+    let mut chair_b = Proc::spawn(&[
+        "--chair",
+        "chair-b",
+        "--body",
+        "virtual",
+        "--start",
+        "1.0,6.0,0",
+        "--listen",
+        &b_addr,
+        "--peer",
+        &services_addr,
+        "--key",
+        &keys[2],
+    ]);
     chair_b.wait_for("chair-b ready", |e| e["event"] == "ready");
 
-    for agent in ["control@chair-a", "perception@chair-a", "control@chair-b", "perception@chair-b"] {
-        services.wait_for(&format!("{agent} joined"), |e| is(e, "joined", "agent", agent));
+    for agent in [
+        "control@chair-a",
+        "perception@chair-a",
+        "control@chair-b",
+        "perception@chair-b",
+    ] {
+        services.wait_for(&format!("{agent} joined"), |e| {
+            is(e, "joined", "agent", agent)
+        });
     }
-    chair_a.wait_for("the services seen by chair-a", |e| is(e, "joined", "agent", "dispatcher@services"));
-    services.wait_for("chair-a's goal agreed", |e| is(e, "goal", "chair", "chair-a") && e["performative"] == "AGREE");
-    board_until(&board, &mut services, "drove", |s| s.speeds != WheelSpeeds::STOP);
+    chair_a.wait_for("the services seen by chair-a", |e| {
+        is(e, "joined", "agent", "dispatcher@services")
+    });
+    services.wait_for("chair-a's goal agreed", |e| {
+        is(e, "goal", "chair", "chair-a") && e["performative"] == "AGREE"
+    });
+    board_until(&board, &mut services, "drove", |s| {
+        s.speeds != WheelSpeeds::STOP
+    });
 
     chair_a.child.kill().unwrap(); // SIGKILL: no take-down, no last stop
     chair_a.child.wait().unwrap();
-    board_until(&board, &mut services, "stopped by its watchdog", |s| s.speeds == WheelSpeeds::STOP && s.watchdog_stops >= 1);
-    services.wait_for("chair-a's control agent leaving", |e| is(e, "left", "agent", "control@chair-a"));
+    board_until(&board, &mut services, "stopped by its watchdog", |s| {
+        s.speeds == WheelSpeeds::STOP && s.watchdog_stops >= 1
+    });
+    services.wait_for("chair-a's control agent leaving", |e| {
+        is(e, "left", "agent", "control@chair-a")
+    });
 
     // The rest carries on: chair-b keeps exchanging messages and gets its goal done, and a chair
     // joining after the kill gets its goal done too.
-    services.wait_new("a chair-b pose after the kill", |e| is(e, "pose", "chair", "chair-b"));
+    services.wait_new("a chair-b pose after the kill", |e| {
+        is(e, "pose", "chair", "chair-b")
+    });
     let c_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut chair_c = Proc::spawn(&["--chair", "chair-c", "--start", "1.0,6.0,0", "--listen", &c_addr, "--peer", &services_addr, "--key", &keys[3]]);
+    let mut chair_c = Proc::spawn(&[
+        "--chair",
+        "chair-c",
+        "--start",
+        "1.0,6.0,0",
+        "--listen",
+        &c_addr,
+        "--peer",
+        &services_addr,
+        "--key",
+        &keys[3],
+    ]);
     chair_c.wait_for("chair-c ready", |e| e["event"] == "ready");
     for chair in ["chair-b", "chair-c"] {
-        services.wait_for(&format!("{chair}'s goal done"), |e| is(e, "goal", "chair", chair) && e["performative"] == "INFORM");
+        services.wait_for(&format!("{chair}'s goal done"), |e| {
+            is(e, "goal", "chair", chair) && e["performative"] == "INFORM"
+        });
     }
-    assert!(!services.seen.iter().any(|e| e["event"] == "goal" && e["performative"] == "FAILURE" && e["chair"] != "chair-a"), "{:#?}", services.seen);
+    assert!(
+        !services.seen.iter().any(|e| e["event"] == "goal"
+            && e["performative"] == "FAILURE"
+            && e["chair"] != "chair-a"),
+        "{:#?}",
+        services.seen
+    );
 
     // SIGTERM: chair-b stops cleanly and the services see it deregister.
     let status = chair_b.terminate();
     assert!(status.success(), "chair-b exit status {status}");
     chair_b.wait_for("chair-b stopped", |e| e["event"] == "stopped");
-    services.wait_for("chair-b's control agent leaving", |e| is(e, "left", "agent", "control@chair-b"));
+    services.wait_for("chair-b's control agent leaving", |e| {
+        is(e, "left", "agent", "control@chair-b")
+    });
     let status = services.terminate();
     assert!(status.success(), "services exit status {status}");
     services.wait_for("services stopped", |e| e["event"] == "stopped");
@@ -186,35 +299,84 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
 
 #[test]
 fn bad_flags_and_files_are_clear_errors() {
-    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_intellwheels")).arg("spawn").args(args).output().unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+            .arg("spawn")
+            .args(args)
+            .output()
+            .unwrap()
+    };
     let out = run(&["--chair", "c", "--body", "wooden"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--body `wooden`"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--body `wooden`"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let out = run(&["--chair", "c", "--listen", "127.0.0.1:0"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("port 0"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("port 0"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let dir = tempfile::tempdir().unwrap();
     let config = dir.path().join("bad.toml");
     std::fs::write(&config, "[container]\nlease_ms = \"long\"\n").unwrap();
     let out = run(&["--services", "--config", config.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.toml"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("bad.toml"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let key = dir.path().join("not-a-key");
     std::fs::write(&key, "hello").unwrap();
-    let out = run(&["--services", "--listen", "127.0.0.1:7", "--key", key.to_str().unwrap()]);
+    let out = run(&[
+        "--services",
+        "--listen",
+        "127.0.0.1:7",
+        "--key",
+        key.to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("identity key"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("identity key"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]
 fn containers_over_iceoryx2_join_and_a_goal_is_done() {
     let tag = format!("iwt-{}", std::process::id());
     let (services_inbox, chair_inbox) = (format!("{tag}-services"), format!("{tag}-chair"));
-    let mut services = Proc::spawn(&["--services", "--transport", "iceoryx2", "--listen", &services_inbox, "--goal", "chair-s:3.0,6.0"]);
+    let mut services = Proc::spawn(&[
+        "--services",
+        "--transport",
+        "iceoryx2",
+        "--listen",
+        &services_inbox,
+        "--goal",
+        "chair-s:3.0,6.0",
+    ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
-    let mut chair = Proc::spawn(&["--chair", "chair-s", "--transport", "iceoryx2", "--listen", &chair_inbox, "--peer", &services_inbox]);
-    services.wait_for("chair-s's goal done", |e| is(e, "goal", "chair", "chair-s") && e["performative"] == "INFORM");
+    let mut chair = Proc::spawn(&[
+        "--chair",
+        "chair-s",
+        "--transport",
+        "iceoryx2",
+        "--listen",
+        &chair_inbox,
+        "--peer",
+        &services_inbox,
+    ]);
+    services.wait_for("chair-s's goal done", |e| {
+        is(e, "goal", "chair", "chair-s") && e["performative"] == "INFORM"
+    });
     assert!(chair.terminate().success());
-    services.wait_for("chair-s's control agent leaving", |e| is(e, "left", "agent", "control@chair-s"));
+    services.wait_for("chair-s's control agent leaving", |e| {
+        is(e, "left", "agent", "control@chair-s")
+    });
     assert!(services.terminate().success());
 }

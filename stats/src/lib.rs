@@ -72,9 +72,16 @@ impl Wilcoxon {
 pub const EXACT_MAX_N: usize = 200;
 
 /// Wilcoxon signed-rank test of the paired samples `x` and `y`.
-pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64], alternative: Alternative) -> Result<Wilcoxon, StatsError> {
+pub fn wilcoxon_signed_rank(
+    x: &[f64],
+    y: &[f64],
+    alternative: Alternative,
+) -> Result<Wilcoxon, StatsError> {
     if x.len() != y.len() {
-        return Err(StatsError::UnpairedSamples { left: x.len(), right: y.len() });
+        return Err(StatsError::UnpairedSamples {
+            left: x.len(),
+            right: y.len(),
+        });
     }
     let mut diffs = Vec::with_capacity(x.len());
     for (index, (a, b)) in x.iter().zip(y).enumerate() {
@@ -97,19 +104,30 @@ pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64], alternative: Alternative) -> R
         while j < n && diffs[j].abs() == diffs[i].abs() {
             j += 1;
         }
-        doubled_ranks[i..j].iter_mut().for_each(|r| *r = (i + 1 + j) as u64);
+        doubled_ranks[i..j]
+            .iter_mut()
+            .for_each(|r| *r = (i + 1 + j) as u64);
         let t = (j - i) as f64;
         tie_term += t * t * t - t;
         i = j;
     }
-    let doubled_plus: u64 = diffs.iter().zip(&doubled_ranks).filter(|(d, _)| **d > 0.0).map(|(_, r)| r).sum();
+    let doubled_plus: u64 = diffs
+        .iter()
+        .zip(&doubled_ranks)
+        .filter(|(d, _)| **d > 0.0)
+        .map(|(_, r)| r)
+        .sum();
     let doubled_total: u64 = doubled_ranks.iter().sum();
     let w_plus = doubled_plus as f64 / 2.0;
     let w_minus = (doubled_total - doubled_plus) as f64 / 2.0;
     let nf = n as f64;
     let mean = nf * (nf + 1.0) / 4.0;
     let variance = nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0 - tie_term / 48.0;
-    let z = if variance > 0.0 { (w_plus - mean) / variance.sqrt() } else { 0.0 };
+    let z = if variance > 0.0 {
+        (w_plus - mean) / variance.sqrt()
+    } else {
+        0.0
+    };
     let p_normal = match alternative {
         Alternative::Greater => normal_sf(z),
         Alternative::Less => normal_sf(-z),
@@ -123,7 +141,15 @@ pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64], alternative: Alternative) -> R
             Alternative::TwoSided => (2.0 * upper.min(lower)).min(1.0),
         }
     });
-    Ok(Wilcoxon { n, w_plus, w_minus, t: w_plus.min(w_minus), p_exact, z, p_normal })
+    Ok(Wilcoxon {
+        n,
+        w_plus,
+        w_minus,
+        t: w_plus.min(w_minus),
+        p_exact,
+        z,
+        p_normal,
+    })
 }
 
 /// `P(W+ >= observed)` and `P(W+ <= observed)` under random signs, in doubled-rank units.
@@ -163,7 +189,8 @@ fn erfc(x: f64) -> f64 {
                 + t * (0.096_784_18
                     + t * (-0.186_288_06
                         + t * (0.278_868_07
-                            + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
     let r = t * poly.exp();
     if x >= 0.0 { r } else { 2.0 - r }
 }
@@ -180,7 +207,10 @@ mod tests {
     fn hollander_wolfe_example_matches_published_values() {
         // Hollander and Wolfe's example, as in SciPy's documentation: W- = 24 (T), exact
         // two-sided p = 0.041259765625, one-sided 0.0206298828125; normal approx 0.040888.
-        let d = [6.0, 8.0, 14.0, 16.0, 23.0, 24.0, 28.0, 29.0, 41.0, -48.0, 49.0, 56.0, 60.0, -67.0, 75.0];
+        let d = [
+            6.0, 8.0, 14.0, 16.0, 23.0, 24.0, 28.0, 29.0, 41.0, -48.0, 49.0, 56.0, 60.0, -67.0,
+            75.0,
+        ];
         let zeros = [0.0; 15];
         let two = wilcoxon_signed_rank(&d, &zeros, Alternative::TwoSided).unwrap();
         assert_eq!(two.t, 24.0);
@@ -207,7 +237,11 @@ mod tests {
         // SciPy: wilcoxon([3,3,2,2,6,1,1,3], method="approx") -> p = 0.011109224550098225.
         let d = [3.0, 3.0, 2.0, 2.0, 6.0, 1.0, 1.0, 3.0, 0.0];
         let w = wilcoxon_signed_rank(&d, &[0.0; 9], Alternative::TwoSided).unwrap();
-        assert!(close(w.p_normal, 0.011109224550098225, 1e-6), "{}", w.p_normal);
+        assert!(
+            close(w.p_normal, 0.011109224550098225, 1e-6),
+            "{}",
+            w.p_normal
+        );
         // Every sign pattern equally likely: all positive is 1 in 256, one-sided.
         let g = wilcoxon_signed_rank(&d, &[0.0; 9], Alternative::Greater).unwrap();
         assert!(close(g.p_exact.unwrap(), 1.0 / 256.0, 1e-12));
@@ -223,7 +257,10 @@ mod tests {
     #[test]
     fn unpaired_or_non_finite_is_an_error() {
         assert!(wilcoxon_signed_rank(&[1.0], &[], Alternative::Greater).is_err());
-        assert!(matches!(wilcoxon_signed_rank(&[f64::NAN], &[0.0], Alternative::Greater), Err(StatsError::NotFinite { index: 0, .. })));
+        assert!(matches!(
+            wilcoxon_signed_rank(&[f64::NAN], &[0.0], Alternative::Greater),
+            Err(StatsError::NotFinite { index: 0, .. })
+        ));
     }
 
     #[test]

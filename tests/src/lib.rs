@@ -14,8 +14,8 @@
 use std::time::Duration;
 
 use iw_bus::{
-    Clock, Counters, Envelope, FaultyTransport, FrameCodec, Impairments, InProcNetwork, InProcTransport, Layer, MockController,
-    MsgId, Stack, Time, Verdict, transport::FrameTransport,
+    Clock, Counters, Envelope, FaultyTransport, FrameCodec, Impairments, InProcNetwork,
+    InProcTransport, Layer, MockController, MsgId, Stack, Time, Verdict, transport::FrameTransport,
 };
 use iw_stack::{Node, Platform, StackConfig};
 
@@ -97,26 +97,48 @@ impl Link {
         let end = |agent: &str, node: &Node, faults, seed| End {
             agent: agent.to_string(),
             stack: platform.stack(node, config),
-            transport: FaultyTransport::new(net.endpoint(agent).expect("fresh network"), faults, seed),
+            transport: FaultyTransport::new(
+                net.endpoint(agent).expect("fresh network"),
+                faults,
+                seed,
+            ),
             delivered: Vec::new(),
             next_id: 0,
         };
         let a = end("a", &node_a, a_to_b, seed);
         let b = end("b", &node_b, b_to_a, seed.wrapping_add(1));
         let (clock, time) = Clock::mock(Link::T0);
-        Link { a, b, clock, time, platform, node_a, rogue: None, net, codec: FrameCodec::new() }
+        Link {
+            a,
+            b,
+            clock,
+            time,
+            platform,
+            node_a,
+            rogue: None,
+            net,
+            codec: FrameCodec::new(),
+        }
     }
 
     /// Adds a third party `agent` with its own identity and the given layers, on the same
     /// network; `registered` puts its key and name in the platform lists (a legitimate agent
     /// turned attacker) or not (an outsider).
     pub fn add_rogue(&mut self, agent: &str, config: &StackConfig, registered: bool) {
-        let node = if registered { self.platform.node(&[agent]) } else { Platform::new().node(&[agent]) };
+        let node = if registered {
+            self.platform.node(&[agent])
+        } else {
+            Platform::new().node(&[agent])
+        };
         let node = node.expect("system random generator");
         self.rogue = Some(End {
             agent: agent.to_string(),
             stack: self.platform.stack(&node, config),
-            transport: FaultyTransport::new(self.net.endpoint(agent).expect("fresh name"), Impairments::default(), 0),
+            transport: FaultyTransport::new(
+                self.net.endpoint(agent).expect("fresh name"),
+                Impairments::default(),
+                0,
+            ),
             delivered: Vec::new(),
             next_id: 1 << 40,
         });
@@ -172,7 +194,9 @@ impl Link {
         let end = self.end(side);
         if let Verdict::Pass = end.stack.outbound(&mut env, now) {
             let to = iw_bus::transport::PeerAddr(env.header.receiver.clone());
-            let frame = codec.encode_to_vec(&env).expect("layers make encodable envelopes");
+            let frame = codec
+                .encode_to_vec(&env)
+                .expect("layers make encodable envelopes");
             // A receiver without an endpoint is a lost frame, as on a real network.
             let _ = end.transport.send(&to, &frame);
         }
@@ -182,7 +206,10 @@ impl Link {
     pub fn inject(&mut self, side: Side, frame: &[u8]) {
         let from = if side == Side::A { &self.b } else { &self.a };
         let target = self.end_ref(side).transport.local_addr().clone();
-        from.transport.inner().send(&target, frame).expect("in-process endpoint exists");
+        from.transport
+            .inner()
+            .send(&target, frame)
+            .expect("in-process endpoint exists");
     }
 
     /// Delivers every frame waiting at either end and sends what the layers originate; true if
@@ -190,7 +217,11 @@ impl Link {
     pub fn step(&mut self) -> bool {
         let now = self.clock.now();
         let mut moved = false;
-        let sides: &[Side] = if self.rogue.is_some() { &[Side::A, Side::B, Side::Rogue] } else { &[Side::A, Side::B] };
+        let sides: &[Side] = if self.rogue.is_some() {
+            &[Side::A, Side::B, Side::Rogue]
+        } else {
+            &[Side::A, Side::B]
+        };
         for &side in sides {
             let codec = self.codec;
             let end = self.end(side);
@@ -208,7 +239,9 @@ impl Link {
             while let Some(env) = end.stack.poll_transmit(now) {
                 moved = true;
                 let to = iw_bus::transport::PeerAddr(env.header.receiver.clone());
-                let frame = codec.encode_to_vec(&env).expect("layers make encodable envelopes");
+                let frame = codec
+                    .encode_to_vec(&env)
+                    .expect("layers make encodable envelopes");
                 let _ = end.transport.send(&to, &frame);
             }
         }
@@ -235,7 +268,10 @@ impl Link {
     /// Numbers of the messages `side` received, in order.
     pub fn numbers(&self, side: Side) -> Vec<u64> {
         self.end_ref(side)
-            .delivered.iter().filter_map(|e| number_of(&e.payload)).collect()
+            .delivered
+            .iter()
+            .filter_map(|e| number_of(&e.payload))
+            .collect()
     }
 
     /// Rejections at both ends.

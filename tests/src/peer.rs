@@ -78,7 +78,13 @@ mod tests {
 
     #[test]
     fn report_round_trips() {
-        let r = Report { delivered: 5, unique: 5, duplicates: 0, foreign: 0, counters: "duplicate=3 bad_tag=1".into() };
+        let r = Report {
+            delivered: 5,
+            unique: 5,
+            duplicates: 0,
+            foreign: 0,
+            counters: "duplicate=3 bad_tag=1".into(),
+        };
         assert_eq!(Report::parse(&r.to_line()), Some(r));
         assert_eq!(Report::parse("REPORT bogus"), None);
     }

@@ -58,7 +58,12 @@ fn assert_exactly_once(link: &Link, n: u64) {
         assert_eq!(env.header.sender, "a");
     }
     let mut got = link.numbers(Side::B);
-    assert_eq!(got.len() as u64, n, "lost or duplicated: {} delivered", got.len());
+    assert_eq!(
+        got.len() as u64,
+        n,
+        "lost or duplicated: {} delivered",
+        got.len()
+    );
     got.sort_unstable();
     assert_eq!(got, (0..n).collect::<Vec<_>>());
 }
@@ -80,14 +85,19 @@ fn warmed_up(config: &StackConfig) -> Link {
 
 fn sealed(link: &mut Link, n: u64, at: Time) -> Vec<u8> {
     let id = link.fresh_id(Side::A);
-    link.seal(Side::A, Envelope::new(id, "a", "b", acl("a", "b", n)), at).expect("passes a's stack")
+    link.seal(Side::A, Envelope::new(id, "a", "b", acl("a", "b", n)), at)
+        .expect("passes a's stack")
 }
 
 // ---- repetition ------------------------------------------------------------------------------
 
 #[test]
 fn repetition_duplicated_and_replayed_frames_delivered_once() {
-    let faults = Impairments { duplicate: 0.3, replay: 0.2, ..no_faults() };
+    let faults = Impairments {
+        duplicate: 0.3,
+        replay: 0.2,
+        ..no_faults()
+    };
     let mut link = Link::new(&all_layers(), faults, faults, 11);
     send_all(&mut link, N);
     report("repetition", &link);
@@ -108,7 +118,11 @@ fn repetition_replay_after_the_id_window_rejected_by_sequence_number() {
     link.inject(Side::B, &frame);
     link.run(Duration::from_secs(1));
     report("repetition-late", &link);
-    assert_eq!(link.numbers(Side::B).iter().filter(|n| **n == 1).count(), 2, "message 1 from send_all and the original, once each");
+    assert_eq!(
+        link.numbers(Side::B).iter().filter(|n| **n == 1).count(),
+        2,
+        "message 1 from send_all and the original, once each"
+    );
     assert_eq!(link.counters().get(Reason::ReplayedSequence), 1);
 }
 
@@ -116,7 +130,12 @@ fn repetition_replay_after_the_id_window_rejected_by_sequence_number() {
 
 #[test]
 fn deletion_20pct_loss_10pct_duplication_and_reordering_lose_nothing() {
-    let faults = Impairments { drop: 0.2, duplicate: 0.1, reorder: 0.1, ..no_faults() };
+    let faults = Impairments {
+        drop: 0.2,
+        duplicate: 0.1,
+        reorder: 0.1,
+        ..no_faults()
+    };
     let mut link = Link::new(&all_layers(), faults, faults, 7);
     send_all(&mut link, N);
     report("deletion", &link);
@@ -131,8 +150,13 @@ fn deletion_on_a_dead_link_is_detected_not_silent() {
     cfg.comm.max_attempts = 5;
     let mut link = warmed_up(&cfg);
     link.a.transport = iw_bus::FaultyTransport::new(
-        iw_bus::InProcNetwork::new().endpoint("a").expect("fresh network"),
-        Impairments { drop: 1.0, ..no_faults() },
+        iw_bus::InProcNetwork::new()
+            .endpoint("a")
+            .expect("fresh network"),
+        Impairments {
+            drop: 1.0,
+            ..no_faults()
+        },
         3,
     );
     link.send(Side::A, 1);
@@ -146,13 +170,19 @@ fn deletion_on_a_dead_link_is_detected_not_silent() {
 
 #[test]
 fn insertion_random_and_plaintext_frames_never_delivered() {
-    let faults = Impairments { inject: 0.3, ..no_faults() };
+    let faults = Impairments {
+        inject: 0.3,
+        ..no_faults()
+    };
     let mut link = Link::new(&all_layers(), faults, faults, 5);
     send_all(&mut link, N);
     // A well-formed but unsealed frame claiming to come from `a`.
     let mut plain = Envelope::new(iw_bus::MsgId(u64::MAX), "a", "b", acl("a", "b", 999));
     plain.header.timestamp = link.clock.now();
-    link.inject(Side::B, &FrameCodec::new().encode_to_vec(&plain).expect("encodable"));
+    link.inject(
+        Side::B,
+        &FrameCodec::new().encode_to_vec(&plain).expect("encodable"),
+    );
     link.run(Duration::from_secs(1));
     report("insertion", &link);
     assert_exactly_once(&link, N);
@@ -168,7 +198,11 @@ fn insertion_by_unregistered_sender_gets_nothing_through() {
     link.add_rogue("x", &all_layers(), false);
     let id = link.fresh_id(Side::Rogue);
     let now = link.clock.now();
-    link.send_envelope(Side::Rogue, Envelope::new(id, "x", "b", acl("x", "b", 1)), now);
+    link.send_envelope(
+        Side::Rogue,
+        Envelope::new(id, "x", "b", acl("x", "b", 1)),
+        now,
+    );
     link.run(Duration::from_secs(5));
     report("insertion-unregistered", &link);
     assert!(link.b.delivered.is_empty());
@@ -178,10 +212,18 @@ fn insertion_by_unregistered_sender_gets_nothing_through() {
     let open: LayerSet = "parser,temporal,comm".parse().expect("layer list");
     let cfg = StackConfig::with_layers(open);
     let mut link = Link::new(&cfg, no_faults(), no_faults(), 2);
-    link.add_rogue("x", &StackConfig::with_layers("temporal,comm".parse().expect("layer list")), false);
+    link.add_rogue(
+        "x",
+        &StackConfig::with_layers("temporal,comm".parse().expect("layer list")),
+        false,
+    );
     let id = link.fresh_id(Side::Rogue);
     let now = link.clock.now();
-    link.send_envelope(Side::Rogue, Envelope::new(id, "x", "b", acl("x", "b", 1)), now);
+    link.send_envelope(
+        Side::Rogue,
+        Envelope::new(id, "x", "b", acl("x", "b", 1)),
+        now,
+    );
     link.run(Duration::from_secs(5));
     report("insertion-parser", &link);
     assert!(link.b.delivered.is_empty());
@@ -192,7 +234,10 @@ fn insertion_by_unregistered_sender_gets_nothing_through() {
 
 #[test]
 fn resequencing_reordered_frames_detected_and_each_delivered_once() {
-    let faults = Impairments { reorder: 0.4, ..no_faults() };
+    let faults = Impairments {
+        reorder: 0.4,
+        ..no_faults()
+    };
     let mut link = Link::new(&all_layers(), faults, no_faults(), 9);
     send_all(&mut link, N);
     report("resequencing", &link);
@@ -223,7 +268,10 @@ fn resequencing_strict_ordering_drops_late_frames() {
 
 #[test]
 fn corruption_random_bit_flips_rejected_and_repaired_by_retransmission() {
-    let faults = Impairments { corrupt: 0.3, ..no_faults() };
+    let faults = Impairments {
+        corrupt: 0.3,
+        ..no_faults()
+    };
     let mut link = Link::new(&all_layers(), faults, faults, 13);
     send_all(&mut link, N);
     report("corruption", &link);
@@ -248,7 +296,10 @@ fn corruption_every_single_bit_flip_of_a_sealed_frame_rejected() {
     // What got through is the genuine frame, once, via the sender's retransmission.
     assert_eq!(link.numbers(Side::B), vec![0, 1]);
     for env in &link.b.delivered {
-        assert_eq!(env.payload, acl("a", "b", number_of(&env.payload).expect("numbered")));
+        assert_eq!(
+            env.payload,
+            acl("a", "b", number_of(&env.payload).expect("numbered"))
+        );
     }
     assert!(link.counters().get(Reason::BadTag) > 0);
 }
@@ -258,7 +309,9 @@ fn corruption_every_single_bit_flip_of_a_sealed_frame_rejected() {
 #[test]
 fn delay_stale_frames_dropped_in_simulated_time() {
     // Without the communication layer, so the sender does not retransmit what the attacker holds.
-    let mut link = warmed_up(&StackConfig::with_layers("parser,temporal,security".parse().expect("layer list")));
+    let mut link = warmed_up(&StackConfig::with_layers(
+        "parser,temporal,security".parse().expect("layer list"),
+    ));
     let now = link.clock.now();
     let late = sealed(&mut link, 1, now);
     let in_time = sealed(&mut link, 2, now);
@@ -293,7 +346,8 @@ fn delay_past_reply_by_dropped() {
     let mut link = warmed_up(&all_layers());
     let now = link.clock.now();
     let id = link.fresh_id(Side::A);
-    let env = Envelope::new(id, "a", "b", acl("a", "b", 1)).with_reply_by(now.plus(Duration::from_millis(20)));
+    let env = Envelope::new(id, "a", "b", acl("a", "b", 1))
+        .with_reply_by(now.plus(Duration::from_millis(20)));
     let frame = link.seal(Side::A, env, now).expect("passes a's stack");
     link.time.advance(Duration::from_millis(300));
     link.inject(Side::B, &frame);
@@ -309,10 +363,18 @@ fn delay_past_reply_by_dropped() {
 fn masquerade_registered_agent_claiming_another_identity_rejected() {
     let mut link = warmed_up(&all_layers());
     // `m` is a legitimate, registered agent with its own key; it claims to be `a`.
-    link.add_rogue("m", &StackConfig::with_layers("temporal,security,comm".parse().expect("layer list")), true);
+    link.add_rogue(
+        "m",
+        &StackConfig::with_layers("temporal,security,comm".parse().expect("layer list")),
+        true,
+    );
     let id = link.fresh_id(Side::Rogue);
     let now = link.clock.now();
-    link.send_envelope(Side::Rogue, Envelope::new(id, "a", "b", acl("a", "b", 666)), now);
+    link.send_envelope(
+        Side::Rogue,
+        Envelope::new(id, "a", "b", acl("a", "b", 666)),
+        now,
+    );
     link.run(Duration::from_secs(5));
     report("masquerade-identity", &link);
     assert_eq!(link.numbers(Side::B), vec![0]);
@@ -323,10 +385,18 @@ fn masquerade_registered_agent_claiming_another_identity_rejected() {
 fn masquerade_authenticated_agent_cannot_sign_acl_as_another() {
     let mut link = warmed_up(&all_layers());
     // `m` authenticates as itself but writes `:sender a` inside the ACL message.
-    link.add_rogue("m", &StackConfig::with_layers("temporal,security,comm".parse().expect("layer list")), true);
+    link.add_rogue(
+        "m",
+        &StackConfig::with_layers("temporal,security,comm".parse().expect("layer list")),
+        true,
+    );
     let id = link.fresh_id(Side::Rogue);
     let now = link.clock.now();
-    link.send_envelope(Side::Rogue, Envelope::new(id, "m", "b", acl("a", "b", 666)), now);
+    link.send_envelope(
+        Side::Rogue,
+        Envelope::new(id, "m", "b", acl("a", "b", 666)),
+        now,
+    );
     link.run(Duration::from_secs(5));
     report("masquerade-acl", &link);
     assert_eq!(link.numbers(Side::B), vec![0]);
@@ -340,34 +410,90 @@ fn masquerade_authenticated_agent_cannot_sign_acl_as_another() {
 #[test]
 fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries() {
     use iw_bus::transport::{FrameTransport, PeerAddr};
-    use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerMsg, ContainerNode, GlobalAgentList, Part};
+    use iw_container::{
+        AgentEntry, Container, ContainerConfig, ContainerId, ContainerMsg, ContainerNode,
+        GlobalAgentList, Part,
+    };
     use iw_stack::GuardedTransport;
 
     let clock = Clock::system();
     let guarded = |name: &str, key: [u8; 32]| {
-        Arc::new(GuardedTransport::new(Arc::new(UdpTransport::bind("127.0.0.1:0").expect("bind")), name, key, clock.clone()).expect("guard"))
+        Arc::new(
+            GuardedTransport::new(
+                Arc::new(UdpTransport::bind("127.0.0.1:0").expect("bind")),
+                name,
+                key,
+                clock.clone(),
+            )
+            .expect("guard"),
+        )
     };
-    let entry = |name: &str, key: u8, addr: &str| AgentEntry { name: name.into(), public_key: vec![key; 32], addr: PeerAddr(addr.into()) };
-    let start = |id: u64, transport: Arc<dyn FrameTransport>, seeds: Vec<PeerAddr>, agent: AgentEntry| {
-        let config = ContainerConfig { heartbeat_ms: 20, lease_ms: 200, ..ContainerConfig::new(ContainerId(id), transport.local_addr().clone(), seeds) };
-        let mut container = Container::new(config);
-        container.register(agent);
-        ContainerNode::start(container, transport, clock.clone(), Duration::from_millis(5)).expect("container")
+    let entry = |name: &str, key: u8, addr: &str| AgentEntry {
+        name: name.into(),
+        public_key: vec![key; 32],
+        addr: PeerAddr(addr.into()),
     };
+    let start =
+        |id: u64, transport: Arc<dyn FrameTransport>, seeds: Vec<PeerAddr>, agent: AgentEntry| {
+            let config = ContainerConfig {
+                heartbeat_ms: 20,
+                lease_ms: 200,
+                ..ContainerConfig::new(ContainerId(id), transport.local_addr().clone(), seeds)
+            };
+            let mut container = Container::new(config);
+            container.register(agent);
+            ContainerNode::start(
+                container,
+                transport,
+                clock.clone(),
+                Duration::from_millis(5),
+            )
+            .expect("container")
+        };
     let group = [7u8; 32];
     let a_guard = guarded("container-1.1", group);
     let a_addr = a_guard.local_addr().clone();
     let a = start(1, a_guard.clone(), vec![], entry("door", 1, "bus-a"));
-    let b = start(2, guarded("container-2.1", group), vec![a_addr.clone()], entry("nav", 2, "bus-b"));
+    let b = start(
+        2,
+        guarded("container-2.1", group),
+        vec![a_addr.clone()],
+        entry("nav", 2, "bus-b"),
+    );
     // Id 0 would win the election; it claims `door` with its own key and adds `spy`.
-    let rogue = start(0, guarded("container-0.1", [9u8; 32]), vec![a_addr.clone()], entry("door", 9, "bus-rogue"));
+    let rogue = start(
+        0,
+        guarded("container-0.1", [9u8; 32]),
+        vec![a_addr.clone()],
+        entry("door", 9, "bus-rogue"),
+    );
 
     let mut gal = GlobalAgentList::default();
-    gal.merge_part(ContainerId(0), Part { generation: 99, agents: vec![entry("door", 9, "bus-rogue"), entry("spy", 9, "bus-rogue")] });
+    gal.merge_part(
+        ContainerId(0),
+        Part {
+            generation: 99,
+            agents: vec![entry("door", 9, "bus-rogue"), entry("spy", 9, "bus-rogue")],
+        },
+    );
     let forged = [
-        ContainerMsg::Gal { leader: ContainerId(0), gal },
-        ContainerMsg::Lal { id: ContainerId(0), part: Part { generation: 99, agents: vec![entry("spy", 9, "bus-rogue")] } },
-        ContainerMsg::Heartbeat { id: ContainerId(0), leader: ContainerId(0), lal_generation: 99, gal_versions: Default::default() },
+        ContainerMsg::Gal {
+            leader: ContainerId(0),
+            gal,
+        },
+        ContainerMsg::Lal {
+            id: ContainerId(0),
+            part: Part {
+                generation: 99,
+                agents: vec![entry("spy", 9, "bus-rogue")],
+            },
+        },
+        ContainerMsg::Heartbeat {
+            id: ContainerId(0),
+            leader: ContainerId(0),
+            lal_generation: 99,
+            gal_versions: Default::default(),
+        },
     ];
     let codec = FrameCodec::new();
     let socket = std::net::UdpSocket::bind("127.0.0.1:0").expect("bind");
@@ -376,12 +502,20 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
     while Instant::now() < deadline {
         for msg in &forged {
             let json = msg.encode().expect("encodes");
-            let unsealed = codec.encode_to_vec(&Envelope::new(iw_bus::MsgId(1), "container-0.1", iw_stack::GROUP, json.clone())).expect("encodes");
+            let unsealed = codec
+                .encode_to_vec(&Envelope::new(
+                    iw_bus::MsgId(1),
+                    "container-0.1",
+                    iw_stack::GROUP,
+                    json.clone(),
+                ))
+                .expect("encodes");
             for frame in [&json, &unsealed] {
                 socket.send_to(frame, a_addr.0.as_str()).expect("send");
             }
         }
-        joined = a.with(|c| c.gal().lookup("nav").is_some()) && b.with(|c| c.gal().lookup("door").is_some());
+        joined = a.with(|c| c.gal().lookup("nav").is_some())
+            && b.with(|c| c.gal().lookup("door").is_some());
         if joined && a_guard.counters().get(Reason::BadTag) > 0 {
             break;
         }
@@ -393,15 +527,34 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
     for node in [&a, &b] {
         node.with(|c| {
             assert_eq!(c.leader(), ContainerId(1), "the rogue won no election");
-            assert!(!c.live_peers().contains(&ContainerId(0)), "the rogue is not a live peer");
-            assert!(c.gal().lookup("spy").is_none(), "the rogue's agent is not in the GAL");
+            assert!(
+                !c.live_peers().contains(&ContainerId(0)),
+                "the rogue is not a live peer"
+            );
+            assert!(
+                c.gal().lookup("spy").is_none(),
+                "the rogue's agent is not in the GAL"
+            );
             let (owner, door) = c.gal().lookup("door").expect("door listed");
-            assert_eq!((owner, door.public_key.as_slice()), (ContainerId(1), &[1u8; 32][..]), "door keeps its own key");
+            assert_eq!(
+                (owner, door.public_key.as_slice()),
+                (ContainerId(1), &[1u8; 32][..]),
+                "door keeps its own key"
+            );
         });
     }
-    assert!(counters.get(Reason::BadFrame) > 0, "plaintext control frames refused");
-    assert!(counters.get(Reason::NotSealed) > 0, "unsealed envelopes refused");
-    assert!(counters.get(Reason::BadTag) > 0, "frames sealed under another key refused");
+    assert!(
+        counters.get(Reason::BadFrame) > 0,
+        "plaintext control frames refused"
+    );
+    assert!(
+        counters.get(Reason::NotSealed) > 0,
+        "unsealed envelopes refused"
+    );
+    assert!(
+        counters.get(Reason::BadTag) > 0,
+        "frames sealed under another key refused"
+    );
     rogue.stop();
     b.stop();
     a.stop();
@@ -432,7 +585,13 @@ impl Peer {
         assert_eq!(parts.first(), Some(&"READY"), "peer said `{line}`");
         let addr = parts[1].parse().expect("socket address");
         let key = unhex32(parts[2]).expect("key");
-        Peer { child, stdin, stdout, addr, key }
+        Peer {
+            child,
+            stdin,
+            stdout,
+            addr,
+            key,
+        }
     }
 
     fn finish(mut self) -> Report {
@@ -447,20 +606,36 @@ impl Peer {
 
 /// Runs `a` here and `b` in the peer process through the proxy; returns the peer's report, the
 /// numbers `a` got back, and `a`'s counters.
-fn system_run(faults: ImpairConfig, attack: impl FnOnce(&std::net::SocketAddr, &Platform)) -> (Report, Vec<u64>, String) {
+fn system_run(
+    faults: ImpairConfig,
+    attack: impl FnOnce(&std::net::SocketAddr, &Platform),
+) -> (Report, Vec<u64>, String) {
     let mut peer = Peer::spawn();
     let platform = Platform::new();
     let node = platform.node(&["a"]).expect("identity");
     platform.register("b", peer.key);
     let transport = UdpTransport::bind("127.0.0.1:0").expect("bind");
-    let proxy = ImpairProxy::start(transport.socket_addr().expect("addr"), peer.addr, faults).expect("proxy");
-    writeln!(peer.stdin, "PEER {} {}", hex(&node.identity.public_key()), proxy.addr()).expect("peer stdin");
+    let proxy = ImpairProxy::start(transport.socket_addr().expect("addr"), peer.addr, faults)
+        .expect("proxy");
+    writeln!(
+        peer.stdin,
+        "PEER {} {}",
+        hex(&node.identity.public_key()),
+        proxy.addr()
+    )
+    .expect("peer stdin");
 
     let mut cfg = StackConfig::default();
     cfg.comm.max_attempts = 40;
     cfg.comm.initial_rto = Duration::from_millis(10);
     cfg.comm.max_rto = Duration::from_millis(200);
-    let bus = Bus::start(platform.stack(&node, &cfg), Arc::new(transport), Clock::system(), BusConfig::default()).expect("bus");
+    let bus = Bus::start(
+        platform.stack(&node, &cfg),
+        Arc::new(transport),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .expect("bus");
     bus.add_route("b", proxy.peer_addr());
     let mut mailbox = bus.register("a").expect("register");
     for n in 0..N {
@@ -476,7 +651,9 @@ fn system_run(faults: ImpairConfig, attack: impl FnOnce(&std::net::SocketAddr, &
         // Waiting in `recv_timeout`, this thread receives from the socket itself.
         match mailbox.recv_timeout(Duration::from_millis(2)) {
             Some(env) => {
-                if let Some(n) = number_of(&env.payload).filter(|n| env.payload == acl("b", "a", *n)) {
+                if let Some(n) =
+                    number_of(&env.payload).filter(|n| env.payload == acl("b", "a", *n))
+                {
                     echoes.push(n);
                 }
             }
@@ -502,7 +679,10 @@ fn system_run(faults: ImpairConfig, attack: impl FnOnce(&std::net::SocketAddr, &
 }
 
 fn assert_system_exact(report: &Report, echoes: &[u64]) {
-    assert_eq!(report.foreign, 0, "forged, replayed or altered message delivered");
+    assert_eq!(
+        report.foreign, 0,
+        "forged, replayed or altered message delivered"
+    );
     assert_eq!(report.duplicates, 0, "delivered twice");
     assert_eq!((report.unique, report.delivered), (N, N), "lost messages");
     let unique: BTreeSet<_> = echoes.iter().collect();
@@ -512,10 +692,19 @@ fn assert_system_exact(report: &Report, echoes: &[u64]) {
 
 #[test]
 fn udp_system_deletion_repetition_resequencing_nothing_lost_nothing_twice() {
-    let faults = ImpairConfig { seed: 50159, drop: 0.2, duplicate: 0.1, reorder: 0.1, ..Default::default() };
+    let faults = ImpairConfig {
+        seed: 50159,
+        drop: 0.2,
+        duplicate: 0.1,
+        reorder: 0.1,
+        ..Default::default()
+    };
     let (report, echoes, _) = system_run(faults, |_, _| {});
     assert_system_exact(&report, &echoes);
-    assert!(report.counters.contains("duplicate"), "the proxy's duplicates were seen and dropped");
+    assert!(
+        report.counters.contains("duplicate"),
+        "the proxy's duplicates were seen and dropped"
+    );
 }
 
 #[test]
@@ -536,20 +725,36 @@ fn udp_system_corruption_insertion_delay_masquerade_repetition_rejected() {
         let codec = FrameCodec::new();
         let mut plain = Envelope::new(iw_bus::MsgId(1), "a", "b", acl("a", "b", 10_000));
         plain.header.timestamp = Clock::system().now();
-        socket.send_to(&codec.encode_to_vec(&plain).expect("encodable"), peer).expect("send");
+        socket
+            .send_to(&codec.encode_to_vec(&plain).expect("encodable"), peer)
+            .expect("send");
         let rogue = Platform::new();
         let m = rogue.node(&["a"]).expect("identity");
         rogue.register("b", [0; 32]);
-        let mut stack = rogue.stack(&m, &StackConfig::with_layers("security".parse().expect("layers")));
+        let mut stack = rogue.stack(
+            &m,
+            &StackConfig::with_layers("security".parse().expect("layers")),
+        );
         let mut env = Envelope::new(iw_bus::MsgId(2), "a", "b", acl("a", "b", 10_001));
         let _ = iw_bus::Layer::outbound(&mut stack, &mut env, Clock::system().now());
         while let Some(hello) = iw_bus::Layer::poll_transmit(&mut stack, Clock::system().now()) {
-            socket.send_to(&codec.encode_to_vec(&hello).expect("encodable"), peer).expect("send");
+            socket
+                .send_to(&codec.encode_to_vec(&hello).expect("encodable"), peer)
+                .expect("send");
         }
     };
     let (report, echoes, _) = system_run(faults, attack);
     assert_system_exact(&report, &echoes);
-    assert!(report.counters.contains("not_sealed"), "plaintext insertion rejected");
-    assert!(report.counters.contains("bad_signature"), "masquerading key agreement rejected");
-    assert!(report.counters.contains("bad_tag") || report.counters.contains("bad_frame"), "corruption rejected");
+    assert!(
+        report.counters.contains("not_sealed"),
+        "plaintext insertion rejected"
+    );
+    assert!(
+        report.counters.contains("bad_signature"),
+        "masquerading key agreement rejected"
+    );
+    assert!(
+        report.counters.contains("bad_tag") || report.counters.contains("bad_frame"),
+        "corruption rejected"
+    );
 }

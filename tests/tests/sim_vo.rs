@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use iw_features::DetectorKind;
-use iw_sim::vo::{SimCamera, sim_vo_config, TrialConfig, run_trial, t_base_camera, vo_frame, waypoints_ahead};
+use iw_sim::vo::{
+    SimCamera, TrialConfig, run_trial, sim_vo_config, t_base_camera, vo_frame, waypoints_ahead,
+};
 use iw_sim::{ChairKind, ChairSpec, Map, SharedWorld, TextureSet, World, shared};
 use iw_vo::{CameraSource, Pipeline, VisualOdometry, planar_motion};
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -27,7 +29,10 @@ fn known_camera_motion_comes_back_from_vo() {
     let (world, id, _) = office(1);
     let mut camera = SimCamera::new(world.clone(), id).unwrap();
     let k = *camera.intrinsics();
-    assert_eq!((k.fx, k.cx, k.depth_units_per_m), (ChairSpec::default().camera.intrinsics().0, 159.5, 5000.0));
+    assert_eq!(
+        (k.fx, k.cx, k.depth_units_per_m),
+        (ChairSpec::default().camera.intrinsics().0, 159.5, 5000.0)
+    );
     let mut vo = VisualOdometry::new(sim_vo_config(DetectorKind::LsacSurf, Pipeline::Thesis), k);
     let start = world.lock().unwrap().pose(id).unwrap();
     let first = camera.render().unwrap();
@@ -41,12 +46,29 @@ fn known_camera_motion_comes_back_from_vo() {
     // VO's world is the first camera frame
     let error = truth.inverse() * estimate.t_world_camera;
     assert!(stats.inliers >= 20, "{stats:?}");
-    assert!(error.translation.vector.norm() < 0.015, "translation error {:?}", error.translation.vector);
-    assert!(error.rotation.angle() < 0.5f64.to_radians(), "rotation error {} rad", error.rotation.angle());
+    assert!(
+        error.translation.vector.norm() < 0.015,
+        "translation error {:?}",
+        error.translation.vector
+    );
+    assert!(
+        error.rotation.angle() < 0.5f64.to_radians(),
+        "rotation error {} rad",
+        error.rotation.angle()
+    );
     // the base's planar motion, through the mount
-    let motion = planar_motion(&t_base_camera(&ChairSpec::default().camera), &estimate.t_world_camera);
-    assert!((motion.x - 0.05).abs() < 0.015 && (motion.y - 0.02).abs() < 0.015, "{motion:?}");
-    assert!((motion.theta - 2f64.to_radians()).abs() < 0.5f64.to_radians(), "{motion:?}");
+    let motion = planar_motion(
+        &t_base_camera(&ChairSpec::default().camera),
+        &estimate.t_world_camera,
+    );
+    assert!(
+        (motion.x - 0.05).abs() < 0.015 && (motion.y - 0.02).abs() < 0.015,
+        "{motion:?}"
+    );
+    assert!(
+        (motion.theta - 2f64.to_radians()).abs() < 0.5f64.to_radians(),
+        "{motion:?}"
+    );
 }
 
 fn camera_frame(camera: &mut SimCamera) -> iw_vo::RgbdFrame {
@@ -57,10 +79,26 @@ fn camera_frame(camera: &mut SimCamera) -> iw_vo::RgbdFrame {
 fn fused_odometry_beats_wheels_and_vision_alone() {
     let (world, id, route) = office(7);
     let result = run_trial(&world, id, &route, &TrialConfig::default()).unwrap();
-    let (wheel, vo, fused) = (result.rmse_wheel_m(), result.rmse_vo_m(), result.rmse_fused_m());
-    eprintln!("RMSE wheel {wheel:.4} m, VO {vo:.4} m, fused {fused:.4} m; VO on {} frames", result.vo_frames);
-    let travelled: f64 = result.points.windows(2).map(|w| ((w[1].truth.x - w[0].truth.x).powi(2) + (w[1].truth.y - w[0].truth.y).powi(2)).sqrt()).sum();
+    let (wheel, vo, fused) = (
+        result.rmse_wheel_m(),
+        result.rmse_vo_m(),
+        result.rmse_fused_m(),
+    );
+    eprintln!(
+        "RMSE wheel {wheel:.4} m, VO {vo:.4} m, fused {fused:.4} m; VO on {} frames",
+        result.vo_frames
+    );
+    let travelled: f64 = result
+        .points
+        .windows(2)
+        .map(|w| {
+            ((w[1].truth.x - w[0].truth.x).powi(2) + (w[1].truth.y - w[0].truth.y).powi(2)).sqrt()
+        })
+        .sum();
     assert!(travelled > 2.5, "the chair drove only {travelled} m");
     assert_eq!(result.vo_frames, result.points.len());
-    assert!(fused < wheel && fused < vo, "wheel {wheel}, VO {vo}, fused {fused}");
+    assert!(
+        fused < wheel && fused < vo,
+        "wheel {wheel}, VO {vo}, fused {fused}"
+    );
 }

@@ -45,20 +45,36 @@ fn error_content(why: &str) -> String {
 impl AssistantAgent {
     /// An assistant for `config.chairs`.
     pub fn new(config: AssistantConfig) -> Self {
-        AssistantAgent { config, forwarded: BTreeMap::new(), conversations: 0 }
+        AssistantAgent {
+            config,
+            forwarded: BTreeMap::new(),
+            conversations: 0,
+        }
     }
 
     fn on_staff_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let _ = ctx.send(message.create_reply().with_performative(Performative::Refuse).with_content(error_content(why)));
+            let _ = ctx.send(
+                message
+                    .create_reply()
+                    .with_performative(Performative::Refuse)
+                    .with_content(error_content(why)),
+            );
         };
-        let sender = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+        let sender = message
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
         if !self.config.staff.is_empty() && !self.config.staff.contains(&sender) {
             refuse(ctx, &format!("`{sender}` is not staff"));
             return;
         }
         let (chair, place) = match WheelchairContent::from_message(&message) {
-            Ok(WheelchairContent::Request { actor, action: WheelchairAction::GoTo { place } }) => (actor.name, place),
+            Ok(WheelchairContent::Request {
+                actor,
+                action: WheelchairAction::GoTo { place },
+            }) => (actor.name, place),
             Ok(_) => {
                 refuse(ctx, "the assistant forwards go-to goals only");
                 return;
@@ -74,18 +90,29 @@ impl AssistantAgent {
         };
         self.conversations += 1;
         let conversation = format!("assist-{}", self.conversations);
-        let goal = WheelchairContent::Request { actor: cognitive.clone(), action: WheelchairAction::GoTo { place } };
+        let goal = WheelchairContent::Request {
+            actor: cognitive.clone(),
+            action: WheelchairAction::GoTo { place },
+        };
         let forward = goal.fill(
-            AclMessage::new(Performative::Request).with_receiver(cognitive).with_protocol("fipa-request").with_conversation_id(conversation.clone()),
+            AclMessage::new(Performative::Request)
+                .with_receiver(cognitive)
+                .with_protocol("fipa-request")
+                .with_conversation_id(conversation.clone()),
         );
         let _ = ctx.send(forward);
-        let agree = message.create_reply().with_performative(Performative::Agree);
-        let _ = ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        let agree = message
+            .create_reply()
+            .with_performative(Performative::Agree);
+        let _ =
+            ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
         self.forwarded.insert(conversation, message);
     }
 
     fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
-        let Some(conversation) = message.conversation_id.clone() else { return };
+        let Some(conversation) = message.conversation_id.clone() else {
+            return;
+        };
         if message.performative == Performative::Agree {
             return;
         }
@@ -105,11 +132,14 @@ impl Agent for AssistantAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         match message.performative {
             Performative::Request => self.on_staff_request(ctx, message),
-            Performative::Agree | Performative::Inform | Performative::Failure | Performative::Refuse | Performative::NotUnderstood => {
-                self.on_answer(ctx, &message)
-            }
+            Performative::Agree
+            | Performative::Inform
+            | Performative::Failure
+            | Performative::Refuse
+            | Performative::NotUnderstood => self.on_answer(ctx, &message),
             _ => {
-                let _ = ctx.not_understood(&message, "the assistant takes go-to requests from staff");
+                let _ =
+                    ctx.not_understood(&message, "the assistant takes go-to requests from staff");
             }
         }
     }

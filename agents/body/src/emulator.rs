@@ -48,7 +48,9 @@ pub struct BoardHandle(Arc<Mutex<BoardState>>);
 impl BoardHandle {
     fn lock(&self) -> MutexGuard<'_, BoardState> {
         // a panic in the emulator thread cannot leave the plain-data state half-written
-        self.0.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+        self.0
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
     /// A snapshot of the board state.
@@ -89,9 +91,15 @@ impl BoardEmulator {
     /// As [`Self::spawn`], with the board's hardware watchdog: when no speed reference arrives
     /// for `watchdog` (wall-clock time, as on the board), the references drop to zero, so a
     /// chair whose computer died stops.
-    pub fn spawn_with_watchdog(geometry: WheelGeometry, period_ns: u64, watchdog: Option<Duration>) -> Result<Self, BodyError> {
-        let (mut master, slave) =
-            TTYPort::pair().map_err(|source| BodyError::Port { port: "<pty pair>".to_string(), source })?;
+    pub fn spawn_with_watchdog(
+        geometry: WheelGeometry,
+        period_ns: u64,
+        watchdog: Option<Duration>,
+    ) -> Result<Self, BodyError> {
+        let (mut master, slave) = TTYPort::pair().map_err(|source| BodyError::Port {
+            port: "<pty pair>".to_string(),
+            source,
+        })?;
         let port_name = slave.name().unwrap_or_default();
         let handle = BoardHandle(Arc::new(Mutex::new(BoardState {
             time_ns: 0,
@@ -109,9 +117,27 @@ impl BoardEmulator {
         let (thread_handle, thread_stop) = (handle.clone(), stop.clone());
         let thread = std::thread::Builder::new()
             .name("iw-board-emulator".into())
-            .spawn(move || serve(&mut master, &thread_handle, &thread_stop, geometry, period_ns, watchdog))
-            .map_err(|source| BodyError::Io { port: port_name.clone(), source })?;
-        Ok(Self { port_name, handle, stop, thread: Some(thread), _slave: slave })
+            .spawn(move || {
+                serve(
+                    &mut master,
+                    &thread_handle,
+                    &thread_stop,
+                    geometry,
+                    period_ns,
+                    watchdog,
+                )
+            })
+            .map_err(|source| BodyError::Io {
+                port: port_name.clone(),
+                source,
+            })?;
+        Ok(Self {
+            port_name,
+            handle,
+            stop,
+            thread: Some(thread),
+            _slave: slave,
+        })
     }
 
     /// The slave tty path a driver opens, e.g. `/dev/pts/3`.
@@ -134,7 +160,14 @@ impl Drop for BoardEmulator {
     }
 }
 
-fn serve(master: &mut TTYPort, handle: &BoardHandle, stop: &AtomicBool, geometry: WheelGeometry, period_ns: u64, watchdog: Option<Duration>) {
+fn serve(
+    master: &mut TTYPort,
+    handle: &BoardHandle,
+    stop: &AtomicBool,
+    geometry: WheelGeometry,
+    period_ns: u64,
+    watchdog: Option<Duration>,
+) {
     let mut decoder = Decoder::new();
     let mut chunk = [0u8; 256];
     let mut last_reference = (Instant::now(), 0);
@@ -151,7 +184,14 @@ fn serve(master: &mut TTYPort, handle: &BoardHandle, stop: &AtomicBool, geometry
         match master.read(&mut chunk) {
             Ok(0) => continue,
             Ok(n) => decoder.push(&chunk[..n]),
-            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => continue,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
+                ) =>
+            {
+                continue;
+            }
             Err(e) => {
                 tracing::warn!(error = %e, "board emulator: pty closed");
                 return;
@@ -177,10 +217,21 @@ fn serve(master: &mut TTYPort, handle: &BoardHandle, stop: &AtomicBool, geometry
     }
 }
 
-fn answer(state: &mut BoardState, message: Message, geometry: WheelGeometry, period_ns: u64) -> Option<Vec<u8>> {
+fn answer(
+    state: &mut BoardState,
+    message: Message,
+    geometry: WheelGeometry,
+    period_ns: u64,
+) -> Option<Vec<u8>> {
     match message {
-        Message::SpeedRef { left_mmps, right_mmps } => {
-            state.speeds = WheelSpeeds { left_mps: f64::from(left_mmps) / 1000.0, right_mps: f64::from(right_mmps) / 1000.0 };
+        Message::SpeedRef {
+            left_mmps,
+            right_mmps,
+        } => {
+            state.speeds = WheelSpeeds {
+                left_mps: f64::from(left_mmps) / 1000.0,
+                right_mps: f64::from(right_mmps) / 1000.0,
+            };
             state.commands += 1;
             None
         }
@@ -188,7 +239,10 @@ fn answer(state: &mut BoardState, message: Message, geometry: WheelGeometry, per
             let dt = period_ns as f64 * 1e-9;
             let per_tick = geometry.m_per_tick();
             let (rl, rr) = state.residual_ticks;
-            let (dl, dr) = (rl + state.speeds.left_mps * dt / per_tick, rr + state.speeds.right_mps * dt / per_tick);
+            let (dl, dr) = (
+                rl + state.speeds.left_mps * dt / per_tick,
+                rr + state.speeds.right_mps * dt / per_tick,
+            );
             state.left_ticks += dl.trunc() as i64;
             state.right_ticks += dr.trunc() as i64;
             state.residual_ticks = (dl.fract(), dr.fract());

@@ -21,7 +21,11 @@ pub struct Footprint {
 
 impl Footprint {
     /// The IntellWheels prototype: a mid-size rear-wheel-drive powered wheelchair, 0.65 x 1.1 m.
-    pub const PROTOTYPE: Footprint = Footprint { front_m: 0.75, rear_m: 0.35, half_width_m: 0.325 };
+    pub const PROTOTYPE: Footprint = Footprint {
+        front_m: 0.75,
+        rear_m: 0.35,
+        half_width_m: 0.325,
+    };
 
     /// Corners in the body frame, counter-clockwise from rear right.
     pub fn corners(&self) -> [Point2<f64>; 4] {
@@ -41,7 +45,10 @@ impl Footprint {
     /// assert!((r - (0.75f64.powi(2) + 0.325f64.powi(2)).sqrt()).abs() < 1e-12);
     /// ```
     pub fn turning_radius_m(&self) -> f64 {
-        self.corners().iter().map(|p| p.coords.norm()).fold(0.0, f64::max)
+        self.corners()
+            .iter()
+            .map(|p| p.coords.norm())
+            .fold(0.0, f64::max)
     }
 
     /// The 16 sonar poses of thesis figure 3.4 for this footprint, S1 first; each pose's x axis
@@ -95,7 +102,13 @@ mod tests {
         let fp = Footprint::PROTOTYPE;
         for (k, m) in fp.sonar_mounts().iter().enumerate() {
             let p = m.translation.vector;
-            assert!(p.y.abs() <= fp.half_width_m + 1e-12 && p.x <= fp.front_m + 1e-12 && p.x >= -fp.rear_m - 1e-12, "S{}", k + 1);
+            assert!(
+                p.y.abs() <= fp.half_width_m + 1e-12
+                    && p.x <= fp.front_m + 1e-12
+                    && p.x >= -fp.rear_m - 1e-12,
+                "S{}",
+                k + 1
+            );
             // the acoustic axis never points back into the chair across its centre line
             let axis = m.rotation * Vector2::x();
             assert!(axis.dot(&p) > 0.0, "S{} looks inwards", k + 1);

@@ -55,7 +55,13 @@ pub struct SensorFrame {
 impl SensorFrame {
     /// A frame at `time_ns` with no echoes, no laser and zero ticks.
     pub fn empty(time_ns: u64) -> Self {
-        Self { time_ns, left_ticks: 0, right_ticks: 0, sonar_m: [None; SONAR_COUNT], laser_m: Vec::new() }
+        Self {
+            time_ns,
+            left_ticks: 0,
+            right_ticks: 0,
+            sonar_m: [None; SONAR_COUNT],
+            laser_m: Vec::new(),
+        }
     }
 }
 
@@ -70,12 +76,18 @@ pub struct WheelSpeeds {
 
 impl WheelSpeeds {
     /// Both wheels stopped.
-    pub const STOP: Self = Self { left_mps: 0.0, right_mps: 0.0 };
+    pub const STOP: Self = Self {
+        left_mps: 0.0,
+        right_mps: 0.0,
+    };
 
     /// Wheel speeds for a linear speed `v_mps` and an angular speed `w_radps` (counter-clockwise
     /// positive) on a differential drive whose wheels are `track_m` apart.
     pub fn from_twist(v_mps: f64, w_radps: f64, track_m: f64) -> Self {
-        Self { left_mps: v_mps - w_radps * track_m / 2.0, right_mps: v_mps + w_radps * track_m / 2.0 }
+        Self {
+            left_mps: v_mps - w_radps * track_m / 2.0,
+            right_mps: v_mps + w_radps * track_m / 2.0,
+        }
     }
 }
 
@@ -116,7 +128,9 @@ pub enum BodyError {
     Protocol(#[from] protocol::ProtocolError),
     /// No complete sensor frame arrived within the timeout. The byte counts tell a silent link
     /// (0 received) from a garbled one (bytes received, skipped as noise).
-    #[error("no sensor frame from `{port}` within {timeout_ms} ms ({received} bytes received, {skipped} skipped as noise)")]
+    #[error(
+        "no sensor frame from `{port}` within {timeout_ms} ms ({received} bytes received, {skipped} skipped as noise)"
+    )]
     Timeout {
         /// Port path.
         port: String,

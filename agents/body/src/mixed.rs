@@ -9,7 +9,11 @@ use crate::{Body, BodyError, Odometry, SensorFrame, WheelSpeeds};
 /// virtual body at `t_world_body` and returns its virtual sonar and laser readings.
 pub trait VirtualSensors {
     /// Virtual readings of a body at `t_world_body` at `time_ns` (ticks are ignored by the merge).
-    fn sense_at(&mut self, t_world_body: Isometry2<f64>, time_ns: u64) -> Result<SensorFrame, BodyError>;
+    fn sense_at(
+        &mut self,
+        t_world_body: Isometry2<f64>,
+        time_ns: u64,
+    ) -> Result<SensorFrame, BodyError>;
 }
 
 /// Per sonar and per laser beam, the nearer of the two readings wins (an echo beats no echo).
@@ -45,7 +49,11 @@ impl<R: Body, V: VirtualSensors> MixedBody<R, V> {
     /// Combines `real` with `virtual_sensors`, dead-reckoning with `odometry` (which holds the
     /// chair's starting pose in the virtual world).
     pub fn new(real: R, virtual_sensors: V, odometry: Odometry) -> Self {
-        Self { real, virtual_sensors, odometry }
+        Self {
+            real,
+            virtual_sensors,
+            odometry,
+        }
     }
 
     /// The pose last sent to the simulator.
@@ -88,7 +96,10 @@ mod tests {
         real.sonar_m[3] = Some(0.9);
         virt.laser_m = vec![1.0, 2.0];
         let m = merge_nearest(&real, &virt);
-        assert_eq!(&m.sonar_m[..5], &[Some(0.5), Some(0.3), Some(0.8), Some(0.9), None]);
+        assert_eq!(
+            &m.sonar_m[..5],
+            &[Some(0.5), Some(0.3), Some(0.8), Some(0.9), None]
+        );
         assert_eq!(m.time_ns, 5);
         assert_eq!(m.laser_m, vec![1.0, 2.0]);
     }

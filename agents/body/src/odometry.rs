@@ -19,7 +19,11 @@ impl Default for WheelGeometry {
     /// A typical powered wheelchair: 14" drive wheels 0.56 m apart, a 512-line quadrature encoder
     /// on the motor shaft behind an 18:1 gearbox.
     fn default() -> Self {
-        Self { track_m: 0.56, wheel_radius_m: 0.175, ticks_per_rev: 4.0 * 512.0 * 18.0 }
+        Self {
+            track_m: 0.56,
+            wheel_radius_m: 0.175,
+            ticks_per_rev: 4.0 * 512.0 * 18.0,
+        }
     }
 }
 
@@ -52,7 +56,11 @@ pub struct Odometry {
 impl Odometry {
     /// Starts at `t_world_body`; the first frame only sets the tick reference.
     pub fn new(geometry: WheelGeometry, t_world_body: Isometry2<f64>) -> Self {
-        Self { geometry, last_ticks: None, t_world_body }
+        Self {
+            geometry,
+            last_ticks: None,
+            t_world_body,
+        }
     }
 
     /// The current pose estimate.
@@ -78,10 +86,16 @@ impl Odometry {
     pub fn advance(&mut self, left_ticks: i64, right_ticks: i64) -> Option<WheelTravel> {
         let (l0, r0) = self.last_ticks.replace((left_ticks, right_ticks))?;
         let k = self.geometry.m_per_tick();
-        let travel = WheelTravel { left_m: left_ticks.wrapping_sub(l0) as f64 * k, right_m: right_ticks.wrapping_sub(r0) as f64 * k };
+        let travel = WheelTravel {
+            left_m: left_ticks.wrapping_sub(l0) as f64 * k,
+            right_m: right_ticks.wrapping_sub(r0) as f64 * k,
+        };
         let ds = (travel.left_m + travel.right_m) / 2.0;
         let dtheta = (travel.right_m - travel.left_m) / self.geometry.track_m;
-        let t_prev_curr = Isometry2::new(Vector2::new(ds * (dtheta / 2.0).cos(), ds * (dtheta / 2.0).sin()), dtheta);
+        let t_prev_curr = Isometry2::new(
+            Vector2::new(ds * (dtheta / 2.0).cos(), ds * (dtheta / 2.0).sin()),
+            dtheta,
+        );
         self.t_world_body *= t_prev_curr;
         Some(travel)
     }

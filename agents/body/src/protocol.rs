@@ -63,7 +63,9 @@ pub enum Message {
 #[non_exhaustive]
 pub enum ProtocolError {
     /// The CRC-32 did not match: the frame was corrupted on the line.
-    #[error("checksum mismatch on frame kind {kind:#04x}: frame says {expected:#010x}, bytes give {actual:#010x}")]
+    #[error(
+        "checksum mismatch on frame kind {kind:#04x}: frame says {expected:#010x}, bytes give {actual:#010x}"
+    )]
     Checksum {
         /// Kind byte as received.
         kind: u8,
@@ -104,7 +106,10 @@ pub enum ProtocolError {
 pub fn encode(message: &Message) -> Vec<u8> {
     let (kind, payload) = match message {
         Message::RequestSensors => (kind::REQUEST_SENSORS, Vec::new()),
-        Message::SpeedRef { left_mmps, right_mmps } => {
+        Message::SpeedRef {
+            left_mmps,
+            right_mmps,
+        } => {
             let mut p = left_mmps.to_le_bytes().to_vec();
             p.extend_from_slice(&right_mmps.to_le_bytes());
             (kind::SPEED_REF, p)
@@ -132,7 +137,9 @@ pub fn encode(message: &Message) -> Vec<u8> {
 /// Sonar range on the wire: mm, 0 for no echo, saturating at 65.535 m.
 fn sonar_to_mm(range_m: Option<f64>) -> u16 {
     match range_m {
-        Some(r) if r.is_finite() && r > 0.0 => (r * 1000.0).round().clamp(1.0, u16::MAX as f64) as u16,
+        Some(r) if r.is_finite() && r > 0.0 => {
+            (r * 1000.0).round().clamp(1.0, u16::MAX as f64) as u16
+        }
         _ => 0,
     }
 }
@@ -172,7 +179,10 @@ impl Decoder {
         let drop_to = match start {
             Some(i) => i,
             // keep a trailing SYNC0: it may begin a frame
-            None => self.buf.len().saturating_sub(usize::from(self.buf.last() == Some(&SYNC0))),
+            None => self
+                .buf
+                .len()
+                .saturating_sub(usize::from(self.buf.last() == Some(&SYNC0))),
         };
         self.skipped += drop_to as u64;
         self.buf.drain(..drop_to);
@@ -182,10 +192,16 @@ impl Decoder {
         let (kind, len) = (self.buf[2], usize::from(self.buf[3]));
         if len > MAX_PAYLOAD {
             self.buf.drain(..2);
-            return Err(ProtocolError::Oversized { kind, len, max: MAX_PAYLOAD });
+            return Err(ProtocolError::Oversized {
+                kind,
+                len,
+                max: MAX_PAYLOAD,
+            });
         }
         let total = HEADER + len + TRAILER;
-        let Some(frame) = self.buf.get(..total) else { return Ok(None) };
+        let Some(frame) = self.buf.get(..total) else {
+            return Ok(None);
+        };
         let actual = crc32fast::hash(&frame[2..HEADER + len]);
         let mut crc_bytes = [0u8; 4];
         crc_bytes.copy_from_slice(&frame[HEADER + len..]);
@@ -193,7 +209,11 @@ impl Decoder {
         if expected != actual {
             // the length byte itself may be corrupt: resync just past this sync pattern
             self.buf.drain(..2);
-            return Err(ProtocolError::Checksum { kind, expected, actual });
+            return Err(ProtocolError::Checksum {
+                kind,
+                expected,
+                actual,
+            });
         }
         let payload: Vec<u8> = frame[HEADER..HEADER + len].to_vec();
         self.buf.drain(..total);
@@ -203,13 +223,24 @@ impl Decoder {
 
 fn parse_payload(kind: u8, p: &[u8]) -> Result<Message, ProtocolError> {
     let need = |expected: usize| {
-        if p.len() == expected { Ok(()) } else { Err(ProtocolError::Length { kind, expected, actual: p.len() }) }
+        if p.len() == expected {
+            Ok(())
+        } else {
+            Err(ProtocolError::Length {
+                kind,
+                expected,
+                actual: p.len(),
+            })
+        }
     };
     match kind {
         kind::REQUEST_SENSORS => need(0).map(|()| Message::RequestSensors),
         kind::SPEED_REF => {
             need(4)?;
-            Ok(Message::SpeedRef { left_mmps: i16::from_le_bytes([p[0], p[1]]), right_mmps: i16::from_le_bytes([p[2], p[3]]) })
+            Ok(Message::SpeedRef {
+                left_mmps: i16::from_le_bytes([p[0], p[1]]),
+                right_mmps: i16::from_le_bytes([p[2], p[3]]),
+            })
         }
         kind::SENSORS => {
             need(SENSORS_LEN)?;
@@ -251,7 +282,14 @@ mod tests {
 
     #[test]
     fn round_trip_every_kind() {
-        for m in [Message::RequestSensors, Message::SpeedRef { left_mmps: -1500, right_mmps: 32767 }, Message::Sensors(sample())] {
+        for m in [
+            Message::RequestSensors,
+            Message::SpeedRef {
+                left_mmps: -1500,
+                right_mmps: 32767,
+            },
+            Message::Sensors(sample()),
+        ] {
             let mut d = Decoder::new();
             d.push(&encode(&m));
             assert_eq!(d.decode().unwrap(), Some(m));
@@ -266,13 +304,19 @@ mod tests {
         bytes.extend(encode(&Message::RequestSensors));
         let mut d = Decoder::new();
         d.push(&bytes);
-        assert!(matches!(d.decode(), Err(ProtocolError::Checksum { kind: 0x81, .. })));
+        assert!(matches!(
+            d.decode(),
+            Err(ProtocolError::Checksum { kind: 0x81, .. })
+        ));
         assert_eq!(d.decode().unwrap(), Some(Message::RequestSensors));
     }
 
     #[test]
     fn split_delivery_waits_for_the_rest() {
-        let bytes = encode(&Message::SpeedRef { left_mmps: 1, right_mmps: 2 });
+        let bytes = encode(&Message::SpeedRef {
+            left_mmps: 1,
+            right_mmps: 2,
+        });
         let mut d = Decoder::new();
         for b in &bytes[..bytes.len() - 1] {
             d.push(&[*b]);
@@ -286,7 +330,10 @@ mod tests {
     fn oversized_and_unknown_are_named() {
         let mut d = Decoder::new();
         d.push(&[SYNC0, SYNC1, 0x81, 200]);
-        assert!(matches!(d.decode(), Err(ProtocolError::Oversized { len: 200, .. })));
+        assert!(matches!(
+            d.decode(),
+            Err(ProtocolError::Oversized { len: 200, .. })
+        ));
         let mut raw = vec![SYNC0, SYNC1, 0x33, 0];
         raw.extend(crc32fast::hash(&[0x33, 0]).to_le_bytes());
         d.push(&raw);

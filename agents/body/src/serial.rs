@@ -25,14 +25,22 @@ impl SerialBody {
         let port = serialport::new(path, baud)
             .timeout(timeout)
             .open()
-            .map_err(|source| BodyError::Port { port: path.to_string(), source })?;
+            .map_err(|source| BodyError::Port {
+                port: path.to_string(),
+                source,
+            })?;
         Ok(Self::from_port(port, timeout))
     }
 
     /// Wraps an already open port.
     pub fn from_port(port: Box<dyn serialport::SerialPort>, timeout: Duration) -> Self {
         let name = port.name().unwrap_or_else(|| "<unnamed>".to_string());
-        Self { port, name, decoder: Decoder::new(), timeout }
+        Self {
+            port,
+            name,
+            decoder: Decoder::new(),
+            timeout,
+        }
     }
 
     /// Bytes of line noise discarded so far.
@@ -44,13 +52,19 @@ impl SerialBody {
         self.port
             .write_all(&encode(message))
             .and_then(|()| self.port.flush())
-            .map_err(|source| BodyError::Io { port: self.name.clone(), source })
+            .map_err(|source| BodyError::Io {
+                port: self.name.clone(),
+                source,
+            })
     }
 }
 
 fn to_mmps(value_mps: f64) -> Result<i16, BodyError> {
     if !value_mps.is_finite() || value_mps.abs() > WIRE_LIMIT_MPS {
-        return Err(BodyError::SpeedOutOfRange { value_mps, limit_mps: WIRE_LIMIT_MPS });
+        return Err(BodyError::SpeedOutOfRange {
+            value_mps,
+            limit_mps: WIRE_LIMIT_MPS,
+        });
     }
     Ok((value_mps * 1000.0).round() as i16)
 }
@@ -84,14 +98,26 @@ impl Body for SerialBody {
                     received += n as u64;
                     self.decoder.push(&chunk[..n]);
                 }
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => {}
-                Err(source) => return Err(BodyError::Io { port: self.name.clone(), source }),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
+                    ) => {}
+                Err(source) => {
+                    return Err(BodyError::Io {
+                        port: self.name.clone(),
+                        source,
+                    });
+                }
             }
         }
     }
 
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
-        let message = Message::SpeedRef { left_mmps: to_mmps(speeds.left_mps)?, right_mmps: to_mmps(speeds.right_mps)? };
+        let message = Message::SpeedRef {
+            left_mmps: to_mmps(speeds.left_mps)?,
+            right_mmps: to_mmps(speeds.right_mps)?,
+        };
         self.send(&message)
     }
 }

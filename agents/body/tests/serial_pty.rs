@@ -2,13 +2,16 @@
 
 use std::time::Duration;
 
-use iw_body::{Body, BodyError, BoardEmulator, SerialBody, WheelGeometry, WheelSpeeds, protocol::ProtocolError};
+use iw_body::{
+    BoardEmulator, Body, BodyError, SerialBody, WheelGeometry, WheelSpeeds, protocol::ProtocolError,
+};
 
 const PERIOD_NS: u64 = 50_000_000;
 
 fn connect() -> (BoardEmulator, SerialBody) {
     let board = BoardEmulator::spawn(WheelGeometry::default(), PERIOD_NS).expect("pty pair");
-    let body = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2)).expect("open slave tty");
+    let body = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2))
+        .expect("open slave tty");
     (board, body)
 }
 
@@ -24,7 +27,11 @@ fn sonars_and_encoders_arrive_and_speed_references_reach_the_board() {
     assert_eq!(first.sonar_m[5], None);
     assert_eq!(first.time_ns, PERIOD_NS);
 
-    body.command(WheelSpeeds { left_mps: 0.5, right_mps: -0.25 }).unwrap();
+    body.command(WheelSpeeds {
+        left_mps: 0.5,
+        right_mps: -0.25,
+    })
+    .unwrap();
     let mut last = first;
     for _ in 0..20 {
         last = body.read().unwrap();
@@ -34,9 +41,18 @@ fn sonars_and_encoders_arrive_and_speed_references_reach_the_board() {
     let left_m = last.left_ticks as f64 * g.m_per_tick();
     let right_m = last.right_ticks as f64 * g.m_per_tick();
     assert!((left_m - 0.5).abs() < 2.0 * g.m_per_tick(), "left {left_m}");
-    assert!((right_m + 0.25).abs() < 2.0 * g.m_per_tick(), "right {right_m}");
+    assert!(
+        (right_m + 0.25).abs() < 2.0 * g.m_per_tick(),
+        "right {right_m}"
+    );
     let state = handle.state();
-    assert_eq!(state.speeds, WheelSpeeds { left_mps: 0.5, right_mps: -0.25 });
+    assert_eq!(
+        state.speeds,
+        WheelSpeeds {
+            left_mps: 0.5,
+            right_mps: -0.25
+        }
+    );
     body.stop().unwrap();
     body.read().unwrap();
     assert_eq!(handle.state().speeds, WheelSpeeds::STOP);
@@ -60,15 +76,29 @@ fn a_corrupted_frame_is_rejected_with_a_checksum_error_then_reading_recovers() {
 #[test]
 fn out_of_range_speeds_are_refused_before_the_wire() {
     let (board, mut body) = connect();
-    assert!(matches!(body.command(WheelSpeeds { left_mps: f64::NAN, right_mps: 0.0 }), Err(BodyError::SpeedOutOfRange { .. })));
-    assert!(matches!(body.command(WheelSpeeds { left_mps: 0.0, right_mps: 40.0 }), Err(BodyError::SpeedOutOfRange { .. })));
+    assert!(matches!(
+        body.command(WheelSpeeds {
+            left_mps: f64::NAN,
+            right_mps: 0.0
+        }),
+        Err(BodyError::SpeedOutOfRange { .. })
+    ));
+    assert!(matches!(
+        body.command(WheelSpeeds {
+            left_mps: 0.0,
+            right_mps: 40.0
+        }),
+        Err(BodyError::SpeedOutOfRange { .. })
+    ));
     body.read().unwrap();
     assert_eq!(board.handle().state().commands, 0);
 }
 
 #[test]
 fn opening_a_missing_port_names_it() {
-    let err = SerialBody::open("/dev/iw-no-such-port", 115_200, Duration::from_millis(100)).err().expect("must fail");
+    let err = SerialBody::open("/dev/iw-no-such-port", 115_200, Duration::from_millis(100))
+        .err()
+        .expect("must fail");
     assert!(err.to_string().contains("/dev/iw-no-such-port"), "{err}");
 }
 
@@ -86,18 +116,37 @@ fn eventually(limit: Duration, mut f: impl FnMut() -> bool) -> bool {
 
 #[test]
 fn the_board_watchdog_stops_the_wheels_when_references_stop_arriving() {
-    let board = BoardEmulator::spawn_with_watchdog(WheelGeometry::default(), PERIOD_NS, Some(Duration::from_millis(100))).expect("pty pair");
-    let mut body = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2)).expect("open slave tty");
+    let board = BoardEmulator::spawn_with_watchdog(
+        WheelGeometry::default(),
+        PERIOD_NS,
+        Some(Duration::from_millis(100)),
+    )
+    .expect("pty pair");
+    let mut body = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2))
+        .expect("open slave tty");
     let handle = board.handle();
-    let forward = WheelSpeeds { left_mps: 0.3, right_mps: 0.3 };
+    let forward = WheelSpeeds {
+        left_mps: 0.3,
+        right_mps: 0.3,
+    };
     body.command(forward).unwrap();
-    assert!(eventually(Duration::from_secs(10), || handle.state().speeds == forward), "the reference reaches the board");
+    assert!(
+        eventually(Duration::from_secs(10), || handle.state().speeds == forward),
+        "the reference reaches the board"
+    );
     assert_eq!(handle.state().watchdog_stops, 0);
     // Silence: the driver (e.g. a killed process) sends nothing more.
-    assert!(eventually(Duration::from_secs(10), || handle.state().speeds == WheelSpeeds::STOP), "the watchdog zeroes the wheels");
+    assert!(
+        eventually(Duration::from_secs(10), || handle.state().speeds
+            == WheelSpeeds::STOP),
+        "the watchdog zeroes the wheels"
+    );
     assert_eq!(handle.state().watchdog_stops, 1);
     body.command(forward).unwrap();
-    assert!(eventually(Duration::from_secs(10), || handle.state().speeds == forward), "a new reference drives again");
+    assert!(
+        eventually(Duration::from_secs(10), || handle.state().speeds == forward),
+        "a new reference drives again"
+    );
 }
 
 #[test]
@@ -106,14 +155,32 @@ fn a_silent_or_garbled_link_times_out_and_says_which() {
     use std::io::Write;
     // A bare pty: nothing answers on the master side unless the test writes.
     let (mut master, slave) = serialport::TTYPort::pair().expect("pty pair");
-    let mut body = SerialBody::open(&slave.name().expect("slave path"), 115_200, Duration::from_millis(100)).expect("open slave tty");
+    let mut body = SerialBody::open(
+        &slave.name().expect("slave path"),
+        115_200,
+        Duration::from_millis(100),
+    )
+    .expect("open slave tty");
     match body.read() {
-        Err(err @ BodyError::Timeout { received: 0, skipped: 0, .. }) => assert!(err.to_string().contains("0 bytes received"), "{err}"),
+        Err(
+            err @ BodyError::Timeout {
+                received: 0,
+                skipped: 0,
+                ..
+            },
+        ) => assert!(err.to_string().contains("0 bytes received"), "{err}"),
         other => panic!("expected a silent timeout, got {other:?}"),
     }
-    master.write_all(&[0x55; 40]).and_then(|()| master.flush()).expect("line noise");
+    master
+        .write_all(&[0x55; 40])
+        .and_then(|()| master.flush())
+        .expect("line noise");
     match body.read() {
-        Err(BodyError::Timeout { received: 40, skipped, .. }) => assert!(skipped > 0, "noise must count as skipped"),
+        Err(BodyError::Timeout {
+            received: 40,
+            skipped,
+            ..
+        }) => assert!(skipped > 0, "noise must count as skipped"),
         other => panic!("expected a garbled timeout, got {other:?}"),
     }
 }

@@ -159,11 +159,24 @@ struct Motion {
 enum Pending {
     Nothing,
     /// A door to open; the conversation id.
-    Door { conversation: String, door: String },
+    Door {
+        conversation: String,
+        door: String,
+    },
     /// The control agent driving a leg of `motion`.
-    Drive { conversation: String, motion: Motion },
+    Drive {
+        conversation: String,
+        motion: Motion,
+    },
     /// The watcher's grant of `passage` for `motion`, asked at `asked_ns` (bus time).
-    Pass { conversation: String, motion: Motion, passage: String, direction: &'static str, asked_ns: u64, agreed: bool },
+    Pass {
+        conversation: String,
+        motion: Motion,
+        passage: String,
+        direction: &'static str,
+        asked_ns: u64,
+        agreed: bool,
+    },
 }
 
 /// The cognitive agent of one wheelchair.
@@ -196,7 +209,10 @@ impl CognitiveAgent {
             if config.map.places.contains_key(place) {
                 Ok(())
             } else {
-                Err(CognitiveError::UnknownPlace { what, place: place.clone() })
+                Err(CognitiveError::UnknownPlace {
+                    what,
+                    place: place.clone(),
+                })
             }
         };
         known("start", &config.start_place)?;
@@ -209,9 +225,15 @@ impl CognitiveAgent {
             known("door", &door.b)?;
         }
         let points = config.map.places.iter().map(|(n, p)| (n.clone(), *p));
-        let landmarks = config.map.landmarks.iter().enumerate().map(|(i, p)| (format!("landmark {i}"), *p));
+        let landmarks = config
+            .map
+            .landmarks
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (format!("landmark {i}"), *p));
         for (name, p) in points.chain(landmarks) {
-            grid.astar(p, p).map_err(|source| CognitiveError::BadPoint { name, source })?;
+            grid.astar(p, p)
+                .map_err(|source| CognitiveError::BadPoint { name, source })?;
         }
         Ok(CognitiveAgent {
             place: config.start_place.clone(),
@@ -236,11 +258,18 @@ impl CognitiveAgent {
     /// blocked connections.
     fn problem(&self, place: &str) -> Problem {
         let c = |s: &str| Term::Const(s.to_string());
-        let atom = |predicate: &str, args: Vec<Term>| Atom { predicate: predicate.to_string(), args };
+        let atom = |predicate: &str, args: Vec<Term>| Atom {
+            predicate: predicate.to_string(),
+            args,
+        };
         let map = &self.config.map;
         let mut objects = vec![(self.config.chair.clone(), "chair".to_string())];
         objects.extend(map.places.keys().map(|p| (p.clone(), "place".to_string())));
-        objects.extend(map.doors.iter().map(|d| (d.name.clone(), "door".to_string())));
+        objects.extend(
+            map.doors
+                .iter()
+                .map(|d| (d.name.clone(), "door".to_string())),
+        );
         let mut init = vec![atom("at", vec![c(&self.config.chair), c(&self.place)])];
         let free = |a: &String, b: &String| !self.blocked.contains(&(a.clone(), b.clone()));
         for (a, b) in &map.connections {
@@ -263,8 +292,17 @@ impl CognitiveAgent {
                 init.push(atom("locked", vec![c(&d.name)]));
             }
         }
-        let goal = vec![Literal { positive: true, atom: atom("at", vec![c(&self.config.chair), c(place)]) }];
-        Problem { name: "route".into(), domain: self.config.domain.name.clone(), objects, init, goal }
+        let goal = vec![Literal {
+            positive: true,
+            atom: atom("at", vec![c(&self.config.chair), c(place)]),
+        }];
+        Problem {
+            name: "route".into(),
+            domain: self.config.domain.name.clone(),
+            objects,
+            init,
+            goal,
+        }
     }
 
     fn conversation(&mut self) -> String {
@@ -274,8 +312,14 @@ impl CognitiveAgent {
 
     /// Plans from the current place and starts the first step; ends the goal when done or stuck.
     fn replan(&mut self, ctx: &mut Context<'_>) {
-        let Some(place) = self.goal.as_ref().map(|g| g.place.clone()) else { return };
-        match plan(&self.config.domain, &self.problem(&place), self.config.max_states) {
+        let Some(place) = self.goal.as_ref().map(|g| g.place.clone()) else {
+            return;
+        };
+        match plan(
+            &self.config.domain,
+            &self.problem(&place),
+            self.config.max_states,
+        ) {
             Ok(steps) => {
                 tracing::info!(chair = %self.config.chair, plan = ?steps.iter().map(ToString::to_string).collect::<Vec<_>>(), "planned");
                 if let Some(goal) = self.goal.as_mut() {
@@ -290,7 +334,9 @@ impl CognitiveAgent {
 
     /// Starts the next plan step, or reports the goal reached.
     fn advance(&mut self, ctx: &mut Context<'_>) {
-        let Some(goal) = self.goal.as_mut() else { return };
+        let Some(goal) = self.goal.as_mut() else {
+            return;
+        };
         let Some(step) = goal.plan.get(goal.next).cloned() else {
             self.finish(ctx, Ok(()));
             return;
@@ -301,11 +347,21 @@ impl CognitiveAgent {
                 let conversation = self.conversation();
                 let action = WheelchairAction::OpenDoor { door: door.clone() };
                 self.request(ctx, self.config.door.clone(), action, &conversation);
-                self.pending = Pending::Door { conversation, door: door.clone() };
+                self.pending = Pending::Door {
+                    conversation,
+                    door: door.clone(),
+                };
             }
             ("move", [_, from, to]) => self.motion(ctx, from.clone(), to.clone(), None),
-            ("pass-door", [_, from, to, door]) => self.motion(ctx, from.clone(), to.clone(), Some(door.clone())),
-            _ => self.finish(ctx, Err(format!("the domain's action {step} is not one this agent executes"))),
+            ("pass-door", [_, from, to, door]) => {
+                self.motion(ctx, from.clone(), to.clone(), Some(door.clone()))
+            }
+            _ => self.finish(
+                ctx,
+                Err(format!(
+                    "the domain's action {step} is not one this agent executes"
+                )),
+            ),
         }
     }
 
@@ -313,26 +369,38 @@ impl CognitiveAgent {
     /// landmark when the pose is too uncertain).
     fn motion(&mut self, ctx: &mut Context<'_>, from: String, to: String, door: Option<String>) {
         let map = &self.config.map;
-        let here = self.t_map_base.or_else(|| map.places.get(&self.place).copied());
+        let here = self
+            .t_map_base
+            .or_else(|| map.places.get(&self.place).copied());
         let (Some(here), Some(target)) = (here, map.places.get(&to).copied()) else {
             self.finish(ctx, Err(format!("place `{to}` has no position")));
             return;
         };
         let mut stops = Vec::new();
-        let via_landmark = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
+        let via_landmark =
+            self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
         if via_landmark
-            && let Some(landmark) = map.landmarks.iter().min_by(|a, b| (*a - here).norm().total_cmp(&(*b - here).norm()))
+            && let Some(landmark) = map
+                .landmarks
+                .iter()
+                .min_by(|a, b| (*a - here).norm().total_cmp(&(*b - here).norm()))
         {
             stops.push(*landmark);
         }
-        if let Some(d) = door.as_ref().and_then(|d| map.doors.iter().find(|p| &p.name == d)) {
+        if let Some(d) = door
+            .as_ref()
+            .and_then(|d| map.doors.iter().find(|p| &p.name == d))
+        {
             stops.push(d.at);
         }
         stops.push(target);
         let mut waypoints = Vec::new();
         let mut start = here;
         for stop in stops {
-            let leg = self.grid.astar(start, stop).or_else(|_| self.grid.astar(map.places.get(&from).copied().unwrap_or(start), stop));
+            let leg = self.grid.astar(start, stop).or_else(|_| {
+                self.grid
+                    .astar(map.places.get(&from).copied().unwrap_or(start), stop)
+            });
             match leg {
                 Ok(path) => waypoints.extend(path.waypoints.into_iter().skip(1)),
                 Err(err) => {
@@ -344,7 +412,12 @@ impl CognitiveAgent {
             }
             start = stop;
         }
-        let motion = Motion { from, to, door, via_landmark };
+        let motion = Motion {
+            from,
+            to,
+            door,
+            via_landmark,
+        };
         if self.config.watcher.is_none() {
             self.legs = VecDeque::from([Leg::Drive(waypoints)]);
             self.next_leg(ctx, motion);
@@ -353,7 +426,12 @@ impl CognitiveAgent {
         let path: Vec<Point2<f64>> = std::iter::once(here).chain(waypoints).collect();
         // A passage held from before that this path does not enter is let go now.
         let touched = touched(&path, &self.config.map.passages);
-        let stale: Vec<String> = self.held.keys().filter(|p| !touched.contains(p.as_str())).cloned().collect();
+        let stale: Vec<String> = self
+            .held
+            .keys()
+            .filter(|p| !touched.contains(p.as_str()))
+            .cloned()
+            .collect();
         for passage in stale {
             self.release(ctx, &passage);
         }
@@ -398,19 +476,42 @@ impl CognitiveAgent {
                         self.release_reached(ctx, |_| true);
                         continue;
                     }
-                    let steps = points.into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
+                    let steps = points
+                        .into_iter()
+                        .map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y })
+                        .collect();
                     let conversation = self.conversation();
-                    self.request(ctx, self.config.control.clone(), WheelchairAction::Sequence { steps }, &conversation);
-                    self.pending = Pending::Drive { conversation, motion };
+                    self.request(
+                        ctx,
+                        self.config.control.clone(),
+                        WheelchairAction::Sequence { steps },
+                        &conversation,
+                    );
+                    self.pending = Pending::Drive {
+                        conversation,
+                        motion,
+                    };
                     return;
                 }
                 Some(Leg::Acquire { passage, direction }) => {
-                    let Some(watcher) = self.config.watcher.clone() else { continue };
+                    let Some(watcher) = self.config.watcher.clone() else {
+                        continue;
+                    };
                     let conversation = self.conversation();
-                    let action = WheelchairAction::Pass { passage: passage.clone(), direction: direction.to_string() };
+                    let action = WheelchairAction::Pass {
+                        passage: passage.clone(),
+                        direction: direction.to_string(),
+                    };
                     self.request(ctx, watcher, action, &conversation);
                     tracing::info!(chair = %self.config.chair, passage = %passage, direction, "waiting for the passage");
-                    self.pending = Pending::Pass { conversation, motion, passage, direction, asked_ns: ctx.now().0, agreed: false };
+                    self.pending = Pending::Pass {
+                        conversation,
+                        motion,
+                        passage,
+                        direction,
+                        asked_ns: ctx.now().0,
+                        agreed: false,
+                    };
                     return;
                 }
             }
@@ -420,7 +521,9 @@ impl CognitiveAgent {
     /// Lets go of the passages of the drive under way whose release point `reached` says the
     /// chair is at.
     fn release_reached(&mut self, ctx: &mut Context<'_>, reached: impl Fn(&Point2<f64>) -> bool) {
-        let (passed, ahead): (Vec<_>, Vec<_>) = std::mem::take(&mut self.releases).into_iter().partition(|(_, at)| reached(at));
+        let (passed, ahead): (Vec<_>, Vec<_>) = std::mem::take(&mut self.releases)
+            .into_iter()
+            .partition(|(_, at)| reached(at));
         self.releases = ahead;
         for (passage, _) in passed {
             self.release(ctx, &passage);
@@ -429,20 +532,49 @@ impl CognitiveAgent {
 
     /// Lets the watcher know the chair is out of `passage` (if it holds it).
     fn release(&mut self, ctx: &mut Context<'_>, passage: &str) {
-        let (Some((conversation, direction)), Some(watcher)) = (self.held.remove(passage), self.config.watcher.clone()) else { return };
+        let (Some((conversation, direction)), Some(watcher)) =
+            (self.held.remove(passage), self.config.watcher.clone())
+        else {
+            return;
+        };
         self.cancel_pass(ctx, watcher, passage, direction, &conversation);
     }
 
     /// CANCEL of the pass request in `conversation`: releases a grant or leaves the queue.
-    fn cancel_pass(&self, ctx: &mut Context<'_>, watcher: AgentId, passage: &str, direction: &str, conversation: &str) {
-        let action = WheelchairAction::Pass { passage: passage.to_string(), direction: direction.to_string() };
-        let content = WheelchairContent::Request { actor: watcher.clone(), action };
-        let cancel = AclMessage::new(Performative::Cancel).with_receiver(watcher).with_protocol("fipa-request").with_conversation_id(conversation);
+    fn cancel_pass(
+        &self,
+        ctx: &mut Context<'_>,
+        watcher: AgentId,
+        passage: &str,
+        direction: &str,
+        conversation: &str,
+    ) {
+        let action = WheelchairAction::Pass {
+            passage: passage.to_string(),
+            direction: direction.to_string(),
+        };
+        let content = WheelchairContent::Request {
+            actor: watcher.clone(),
+            action,
+        };
+        let cancel = AclMessage::new(Performative::Cancel)
+            .with_receiver(watcher)
+            .with_protocol("fipa-request")
+            .with_conversation_id(conversation);
         let _ = ctx.send(content.fill(cancel));
     }
 
-    fn request(&self, ctx: &mut Context<'_>, to: AgentId, action: WheelchairAction, conversation: &str) {
-        let content = WheelchairContent::Request { actor: to.clone(), action };
+    fn request(
+        &self,
+        ctx: &mut Context<'_>,
+        to: AgentId,
+        action: WheelchairAction,
+        conversation: &str,
+    ) {
+        let content = WheelchairContent::Request {
+            actor: to.clone(),
+            action,
+        };
         let message = content.fill(
             AclMessage::new(Performative::Request)
                 .with_receiver(to)
@@ -455,7 +587,12 @@ impl CognitiveAgent {
 
     /// Answers the goal's requester and forgets the goal.
     fn finish(&mut self, ctx: &mut Context<'_>, outcome: Result<(), String>) {
-        if let Pending::Pass { conversation, passage, direction, .. } = std::mem::replace(&mut self.pending, Pending::Nothing)
+        if let Pending::Pass {
+            conversation,
+            passage,
+            direction,
+            ..
+        } = std::mem::replace(&mut self.pending, Pending::Nothing)
             && let Some(watcher) = self.config.watcher.clone()
         {
             self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
@@ -470,30 +607,53 @@ impl CognitiveAgent {
         let reply = goal.request.create_reply();
         let message = match outcome {
             Ok(()) => {
-                let done = WheelchairContent::Done { actor: goal.actor, action: WheelchairAction::GoTo { place: goal.place } };
+                let done = WheelchairContent::Done {
+                    actor: goal.actor,
+                    action: WheelchairAction::GoTo { place: goal.place },
+                };
                 done.fill(reply.with_performative(Performative::Inform))
             }
             Err(why) => {
                 tracing::warn!(chair = %self.config.chair, reason = %why, "goal failed");
-                reply.with_performative(Performative::Failure).with_content(error_content(&why))
+                reply
+                    .with_performative(Performative::Failure)
+                    .with_content(error_content(&why))
             }
         };
         let _ = ctx.send(message);
     }
 
-    fn on_goal(&mut self, ctx: &mut Context<'_>, message: AclMessage, actor: AgentId, place: String) {
+    fn on_goal(
+        &mut self,
+        ctx: &mut Context<'_>,
+        message: AclMessage,
+        actor: AgentId,
+        place: String,
+    ) {
         if !self.config.map.places.contains_key(&place) {
-            let reply = message.create_reply().with_performative(Performative::Refuse);
-            let _ = ctx.send(reply.with_content(error_content(&format!("unknown place `{place}`"))));
+            let reply = message
+                .create_reply()
+                .with_performative(Performative::Refuse);
+            let _ =
+                ctx.send(reply.with_content(error_content(&format!("unknown place `{place}`"))));
             return;
         }
         self.finish(ctx, Err("replaced by a newer goal".into()));
-        let agree = message.create_reply().with_performative(Performative::Agree);
-        let _ = ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        let agree = message
+            .create_reply()
+            .with_performative(Performative::Agree);
+        let _ =
+            ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
         // A new goal is a fresh chance for doors and passages that failed before.
         self.locked_doors.clear();
         self.blocked.clear();
-        self.goal = Some(Goal { request: message, actor, place, plan: Vec::new(), next: 0 });
+        self.goal = Some(Goal {
+            request: message,
+            actor,
+            place,
+            plan: Vec::new(),
+            next: 0,
+        });
         self.replan(ctx);
     }
 
@@ -501,7 +661,10 @@ impl CognitiveAgent {
         let conversation = message.conversation_id.as_deref();
         let performative = message.performative;
         match self.pending.clone() {
-            Pending::Door { conversation: c, door } if conversation == Some(c.as_str()) => match performative {
+            Pending::Door {
+                conversation: c,
+                door,
+            } if conversation == Some(c.as_str()) => match performative {
                 Performative::Agree => {}
                 Performative::Inform => {
                     self.open_doors.insert(door);
@@ -513,7 +676,10 @@ impl CognitiveAgent {
                     self.replan(ctx);
                 }
             },
-            Pending::Drive { conversation: c, motion } if conversation == Some(c.as_str()) => match performative {
+            Pending::Drive {
+                conversation: c,
+                motion,
+            } if conversation == Some(c.as_str()) => match performative {
                 Performative::Agree => {}
                 Performative::Inform => {
                     self.release_reached(ctx, |_| true);
@@ -526,9 +692,23 @@ impl CognitiveAgent {
                     self.replan(ctx);
                 }
             },
-            Pending::Pass { conversation: c, motion, passage, direction, asked_ns, .. } if conversation == Some(c.as_str()) => match performative {
+            Pending::Pass {
+                conversation: c,
+                motion,
+                passage,
+                direction,
+                asked_ns,
+                ..
+            } if conversation == Some(c.as_str()) => match performative {
                 Performative::Agree => {
-                    self.pending = Pending::Pass { conversation: c, motion, passage, direction, asked_ns, agreed: true };
+                    self.pending = Pending::Pass {
+                        conversation: c,
+                        motion,
+                        passage,
+                        direction,
+                        asked_ns,
+                        agreed: true,
+                    };
                 }
                 Performative::Inform => {
                     tracing::info!(chair = %self.config.chair, passage = %passage, "passage granted");
@@ -542,7 +722,8 @@ impl CognitiveAgent {
             },
             _ if performative == Performative::Failure => {
                 // A grant taken back (its lease ran out) while the chair is still on its way.
-                self.held.retain(|_, (c, _)| Some(c.as_str()) != conversation);
+                self.held
+                    .retain(|_, (c, _)| Some(c.as_str()) != conversation);
             }
             _ => tracing::debug!(conversation = ?conversation, "answer to an abandoned step"),
         }
@@ -553,10 +734,21 @@ impl CognitiveAgent {
         self.t_map_base = Some(here);
         tracing::trace!(chair = %self.config.chair, t_s = ctx.now().0 as f64 * 1e-9, x_m, y_m, "pose");
         self.release_reached(ctx, |at| (at - here).norm() <= RELEASE_RADIUS_M);
-        let was_below = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
+        let was_below =
+            self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
         self.uncertainty_m2 = uncertainty_m2;
-        let now_above = self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
-        if let Pending::Drive { motion: Motion { from, to, door, via_landmark: false }, .. } = self.pending.clone()
+        let now_above =
+            self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
+        if let Pending::Drive {
+            motion:
+                Motion {
+                    from,
+                    to,
+                    door,
+                    via_landmark: false,
+                },
+            ..
+        } = self.pending.clone()
             && was_below
             && now_above
             && !self.config.map.landmarks.is_empty()
@@ -586,12 +778,25 @@ impl Agent for CognitiveAgent {
     }
 
     fn tick_period(&self) -> Option<Duration> {
-        self.config.watcher.as_ref().map(|_| Duration::from_millis(200))
+        self.config
+            .watcher
+            .as_ref()
+            .map(|_| Duration::from_millis(200))
     }
 
     /// Gives up waiting for a watcher that does not answer or does not grant in time.
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let Pending::Pass { conversation, motion, passage, direction, asked_ns, agreed } = self.pending.clone() else { return };
+        let Pending::Pass {
+            conversation,
+            motion,
+            passage,
+            direction,
+            asked_ns,
+            agreed,
+        } = self.pending.clone()
+        else {
+            return;
+        };
         let waited = Duration::from_nanos(ctx.now().0.saturating_sub(asked_ns));
         if (agreed || waited < PASS_ANSWER_TIMEOUT) && waited < self.config.pass_wait {
             return;
@@ -606,12 +811,17 @@ impl Agent for CognitiveAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         match message.performative {
             Performative::Request => match WheelchairContent::from_message(&message) {
-                Ok(WheelchairContent::Request { actor, action: WheelchairAction::GoTo { place } }) => {
-                    self.on_goal(ctx, message, actor, place)
-                }
+                Ok(WheelchairContent::Request {
+                    actor,
+                    action: WheelchairAction::GoTo { place },
+                }) => self.on_goal(ctx, message, actor, place),
                 Ok(_) => {
-                    let reply = message.create_reply().with_performative(Performative::Refuse);
-                    let _ = ctx.send(reply.with_content(error_content("the cognitive agent takes go-to goals")));
+                    let reply = message
+                        .create_reply()
+                        .with_performative(Performative::Refuse);
+                    let _ = ctx.send(
+                        reply.with_content(error_content("the cognitive agent takes go-to goals")),
+                    );
                 }
                 Err(err) => {
                     let _ = ctx.not_understood(&message, &err.to_string());
@@ -624,11 +834,15 @@ impl Agent for CognitiveAgent {
                 }
                 _ => self.on_answer(ctx, &message),
             },
-            Performative::Agree | Performative::Refuse | Performative::Failure | Performative::NotUnderstood => {
-                self.on_answer(ctx, &message)
-            }
+            Performative::Agree
+            | Performative::Refuse
+            | Performative::Failure
+            | Performative::NotUnderstood => self.on_answer(ctx, &message),
             _ => {
-                let _ = ctx.not_understood(&message, "the cognitive agent takes go-to requests, poses and answers");
+                let _ = ctx.not_understood(
+                    &message,
+                    "the cognitive agent takes go-to requests, poses and answers",
+                );
             }
         }
     }

@@ -86,9 +86,21 @@ impl OccupancyGrid {
         }
         let expected = width.saturating_mul(height);
         if occupied.len() != expected {
-            return Err(GridError::BadSize { width, height, expected, got: occupied.len() });
+            return Err(GridError::BadSize {
+                width,
+                height,
+                expected,
+                got: occupied.len(),
+            });
         }
-        Ok(OccupancyGrid { width, height, resolution_m, origin, occupied, comfort_cells: 0.0 })
+        Ok(OccupancyGrid {
+            width,
+            height,
+            resolution_m,
+            origin,
+            occupied,
+            comfort_cells: 0.0,
+        })
     }
 
     /// The same grid planning paths that keep away from obstacles: a step closer than
@@ -96,7 +108,11 @@ impl OccupancyGrid {
     /// straight leg of the pruned path may not cost more than the cells it replaces. Paths
     /// then run down the middle of corridors and round corners with room for a chair's front.
     pub fn with_comfort(mut self, comfort_m: f64) -> Self {
-        self.comfort_cells = if comfort_m.is_finite() { (comfort_m / self.resolution_m).max(0.0) } else { 0.0 };
+        self.comfort_cells = if comfort_m.is_finite() {
+            (comfort_m / self.resolution_m).max(0.0)
+        } else {
+            0.0
+        };
         self
     }
 
@@ -141,9 +157,10 @@ impl OccupancyGrid {
                 for dr in -r..=r {
                     for dc in -r..=r {
                         if dr * dr + dc * dc <= r * r
-                            && let Some(i) = out.index(col + dc, row + dr) {
-                                out.occupied[i] = true;
-                            }
+                            && let Some(i) = out.index(col + dc, row + dr)
+                        {
+                            out.occupied[i] = true;
+                        }
                     }
                 }
             }
@@ -155,17 +172,33 @@ impl OccupancyGrid {
     /// it turns (each straight leg stays in free cells).
     pub fn astar(&self, start: Point2<f64>, goal: Point2<f64>) -> Result<Path2, GridError> {
         let endpoint = |which, p: Point2<f64>| -> Result<(i64, i64), GridError> {
-            let cell = self.cell_of(&p).ok_or(GridError::BadEndpoint { which, x: p.x, y: p.y, why: "outside the map" })?;
+            let cell = self.cell_of(&p).ok_or(GridError::BadEndpoint {
+                which,
+                x: p.x,
+                y: p.y,
+                why: "outside the map",
+            })?;
             if self.is_occupied(cell.0, cell.1) {
-                return Err(GridError::BadEndpoint { which, x: p.x, y: p.y, why: "inside an obstacle" });
+                return Err(GridError::BadEndpoint {
+                    which,
+                    x: p.x,
+                    y: p.y,
+                    why: "inside an obstacle",
+                });
             }
             Ok(cell)
         };
         let s = endpoint("start", start)?;
         let g = endpoint("goal", goal)?;
         let clearance = self.clearance();
-        let cells = self.astar_cells(s, g, clearance.as_deref()).ok_or(GridError::NoPath)?;
-        let length_m = cells.windows(2).map(|w| cell_distance(w[0], w[1])).sum::<f64>() * self.resolution_m;
+        let cells = self
+            .astar_cells(s, g, clearance.as_deref())
+            .ok_or(GridError::NoPath)?;
+        let length_m = cells
+            .windows(2)
+            .map(|w| cell_distance(w[0], w[1]))
+            .sum::<f64>()
+            * self.resolution_m;
         let weight = |c: (i64, i64)| match (&clearance, self.index(c.0, c.1)) {
             (Some(d), Some(i)) => self.weight(d[i]),
             _ => 1.0,
@@ -182,14 +215,18 @@ impl OccupancyGrid {
         let mut waypoints = vec![start];
         let mut anchor = 0;
         for i in 1..cells.len() {
-            let keeps_clear = clearance.is_none() || shortcut_cost(cells[anchor], cells[i]) <= cost_to[i] - cost_to[anchor] + 1e-9;
+            let keeps_clear = clearance.is_none()
+                || shortcut_cost(cells[anchor], cells[i]) <= cost_to[i] - cost_to[anchor] + 1e-9;
             if !(keeps_clear && self.line_of_sight(cells[anchor], cells[i])) {
                 waypoints.push(self.centre(cells[i - 1].0, cells[i - 1].1));
                 anchor = i - 1;
             }
         }
         waypoints.push(goal);
-        Ok(Path2 { waypoints, length_m })
+        Ok(Path2 {
+            waypoints,
+            length_m,
+        })
     }
 
     /// What a unit of length costs in a cell `clearance` cells from the nearest obstacle (1 at
@@ -205,18 +242,36 @@ impl OccupancyGrid {
             return None;
         }
         let (w, h) = (self.width as i64, self.height as i64);
-        let mut d: Vec<f64> = self.occupied.iter().map(|&o| if o { 0.0 } else { f64::INFINITY }).collect();
+        let mut d: Vec<f64> = self
+            .occupied
+            .iter()
+            .map(|&o| if o { 0.0 } else { f64::INFINITY })
+            .collect();
         let diagonal = std::f64::consts::SQRT_2;
         let relax = |d: &mut Vec<f64>, c: i64, r: i64, neighbours: &[(i64, i64, f64)]| {
             let i = (r * w + c) as usize;
             for &(dc, dr, step) in neighbours {
                 let (nc, nr) = (c + dc, r + dr);
-                let from = if nc < 0 || nr < 0 || nc >= w || nr >= h { 0.0 } else { d[(nr * w + nc) as usize] };
+                let from = if nc < 0 || nr < 0 || nc >= w || nr >= h {
+                    0.0
+                } else {
+                    d[(nr * w + nc) as usize]
+                };
                 d[i] = d[i].min(from + step);
             }
         };
-        let before = [(-1, 0, 1.0), (0, -1, 1.0), (-1, -1, diagonal), (1, -1, diagonal)];
-        let after = [(1, 0, 1.0), (0, 1, 1.0), (1, 1, diagonal), (-1, 1, diagonal)];
+        let before = [
+            (-1, 0, 1.0),
+            (0, -1, 1.0),
+            (-1, -1, diagonal),
+            (1, -1, diagonal),
+        ];
+        let after = [
+            (1, 0, 1.0),
+            (0, 1, 1.0),
+            (1, 1, diagonal),
+            (-1, 1, diagonal),
+        ];
         for r in 0..h {
             for c in 0..w {
                 relax(&mut d, c, r, &before);
@@ -236,11 +291,19 @@ impl OccupancyGrid {
         let steps = (dx.abs().max(dy.abs()) * 4.0).ceil().max(1.0) as i64;
         (0..=steps).map(move |k| {
             let t = k as f64 / steps as f64;
-            ((a.0 as f64 + 0.5 + t * dx).floor() as i64, (a.1 as f64 + 0.5 + t * dy).floor() as i64)
+            (
+                (a.0 as f64 + 0.5 + t * dx).floor() as i64,
+                (a.1 as f64 + 0.5 + t * dy).floor() as i64,
+            )
         })
     }
 
-    fn astar_cells(&self, s: (i64, i64), g: (i64, i64), clearance: Option<&[f64]>) -> Option<Vec<(i64, i64)>> {
+    fn astar_cells(
+        &self,
+        s: (i64, i64),
+        g: (i64, i64),
+        clearance: Option<&[f64]>,
+    ) -> Option<Vec<(i64, i64)>> {
         #[derive(PartialEq)]
         struct Open(f64, usize);
         impl Eq for Open {}
@@ -277,15 +340,29 @@ impl OccupancyGrid {
                 return Some(path);
             }
             let (c, r) = ((i % self.width) as i64, (i / self.width) as i64);
-            for (dc, dr) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+            for (dc, dr) in [
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ] {
                 let (nc, nr) = (c + dc, r + dr);
                 if self.is_occupied(nc, nr)
-                    || (dc != 0 && dr != 0 && (self.is_occupied(c + dc, r) || self.is_occupied(c, r + dr)))
+                    || (dc != 0
+                        && dr != 0
+                        && (self.is_occupied(c + dc, r) || self.is_occupied(c, r + dr)))
                 {
                     continue;
                 }
-                let Some(j) = self.index(nc, nr) else { continue };
-                let step = cell_distance((c, r), (nc, nr)) * clearance.map_or(1.0, |d| self.weight(d[j]));
+                let Some(j) = self.index(nc, nr) else {
+                    continue;
+                };
+                let step =
+                    cell_distance((c, r), (nc, nr)) * clearance.map_or(1.0, |d| self.weight(d[j]));
                 let candidate = cost[i] + step;
                 if candidate < cost[j] {
                     cost[j] = candidate;
@@ -325,7 +402,11 @@ mod tests {
     fn grid(rows: &[&str]) -> OccupancyGrid {
         let height = rows.len();
         let width = rows[0].len();
-        let occupied = rows.iter().rev().flat_map(|r| r.chars().map(|c| c == '#')).collect();
+        let occupied = rows
+            .iter()
+            .rev()
+            .flat_map(|r| r.chars().map(|c| c == '#'))
+            .collect();
         OccupancyGrid::new(width, height, 0.5, Point2::origin(), occupied).unwrap()
     }
 
@@ -343,8 +424,16 @@ mod tests {
         let path = g.astar(start, goal).unwrap();
         // Over the 3-cell wall without cutting its corners: 4 diagonals and 3 straight steps.
         let expected = (4.0 * 2f64.sqrt() + 3.0) * 0.5;
-        assert!((path.length_m - expected).abs() < 1e-9, "{} != {expected}", path.length_m);
-        assert!(path.waypoints.len() >= 3, "must turn to get round: {:?}", path.waypoints);
+        assert!(
+            (path.length_m - expected).abs() < 1e-9,
+            "{} != {expected}",
+            path.length_m
+        );
+        assert!(
+            path.waypoints.len() >= 3,
+            "must turn to get round: {:?}",
+            path.waypoints
+        );
         for w in path.waypoints.windows(2) {
             let (a, b) = (g.cell_of(&w[0]).unwrap(), g.cell_of(&w[1]).unwrap());
             assert!(g.line_of_sight(a, b), "leg {a:?}->{b:?} crosses the wall");
@@ -363,17 +452,43 @@ mod tests {
         // than the start and goal rows.
         let path = g.clone().with_comfort(1.5).astar(start, goal).unwrap();
         let inner = &path.waypoints[1..path.waypoints.len() - 1];
-        assert!(inner.iter().any(|p| (p.y - 1.75).abs() < 1e-9), "{:?}", path.waypoints);
-        assert!(path.waypoints.iter().all(|p| p.y >= 0.75 - 1e-9 && p.y <= 2.75 + 1e-9), "{:?}", path.waypoints);
+        assert!(
+            inner.iter().any(|p| (p.y - 1.75).abs() < 1e-9),
+            "{:?}",
+            path.waypoints
+        );
+        assert!(
+            path.waypoints
+                .iter()
+                .all(|p| p.y >= 0.75 - 1e-9 && p.y <= 2.75 + 1e-9),
+            "{:?}",
+            path.waypoints
+        );
     }
 
     #[test]
     fn endpoints_and_dead_ends_are_reported() {
         let g = grid(&["..#..", "..#..", "..#.."]);
-        assert_eq!(g.astar(g.centre(0, 0), g.centre(4, 0)), Err(GridError::NoPath));
-        assert!(matches!(g.astar(g.centre(2, 0), g.centre(4, 0)), Err(GridError::BadEndpoint { which: "start", .. })));
-        assert!(matches!(g.astar(g.centre(0, 0), Point2::new(99.0, 0.0)), Err(GridError::BadEndpoint { which: "goal", why: "outside the map", .. })));
-        assert!(matches!(OccupancyGrid::new(2, 2, 0.5, Point2::origin(), vec![false; 3]), Err(GridError::BadSize { .. })));
+        assert_eq!(
+            g.astar(g.centre(0, 0), g.centre(4, 0)),
+            Err(GridError::NoPath)
+        );
+        assert!(matches!(
+            g.astar(g.centre(2, 0), g.centre(4, 0)),
+            Err(GridError::BadEndpoint { which: "start", .. })
+        ));
+        assert!(matches!(
+            g.astar(g.centre(0, 0), Point2::new(99.0, 0.0)),
+            Err(GridError::BadEndpoint {
+                which: "goal",
+                why: "outside the map",
+                ..
+            })
+        ));
+        assert!(matches!(
+            OccupancyGrid::new(2, 2, 0.5, Point2::origin(), vec![false; 3]),
+            Err(GridError::BadSize { .. })
+        ));
     }
 
     #[test]

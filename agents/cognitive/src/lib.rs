@@ -26,4 +26,4 @@ pub mod planner;
 pub use grid::{GridError, OccupancyGrid, Path2};
 pub use passage::{Leg, NarrowPassage};
 pub use pddl::{Domain, PddlError, Problem};
-pub use planner::{plan, Plan, PlanError, Step};
+pub use planner::{Plan, PlanError, Step, plan};

@@ -56,7 +56,11 @@ impl NarrowPassage {
 
     /// `forward` when going from `from` to `to` moves from `a`'s end towards `b`'s.
     pub fn direction(&self, from: &Point2<f64>, to: &Point2<f64>) -> &'static str {
-        if self.along(to) >= self.along(from) { "forward" } else { "backward" }
+        if self.along(to) >= self.along(from) {
+            "forward"
+        } else {
+            "backward"
+        }
     }
 }
 
@@ -106,25 +110,42 @@ impl<'a> Polyline<'a> {
     }
 
     fn point_at(&self, s: f64) -> Point2<f64> {
-        let i = self.at.partition_point(|&a| a <= s).clamp(1, self.points.len().max(2) - 1);
+        let i = self
+            .at
+            .partition_point(|&a| a <= s)
+            .clamp(1, self.points.len().max(2) - 1);
         let (Some(p), Some(q)) = (self.points.get(i - 1), self.points.get(i)) else {
             return self.points.first().copied().unwrap_or_else(Point2::origin);
         };
         let span = self.at[i] - self.at[i - 1];
-        let t = if span > 0.0 { ((s - self.at[i - 1]) / span).clamp(0.0, 1.0) } else { 1.0 };
+        let t = if span > 0.0 {
+            ((s - self.at[i - 1]) / span).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         p + (q - p) * t
     }
 
     /// The vertices after arc length `s0` up to and including `s1`.
     fn vertices(&self, s0: f64, s1: f64) -> Vec<Point2<f64>> {
-        self.points.iter().zip(&self.at).filter(|&(_, &a)| a > s0 + 1e-9 && a <= s1 + 1e-9).map(|(p, _)| *p).collect()
+        self.points
+            .iter()
+            .zip(&self.at)
+            .filter(|&(_, &a)| a > s0 + 1e-9 && a <= s1 + 1e-9)
+            .map(|(p, _)| *p)
+            .collect()
     }
 
     /// The waypoints of a drive from arc length `s0` that stops at `s1`: the vertices between,
     /// then `s1`'s point.
     fn between(&self, s0: f64, s1: f64) -> Vec<Point2<f64>> {
-        let mut out: Vec<Point2<f64>> =
-            self.points.iter().zip(&self.at).filter(|&(_, &a)| a > s0 + 1e-9 && a < s1 - 1e-9).map(|(p, _)| *p).collect();
+        let mut out: Vec<Point2<f64>> = self
+            .points
+            .iter()
+            .zip(&self.at)
+            .filter(|&(_, &a)| a > s0 + 1e-9 && a < s1 - 1e-9)
+            .map(|(p, _)| *p)
+            .collect();
         out.push(self.point_at(s1));
         out
     }
@@ -134,8 +155,14 @@ impl<'a> Polyline<'a> {
 pub fn touched<'a>(path: &[Point2<f64>], passages: &'a [NarrowPassage]) -> BTreeSet<&'a str> {
     let line = Polyline::new(path);
     let samples = (line.length() / SAMPLE_M).ceil() as usize;
-    let points: Vec<Point2<f64>> = (0..=samples).map(|k| line.point_at((k as f64 * SAMPLE_M).min(line.length()))).collect();
-    passages.iter().filter(|q| points.iter().any(|p| q.contains(p))).map(|q| q.name.as_str()).collect()
+    let points: Vec<Point2<f64>> = (0..=samples)
+        .map(|k| line.point_at((k as f64 * SAMPLE_M).min(line.length())))
+        .collect();
+    passages
+        .iter()
+        .filter(|q| points.iter().any(|p| q.contains(p)))
+        .map(|q| q.name.as_str())
+        .collect()
 }
 
 /// The legs of driving `path` (the chair's position first) past `passages`; those in `held`
@@ -162,7 +189,9 @@ pub fn legs(path: &[Point2<f64>], passages: &[NarrowPassage], held: &BTreeSet<St
             while exit_k <= samples && inside(exit_k) {
                 exit_k += 1;
             }
-            let back = (exit_k..=samples).take_while(|&j| s_of(j) - s_of(exit_k) <= REENTRY_M).find(|&j| inside(j));
+            let back = (exit_k..=samples)
+                .take_while(|&j| s_of(j) - s_of(exit_k) <= REENTRY_M)
+                .find(|&j| inside(j));
             match back {
                 Some(j) => exit_k = j,
                 None => break,
@@ -176,7 +205,10 @@ pub fn legs(path: &[Point2<f64>], passages: &[NarrowPassage], held: &BTreeSet<St
                 driven = wait;
             }
             let direction = passage.direction(&line.point_at(entry), &line.point_at(exit));
-            out.push(Leg::Acquire { passage: passage.name.clone(), direction });
+            out.push(Leg::Acquire {
+                passage: passage.name.clone(),
+                direction,
+            });
         }
         let ends_inside = exit_k > samples;
         let clear = (exit + CLEAR_M).min(length);
@@ -190,7 +222,10 @@ pub fn legs(path: &[Point2<f64>], passages: &[NarrowPassage], held: &BTreeSet<St
             break;
         }
         held.remove(&passage.name);
-        out.push(Leg::Release { passage: passage.name.clone(), at: line.point_at(clear) });
+        out.push(Leg::Release {
+            passage: passage.name.clone(),
+            at: line.point_at(clear),
+        });
         // Past the clearance, so the same passage is not seen again as the chair leaves it.
         k = ((clear / SAMPLE_M).floor() as usize + 1).max(exit_k);
     }
@@ -206,7 +241,12 @@ mod tests {
     use proptest::prelude::*;
 
     fn corridor() -> NarrowPassage {
-        NarrowPassage { name: "corridor".into(), a: Point2::new(2.0, 6.0), b: Point2::new(12.0, 6.0), width_m: 2.0 }
+        NarrowPassage {
+            name: "corridor".into(),
+            a: Point2::new(2.0, 6.0),
+            b: Point2::new(12.0, 6.0),
+            width_m: 2.0,
+        }
     }
 
     fn end_of(legs: &[Leg]) -> Option<Point2<f64>> {
@@ -218,33 +258,78 @@ mod tests {
 
     #[test]
     fn a_crossing_waits_outside_acquires_and_releases_once_clear() {
-        let path = [Point2::new(0.0, 6.0), Point2::new(14.0, 6.0), Point2::new(14.0, 9.0)];
+        let path = [
+            Point2::new(0.0, 6.0),
+            Point2::new(14.0, 6.0),
+            Point2::new(14.0, 9.0),
+        ];
         let legs = legs(&path, &[corridor()], &BTreeSet::new());
-        let [Leg::Drive(to_wait), Leg::Acquire { direction, .. }, Leg::Release { at, .. }, Leg::Drive(rest)] = legs.as_slice() else {
+        let [
+            Leg::Drive(to_wait),
+            Leg::Acquire { direction, .. },
+            Leg::Release { at, .. },
+            Leg::Drive(rest),
+        ] = legs.as_slice()
+        else {
             panic!("{legs:?}");
         };
         assert_eq!(*direction, "forward");
-        assert!((to_wait.last().unwrap().x - 1.0).abs() < 0.06, "waits 1 m before x = 2: {to_wait:?}");
-        assert!((at.x - 12.8).abs() < 0.06 && at.y == 6.0, "released 0.8 m past x = 12: {at:?}");
-        assert_eq!(rest, &vec![Point2::new(14.0, 6.0), Point2::new(14.0, 9.0)], "no waypoint added past the wait point");
+        assert!(
+            (to_wait.last().unwrap().x - 1.0).abs() < 0.06,
+            "waits 1 m before x = 2: {to_wait:?}"
+        );
+        assert!(
+            (at.x - 12.8).abs() < 0.06 && at.y == 6.0,
+            "released 0.8 m past x = 12: {at:?}"
+        );
+        assert_eq!(
+            rest,
+            &vec![Point2::new(14.0, 6.0), Point2::new(14.0, 9.0)],
+            "no waypoint added past the wait point"
+        );
     }
 
     #[test]
     fn crossing_back_is_backward_and_a_start_inside_acquires_first() {
         let path = [Point2::new(5.0, 6.0), Point2::new(0.0, 6.0)];
         let legs = legs(&path, &[corridor()], &BTreeSet::new());
-        assert_eq!(legs[0], Leg::Acquire { passage: "corridor".into(), direction: "backward" });
+        assert_eq!(
+            legs[0],
+            Leg::Acquire {
+                passage: "corridor".into(),
+                direction: "backward"
+            }
+        );
         assert!(matches!(&legs[1], Leg::Release { .. }), "{legs:?}");
     }
 
     #[test]
     fn a_bulge_out_of_the_passage_is_still_one_crossing() {
         // Out through the side for 2 m (into a doorway) and back in: held throughout.
-        let path = [Point2::new(0.0, 6.0), Point2::new(6.0, 6.0), Point2::new(6.0, 7.5), Point2::new(6.5, 7.5), Point2::new(6.5, 6.0), Point2::new(14.0, 6.0)];
-        let acquires = |path: &[Point2<f64>]| legs(path, &[corridor()], &BTreeSet::new()).iter().filter(|l| matches!(l, Leg::Acquire { .. })).count();
+        let path = [
+            Point2::new(0.0, 6.0),
+            Point2::new(6.0, 6.0),
+            Point2::new(6.0, 7.5),
+            Point2::new(6.5, 7.5),
+            Point2::new(6.5, 6.0),
+            Point2::new(14.0, 6.0),
+        ];
+        let acquires = |path: &[Point2<f64>]| {
+            legs(path, &[corridor()], &BTreeSet::new())
+                .iter()
+                .filter(|l| matches!(l, Leg::Acquire { .. }))
+                .count()
+        };
         assert_eq!(acquires(&path), 1);
         // Far apart, two crossings.
-        let path = [Point2::new(0.0, 6.0), Point2::new(6.0, 6.0), Point2::new(6.0, 12.0), Point2::new(7.0, 12.0), Point2::new(7.0, 6.0), Point2::new(14.0, 6.0)];
+        let path = [
+            Point2::new(0.0, 6.0),
+            Point2::new(6.0, 6.0),
+            Point2::new(6.0, 12.0),
+            Point2::new(7.0, 12.0),
+            Point2::new(7.0, 6.0),
+            Point2::new(14.0, 6.0),
+        ];
         assert_eq!(acquires(&path), 2);
     }
 
@@ -252,7 +337,13 @@ mod tests {
     fn a_path_ending_inside_keeps_the_passage() {
         let path = [Point2::new(0.0, 6.0), Point2::new(5.0, 6.0)];
         let legs = legs(&path, &[corridor()], &BTreeSet::new());
-        assert!(matches!(legs.as_slice(), [Leg::Drive(_), Leg::Acquire { .. }, Leg::Drive(_)]), "{legs:?}");
+        assert!(
+            matches!(
+                legs.as_slice(),
+                [Leg::Drive(_), Leg::Acquire { .. }, Leg::Drive(_)]
+            ),
+            "{legs:?}"
+        );
         assert_eq!(end_of(&legs), Some(Point2::new(5.0, 6.0)));
     }
 
@@ -260,9 +351,15 @@ mod tests {
     fn a_held_passage_is_only_released_and_a_path_outside_is_one_drive() {
         let held = BTreeSet::from(["corridor".to_string()]);
         let path = [Point2::new(5.0, 6.0), Point2::new(0.0, 6.0)];
-        assert!(matches!(legs(&path, &[corridor()], &held).as_slice(), [Leg::Release { .. }, Leg::Drive(_)]));
+        assert!(matches!(
+            legs(&path, &[corridor()], &held).as_slice(),
+            [Leg::Release { .. }, Leg::Drive(_)]
+        ));
         let outside = [Point2::new(0.0, 0.0), Point2::new(5.0, 1.0)];
-        assert_eq!(legs(&outside, &[corridor()], &BTreeSet::new()), vec![Leg::Drive(vec![Point2::new(5.0, 1.0)])]);
+        assert_eq!(
+            legs(&outside, &[corridor()], &BTreeSet::new()),
+            vec![Leg::Drive(vec![Point2::new(5.0, 1.0)])]
+        );
         assert!(touched(&outside, &[corridor()]).is_empty());
         assert_eq!(touched(&path, &[corridor()]), BTreeSet::from(["corridor"]));
     }

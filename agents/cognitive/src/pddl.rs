@@ -140,7 +140,11 @@ impl Sexp {
 }
 
 fn error(pos: Pos, message: impl Into<String>) -> PddlError {
-    PddlError { line: pos.line, column: pos.column, message: message.into() }
+    PddlError {
+        line: pos.line,
+        column: pos.column,
+        message: message.into(),
+    }
 }
 
 /// Reads the whole text as one s-expression.
@@ -182,7 +186,10 @@ fn read(text: &str) -> Result<Sexp, PddlError> {
                 chars.next();
                 advance(c, &mut pos);
                 if stack.len() >= MAX_DEPTH {
-                    return Err(error(here, format!("nesting deeper than {MAX_DEPTH} levels")));
+                    return Err(error(
+                        here,
+                        format!("nesting deeper than {MAX_DEPTH} levels"),
+                    ));
                 }
                 stack.push((Vec::new(), here));
                 continue;
@@ -190,7 +197,9 @@ fn read(text: &str) -> Result<Sexp, PddlError> {
             ')' => {
                 chars.next();
                 advance(c, &mut pos);
-                let (items, start) = stack.pop().ok_or_else(|| error(here, "`)` without a matching `(`"))?;
+                let (items, start) = stack
+                    .pop()
+                    .ok_or_else(|| error(here, "`)` without a matching `(`"))?;
                 Sexp::List(items, start)
             }
             _ => {
@@ -237,14 +246,19 @@ fn define(text: &str, kind: &str) -> Result<(String, Vec<Sexp>), PddlError> {
     let top = read(text)?;
     let items = list(&top, "`(define ...)`")?;
     let [head, name_list, sections @ ..] = items.as_slice() else {
-        return Err(error(top.pos(), format!("expected `(define ({kind} NAME) ...)`")));
+        return Err(error(
+            top.pos(),
+            format!("expected `(define ({kind} NAME) ...)`"),
+        ));
     };
     if symbol(head, "`define`")? != "define" {
         return Err(error(head.pos(), "expected `define`"));
     }
     let name_items = list(name_list, &format!("`({kind} NAME)`"))?;
     match name_items.as_slice() {
-        [k, n] if symbol(k, kind)? == kind => Ok((symbol(n, "a name")?.to_string(), sections.to_vec())),
+        [k, n] if symbol(k, kind)? == kind => {
+            Ok((symbol(n, "a name")?.to_string(), sections.to_vec()))
+        }
         _ => Err(error(name_list.pos(), format!("expected `({kind} NAME)`"))),
     }
 }
@@ -252,8 +266,14 @@ fn define(text: &str, kind: &str) -> Result<(String, Vec<Sexp>), PddlError> {
 /// Splits a section `(:key items...)`.
 fn section(s: &Sexp) -> Result<(String, Vec<Sexp>, Pos), PddlError> {
     let items = list(s, "a `(:section ...)`")?;
-    let (key, rest) = items.split_first().ok_or_else(|| error(s.pos(), "empty section"))?;
-    Ok((symbol(key, "a section keyword")?.to_string(), rest.to_vec(), s.pos()))
+    let (key, rest) = items
+        .split_first()
+        .ok_or_else(|| error(s.pos(), "empty section"))?;
+    Ok((
+        symbol(key, "a section keyword")?.to_string(),
+        rest.to_vec(),
+        s.pos(),
+    ))
 }
 
 /// `a b - t c - u d` into `[(a,t),(b,t),(c,u),(d,object)]`.
@@ -264,7 +284,9 @@ fn typed_list(items: &[Sexp], vars: bool) -> Result<Vec<(String, String)>, PddlE
     while let Some(item) = iter.next() {
         let name = symbol(item, "a name")?;
         if name == "-" {
-            let ty = iter.next().ok_or_else(|| error(item.pos(), "expected a type after `-`"))?;
+            let ty = iter
+                .next()
+                .ok_or_else(|| error(item.pos(), "expected a type after `-`"))?;
             let ty = symbol(ty, "a type name")?;
             if pending.is_empty() {
                 return Err(error(item.pos(), "`-` with no names before it"));
@@ -273,8 +295,15 @@ fn typed_list(items: &[Sexp], vars: bool) -> Result<Vec<(String, String)>, PddlE
             continue;
         }
         if vars != name.starts_with('?') {
-            let want = if vars { "a `?variable`" } else { "a name (not a `?variable`)" };
-            return Err(error(item.pos(), format!("expected {want}, found `{name}`")));
+            let want = if vars {
+                "a `?variable`"
+            } else {
+                "a name (not a `?variable`)"
+            };
+            return Err(error(
+                item.pos(),
+                format!("expected {want}, found `{name}`"),
+            ));
         }
         pending.push(name.to_string());
     }
@@ -284,7 +313,9 @@ fn typed_list(items: &[Sexp], vars: bool) -> Result<Vec<(String, String)>, PddlE
 
 fn atom(s: &Sexp) -> Result<Atom, PddlError> {
     let items = list(s, "an atom `(predicate ...)`")?;
-    let (head, args) = items.split_first().ok_or_else(|| error(s.pos(), "empty atom"))?;
+    let (head, args) = items
+        .split_first()
+        .ok_or_else(|| error(s.pos(), "empty atom"))?;
     let predicate = symbol(head, "a predicate name")?.to_string();
     let args = args
         .iter()
@@ -303,9 +334,7 @@ fn conjunction(s: &Sexp) -> Result<Vec<Literal>, PddlError> {
     let items = list(s, "a condition")?;
     match items.first() {
         None => Ok(Vec::new()),
-        Some(Sexp::Sym(head, _)) if head == "and" => {
-            items[1..].iter().map(literal).collect()
-        }
+        Some(Sexp::Sym(head, _)) if head == "and" => items[1..].iter().map(literal).collect(),
         _ => Ok(vec![literal(s)?]),
     }
 }
@@ -313,20 +342,43 @@ fn conjunction(s: &Sexp) -> Result<Vec<Literal>, PddlError> {
 fn literal(s: &Sexp) -> Result<Literal, PddlError> {
     let items = list(s, "a literal")?;
     match items.as_slice() {
-        [Sexp::Sym(head, _), inner] if head == "not" => Ok(Literal { positive: false, atom: atom(inner)? }),
-        [Sexp::Sym(head, p), ..] if matches!(head.as_str(), "or" | "imply" | "forall" | "exists" | "when" | "and") => {
-            Err(error(*p, format!("`{head}` is outside the supported STRIPS subset (conjunctions of literals)")))
+        [Sexp::Sym(head, _), inner] if head == "not" => Ok(Literal {
+            positive: false,
+            atom: atom(inner)?,
+        }),
+        [Sexp::Sym(head, p), ..]
+            if matches!(
+                head.as_str(),
+                "or" | "imply" | "forall" | "exists" | "when" | "and"
+            ) =>
+        {
+            Err(error(
+                *p,
+                format!(
+                    "`{head}` is outside the supported STRIPS subset (conjunctions of literals)"
+                ),
+            ))
         }
-        _ => Ok(Literal { positive: true, atom: atom(s)? }),
+        _ => Ok(Literal {
+            positive: true,
+            atom: atom(s)?,
+        }),
     }
 }
 
 fn check_atom(domain: &Domain, atom: &Atom, pos: Pos) -> Result<(), PddlError> {
     match domain.predicates.get(&atom.predicate) {
-        None => Err(error(pos, format!("unknown predicate `{}`", atom.predicate))),
+        None => Err(error(
+            pos,
+            format!("unknown predicate `{}`", atom.predicate),
+        )),
         Some(&arity) if arity != atom.args.len() => Err(error(
             pos,
-            format!("`{}` takes {arity} arguments, found {}", atom.predicate, atom.args.len()),
+            format!(
+                "`{}` takes {arity} arguments, found {}",
+                atom.predicate,
+                atom.args.len()
+            ),
         )),
         Some(_) => Ok(()),
     }
@@ -336,7 +388,10 @@ impl Domain {
     /// Reads a domain file's text.
     pub fn parse(text: &str) -> Result<Domain, PddlError> {
         let (name, sections) = define(text, "domain")?;
-        let mut domain = Domain { name, ..Domain::default() };
+        let mut domain = Domain {
+            name,
+            ..Domain::default()
+        };
         for s in &sections {
             let (key, items, pos) = section(s)?;
             match key.as_str() {
@@ -344,7 +399,10 @@ impl Domain {
                     for item in &items {
                         let req = symbol(item, "a requirement")?;
                         if !matches!(req, ":strips" | ":typing" | ":negative-preconditions") {
-                            return Err(error(item.pos(), format!("unsupported requirement `{req}`")));
+                            return Err(error(
+                                item.pos(),
+                                format!("unsupported requirement `{req}`"),
+                            ));
                         }
                     }
                 }
@@ -353,9 +411,13 @@ impl Domain {
                 ":predicates" => {
                     for p in &items {
                         let parts = list(p, "a predicate declaration")?;
-                        let (head, params) = parts.split_first().ok_or_else(|| error(p.pos(), "empty predicate"))?;
+                        let (head, params) = parts
+                            .split_first()
+                            .ok_or_else(|| error(p.pos(), "empty predicate"))?;
                         let arity = typed_list(params, true)?.len();
-                        domain.predicates.insert(symbol(head, "a predicate name")?.to_string(), arity);
+                        domain
+                            .predicates
+                            .insert(symbol(head, "a predicate name")?.to_string(), arity);
                     }
                 }
                 ":action" => domain.actions.push(action(&items, pos)?),
@@ -364,24 +426,43 @@ impl Domain {
         }
         for (ty, parent) in &domain.types {
             if !domain.is_subtype(ty, "object") {
-                return Err(error(Pos { line: 1, column: 1 }, format!("type `{ty}` has a cyclic parent `{parent}`")));
+                return Err(error(
+                    Pos { line: 1, column: 1 },
+                    format!("type `{ty}` has a cyclic parent `{parent}`"),
+                ));
             }
         }
         for a in &domain.actions {
             let pos = Pos { line: 1, column: 1 };
             for l in &a.precondition {
-                check_atom(&domain, &l.atom, pos).map_err(|e| PddlError { message: format!("action `{}`: {}", a.name, e.message), ..e })?;
+                check_atom(&domain, &l.atom, pos).map_err(|e| PddlError {
+                    message: format!("action `{}`: {}", a.name, e.message),
+                    ..e
+                })?;
             }
             for at in a.add.iter().chain(&a.delete) {
-                check_atom(&domain, at, pos).map_err(|e| PddlError { message: format!("action `{}`: {}", a.name, e.message), ..e })?;
+                check_atom(&domain, at, pos).map_err(|e| PddlError {
+                    message: format!("action `{}`: {}", a.name, e.message),
+                    ..e
+                })?;
             }
             let params: Vec<&str> = a.parameters.iter().map(|(v, _)| v.as_str()).collect();
-            for at in a.precondition.iter().map(|l| &l.atom).chain(&a.add).chain(&a.delete) {
+            for at in a
+                .precondition
+                .iter()
+                .map(|l| &l.atom)
+                .chain(&a.add)
+                .chain(&a.delete)
+            {
                 for t in &at.args {
                     if let Term::Var(v) = t
-                        && !params.contains(&v.as_str()) {
-                            return Err(error(pos, format!("action `{}` uses `{v}`, which is not a parameter", a.name)));
-                        }
+                        && !params.contains(&v.as_str())
+                    {
+                        return Err(error(
+                            pos,
+                            format!("action `{}` uses `{v}`, which is not a parameter", a.name),
+                        ));
+                    }
                 }
             }
         }
@@ -390,7 +471,9 @@ impl Domain {
 }
 
 fn action(items: &[Sexp], pos: Pos) -> Result<ActionSchema, PddlError> {
-    let (name, rest) = items.split_first().ok_or_else(|| error(pos, "expected an action name"))?;
+    let (name, rest) = items
+        .split_first()
+        .ok_or_else(|| error(pos, "expected an action name"))?;
     let mut schema = ActionSchema {
         name: symbol(name, "an action name")?.to_string(),
         parameters: Vec::new(),
@@ -401,13 +484,21 @@ fn action(items: &[Sexp], pos: Pos) -> Result<ActionSchema, PddlError> {
     let mut iter = rest.iter();
     while let Some(key) = iter.next() {
         let key_name = symbol(key, "`:parameters`, `:precondition` or `:effect`")?;
-        let value = iter.next().ok_or_else(|| error(key.pos(), format!("`{key_name}` has no value")))?;
+        let value = iter
+            .next()
+            .ok_or_else(|| error(key.pos(), format!("`{key_name}` has no value")))?;
         match key_name {
-            ":parameters" => schema.parameters = typed_list(&list(value, "a parameter list")?, true)?,
+            ":parameters" => {
+                schema.parameters = typed_list(&list(value, "a parameter list")?, true)?
+            }
             ":precondition" => schema.precondition = conjunction(value)?,
             ":effect" => {
                 for l in conjunction(value)? {
-                    if l.positive { schema.add.push(l.atom) } else { schema.delete.push(l.atom) }
+                    if l.positive {
+                        schema.add.push(l.atom)
+                    } else {
+                        schema.delete.push(l.atom)
+                    }
                 }
             }
             other => return Err(error(key.pos(), format!("unknown action key `{other}`"))),
@@ -420,16 +511,27 @@ impl Problem {
     /// Reads a problem file's text, checking it against its domain.
     pub fn parse(text: &str, domain: &Domain) -> Result<Problem, PddlError> {
         let (name, sections) = define(text, "problem")?;
-        let mut problem = Problem { name, ..Problem::default() };
+        let mut problem = Problem {
+            name,
+            ..Problem::default()
+        };
         let mut goal_pos = None;
         for s in &sections {
             let (key, items, pos) = section(s)?;
             match key.as_str() {
                 ":domain" => {
-                    let d = items.first().ok_or_else(|| error(pos, "expected the domain name"))?;
+                    let d = items
+                        .first()
+                        .ok_or_else(|| error(pos, "expected the domain name"))?;
                     problem.domain = symbol(d, "the domain name")?.to_string();
                     if problem.domain != domain.name {
-                        return Err(error(d.pos(), format!("problem is for domain `{}`, not `{}`", problem.domain, domain.name)));
+                        return Err(error(
+                            d.pos(),
+                            format!(
+                                "problem is for domain `{}`, not `{}`",
+                                problem.domain, domain.name
+                            ),
+                        ));
                     }
                 }
                 ":objects" => problem.objects = typed_list(&items, false)?,
@@ -438,13 +540,18 @@ impl Problem {
                         let at = atom(a)?;
                         check_atom(domain, &at, a.pos())?;
                         if at.args.iter().any(|t| matches!(t, Term::Var(_))) {
-                            return Err(error(a.pos(), "`:init` atoms must be ground (no `?variables`)"));
+                            return Err(error(
+                                a.pos(),
+                                "`:init` atoms must be ground (no `?variables`)",
+                            ));
                         }
                         problem.init.push(at);
                     }
                 }
                 ":goal" => {
-                    let g = items.first().ok_or_else(|| error(pos, "expected a goal condition"))?;
+                    let g = items
+                        .first()
+                        .ok_or_else(|| error(pos, "expected a goal condition"))?;
                     problem.goal = conjunction(g)?;
                     for l in &problem.goal {
                         check_atom(domain, &l.atom, g.pos())?;
@@ -455,7 +562,10 @@ impl Problem {
             }
         }
         if goal_pos.is_none() {
-            return Err(error(Pos { line: 1, column: 1 }, "the problem has no `:goal`"));
+            return Err(error(
+                Pos { line: 1, column: 1 },
+                "the problem has no `:goal`",
+            ));
         }
         Ok(problem)
     }
@@ -472,8 +582,12 @@ mod tests {
         assert!(e.message.contains("unknown predicate `q`"), "{e}");
         let e = Domain::parse("(define (domain d)\n (:types a - b\n").unwrap_err();
         assert_eq!((e.line, e.column), (2, 2), "{e}");
-        let e = Domain::parse("(define (domain d) (:action a :precondition (or (p) (q))))").unwrap_err();
-        assert!(e.message.contains("outside the supported STRIPS subset"), "{e}");
+        let e = Domain::parse("(define (domain d) (:action a :precondition (or (p) (q))))")
+            .unwrap_err();
+        assert!(
+            e.message.contains("outside the supported STRIPS subset"),
+            "{e}"
+        );
         let e = Domain::parse(&"(".repeat(100)).unwrap_err();
         assert!(e.message.contains("nesting deeper"), "{e}");
     }

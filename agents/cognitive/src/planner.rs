@@ -42,7 +42,9 @@ pub enum PlanError {
         explored: usize,
     },
     /// The search stopped at its state budget.
-    #[error("search stopped after {limit} states without reaching the goal; raise the limit or simplify the problem")]
+    #[error(
+        "search stopped after {limit} states without reaching the goal; raise the limit or simplify the problem"
+    )]
     LimitReached {
         /// The budget.
         limit: usize,
@@ -71,14 +73,19 @@ struct Atoms {
 impl Atoms {
     fn id(&mut self, predicate: &str, args: Vec<String>) -> usize {
         let next = self.ids.len();
-        *self.ids.entry((predicate.to_string(), args)).or_insert(next)
+        *self
+            .ids
+            .entry((predicate.to_string(), args))
+            .or_insert(next)
     }
 }
 
 type State = Vec<u64>;
 
 fn has(state: &State, id: usize) -> bool {
-    state.get(id / 64).is_some_and(|w| w & (1 << (id % 64)) != 0)
+    state
+        .get(id / 64)
+        .is_some_and(|w| w & (1 << (id % 64)) != 0)
 }
 
 fn set(state: &mut State, id: usize, on: bool) {
@@ -94,8 +101,12 @@ fn set(state: &mut State, id: usize, on: bool) {
 
 /// Finds a shortest plan, exploring at most `max_states` states.
 pub fn plan(domain: &Domain, problem: &Problem, max_states: usize) -> Result<Plan, PlanError> {
-    let objects: Vec<(String, String)> =
-        domain.constants.iter().chain(&problem.objects).cloned().collect();
+    let objects: Vec<(String, String)> = domain
+        .constants
+        .iter()
+        .chain(&problem.objects)
+        .cloned()
+        .collect();
     let declared: HashSet<&str> = objects.iter().map(|(n, _)| n.as_str()).collect();
     let ground_args = |atom: &Atom| -> Result<Vec<String>, PlanError> {
         atom.args
@@ -133,7 +144,11 @@ pub fn plan(domain: &Domain, problem: &Problem, max_states: usize) -> Result<Pla
             .parameters
             .iter()
             .map(|(_, ty)| {
-                objects.iter().filter(|(_, oty)| domain.is_subtype(oty, ty)).map(|(n, _)| n.as_str()).collect()
+                objects
+                    .iter()
+                    .filter(|(_, oty)| domain.is_subtype(oty, ty))
+                    .map(|(n, _)| n.as_str())
+                    .collect()
             })
             .collect();
         let mut binding = vec![0usize; candidates.len()];
@@ -152,15 +167,20 @@ pub fn plan(domain: &Domain, problem: &Problem, max_states: usize) -> Result<Pla
                 atom.args
                     .iter()
                     .map(|t| match t {
-                        Term::Var(v) => values.get(v.as_str()).map_or_else(|| v.clone(), |s| s.to_string()),
+                        Term::Var(v) => values
+                            .get(v.as_str())
+                            .map_or_else(|| v.clone(), |s| s.to_string()),
                         Term::Const(c) => c.clone(),
                     })
                     .collect()
             };
-            let statically_ok = schema.precondition.iter().all(|Literal { positive, atom }| {
-                dynamic.contains(atom.predicate.as_str())
-                    || init_set.contains(&(atom.predicate.clone(), bind(atom))) == *positive
-            });
+            let statically_ok = schema
+                .precondition
+                .iter()
+                .all(|Literal { positive, atom }| {
+                    dynamic.contains(atom.predicate.as_str())
+                        || init_set.contains(&(atom.predicate.clone(), bind(atom))) == *positive
+                });
             if statically_ok {
                 let mut ids = |list: &mut dyn Iterator<Item = &Atom>| -> Vec<usize> {
                     list.map(|a| atoms.id(&a.predicate, bind(a))).collect()
@@ -170,13 +190,19 @@ pub fn plan(domain: &Domain, problem: &Problem, max_states: usize) -> Result<Pla
                     schema
                         .precondition
                         .iter()
-                        .filter(move |l| l.positive == positive && dynamic.contains(l.atom.predicate.as_str()))
+                        .filter(move |l| {
+                            l.positive == positive && dynamic.contains(l.atom.predicate.as_str())
+                        })
                         .map(|l| &l.atom)
                 };
                 actions.push(GroundAction {
                     step: Step {
                         action: schema.name.clone(),
-                        args: binding.iter().zip(&candidates).map(|(&i, c)| c[i].to_string()).collect(),
+                        args: binding
+                            .iter()
+                            .zip(&candidates)
+                            .map(|(&i, c)| c[i].to_string())
+                            .collect(),
                     },
                     pre_pos: ids(&mut dynamic_pre(true)),
                     pre_neg: ids(&mut dynamic_pre(false)),
@@ -218,7 +244,9 @@ pub fn plan(domain: &Domain, problem: &Problem, max_states: usize) -> Result<Pla
             return Ok(plan);
         }
         for (index, a) in actions.iter().enumerate() {
-            if a.pre_pos.iter().all(|&id| has(&state, id)) && a.pre_neg.iter().all(|&id| !has(&state, id)) {
+            if a.pre_pos.iter().all(|&id| has(&state, id))
+                && a.pre_neg.iter().all(|&id| !has(&state, id))
+            {
                 let mut next = state.clone();
                 for &id in &a.del {
                     set(&mut next, id, false);
@@ -237,7 +265,9 @@ pub fn plan(domain: &Domain, problem: &Problem, max_states: usize) -> Result<Pla
             }
         }
     }
-    Err(PlanError::Unreachable { explored: parent.len() })
+    Err(PlanError::Unreachable {
+        explored: parent.len(),
+    })
 }
 
 #[cfg(test)]
@@ -266,27 +296,51 @@ mod tests {
         let domain = Domain::parse(DOMAIN).unwrap();
         let plan = plan(&domain, &problem("", "(at chair1 dining)"), 10_000).unwrap();
         let text: Vec<String> = plan.iter().map(Step::to_string).collect();
-        assert_eq!(text, [
-            "(move chair1 bedroom corridor)",
-            "(open-door chair1 corridor dining d1)",
-            "(pass-door chair1 corridor dining d1)",
-        ]);
+        assert_eq!(
+            text,
+            [
+                "(move chair1 bedroom corridor)",
+                "(open-door chair1 corridor dining d1)",
+                "(pass-door chair1 corridor dining d1)",
+            ]
+        );
     }
 
     #[test]
     fn a_locked_door_is_routed_around() {
         let domain = Domain::parse(DOMAIN).unwrap();
-        let plan = plan(&domain, &problem("(locked d1)", "(at chair1 dining)"), 10_000).unwrap();
-        assert!(plan.iter().all(|s| !s.args.contains(&"d1".to_string())), "{plan:?}");
-        assert_eq!(plan.last().unwrap().to_string(), "(pass-door chair1 hall dining d2)");
+        let plan = plan(
+            &domain,
+            &problem("(locked d1)", "(at chair1 dining)"),
+            10_000,
+        )
+        .unwrap();
+        assert!(
+            plan.iter().all(|s| !s.args.contains(&"d1".to_string())),
+            "{plan:?}"
+        );
+        assert_eq!(
+            plan.last().unwrap().to_string(),
+            "(pass-door chair1 hall dining d2)"
+        );
     }
 
     #[test]
     fn unreachable_goal_is_reported() {
         let domain = Domain::parse(DOMAIN).unwrap();
-        let err = plan(&domain, &problem("(locked d1) (locked d2)", "(at chair1 dining)"), 10_000).unwrap_err();
+        let err = plan(
+            &domain,
+            &problem("(locked d1) (locked d2)", "(at chair1 dining)"),
+            10_000,
+        )
+        .unwrap_err();
         assert!(matches!(err, PlanError::Unreachable { .. }), "{err}");
-        let err = plan(&domain, &problem("(locked d1) (locked d2)", "(at chair1 dining)"), 2).unwrap_err();
+        let err = plan(
+            &domain,
+            &problem("(locked d1) (locked d2)", "(at chair1 dining)"),
+            2,
+        )
+        .unwrap_err();
         assert_eq!(err, PlanError::LimitReached { limit: 2 });
     }
 
@@ -295,6 +349,11 @@ mod tests {
         let domain = Domain::parse(DOMAIN).unwrap();
         let mut p = problem("", "(at chair1 dining)");
         p.goal[0].atom.args[1] = Term::Const("kitchen".into());
-        assert_eq!(plan(&domain, &p, 100), Err(PlanError::UnknownObject { name: "kitchen".into() }));
+        assert_eq!(
+            plan(&domain, &p, 100),
+            Err(PlanError::UnknownObject {
+                name: "kitchen".into()
+            })
+        );
     }
 }

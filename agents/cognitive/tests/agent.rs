@@ -7,7 +7,9 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
-use iw_cognitive::agent::{BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage};
+use iw_cognitive::agent::{
+    BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
+};
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
@@ -51,7 +53,8 @@ fn agree_then(m: &AclMessage, last: Performative) -> Vec<AclMessage> {
     let agree = m.create_reply().with_performative(Performative::Agree);
     let mut end = m.create_reply().with_performative(last);
     if last == Performative::Inform
-        && let WheelchairContent::Request { actor, action } = WheelchairContent::from_message(m).unwrap()
+        && let WheelchairContent::Request { actor, action } =
+            WheelchairContent::from_message(m).unwrap()
     {
         end = WheelchairContent::Done { actor, action }.fill(end);
     }
@@ -77,18 +80,43 @@ fn rig(door_answers: Script, control_answers: Script) -> Rig {
 fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answers: Script) -> Rig {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(network.endpoint("c1").unwrap()),
+        clock,
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
-    let places = [("a", Point2::new(1.0, 5.0)), ("b", Point2::new(9.0, 5.0)), ("c", Point2::new(5.0, 9.0))];
+    let places = [
+        ("a", Point2::new(1.0, 5.0)),
+        ("b", Point2::new(9.0, 5.0)),
+        ("c", Point2::new(5.0, 9.0)),
+    ];
     let map = BuildingMap {
         places: places.iter().map(|(n, p)| (n.to_string(), *p)).collect(),
         connections: vec![("c".into(), "b".into())],
         doors: vec![
-            DoorPassage { name: "d1".into(), a: "a".into(), b: "b".into(), at: Point2::new(5.0, 5.0) },
-            DoorPassage { name: "d2".into(), a: "a".into(), b: "c".into(), at: Point2::new(3.0, 7.0) },
+            DoorPassage {
+                name: "d1".into(),
+                a: "a".into(),
+                b: "b".into(),
+                at: Point2::new(5.0, 5.0),
+            },
+            DoorPassage {
+                name: "d2".into(),
+                a: "a".into(),
+                b: "c".into(),
+                at: Point2::new(3.0, 7.0),
+            },
         ],
         landmarks: vec![Point2::new(2.0, 2.0), Point2::new(8.0, 8.0)],
-        passages: vec![NarrowPassage { name: "gap".into(), a: Point2::new(4.0, 5.0), b: Point2::new(6.0, 5.0), width_m: 1.2 }],
+        passages: vec![NarrowPassage {
+            name: "gap".into(),
+            a: Point2::new(4.0, 5.0),
+            b: Point2::new(6.0, 5.0),
+            width_m: 1.2,
+        }],
     };
     let grid = OccupancyGrid::new(100, 100, 0.1, Point2::origin(), vec![false; 10_000]).unwrap();
     let config = CognitiveConfig {
@@ -106,23 +134,52 @@ fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answe
         uncertainty_m2: 0.5,
         max_states: 10_000,
     };
-    host.add(AgentId::new("cognitive"), Box::new(CognitiveAgent::new(config).unwrap())).unwrap();
+    host.add(
+        AgentId::new("cognitive"),
+        Box::new(CognitiveAgent::new(config).unwrap()),
+    )
+    .unwrap();
     let mut scripted = |name: &str, script: Script| {
         let (inbox, outbox): (Log, Log) = (Arc::default(), Arc::default());
-        host.add(AgentId::new(name), Box::new(Scripted { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox), script })).unwrap();
+        host.add(
+            AgentId::new(name),
+            Box::new(Scripted {
+                inbox: Arc::clone(&inbox),
+                outbox: Arc::clone(&outbox),
+                script,
+            }),
+        )
+        .unwrap();
         (inbox, outbox)
     };
     let user = scripted("user", Box::new(|_| Vec::new()));
     let door = scripted("door", door_answers).0;
     let control = scripted("control", control_answers).0;
     let watcher = scripted("watcher", watcher_answers).0;
-    Rig { host, clock: controller, user, door, control, watcher }
+    Rig {
+        host,
+        clock: controller,
+        user,
+        door,
+        control,
+        watcher,
+    }
 }
 
 impl Rig {
     fn goal(&self, place: &str) {
-        let goal = WheelchairContent::Request { actor: AgentId::new("cognitive"), action: WheelchairAction::GoTo { place: place.into() } };
-        let m = goal.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("cognitive")).with_protocol("fipa-request").with_conversation_id("goal-1"));
+        let goal = WheelchairContent::Request {
+            actor: AgentId::new("cognitive"),
+            action: WheelchairAction::GoTo {
+                place: place.into(),
+            },
+        };
+        let m = goal.fill(
+            AclMessage::new(Performative::Request)
+                .with_receiver(AgentId::new("cognitive"))
+                .with_protocol("fipa-request")
+                .with_conversation_id("goal-1"),
+        );
         self.user.1.lock().unwrap().push(m);
     }
     fn run(&mut self, steps: usize) {
@@ -134,7 +191,9 @@ impl Rig {
 }
 
 fn waypoints(action: &WheelchairAction) -> Vec<(f64, f64)> {
-    let WheelchairAction::Sequence { steps } = action else { panic!("not a sequence: {action:?}") };
+    let WheelchairAction::Sequence { steps } = action else {
+        panic!("not a sequence: {action:?}")
+    };
     steps
         .iter()
         .map(|s| match s {
@@ -147,7 +206,9 @@ fn waypoints(action: &WheelchairAction) -> Vec<(f64, f64)> {
 #[test]
 fn a_refused_door_makes_it_replan_through_the_other_door() {
     let doors: Script = Box::new(|m| match action_of(m) {
-        WheelchairAction::OpenDoor { door } if door == "d1" => vec![m.create_reply().with_performative(Performative::Refuse)],
+        WheelchairAction::OpenDoor { door } if door == "d1" => {
+            vec![m.create_reply().with_performative(Performative::Refuse)]
+        }
         _ => agree_then(m, Performative::Inform),
     });
     let mut rig = rig(doors, Box::new(|m| agree_then(m, Performative::Inform)));
@@ -156,12 +217,24 @@ fn a_refused_door_makes_it_replan_through_the_other_door() {
     let door_requests: Vec<_> = rig.door.lock().unwrap().iter().map(action_of).collect();
     assert_eq!(
         door_requests,
-        [WheelchairAction::OpenDoor { door: "d1".into() }, WheelchairAction::OpenDoor { door: "d2".into() }]
+        [
+            WheelchairAction::OpenDoor { door: "d1".into() },
+            WheelchairAction::OpenDoor { door: "d2".into() }
+        ]
     );
     let control: Vec<_> = rig.control.lock().unwrap().iter().map(action_of).collect();
-    assert_eq!(control.len(), 2, "pass d2 to c, then move to b (not through the gap): {control:?}");
+    assert_eq!(
+        control.len(),
+        2,
+        "pass d2 to c, then move to b (not through the gap): {control:?}"
+    );
     let first = waypoints(&control[0]);
-    assert!(first.iter().any(|p| (p.0 - 3.0).abs() < 0.11 && (p.1 - 7.0).abs() < 0.11), "through d2's doorway: {first:?}");
+    assert!(
+        first
+            .iter()
+            .any(|p| (p.0 - 3.0).abs() < 0.11 && (p.1 - 7.0).abs() < 0.11),
+        "through d2's doorway: {first:?}"
+    );
     assert_eq!(*first.last().unwrap(), (5.0, 9.0));
     assert_eq!(*waypoints(&control[1]).last().unwrap(), (9.0, 5.0));
     let user = rig.user.0.lock().unwrap();
@@ -169,13 +242,17 @@ fn a_refused_door_makes_it_replan_through_the_other_door() {
     assert_eq!(answers, [Performative::Agree, Performative::Inform]);
     assert_eq!(
         WheelchairContent::from_message(&user[1]).unwrap(),
-        WheelchairContent::Done { actor: AgentId::new("cognitive"), action: WheelchairAction::GoTo { place: "b".into() } }
+        WheelchairContent::Done {
+            actor: AgentId::new("cognitive"),
+            action: WheelchairAction::GoTo { place: "b".into() }
+        }
     );
 }
 
 #[test]
 fn no_route_left_is_a_failure_and_unknown_places_are_refused() {
-    let refuse_all: Script = Box::new(|m| vec![m.create_reply().with_performative(Performative::Refuse)]);
+    let refuse_all: Script =
+        Box::new(|m| vec![m.create_reply().with_performative(Performative::Refuse)]);
     let blocked: Script = Box::new(|m| agree_then(m, Performative::Failure));
     let mut rig = rig(refuse_all, blocked);
     rig.goal("nowhere");
@@ -184,29 +261,55 @@ fn no_route_left_is_a_failure_and_unknown_places_are_refused() {
     rig.run(20);
     let user = rig.user.0.lock().unwrap();
     let answers: Vec<_> = user.iter().map(|m| m.performative).collect();
-    assert_eq!(answers, [Performative::Refuse, Performative::Agree, Performative::Failure]);
+    assert_eq!(
+        answers,
+        [
+            Performative::Refuse,
+            Performative::Agree,
+            Performative::Failure
+        ]
+    );
     assert_eq!(rig.door.lock().unwrap().len(), 2, "both doors tried");
 }
 
 #[test]
 fn growing_uncertainty_routes_the_chair_past_the_nearest_landmark() {
     // The control agent agrees and never finishes, so the first motion stays pending.
-    let mut rig = rig(Box::new(|m| agree_then(m, Performative::Inform)), Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]));
+    let mut rig = rig(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]),
+    );
     rig.goal("b");
     rig.run(10);
     let pose = |var: f64| {
-        let fact = Fact::AtPose { agent: AgentId::new("chair1"), pose: Pose { x_m: 2.5, y_m: 4.0, theta_rad: 0.0, covariance: Matrix3::from_diagonal_element(var) } };
-        WheelchairContent::Inform(fact).fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive")))
+        let fact = Fact::AtPose {
+            agent: AgentId::new("chair1"),
+            pose: Pose {
+                x_m: 2.5,
+                y_m: 4.0,
+                theta_rad: 0.0,
+                covariance: Matrix3::from_diagonal_element(var),
+            },
+        };
+        WheelchairContent::Inform(fact)
+            .fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive")))
     };
     rig.user.1.lock().unwrap().push(pose(0.01));
     rig.run(10);
-    assert_eq!(rig.control.lock().unwrap().len(), 1, "small uncertainty: no detour");
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        1,
+        "small uncertainty: no detour"
+    );
     rig.user.1.lock().unwrap().push(pose(1.0));
     rig.run(10);
     let control = rig.control.lock().unwrap();
     assert_eq!(control.len(), 2, "re-issued via a landmark");
     let detour = waypoints(&action_of(&control[1]));
-    assert!(detour.contains(&(2.0, 2.0)), "nearest landmark first: {detour:?}");
+    assert!(
+        detour.contains(&(2.0, 2.0)),
+        "nearest landmark first: {detour:?}"
+    );
     assert!(!waypoints(&action_of(&control[0])).contains(&(2.0, 2.0)));
 }
 
@@ -218,27 +321,84 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(move |m| {
             drives += 1;
-            if drives == 1 { agree_then(m, Performative::Inform) } else { vec![m.create_reply().with_performative(Performative::Agree)] }
+            if drives == 1 {
+                agree_then(m, Performative::Inform)
+            } else {
+                vec![m.create_reply().with_performative(Performative::Agree)]
+            }
         }),
-        Box::new(|m| if m.performative == Performative::Request { agree_then(m, Performative::Inform) } else { Vec::new() }),
+        Box::new(|m| {
+            if m.performative == Performative::Request {
+                agree_then(m, Performative::Inform)
+            } else {
+                Vec::new()
+            }
+        }),
     );
     rig.goal("b");
     rig.run(20);
-    let control: Vec<_> = rig.control.lock().unwrap().iter().map(|m| waypoints(&action_of(m))).collect();
-    assert_eq!(control.len(), 2, "to the wait point, then through the gap and on to b without stopping: {control:?}");
+    let control: Vec<_> = rig
+        .control
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|m| waypoints(&action_of(m)))
+        .collect();
+    assert_eq!(
+        control.len(),
+        2,
+        "to the wait point, then through the gap and on to b without stopping: {control:?}"
+    );
     let wait = control[0].last().unwrap();
-    assert!((wait.0 - 3.0).abs() < 0.1 && (wait.1 - 5.0).abs() < 0.1, "stops 1 m before the gap: {control:?}");
+    assert!(
+        (wait.0 - 3.0).abs() < 0.1 && (wait.1 - 5.0).abs() < 0.1,
+        "stops 1 m before the gap: {control:?}"
+    );
     assert_eq!(*control[1].last().unwrap(), (9.0, 5.0));
-    let pass = WheelchairAction::Pass { passage: "gap".into(), direction: "forward".into() };
-    let asked = |rig: &Rig| -> Vec<_> { rig.watcher.lock().unwrap().iter().map(|m| (m.performative, action_of(m))).collect() };
-    assert_eq!(asked(&rig), [(Performative::Request, pass.clone())], "granted, not yet released");
+    let pass = WheelchairAction::Pass {
+        passage: "gap".into(),
+        direction: "forward".into(),
+    };
+    let asked = |rig: &Rig| -> Vec<_> {
+        rig.watcher
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|m| (m.performative, action_of(m)))
+            .collect()
+    };
+    assert_eq!(
+        asked(&rig),
+        [(Performative::Request, pass.clone())],
+        "granted, not yet released"
+    );
     // A pose 0.8 m past the gap: the chair is clear of it.
-    let pose = Fact::AtPose { agent: AgentId::new("chair1"), pose: Pose { x_m: 6.7, y_m: 5.0, theta_rad: 0.0, covariance: Matrix3::zeros() } };
-    rig.user.1.lock().unwrap().push(WheelchairContent::Inform(pose).fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive"))));
+    let pose = Fact::AtPose {
+        agent: AgentId::new("chair1"),
+        pose: Pose {
+            x_m: 6.7,
+            y_m: 5.0,
+            theta_rad: 0.0,
+            covariance: Matrix3::zeros(),
+        },
+    };
+    rig.user.1.lock().unwrap().push(
+        WheelchairContent::Inform(pose)
+            .fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive"))),
+    );
     rig.run(5);
-    assert_eq!(asked(&rig), [(Performative::Request, pass.clone()), (Performative::Cancel, pass)]);
+    assert_eq!(
+        asked(&rig),
+        [
+            (Performative::Request, pass.clone()),
+            (Performative::Cancel, pass)
+        ]
+    );
     let watcher = rig.watcher.lock().unwrap();
-    assert_eq!(watcher[0].conversation_id, watcher[1].conversation_id, "the cancel releases that grant");
+    assert_eq!(
+        watcher[0].conversation_id, watcher[1].conversation_id,
+        "the cancel releases that grant"
+    );
 }
 
 #[test]
@@ -247,15 +407,42 @@ fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
     let mut rig = rig_with_watcher(
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(|m| agree_then(m, Performative::Inform)),
-        Box::new(|m| if m.performative == Performative::Request { vec![m.create_reply().with_performative(Performative::Agree)] } else { Vec::new() }),
+        Box::new(|m| {
+            if m.performative == Performative::Request {
+                vec![m.create_reply().with_performative(Performative::Agree)]
+            } else {
+                Vec::new()
+            }
+        }),
     );
     rig.goal("b");
     rig.run(300);
-    assert_eq!(rig.control.lock().unwrap().len(), 1, "still waiting before the gap after 3 s");
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        1,
+        "still waiting before the gap after 3 s"
+    );
     rig.run(300);
     assert_eq!(rig.control.lock().unwrap().len(), 2, "gone on after 5 s");
-    let watcher: Vec<_> = rig.watcher.lock().unwrap().iter().map(|m| m.performative).collect();
-    assert_eq!(watcher, [Performative::Request, Performative::Cancel], "left the queue");
-    let answers: Vec<_> = rig.user.0.lock().unwrap().iter().map(|m| m.performative).collect();
+    let watcher: Vec<_> = rig
+        .watcher
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|m| m.performative)
+        .collect();
+    assert_eq!(
+        watcher,
+        [Performative::Request, Performative::Cancel],
+        "left the queue"
+    );
+    let answers: Vec<_> = rig
+        .user
+        .0
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|m| m.performative)
+        .collect();
     assert_eq!(answers, [Performative::Agree, Performative::Inform]);
 }

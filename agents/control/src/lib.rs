@@ -45,8 +45,13 @@ use iw_body::{Body, SensorFrame};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
-use iw_shared_control::tactical::{Action, ActionSequence, SequenceStatus, Side, TacticalInput, TacticalParams};
-use iw_shared_control::{ArcGuard, ArcGuardParams, Guarded, PotentialField, PotentialFieldParams, SensorMount, SharedController, SharedInput, VelocityCommand};
+use iw_shared_control::tactical::{
+    Action, ActionSequence, SequenceStatus, Side, TacticalInput, TacticalParams,
+};
+use iw_shared_control::{
+    ArcGuard, ArcGuardParams, Guarded, PotentialField, PotentialFieldParams, SensorMount,
+    SharedController, SharedInput, VelocityCommand,
+};
 use iw_sl::{ActionExpression, ContentExpression, Level, Term};
 use nalgebra::Isometry2;
 
@@ -174,7 +179,10 @@ impl ControlAgent {
     /// A control agent driving `body`.
     pub fn new(config: ControlConfig, body: Box<dyn Body + Send>) -> Result<Self, ControlError> {
         if config.sonar_mounts.len() != iw_body::SONAR_COUNT {
-            return Err(ControlError::Mounts { mounts: config.sonar_mounts.len(), expected: iw_body::SONAR_COUNT });
+            return Err(ControlError::Mounts {
+                mounts: config.sonar_mounts.len(),
+                expected: iw_body::SONAR_COUNT,
+            });
         }
         ActionSequence::new(config.tactical, [])?;
         let shared = Guarded {
@@ -208,15 +216,22 @@ impl ControlAgent {
             }
             return;
         }
-        let Some((actor, action)) = ctx.understand(&message, "expected ((action actor act))", |c| match c {
-            WheelchairContent::Request { actor, action } => Some((actor, action)),
-            _ => None,
-        }) else {
+        let Some((actor, action)) =
+            ctx.understand(&message, "expected ((action actor act))", |c| match c {
+                WheelchairContent::Request { actor, action } => Some((actor, action)),
+                _ => None,
+            })
+        else {
             return;
         };
         let mut steps = Vec::new();
         if let Err(refused) = self.tactical_actions(&action, &mut steps) {
-            reply(ctx, &message, Performative::Refuse, &format!("cannot execute {refused}"));
+            reply(
+                ctx,
+                &message,
+                Performative::Refuse,
+                &format!("cannot execute {refused}"),
+            );
             return;
         }
         let sequence = match ActionSequence::new(self.config.tactical, steps) {
@@ -228,24 +243,44 @@ impl ControlAgent {
         };
         self.preempt(ctx, "preempted by a newer request");
         reply(ctx, &message, Performative::Agree, "");
-        self.mode = Mode::Task(Box::new(Task { request: message, actor, action, sequence, progress_at: None }));
+        self.mode = Mode::Task(Box::new(Task {
+            request: message,
+            actor,
+            action,
+            sequence,
+            progress_at: None,
+        }));
     }
 
     /// Maps an ontology action to tactical actions; `Err` names what cannot be driven.
-    fn tactical_actions(&self, action: &WheelchairAction, out: &mut Vec<Action>) -> Result<(), String> {
+    fn tactical_actions(
+        &self,
+        action: &WheelchairAction,
+        out: &mut Vec<Action>,
+    ) -> Result<(), String> {
         match action {
-            WheelchairAction::GotoXy { x_m, y_m } => out.push(Action::GoTo { target: nalgebra::Point2::new(*x_m, *y_m) }),
-            WheelchairAction::Spin { angle_rad } => out.push(Action::TurnTo { heading_rad: *angle_rad }),
-            WheelchairAction::Wait { duration_ms } => {
-                out.push(Action::Wait { duration_ns: u64::try_from(*duration_ms).unwrap_or(0).saturating_mul(1_000_000) })
-            }
+            WheelchairAction::GotoXy { x_m, y_m } => out.push(Action::GoTo {
+                target: nalgebra::Point2::new(*x_m, *y_m),
+            }),
+            WheelchairAction::Spin { angle_rad } => out.push(Action::TurnTo {
+                heading_rad: *angle_rad,
+            }),
+            WheelchairAction::Wait { duration_ms } => out.push(Action::Wait {
+                duration_ns: u64::try_from(*duration_ms)
+                    .unwrap_or(0)
+                    .saturating_mul(1_000_000),
+            }),
             WheelchairAction::Stop => out.push(Action::Stop),
-            WheelchairAction::FollowLeftWall { distance_m } => {
-                out.push(Action::FollowWall { side: Side::Left, distance_m: *distance_m, length_m: self.config.wall_length_m })
-            }
-            WheelchairAction::FollowRightWall { distance_m } => {
-                out.push(Action::FollowWall { side: Side::Right, distance_m: *distance_m, length_m: self.config.wall_length_m })
-            }
+            WheelchairAction::FollowLeftWall { distance_m } => out.push(Action::FollowWall {
+                side: Side::Left,
+                distance_m: *distance_m,
+                length_m: self.config.wall_length_m,
+            }),
+            WheelchairAction::FollowRightWall { distance_m } => out.push(Action::FollowWall {
+                side: Side::Right,
+                distance_m: *distance_m,
+                length_m: self.config.wall_length_m,
+            }),
             WheelchairAction::Sequence { steps } => {
                 for step in steps {
                     self.tactical_actions(step, out)?;
@@ -272,7 +307,9 @@ impl ControlAgent {
             let Some(range) = *range else { continue };
             let angle = mount.rotation.angle();
             let clearance = (mount * nalgebra::Point2::new(range, 0.0)).y.abs();
-            let keep = |slot: &mut Option<f64>| *slot = Some(slot.map_or(clearance, |c: f64| c.min(clearance)));
+            let keep = |slot: &mut Option<f64>| {
+                *slot = Some(slot.map_or(clearance, |c: f64| c.min(clearance)))
+            };
             if (0.78..=2.36).contains(&angle) {
                 keep(&mut left);
             } else if (-2.36..=-0.78).contains(&angle) {
@@ -285,9 +322,18 @@ impl ControlAgent {
     fn run_task(&mut self, ctx: &mut Context<'_>, frame: &SensorFrame) -> Option<VelocityCommand> {
         let now_ns = ctx.now().0;
         let (left_wall_m, right_wall_m) = self.walls(frame);
-        let Mode::Task(task) = &mut self.mode else { return None };
-        let Some(t_world_chair) = self.t_map_base else { return Some(VelocityCommand::STOP) };
-        let input = TacticalInput { time_ns: now_ns, t_world_chair, left_wall_m, right_wall_m };
+        let Mode::Task(task) = &mut self.mode else {
+            return None;
+        };
+        let Some(t_world_chair) = self.t_map_base else {
+            return Some(VelocityCommand::STOP);
+        };
+        let input = TacticalInput {
+            time_ns: now_ns,
+            t_world_chair,
+            left_wall_m,
+            right_wall_m,
+        };
         let outcome = task.sequence.step(&input);
         let since = match task.progress_at {
             Some((anchor, since)) if !progressed(&anchor, &t_world_chair) => since,
@@ -296,12 +342,20 @@ impl ControlAgent {
                 now_ns
             }
         };
-        let blocked = now_ns.saturating_sub(since) > self.config.blocked_after_ms.saturating_mul(1_000_000)
+        let blocked = now_ns.saturating_sub(since)
+            > self.config.blocked_after_ms.saturating_mul(1_000_000)
             && !task.is_waiting();
         match outcome {
             Ok(out) if out.status == SequenceStatus::Finished => {
-                let done = WheelchairContent::Done { actor: task.actor.clone(), action: task.action.clone() };
-                let inform = done.fill(task.request.create_reply().with_performative(Performative::Inform));
+                let done = WheelchairContent::Done {
+                    actor: task.actor.clone(),
+                    action: task.action.clone(),
+                };
+                let inform = done.fill(
+                    task.request
+                        .create_reply()
+                        .with_performative(Performative::Inform),
+                );
                 let _ = ctx.send(inform);
                 self.mode = Mode::Idle;
                 Some(VelocityCommand::STOP)
@@ -330,7 +384,10 @@ impl Task {
 fn reply(ctx: &mut Context<'_>, to: &AclMessage, performative: Performative, reason: &str) {
     let mut message = to.create_reply().with_performative(performative);
     if !reason.is_empty() {
-        message = message.with_content(format!("((error-message \"{}\"))", reason.replace('"', "'")));
+        message = message.with_content(format!(
+            "((error-message \"{}\"))",
+            reason.replace('"', "'")
+        ));
     } else if performative == Performative::Agree {
         message = message.with_content(to.content_text().unwrap_or_default().to_string());
     }
@@ -365,15 +422,23 @@ impl Agent for ControlAgent {
         match message.performative {
             Performative::Request => self.handle_request(ctx, message),
             Performative::Inform => match WheelchairContent::from_message(&message) {
-                Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => self.t_map_base = Some(pose.t_map_base()),
+                Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
+                    self.t_map_base = Some(pose.t_map_base())
+                }
                 Ok(_) => {}
                 Err(err) => tracing::debug!(error = %err, "ignored an inform"),
             },
-            Performative::Agree | Performative::Refuse | Performative::Failure | Performative::NotUnderstood => {
+            Performative::Agree
+            | Performative::Refuse
+            | Performative::Failure
+            | Performative::NotUnderstood => {
                 tracing::debug!(performative = %message.performative, "answer to our subscription");
             }
             _ => {
-                let _ = ctx.not_understood(&message, "the control agent takes requests and pose informs");
+                let _ = ctx.not_understood(
+                    &message,
+                    "the control agent takes requests and pose informs",
+                );
             }
         }
     }
@@ -393,7 +458,9 @@ impl Agent for ControlAgent {
                 let _ = self.body.stop();
                 self.basic.halt(now_ns);
                 let since = *self.body_fault_since_ns.get_or_insert(now_ns);
-                if now_ns.saturating_sub(since) < self.config.body_fault_ms.saturating_mul(1_000_000) {
+                if now_ns.saturating_sub(since)
+                    < self.config.body_fault_ms.saturating_mul(1_000_000)
+                {
                     tracing::warn!(error = %err, "body read failed; wheels stopped, task held");
                     return;
                 }
@@ -420,8 +487,17 @@ impl Agent for ControlAgent {
         };
         let command = match user {
             Some(user) => {
-                let input = SharedInput { user, speed_mps: user.linear_mps.abs(), sonar_m: &frame.sonar_m, points_chair: &[] };
-                let out = if shared { self.shared.step(&input) } else { self.shared.guard.step(&input) };
+                let input = SharedInput {
+                    user,
+                    speed_mps: user.linear_mps.abs(),
+                    sonar_m: &frame.sonar_m,
+                    points_chair: &[],
+                };
+                let out = if shared {
+                    self.shared.step(&input)
+                } else {
+                    self.shared.guard.step(&input)
+                };
                 out.map_or(VelocityCommand::STOP, |out| out.command)
             }
             None => VelocityCommand::STOP,
@@ -454,10 +530,14 @@ pub fn drive_content(control: &str, linear_mps: f64, angular_radps: f64) -> Stri
 /// The user's command in a manual `drive` request, or `None` when the content is something else.
 pub fn parse_drive(message: &AclMessage) -> Option<VelocityCommand> {
     let content = iw_sl::parse(message.content_text()?, Level::Sl0).ok()?;
-    let [ContentExpression::Action(ActionExpression::Action { act, .. })] = content.expressions.as_slice() else {
+    let [ContentExpression::Action(ActionExpression::Action { act, .. })] =
+        content.expressions.as_slice()
+    else {
         return None;
     };
-    let Term::Functional { symbol, args } = act else { return None };
+    let Term::Functional { symbol, args } = act else {
+        return None;
+    };
     if !symbol.eq_ignore_ascii_case("drive") {
         return None;
     }

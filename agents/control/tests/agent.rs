@@ -4,8 +4,8 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_agent::AgentHost;
+use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
 use iw_control_agent::{ControlAgent, ControlConfig, drive_content};
@@ -27,9 +27,17 @@ impl Body for Recorder {
         let mut failing = self.failing_reads.lock().unwrap();
         if *failing > 0 {
             *failing -= 1;
-            return Err(BodyError::Timeout { port: "/dev/test".into(), timeout_ms: 200, received: 0, skipped: 0 });
+            return Err(BodyError::Timeout {
+                port: "/dev/test".into(),
+                timeout_ms: 200,
+                received: 0,
+                skipped: 0,
+            });
         }
-        Ok(SensorFrame { sonar_m: *self.sonar_m.lock().unwrap(), ..SensorFrame::empty(0) })
+        Ok(SensorFrame {
+            sonar_m: *self.sonar_m.lock().unwrap(),
+            ..SensorFrame::empty(0)
+        })
     }
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
         self.commands.lock().unwrap().push(speeds);
@@ -48,14 +56,30 @@ struct Rig {
 fn rig() -> Rig {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(network.endpoint("c1").unwrap()),
+        clock,
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
     let body = Recorder::default();
     let config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
-    host.add(AgentId::new("control"), Box::new(ControlAgent::new(config, Box::new(body.clone())).unwrap())).unwrap();
+    host.add(
+        AgentId::new("control"),
+        Box::new(ControlAgent::new(config, Box::new(body.clone())).unwrap()),
+    )
+    .unwrap();
     let (agent, probe) = gateway(Duration::from_millis(1));
     host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
-    Rig { host, clock: controller, probe, received: Vec::new(), body }
+    Rig {
+        host,
+        clock: controller,
+        probe,
+        received: Vec::new(),
+        body,
+    }
 }
 
 impl Rig {
@@ -79,7 +103,15 @@ impl Rig {
 }
 
 fn pose(x: f64, y: f64, theta: f64) -> AclMessage {
-    let fact = Fact::AtPose { agent: AgentId::new("probe"), pose: Pose { x_m: x, y_m: y, theta_rad: theta, covariance: nalgebra::Matrix3::zeros() } };
+    let fact = Fact::AtPose {
+        agent: AgentId::new("probe"),
+        pose: Pose {
+            x_m: x,
+            y_m: y,
+            theta_rad: theta,
+            covariance: nalgebra::Matrix3::zeros(),
+        },
+    };
     WheelchairContent::Inform(fact).fill(AclMessage::new(Performative::Inform))
 }
 
@@ -96,43 +128,78 @@ fn subscribes_to_perception_at_setup() {
 fn manual_driving_moves_the_chair_and_the_watchdog_stops_it() {
     let mut rig = rig();
     for _ in 0..20 {
-        rig.send(AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)));
+        rig.send(
+            AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)),
+        );
         rig.run(100);
     }
     let moving = rig.last_wheels();
-    assert!(moving.left_mps > 0.3 && moving.right_mps > 0.3, "{moving:?}");
+    assert!(
+        moving.left_mps > 0.3 && moving.right_mps > 0.3,
+        "{moving:?}"
+    );
     // Commands stop arriving: within the 0.5 s watchdog plus the ramp the wheels are at zero.
     rig.run(2000);
     assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
-    assert!(rig.performatives().iter().all(|p| *p != Performative::NotUnderstood));
+    assert!(
+        rig.performatives()
+            .iter()
+            .all(|p| *p != Performative::NotUnderstood)
+    );
 }
 
 #[test]
 fn goto_is_agreed_driven_and_reported_done() {
     let mut rig = rig();
     let action = WheelchairAction::GotoXy { x_m: 1.0, y_m: 0.0 };
-    let request = WheelchairContent::Request { actor: AgentId::new("control"), action: action.clone() }
-        .fill(AclMessage::new(Performative::Request).with_protocol("fipa-request").with_conversation_id("g1"));
+    let request = WheelchairContent::Request {
+        actor: AgentId::new("control"),
+        action: action.clone(),
+    }
+    .fill(
+        AclMessage::new(Performative::Request)
+            .with_protocol("fipa-request")
+            .with_conversation_id("g1"),
+    );
     rig.send(pose(0.0, 0.0, 0.0));
     rig.send(request);
     rig.run(200);
-    assert!(rig.performatives().contains(&Performative::Agree), "{:?}", rig.performatives());
+    assert!(
+        rig.performatives().contains(&Performative::Agree),
+        "{:?}",
+        rig.performatives()
+    );
     assert!(rig.last_wheels().left_mps > 0.0, "drives toward the goal");
     rig.send(pose(0.98, 0.0, 0.0));
     rig.run(200);
     let inbox = &rig.received;
-    let done = inbox.iter().find(|m| m.performative == Performative::Inform).expect("inform done");
+    let done = inbox
+        .iter()
+        .find(|m| m.performative == Performative::Inform)
+        .expect("inform done");
     assert_eq!(done.conversation_id.as_deref(), Some("g1"));
-    assert_eq!(WheelchairContent::from_message(done).unwrap(), WheelchairContent::Done { actor: AgentId::new("control"), action });
+    assert_eq!(
+        WheelchairContent::from_message(done).unwrap(),
+        WheelchairContent::Done {
+            actor: AgentId::new("control"),
+            action
+        }
+    );
 }
 
 #[test]
 fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refused() {
     let mut rig = rig();
-    let goto = WheelchairContent::Request { actor: AgentId::new("control"), action: WheelchairAction::GotoXy { x_m: 5.0, y_m: 0.0 } }
-        .fill(AclMessage::new(Performative::Request).with_conversation_id("g2"));
-    let door = WheelchairContent::Request { actor: AgentId::new("control"), action: WheelchairAction::OpenDoor { door: "d1".into() } }
-        .fill(AclMessage::new(Performative::Request).with_conversation_id("g3"));
+    let goto = WheelchairContent::Request {
+        actor: AgentId::new("control"),
+        action: WheelchairAction::GotoXy { x_m: 5.0, y_m: 0.0 },
+    }
+    .fill(AclMessage::new(Performative::Request).with_conversation_id("g2"));
+    let door = WheelchairContent::Request {
+        actor: AgentId::new("control"),
+        action: WheelchairAction::OpenDoor { door: "d1".into() },
+    }
+    .fill(AclMessage::new(Performative::Request).with_conversation_id("g3"));
     rig.send(pose(0.0, 0.0, 0.0));
     rig.send(goto);
     rig.send(door);
@@ -142,7 +209,10 @@ fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refu
     assert!(got.contains(&Performative::Refuse), "{got:?}");
     assert!(got.contains(&Performative::NotUnderstood), "{got:?}");
     let inbox = &rig.received;
-    assert!(inbox.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some("g2")));
+    assert!(
+        inbox.iter().any(|m| m.performative == Performative::Failure
+            && m.conversation_id.as_deref() == Some("g2"))
+    );
     assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
 }
 
@@ -158,12 +228,22 @@ fn a_short_body_fault_stops_the_wheels_and_the_task_resumes_from_rest() {
     *rig.body.failing_reads.lock().unwrap() = 4;
     let before = rig.body.commands.lock().unwrap().len();
     rig.run(200);
-    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP, "the first failed read stops the wheels");
+    assert_eq!(
+        rig.last_wheels(),
+        WheelSpeeds::STOP,
+        "the first failed read stops the wheels"
+    );
     rig.run(100);
     let after: Vec<WheelSpeeds> = rig.body.commands.lock().unwrap()[before..].to_vec();
-    let resumed = after.iter().find(|w| w.left_mps > 0.0).expect("the task drives again");
+    let resumed = after
+        .iter()
+        .find(|w| w.left_mps > 0.0)
+        .expect("the task drives again");
     // 1.5 m/s^2 over one 50 ms period from rest, not the cruising speed again.
-    assert!(resumed.left_mps <= 0.08, "resumed at {resumed:?} after {after:?}");
+    assert!(
+        resumed.left_mps <= 0.08,
+        "resumed at {resumed:?} after {after:?}"
+    );
     assert!(!failed(&rig, "g4"), "{:?}", rig.performatives());
 }
 
@@ -175,11 +255,25 @@ fn a_body_unreadable_beyond_the_fault_window_fails_the_task() {
     rig.run(1000);
     *rig.body.failing_reads.lock().unwrap() = 20;
     rig.run(1000);
-    let failure = rig.received.iter().find(|m| m.performative == Performative::Failure).expect("the task fails");
+    let failure = rig
+        .received
+        .iter()
+        .find(|m| m.performative == Performative::Failure)
+        .expect("the task fails");
     assert_eq!(failure.conversation_id.as_deref(), Some("g5"));
-    assert!(failure.content_text().unwrap_or_default().contains("no sensor frame"), "{failure:?}");
+    assert!(
+        failure
+            .content_text()
+            .unwrap_or_default()
+            .contains("no sensor frame"),
+        "{failure:?}"
+    );
     rig.run(1000);
-    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP, "no task, no motion after the link returns");
+    assert_eq!(
+        rig.last_wheels(),
+        WheelSpeeds::STOP,
+        "no task, no motion after the link returns"
+    );
 }
 
 /// Sends the pose every 100 ms for `ms` while the chair turns through `headings` (cycled).
@@ -191,12 +285,17 @@ fn hold_pose(rig: &mut Rig, ms: u64, headings: &[f64]) {
 }
 
 fn goto_far(id: &str) -> AclMessage {
-    WheelchairContent::Request { actor: AgentId::new("control"), action: WheelchairAction::GotoXy { x_m: 5.0, y_m: 0.0 } }
-        .fill(AclMessage::new(Performative::Request).with_conversation_id(id))
+    WheelchairContent::Request {
+        actor: AgentId::new("control"),
+        action: WheelchairAction::GotoXy { x_m: 5.0, y_m: 0.0 },
+    }
+    .fill(AclMessage::new(Performative::Request).with_conversation_id(id))
 }
 
 fn failed(rig: &Rig, id: &str) -> bool {
-    rig.received.iter().any(|m| m.performative == Performative::Failure && m.conversation_id.as_deref() == Some(id))
+    rig.received.iter().any(|m| {
+        m.performative == Performative::Failure && m.conversation_id.as_deref() == Some(id)
+    })
 }
 
 #[test]
@@ -211,11 +310,16 @@ fn a_wall_on_the_right_steers_the_chair_left_not_into_it() {
         }
     }
     for _ in 0..10 {
-        rig.send(AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)));
+        rig.send(
+            AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)),
+        );
         rig.run(100);
     }
     let wheels = rig.last_wheels();
-    assert!(wheels.right_mps > wheels.left_mps + 0.01, "the chair must turn away from the wall (left): {wheels:?}");
+    assert!(
+        wheels.right_mps > wheels.left_mps + 0.01,
+        "the chair must turn away from the wall (left): {wheels:?}"
+    );
 }
 
 #[test]
@@ -252,10 +356,16 @@ fn spinning_towards_a_wall_beside_the_chair_is_held_back() {
         }
     }
     for _ in 0..10 {
-        rig.send(AclMessage::new(Performative::Request).with_content(drive_content("control", 0.0, -0.8)));
+        rig.send(
+            AclMessage::new(Performative::Request)
+                .with_content(drive_content("control", 0.0, -0.8)),
+        );
         rig.run(100);
     }
     let wheels = rig.last_wheels();
     let clockwise_radps = (wheels.left_mps - wheels.right_mps) / 0.56;
-    assert!(clockwise_radps <= 0.4, "the chair still spins clockwise into the wall: {wheels:?}");
+    assert!(
+        clockwise_radps <= 0.4,
+        "the chair still spins clockwise into the wall: {wheels:?}"
+    );
 }

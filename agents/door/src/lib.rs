@@ -88,31 +88,58 @@ pub struct DoorAgent {
 impl DoorAgent {
     /// A door agent driving `actuator`, recording refusals in `refusals`.
     pub fn new(config: DoorConfig, actuator: Box<dyn DoorActuator>, refusals: RefusalLog) -> Self {
-        DoorAgent { config, actuator, open: BTreeSet::new(), refusals }
+        DoorAgent {
+            config,
+            actuator,
+            open: BTreeSet::new(),
+            refusals,
+        }
     }
 
     fn refuse(&mut self, ctx: &mut Context<'_>, message: &AclMessage, door: &str, reason: String) {
-        let requester = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+        let requester = message
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
         tracing::warn!(door, requester = %requester, reason = %reason, "door request refused");
         if let Ok(mut log) = self.refusals.lock() {
-            log.push(Refusal { time_ns: ctx.now().0, requester, door: door.to_string(), reason: reason.clone() });
+            log.push(Refusal {
+                time_ns: ctx.now().0,
+                requester,
+                door: door.to_string(),
+                reason: reason.clone(),
+            });
         }
-        let _ = ctx.send(message.create_reply().with_performative(Performative::Refuse).with_content(error_content(&reason)));
+        let _ = ctx.send(
+            message
+                .create_reply()
+                .with_performative(Performative::Refuse)
+                .with_content(error_content(&reason)),
+        );
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let Some((actor, action)) = ctx.understand(&message, "expected ((action door (open-door :door D)))", |c| match c {
-            WheelchairContent::Request { actor, action } => Some((actor, action)),
-            _ => None,
-        }) else {
+        let Some((actor, action)) = ctx.understand(
+            &message,
+            "expected ((action door (open-door :door D)))",
+            |c| match c {
+                WheelchairContent::Request { actor, action } => Some((actor, action)),
+                _ => None,
+            },
+        ) else {
             return;
         };
         let (door, open) = match &action {
             WheelchairAction::OpenDoor { door } => (door.clone(), true),
             WheelchairAction::CloseDoor { door } => (door.clone(), false),
             _ => {
-                let reply = message.create_reply().with_performative(Performative::Refuse);
-                let _ = ctx.send(reply.with_content(error_content("the door agent only opens and closes doors")));
+                let reply = message
+                    .create_reply()
+                    .with_performative(Performative::Refuse);
+                let _ = ctx.send(
+                    reply.with_content(error_content("the door agent only opens and closes doors")),
+                );
                 return;
             }
         };
@@ -120,14 +147,22 @@ impl DoorAgent {
             self.refuse(ctx, &message, &door, format!("unknown door `{door}`"));
             return;
         };
-        let requester = message.sender.as_ref().map(|s| s.name.as_str()).unwrap_or_default();
+        let requester = message
+            .sender
+            .as_ref()
+            .map(|s| s.name.as_str())
+            .unwrap_or_default();
         if open && policy.restricted && !policy.authorised.contains(requester) {
-            let reason = format!("`{requester}` is not authorised to open restricted door `{door}`");
+            let reason =
+                format!("`{requester}` is not authorised to open restricted door `{door}`");
             self.refuse(ctx, &message, &door, reason);
             return;
         }
-        let agree = message.create_reply().with_performative(Performative::Agree);
-        let _ = ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        let agree = message
+            .create_reply()
+            .with_performative(Performative::Agree);
+        let _ =
+            ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
         match self.actuator.set(&door, open) {
             Ok(()) => {
                 if open {
@@ -136,11 +171,19 @@ impl DoorAgent {
                     self.open.remove(&door);
                 }
                 let done = WheelchairContent::Done { actor, action };
-                let _ = ctx.send(done.fill(message.create_reply().with_performative(Performative::Inform)));
+                let _ = ctx.send(
+                    done.fill(
+                        message
+                            .create_reply()
+                            .with_performative(Performative::Inform),
+                    ),
+                );
             }
             Err(fault) => {
                 tracing::warn!(error = %fault, "door actuator fault");
-                let reply = message.create_reply().with_performative(Performative::Failure);
+                let reply = message
+                    .create_reply()
+                    .with_performative(Performative::Failure);
                 let _ = ctx.send(reply.with_content(error_content(&fault.to_string())));
             }
         }
@@ -148,14 +191,30 @@ impl DoorAgent {
 
     fn on_query(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let text = message.content_text().unwrap_or_default();
-        let door = self.config.doors.keys().find(|d| text.split(|c: char| c.is_whitespace() || c == '(' || c == ')').any(|w| w == d.as_str()));
+        let door = self.config.doors.keys().find(|d| {
+            text.split(|c: char| c.is_whitespace() || c == '(' || c == ')')
+                .any(|w| w == d.as_str())
+        });
         let Some(door) = door.cloned() else {
-            let _ = ctx.not_understood(&message, "query ((door-state D ?state)) for a door this agent manages");
+            let _ = ctx.not_understood(
+                &message,
+                "query ((door-state D ?state)) for a door this agent manages",
+            );
             return;
         };
-        let state = if self.open.contains(&door) { DoorState::Open } else { DoorState::Closed };
+        let state = if self.open.contains(&door) {
+            DoorState::Open
+        } else {
+            DoorState::Closed
+        };
         let fact = WheelchairContent::Inform(Fact::Door { door, state });
-        let _ = ctx.send(fact.fill(message.create_reply().with_performative(Performative::Inform)));
+        let _ = ctx.send(
+            fact.fill(
+                message
+                    .create_reply()
+                    .with_performative(Performative::Inform),
+            ),
+        );
     }
 }
 
@@ -174,4 +233,3 @@ impl Agent for DoorAgent {
         }
     }
 }
-

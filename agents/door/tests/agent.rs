@@ -18,7 +18,10 @@ struct World(Moves);
 impl DoorActuator for World {
     fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
         if door == "jammed" {
-            return Err(ActuatorFault { door: door.into(), reason: "jammed".into() });
+            return Err(ActuatorFault {
+                door: door.into(),
+                reason: "jammed".into(),
+            });
         }
         self.0.lock().unwrap().push((door.into(), open));
         Ok(())
@@ -42,8 +45,15 @@ impl Agent for Chair {
 }
 
 fn request(action: WheelchairAction, conversation: &str) -> AclMessage {
-    WheelchairContent::Request { actor: AgentId::new("door"), action }.fill(
-        AclMessage::new(Performative::Request).with_receiver(AgentId::new("door")).with_protocol("fipa-request").with_conversation_id(conversation),
+    WheelchairContent::Request {
+        actor: AgentId::new("door"),
+        action,
+    }
+    .fill(
+        AclMessage::new(Performative::Request)
+            .with_receiver(AgentId::new("door"))
+            .with_protocol("fipa-request")
+            .with_conversation_id(conversation),
     )
 }
 
@@ -51,27 +61,64 @@ fn request(action: WheelchairAction, conversation: &str) -> AclMessage {
 fn restricted_doors_open_only_for_authorised_chairs_and_refusals_are_logged() {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(network.endpoint("c1").unwrap()),
+        clock,
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
     let mut doors = BTreeMap::new();
-    doors.insert("lab".to_string(), DoorPolicy { restricted: true, authorised: ["cognitive-chair1".to_string()].into() });
+    doors.insert(
+        "lab".to_string(),
+        DoorPolicy {
+            restricted: true,
+            authorised: ["cognitive-chair1".to_string()].into(),
+        },
+    );
     doors.insert("hall".to_string(), DoorPolicy::default());
     doors.insert("jammed".to_string(), DoorPolicy::default());
     let moves: Moves = Arc::default();
     let refusals: RefusalLog = Arc::default();
-    host.add(AgentId::new("door"), Box::new(DoorAgent::new(DoorConfig { doors }, Box::new(World(Arc::clone(&moves))), Arc::clone(&refusals)))).unwrap();
+    host.add(
+        AgentId::new("door"),
+        Box::new(DoorAgent::new(
+            DoorConfig { doors },
+            Box::new(World(Arc::clone(&moves))),
+            Arc::clone(&refusals),
+        )),
+    )
+    .unwrap();
     let open = |d: &str| WheelchairAction::OpenDoor { door: d.into() };
     let chair1: Arc<Mutex<Vec<AclMessage>>> = Arc::default();
     let chair2: Arc<Mutex<Vec<AclMessage>>> = Arc::default();
-    let query = AclMessage::new(Performative::QueryRef).with_receiver(AgentId::new("door")).with_conversation_id("q").with_content("((door-state lab ?state))");
+    let query = AclMessage::new(Performative::QueryRef)
+        .with_receiver(AgentId::new("door"))
+        .with_conversation_id("q")
+        .with_content("((door-state lab ?state))");
     host.add(
         AgentId::new("cognitive-chair1"),
-        Box::new(Chair { inbox: Arc::clone(&chair1), outbox: vec![request(open("lab"), "a"), request(open("jammed"), "b"), query] }),
+        Box::new(Chair {
+            inbox: Arc::clone(&chair1),
+            outbox: vec![
+                request(open("lab"), "a"),
+                request(open("jammed"), "b"),
+                query,
+            ],
+        }),
     )
     .unwrap();
     host.add(
         AgentId::new("cognitive-chair2"),
-        Box::new(Chair { inbox: Arc::clone(&chair2), outbox: vec![request(open("lab"), "c"), request(open("hall"), "d"), request(open("vault"), "e")] }),
+        Box::new(Chair {
+            inbox: Arc::clone(&chair2),
+            outbox: vec![
+                request(open("lab"), "c"),
+                request(open("hall"), "d"),
+                request(open("vault"), "e"),
+            ],
+        }),
     )
     .unwrap();
     host.step(controller.now());
@@ -79,16 +126,51 @@ fn restricted_doors_open_only_for_authorised_chairs_and_refusals_are_logged() {
     host.step(controller.now());
 
     let answers = |inbox: &Arc<Mutex<Vec<AclMessage>>>| -> Vec<(String, Performative)> {
-        inbox.lock().unwrap().iter().map(|m| (m.conversation_id.clone().unwrap(), m.performative)).collect()
+        inbox
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|m| (m.conversation_id.clone().unwrap(), m.performative))
+            .collect()
     };
     use Performative::*;
-    assert_eq!(answers(&chair1), [("a".into(), Agree), ("a".into(), Inform), ("b".into(), Agree), ("b".into(), Failure), ("q".into(), Inform)]);
-    assert_eq!(answers(&chair2), [("c".into(), Refuse), ("d".into(), Agree), ("d".into(), Inform), ("e".into(), Refuse)]);
-    assert_eq!(*moves.lock().unwrap(), [("lab".to_string(), true), ("hall".to_string(), true)], "the refused chair moved nothing");
+    assert_eq!(
+        answers(&chair1),
+        [
+            ("a".into(), Agree),
+            ("a".into(), Inform),
+            ("b".into(), Agree),
+            ("b".into(), Failure),
+            ("q".into(), Inform)
+        ]
+    );
+    assert_eq!(
+        answers(&chair2),
+        [
+            ("c".into(), Refuse),
+            ("d".into(), Agree),
+            ("d".into(), Inform),
+            ("e".into(), Refuse)
+        ]
+    );
+    assert_eq!(
+        *moves.lock().unwrap(),
+        [("lab".to_string(), true), ("hall".to_string(), true)],
+        "the refused chair moved nothing"
+    );
     let state = WheelchairContent::from_message(chair1.lock().unwrap().last().unwrap()).unwrap();
-    assert_eq!(state, WheelchairContent::Inform(Fact::Door { door: "lab".into(), state: DoorState::Open }));
+    assert_eq!(
+        state,
+        WheelchairContent::Inform(Fact::Door {
+            door: "lab".into(),
+            state: DoorState::Open
+        })
+    );
     let refusals = refusals.lock().unwrap();
     assert_eq!(refusals.len(), 2);
-    assert_eq!((refusals[0].requester.as_str(), refusals[0].door.as_str()), ("cognitive-chair2", "lab"));
+    assert_eq!(
+        (refusals[0].requester.as_str(), refusals[0].door.as_str()),
+        ("cognitive-chair2", "lab")
+    );
     assert_eq!(refusals[1].door, "vault");
 }

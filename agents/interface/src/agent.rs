@@ -70,8 +70,19 @@ pub struct InterfaceAgent {
 impl InterfaceAgent {
     /// An agent recognising the sequences bound in `recognizer`, reading `inputs`; the display
     /// state is shared through `display`.
-    pub fn new(config: InterfaceConfig, recognizer: Recognizer<Command>, inputs: InputQueue, display: Arc<Mutex<Display>>) -> Self {
-        InterfaceAgent { config, recognizer, inputs, display, conversations: 0 }
+    pub fn new(
+        config: InterfaceConfig,
+        recognizer: Recognizer<Command>,
+        inputs: InputQueue,
+        display: Arc<Mutex<Display>>,
+    ) -> Self {
+        InterfaceAgent {
+            config,
+            recognizer,
+            inputs,
+            display,
+            conversations: 0,
+        }
     }
 
     fn request(&mut self, ctx: &Context<'_>, command: &Command) -> AclMessage {
@@ -86,14 +97,31 @@ impl InterfaceAgent {
         match command {
             Command::Goal { place } => {
                 let actor = self.config.cognitive.clone();
-                WheelchairContent::Request { actor: actor.clone(), action: WheelchairAction::GoTo { place: place.clone() } }.fill(base(&actor))
+                WheelchairContent::Request {
+                    actor: actor.clone(),
+                    action: WheelchairAction::GoTo {
+                        place: place.clone(),
+                    },
+                }
+                .fill(base(&actor))
             }
             Command::Stop => {
                 let actor = self.config.control.clone();
-                WheelchairContent::Request { actor: actor.clone(), action: WheelchairAction::Stop }.fill(base(&actor))
+                WheelchairContent::Request {
+                    actor: actor.clone(),
+                    action: WheelchairAction::Stop,
+                }
+                .fill(base(&actor))
             }
-            Command::Drive { linear_mps, angular_radps } => base(&self.config.control)
-                .with_content(iw_control_agent::drive_content(&self.config.control.name, *linear_mps, *angular_radps))
+            Command::Drive {
+                linear_mps,
+                angular_radps,
+            } => base(&self.config.control)
+                .with_content(iw_control_agent::drive_content(
+                    &self.config.control.name,
+                    *linear_mps,
+                    *angular_radps,
+                ))
                 .with_language("fipa-sl0")
                 .with_ontology(iw_ontology::wheelchair::ONTOLOGY),
         }
@@ -106,19 +134,35 @@ impl InterfaceAgent {
 
 impl Agent for InterfaceAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let from = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+        let from = message
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
         match message.performative {
-            Performative::Agree | Performative::Inform | Performative::Failure | Performative::Refuse | Performative::NotUnderstood => {
+            Performative::Agree
+            | Performative::Inform
+            | Performative::Failure
+            | Performative::Refuse
+            | Performative::NotUnderstood => {
                 self.display().last_answer = Some(format!("{} from {from}", message.performative));
             }
             _ => {
-                let _ = ctx.not_understood(&message, "the interface agent only takes answers to its requests");
+                let _ = ctx.not_understood(
+                    &message,
+                    "the interface agent only takes answers to its requests",
+                );
             }
         }
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let pending: Vec<(RawInput, u64)> = self.inputs.lock().unwrap_or_else(PoisonError::into_inner).drain(..).collect();
+        let pending: Vec<(RawInput, u64)> = self
+            .inputs
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .drain(..)
+            .collect();
         for (raw, t_ms) in pending {
             let events = match raw.normalise(t_ms) {
                 Ok(events) => events,

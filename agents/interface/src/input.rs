@@ -80,8 +80,16 @@ pub const HEAD_THRESHOLD_MPS2: f64 = 2.0;
 
 fn symbol(device: Device, text: &str) -> Result<String, InterfaceError> {
     let symbol = text.trim().to_ascii_lowercase();
-    if symbol.is_empty() || symbol.len() > 64 || !symbol.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
-        return Err(InterfaceError::BadSymbol { device, symbol: text.to_string() });
+    if symbol.is_empty()
+        || symbol.len() > 64
+        || !symbol
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+    {
+        return Err(InterfaceError::BadSymbol {
+            device,
+            symbol: text.to_string(),
+        });
     }
     Ok(symbol)
 }
@@ -104,18 +112,28 @@ impl RawInput {
     /// one per word for speech. Names with characters other than letters, digits, `-` and `_`
     /// are refused.
     pub fn normalise(&self, t_ms: u64) -> Result<Vec<InputEvent>, InterfaceError> {
-        let event = |device, symbol: String| InputEvent { device, symbol, t_ms };
+        let event = |device, symbol: String| InputEvent {
+            device,
+            symbol,
+            t_ms,
+        };
         Ok(match self {
             RawInput::Joystick { x, y } => direction(*x, *y, JOYSTICK_DEAD_ZONE)
                 .map(|d| event(Device::Joystick, d.to_string()))
                 .into_iter()
                 .collect(),
-            RawInput::HeadGesture { ax_mps2, ay_mps2 } => direction(*ax_mps2, *ay_mps2, HEAD_THRESHOLD_MPS2)
-                .map(|d| event(Device::HeadGesture, format!("head-{d}")))
-                .into_iter()
-                .collect(),
-            RawInput::Gamepad { button } => vec![event(Device::Gamepad, symbol(Device::Gamepad, button)?)],
-            RawInput::Keyboard { key } => vec![event(Device::Keyboard, symbol(Device::Keyboard, key)?)],
+            RawInput::HeadGesture { ax_mps2, ay_mps2 } => {
+                direction(*ax_mps2, *ay_mps2, HEAD_THRESHOLD_MPS2)
+                    .map(|d| event(Device::HeadGesture, format!("head-{d}")))
+                    .into_iter()
+                    .collect()
+            }
+            RawInput::Gamepad { button } => {
+                vec![event(Device::Gamepad, symbol(Device::Gamepad, button)?)]
+            }
+            RawInput::Keyboard { key } => {
+                vec![event(Device::Keyboard, symbol(Device::Keyboard, key)?)]
+            }
             RawInput::Face { label } => vec![event(Device::Face, symbol(Device::Face, label)?)],
             RawInput::Voice { text } => text
                 .split_whitespace()
@@ -134,16 +152,51 @@ mod tests {
     #[test]
     fn readings_become_symbols() {
         let j = RawInput::Joystick { x: 0.1, y: 0.9 }.normalise(5).unwrap();
-        assert_eq!(j, vec![InputEvent { device: Device::Joystick, symbol: "up".into(), t_ms: 5 }]);
-        assert!(RawInput::Joystick { x: 0.2, y: -0.3 }.normalise(5).unwrap().is_empty());
-        assert!(RawInput::Joystick { x: f64::NAN, y: 1.0 }.normalise(5).unwrap().is_empty());
-        let h = RawInput::HeadGesture { ax_mps2: -3.0, ay_mps2: 1.0 }.normalise(0).unwrap();
+        assert_eq!(
+            j,
+            vec![InputEvent {
+                device: Device::Joystick,
+                symbol: "up".into(),
+                t_ms: 5
+            }]
+        );
+        assert!(
+            RawInput::Joystick { x: 0.2, y: -0.3 }
+                .normalise(5)
+                .unwrap()
+                .is_empty()
+        );
+        assert!(
+            RawInput::Joystick {
+                x: f64::NAN,
+                y: 1.0
+            }
+            .normalise(5)
+            .unwrap()
+            .is_empty()
+        );
+        let h = RawInput::HeadGesture {
+            ax_mps2: -3.0,
+            ay_mps2: 1.0,
+        }
+        .normalise(0)
+        .unwrap();
         assert_eq!(h[0].symbol, "head-left");
-        let v = RawInput::Voice { text: "Go, kitchen!".into() }.normalise(0).unwrap();
-        assert_eq!(v.iter().map(|e| e.symbol.as_str()).collect::<Vec<_>>(), ["go", "kitchen"]);
+        let v = RawInput::Voice {
+            text: "Go, kitchen!".into(),
+        }
+        .normalise(0)
+        .unwrap();
+        assert_eq!(
+            v.iter().map(|e| e.symbol.as_str()).collect::<Vec<_>>(),
+            ["go", "kitchen"]
+        );
         assert!(matches!(
             RawInput::Keyboard { key: "a b".into() }.normalise(0),
-            Err(InterfaceError::BadSymbol { device: Device::Keyboard, .. })
+            Err(InterfaceError::BadSymbol {
+                device: Device::Keyboard,
+                ..
+            })
         ));
     }
 }

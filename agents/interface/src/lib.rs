@@ -39,7 +39,9 @@ pub enum InterfaceError {
         symbol: String,
     },
     /// A reliability test that cannot be run.
-    #[error("reliability test of a {length}-step sequence needing {required} of {repetitions} attempts: need 1 <= required <= repetitions and a non-empty sequence")]
+    #[error(
+        "reliability test of a {length}-step sequence needing {required} of {repetitions} attempts: need 1 <= required <= repetitions and a non-empty sequence"
+    )]
     BadTest {
         /// Steps in the sequence.
         length: usize,

@@ -23,13 +23,22 @@ impl InputSequence {
     }
 
     fn matches(&self, events: &[InputEvent]) -> bool {
-        self.0.len() == events.len() && self.0.iter().zip(events).all(|((d, s), e)| *d == e.device && *s == e.symbol)
+        self.0.len() == events.len()
+            && self
+                .0
+                .iter()
+                .zip(events)
+                .all(|((d, s), e)| *d == e.device && *s == e.symbol)
     }
 
     /// Whether `self` appears as a contiguous run inside `other` (then one would fire while the
     /// user enters the other).
     fn occurs_in(&self, other: &InputSequence) -> bool {
-        self.0.len() <= other.0.len() && other.0.windows(self.0.len()).any(|w| w == self.0.as_slice())
+        self.0.len() <= other.0.len()
+            && other
+                .0
+                .windows(self.0.len())
+                .any(|w| w == self.0.as_slice())
     }
 }
 
@@ -38,7 +47,9 @@ pub const DEFAULT_MAX_GAP_MS: u64 = 1500;
 
 /// Splits `events` where two neighbours are more than `max_gap_ms` apart.
 fn within_gap(events: &[InputEvent], max_gap_ms: u64) -> bool {
-    events.windows(2).all(|w| w[1].t_ms >= w[0].t_ms && w[1].t_ms - w[0].t_ms <= max_gap_ms)
+    events
+        .windows(2)
+        .all(|w| w[1].t_ms >= w[0].t_ms && w[1].t_ms - w[0].t_ms <= max_gap_ms)
 }
 
 /// Where a reliability test stands.
@@ -67,11 +78,27 @@ pub struct ReliabilityTest {
 
 impl ReliabilityTest {
     /// A test of `sequence`; `required` of `repetitions` attempts must succeed.
-    pub fn new(sequence: InputSequence, repetitions: u32, required: u32, max_gap_ms: u64) -> Result<Self, InterfaceError> {
+    pub fn new(
+        sequence: InputSequence,
+        repetitions: u32,
+        required: u32,
+        max_gap_ms: u64,
+    ) -> Result<Self, InterfaceError> {
         if sequence.0.is_empty() || required == 0 || required > repetitions {
-            return Err(InterfaceError::BadTest { length: sequence.0.len(), repetitions, required });
+            return Err(InterfaceError::BadTest {
+                length: sequence.0.len(),
+                repetitions,
+                required,
+            });
         }
-        Ok(ReliabilityTest { sequence, repetitions, required, max_gap_ms, successes: 0, attempts: 0 })
+        Ok(ReliabilityTest {
+            sequence,
+            repetitions,
+            required,
+            max_gap_ms,
+            successes: 0,
+            attempts: 0,
+        })
     }
 
     /// Records one attempt; returns whether it was recognised. Attempts after the verdict are
@@ -99,7 +126,11 @@ impl ReliabilityTest {
 
     /// Recognised attempts / attempts so far.
     pub fn recognition_rate(&self) -> f64 {
-        if self.attempts == 0 { 0.0 } else { f64::from(self.successes) / f64::from(self.attempts) }
+        if self.attempts == 0 {
+            0.0
+        } else {
+            f64::from(self.successes) / f64::from(self.attempts)
+        }
     }
 }
 
@@ -114,7 +145,11 @@ pub struct Recognizer<A> {
 impl<A: Clone> Recognizer<A> {
     /// An empty recognizer; a pause longer than `max_gap_ms` starts a new sequence.
     pub fn new(max_gap_ms: u64) -> Self {
-        Recognizer { bindings: Vec::new(), buffer: VecDeque::new(), max_gap_ms }
+        Recognizer {
+            bindings: Vec::new(),
+            buffer: VecDeque::new(),
+            max_gap_ms,
+        }
     }
 
     /// Binds the sequence of an accepted `test` to `action`. Refused when the test is not
@@ -122,11 +157,20 @@ impl<A: Clone> Recognizer<A> {
     /// two would fire while the user enters the other.
     pub fn bind(&mut self, test: &ReliabilityTest, action: A) -> Result<(), InterfaceError> {
         if test.verdict() != Verdict::Accepted {
-            return Err(InterfaceError::NotReliable { rate: test.recognition_rate() });
+            return Err(InterfaceError::NotReliable {
+                rate: test.recognition_rate(),
+            });
         }
         let sequence = &test.sequence;
-        if let Some((other, _)) = self.bindings.iter().find(|(s, _)| s.occurs_in(sequence) || sequence.occurs_in(s)) {
-            return Err(InterfaceError::Ambiguous { sequence: format!("{:?}", sequence.0), other: format!("{:?}", other.0) });
+        if let Some((other, _)) = self
+            .bindings
+            .iter()
+            .find(|(s, _)| s.occurs_in(sequence) || sequence.occurs_in(s))
+        {
+            return Err(InterfaceError::Ambiguous {
+                sequence: format!("{:?}", sequence.0),
+                other: format!("{:?}", other.0),
+            });
         }
         self.bindings.push((sequence.clone(), action));
         Ok(())
@@ -140,7 +184,12 @@ impl<A: Clone> Recognizer<A> {
             self.buffer.clear();
         }
         self.buffer.push_back(event);
-        let longest = self.bindings.iter().map(|(s, _)| s.0.len()).max().unwrap_or(0);
+        let longest = self
+            .bindings
+            .iter()
+            .map(|(s, _)| s.0.len())
+            .max()
+            .unwrap_or(0);
         while self.buffer.len() > longest {
             self.buffer.pop_front();
         }
@@ -148,7 +197,9 @@ impl<A: Clone> Recognizer<A> {
         let found = self
             .bindings
             .iter()
-            .find(|(s, _)| s.0.len() <= events.len() && s.matches(&events[events.len() - s.0.len()..]))
+            .find(|(s, _)| {
+                s.0.len() <= events.len() && s.matches(&events[events.len() - s.0.len()..])
+            })
             .map(|(_, a)| a.clone());
         if found.is_some() {
             self.buffer.clear();
@@ -160,15 +211,16 @@ impl<A: Clone> Recognizer<A> {
     /// (for the on-chair display).
     pub fn progress(&self) -> Option<(usize, usize)> {
         let events: Vec<&InputEvent> = self.buffer.iter().collect();
-        (1..=events.len())
-            .rev()
-            .find_map(|n| {
-                let tail = &events[events.len() - n..];
-                self.bindings.iter().find_map(|(s, _)| {
-                    let prefix = s.0.iter().zip(tail).all(|((d, sym), e)| *d == e.device && *sym == e.symbol);
-                    (s.0.len() > n && prefix).then_some((n, s.0.len()))
-                })
+        (1..=events.len()).rev().find_map(|n| {
+            let tail = &events[events.len() - n..];
+            self.bindings.iter().find_map(|(s, _)| {
+                let prefix =
+                    s.0.iter()
+                        .zip(tail)
+                        .all(|((d, sym), e)| *d == e.device && *sym == e.symbol);
+                (s.0.len() > n && prefix).then_some((n, s.0.len()))
             })
+        })
     }
 }
 
@@ -178,13 +230,22 @@ mod tests {
     use proptest::prelude::*;
 
     fn ev(device: Device, symbol: &str, t_ms: u64) -> InputEvent {
-        InputEvent { device, symbol: symbol.into(), t_ms }
+        InputEvent {
+            device,
+            symbol: symbol.into(),
+            t_ms,
+        }
     }
 
     fn accepted(seq: &InputSequence) -> ReliabilityTest {
         let mut test = ReliabilityTest::new(seq.clone(), 3, 3, DEFAULT_MAX_GAP_MS).unwrap();
         for _ in 0..3 {
-            let events: Vec<_> = seq.0.iter().enumerate().map(|(i, (d, s))| ev(*d, s, i as u64 * 100)).collect();
+            let events: Vec<_> = seq
+                .0
+                .iter()
+                .enumerate()
+                .map(|(i, (d, s))| ev(*d, s, i as u64 * 100))
+                .collect();
             assert!(test.attempt(&events));
         }
         test
@@ -192,21 +253,37 @@ mod tests {
 
     #[test]
     fn unreliable_and_ambiguous_sequences_are_refused() {
-        let seq = InputSequence(vec![(Device::Gamepad, "a".into()), (Device::Voice, "go".into())]);
+        let seq = InputSequence(vec![
+            (Device::Gamepad, "a".into()),
+            (Device::Voice, "go".into()),
+        ]);
         assert!(seq.is_mixed());
         let mut test = ReliabilityTest::new(seq.clone(), 3, 2, 1000).unwrap();
         assert!(!test.attempt(&[ev(Device::Gamepad, "a", 0), ev(Device::Voice, "stop", 10)]));
         assert!(!test.attempt(&[ev(Device::Gamepad, "a", 0), ev(Device::Voice, "go", 5000)]));
         assert_eq!(test.verdict(), Verdict::Rejected);
         let mut r = Recognizer::new(1000);
-        assert!(matches!(r.bind(&test, 1), Err(InterfaceError::NotReliable { .. })));
+        assert!(matches!(
+            r.bind(&test, 1),
+            Err(InterfaceError::NotReliable { .. })
+        ));
         r.bind(&accepted(&seq), 1).unwrap();
         let inner = InputSequence(vec![(Device::Voice, "go".into())]);
-        assert!(matches!(r.bind(&accepted(&inner), 2), Err(InterfaceError::Ambiguous { .. })));
+        assert!(matches!(
+            r.bind(&accepted(&inner), 2),
+            Err(InterfaceError::Ambiguous { .. })
+        ));
     }
 
     fn step() -> impl Strategy<Value = Step> {
-        (prop_oneof![Just(Device::Gamepad), Just(Device::Voice), Just(Device::Face)], prop_oneof![Just("a"), Just("b"), Just("c")])
+        (
+            prop_oneof![
+                Just(Device::Gamepad),
+                Just(Device::Voice),
+                Just(Device::Face)
+            ],
+            prop_oneof![Just("a"), Just("b"), Just("c")],
+        )
             .prop_map(|(d, s)| (d, s.to_string()))
     }
 

@@ -64,7 +64,11 @@ pub fn copy_for_logger(message: &AclMessage, logger: &AgentId, time_ns: u64) -> 
 fn logged(message: &AclMessage, time_ns: u64) -> LoggedMessage {
     LoggedMessage {
         time_ns,
-        sender: message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+        sender: message
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default(),
         receivers: message.receivers.iter().map(|r| r.name.clone()).collect(),
         performative: message.performative.to_string().to_ascii_lowercase(),
         conversation_id: message.conversation_id.clone(),
@@ -78,7 +82,10 @@ impl LoggerAgent {
         let store = LogStore::open(&config.path, config.policy)?;
         let recovery = store.recovery();
         tracing::info!(path = %config.path.display(), records = recovery.records, truncated_bytes = recovery.truncated_bytes, "log opened");
-        Ok(LoggerAgent { store, sync_period: config.sync_period })
+        Ok(LoggerAgent {
+            store,
+            sync_period: config.sync_period,
+        })
     }
 
     fn append(&mut self, entry: &LoggedMessage, now_ns: u64) {
@@ -91,11 +98,16 @@ impl LoggerAgent {
         let query: Query = match serde_json::from_str(message.content_text().unwrap_or_default()) {
             Ok(query) => query,
             Err(err) => {
-                let _ = ctx.not_understood(message, &format!("content is not a JSON log query: {err}"));
+                let _ =
+                    ctx.not_understood(message, &format!("content is not a JSON log query: {err}"));
                 return;
             }
         };
-        let result = self.store.sync().map_err(crate::QueryError::from).and_then(|_| query.run(self.store.path()));
+        let result = self
+            .store
+            .sync()
+            .map_err(crate::QueryError::from)
+            .and_then(|_| query.run(self.store.path()));
         let reply = match result {
             Ok(found) => message
                 .create_reply()
@@ -104,7 +116,10 @@ impl LoggerAgent {
             Err(err) => message
                 .create_reply()
                 .with_performative(Performative::Failure)
-                .with_content(format!("((error-message \"{}\"))", err.to_string().replace('"', "'"))),
+                .with_content(format!(
+                    "((error-message \"{}\"))",
+                    err.to_string().replace('"', "'")
+                )),
         };
         let _ = ctx.send(reply);
     }
@@ -113,20 +128,32 @@ impl LoggerAgent {
 impl Agent for LoggerAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let now_ns = ctx.now().0;
-        let ours = message.ontology.as_deref().is_some_and(|o| o.eq_ignore_ascii_case(LOG_ONTOLOGY));
+        let ours = message
+            .ontology
+            .as_deref()
+            .is_some_and(|o| o.eq_ignore_ascii_case(LOG_ONTOLOGY));
         match message.performative {
             Performative::Inform if ours => {
                 let original = message.content_text().map(iw_acl::codec::parse);
                 match original {
                     Some(Ok(original)) => {
-                        let time_ns = message.user_param(LOGGED_NS_PARAM).and_then(|t| t.parse().ok()).unwrap_or(now_ns);
+                        let time_ns = message
+                            .user_param(LOGGED_NS_PARAM)
+                            .and_then(|t| t.parse().ok())
+                            .unwrap_or(now_ns);
                         self.append(&logged(&original, time_ns), now_ns);
                     }
                     Some(Err(err)) => {
-                        let _ = ctx.not_understood(&message, &format!("the copy's content is not ACL: {err}"));
+                        let _ = ctx.not_understood(
+                            &message,
+                            &format!("the copy's content is not ACL: {err}"),
+                        );
                     }
                     None => {
-                        let _ = ctx.not_understood(&message, "a copy needs the original ACL text as content");
+                        let _ = ctx.not_understood(
+                            &message,
+                            "a copy needs the original ACL text as content",
+                        );
                     }
                 }
             }

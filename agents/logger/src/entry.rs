@@ -33,8 +33,10 @@ impl LoggedMessage {
 
     /// Decodes a stored record; a record that is not a logged message is reported with its seq.
     pub fn from_record(record: &Record) -> Result<Self, EntryError> {
-        serde_json::from_slice(&record.payload)
-            .map_err(|e| EntryError { seq: record.seq, reason: e.to_string() })
+        serde_json::from_slice(&record.payload).map_err(|e| EntryError {
+            seq: record.seq,
+            reason: e.to_string(),
+        })
     }
 }
 
@@ -74,13 +76,28 @@ impl Query {
     pub fn matches(&self, m: &LoggedMessage) -> bool {
         let is = |want: &Option<String>, got: &str| want.as_deref().is_none_or(|w| w == got);
         is(&self.sender, &m.sender)
-            && self.receiver.as_ref().is_none_or(|r| m.receivers.iter().any(|x| x == r))
-            && self.agent.as_ref().is_none_or(|a| m.sender == *a || m.receivers.iter().any(|x| x == a))
-            && self.performative.as_ref().is_none_or(|p| p.eq_ignore_ascii_case(&m.performative))
-            && self.conversation_id.as_ref().is_none_or(|c| m.conversation_id.as_ref() == Some(c))
+            && self
+                .receiver
+                .as_ref()
+                .is_none_or(|r| m.receivers.iter().any(|x| x == r))
+            && self
+                .agent
+                .as_ref()
+                .is_none_or(|a| m.sender == *a || m.receivers.iter().any(|x| x == a))
+            && self
+                .performative
+                .as_ref()
+                .is_none_or(|p| p.eq_ignore_ascii_case(&m.performative))
+            && self
+                .conversation_id
+                .as_ref()
+                .is_none_or(|c| m.conversation_id.as_ref() == Some(c))
             && self.since_ns.is_none_or(|t| m.time_ns >= t)
             && self.until_ns.is_none_or(|t| m.time_ns < t)
-            && self.contains.as_ref().is_none_or(|s| m.acl.contains(s.as_str()))
+            && self
+                .contains
+                .as_ref()
+                .is_none_or(|s| m.acl.contains(s.as_str()))
     }
 
     /// The matching messages of the log at `path`, in log order.
@@ -121,7 +138,9 @@ mod tests {
             receivers: vec![to.into()],
             performative: perf.into(),
             conversation_id: Some(conv.into()),
-            acl: format!("({perf} :sender (agent-identifier :name {from}) :conversation-id {conv})"),
+            acl: format!(
+                "({perf} :sender (agent-identifier :name {from}) :conversation-id {conv})"
+            ),
         }
     }
 
@@ -141,12 +160,49 @@ mod tests {
         log.sync().unwrap();
         let q = |q: Query| q.run(&path).unwrap();
         assert_eq!(q(Query::default()), all);
-        assert_eq!(q(Query { conversation_id: Some("c1".into()), ..Query::default() }), all[..2]);
-        assert_eq!(q(Query { agent: Some("control@chair1".into()), ..Query::default() }), all[..2]);
-        assert_eq!(q(Query { performative: Some("REFUSE".into()), ..Query::default() }), all[2..]);
-        assert_eq!(q(Query { since_ns: Some(20), until_ns: Some(30), ..Query::default() }), all[1..2]);
-        assert_eq!(q(Query { receiver: Some("interface@chair2".into()), ..Query::default() }), all[2..]);
-        assert!(q(Query { sender: Some("nobody".into()), ..Query::default() }).is_empty());
+        assert_eq!(
+            q(Query {
+                conversation_id: Some("c1".into()),
+                ..Query::default()
+            }),
+            all[..2]
+        );
+        assert_eq!(
+            q(Query {
+                agent: Some("control@chair1".into()),
+                ..Query::default()
+            }),
+            all[..2]
+        );
+        assert_eq!(
+            q(Query {
+                performative: Some("REFUSE".into()),
+                ..Query::default()
+            }),
+            all[2..]
+        );
+        assert_eq!(
+            q(Query {
+                since_ns: Some(20),
+                until_ns: Some(30),
+                ..Query::default()
+            }),
+            all[1..2]
+        );
+        assert_eq!(
+            q(Query {
+                receiver: Some("interface@chair2".into()),
+                ..Query::default()
+            }),
+            all[2..]
+        );
+        assert!(
+            q(Query {
+                sender: Some("nobody".into()),
+                ..Query::default()
+            })
+            .is_empty()
+        );
     }
 
     #[test]

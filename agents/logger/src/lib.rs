@@ -16,4 +16,6 @@ pub mod entry;
 pub mod store;
 
 pub use entry::{EntryError, LoggedMessage, Query, QueryError};
-pub use store::{read_records, LogError, LogStore, Record, Recovery, SyncPolicy, DEFAULT_MAX_RECORD_LEN};
+pub use store::{
+    DEFAULT_MAX_RECORD_LEN, LogError, LogStore, Record, Recovery, SyncPolicy, read_records,
+};

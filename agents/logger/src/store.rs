@@ -135,7 +135,11 @@ impl LogStore {
         let path = path.as_ref().to_path_buf();
         let io = |context: &'static str| {
             let path = path.clone();
-            move |source| LogError::Io { path, context, source }
+            move |source| LogError::Io {
+                path,
+                context,
+                source,
+            }
         };
         let existed = path.exists();
         let mut file = OpenOptions::new()
@@ -148,7 +152,8 @@ impl LogStore {
         if len == 0 {
             let mut header = [0u8; FILE_HEADER_LEN as usize];
             header[..8].copy_from_slice(MAGIC);
-            file.write_all(&header).map_err(io("writing the file header"))?;
+            file.write_all(&header)
+                .map_err(io("writing the file header"))?;
             file.sync_all().map_err(io("syncing the new log"))?;
             if !existed {
                 sync_parent_dir(&path).map_err(io("syncing the log's directory"))?;
@@ -156,15 +161,26 @@ impl LogStore {
         }
         let scan = scan(&path, &mut file, max_record_len)?;
         let recovery = match scan.first_bad {
-            None => Recovery { records: scan.records, truncated_bytes: 0 },
+            None => Recovery {
+                records: scan.records,
+                truncated_bytes: 0,
+            },
             Some((offset, reason)) => {
                 if valid_record_after(&mut file, offset, max_record_len, &path)? {
-                    return Err(LogError::Corrupt { path, offset, reason });
+                    return Err(LogError::Corrupt {
+                        path,
+                        offset,
+                        reason,
+                    });
                 }
                 let file_len = file.metadata().map_err(io("reading the log's size"))?.len();
-                file.set_len(offset).map_err(io("truncating the torn tail"))?;
+                file.set_len(offset)
+                    .map_err(io("truncating the torn tail"))?;
                 file.sync_all().map_err(io("syncing the truncation"))?;
-                Recovery { records: scan.records, truncated_bytes: file_len - offset }
+                Recovery {
+                    records: scan.records,
+                    truncated_bytes: file_len - offset,
+                }
             }
         };
         Ok(LogStore {
@@ -203,7 +219,10 @@ impl LogStore {
     /// whether it is already durable (always true under [`SyncPolicy::Always`]).
     pub fn append(&mut self, payload: &[u8], now_ns: u64) -> Result<(u64, bool), LogError> {
         if payload.len() > self.max_record_len as usize {
-            return Err(LogError::RecordTooLarge { len: payload.len(), max: self.max_record_len });
+            return Err(LogError::RecordTooLarge {
+                len: payload.len(),
+                max: self.max_record_len,
+            });
         }
         let seq = self.next_seq;
         let mut frame = Vec::with_capacity(RECORD_HEADER_LEN + payload.len());
@@ -254,13 +273,18 @@ impl LogStore {
 /// and replay while the logger agent runs). Stops quietly at a torn tail.
 pub fn read_records(path: &Path, max_record_len: u32) -> Result<Vec<Record>, LogError> {
     let io = |context: &'static str| {
-        move |source| LogError::Io { path: path.to_path_buf(), context, source }
+        move |source| LogError::Io {
+            path: path.to_path_buf(),
+            context,
+            source,
+        }
     };
     let file = File::open(path).map_err(io("opening the log for reading"))?;
     let mut reader = BufReader::new(file);
     check_magic(&mut reader, path)?;
     let mut records = Vec::new();
-    while let Ok(Some(record)) = read_record(&mut reader, records.len() as u64 + 1, max_record_len) {
+    while let Ok(Some(record)) = read_record(&mut reader, records.len() as u64 + 1, max_record_len)
+    {
         records.push(record);
     }
     Ok(records)
@@ -272,23 +296,34 @@ struct Scan {
 }
 
 fn scan(path: &Path, file: &mut File, max_record_len: u32) -> Result<Scan, LogError> {
-    file.seek(SeekFrom::Start(0)).map_err(|source| LogError::Io {
-        path: path.to_path_buf(),
-        context: "rewinding the log",
-        source,
-    })?;
+    file.seek(SeekFrom::Start(0))
+        .map_err(|source| LogError::Io {
+            path: path.to_path_buf(),
+            context: "rewinding the log",
+            source,
+        })?;
     let mut reader = BufReader::new(&mut *file);
     check_magic(&mut reader, path)?;
     let mut offset = FILE_HEADER_LEN;
     let mut records = 0u64;
     loop {
         match read_record(&mut reader, records + 1, max_record_len) {
-            Ok(None) => return Ok(Scan { records, first_bad: None }),
+            Ok(None) => {
+                return Ok(Scan {
+                    records,
+                    first_bad: None,
+                });
+            }
             Ok(Some(record)) => {
                 records += 1;
                 offset += (RECORD_HEADER_LEN + record.payload.len()) as u64;
             }
-            Err(reason) => return Ok(Scan { records, first_bad: Some((offset, reason)) }),
+            Err(reason) => {
+                return Ok(Scan {
+                    records,
+                    first_bad: Some((offset, reason)),
+                });
+            }
         }
     }
 }
@@ -297,7 +332,9 @@ fn check_magic(reader: &mut impl Read, path: &Path) -> Result<(), LogError> {
     let mut header = [0u8; FILE_HEADER_LEN as usize];
     match reader.read_exact(&mut header) {
         Ok(()) if &header[..8] == MAGIC => Ok(()),
-        _ => Err(LogError::NotALog { path: path.to_path_buf() }),
+        _ => Err(LogError::NotALog {
+            path: path.to_path_buf(),
+        }),
     }
 }
 
@@ -313,11 +350,15 @@ fn read_record(
         return Ok(None);
     }
     if got < RECORD_HEADER_LEN {
-        return Err(format!("record header cut short after {got} of {RECORD_HEADER_LEN} bytes"));
+        return Err(format!(
+            "record header cut short after {got} of {RECORD_HEADER_LEN} bytes"
+        ));
     }
     let (len, crc, seq) = split_header(&header);
     if len > max_record_len {
-        return Err(format!("length {len} exceeds the limit of {max_record_len}"));
+        return Err(format!(
+            "length {len} exceeds the limit of {max_record_len}"
+        ));
     }
     let mut payload = vec![0u8; len as usize];
     let got = read_up_to(reader, &mut payload);
@@ -328,7 +369,9 @@ fn read_record(
         return Err("checksum mismatch".to_string());
     }
     if seq != expected_seq {
-        return Err(format!("sequence number {seq} where {expected_seq} was expected"));
+        return Err(format!(
+            "sequence number {seq} where {expected_seq} was expected"
+        ));
     }
     Ok(Some(Record { seq, payload }))
 }
@@ -349,7 +392,9 @@ fn valid_record_after(
             source,
         })?;
     for start in 1..rest.len() {
-        let Some(header) = rest.get(start..start + RECORD_HEADER_LEN) else { break };
+        let Some(header) = rest.get(start..start + RECORD_HEADER_LEN) else {
+            break;
+        };
         let header: &[u8; RECORD_HEADER_LEN] = header.try_into().expect("slice of header length");
         let (len, crc, seq) = split_header(header);
         if len > max_record_len || seq == 0 {
@@ -357,16 +402,21 @@ fn valid_record_after(
         }
         let body = start + RECORD_HEADER_LEN;
         if let Some(payload) = rest.get(body..body + len as usize)
-            && checksum(seq, payload) == crc {
-                return Ok(true);
-            }
+            && checksum(seq, payload) == crc
+        {
+            return Ok(true);
+        }
     }
     Ok(false)
 }
 
 fn split_header(header: &[u8; RECORD_HEADER_LEN]) -> (u32, u32, u64) {
     let [l0, l1, l2, l3, c0, c1, c2, c3, s @ ..] = *header;
-    (u32::from_le_bytes([l0, l1, l2, l3]), u32::from_le_bytes([c0, c1, c2, c3]), u64::from_le_bytes(s))
+    (
+        u32::from_le_bytes([l0, l1, l2, l3]),
+        u32::from_le_bytes([c0, c1, c2, c3]),
+        u64::from_le_bytes(s),
+    )
 }
 
 fn read_up_to(reader: &mut impl Read, buf: &mut [u8]) -> usize {
@@ -416,9 +466,20 @@ mod tests {
         let path = log_with(dir.path(), &[b"one", b"two", b""]);
         let log = LogStore::open(&path, SyncPolicy::Always).unwrap();
         assert_eq!(log.len(), 3);
-        let payloads: Vec<_> = log.records().unwrap().into_iter().map(|r| r.payload).collect();
+        let payloads: Vec<_> = log
+            .records()
+            .unwrap()
+            .into_iter()
+            .map(|r| r.payload)
+            .collect();
         assert_eq!(payloads, vec![b"one".to_vec(), b"two".to_vec(), Vec::new()]);
-        assert_eq!(log.recovery(), Recovery { records: 3, truncated_bytes: 0 });
+        assert_eq!(
+            log.recovery(),
+            Recovery {
+                records: 3,
+                truncated_bytes: 0
+            }
+        );
     }
 
     #[test]
@@ -431,13 +492,27 @@ mod tests {
         torn.extend_from_slice(&checksum(3, &[7; 20]).to_le_bytes());
         torn.extend_from_slice(&3u64.to_le_bytes());
         torn.extend_from_slice(&[7; 10]);
-        OpenOptions::new().append(true).open(&path).unwrap().write_all(&torn).unwrap();
+        OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .unwrap()
+            .write_all(&torn)
+            .unwrap();
 
         let mut log = LogStore::open(&path, SyncPolicy::Always).unwrap();
-        assert_eq!(log.recovery(), Recovery { records: 2, truncated_bytes: torn.len() as u64 });
+        assert_eq!(
+            log.recovery(),
+            Recovery {
+                records: 2,
+                truncated_bytes: torn.len() as u64
+            }
+        );
         assert_eq!(log.append(b"after", 9).unwrap(), (3, true));
         let reopened = LogStore::open(&path, SyncPolicy::Always).unwrap();
-        assert_eq!(reopened.records().unwrap().last().unwrap().payload, b"after");
+        assert_eq!(
+            reopened.records().unwrap().last().unwrap().payload,
+            b"after"
+        );
     }
 
     #[test]
@@ -448,8 +523,21 @@ mod tests {
         bytes[FILE_HEADER_LEN as usize + RECORD_HEADER_LEN + 2] ^= 0x40;
         std::fs::write(&path, &bytes).unwrap();
         let err = LogStore::open(&path, SyncPolicy::Always).unwrap_err();
-        assert!(matches!(err, LogError::Corrupt { offset: FILE_HEADER_LEN, .. }), "{err}");
-        assert_eq!(std::fs::read(&path).unwrap(), bytes, "a refused log is left untouched");
+        assert!(
+            matches!(
+                err,
+                LogError::Corrupt {
+                    offset: FILE_HEADER_LEN,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            bytes,
+            "a refused log is left untouched"
+        );
     }
 
     #[test]
@@ -457,7 +545,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("notes.txt");
         std::fs::write(&path, b"shopping list: milk, bread, eggs").unwrap();
-        assert!(matches!(LogStore::open(&path, SyncPolicy::Always), Err(LogError::NotALog { .. })));
+        assert!(matches!(
+            LogStore::open(&path, SyncPolicy::Always),
+            Err(LogError::NotALog { .. })
+        ));
     }
 
     #[test]
@@ -479,7 +570,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("small.iwl");
         let mut log = LogStore::open_with_limit(&path, SyncPolicy::Always, 8).unwrap();
-        assert!(matches!(log.append(&[0; 9], 0), Err(LogError::RecordTooLarge { len: 9, max: 8 })));
+        assert!(matches!(
+            log.append(&[0; 9], 0),
+            Err(LogError::RecordTooLarge { len: 9, max: 8 })
+        ));
         assert!(log.is_empty());
         assert_eq!(std::fs::metadata(&path).unwrap().len(), FILE_HEADER_LEN);
     }

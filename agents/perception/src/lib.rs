@@ -37,7 +37,10 @@ use iw_agent::{Agent, Context};
 use iw_body::Body;
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, SensorReading, WheelchairContent};
-use iw_vo::{CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualOdometry, VoConfig, WheelOdometry, planar_motion};
+use iw_vo::{
+    CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualOdometry, VoConfig, WheelOdometry,
+    planar_motion,
+};
 use nalgebra::{Isometry3, Matrix3};
 
 /// A configuration that cannot work.
@@ -127,7 +130,11 @@ pub struct PerceptionAgent {
 
 impl PerceptionAgent {
     /// A perception agent reading `body`, fusing `visual` when given.
-    pub fn new(config: PerceptionConfig, body: Box<dyn Body + Send>, visual: Option<VisualConfig>) -> Result<Self, PerceptionError> {
+    pub fn new(
+        config: PerceptionConfig,
+        body: Box<dyn Body + Send>,
+        visual: Option<VisualConfig>,
+    ) -> Result<Self, PerceptionError> {
         for (name, value) in [
             ("wheel_radius_m", config.drive.wheel_radius_m),
             ("track_m", config.drive.track_m),
@@ -161,7 +168,12 @@ impl PerceptionAgent {
     pub fn pose(&self) -> Pose {
         let p = self.fusion.pose();
         let c = self.fusion.covariance();
-        Pose { x_m: p.x, y_m: p.y, theta_rad: p.theta, covariance: (c + c.transpose()) * 0.5 }
+        Pose {
+            x_m: p.x,
+            y_m: p.y,
+            theta_rad: p.theta,
+            covariance: (c + c.transpose()) * 0.5,
+        }
     }
 
     fn sense(&mut self) {
@@ -170,11 +182,19 @@ impl PerceptionAgent {
                 if let Some(step) = self.wheels.update(frame.left_ticks, frame.right_ticks) {
                     self.fusion.predict(&step);
                 }
-                self.last_sonar_m = frame.sonar_m.iter().map(|r| r.unwrap_or(self.config.sonar_max_m)).collect();
+                self.last_sonar_m = frame
+                    .sonar_m
+                    .iter()
+                    .map(|r| r.unwrap_or(self.config.sonar_max_m))
+                    .collect();
             }
-            Err(err) => tracing::warn!(chair = %self.config.chair.name, error = %err, "body read failed; pose not updated"),
+            Err(err) => {
+                tracing::warn!(chair = %self.config.chair.name, error = %err, "body read failed; pose not updated")
+            }
         }
-        let Some(visual) = self.visual.as_mut() else { return };
+        let Some(visual) = self.visual.as_mut() else {
+            return;
+        };
         match visual.source.next_frame() {
             Some(Ok(frame)) => match visual.vo.process(&frame) {
                 Ok((stamped, _)) => {
@@ -195,15 +215,32 @@ impl PerceptionAgent {
     }
 
     fn publish(&mut self, ctx: &mut Context<'_>) {
-        let pose = WheelchairContent::Inform(Fact::AtPose { agent: self.config.chair.clone(), pose: self.pose() });
+        let pose = WheelchairContent::Inform(Fact::AtPose {
+            agent: self.config.chair.clone(),
+            pose: self.pose(),
+        });
         let sonar = WheelchairContent::Inform(Fact::Reading {
             agent: self.config.chair.clone(),
-            reading: SensorReading::Sonar { ranges_m: self.last_sonar_m.clone() },
+            reading: SensorReading::Sonar {
+                ranges_m: self.last_sonar_m.clone(),
+            },
         });
         for sub in &self.subscribers {
-            let _ = ctx.send(pose.fill(sub.request.create_reply().with_performative(Performative::Inform)));
+            let _ = ctx.send(
+                pose.fill(
+                    sub.request
+                        .create_reply()
+                        .with_performative(Performative::Inform),
+                ),
+            );
             if sub.readings && !self.last_sonar_m.is_empty() {
-                let _ = ctx.send(sonar.fill(sub.request.create_reply().with_performative(Performative::Inform)));
+                let _ = ctx.send(
+                    sonar.fill(
+                        sub.request
+                            .create_reply()
+                            .with_performative(Performative::Inform),
+                    ),
+                );
             }
         }
     }
@@ -215,21 +252,37 @@ impl Agent for PerceptionAgent {
             Performative::Subscribe => {
                 let text = message.content_text().unwrap_or_default();
                 if !text.contains("at-pose") && !text.contains("sensor-reading") {
-                    let _ = ctx.not_understood(&message, "subscribe to ((at-pose ?agent ?pose)) or sensor-reading");
+                    let _ = ctx.not_understood(
+                        &message,
+                        "subscribe to ((at-pose ?agent ?pose)) or sensor-reading",
+                    );
                     return;
                 }
                 let readings = text.contains("sensor-reading");
-                let agree = message.create_reply().with_performative(Performative::Agree).with_content(text.to_string());
+                let agree = message
+                    .create_reply()
+                    .with_performative(Performative::Agree)
+                    .with_content(text.to_string());
                 let _ = ctx.send(agree);
                 // One subscription per (subscriber, conversation): a repeated subscribe replaces it.
-                self.subscribers.retain(|s| !(s.request.sender == message.sender && s.request.conversation_id == message.conversation_id));
-                self.subscribers.push(Subscription { request: message, readings });
+                self.subscribers.retain(|s| {
+                    !(s.request.sender == message.sender
+                        && s.request.conversation_id == message.conversation_id)
+                });
+                self.subscribers.push(Subscription {
+                    request: message,
+                    readings,
+                });
             }
             Performative::Cancel => {
-                self.subscribers.retain(|s| !(s.request.sender == message.sender && s.request.conversation_id == message.conversation_id));
+                self.subscribers.retain(|s| {
+                    !(s.request.sender == message.sender
+                        && s.request.conversation_id == message.conversation_id)
+                });
             }
             _ => {
-                let _ = ctx.not_understood(&message, "the perception agent takes subscribe and cancel");
+                let _ =
+                    ctx.not_understood(&message, "the perception agent takes subscribe and cancel");
             }
         }
     }
@@ -241,7 +294,10 @@ impl Agent for PerceptionAgent {
     fn tick(&mut self, ctx: &mut Context<'_>) {
         self.sense();
         self.ticks += 1;
-        if self.ticks.is_multiple_of(u64::from(self.config.publish_every.max(1))) {
+        if self
+            .ticks
+            .is_multiple_of(u64::from(self.config.publish_every.max(1)))
+        {
             self.publish(ctx);
         }
     }

@@ -22,7 +22,9 @@ impl Body for Rolling {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
         self.reads += 1;
         if self.reads % 7 == 0 {
-            return Err(BodyError::Virtual { reason: "dropped frame".into() });
+            return Err(BodyError::Virtual {
+                reason: "dropped frame".into(),
+            });
         }
         let mut frame = SensorFrame::empty(self.reads as u64 * 50_000_000);
         frame.left_ticks = self.reads * 100;
@@ -39,10 +41,20 @@ impl Body for Rolling {
 fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(network.endpoint("c1").unwrap()),
+        clock,
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
-    host.add(AgentId::new("perception"), Box::new(PerceptionAgent::new(config, Box::new(Rolling { reads: 0 }), None).unwrap())).unwrap();
+    host.add(
+        AgentId::new("perception"),
+        Box::new(PerceptionAgent::new(config, Box::new(Rolling { reads: 0 }), None).unwrap()),
+    )
+    .unwrap();
     let (agent, probe) = gateway(Duration::from_millis(1));
     host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
     let subscribe = |content: &str| {
@@ -52,7 +64,9 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
             .with_conversation_id("s1")
             .with_content(content)
     };
-    probe.send(subscribe("((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))"));
+    probe.send(subscribe(
+        "((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))",
+    ));
     let mut run = |ms: u64| {
         for _ in 0..ms / 10 {
             host.step(controller.now());
@@ -73,7 +87,10 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
                     assert_eq!(agent.name, "chair1");
                     poses.push(pose);
                 }
-                WheelchairContent::Inform(Fact::Reading { reading: SensorReading::Sonar { ranges_m }, .. }) => {
+                WheelchairContent::Inform(Fact::Reading {
+                    reading: SensorReading::Sonar { ranges_m },
+                    ..
+                }) => {
                     sonar_seen = true;
                     assert_eq!(ranges_m[0], 1.2);
                 }
@@ -85,10 +102,22 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     };
     assert!(poses.len() >= 15, "{} poses", poses.len());
     let (first, last) = (poses.first().unwrap(), poses.last().unwrap());
-    assert!(last.x_m > first.x_m + 0.1, "drives forward: {} -> {}", first.x_m, last.x_m);
+    assert!(
+        last.x_m > first.x_m + 0.1,
+        "drives forward: {} -> {}",
+        first.x_m,
+        last.x_m
+    );
     assert!((last.y_m - 2.0).abs() < 1e-9, "straight along x");
-    assert!(last.covariance[(0, 0)] > first.covariance[(0, 0)], "uncertainty grows without a camera");
-    probe.send(AclMessage::new(Performative::Cancel).with_receiver(AgentId::new("perception")).with_conversation_id("s1"));
+    assert!(
+        last.covariance[(0, 0)] > first.covariance[(0, 0)],
+        "uncertainty grows without a camera"
+    );
+    probe.send(
+        AclMessage::new(Performative::Cancel)
+            .with_receiver(AgentId::new("perception"))
+            .with_conversation_id("s1"),
+    );
     run(100);
     probe.take_received();
     run(1000);

@@ -75,7 +75,8 @@ struct Passage {
 
 impl Passage {
     fn involves(&self, chair: &Option<AgentId>) -> bool {
-        self.holders.iter().any(|g| &g.ask.request.sender == chair) || self.queue.iter().any(|q| &q.request.sender == chair)
+        self.holders.iter().any(|g| &g.ask.request.sender == chair)
+            || self.queue.iter().any(|q| &q.request.sender == chair)
     }
 }
 
@@ -93,9 +94,15 @@ impl WatcherAgent {
     /// A watcher over `config.passages`, all free.
     pub fn new(config: WatcherConfig) -> Result<Self, WatcherError> {
         if config.lease.is_zero() {
-            return Err(WatcherError::ZeroLease { lease_ms: config.lease.as_millis() });
+            return Err(WatcherError::ZeroLease {
+                lease_ms: config.lease.as_millis(),
+            });
         }
-        let passages = config.passages.iter().map(|p| (p.clone(), Passage::default())).collect();
+        let passages = config
+            .passages
+            .iter()
+            .map(|p| (p.clone(), Passage::default()))
+            .collect();
         Ok(WatcherAgent { config, passages })
     }
 
@@ -104,31 +111,64 @@ impl WatcherAgent {
         let now_ns = ctx.now().0;
         for (name, passage) in &mut self.passages {
             while let Some(head) = passage.queue.front() {
-                if passage.holders.first().is_some_and(|g| g.ask.direction != head.direction) {
+                if passage
+                    .holders
+                    .first()
+                    .is_some_and(|g| g.ask.direction != head.direction)
+                {
                     break;
                 }
-                let Some(ask) = passage.queue.pop_front() else { break };
+                let Some(ask) = passage.queue.pop_front() else {
+                    break;
+                };
                 tracing::debug!(passage = %name, direction = %ask.direction, chair = ?ask.request.sender.as_ref().map(|s| &s.name), "granted");
                 let done = WheelchairContent::Done {
                     actor: ask.actor.clone(),
-                    action: WheelchairAction::Pass { passage: ask.passage.clone(), direction: ask.direction.clone() },
+                    action: WheelchairAction::Pass {
+                        passage: ask.passage.clone(),
+                        direction: ask.direction.clone(),
+                    },
                 };
-                let _ = ctx.send(done.fill(ask.request.create_reply().with_performative(Performative::Inform)));
-                passage.holders.push(Grant { ask, since_ns: now_ns });
+                let _ = ctx.send(
+                    done.fill(
+                        ask.request
+                            .create_reply()
+                            .with_performative(Performative::Inform),
+                    ),
+                );
+                passage.holders.push(Grant {
+                    ask,
+                    since_ns: now_ns,
+                });
             }
         }
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let Some((actor, passage, direction)) = ctx.understand(&message, "the watcher takes (pass :passage P :direction D) requests", |c| match c {
-            WheelchairContent::Request { actor, action: WheelchairAction::Pass { passage, direction } } => Some((actor, passage, direction)),
-            _ => None,
-        }) else {
+        let Some((actor, passage, direction)) = ctx.understand(
+            &message,
+            "the watcher takes (pass :passage P :direction D) requests",
+            |c| match c {
+                WheelchairContent::Request {
+                    actor,
+                    action: WheelchairAction::Pass { passage, direction },
+                } => Some((actor, passage, direction)),
+                _ => None,
+            },
+        ) else {
             return;
         };
-        let ask = Ask { request: message, actor, passage, direction };
+        let ask = Ask {
+            request: message,
+            actor,
+            passage,
+            direction,
+        };
         let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let reply = ask.request.create_reply().with_performative(Performative::Refuse);
+            let reply = ask
+                .request
+                .create_reply()
+                .with_performative(Performative::Refuse);
             let _ = ctx.send(reply.with_content(format!("((error-message \"{why}\"))")));
         };
         let Some(passage) = self.passages.get_mut(&ask.passage) else {
@@ -139,15 +179,21 @@ impl WatcherAgent {
             refuse(ctx, "already holding or queued for this passage");
             return;
         }
-        let agree = ask.request.create_reply().with_performative(Performative::Agree);
-        let _ = ctx.send(agree.with_content(ask.request.content_text().unwrap_or_default().to_string()));
+        let agree = ask
+            .request
+            .create_reply()
+            .with_performative(Performative::Agree);
+        let _ = ctx
+            .send(agree.with_content(ask.request.content_text().unwrap_or_default().to_string()));
         passage.queue.push_back(ask);
         self.grant(ctx);
     }
 
     fn on_cancel(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
         for passage in self.passages.values_mut() {
-            passage.holders.retain(|g| !same_asker(&g.ask.request, message));
+            passage
+                .holders
+                .retain(|g| !same_asker(&g.ask.request, message));
             passage.queue.retain(|q| !same_asker(&q.request, message));
         }
         self.grant(ctx);
@@ -173,11 +219,18 @@ impl Agent for WatcherAgent {
         let now_ns = ctx.now().0;
         let lease_ns = u64::try_from(self.config.lease.as_nanos()).unwrap_or(u64::MAX);
         for (name, passage) in &mut self.passages {
-            let (expired, live): (Vec<Grant>, Vec<Grant>) = passage.holders.drain(..).partition(|g| now_ns.saturating_sub(g.since_ns) >= lease_ns);
+            let (expired, live): (Vec<Grant>, Vec<Grant>) = passage
+                .holders
+                .drain(..)
+                .partition(|g| now_ns.saturating_sub(g.since_ns) >= lease_ns);
             passage.holders = live;
             for grant in expired {
                 tracing::warn!(passage = %name, "lease expired; the queue moves on");
-                let reply = grant.ask.request.create_reply().with_performative(Performative::Failure);
+                let reply = grant
+                    .ask
+                    .request
+                    .create_reply()
+                    .with_performative(Performative::Failure);
                 let _ = ctx.send(reply.with_content("((error-message \"lease expired\"))"));
             }
         }

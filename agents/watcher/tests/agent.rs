@@ -45,24 +45,56 @@ struct Rig {
 fn rig() -> Rig {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(Stack::new(), Arc::new(network.endpoint("c1").unwrap()), clock, BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(network.endpoint("c1").unwrap()),
+        clock,
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
-    let config = WatcherConfig { passages: PASSAGES.iter().map(|p| p.to_string()).collect(), lease: Duration::from_secs(2), period: Duration::from_millis(50) };
-    host.add(AgentId::new("watcher"), Box::new(WatcherAgent::new(config).unwrap())).unwrap();
+    let config = WatcherConfig {
+        passages: PASSAGES.iter().map(|p| p.to_string()).collect(),
+        lease: Duration::from_secs(2),
+        period: Duration::from_millis(50),
+    };
+    host.add(
+        AgentId::new("watcher"),
+        Box::new(WatcherAgent::new(config).unwrap()),
+    )
+    .unwrap();
     let chairs = (0..CHAIRS)
         .map(|i| {
             let (inbox, outbox): (Mailbag, Mailbag) = (Arc::default(), Arc::default());
-            host.add(AgentId::new(format!("chair{i}")), Box::new(Chair { inbox: Arc::clone(&inbox), outbox: Arc::clone(&outbox) })).unwrap();
+            host.add(
+                AgentId::new(format!("chair{i}")),
+                Box::new(Chair {
+                    inbox: Arc::clone(&inbox),
+                    outbox: Arc::clone(&outbox),
+                }),
+            )
+            .unwrap();
             (inbox, outbox)
         })
         .collect();
-    Rig { host, clock: controller, chairs }
+    Rig {
+        host,
+        clock: controller,
+        chairs,
+    }
 }
 
 /// chair `c`'s request to pass `passage` going `direction`.
 fn pass(c: usize, passage: usize, direction: &str) -> AclMessage {
-    let action = WheelchairAction::Pass { passage: PASSAGES[passage].into(), direction: direction.into() };
-    WheelchairContent::Request { actor: AgentId::new("watcher"), action }.fill(
+    let action = WheelchairAction::Pass {
+        passage: PASSAGES[passage].into(),
+        direction: direction.into(),
+    };
+    WheelchairContent::Request {
+        actor: AgentId::new("watcher"),
+        action,
+    }
+    .fill(
         AclMessage::new(Performative::Request)
             .with_receiver(AgentId::new("watcher"))
             .with_protocol("fipa-request")
@@ -85,7 +117,8 @@ enum Op {
 
 fn op() -> impl Strategy<Value = Op> {
     prop_oneof![
-        (0..CHAIRS, 0..PASSAGES.len(), 0..DIRECTIONS.len()).prop_map(|(c, p, d)| Op::Request(c, p, d)),
+        (0..CHAIRS, 0..PASSAGES.len(), 0..DIRECTIONS.len())
+            .prop_map(|(c, p, d)| Op::Request(c, p, d)),
         (0..CHAIRS, 0..PASSAGES.len()).prop_map(|(c, p)| Op::Cancel(c, p)),
         (10u64..1500).prop_map(Op::Wait),
     ]
@@ -155,14 +188,38 @@ fn grants_are_fifo_one_direction_at_a_time_and_a_stuck_holder_loses_its_lease() 
         rig.host.step(rig.clock.now());
         rig.clock.advance(Duration::from_millis(10));
     }
-    let granted = |rig: &Rig| -> Vec<bool> { rig.chairs.iter().map(|(i, _)| i.lock().unwrap().iter().any(|m| m.performative == Performative::Inform)).collect() };
+    let granted = |rig: &Rig| -> Vec<bool> {
+        rig.chairs
+            .iter()
+            .map(|(i, _)| {
+                i.lock()
+                    .unwrap()
+                    .iter()
+                    .any(|m| m.performative == Performative::Inform)
+            })
+            .collect()
+    };
     // chair2 could follow chair0, but chair1 asked first: it does not overtake.
     assert_eq!(granted(&rig), [true, false, false, false]);
-    let grant = rig.chairs[0].0.lock().unwrap().iter().find(|m| m.performative == Performative::Inform).unwrap().clone();
+    let grant = rig.chairs[0]
+        .0
+        .lock()
+        .unwrap()
+        .iter()
+        .find(|m| m.performative == Performative::Inform)
+        .unwrap()
+        .clone();
     let content = iw_sl::parse(grant.content_text().unwrap(), iw_sl::Level::Sl0).unwrap();
-    assert!(content.to_string().starts_with("((done (action"), "{content}");
+    assert!(
+        content.to_string().starts_with("((done (action"),
+        "{content}"
+    );
     // chair0 releases: chair1 is next.
-    rig.chairs[0].1.lock().unwrap().push(AclMessage::new(Performative::Cancel).with_receiver(AgentId::new("watcher")).with_conversation_id(conversation(0, 0)));
+    rig.chairs[0].1.lock().unwrap().push(
+        AclMessage::new(Performative::Cancel)
+            .with_receiver(AgentId::new("watcher"))
+            .with_conversation_id(conversation(0, 0)),
+    );
     rig.host.step(rig.clock.now());
     assert_eq!(granted(&rig), [true, true, false, false]);
     // chair1 never releases: after the 2 s lease it gets FAILURE and chair2 passes.
@@ -170,7 +227,14 @@ fn grants_are_fifo_one_direction_at_a_time_and_a_stuck_holder_loses_its_lease() 
         rig.clock.advance(Duration::from_millis(50));
         rig.host.step(rig.clock.now());
     }
-    assert!(rig.chairs[1].0.lock().unwrap().iter().any(|m| m.performative == Performative::Failure));
+    assert!(
+        rig.chairs[1]
+            .0
+            .lock()
+            .unwrap()
+            .iter()
+            .any(|m| m.performative == Performative::Failure)
+    );
     assert_eq!(granted(&rig), [true, true, true, false]);
 }
 
@@ -181,20 +245,51 @@ fn chairs_going_the_same_way_follow_each_other() {
         rig.chairs[c].1.lock().unwrap().push(pass(c, 1, "backward"));
     }
     rig.host.step(rig.clock.now());
-    let grants = |c: usize| rig.chairs[c].0.lock().unwrap().iter().filter(|m| m.performative == Performative::Inform).count();
+    let grants = |c: usize| {
+        rig.chairs[c]
+            .0
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|m| m.performative == Performative::Inform)
+            .count()
+    };
     assert_eq!((0..CHAIRS).map(grants).collect::<Vec<_>>(), [1, 1, 1, 0]);
 }
 
 #[test]
 fn other_requests_are_not_understood_and_unknown_passages_refused() {
     let mut rig = rig();
-    let go_to = WheelchairContent::Request { actor: AgentId::new("watcher"), action: WheelchairAction::GoTo { place: "hall".into() } };
-    rig.chairs[0].1.lock().unwrap().push(go_to.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("watcher"))));
-    let unknown = WheelchairContent::Request { actor: AgentId::new("watcher"), action: WheelchairAction::Pass { passage: "attic".into(), direction: "forward".into() } };
-    rig.chairs[1].1.lock().unwrap().push(unknown.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("watcher"))));
+    let go_to = WheelchairContent::Request {
+        actor: AgentId::new("watcher"),
+        action: WheelchairAction::GoTo {
+            place: "hall".into(),
+        },
+    };
+    rig.chairs[0].1.lock().unwrap().push(
+        go_to.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("watcher"))),
+    );
+    let unknown = WheelchairContent::Request {
+        actor: AgentId::new("watcher"),
+        action: WheelchairAction::Pass {
+            passage: "attic".into(),
+            direction: "forward".into(),
+        },
+    };
+    rig.chairs[1].1.lock().unwrap().push(
+        unknown.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("watcher"))),
+    );
     rig.host.step(rig.clock.now());
     rig.host.step(rig.clock.now());
-    let answers = |c: usize| rig.chairs[c].0.lock().unwrap().iter().map(|m| m.performative).collect::<Vec<_>>();
+    let answers = |c: usize| {
+        rig.chairs[c]
+            .0
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|m| m.performative)
+            .collect::<Vec<_>>()
+    };
     assert_eq!(answers(0), [Performative::NotUnderstood]);
     assert_eq!(answers(1), [Performative::Refuse]);
 }

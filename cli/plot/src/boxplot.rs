@@ -25,7 +25,12 @@ pub struct BoxPanel {
     pub boxes: Vec<BoxSeries>,
 }
 
-const COLOURS: [RGBColor; 4] = [RGBColor(200, 40, 40), RGBColor(40, 90, 200), RGBColor(0, 150, 0), RGBColor(200, 120, 0)];
+const COLOURS: [RGBColor; 4] = [
+    RGBColor(200, 40, 40),
+    RGBColor(40, 90, 200),
+    RGBColor(0, 150, 0),
+    RGBColor(200, 120, 0),
+];
 
 /// `[min, q1, median, q3, max]` with numpy's linear quantiles; `None` for an empty sample.
 pub fn five_numbers(values: &[f64]) -> Option<[f64; 5]> {
@@ -42,14 +47,25 @@ pub fn five_numbers(values: &[f64]) -> Option<[f64; 5]> {
 
 /// Draws the panels side by side into one PNG (500 px wide per panel, 600 high); the y axis
 /// runs over `y_range` with `y_label`.
-pub fn plot_boxes(path: &Path, title: &str, y_label: &str, y_range: std::ops::Range<f64>, panels: &[BoxPanel]) -> Result<(), PlotError> {
+pub fn plot_boxes(
+    path: &Path,
+    title: &str,
+    y_label: &str,
+    y_range: std::ops::Range<f64>,
+    panels: &[BoxPanel],
+) -> Result<(), PlotError> {
     crate::register_fonts();
     let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
     let width = 500 * panels.len().max(1) as u32;
     let root = BitMapBackend::new(path, (width, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root.titled(title, ("sans-serif", 24)).map_err(|e| err(&e))?;
-    for (panel, area) in panels.iter().zip(root.split_evenly((1, panels.len().max(1))).iter()) {
+    let root = root
+        .titled(title, ("sans-serif", 24))
+        .map_err(|e| err(&e))?;
+    for (panel, area) in panels
+        .iter()
+        .zip(root.split_evenly((1, panels.len().max(1))).iter())
+    {
         let n = panel.boxes.len().max(1);
         let labels: Vec<String> = panel.boxes.iter().map(|b| b.label.clone()).collect();
         let mut chart = ChartBuilder::on(area)
@@ -65,19 +81,35 @@ pub fn plot_boxes(path: &Path, title: &str, y_label: &str, y_range: std::ops::Ra
             .x_labels(n)
             .x_label_formatter(&|x: &f64| {
                 let i = x.round();
-                if (x - i).abs() < 1e-6 && i >= 0.0 { labels.get(i as usize).cloned().unwrap_or_default() } else { String::new() }
+                if (x - i).abs() < 1e-6 && i >= 0.0 {
+                    labels.get(i as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
             })
             .y_desc(y_label)
             .label_style(("sans-serif", 14))
             .draw()
             .map_err(|e| err(&e))?;
         for (i, series) in panel.boxes.iter().enumerate() {
-            let Some([min, q1, median, q3, max]) = five_numbers(&series.values) else { continue };
+            let Some([min, q1, median, q3, max]) = five_numbers(&series.values) else {
+                continue;
+            };
             let colour = COLOURS[i % COLOURS.len()];
             let x = i as f64;
             let (l, r) = (x - 0.3, x + 0.3);
-            chart.draw_series(std::iter::once(Rectangle::new([(l, q1), (r, q3)], colour.mix(0.25).filled()))).map_err(|e| err(&e))?;
-            chart.draw_series(std::iter::once(Rectangle::new([(l, q1), (r, q3)], colour.stroke_width(2)))).map_err(|e| err(&e))?;
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(l, q1), (r, q3)],
+                    colour.mix(0.25).filled(),
+                )))
+                .map_err(|e| err(&e))?;
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(l, q1), (r, q3)],
+                    colour.stroke_width(2),
+                )))
+                .map_err(|e| err(&e))?;
             let lines = [
                 vec![(l, median), (r, median)],
                 vec![(x, q3), (x, max)],
@@ -86,7 +118,12 @@ pub fn plot_boxes(path: &Path, title: &str, y_label: &str, y_range: std::ops::Ra
                 vec![(x - 0.15, min), (x + 0.15, min)],
             ];
             for line in lines {
-                chart.draw_series(std::iter::once(PathElement::new(line, colour.stroke_width(2)))).map_err(|e| err(&e))?;
+                chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        line,
+                        colour.stroke_width(2),
+                    )))
+                    .map_err(|e| err(&e))?;
             }
         }
     }
@@ -100,7 +137,10 @@ mod tests {
 
     #[test]
     fn five_numbers_match_numpy() {
-        assert_eq!(five_numbers(&[4.0, 1.0, 3.0, 2.0]), Some([1.0, 1.75, 2.5, 3.25, 4.0]));
+        assert_eq!(
+            five_numbers(&[4.0, 1.0, 3.0, 2.0]),
+            Some([1.0, 1.75, 2.5, 3.25, 4.0])
+        );
         assert_eq!(five_numbers(&[]), None);
     }
 
@@ -111,7 +151,16 @@ mod tests {
         let path = dir.join("box.png");
         let panel = BoxPanel {
             caption: "LIC".into(),
-            boxes: vec![BoxSeries { label: "surf".into(), values: vec![10.0, 50.0, 70.0] }, BoxSeries { label: "lsac".into(), values: vec![] }],
+            boxes: vec![
+                BoxSeries {
+                    label: "surf".into(),
+                    values: vec![10.0, 50.0, 70.0],
+                },
+                BoxSeries {
+                    label: "lsac".into(),
+                    values: vec![],
+                },
+            ],
         };
         plot_boxes(&path, "t", "repeatability (%)", 0.0..100.0, &[panel]).unwrap();
         assert!(std::fs::metadata(&path).unwrap().len() > 1000);

@@ -47,6 +47,9 @@ pub enum PlotError {
 impl PlotError {
     /// Wraps any drawing error with the file it was drawing.
     pub fn draw(path: &std::path::Path, err: impl std::fmt::Display) -> Self {
-        PlotError::Draw { path: path.display().to_string(), message: err.to_string() }
+        PlotError::Draw {
+            path: path.display().to_string(),
+            message: err.to_string(),
+        }
     }
 }

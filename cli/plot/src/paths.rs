@@ -65,7 +65,10 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
         .flat_map(|o| o.points.iter())
         .chain(figure.paths.iter().flat_map(|p| p.points.iter()))
         .chain(figure.route.iter());
-    let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        (f64::INFINITY, f64::INFINITY),
+        (f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for &(x, y) in all.filter(|(x, y)| x.is_finite() && y.is_finite()) {
         lo = (lo.0.min(x), lo.1.min(y));
         hi = (hi.0.max(x), hi.1.max(y));
@@ -99,11 +102,17 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
     for outline in &figure.map {
         if outline.filled {
             chart
-                .draw_series(std::iter::once(Polygon::new(outline.points.clone(), furniture.filled())))
+                .draw_series(std::iter::once(Polygon::new(
+                    outline.points.clone(),
+                    furniture.filled(),
+                )))
                 .map_err(|e| err(&e))?;
         } else {
             chart
-                .draw_series(std::iter::once(PathElement::new(outline.points.clone(), BLACK.stroke_width(3))))
+                .draw_series(std::iter::once(PathElement::new(
+                    outline.points.clone(),
+                    BLACK.stroke_width(3),
+                )))
                 .map_err(|e| err(&e))?;
         }
     }
@@ -117,19 +126,31 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
             .draw_series(DashedLineSeries::new(route, 6, 6, grey.stroke_width(2)))
             .map_err(|e| err(&e))?
             .label("circuit")
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2))
+            });
     }
     for (i, series) in figure.paths.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         chart
-            .draw_series(LineSeries::new(series.points.iter().copied(), colour.mix(0.85).stroke_width(2)))
+            .draw_series(LineSeries::new(
+                series.points.iter().copied(),
+                colour.mix(0.85).stroke_width(2),
+            ))
             .map_err(|e| err(&e))?
             .label(series.label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
+            });
     }
     if !figure.markers.is_empty() {
         chart
-            .draw_series(figure.markers.iter().map(|&p| Cross::new(p, 7, RED.stroke_width(3))))
+            .draw_series(
+                figure
+                    .markers
+                    .iter()
+                    .map(|&p| Cross::new(p, 7, RED.stroke_width(3))),
+            )
             .map_err(|e| err(&e))?
             .label(figure.marker_label.clone())
             .legend(|(x, y)| Cross::new((x + 10, y), 6, RED.stroke_width(3)));
@@ -158,12 +179,21 @@ mod tests {
         let figure = PathFigure {
             title: "test".into(),
             map: vec![
-                Outline { points: vec![(0.0, 0.0), (4.0, 0.0), (4.0, 3.0), (0.0, 3.0), (0.0, 0.0)], filled: false },
-                Outline { points: vec![(1.0, 1.0), (2.0, 1.0), (2.0, 2.0)], filled: true },
+                Outline {
+                    points: vec![(0.0, 0.0), (4.0, 0.0), (4.0, 3.0), (0.0, 3.0), (0.0, 0.0)],
+                    filled: false,
+                },
+                Outline {
+                    points: vec![(1.0, 1.0), (2.0, 1.0), (2.0, 2.0)],
+                    filled: true,
+                },
             ],
             route: vec![(0.5, 0.5), (3.5, 0.5), (3.5, 2.5)],
             route_closed: true,
-            paths: vec![PathSeries { label: "a".into(), points: vec![(0.5, 0.6), (3.4, 0.7), (3.4, 2.4)] }],
+            paths: vec![PathSeries {
+                label: "a".into(),
+                points: vec![(0.5, 0.6), (3.4, 0.7), (3.4, 2.4)],
+            }],
             markers: vec![(3.4, 0.7)],
             marker_label: "collision".into(),
         };

@@ -15,10 +15,18 @@ pub struct Trajectory {
     pub samples: Vec<(f64, [f64; 3])>,
 }
 
-const COLOURS: [RGBColor; 5] = [RED, BLUE, RGBColor(0, 150, 0), RGBColor(200, 120, 0), MAGENTA];
+const COLOURS: [RGBColor; 5] = [
+    RED,
+    BLUE,
+    RGBColor(0, 150, 0),
+    RGBColor(200, 120, 0),
+    MAGENTA,
+];
 
 fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(v), hi.max(v))
+    });
     if !lo.is_finite() {
         return 0.0..1.0;
     }
@@ -28,14 +36,25 @@ fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
 
 /// Draws the trajectories (first one red: the reference) into a 1200x900 PNG at `path`;
 /// time starts at the first sample of the first trajectory.
-pub fn plot_trajectories(path: &Path, title: &str, trajectories: &[Trajectory]) -> Result<(), PlotError> {
+pub fn plot_trajectories(
+    path: &Path,
+    title: &str,
+    trajectories: &[Trajectory],
+) -> Result<(), PlotError> {
     crate::register_fonts();
     let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
     let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root.titled(title, ("sans-serif", 24)).map_err(|e| err(&e))?;
+    let root = root
+        .titled(title, ("sans-serif", 24))
+        .map_err(|e| err(&e))?;
     let panels = root.split_evenly((2, 2));
-    let t0 = trajectories.iter().flat_map(|t| t.samples.first()).map(|s| s.0).next().unwrap_or(0.0);
+    let t0 = trajectories
+        .iter()
+        .flat_map(|t| t.samples.first())
+        .map(|s| s.0)
+        .next()
+        .unwrap_or(0.0);
     let all = || trajectories.iter().flat_map(|t| t.samples.iter());
     let time_range = range(all().map(|s| s.0 - t0));
     for (axis, panel) in panels.iter().take(3).enumerate() {
@@ -57,10 +76,15 @@ pub fn plot_trajectories(path: &Path, title: &str, trajectories: &[Trajectory]) 
         for (i, t) in trajectories.iter().enumerate() {
             let colour = COLOURS[i % COLOURS.len()];
             chart
-                .draw_series(LineSeries::new(t.samples.iter().map(|s| (s.0 - t0, s.1[axis])), colour.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    t.samples.iter().map(|s| (s.0 - t0, s.1[axis])),
+                    colour.stroke_width(2),
+                ))
                 .map_err(|e| err(&e))?
                 .label(t.name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
         }
         if axis == 0 {
             chart
@@ -83,11 +107,20 @@ pub fn plot_trajectories(path: &Path, title: &str, trajectories: &[Trajectory]) 
         .y_label_area_size(55)
         .build_cartesian_2d((mx - half)..(mx + half), (my - half)..(my + half))
         .map_err(|e| err(&e))?;
-    chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").label_style(("sans-serif", 13)).draw().map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|e| err(&e))?;
     for (i, t) in trajectories.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         chart
-            .draw_series(LineSeries::new(t.samples.iter().map(|s| (s.1[0], s.1[1])), colour.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                t.samples.iter().map(|s| (s.1[0], s.1[1])),
+                colour.stroke_width(2),
+            ))
             .map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
@@ -104,9 +137,32 @@ mod tests {
         let path = dir.join("t.png");
         let circle = |r: f64| Trajectory {
             name: format!("r {r}"),
-            samples: (0..50).map(|i| (i as f64 * 0.1, [r * (i as f64 * 0.1).cos(), r * (i as f64 * 0.1).sin(), 0.01 * i as f64])).collect(),
+            samples: (0..50)
+                .map(|i| {
+                    (
+                        i as f64 * 0.1,
+                        [
+                            r * (i as f64 * 0.1).cos(),
+                            r * (i as f64 * 0.1).sin(),
+                            0.01 * i as f64,
+                        ],
+                    )
+                })
+                .collect(),
         };
-        plot_trajectories(&path, "test", &[circle(1.0), circle(1.1), Trajectory { name: "empty".into(), samples: vec![] }]).expect("drawn");
+        plot_trajectories(
+            &path,
+            "test",
+            &[
+                circle(1.0),
+                circle(1.1),
+                Trajectory {
+                    name: "empty".into(),
+                    samples: vec![],
+                },
+            ],
+        )
+        .expect("drawn");
         let bytes = std::fs::read(&path).expect("written");
         assert!(bytes.starts_with(b"\x89PNG"));
         std::fs::remove_dir_all(&dir).ok();

@@ -55,7 +55,10 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
 fn read_stdin(limit: usize) -> anyhow::Result<String> {
     let mut bytes = Vec::new();
     let limit_plus_one = u64::try_from(limit).unwrap_or(u64::MAX).saturating_add(1);
-    std::io::stdin().take(limit_plus_one).read_to_end(&mut bytes).context("reading stdin")?;
+    std::io::stdin()
+        .take(limit_plus_one)
+        .read_to_end(&mut bytes)
+        .context("reading stdin")?;
     anyhow::ensure!(bytes.len() <= limit, "input exceeds the {limit}-byte limit");
     String::from_utf8(bytes).context("stdin is not UTF-8 text")
 }
@@ -69,7 +72,11 @@ fn write_stdout(text: &str) -> anyhow::Result<ExitCode> {
 
 fn parse(args: &ParseArgs) -> anyhow::Result<ExitCode> {
     let text = read_stdin(DEFAULT_MAX_LEN)?;
-    let options = if args.jade_compat { ParseOptions::jade() } else { ParseOptions::default() };
+    let options = if args.jade_compat {
+        ParseOptions::jade()
+    } else {
+        ParseOptions::default()
+    };
     let message = codec::parse_with(&text, &options).context("invalid ACL message on stdin")?;
     let has_bytes = matches!(message.content, Some(iw_acl::Content::Bytes(_)));
     if has_bytes && !args.byte_content {
@@ -85,7 +92,12 @@ fn parse(args: &ParseArgs) -> anyhow::Result<ExitCode> {
 
 fn print(args: &PrintArgs) -> anyhow::Result<ExitCode> {
     let text = read_stdin(DEFAULT_MAX_LEN)?;
-    let message: AclMessage = serde_json::from_str(&text).context("invalid message JSON on stdin")?;
-    let options = if args.jade_compat { PrintOptions::jade() } else { PrintOptions::default() };
+    let message: AclMessage =
+        serde_json::from_str(&text).context("invalid message JSON on stdin")?;
+    let options = if args.jade_compat {
+        PrintOptions::jade()
+    } else {
+        PrintOptions::default()
+    };
     write_stdout(&codec::print_with(&message, &options)?)
 }

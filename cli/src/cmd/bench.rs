@@ -46,16 +46,34 @@ pub enum Command {
 
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
-        Command::Bus { json, seconds, transports, layer_sets, window } => {
+        Command::Bus {
+            json,
+            seconds,
+            transports,
+            layer_sets,
+            window,
+        } => {
             if !(seconds.is_finite() && seconds > 0.0) {
                 bail!("--seconds must be a positive number, got {seconds}");
             }
             if window == 0 {
                 bail!("--window must be at least 1");
             }
-            let transports: Vec<Kind> = transports.split(',').map(Kind::parse).collect::<anyhow::Result<_>>()?;
-            let layer_sets: Vec<Layers> = layer_sets.iter().map(|s| Layers::parse(s)).collect::<anyhow::Result<_>>()?;
-            bench_bus(&transports, &layer_sets, Duration::from_secs_f64(seconds / 2.0), window, json)?;
+            let transports: Vec<Kind> = transports
+                .split(',')
+                .map(Kind::parse)
+                .collect::<anyhow::Result<_>>()?;
+            let layer_sets: Vec<Layers> = layer_sets
+                .iter()
+                .map(|s| Layers::parse(s))
+                .collect::<anyhow::Result<_>>()?;
+            bench_bus(
+                &transports,
+                &layer_sets,
+                Duration::from_secs_f64(seconds / 2.0),
+                window,
+                json,
+            )?;
             Ok(ExitCode::SUCCESS)
         }
     }
@@ -103,19 +121,37 @@ impl Kind {
     }
 
     /// Two connected endpoints of this transport, named uniquely for this run.
-    fn pair(self, row: usize) -> anyhow::Result<(Arc<dyn FrameTransport>, Arc<dyn FrameTransport>)> {
+    fn pair(
+        self,
+        row: usize,
+    ) -> anyhow::Result<(Arc<dyn FrameTransport>, Arc<dyn FrameTransport>)> {
         Ok(match self {
             Kind::InProc => {
                 let net = InProcNetwork::new();
-                (Arc::new(net.endpoint("ping")?), Arc::new(net.endpoint("echo")?))
+                (
+                    Arc::new(net.endpoint("ping")?),
+                    Arc::new(net.endpoint("echo")?),
+                )
             }
             Kind::Iceoryx2 => {
-                let nanos = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
+                let nanos = SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .map(|d| d.as_nanos())
+                    .unwrap_or(0);
                 let base = format!("bench/{}/{nanos}/{row}", std::process::id());
-                (Arc::new(ShmTransport::open(&format!("{base}/ping"))?), Arc::new(ShmTransport::open(&format!("{base}/echo"))?))
+                (
+                    Arc::new(ShmTransport::open(&format!("{base}/ping"))?),
+                    Arc::new(ShmTransport::open(&format!("{base}/echo"))?),
+                )
             }
-            Kind::Udp => (Arc::new(UdpTransport::bind("127.0.0.1:0")?), Arc::new(UdpTransport::bind("127.0.0.1:0")?)),
-            Kind::Tcp => (Arc::new(TcpTransport::bind("127.0.0.1:0")?), Arc::new(TcpTransport::bind("127.0.0.1:0")?)),
+            Kind::Udp => (
+                Arc::new(UdpTransport::bind("127.0.0.1:0")?),
+                Arc::new(UdpTransport::bind("127.0.0.1:0")?),
+            ),
+            Kind::Tcp => (
+                Arc::new(TcpTransport::bind("127.0.0.1:0")?),
+                Arc::new(TcpTransport::bind("127.0.0.1:0")?),
+            ),
         })
     }
 }
@@ -131,8 +167,14 @@ impl Layers {
         if s == "raw" {
             return Ok(Layers::Raw);
         }
-        let set = s.replace('+', ",").parse::<LayerSet>().with_context(|| format!("layer set `{s}`"))?;
-        Ok(Layers::Bus { name: s.to_string(), set })
+        let set = s
+            .replace('+', ",")
+            .parse::<LayerSet>()
+            .with_context(|| format!("layer set `{s}`"))?;
+        Ok(Layers::Bus {
+            name: s.to_string(),
+            set,
+        })
     }
 
     fn name(&self) -> &str {
@@ -143,14 +185,27 @@ impl Layers {
     }
 }
 
-fn bench_bus(kinds: &[Kind], layer_sets: &[Layers], half: Duration, window: usize, json: bool) -> anyhow::Result<()> {
+fn bench_bus(
+    kinds: &[Kind],
+    layer_sets: &[Layers],
+    half: Duration,
+    window: usize,
+    json: bool,
+) -> anyhow::Result<()> {
     let total = (kinds.len() * layer_sets.len()) as u64;
     let progress = indicatif::ProgressBar::new(total).with_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut out = std::io::stdout().lock();
     if !json {
-        progress.suspend(|| writeln!(out, "{:<9} {:<16} {:>12} {:>12} {:>12} {:>12}", "transport", "layers", "msgs/s", "msgs/cpu-s", "rtt p50 us", "rtt p99 us"))?;
+        progress.suspend(|| {
+            writeln!(
+                out,
+                "{:<9} {:<16} {:>12} {:>12} {:>12} {:>12}",
+                "transport", "layers", "msgs/s", "msgs/cpu-s", "rtt p50 us", "rtt p99 us"
+            )
+        })?;
     }
     let mut row_no = 0;
     for &kind in kinds {
@@ -178,7 +233,12 @@ fn bench_bus(kinds: &[Kind], layer_sets: &[Layers], half: Duration, window: usiz
                     writeln!(
                         out,
                         "{:<9} {:<16} {:>12.0} {:>12.0} {:>12.1} {:>12.1}",
-                        row.transport, row.layers, row.msgs_per_s, row.msgs_per_cpu_s, row.rtt_p50_us, row.rtt_p99_us
+                        row.transport,
+                        row.layers,
+                        row.msgs_per_s,
+                        row.msgs_per_cpu_s,
+                        row.rtt_p50_us,
+                        row.rtt_p99_us
                     )?;
                 }
                 out.flush().map_err(anyhow::Error::from)
@@ -204,10 +264,16 @@ struct Measured {
 
 /// CPU time used so far by all threads of this process.
 fn process_cpu() -> Duration {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
     // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant the kernel knows.
     unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
-    Duration::new(u64::try_from(ts.tv_sec).unwrap_or(0), u32::try_from(ts.tv_nsec).unwrap_or(0))
+    Duration::new(
+        u64::try_from(ts.tv_sec).unwrap_or(0),
+        u32::try_from(ts.tv_nsec).unwrap_or(0),
+    )
 }
 
 /// The two operations a measurement needs from a ping side, whatever carries the messages.
@@ -237,7 +303,13 @@ fn measure(p: &mut dyn Pinger, half: Duration, window: usize) -> anyhow::Result<
         bail!("no echo came back within {LOST_AFTER:?}");
     }
     rtts_ns.sort_unstable();
-    let pct = |q: f64| rtts_ns.get(((rtts_ns.len() - 1) as f64 * q) as usize).copied().unwrap_or(0) as f64 / 1e3;
+    let pct = |q: f64| {
+        rtts_ns
+            .get(((rtts_ns.len() - 1) as f64 * q) as usize)
+            .copied()
+            .unwrap_or(0) as f64
+            / 1e3
+    };
 
     let mut in_flight = 0usize;
     let mut echoed = 0u64;
@@ -255,13 +327,21 @@ fn measure(p: &mut dyn Pinger, half: Duration, window: usize) -> anyhow::Result<
         in_flight -= 1;
     }
     let elapsed = start.elapsed().as_secs_f64();
-    let cpu = process_cpu().saturating_sub(cpu_start).as_secs_f64().max(f64::MIN_POSITIVE);
+    let cpu = process_cpu()
+        .saturating_sub(cpu_start)
+        .as_secs_f64()
+        .max(f64::MIN_POSITIVE);
     while in_flight > 0 && p.recv(LOST_AFTER)? {
         in_flight -= 1;
     }
     // Each echo is two messages delivered: the request and its reply.
     let delivered = 2.0 * echoed as f64;
-    Ok(Measured { msgs_per_s: delivered / elapsed, msgs_per_cpu_s: delivered / cpu, rtt_p50_us: pct(0.5), rtt_p99_us: pct(0.99) })
+    Ok(Measured {
+        msgs_per_s: delivered / elapsed,
+        msgs_per_cpu_s: delivered / cpu,
+        rtt_p50_us: pct(0.5),
+        rtt_p99_us: pct(0.99),
+    })
 }
 
 /// A FIPA-ACL request of 300 bytes from `sender` to `receiver`.
@@ -292,7 +372,12 @@ impl Pinger for RawPinger {
     }
 }
 
-fn measure_raw(a: Arc<dyn FrameTransport>, b: Arc<dyn FrameTransport>, half: Duration, window: usize) -> anyhow::Result<Measured> {
+fn measure_raw(
+    a: Arc<dyn FrameTransport>,
+    b: Arc<dyn FrameTransport>,
+    half: Duration,
+    window: usize,
+) -> anyhow::Result<Measured> {
     let stop = Arc::new(AtomicBool::new(false));
     let echo = {
         let (b, stop) = (b.clone(), stop.clone());
@@ -305,10 +390,15 @@ fn measure_raw(a: Arc<dyn FrameTransport>, b: Arc<dyn FrameTransport>, half: Dur
             Ok(())
         })
     };
-    let mut pinger = RawPinger { to: b.local_addr().clone(), t: a, frame: acl_300("ping", "echo") };
+    let mut pinger = RawPinger {
+        to: b.local_addr().clone(),
+        t: a,
+        frame: acl_300("ping", "echo"),
+    };
     let result = measure(&mut pinger, half, window);
     stop.store(true, Ordering::Relaxed);
-    echo.join().map_err(|_| anyhow::anyhow!("echo thread panicked"))??;
+    echo.join()
+        .map_err(|_| anyhow::anyhow!("echo thread panicked"))??;
     result
 }
 
@@ -328,14 +418,30 @@ impl Pinger for BusPinger {
     }
 }
 
-fn measure_bus(a: Arc<dyn FrameTransport>, b: Arc<dyn FrameTransport>, set: LayerSet, half: Duration, window: usize) -> anyhow::Result<Measured> {
+fn measure_bus(
+    a: Arc<dyn FrameTransport>,
+    b: Arc<dyn FrameTransport>,
+    set: LayerSet,
+    half: Duration,
+    window: usize,
+) -> anyhow::Result<Measured> {
     let platform = Platform::new();
     let node_a = platform.node(&["ping"])?;
     let node_b = platform.node(&["echo"])?;
     let config = StackConfig::with_layers(set);
     let (addr_a, addr_b) = (a.local_addr().clone(), b.local_addr().clone());
-    let bus_a = Arc::new(Bus::start(platform.stack(&node_a, &config), a, Clock::system(), BusConfig::default())?);
-    let bus_b = Arc::new(Bus::start(platform.stack(&node_b, &config), b, Clock::system(), BusConfig::default())?);
+    let bus_a = Arc::new(Bus::start(
+        platform.stack(&node_a, &config),
+        a,
+        Clock::system(),
+        BusConfig::default(),
+    )?);
+    let bus_b = Arc::new(Bus::start(
+        platform.stack(&node_b, &config),
+        b,
+        Clock::system(),
+        BusConfig::default(),
+    )?);
     bus_a.add_route("echo", addr_b);
     bus_b.add_route("ping", addr_a);
     let mailbox = bus_a.register("ping")?;
@@ -351,9 +457,14 @@ fn measure_bus(a: Arc<dyn FrameTransport>, b: Arc<dyn FrameTransport>, set: Laye
             Ok(())
         })
     };
-    let mut pinger = BusPinger { bus: bus_a, mailbox, payload: acl_300("ping", "echo") };
+    let mut pinger = BusPinger {
+        bus: bus_a,
+        mailbox,
+        payload: acl_300("ping", "echo"),
+    };
     let result = measure(&mut pinger, half, window);
     bus_b.deregister("echo");
-    echo.join().map_err(|_| anyhow::anyhow!("echo thread panicked"))??;
+    echo.join()
+        .map_err(|_| anyhow::anyhow!("echo thread panicked"))??;
     result
 }

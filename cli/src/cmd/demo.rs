@@ -23,7 +23,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
-use iw_dashboard::{Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView, MapView, MessageView, PassageView, PlaceView, State, round_cm};
+use iw_dashboard::{
+    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView, MapView,
+    MessageView, PassageView, PlaceView, State, round_cm,
+};
 use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -76,10 +79,34 @@ struct Mission {
 /// needs to pass: chair-0 crosses the building first, chair-2 is refused behind it, chair-1
 /// leaves its bedroom once chair-0 has turned into the dining hall.
 const MISSIONS: [Mission; 4] = [
-    Mission { name: "chair-0", start: (1.0, 6.0, 0.0), body: BodyKind::Virtual, place: "dining-hall", at_s: 0.0 },
-    Mission { name: "chair-1", start: (7.5, 8.5, -90.0), body: BodyKind::Virtual, place: "bathroom", at_s: 25.0 },
-    Mission { name: "chair-2", start: (2.5, 8.5, -90.0), body: BodyKind::Virtual, place: "office", at_s: 12.0 },
-    Mission { name: "chair-3", start: (17.5, 6.0, 180.0), body: BodyKind::Mixed, place: "therapy", at_s: 0.0 },
+    Mission {
+        name: "chair-0",
+        start: (1.0, 6.0, 0.0),
+        body: BodyKind::Virtual,
+        place: "dining-hall",
+        at_s: 0.0,
+    },
+    Mission {
+        name: "chair-1",
+        start: (7.5, 8.5, -90.0),
+        body: BodyKind::Virtual,
+        place: "bathroom",
+        at_s: 25.0,
+    },
+    Mission {
+        name: "chair-2",
+        start: (2.5, 8.5, -90.0),
+        body: BodyKind::Virtual,
+        place: "office",
+        at_s: 12.0,
+    },
+    Mission {
+        name: "chair-3",
+        start: (17.5, 6.0, 180.0),
+        body: BodyKind::Mixed,
+        place: "therapy",
+        at_s: 0.0,
+    },
 ];
 
 /// What became of one chair's goal.
@@ -90,7 +117,10 @@ enum Outcome {
     /// The control agent informed it was done.
     Reached { time_s: f64 },
     /// The chair's agents (or the platform) answered failure or refuse, and why.
-    Failed { performative: String, reason: Option<String> },
+    Failed {
+        performative: String,
+        reason: Option<String>,
+    },
     /// It could not be sent: the way is shut (the door refused to open).
     Refused { reason: String },
 }
@@ -105,15 +135,27 @@ struct ChairReport {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(args.max_time_s > 0.0 && args.max_time_s.is_finite(), "--max-time-s must be positive, got {}", args.max_time_s);
-    anyhow::ensure!(args.step_ms > 0 && args.step_ms <= 1000, "--step-ms must be in 1..=1000, got {}", args.step_ms);
-    let map = Map::parse(SAMPLE_BUILDING, "sample-building.map").context("embedded sample building")?;
+    anyhow::ensure!(
+        args.max_time_s > 0.0 && args.max_time_s.is_finite(),
+        "--max-time-s must be positive, got {}",
+        args.max_time_s
+    );
+    anyhow::ensure!(
+        args.step_ms > 0 && args.step_ms <= 1000,
+        "--step-ms must be in 1..=1000, got {}",
+        args.step_ms
+    );
+    let map =
+        Map::parse(SAMPLE_BUILDING, "sample-building.map").context("embedded sample building")?;
     let map_view = map_view(&map);
     let chairs: Vec<ChairConfig> = MISSIONS
         .iter()
         .map(|m| ChairConfig {
             name: m.name.to_string(),
-            t_world_body: Isometry2::new(Vector2::new(m.start.0, m.start.1), m.start.2.to_radians()),
+            t_world_body: Isometry2::new(
+                Vector2::new(m.start.0, m.start.1),
+                m.start.2.to_radians(),
+            ),
         })
         .collect();
     let log_dir = match args.log_dir {
@@ -122,19 +164,38 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     std::fs::create_dir_all(&log_dir).with_context(|| format!("creating {}", log_dir.display()))?;
     let options = FleetOptions {
-        bodies: MISSIONS.iter().filter(|m| m.body != BodyKind::Virtual).map(|m| (m.name.to_string(), m.body)).collect(),
-        restricted: BTreeMap::from([(RESTRICTED_DOOR.to_string(), BTreeSet::from([AUTHORISED.to_string()]))]),
+        bodies: MISSIONS
+            .iter()
+            .filter(|m| m.body != BodyKind::Virtual)
+            .map(|m| (m.name.to_string(), m.body))
+            .collect(),
+        restricted: BTreeMap::from([(
+            RESTRICTED_DOOR.to_string(),
+            BTreeSet::from([AUTHORISED.to_string()]),
+        )]),
         log_path: Some(log_dir.join("agents.log")),
         visual_odometry: true,
     };
-    let mut fleet = Fleet::with_options(map, args.seed, &chairs, options).context("composing the fleet")?;
-    let dashboard = Dashboard::start(DashboardConfig { bind: args.bind, token: args.token.clone() }, &map_view).context("starting the dashboard")?;
+    let mut fleet =
+        Fleet::with_options(map, args.seed, &chairs, options).context("composing the fleet")?;
+    let dashboard = Dashboard::start(
+        DashboardConfig {
+            bind: args.bind,
+            token: args.token.clone(),
+        },
+        &map_view,
+    )
+    .context("starting the dashboard")?;
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone()).context("installing the signal handler")?;
+        signal_hook::flag::register(signal, stop.clone())
+            .context("installing the signal handler")?;
     }
 
-    let virtual_count = MISSIONS.iter().filter(|m| m.body == BodyKind::Virtual).count();
+    let virtual_count = MISSIONS
+        .iter()
+        .filter(|m| m.body == BodyKind::Virtual)
+        .count();
     println!(
         "IntellWheels demo: sample care building, {virtual_count} virtual chairs + {} mixed, services container; door `{RESTRICTED_DOOR}` restricted to {AUTHORISED}",
         MISSIONS.len() - virtual_count
@@ -174,7 +235,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 _ => {}
             }
         }
-        let mission_over = steps >= total_steps || outcomes.iter().all(|o| !matches!(o, Outcome::Pending));
+        let mission_over =
+            steps >= total_steps || outcomes.iter().all(|o| !matches!(o, Outcome::Pending));
         if mission_over && !args.serve {
             break;
         }
@@ -186,12 +248,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let line = match fleet.goal_place(mission.name, mission.place) {
                 Ok(conversation) => {
                     goal_places.insert(mission.name.to_string(), mission.place.to_string());
-                    let line = format!("{} ({}) -> {}: request {conversation} via the assistant", mission.name, kind_name(mission.body), mission.place);
+                    let line = format!(
+                        "{} ({}) -> {}: request {conversation} via the assistant",
+                        mission.name,
+                        kind_name(mission.body),
+                        mission.place
+                    );
                     conversations[k] = Some(conversation);
                     line
                 }
                 Err(err) => {
-                    outcomes[k] = Outcome::Refused { reason: err.to_string() };
+                    outcomes[k] = Outcome::Refused {
+                        reason: err.to_string(),
+                    };
                     format!("{} -> {}: refused ({err})", mission.name, mission.place)
                 }
             };
@@ -202,20 +271,36 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             steps += 1;
             bar.inc(1);
             settle_outcomes(&fleet, &conversations, &mut outcomes);
-            let done = outcomes.iter().filter(|o| !matches!(o, Outcome::Pending)).count();
-            bar.set_message(format!("{:5.1} s, {done}/{} goals settled", fleet.time_s(), outcomes.len()));
+            let done = outcomes
+                .iter()
+                .filter(|o| !matches!(o, Outcome::Pending))
+                .count();
+            bar.set_message(format!(
+                "{:5.1} s, {done}/{} goals settled",
+                fleet.time_s(),
+                outcomes.len()
+            ));
         }
         if last_publish.is_none_or(|t| t.elapsed() >= Duration::from_millis(100)) {
-            let refusals: Vec<String> = fleet.door_refusals().iter().map(|r| format!("door {} refused {}: {}", r.door, r.requester, r.reason)).collect();
+            let refusals: Vec<String> = fleet
+                .door_refusals()
+                .iter()
+                .map(|r| format!("door {} refused {}: {}", r.door, r.requester, r.reason))
+                .collect();
             let mut shown: Vec<String> = refusals;
             shown.extend(notices.iter().cloned());
-            dashboard.publish(&dashboard_state(&fleet, paused, &goal_places, shown)).context("publishing the dashboard state")?;
+            dashboard
+                .publish(&dashboard_state(&fleet, paused, &goal_places, shown))
+                .context("publishing the dashboard state")?;
             last_publish = Some(Instant::now());
         }
         if args.serve {
             // real time: step k is due at k * step of wall time
             let due = started + step * u32::try_from(steps).unwrap_or(u32::MAX);
-            std::thread::sleep(due.saturating_duration_since(Instant::now()).max(Duration::from_millis(1)));
+            std::thread::sleep(
+                due.saturating_duration_since(Instant::now())
+                    .max(Duration::from_millis(1)),
+            );
         }
     }
     bar.finish_and_clear();
@@ -241,7 +326,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .collect();
     let refusals = fleet.door_refusals();
     let sent = fleet.messages_sent();
-    let logged = fleet.messages_logged().context("reading the logger agent's log")?;
+    let logged = fleet
+        .messages_logged()
+        .context("reading the logger agent's log")?;
     let summary_path = log_dir.join("summary.json");
     let summary = serde_json::json!({
         "time_s": snapshot.time_s,
@@ -253,35 +340,63 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "door_refusals": refusals.iter().map(|r| serde_json::json!({"door": r.door, "requester": r.requester, "reason": r.reason})).collect::<Vec<_>>(),
         "doors": snapshot.doors,
     });
-    write_synced(&summary_path, serde_json::to_string_pretty(&summary)?.as_bytes())?;
+    write_synced(
+        &summary_path,
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
+    )?;
 
-    let reached = reports.iter().filter(|r| matches!(r.outcome, Outcome::Reached { .. })).count();
+    let reached = reports
+        .iter()
+        .filter(|r| matches!(r.outcome, Outcome::Reached { .. }))
+        .count();
     let collisions: u64 = reports.iter().map(|r| r.collisions).sum();
-    println!("Summary after {:.1} s simulated ({:.1} s wall):", snapshot.time_s, started.elapsed().as_secs_f64());
+    println!(
+        "Summary after {:.1} s simulated ({:.1} s wall):",
+        snapshot.time_s,
+        started.elapsed().as_secs_f64()
+    );
     for r in &reports {
         let outcome = match &r.outcome {
             Outcome::Pending => "not reached in time".to_string(),
             Outcome::Reached { time_s } => format!("reached at {time_s:.1} s"),
-            Outcome::Failed { performative, reason } => match reason {
+            Outcome::Failed {
+                performative,
+                reason,
+            } => match reason {
                 Some(reason) => format!("{performative}: {reason}"),
                 None => format!("{performative} (no reason given)"),
             },
             Outcome::Refused { reason } => format!("refused: {reason}"),
         };
-        println!("  {:8} {:12} {outcome}; {:.1} m driven, {} collisions", r.name, r.goal, r.distance_m, r.collisions);
+        println!(
+            "  {:8} {:12} {outcome}; {:.1} m driven, {} collisions",
+            r.name, r.goal, r.distance_m, r.collisions
+        );
     }
     for r in &refusals {
         println!("  door {} refused {}: {}", r.door, r.requester, r.reason);
     }
     println!("  goals reached: {reached}/{}", reports.len());
     println!("  collisions:    {collisions}");
-    println!("  messages:      {sent} sent, {logged} logged by the logger agent; {} frames between containers ({} dropped)", exchanges.len(), summary["dropped"]);
-    println!("  log:           {} (agents' log: {}; summary: {})", log_path.display(), fleet.log_path().display(), summary_path.display());
+    println!(
+        "  messages:      {sent} sent, {logged} logged by the logger agent; {} frames between containers ({} dropped)",
+        exchanges.len(),
+        summary["dropped"]
+    );
+    println!(
+        "  log:           {} (agents' log: {}; summary: {})",
+        log_path.display(),
+        fleet.log_path().display(),
+        summary_path.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
 fn kind_name(kind: BodyKind) -> String {
-    serde_json::to_value(kind).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_else(|| format!("{kind:?}"))
+    serde_json::to_value(kind)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_else(|| format!("{kind:?}"))
 }
 
 fn push_notice(notices: &mut VecDeque<String>, text: String) {
@@ -293,10 +408,17 @@ fn push_notice(notices: &mut VecDeque<String>, text: String) {
 
 /// Carries out what the page asked, as staff would: goals through the assistant (to the place
 /// nearest the click), doors and faults on the fleet. Returns a notice for the page.
-fn apply(fleet: &mut Fleet, action: &Action, goal_places: &mut BTreeMap<String, String>) -> anyhow::Result<Option<String>> {
+fn apply(
+    fleet: &mut Fleet,
+    action: &Action,
+    goal_places: &mut BTreeMap<String, String>,
+) -> anyhow::Result<Option<String>> {
     match action {
         Action::Goal { chair, x, y } => {
-            anyhow::ensure!(x.is_finite() && y.is_finite(), "goal ({x}, {y}) is not a point");
+            anyhow::ensure!(
+                x.is_finite() && y.is_finite(),
+                "goal ({x}, {y}) is not a point"
+            );
             let click = Point2::new(*x, *y);
             let place = fleet
                 .building()
@@ -310,11 +432,17 @@ fn apply(fleet: &mut Fleet, action: &Action, goal_places: &mut BTreeMap<String, 
         }
         Action::Door { door, open } => {
             fleet.set_door(door, *open)?;
-            Ok(Some(format!("door {door}: asked to {}", if *open { "open" } else { "close" })))
+            Ok(Some(format!(
+                "door {door}: asked to {}",
+                if *open { "open" } else { "close" }
+            )))
         }
         Action::Fault { chair, failed } => {
             fleet.set_sensor_failure(chair, *failed)?;
-            Ok(Some(format!("{chair}: sensors {}", if *failed { "failed" } else { "restored" })))
+            Ok(Some(format!(
+                "{chair}: sensors {}",
+                if *failed { "failed" } else { "restored" }
+            )))
         }
         Action::Pause { .. } | Action::Step => Ok(None),
     }
@@ -325,14 +453,48 @@ fn map_view(map: &Map) -> MapView {
     let pt = |p: &Point2<f64>| [round_cm(p.x), round_cm(p.y)];
     MapView {
         name: map.name.clone(),
-        walls: map.walls.iter().map(|w| w.iter().map(pt).collect()).collect(),
-        doors: map.doors.iter().map(|d| DoorView { id: d.id.clone(), a: pt(&d.a), b: pt(&d.b) }).collect(),
-        places: map.places.iter().map(|p| PlaceView { name: p.name.clone(), at: pt(&p.position) }).collect(),
-        passages: map.passages.iter().map(|p| PassageView { name: p.name.clone(), a: pt(&p.a), b: pt(&p.b), w: round_cm(p.width_m) }).collect(),
+        walls: map
+            .walls
+            .iter()
+            .map(|w| w.iter().map(pt).collect())
+            .collect(),
+        doors: map
+            .doors
+            .iter()
+            .map(|d| DoorView {
+                id: d.id.clone(),
+                a: pt(&d.a),
+                b: pt(&d.b),
+            })
+            .collect(),
+        places: map
+            .places
+            .iter()
+            .map(|p| PlaceView {
+                name: p.name.clone(),
+                at: pt(&p.position),
+            })
+            .collect(),
+        passages: map
+            .passages
+            .iter()
+            .map(|p| PassageView {
+                name: p.name.clone(),
+                a: pt(&p.a),
+                b: pt(&p.b),
+                w: round_cm(p.width_m),
+            })
+            .collect(),
         sonars: iw_sim::ChairSpec::default()
             .sonars
             .iter()
-            .map(|m| [round_cm(m.t_body_sonar.translation.x), round_cm(m.t_body_sonar.translation.y), round_cm(m.t_body_sonar.rotation.angle())])
+            .map(|m| {
+                [
+                    round_cm(m.t_body_sonar.translation.x),
+                    round_cm(m.t_body_sonar.translation.y),
+                    round_cm(m.t_body_sonar.rotation.angle()),
+                ]
+            })
             .collect(),
     }
 }
@@ -342,7 +504,12 @@ fn map_view(map: &Map) -> MapView {
 const WARN_RANGE_M: f64 = 0.8;
 
 /// The fleet as the page shows it.
-fn dashboard_state(fleet: &Fleet, paused: bool, goal_places: &BTreeMap<String, String>, notices: Vec<String>) -> State {
+fn dashboard_state(
+    fleet: &Fleet,
+    paused: bool,
+    goal_places: &BTreeMap<String, String>,
+    notices: Vec<String>,
+) -> State {
     let snapshot = fleet.snapshot();
     let chairs = snapshot
         .chairs
@@ -354,30 +521,58 @@ fn dashboard_state(fleet: &Fleet, paused: bool, goal_places: &BTreeMap<String, S
             ChairView {
                 n: c.name.clone(),
                 k: kind_name(kind),
-                p: [round_cm(c.pose[0]), round_cm(c.pose[1]), round_cm(c.pose[2])],
+                p: [
+                    round_cm(c.pose[0]),
+                    round_cm(c.pose[1]),
+                    round_cm(c.pose[2]),
+                ],
                 v: [round_cm(c.twist[0]), round_cm(c.twist[1])],
                 s: c.sonar_m.iter().map(|r| r.map_or(-1.0, round_cm)).collect(),
                 g: c.goal.as_ref().map(pt),
                 path: c.path.iter().map(pt).collect(),
                 // the world's pose is ground truth for a virtual chair; a real or mixed one is
                 // dead-reckoned: 1 % of the distance driven as its drift bound
-                u: if kind == BodyKind::Virtual { 0.0 } else { round_cm(0.01 * c.distance_m) },
+                u: if kind == BodyKind::Virtual {
+                    0.0
+                } else {
+                    round_cm(0.01 * c.distance_m)
+                },
                 c: c.collisions,
                 d: ChairDisplay {
-                    action: display.as_ref().and_then(|d| d.last_command.as_ref()).map_or_else(
-                        || if c.twist[0].abs() > 0.01 || c.twist[1].abs() > 0.01 { "driving".to_string() } else { "idle".to_string() },
-                        |cmd| format!("{cmd:?}"),
-                    ),
+                    action: display
+                        .as_ref()
+                        .and_then(|d| d.last_command.as_ref())
+                        .map_or_else(
+                            || {
+                                if c.twist[0].abs() > 0.01 || c.twist[1].abs() > 0.01 {
+                                    "driving".to_string()
+                                } else {
+                                    "idle".to_string()
+                                }
+                            },
+                            |cmd| format!("{cmd:?}"),
+                        ),
                     goal: goal_places.get(&c.name).cloned(),
-                    warn: c.twist[0].abs() > 0.01 && c.sonar_m.iter().flatten().any(|r| *r < WARN_RANGE_M),
+                    warn: c.twist[0].abs() > 0.01
+                        && c.sonar_m.iter().flatten().any(|r| *r < WARN_RANGE_M),
                     seq: display.as_ref().and_then(|d| d.progress),
                     answer: display.and_then(|d| d.last_answer),
                 },
             }
         })
         .collect();
-    let mut containers: Vec<ContainerView> = snapshot.chairs.iter().map(|c| ContainerView { name: c.name.clone(), agents: c.agents.clone() }).collect();
-    containers.push(ContainerView { name: "services".into(), agents: snapshot.services.clone() });
+    let mut containers: Vec<ContainerView> = snapshot
+        .chairs
+        .iter()
+        .map(|c| ContainerView {
+            name: c.name.clone(),
+            agents: c.agents.clone(),
+        })
+        .collect();
+    containers.push(ContainerView {
+        name: "services".into(),
+        agents: snapshot.services.clone(),
+    });
     State {
         t: snapshot.time_s as f32,
         paused,
@@ -393,7 +588,14 @@ fn dashboard_state(fleet: &Fleet, paused: bool, goal_places: &BTreeMap<String, S
 
 /// The sniffer line of one frame: its performative and conversation read off the ACL text.
 fn message_view(e: &iw_fleet::Exchange) -> MessageView {
-    let act = e.acl.trim_start().trim_start_matches('(').split_whitespace().next().unwrap_or("").to_ascii_lowercase();
+    let act = e
+        .acl
+        .trim_start()
+        .trim_start_matches('(')
+        .split_whitespace()
+        .next()
+        .unwrap_or("")
+        .to_ascii_lowercase();
     let conv = e
         .acl
         .split(":conversation-id")
@@ -401,20 +603,33 @@ fn message_view(e: &iw_fleet::Exchange) -> MessageView {
         .and_then(|rest| rest.split_whitespace().next())
         .map(|c| c.trim_matches(|ch| ch == '"' || ch == ')').to_string())
         .unwrap_or_default();
-    MessageView { from: e.sender.clone(), to: e.receiver.clone(), act, conv, dropped: e.dropped }
+    MessageView {
+        from: e.sender.clone(),
+        to: e.receiver.clone(),
+        act,
+        conv,
+        dropped: e.dropped,
+    }
 }
 
 /// Records the final answer (done, failure, refuse) of each pending goal.
 fn settle_outcomes(fleet: &Fleet, conversations: &[Option<String>], outcomes: &mut [Outcome]) {
     let events = fleet.goal_events();
     for (conversation, outcome) in conversations.iter().zip(outcomes.iter_mut()) {
-        let (Some(conversation), Outcome::Pending) = (conversation, &*outcome) else { continue };
+        let (Some(conversation), Outcome::Pending) = (conversation, &*outcome) else {
+            continue;
+        };
         for event in events.iter().filter(|e| &e.conversation == conversation) {
             let p = event.performative.to_ascii_lowercase();
             if p == "inform" {
-                *outcome = Outcome::Reached { time_s: event.time_s };
+                *outcome = Outcome::Reached {
+                    time_s: event.time_s,
+                };
             } else if p == "failure" || p == "refuse" || p == "not-understood" {
-                *outcome = Outcome::Failed { performative: p, reason: event.reason.clone() };
+                *outcome = Outcome::Failed {
+                    performative: p,
+                    reason: event.reason.clone(),
+                };
             }
         }
     }
@@ -433,8 +648,14 @@ fn write_log(path: &std::path::Path, exchanges: &[iw_fleet::Exchange]) -> anyhow
 fn write_synced(path: &std::path::Path, bytes: &[u8]) -> anyhow::Result<()> {
     let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut writer = BufWriter::new(file);
-    writer.write_all(bytes).with_context(|| format!("writing {}", path.display()))?;
-    let file = writer.into_inner().map_err(|e| e.into_error()).with_context(|| format!("writing {}", path.display()))?;
-    file.sync_all().with_context(|| format!("syncing {}", path.display()))?;
+    writer
+        .write_all(bytes)
+        .with_context(|| format!("writing {}", path.display()))?;
+    let file = writer
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", path.display()))?;
+    file.sync_all()
+        .with_context(|| format!("syncing {}", path.display()))?;
     Ok(())
 }

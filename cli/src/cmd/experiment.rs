@@ -4,8 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use iw_shared_control_experiment::{Config, Mode, Summary, office_circuit, write_outputs};
 use iw_features::{DetectorConfig, DetectorKind};
+use iw_shared_control_experiment::{Config, Mode, Summary, office_circuit, write_outputs};
 use iw_sim::vo::{TrialConfig, TrialPoint, run_trial, sim_vo_config, waypoints_ahead};
 use iw_sim::{ChairKind, ChairSpec, Map, TextureSet, World};
 use iw_vo::Pipeline;
@@ -100,21 +100,32 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
 
 fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(args.frames >= 2, "--frames must be at least 2");
-    anyhow::ensure!(args.speed.is_finite() && args.speed > 0.0, "--speed must be positive, got {}", args.speed);
+    anyhow::ensure!(
+        args.speed.is_finite() && args.speed > 0.0,
+        "--speed must be positive, got {}",
+        args.speed
+    );
     anyhow::ensure!(!args.detectors.is_empty(), "--detectors names none");
     let map = match &args.map {
         Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
         None => office_circuit()?,
     };
-    let start = map.start(&args.route).with_context(|| format!("the map has no start named `{}`", args.route))?;
-    let route = map.route(&args.route).with_context(|| format!("the map has no route named `{}`", args.route))?;
+    let start = map
+        .start(&args.route)
+        .with_context(|| format!("the map has no start named `{}`", args.route))?;
+    let route = map
+        .route(&args.route)
+        .with_context(|| format!("the map has no route named `{}`", args.route))?;
     let waypoints = waypoints_ahead(&start, route);
     let textures = match &args.textures {
         Some(dir) => Some(TextureSet::load_dir(dir)?),
         None => None,
     };
     let mut trials = Vec::new();
-    println!("{:<10} {:>12} {:>12} {:>12} {:>10} {:>10} {:>12}", "detector", "wheel RMSE", "VO RMSE", "fused RMSE", "VO frames", "VO fps", "render ms");
+    println!(
+        "{:<10} {:>12} {:>12} {:>12} {:>10} {:>10} {:>12}",
+        "detector", "wheel RMSE", "VO RMSE", "fused RMSE", "VO frames", "VO fps", "render ms"
+    );
     for &detector in &args.detectors {
         let mut world = World::new(map.clone(), args.seed);
         if let Some(t) = &textures {
@@ -128,7 +139,8 @@ fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
             vo: {
                 let mut vo = sim_vo_config(detector, args.pipeline);
                 if let Some(factor) = args.threshold_scale {
-                    vo.detector_config.threshold = DetectorConfig::for_kind(detector).threshold * factor;
+                    vo.detector_config.threshold =
+                        DetectorConfig::for_kind(detector).threshold * factor;
                 }
                 vo
             },
@@ -149,9 +161,15 @@ fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
         trials.push((detector, trial));
     }
     if let (Some(path), Some((detector, trial))) = (&args.plot, trials.first()) {
-        let series = |name: &str, pick: &dyn Fn(&TrialPoint) -> iw_vo::Pose2| iw_plot::trajectory::Trajectory {
-            name: name.to_string(),
-            samples: trial.points.iter().map(|p| (p.time_s, [pick(p).x, pick(p).y, pick(p).theta])).collect(),
+        let series = |name: &str, pick: &dyn Fn(&TrialPoint) -> iw_vo::Pose2| {
+            iw_plot::trajectory::Trajectory {
+                name: name.to_string(),
+                samples: trial
+                    .points
+                    .iter()
+                    .map(|p| (p.time_s, [pick(p).x, pick(p).y, pick(p).theta]))
+                    .collect(),
+            }
         };
         let title = format!(
             "odometry in the simulator ({detector}): wheel {:.1} cm, VO {:.1} cm, fused {:.1} cm RMSE (z panel: heading, rad)",
@@ -162,7 +180,12 @@ fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
         iw_plot::trajectory::plot_trajectories(
             path,
             &title,
-            &[series("ground truth", &|p| p.truth), series("wheel odometry", &|p| p.wheel), series("visual odometry", &|p| p.vo), series("fused (EKF)", &|p| p.fused)],
+            &[
+                series("ground truth", &|p| p.truth),
+                series("wheel odometry", &|p| p.wheel),
+                series("visual odometry", &|p| p.vo),
+                series("fused (EKF)", &|p| p.fused),
+            ],
         )?;
         println!("wrote {}", path.display());
     }
@@ -170,7 +193,10 @@ fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(args.drivers > 0 && args.laps > 0, "--drivers and --laps must be at least 1");
+    anyhow::ensure!(
+        args.drivers > 0 && args.laps > 0,
+        "--drivers and --laps must be at least 1"
+    );
     anyhow::ensure!(args.lap_timeout_s > 0.0, "--lap-timeout-s must be positive");
     let map = match &args.map {
         Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
@@ -186,11 +212,18 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
     };
     let bar = indicatif::ProgressBar::new((args.drivers * Mode::ALL.len()) as u64);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} trials ({elapsed}, eta {eta}) {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} trials ({elapsed}, eta {eta}) {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let report = iw_shared_control_experiment::run(&map, &config, |trial| {
-        bar.set_message(format!("driver {} {}: {} collisions", trial.driver + 1, trial.mode.key(), trial.collisions));
+        bar.set_message(format!(
+            "driver {} {}: {} collisions",
+            trial.driver + 1,
+            trial.mode.key(),
+            trial.collisions
+        ));
         bar.inc(1);
     })?;
     bar.finish_and_clear();
@@ -203,7 +236,14 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
 fn print_table(s: &Summary) {
     println!(
         "{:<8} {:>10} {:>10} {:>6} {:>10} {:>12} {:>12} {:>12}",
-        "mode", "collisions", "per lap", "laps", "lap time", "interv.rate", "rate near", "rate free"
+        "mode",
+        "collisions",
+        "per lap",
+        "laps",
+        "lap time",
+        "interv.rate",
+        "rate near",
+        "rate free"
     );
     for mode in Mode::ALL {
         let (name, m) = (mode.key(), s.mode(mode));

@@ -22,7 +22,12 @@ pub struct Args {
     #[arg(long, default_value = "lsac-surf")]
     detector: DetectorKind,
     /// Output PNG with the features (and matches) drawn.
-    #[arg(short = 'o', long = "output", conflicts_with = "json", required_unless_present = "json")]
+    #[arg(
+        short = 'o',
+        long = "output",
+        conflicts_with = "json",
+        required_unless_present = "json"
+    )]
     output: Option<PathBuf>,
     /// Print the first image's keypoints as JSON lines instead of drawing:
     /// {"x","y","scale","size","orientation","response","class"}.
@@ -91,22 +96,39 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         None => {
             let mut canvas = first.clone();
             draw_features(&mut canvas, &features, 0);
-            eprintln!("{}: {} keypoints ({})", args.image.display(), features.keypoints.len(), args.detector);
+            eprintln!(
+                "{}: {} keypoints ({})",
+                args.image.display(),
+                features.keypoints.len(),
+                args.detector
+            );
             canvas
         }
         Some(path2) => {
             let second = load_rgb(path2)?;
             let features2 = iw_features::detect(args.detector, &second, &config)?;
-            let matches = iw_features::match_features(&features, &features2, &MatchConfig::default());
+            let matches =
+                iw_features::match_features(&features, &features2, &MatchConfig::default());
             let offset = first.width();
-            let mut canvas = RgbImage::new(first.width() + second.width(), first.height().max(second.height()));
+            let mut canvas = RgbImage::new(
+                first.width() + second.width(),
+                first.height().max(second.height()),
+            );
             image::imageops::replace(&mut canvas, &first, 0, 0);
             image::imageops::replace(&mut canvas, &second, i64::from(offset), 0);
             draw_features(&mut canvas, &features, 0);
             draw_features(&mut canvas, &features2, offset);
             for m in &matches {
-                let (a, b) = (&features.keypoints[m.query_index], &features2.keypoints[m.train_index]);
-                draw_line(&mut canvas, (a.x, a.y), (b.x + offset as f32, b.y), Rgb([255, 255, 0]));
+                let (a, b) = (
+                    &features.keypoints[m.query_index],
+                    &features2.keypoints[m.train_index],
+                );
+                draw_line(
+                    &mut canvas,
+                    (a.x, a.y),
+                    (b.x + offset as f32, b.y),
+                    Rgb([255, 255, 0]),
+                );
             }
             eprintln!(
                 "{} keypoints, {} keypoints, {} matches ({})",
@@ -118,7 +140,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             canvas
         }
     };
-    canvas.save(&output).with_context(|| format!("writing {}", output.display()))?;
+    canvas
+        .save(&output)
+        .with_context(|| format!("writing {}", output.display()))?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -148,9 +172,18 @@ fn put(canvas: &mut RgbImage, x: f32, y: f32, colour: Rgb<u8>) {
 }
 
 fn draw_line(canvas: &mut RgbImage, from: (f32, f32), to: (f32, f32), colour: Rgb<u8>) {
-    let steps = (to.0 - from.0).abs().max((to.1 - from.1).abs()).ceil().max(1.0) as usize;
+    let steps = (to.0 - from.0)
+        .abs()
+        .max((to.1 - from.1).abs())
+        .ceil()
+        .max(1.0) as usize;
     for k in 0..=steps {
         let t = k as f32 / steps as f32;
-        put(canvas, from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1), colour);
+        put(
+            canvas,
+            from.0 + t * (to.0 - from.0),
+            from.1 + t * (to.1 - from.1),
+            colour,
+        );
     }
 }

@@ -62,8 +62,20 @@ pub enum Command {
 }
 
 fn print_line(out: &mut impl Write, m: &LoggedMessage) -> std::io::Result<()> {
-    let conversation = m.conversation_id.as_deref().map(|c| format!(" [{c}]")).unwrap_or_default();
-    writeln!(out, "{} {} -> {} {}{}", m.time_ns, m.sender, m.receivers.join(","), m.performative, conversation)?;
+    let conversation = m
+        .conversation_id
+        .as_deref()
+        .map(|c| format!(" [{c}]"))
+        .unwrap_or_default();
+    writeln!(
+        out,
+        "{} {} -> {} {}{}",
+        m.time_ns,
+        m.sender,
+        m.receivers.join(","),
+        m.performative,
+        conversation
+    )?;
     writeln!(out, "    {}", m.acl)
 }
 
@@ -72,9 +84,31 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match command {
-        Command::Query { log, sender, receiver, agent, performative, conversation, since_ns, until_ns, contains, json } => {
-            let query = Query { sender, receiver, agent, performative, conversation_id: conversation, since_ns, until_ns, contains };
-            let found = query.run(&log).with_context(|| format!("querying {}", log.display()))?;
+        Command::Query {
+            log,
+            sender,
+            receiver,
+            agent,
+            performative,
+            conversation,
+            since_ns,
+            until_ns,
+            contains,
+            json,
+        } => {
+            let query = Query {
+                sender,
+                receiver,
+                agent,
+                performative,
+                conversation_id: conversation,
+                since_ns,
+                until_ns,
+                contains,
+            };
+            let found = query
+                .run(&log)
+                .with_context(|| format!("querying {}", log.display()))?;
             for m in &found {
                 if json {
                     writeln!(out, "{}", serde_json::to_string(m)?)?;
@@ -87,7 +121,9 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             if !(speed.is_finite() && speed >= 0.0) {
                 anyhow::bail!("--speed must be a finite number >= 0, got {speed}");
             }
-            let all = Query::default().run(&log).with_context(|| format!("reading {}", log.display()))?;
+            let all = Query::default()
+                .run(&log)
+                .with_context(|| format!("reading {}", log.display()))?;
             let mut previous_ns = None;
             for m in &all {
                 if let (Some(previous), true) = (previous_ns, speed > 0.0) {

@@ -20,10 +20,10 @@ use std::process::ExitCode;
 use anyhow::Context;
 use image::RgbImage;
 use indicatif::{ProgressBar, ProgressStyle};
-use iw_stats::{Alternative, wilcoxon_signed_rank};
 use iw_features::experiment::{Collection, Relight, Summary, repeatability};
 use iw_features::{Detector, DetectorConfig, DetectorKind, Keypoint};
 use iw_plot::boxplot::{BoxPanel, BoxSeries, plot_boxes};
+use iw_stats::{Alternative, wilcoxon_signed_rank};
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
@@ -44,7 +44,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     match (&args.images, &args.pair) {
         (Some(dir), _) => run_collections(dir, &args.out),
         (None, Some(pair)) => match pair.as_slice() {
@@ -55,8 +56,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
 }
 
-fn detect(detector: &mut Detector, kind: DetectorKind, image: &RgbImage) -> anyhow::Result<Vec<Keypoint>> {
-    Ok(detector.detect(kind, image, &DetectorConfig::for_kind(kind))?.keypoints)
+fn detect(
+    detector: &mut Detector,
+    kind: DetectorKind,
+    image: &RgbImage,
+) -> anyhow::Result<Vec<Keypoint>> {
+    Ok(detector
+        .detect(kind, image, &DetectorConfig::for_kind(kind))?
+        .keypoints)
 }
 
 fn write_json(path: &Path, value: &Value) -> anyhow::Result<()> {
@@ -81,8 +88,15 @@ fn run_pair(a: &Path, b: &Path, out: &Path) -> anyhow::Result<ExitCode> {
         let kr = detect(&mut detector, kind, &reference)?;
         let ki = detect(&mut detector, kind, &relit)?;
         let r = repeatability(&ki, &kr);
-        println!("{kind}: repeatability {r:.1} % over {} keypoints (reference {})", ki.len(), kr.len());
-        pair.insert(kind.name().into(), json!({"repeatability": r, "features": ki.len()}));
+        println!(
+            "{kind}: repeatability {r:.1} % over {} keypoints (reference {})",
+            ki.len(),
+            kr.len()
+        );
+        pair.insert(
+            kind.name().into(),
+            json!({"repeatability": r, "features": ki.len()}),
+        );
     }
     write_json(&out.join("summary.json"), &json!({ "pair": pair }))?;
     Ok(ExitCode::SUCCESS)
@@ -118,18 +132,26 @@ fn list_images(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 
 fn run_collections(dir: &Path, out: &Path) -> anyhow::Result<ExitCode> {
     let files = list_images(dir)?;
-    let images: Vec<RgbImage> = files.iter().map(|f| load_rgb(f)).collect::<anyhow::Result<_>>()?;
-    let changes: Vec<(Collection, Relight)> =
-        Collection::ALL.iter().flat_map(|&c| c.changes().into_iter().map(move |r| (c, r))).collect();
+    let images: Vec<RgbImage> = files
+        .iter()
+        .map(|f| load_rgb(f))
+        .collect::<anyhow::Result<_>>()?;
+    let changes: Vec<(Collection, Relight)> = Collection::ALL
+        .iter()
+        .flat_map(|&c| c.changes().into_iter().map(move |r| (c, r)))
+        .collect();
     let kinds = DetectorKind::ALL;
     let total = images.len() * kinds.len() * (1 + changes.len());
     let bar = ProgressBar::new(total as u64).with_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} detections ({eta} left)")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} detections ({eta} left)",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     // Phase 1: reference keypoints per image and detector.
-    let reference_jobs: Vec<(usize, DetectorKind)> =
-        (0..images.len()).flat_map(|i| kinds.iter().map(move |&k| (i, k))).collect();
+    let reference_jobs: Vec<(usize, DetectorKind)> = (0..images.len())
+        .flat_map(|i| kinds.iter().map(move |&k| (i, k)))
+        .collect();
     let references: Vec<Vec<Keypoint>> = reference_jobs
         .par_iter()
         .map_init(Detector::new, |det, &(i, kind)| {
@@ -166,8 +188,16 @@ fn run_collections(dir: &Path, out: &Path) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn values(rows: &[Row], collection: Collection, kind: DetectorKind, f: impl Fn(&Row) -> f64) -> Vec<f64> {
-    rows.iter().filter(|r| r.collection == collection && r.kind == kind).map(f).collect()
+fn values(
+    rows: &[Row],
+    collection: Collection,
+    kind: DetectorKind,
+    f: impl Fn(&Row) -> f64,
+) -> Vec<f64> {
+    rows.iter()
+        .filter(|r| r.collection == collection && r.kind == kind)
+        .map(f)
+        .collect()
 }
 
 /// Wilcoxon signed-rank test of `b - a` (normal approximation, as the thesis's detector tables):
@@ -175,12 +205,16 @@ fn values(rows: &[Row], collection: Collection, kind: DetectorKind, f: impl Fn(&
 fn wilcoxon(a: &[f64], b: &[f64]) -> anyhow::Result<Value> {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
-    let two = wilcoxon_signed_rank(b, a, Alternative::TwoSided).context("Wilcoxon test of the repeatabilities")?;
+    let two = wilcoxon_signed_rank(b, a, Alternative::TwoSided)
+        .context("Wilcoxon test of the repeatabilities")?;
     if two.n == 0 {
         return Ok(Value::Null);
     }
-    let greater = wilcoxon_signed_rank(b, a, Alternative::Greater).context("Wilcoxon test of the repeatabilities")?;
-    Ok(json!({ "n": two.n, "w_plus": two.w_plus, "z": two.z, "p_two_sided": two.p_normal, "p_greater": greater.p_normal }))
+    let greater = wilcoxon_signed_rank(b, a, Alternative::Greater)
+        .context("Wilcoxon test of the repeatabilities")?;
+    Ok(
+        json!({ "n": two.n, "w_plus": two.w_plus, "z": two.z, "p_two_sided": two.p_normal, "p_greater": greater.p_normal }),
+    )
 }
 
 fn count_ratio(r: &Row) -> f64 {
@@ -191,8 +225,14 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
     let mut summary = serde_json::Map::new();
     let mut statistics = serde_json::Map::new();
     let mut panels = Vec::new();
-    println!("{} images; median repeatability % [median keypoint-count ratio relit/reference]", files.len());
-    println!("| collection | {} |", DetectorKind::ALL.map(|k| k.name()).join(" | "));
+    println!(
+        "{} images; median repeatability % [median keypoint-count ratio relit/reference]",
+        files.len()
+    );
+    println!(
+        "| collection | {} |",
+        DetectorKind::ALL.map(|k| k.name()).join(" | ")
+    );
     println!("|---|---|---|---|");
     for collection in Collection::ALL {
         let mut per_kind = serde_json::Map::new();
@@ -204,7 +244,10 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
             let ratios = values(rows, collection, kind, count_ratio);
             let s = Summary::of(&rep);
             let ratio = Summary::of(&ratios);
-            per_kind.insert(kind.name().into(), json!({"median": s.median, "mean": s.mean, "iqr": s.iqr, "n": s.n}));
+            per_kind.insert(
+                kind.name().into(),
+                json!({"median": s.median, "mean": s.mean, "iqr": s.iqr, "n": s.n}),
+            );
             let mut by_parameter = BTreeMap::new();
             for change in collection.changes() {
                 let at: Vec<f64> = rows
@@ -227,7 +270,10 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
                 json!({"repeatability": s, "count_ratio": ratio, "by_parameter": by_parameter}),
             );
             cells.push(format!("{:.1} [{:.2}]", s.median, ratio.median));
-            boxes.push(BoxSeries { label: kind.name().into(), values: rep });
+            boxes.push(BoxSeries {
+                label: kind.name().into(),
+                values: rep,
+            });
         }
         let mut tests = serde_json::Map::new();
         for (a, b) in [
@@ -242,24 +288,44 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
             tests.insert(format!("{} - {}", b.name(), a.name()), w);
         }
         stats.insert("wilcoxon".into(), Value::Object(tests));
-        println!("| {} | {} |", collection.name().to_uppercase(), cells.join(" | "));
+        println!(
+            "| {} | {} |",
+            collection.name().to_uppercase(),
+            cells.join(" | ")
+        );
         summary.insert(collection.name().into(), Value::Object(per_kind));
         statistics.insert(collection.name().into(), Value::Object(stats));
-        panels.push(BoxPanel { caption: collection.name().to_uppercase(), boxes });
+        panels.push(BoxPanel {
+            caption: collection.name().to_uppercase(),
+            boxes,
+        });
     }
     statistics.insert(
         "images".into(),
-        json!(files.iter().map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned())).collect::<Vec<_>>()),
+        json!(
+            files
+                .iter()
+                .map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect::<Vec<_>>()
+        ),
     );
     write_json(&out.join("summary.json"), &Value::Object(summary))?;
     write_json(&out.join("statistics.json"), &Value::Object(statistics))?;
     let csv_path = out.join("rows.csv");
     let mut csv = std::io::BufWriter::new(
-        std::fs::File::create(&csv_path).with_context(|| format!("writing {}", csv_path.display()))?,
+        std::fs::File::create(&csv_path)
+            .with_context(|| format!("writing {}", csv_path.display()))?,
     );
-    writeln!(csv, "image,detector,collection,parameter,repeatability,relit_keypoints,reference_keypoints")?;
+    writeln!(
+        csv,
+        "image,detector,collection,parameter,repeatability,relit_keypoints,reference_keypoints"
+    )?;
     for r in rows {
-        let name = files.get(r.image).and_then(|f| f.file_name()).map(|n| n.to_string_lossy()).unwrap_or_default();
+        let name = files
+            .get(r.image)
+            .and_then(|f| f.file_name())
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default();
         writeln!(
             csv,
             "{name},{},{},{},{:.3},{},{}",
@@ -274,11 +340,17 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
     csv.flush()?;
     plot_boxes(
         &out.join("boxplot.png"),
-        &format!("Repeatability under illumination changes ({} images)", files.len()),
+        &format!(
+            "Repeatability under illumination changes ({} images)",
+            files.len()
+        ),
         "repeatability (%)",
         0.0..100.0,
         &panels,
     )?;
-    println!("wrote {}/summary.json, statistics.json, rows.csv, boxplot.png", out.display());
+    println!(
+        "wrote {}/summary.json, statistics.json, rows.csv, boxplot.png",
+        out.display()
+    );
     Ok(())
 }

@@ -54,7 +54,11 @@ pub struct Args {
 }
 
 fn flag_err(flag: &'static str, value: &str, reason: &str) -> NodeError {
-    NodeError::Flag { flag, value: value.into(), reason: reason.into() }
+    NodeError::Flag {
+        flag,
+        value: value.into(),
+        reason: reason.into(),
+    }
 }
 
 fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
@@ -63,7 +67,13 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
             None if body == "virtual" => (BodyKind::Virtual, ""),
             Some(("serial", port)) if !port.is_empty() => (BodyKind::Serial, port),
             Some(("mixed", port)) if !port.is_empty() => (BodyKind::Mixed, port),
-            _ => return Err(flag_err("--body", body, "expected `virtual`, `serial:PATH` or `mixed:PATH`")),
+            _ => {
+                return Err(flag_err(
+                    "--body",
+                    body,
+                    "expected `virtual`, `serial:PATH` or `mixed:PATH`",
+                ));
+            }
         };
         config.body.kind = kind;
         config.body.port = port.to_string();
@@ -84,12 +94,23 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
         config.security.identity_key = key.clone();
     }
     if let Some(start) = &args.start {
-        let values: Vec<f64> = start.split(',').map(|v| v.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| flag_err("--start", start, &e.to_string()))?;
-        config.body.start = <[f64; 3]>::try_from(values).map_err(|_| flag_err("--start", start, "expected three numbers X,Y,HEADING_DEG"))?;
+        let values: Vec<f64> = start
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| flag_err("--start", start, &e.to_string()))?;
+        config.body.start = <[f64; 3]>::try_from(values)
+            .map_err(|_| flag_err("--start", start, "expected three numbers X,Y,HEADING_DEG"))?;
     }
     for goal in &args.goals {
-        let (chair, place) = goal.split_once(':').filter(|(c, p)| !c.is_empty() && !p.is_empty()).ok_or_else(|| flag_err("--goal", goal, "expected CHAIR:PLACE"))?;
-        config.services.goals.push(GoalSpec { chair: chair.into(), place: place.into() });
+        let (chair, place) = goal
+            .split_once(':')
+            .filter(|(c, p)| !c.is_empty() && !p.is_empty())
+            .ok_or_else(|| flag_err("--goal", goal, "expected CHAIR:PLACE"))?;
+        config.services.goals.push(GoalSpec {
+            chair: chair.into(),
+            place: place.into(),
+        });
     }
     Ok(())
 }
@@ -98,12 +119,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(path) = &args.keygen {
         let public = iw_node::write_identity(path)?;
         let hex: String = public.iter().map(|b| format!("{b:02x}")).collect();
-        println!("{}", serde_json::json!({ "event": "key", "path": path.display().to_string(), "public_key": hex }));
+        println!(
+            "{}",
+            serde_json::json!({ "event": "key", "path": path.display().to_string(), "public_key": hex })
+        );
         return Ok(ExitCode::SUCCESS);
     }
     let role = match &args.chair {
         Some(name) if name.is_empty() || name == iw_node::SERVICES || name.contains('@') => {
-            return Err(flag_err("--chair", name, "a chair name is not empty, not `services` and has no `@`").into());
+            return Err(flag_err(
+                "--chair",
+                name,
+                "a chair name is not empty, not `services` and has no `@`",
+            )
+            .into());
         }
         Some(name) => Role::Chair { name: name.clone() },
         None => Role::Services,
@@ -116,13 +145,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        signal_hook::flag::register(signal, stop.clone()).context("installing the signal handlers")?;
+        signal_hook::flag::register(signal, stop.clone())
+            .context("installing the signal handlers")?;
     }
     let (events, reports) = std::sync::mpsc::channel();
-    let runtime = Runtime::start(&role, config, events).with_context(|| format!("starting container `{}`", role.name()))?;
+    let runtime = Runtime::start(&role, config, events)
+        .with_context(|| format!("starting container `{}`", role.name()))?;
     let worker = {
         let stop = stop.clone();
-        std::thread::Builder::new().name("iw-node".into()).spawn(move || runtime.run(&stop)).context("starting the container thread")?
+        std::thread::Builder::new()
+            .name("iw-node".into())
+            .spawn(move || runtime.run(&stop))
+            .context("starting the container thread")?
     };
     // Reports until the runtime (and every agent holding a sender) is gone.
     let mut out = std::io::stdout().lock();
@@ -131,6 +165,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         writeln!(out)?;
         out.flush()?;
     }
-    worker.join().map_err(|_| anyhow::anyhow!("the container thread panicked"))?;
+    worker
+        .join()
+        .map_err(|_| anyhow::anyhow!("the container thread panicked"))?;
     Ok(ExitCode::SUCCESS)
 }

@@ -11,7 +11,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 use iw_features::DetectorKind;
-use iw_vo::{CameraSource, FrameStats, Intrinsics, Pipeline, StampedPose, TumReplay, TumSequence, VisualOdometry, VoConfig, eval, tum};
+use iw_vo::{
+    CameraSource, FrameStats, Intrinsics, Pipeline, StampedPose, TumReplay, TumSequence,
+    VisualOdometry, VoConfig, eval, tum,
+};
 
 /// Flags of `intellwheels vo`.
 #[derive(clap::Args)]
@@ -64,8 +67,14 @@ fn intrinsics(args: &Args) -> anyhow::Result<Intrinsics> {
     let mut k = match &args.camera {
         Some(name) => Intrinsics::by_name(name)?,
         None => {
-            let name = args.seq_dir.canonicalize().unwrap_or_else(|_| args.seq_dir.clone());
-            let name = name.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            let name = args
+                .seq_dir
+                .canonicalize()
+                .unwrap_or_else(|_| args.seq_dir.clone());
+            let name = name
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
             Intrinsics::from_sequence_name(&name).unwrap_or_else(|| {
                 tracing::warn!(folder = %name, "camera not recognised from the folder name; using freiburg1 (set --camera)");
                 Intrinsics::tum_freiburg1()
@@ -73,7 +82,10 @@ fn intrinsics(args: &Args) -> anyhow::Result<Intrinsics> {
         }
     };
     if let Some(units) = args.depth_units_per_m {
-        anyhow::ensure!(units.is_finite() && units > 0.0, "--depth-units-per-m must be positive, got {units}");
+        anyhow::ensure!(
+            units.is_finite() && units > 0.0,
+            "--depth-units-per-m must be positive, got {units}"
+        );
         k.depth_units_per_m = units;
     }
     if args.no_distortion {
@@ -83,7 +95,11 @@ fn intrinsics(args: &Args) -> anyhow::Result<Intrinsics> {
 }
 
 fn mean(stats: &[FrameStats], f: impl Fn(&FrameStats) -> f64) -> f64 {
-    if stats.is_empty() { 0.0 } else { stats.iter().map(f).sum::<f64>() / stats.len() as f64 }
+    if stats.is_empty() {
+        0.0
+    } else {
+        stats.iter().map(f).sum::<f64>() / stats.len() as f64
+    }
 }
 
 /// Samples for the plot: time and position.
@@ -113,9 +129,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
     let bar = indicatif::ProgressBar::new(total as u64);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} vo [{bar:40}] {pos}/{len} frames {per_sec} eta {eta} {msg}")
-            .context("progress template")?
-            .progress_chars("=> "),
+        indicatif::ProgressStyle::with_template(
+            "{spinner} vo [{bar:40}] {pos}/{len} frames {per_sec} eta {eta} {msg}",
+        )
+        .context("progress template")?
+        .progress_chars("=> "),
     );
     let mut poses = Vec::with_capacity(total);
     let mut stats = Vec::with_capacity(total);
@@ -130,15 +148,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     bar.finish_and_clear();
     let wall_s = started.elapsed().as_secs_f64();
 
-    let file = std::fs::File::create(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
-    tum::write_trajectory(std::io::BufWriter::new(file), &poses).with_context(|| format!("writing {}", args.output.display()))?;
+    let file = std::fs::File::create(&args.output)
+        .with_context(|| format!("creating {}", args.output.display()))?;
+    tum::write_trajectory(std::io::BufWriter::new(file), &poses)
+        .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(path) = &args.stats {
-        let mut out = std::io::BufWriter::new(std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?);
+        let mut out = std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        );
         for s in &stats {
             serde_json::to_writer(&mut out, s)?;
             writeln!(out)?;
         }
-        out.flush().with_context(|| format!("writing {}", path.display()))?;
+        out.flush()
+            .with_context(|| format!("writing {}", path.display()))?;
     }
 
     let groundtruth = match &sequence.groundtruth {
@@ -146,34 +169,65 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         None => None,
     };
     let accuracy = match &groundtruth {
-        Some(gt) => Some((eval::ate(&poses, gt, tum::DEFAULT_MAX_DT_S)?, eval::rpe(&poses, gt, tum::DEFAULT_MAX_DT_S, 1)?)),
+        Some(gt) => Some((
+            eval::ate(&poses, gt, tum::DEFAULT_MAX_DT_S)?,
+            eval::rpe(&poses, gt, tum::DEFAULT_MAX_DT_S, 1)?,
+        )),
         None => None,
     };
     if let (Some(path), Some(gt)) = (&args.plot, &groundtruth) {
         // Only the ground truth around the sequence, the estimate aligned onto it as ATE aligns it.
-        let (first, last) = (poses.first().map_or(0.0, |p| p.timestamp_s), poses.last().map_or(0.0, |p| p.timestamp_s));
-        let gt_window: Vec<StampedPose> = gt.iter().filter(|p| p.timestamp_s >= first - 0.05 && p.timestamp_s <= last + 0.05).copied().collect();
+        let (first, last) = (
+            poses.first().map_or(0.0, |p| p.timestamp_s),
+            poses.last().map_or(0.0, |p| p.timestamp_s),
+        );
+        let gt_window: Vec<StampedPose> = gt
+            .iter()
+            .filter(|p| p.timestamp_s >= first - 0.05 && p.timestamp_s <= last + 0.05)
+            .copied()
+            .collect();
         let aligned: Vec<StampedPose> = match &accuracy {
-            Some((ate, _)) => poses.iter().map(|p| StampedPose { t_world_camera: ate.t_reference_estimate * p.t_world_camera, ..*p }).collect(),
+            Some((ate, _)) => poses
+                .iter()
+                .map(|p| StampedPose {
+                    t_world_camera: ate.t_reference_estimate * p.t_world_camera,
+                    ..*p
+                })
+                .collect(),
             None => poses.clone(),
         };
         let title = format!(
             "{} - {} {:?} pipeline{}",
-            args.seq_dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            args.seq_dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             args.detector,
             args.pipeline,
-            accuracy.as_ref().map(|(a, _)| format!(", ATE RMSE {:.2} cm", a.rmse_m * 100.0)).unwrap_or_default()
+            accuracy
+                .as_ref()
+                .map(|(a, _)| format!(", ATE RMSE {:.2} cm", a.rmse_m * 100.0))
+                .unwrap_or_default()
         );
         iw_plot::trajectory::plot_trajectories(
             path,
             &title,
             &[
-                iw_plot::trajectory::Trajectory { name: "ground truth".into(), samples: samples(&gt_window) },
-                iw_plot::trajectory::Trajectory { name: format!("estimate ({})", args.detector), samples: samples(&aligned) },
+                iw_plot::trajectory::Trajectory {
+                    name: "ground truth".into(),
+                    samples: samples(&gt_window),
+                },
+                iw_plot::trajectory::Trajectory {
+                    name: format!("estimate ({})", args.detector),
+                    samples: samples(&aligned),
+                },
             ],
         )?;
     } else if args.plot.is_some() {
-        tracing::warn!("no groundtruth.txt in {}: nothing to plot against", args.seq_dir.display());
+        tracing::warn!(
+            "no groundtruth.txt in {}: nothing to plot against",
+            args.seq_dir.display()
+        );
     }
 
     let tracked = stats.iter().filter(|s| s.tracked).count();

@@ -109,16 +109,25 @@ impl Context<'_> {
     pub fn send(&mut self, mut message: AclMessage) -> Result<(), AgentError> {
         message.sender = Some(self.aid.clone());
         if message.receivers.is_empty() {
-            let err = AgentError::NoReceiver { agent: self.aid.name.clone(), performative: message.performative };
+            let err = AgentError::NoReceiver {
+                agent: self.aid.name.clone(),
+                performative: message.performative,
+            };
             return Err(self.keep(err));
         }
         let text = iw_acl::codec::print(&message);
         for (i, receiver) in message.receivers.iter().enumerate() {
-            if let Err(source) = self.bus.send(&self.aid.name, &receiver.name, text.clone().into_bytes()) {
+            if let Err(source) =
+                self.bus
+                    .send(&self.aid.name, &receiver.name, text.clone().into_bytes())
+            {
                 if i > 0 {
                     self.tapped(&message);
                 }
-                let err = AgentError::Bus { agent: self.aid.name.clone(), source };
+                let err = AgentError::Bus {
+                    agent: self.aid.name.clone(),
+                    source,
+                };
                 return Err(self.keep(err));
             }
             *self.sent += 1;
@@ -130,16 +139,26 @@ impl Context<'_> {
     /// Replies `not-understood` to `message` with a reason, as FIPA asks of an agent that cannot
     /// process what it received.
     pub fn not_understood(&mut self, message: &AclMessage, reason: &str) -> Result<(), AgentError> {
-        let mut reply = message.create_reply().with_performative(Performative::NotUnderstood);
+        let mut reply = message
+            .create_reply()
+            .with_performative(Performative::NotUnderstood);
         reply.content = None;
-        let reply = reply.with_content(format!("((error-message \"{}\"))", reason.replace('"', "'")));
+        let reply = reply.with_content(format!(
+            "((error-message \"{}\"))",
+            reason.replace('"', "'")
+        ));
         self.send(reply)
     }
 
     /// The part of `message`'s ontology content that `pick` wants, or `None` after answering
     /// NOT-UNDERSTOOD: with the parse error, or with `expected` when the content is of another
     /// kind than `pick` takes.
-    pub fn understand<C: OntologyContent, T>(&mut self, message: &AclMessage, expected: &str, pick: impl FnOnce(C) -> Option<T>) -> Option<T> {
+    pub fn understand<C: OntologyContent, T>(
+        &mut self,
+        message: &AclMessage,
+        expected: &str,
+        pick: impl FnOnce(C) -> Option<T>,
+    ) -> Option<T> {
         let why = match C::from_message(message) {
             Ok(content) => match pick(content) {
                 Some(wanted) => return Some(wanted),
@@ -196,7 +215,12 @@ pub struct AgentHost {
 impl AgentHost {
     /// A host with no agents on `bus`.
     pub fn new(bus: Arc<Bus>) -> AgentHost {
-        AgentHost { bus, slots: Vec::new(), stats: HostStats::default(), tap: None }
+        AgentHost {
+            bus,
+            slots: Vec::new(),
+            stats: HostStats::default(),
+            tap: None,
+        }
     }
 
     /// Shows every message the agents send from now on to `tap` (replacing any earlier one).
@@ -214,17 +238,35 @@ impl AgentHost {
         let mailbox = self
             .bus
             .register(&aid.name)
-            .map_err(|source| AgentError::Bus { agent: aid.name.clone(), source })?;
-        self.slots.push(Slot { aid, agent, mailbox, started: false, next_tick: None });
+            .map_err(|source| AgentError::Bus {
+                agent: aid.name.clone(),
+                source,
+            })?;
+        self.slots.push(Slot {
+            aid,
+            agent,
+            mailbox,
+            started: false,
+            next_tick: None,
+        });
         Ok(())
     }
 
     /// Removes an agent (its `take_down` runs); returns whether it was here.
     pub fn remove(&mut self, name: &str, now: Time) -> bool {
-        let Some(index) = self.slots.iter().position(|s| s.aid.name == name) else { return false };
+        let Some(index) = self.slots.iter().position(|s| s.aid.name == name) else {
+            return false;
+        };
         let mut slot = self.slots.remove(index);
         let mut sent = 0;
-        let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures, tap: &mut self.tap };
+        let mut ctx = Context {
+            aid: &slot.aid,
+            bus: &self.bus,
+            now,
+            sent: &mut sent,
+            failed: &mut self.stats.send_failures,
+            tap: &mut self.tap,
+        };
         slot.agent.take_down(&mut ctx);
         self.stats.sent += sent;
         self.bus.deregister(name);
@@ -250,7 +292,14 @@ impl AgentHost {
             let mut activity = false;
             for slot in &mut self.slots {
                 let mut sent = 0;
-                let mut ctx = Context { aid: &slot.aid, bus: &self.bus, now, sent: &mut sent, failed: &mut self.stats.send_failures, tap: &mut self.tap };
+                let mut ctx = Context {
+                    aid: &slot.aid,
+                    bus: &self.bus,
+                    now,
+                    sent: &mut sent,
+                    failed: &mut self.stats.send_failures,
+                    tap: &mut self.tap,
+                };
                 if !slot.started {
                     slot.started = true;
                     slot.agent.setup(&mut ctx);
@@ -270,7 +319,9 @@ impl AgentHost {
                         Some(Ok(mut message)) => {
                             // The envelope's sender is authoritative (the parser layer checks
                             // they agree); a message that omits `:sender` can still be answered.
-                            message.sender.get_or_insert_with(|| AgentId::new(envelope.header.sender.clone()));
+                            message.sender.get_or_insert_with(|| {
+                                AgentId::new(envelope.header.sender.clone())
+                            });
                             self.stats.delivered += 1;
                             slot.agent.handle(&mut ctx, message);
                         }
@@ -332,7 +383,10 @@ mod tests {
         fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
             if message.performative == Performative::Request {
                 let content = message.content_text().unwrap_or_default().to_string();
-                let reply = message.create_reply().with_performative(Performative::Inform).with_content(content);
+                let reply = message
+                    .create_reply()
+                    .with_performative(Performative::Inform)
+                    .with_content(content);
                 ctx.send(reply).unwrap();
             } else {
                 ctx.not_understood(&message, "only requests").unwrap();
@@ -359,7 +413,11 @@ mod tests {
             let _ = ctx.send(request);
         }
         fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
-            let line = format!("{} {}", message.performative, message.content_text().unwrap_or_default());
+            let line = format!(
+                "{} {}",
+                message.performative,
+                message.content_text().unwrap_or_default()
+            );
             self.answers.lock().unwrap().push(line);
         }
     }
@@ -377,14 +435,32 @@ mod tests {
         let (mut host, clock) = host();
         let answers = Arc::new(std::sync::Mutex::new(Vec::new()));
         host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
-        host.add(AgentId::new("pinger@c1"), Box::new(Pinger { asked: 0, answers: answers.clone() })).unwrap();
+        host.add(
+            AgentId::new("pinger@c1"),
+            Box::new(Pinger {
+                asked: 0,
+                answers: answers.clone(),
+            }),
+        )
+        .unwrap();
         for _ in 0..5 {
             host.step(clock.now());
             clock.advance(Duration::from_millis(50));
         }
         // Ticks at 0, 100 and 200 ms of the 250 ms run; each answered within its own step.
-        assert_eq!(*answers.lock().unwrap(), ["INFORM ping 1", "INFORM ping 2", "INFORM ping 3"]);
-        assert_eq!(host.stats(), HostStats { delivered: 6, sent: 6, malformed: 0, send_failures: 0 });
+        assert_eq!(
+            *answers.lock().unwrap(),
+            ["INFORM ping 1", "INFORM ping 2", "INFORM ping 3"]
+        );
+        assert_eq!(
+            host.stats(),
+            HostStats {
+                delivered: 6,
+                sent: 6,
+                malformed: 0,
+                send_failures: 0
+            }
+        );
     }
 
     #[test]
@@ -392,7 +468,8 @@ mod tests {
         let (mut host, clock) = host();
         let (agent, handle) = gateway::gateway(Duration::from_millis(10));
         host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
-        host.add(AgentId::new("outside@c1"), Box::new(agent)).unwrap();
+        host.add(AgentId::new("outside@c1"), Box::new(agent))
+            .unwrap();
         handle.send(
             AclMessage::new(Performative::Request)
                 .with_receiver(AgentId::new("echo@c1"))
@@ -407,9 +484,18 @@ mod tests {
         assert_eq!(received.len(), 1);
         assert_eq!(received[0].performative, Performative::Inform);
         assert_eq!(received[0].content_text(), Some("hello"));
-        assert_eq!(received[0].sender.as_ref().map(|s| s.name.as_str()), Some("echo@c1"));
-        assert_eq!(received[0].receivers[0].name, "outside@c1", "the reply came back to the gateway");
-        assert!(matches!(handle.take_send_errors().as_slice(), [AgentError::NoReceiver { .. }]));
+        assert_eq!(
+            received[0].sender.as_ref().map(|s| s.name.as_str()),
+            Some("echo@c1")
+        );
+        assert_eq!(
+            received[0].receivers[0].name, "outside@c1",
+            "the reply came back to the gateway"
+        );
+        assert!(matches!(
+            handle.take_send_errors().as_slice(),
+            [AgentError::NoReceiver { .. }]
+        ));
         assert!(handle.take_received().is_empty(), "taken once");
     }
 
@@ -418,16 +504,45 @@ mod tests {
         let (mut host, clock) = host();
         let answers = Arc::new(std::sync::Mutex::new(Vec::new()));
         host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
-        host.add(AgentId::new("pinger@c1"), Box::new(Pinger { asked: 0, answers: answers.clone() })).unwrap();
-        host.bus().send("pinger@c1", "echo@c1", b"(inform :content \"hello\")".to_vec()).unwrap();
-        host.bus().send("pinger@c1", "echo@c1", b"this is not ACL".to_vec()).unwrap();
+        host.add(
+            AgentId::new("pinger@c1"),
+            Box::new(Pinger {
+                asked: 0,
+                answers: answers.clone(),
+            }),
+        )
+        .unwrap();
+        host.bus()
+            .send(
+                "pinger@c1",
+                "echo@c1",
+                b"(inform :content \"hello\")".to_vec(),
+            )
+            .unwrap();
+        host.bus()
+            .send("pinger@c1", "echo@c1", b"this is not ACL".to_vec())
+            .unwrap();
         host.step(clock.now());
-        assert!(answers.lock().unwrap().iter().any(|a| a.starts_with("NOT-UNDERSTOOD")), "{answers:?}");
+        assert!(
+            answers
+                .lock()
+                .unwrap()
+                .iter()
+                .any(|a| a.starts_with("NOT-UNDERSTOOD")),
+            "{answers:?}"
+        );
         assert_eq!(host.stats().malformed, 1);
-        assert!(host.add(AgentId::new("echo@c1"), Box::new(Echo)).is_err(), "names are unique per bus");
+        assert!(
+            host.add(AgentId::new("echo@c1"), Box::new(Echo)).is_err(),
+            "names are unique per bus"
+        );
         assert!(host.remove("echo@c1", clock.now()));
         host.step(clock.now().plus(Duration::from_millis(100)));
-        assert_eq!(host.stats().send_failures, 1, "sending to a removed agent is reported");
+        assert_eq!(
+            host.stats().send_failures,
+            1,
+            "sending to a removed agent is reported"
+        );
     }
 
     #[test]
@@ -436,19 +551,32 @@ mod tests {
         let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
         let record = seen.clone();
         host.set_tap(Box::new(move |m: &AclMessage, t: Time| {
-            record.lock().unwrap().push((m.performative, m.sender.clone().map(|s| s.name), t));
+            record
+                .lock()
+                .unwrap()
+                .push((m.performative, m.sender.clone().map(|s| s.name), t));
         }));
         let answers = Arc::new(std::sync::Mutex::new(Vec::new()));
         host.add(AgentId::new("echo@c1"), Box::new(Echo)).unwrap();
-        host.add(AgentId::new("pinger@c1"), Box::new(Pinger { asked: 0, answers })).unwrap();
+        host.add(
+            AgentId::new("pinger@c1"),
+            Box::new(Pinger { asked: 0, answers }),
+        )
+        .unwrap();
         host.step(clock.now());
         clock.advance(Duration::from_millis(100));
         host.step(clock.now());
         let seen = seen.lock().unwrap();
         assert_eq!(seen.len() as u64, host.stats().sent, "{seen:?}");
         let t0 = Time::from_ns(1_000_000_000);
-        assert_eq!(seen[0], (Performative::Request, Some("pinger@c1".to_string()), t0));
-        assert_eq!(seen[1], (Performative::Inform, Some("echo@c1".to_string()), t0));
+        assert_eq!(
+            seen[0],
+            (Performative::Request, Some("pinger@c1".to_string()), t0)
+        );
+        assert_eq!(
+            seen[1],
+            (Performative::Inform, Some("echo@c1".to_string()), t0)
+        );
         assert_eq!(seen[3].2, t0.plus(Duration::from_millis(100)));
     }
 
@@ -456,8 +584,15 @@ mod tests {
     struct Recorder(Arc<std::sync::Mutex<Vec<String>>>);
     impl Agent for Recorder {
         fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
-            let from = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
-            self.0.lock().unwrap().push(format!("{from} {}", message.content_text().unwrap_or_default()));
+            let from = message
+                .sender
+                .as_ref()
+                .map(|s| s.name.clone())
+                .unwrap_or_default();
+            self.0.lock().unwrap().push(format!(
+                "{from} {}",
+                message.content_text().unwrap_or_default()
+            ));
         }
     }
 
@@ -465,13 +600,27 @@ mod tests {
     fn a_step_hands_waiting_messages_over_in_sender_order_keeping_each_senders_order() {
         let (mut host, controller) = host();
         let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
-        host.add(AgentId::new("rec@c1"), Box::new(Recorder(seen.clone()))).unwrap();
+        host.add(AgentId::new("rec@c1"), Box::new(Recorder(seen.clone())))
+            .unwrap();
         // Arrival order: b, a, b, a.
-        for (from, text) in [("b@c1", "b1"), ("a@c1", "a1"), ("b@c1", "b2"), ("a@c1", "a2")] {
-            let m = AclMessage::new(Performative::Inform).with_sender(AgentId::new(from)).with_receiver(AgentId::new("rec@c1")).with_content(text);
-            host.bus.send(from, "rec@c1", iw_acl::codec::print(&m).into_bytes()).unwrap();
+        for (from, text) in [
+            ("b@c1", "b1"),
+            ("a@c1", "a1"),
+            ("b@c1", "b2"),
+            ("a@c1", "a2"),
+        ] {
+            let m = AclMessage::new(Performative::Inform)
+                .with_sender(AgentId::new(from))
+                .with_receiver(AgentId::new("rec@c1"))
+                .with_content(text);
+            host.bus
+                .send(from, "rec@c1", iw_acl::codec::print(&m).into_bytes())
+                .unwrap();
         }
         host.step(controller.now());
-        assert_eq!(*seen.lock().unwrap(), ["a@c1 a1", "a@c1 a2", "b@c1 b1", "b@c1 b2"]);
+        assert_eq!(
+            *seen.lock().unwrap(),
+            ["a@c1 a1", "a@c1 a2", "b@c1 b1", "b@c1 b2"]
+        );
     }
 }

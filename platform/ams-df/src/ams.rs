@@ -8,7 +8,8 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentError, AgentHost, Context};
 use iw_bus::Time;
 use iw_ontology::fipa::{
-    AgentDescription, AgentState, AmsAgentDescription, FipaError, ManagementAction, ManagementContent,
+    AgentDescription, AgentState, AmsAgentDescription, FipaError, ManagementAction,
+    ManagementContent,
 };
 
 use crate::service::{self, Answer};
@@ -28,14 +29,20 @@ impl WhitePages {
     }
 
     /// Adds `agent` to `host` under `aid` and lists it `active`.
-    pub fn host(&self, host: &mut AgentHost, aid: AgentId, agent: Box<dyn Agent>) -> Result<(), AgentError> {
+    pub fn host(
+        &self,
+        host: &mut AgentHost,
+        aid: AgentId,
+        agent: Box<dyn Agent>,
+    ) -> Result<(), AgentError> {
         let description = AmsAgentDescription {
             name: Some(aid.clone()),
             ownership: None,
             state: Some(AgentState::Active),
         };
         host.add(aid, agent)?;
-        self.write().insert(name_of(&description).to_owned(), description);
+        self.write()
+            .insert(name_of(&description).to_owned(), description);
         Ok(())
     }
 
@@ -60,7 +67,10 @@ impl WhitePages {
     }
 
     /// Removes the entry named like `description`; `not-registered` if there is none.
-    pub fn deregister(&self, description: &AmsAgentDescription) -> Result<AmsAgentDescription, FipaError> {
+    pub fn deregister(
+        &self,
+        description: &AmsAgentDescription,
+    ) -> Result<AmsAgentDescription, FipaError> {
         let name = required_name(description)?;
         self.write().remove(name).ok_or(FipaError::NotRegistered)
     }
@@ -86,7 +96,12 @@ impl WhitePages {
 
     /// Entries matching `template` (every slot it sets is equal), at most `limit`, by name.
     pub fn search(&self, template: &AmsAgentDescription, limit: usize) -> Vec<AmsAgentDescription> {
-        self.read().values().filter(|entry| matches(template, entry)).take(limit).cloned().collect()
+        self.read()
+            .values()
+            .filter(|entry| matches(template, entry))
+            .take(limit)
+            .cloned()
+            .collect()
     }
 
     /// Number of listed agents.
@@ -109,19 +124,29 @@ impl WhitePages {
 }
 
 fn name_of(description: &AmsAgentDescription) -> &str {
-    description.name.as_ref().map_or("", |aid| aid.name.as_str())
+    description
+        .name
+        .as_ref()
+        .map_or("", |aid| aid.name.as_str())
 }
 
 fn required_name(description: &AmsAgentDescription) -> Result<&str, FipaError> {
-    description.name.as_ref().map(|aid| aid.name.as_str()).ok_or_else(|| FipaError::MissingParameter {
-        object: "ams-agent-description".into(),
-        parameter: "name".into(),
-    })
+    description
+        .name
+        .as_ref()
+        .map(|aid| aid.name.as_str())
+        .ok_or_else(|| FipaError::MissingParameter {
+            object: "ams-agent-description".into(),
+            parameter: "name".into(),
+        })
 }
 
 /// Whether `entry` has every slot `template` sets (agent names compared, not addresses).
 fn matches(template: &AmsAgentDescription, entry: &AmsAgentDescription) -> bool {
-    let name_ok = template.name.as_ref().is_none_or(|t| entry.name.as_ref().is_some_and(|e| e.name == t.name));
+    let name_ok = template
+        .name
+        .as_ref()
+        .is_none_or(|t| entry.name.as_ref().is_some_and(|e| e.name == t.name));
     let ownership_ok = template.ownership.is_none() || template.ownership == entry.ownership;
     let state_ok = template.state.is_none() || template.state == entry.state;
     name_ok && ownership_ok && state_ok
@@ -149,18 +174,26 @@ impl Ams {
             | ManagementAction::Modify { description }
             | ManagementAction::Search { description, .. } => description,
             ManagementAction::GetDescription => {
-                return Answer::Refuse(FipaError::UnsupportedFunction { function: "get-description".into() });
+                return Answer::Refuse(FipaError::UnsupportedFunction {
+                    function: "get-description".into(),
+                });
             }
         };
         let AgentDescription::Ams(description) = description else {
-            return Answer::Refuse(FipaError::UnexpectedArgument { argument: "df-agent-description".into() });
+            return Answer::Refuse(FipaError::UnexpectedArgument {
+                argument: "df-agent-description".into(),
+            });
         };
         if let ManagementAction::Search { constraints, .. } = action {
-            let found = self.pages.search(description, service::result_limit(constraints));
+            let found = self
+                .pages
+                .search(description, service::result_limit(constraints));
             return Answer::Result(found.into_iter().map(AgentDescription::Ams).collect());
         }
         match description.name.as_ref() {
-            Some(name) if name.name != sender.name => return Answer::Refuse(FipaError::Unauthorised),
+            Some(name) if name.name != sender.name => {
+                return Answer::Refuse(FipaError::Unauthorised);
+            }
             _ => {}
         }
         let done = match action {
@@ -183,9 +216,17 @@ impl Agent for Ams {
             service::not_understood(ctx, &message, FipaError::UnsupportedAct { act });
             return;
         }
-        let Some(content) = service::read_content(ctx, &message) else { return };
+        let Some(content) = service::read_content(ctx, &message) else {
+            return;
+        };
         let ManagementContent::Request(request) = content else {
-            service::not_understood(ctx, &message, FipaError::UnrecognisedValue { value: "content".into() });
+            service::not_understood(
+                ctx,
+                &message,
+                FipaError::UnrecognisedValue {
+                    value: "content".into(),
+                },
+            );
             return;
         };
         let sender = message.sender.clone().unwrap_or_default();

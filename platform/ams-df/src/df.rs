@@ -8,8 +8,8 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_ontology::OntologyContent;
 use iw_ontology::fipa::{
-    AgentDescription, DfAgentDescription, FipaError, ManagementAction, ManagementContent, ManagementRequest,
-    ServiceDescription,
+    AgentDescription, DfAgentDescription, FipaError, ManagementAction, ManagementContent,
+    ManagementRequest, ServiceDescription,
 };
 
 use crate::service::{self, Answer};
@@ -21,12 +21,18 @@ pub const MAX_SUBSCRIPTIONS: usize = 1024;
 /// template sets is in the entry; set-valued slots are subsets; each template service matches
 /// one of the entry's services. Agent names are compared, not their addresses.
 pub fn matches(template: &DfAgentDescription, entry: &DfAgentDescription) -> bool {
-    let name_ok = template.name.as_ref().is_none_or(|t| entry.name.as_ref().is_some_and(|e| e.name == t.name));
+    let name_ok = template
+        .name
+        .as_ref()
+        .is_none_or(|t| entry.name.as_ref().is_some_and(|e| e.name == t.name));
     name_ok
         && subset(&template.protocols, &entry.protocols)
         && subset(&template.ontologies, &entry.ontologies)
         && subset(&template.languages, &entry.languages)
-        && template.services.iter().all(|t| entry.services.iter().any(|e| service_matches(t, e)))
+        && template
+            .services
+            .iter()
+            .all(|t| entry.services.iter().any(|e| service_matches(t, e)))
 }
 
 fn service_matches(template: &ServiceDescription, entry: &ServiceDescription) -> bool {
@@ -37,7 +43,10 @@ fn service_matches(template: &ServiceDescription, entry: &ServiceDescription) ->
         && subset(&template.protocols, &entry.protocols)
         && subset(&template.ontologies, &entry.ontologies)
         && subset(&template.languages, &entry.languages)
-        && template.properties.iter().all(|t| entry.properties.contains(t))
+        && template
+            .properties
+            .iter()
+            .all(|t| entry.properties.contains(t))
 }
 
 fn subset<T: PartialEq>(wanted: &[T], offered: &[T]) -> bool {
@@ -54,7 +63,10 @@ struct Subscription {
 
 impl Subscription {
     fn is(&self, subscriber: &str, conversation_id: Option<&str>) -> bool {
-        self.subscribe.sender.as_ref().is_some_and(|s| s.name == subscriber)
+        self.subscribe
+            .sender
+            .as_ref()
+            .is_some_and(|s| s.name == subscriber)
             && self.subscribe.conversation_id.as_deref() == conversation_id
     }
 }
@@ -89,12 +101,22 @@ impl Df {
     }
 
     fn search(&self, template: &DfAgentDescription, limit: usize) -> Vec<AgentDescription> {
-        self.entries.values().filter(|e| matches(template, e)).take(limit).cloned().map(AgentDescription::Df).collect()
+        self.entries
+            .values()
+            .filter(|e| matches(template, e))
+            .take(limit)
+            .cloned()
+            .map(AgentDescription::Df)
+            .collect()
     }
 
     /// Performs `action` for `sender`; returns the answer and the description subscribers should
     /// hear about.
-    fn perform(&mut self, sender: &AgentId, action: &ManagementAction) -> (Answer, Option<DfAgentDescription>) {
+    fn perform(
+        &mut self,
+        sender: &AgentId,
+        action: &ManagementAction,
+    ) -> (Answer, Option<DfAgentDescription>) {
         let description = match action {
             ManagementAction::Register { description }
             | ManagementAction::Deregister { description }
@@ -102,18 +124,30 @@ impl Df {
             | ManagementAction::Search { description, .. } => description,
             ManagementAction::GetDescription => {
                 let function = "get-description".into();
-                return (Answer::Refuse(FipaError::UnsupportedFunction { function }), None);
+                return (
+                    Answer::Refuse(FipaError::UnsupportedFunction { function }),
+                    None,
+                );
             }
         };
         let AgentDescription::Df(description) = description else {
             let argument = "ams-agent-description".into();
-            return (Answer::Refuse(FipaError::UnexpectedArgument { argument }), None);
+            return (
+                Answer::Refuse(FipaError::UnexpectedArgument { argument }),
+                None,
+            );
         };
         if let ManagementAction::Search { constraints, .. } = action {
-            return (Answer::Result(self.search(description, service::result_limit(constraints))), None);
+            return (
+                Answer::Result(self.search(description, service::result_limit(constraints))),
+                None,
+            );
         }
         let Some(name) = description.name.as_ref().map(|aid| aid.name.clone()) else {
-            let missing = FipaError::MissingParameter { object: "df-agent-description".into(), parameter: "name".into() };
+            let missing = FipaError::MissingParameter {
+                object: "df-agent-description".into(),
+                parameter: "name".into(),
+            };
             return (Answer::Refuse(missing), None);
         };
         if name != sender.name {
@@ -133,7 +167,13 @@ impl Df {
                 (Answer::Done, Some(description.clone()))
             }
             _ => match self.entries.remove(&name) {
-                Some(gone) => (Answer::Done, Some(DfAgentDescription { name: gone.name, ..DfAgentDescription::default() })),
+                Some(gone) => (
+                    Answer::Done,
+                    Some(DfAgentDescription {
+                        name: gone.name,
+                        ..DfAgentDescription::default()
+                    }),
+                ),
                 None => (Answer::Failure(FipaError::NotRegistered), None),
             },
         }
@@ -141,36 +181,84 @@ impl Df {
 
     /// Tells every subscriber whose search `changed` matches (a deregistration is announced by
     /// the bare name, which matches a subscription when its registration did).
-    fn notify(&self, ctx: &mut Context<'_>, changed: &DfAgentDescription, before: Option<&DfAgentDescription>) {
+    fn notify(
+        &self,
+        ctx: &mut Context<'_>,
+        changed: &DfAgentDescription,
+        before: Option<&DfAgentDescription>,
+    ) {
         for subscription in &self.subscriptions {
             let relevant = matches(&subscription.template, changed)
                 || before.is_some_and(|b| matches(&subscription.template, b));
             if relevant {
-                notify(ctx, subscription, vec![AgentDescription::Df(changed.clone())]);
+                notify(
+                    ctx,
+                    subscription,
+                    vec![AgentDescription::Df(changed.clone())],
+                );
             }
         }
     }
 
     fn subscribe(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let Some(content) = service::read_content(ctx, &message) else { return };
-        let ManagementContent::Subscribe(request) = content else {
-            service::not_understood(ctx, &message, FipaError::UnrecognisedValue { value: "content".into() });
+        let Some(content) = service::read_content(ctx, &message) else {
             return;
         };
-        let ManagementAction::Search { description: AgentDescription::Df(template), constraints } = &request.action
+        let ManagementContent::Subscribe(request) = content else {
+            service::not_understood(
+                ctx,
+                &message,
+                FipaError::UnrecognisedValue {
+                    value: "content".into(),
+                },
+            );
+            return;
+        };
+        let ManagementAction::Search {
+            description: AgentDescription::Df(template),
+            constraints,
+        } = &request.action
         else {
             let function = "subscription to anything but a DF search".into();
-            return service::answer(ctx, &message, &request, Answer::Refuse(FipaError::UnsupportedFunction { function }));
+            return service::answer(
+                ctx,
+                &message,
+                &request,
+                Answer::Refuse(FipaError::UnsupportedFunction { function }),
+            );
         };
         if self.subscriptions.len() >= MAX_SUBSCRIPTIONS {
-            let message_text = format!("the DF holds its limit of {MAX_SUBSCRIPTIONS} subscriptions");
-            return service::answer(ctx, &message, &request, Answer::Refuse(FipaError::InternalError { message: message_text }));
+            let message_text =
+                format!("the DF holds its limit of {MAX_SUBSCRIPTIONS} subscriptions");
+            return service::answer(
+                ctx,
+                &message,
+                &request,
+                Answer::Refuse(FipaError::InternalError {
+                    message: message_text,
+                }),
+            );
         }
-        let subscriber = message.sender.as_ref().map_or("", |s| s.name.as_str()).to_owned();
-        self.subscriptions.retain(|s| !s.is(&subscriber, message.conversation_id.as_deref()));
-        let subscription = Subscription { template: template.clone(), request: request.clone(), subscribe: message };
-        let current: Vec<AgentDescription> =
-            self.entries.values().filter(|e| matches(template, e)).take(service::result_limit(constraints)).cloned().map(AgentDescription::Df).collect();
+        let subscriber = message
+            .sender
+            .as_ref()
+            .map_or("", |s| s.name.as_str())
+            .to_owned();
+        self.subscriptions
+            .retain(|s| !s.is(&subscriber, message.conversation_id.as_deref()));
+        let subscription = Subscription {
+            template: template.clone(),
+            request: request.clone(),
+            subscribe: message,
+        };
+        let current: Vec<AgentDescription> = self
+            .entries
+            .values()
+            .filter(|e| matches(template, e))
+            .take(service::result_limit(constraints))
+            .cloned()
+            .map(AgentDescription::Df)
+            .collect();
         if !current.is_empty() {
             notify(ctx, &subscription, current);
         }
@@ -180,7 +268,8 @@ impl Df {
     fn cancel(&mut self, message: &AclMessage) {
         let subscriber = message.sender.as_ref().map_or("", |s| s.name.as_str());
         let before = self.subscriptions.len();
-        self.subscriptions.retain(|s| !s.is(subscriber, message.conversation_id.as_deref()));
+        self.subscriptions
+            .retain(|s| !s.is(subscriber, message.conversation_id.as_deref()));
         if self.subscriptions.len() == before {
             tracing::info!(%subscriber, conversation = ?message.conversation_id, "CANCEL of no subscription");
         }
@@ -189,8 +278,14 @@ impl Df {
 
 /// INFORM `((= (iota ?x (result (action ...) ?x)) (sequence ...)))` to a subscriber.
 fn notify(ctx: &mut Context<'_>, subscription: &Subscription, descriptions: Vec<AgentDescription>) {
-    let content = ManagementContent::Notification { request: subscription.request.clone(), descriptions };
-    let reply = subscription.subscribe.create_reply().with_performative(Performative::Inform);
+    let content = ManagementContent::Notification {
+        request: subscription.request.clone(),
+        descriptions,
+    };
+    let reply = subscription
+        .subscribe
+        .create_reply()
+        .with_performative(Performative::Inform);
     service::send(ctx, content.fill(reply));
 }
 
@@ -205,9 +300,17 @@ impl Agent for Df {
                 return service::not_understood(ctx, &message, FipaError::UnsupportedAct { act });
             }
         }
-        let Some(content) = service::read_content(ctx, &message) else { return };
+        let Some(content) = service::read_content(ctx, &message) else {
+            return;
+        };
         let ManagementContent::Request(request) = content else {
-            service::not_understood(ctx, &message, FipaError::UnrecognisedValue { value: "content".into() });
+            service::not_understood(
+                ctx,
+                &message,
+                FipaError::UnrecognisedValue {
+                    value: "content".into(),
+                },
+            );
             return;
         };
         let sender = message.sender.clone().unwrap_or_default();
@@ -220,7 +323,10 @@ impl Agent for Df {
     }
 }
 
-fn sender_entry(entries: &BTreeMap<String, DfAgentDescription>, sender: &AgentId) -> Option<DfAgentDescription> {
+fn sender_entry(
+    entries: &BTreeMap<String, DfAgentDescription>,
+    sender: &AgentId,
+) -> Option<DfAgentDescription> {
     entries.get(&sender.name).cloned()
 }
 
@@ -235,21 +341,47 @@ mod tests {
     }
 
     fn service() -> impl Strategy<Value = ServiceDescription> {
-        (proptest::option::of("[a-c]"), proptest::option::of("[a-c]"), words(), words(), proptest::option::of(0i64..3))
-            .prop_map(|(name, service_type, protocols, languages, speed)| ServiceDescription {
-                name,
-                service_type,
-                protocols,
-                languages,
-                properties: speed.map(|s| Property { name: "speed".into(), value: iw_sl::Term::integer(s) }).into_iter().collect(),
-                ..ServiceDescription::default()
+        (
+            proptest::option::of("[a-c]"),
+            proptest::option::of("[a-c]"),
+            words(),
+            words(),
+            proptest::option::of(0i64..3),
+        )
+            .prop_map(|(name, service_type, protocols, languages, speed)| {
+                ServiceDescription {
+                    name,
+                    service_type,
+                    protocols,
+                    languages,
+                    properties: speed
+                        .map(|s| Property {
+                            name: "speed".into(),
+                            value: iw_sl::Term::integer(s),
+                        })
+                        .into_iter()
+                        .collect(),
+                    ..ServiceDescription::default()
+                }
             })
     }
 
     fn description() -> impl Strategy<Value = DfAgentDescription> {
-        ("[a-c]", proptest::collection::vec(service(), 0..3), words(), words()).prop_map(|(name, services, protocols, ontologies)| {
-            DfAgentDescription { name: Some(AgentId::new(name)), services, protocols, ontologies, ..DfAgentDescription::default() }
-        })
+        (
+            "[a-c]",
+            proptest::collection::vec(service(), 0..3),
+            words(),
+            words(),
+        )
+            .prop_map(
+                |(name, services, protocols, ontologies)| DfAgentDescription {
+                    name: Some(AgentId::new(name)),
+                    services,
+                    protocols,
+                    ontologies,
+                    ..DfAgentDescription::default()
+                },
+            )
     }
 
     /// `entry` with every slot kept or cleared by `keep`'s bits: a template it must match.
@@ -262,14 +394,26 @@ mod tests {
             .filter(|(i, _)| bit(4 + *i as u32))
             .map(|(i, s)| ServiceDescription {
                 name: s.name.clone().filter(|_| bit(8 + i as u32)),
-                properties: if bit(12 + i as u32) { s.properties.clone() } else { Vec::new() },
+                properties: if bit(12 + i as u32) {
+                    s.properties.clone()
+                } else {
+                    Vec::new()
+                },
                 ..s.clone()
             })
             .collect();
         DfAgentDescription {
             name: entry.name.clone().filter(|_| bit(0)),
-            protocols: if bit(1) { entry.protocols.clone() } else { Vec::new() },
-            ontologies: if bit(2) { entry.ontologies.clone() } else { Vec::new() },
+            protocols: if bit(1) {
+                entry.protocols.clone()
+            } else {
+                Vec::new()
+            },
+            ontologies: if bit(2) {
+                entry.ontologies.clone()
+            } else {
+                Vec::new()
+            },
             services,
             ..DfAgentDescription::default()
         }

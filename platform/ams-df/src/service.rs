@@ -53,7 +53,10 @@ pub(crate) fn is_answer(performative: Performative) -> bool {
 
 /// The management content of `message`, or `None` after answering NOT-UNDERSTOOD with the
 /// reason (wrong ontology, unknown language, content that is not FIPA-Agent-Management).
-pub(crate) fn read_content(ctx: &mut Context<'_>, message: &AclMessage) -> Option<ManagementContent> {
+pub(crate) fn read_content(
+    ctx: &mut Context<'_>,
+    message: &AclMessage,
+) -> Option<ManagementContent> {
     match ManagementContent::from_message(message) {
         Ok(content) => Some(content),
         Err(error) => {
@@ -63,7 +66,13 @@ pub(crate) fn read_content(ctx: &mut Context<'_>, message: &AclMessage) -> Optio
                 iw_ontology::OntologyError::Sl(iw_sl::SlError::UnknownLevel { .. }) => "language",
                 _ => "content",
             };
-            not_understood(ctx, message, FipaError::UnrecognisedValue { value: value.into() });
+            not_understood(
+                ctx,
+                message,
+                FipaError::UnrecognisedValue {
+                    value: value.into(),
+                },
+            );
             None
         }
     }
@@ -76,19 +85,38 @@ pub(crate) fn not_understood(ctx: &mut Context<'_>, message: &AclMessage, reason
         return;
     }
     let content = iw_sl::Content::single(reason.to_formula());
-    let mut reply = message.create_reply().with_performative(Performative::NotUnderstood);
+    let mut reply = message
+        .create_reply()
+        .with_performative(Performative::NotUnderstood);
     reply.content = None;
-    send(ctx, reply.with_content(content.to_string()).with_ontology(iw_ontology::fipa::ONTOLOGY));
+    send(
+        ctx,
+        reply
+            .with_content(content.to_string())
+            .with_ontology(iw_ontology::fipa::ONTOLOGY),
+    );
 }
 
 /// Answers the REQUEST `message` that asked for `request` with `answer`.
-pub(crate) fn answer(ctx: &mut Context<'_>, message: &AclMessage, request: &ManagementRequest, answer: Answer) {
+pub(crate) fn answer(
+    ctx: &mut Context<'_>,
+    message: &AclMessage,
+    request: &ManagementRequest,
+    answer: Answer,
+) {
     let reply = message.create_reply();
     let (performative, content) = match answer {
-        Answer::Done => (Performative::Inform, ManagementContent::Done(request.clone())),
-        Answer::Result(descriptions) => {
-            (Performative::Inform, ManagementContent::Result { request: request.clone(), descriptions })
-        }
+        Answer::Done => (
+            Performative::Inform,
+            ManagementContent::Done(request.clone()),
+        ),
+        Answer::Result(descriptions) => (
+            Performative::Inform,
+            ManagementContent::Result {
+                request: request.clone(),
+                descriptions,
+            },
+        ),
         Answer::Refuse(reason) => (Performative::Refuse, failure(request, reason)),
         Answer::Failure(reason) => (Performative::Failure, failure(request, reason)),
     };
@@ -96,7 +124,10 @@ pub(crate) fn answer(ctx: &mut Context<'_>, message: &AclMessage, request: &Mana
 }
 
 fn failure(request: &ManagementRequest, reason: FipaError) -> ManagementContent {
-    ManagementContent::Failure { action: request.to_action(), reason }
+    ManagementContent::Failure {
+        action: request.to_action(),
+        reason,
+    }
 }
 
 /// Sends `message`; a failure is already logged and counted by the agent host.

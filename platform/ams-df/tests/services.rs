@@ -8,11 +8,11 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_ams_df::{Ams, Df, WhitePages, delivery_failure};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Mailbox, MockController, Stack, Time};
-use iw_ontology::fipa::{
-    AgentDescription, AgentState, AmsAgentDescription, DfAgentDescription, FipaError, ManagementAction,
-    ManagementContent, ManagementRequest, SearchConstraints, ServiceDescription,
-};
 use iw_ontology::OntologyContent;
+use iw_ontology::fipa::{
+    AgentDescription, AgentState, AmsAgentDescription, DfAgentDescription, FipaError,
+    ManagementAction, ManagementContent, ManagementRequest, SearchConstraints, ServiceDescription,
+};
 use iw_sl::Level;
 
 const AMS: &str = "ams@WheelchairTest";
@@ -39,10 +39,28 @@ impl Platform {
         let bus = Bus::start(Stack::new(), transport, clock, BusConfig::default()).unwrap();
         let mut host = AgentHost::new(Arc::new(bus));
         let pages = WhitePages::new();
-        pages.host(&mut host, AgentId::new(AMS), Box::new(Ams::new(pages.clone()))).unwrap();
-        pages.host(&mut host, AgentId::new(DF), Box::new(Df::new())).unwrap();
-        pages.host(&mut host, AgentId::new("echo@WheelchairTest"), Box::new(Idle)).unwrap();
-        Self { host, clock: controller, pages }
+        pages
+            .host(
+                &mut host,
+                AgentId::new(AMS),
+                Box::new(Ams::new(pages.clone())),
+            )
+            .unwrap();
+        pages
+            .host(&mut host, AgentId::new(DF), Box::new(Df::new()))
+            .unwrap();
+        pages
+            .host(
+                &mut host,
+                AgentId::new("echo@WheelchairTest"),
+                Box::new(Idle),
+            )
+            .unwrap();
+        Self {
+            host,
+            clock: controller,
+            pages,
+        }
     }
 
     /// A mailbox standing for an agent that talks to the services.
@@ -53,13 +71,22 @@ impl Platform {
     /// Sends `message` from its sender to its first receiver and runs the platform once.
     fn send(&mut self, message: &AclMessage) {
         let from = &message.sender.as_ref().unwrap().name;
-        self.host.bus().send(from, &message.receivers[0].name, print(message).into_bytes()).unwrap();
+        self.host
+            .bus()
+            .send(
+                from,
+                &message.receivers[0].name,
+                print(message).into_bytes(),
+            )
+            .unwrap();
         self.host.step(self.clock.now());
     }
 }
 
 fn next(mailbox: &mut Mailbox) -> Option<AclMessage> {
-    mailbox.try_recv().map(|e| iw_acl::codec::parse(e.payload_str().unwrap()).unwrap())
+    mailbox
+        .try_recv()
+        .map(|e| iw_acl::codec::parse(e.payload_str().unwrap()).unwrap())
 }
 
 fn content(message: &AclMessage) -> ManagementContent {
@@ -91,13 +118,19 @@ fn request(sender: &str, receiver: &str, content: &ManagementContent) -> AclMess
 }
 
 fn df_action(action: ManagementAction) -> ManagementContent {
-    ManagementContent::Request(ManagementRequest { actor: AgentId::new(DF), action })
+    ManagementContent::Request(ManagementRequest {
+        actor: AgentId::new(DF),
+        action,
+    })
 }
 
 fn registration(name: &str, service_type: &str) -> DfAgentDescription {
     DfAgentDescription {
         name: Some(AgentId::new(name)),
-        services: vec![ServiceDescription { service_type: Some(service_type.into()), ..ServiceDescription::default() }],
+        services: vec![ServiceDescription {
+            service_type: Some(service_type.into()),
+            ..ServiceDescription::default()
+        }],
         ..DfAgentDescription::default()
     }
 }
@@ -111,14 +144,25 @@ fn reason(message: &AclMessage) -> FipaError {
 
 #[test]
 fn df_register_and_search_answer_like_jade() {
-    let Some(register) = captured("df_register", "fipa/wire/acl/06-df-register.acl") else { return };
-    let Some(jade_done) = captured("df_register", "fipa/wire/from-jade/06-df-register-inform-done.raw") else { return };
+    let Some(register) = captured("df_register", "fipa/wire/acl/06-df-register.acl") else {
+        return;
+    };
+    let Some(jade_done) = captured(
+        "df_register",
+        "fipa/wire/from-jade/06-df-register-inform-done.raw",
+    ) else {
+        return;
+    };
     let mut platform = Platform::new();
     let mut me = platform.client(ME);
     platform.send(&register);
     let done = next(&mut me).expect("the DF answers");
     assert_eq!(done.performative, Performative::Inform);
-    assert_eq!(done.content_text(), jade_done.content_text(), "same text as JADE's DF");
+    assert_eq!(
+        done.content_text(),
+        jade_done.content_text(),
+        "same text as JADE's DF"
+    );
     for (ours, jade) in [
         (&done.language, &jade_done.language),
         (&done.ontology, &jade_done.ontology),
@@ -132,11 +176,21 @@ fn df_register_and_search_answer_like_jade() {
 
     platform.send(&register);
     let again = next(&mut me).unwrap();
-    assert_eq!((again.performative, reason(&again)), (Performative::Failure, FipaError::AlreadyRegistered));
+    assert_eq!(
+        (again.performative, reason(&again)),
+        (Performative::Failure, FipaError::AlreadyRegistered)
+    );
 
     // JADE's echo registered itself with its address; the captured search then finds it.
-    let Some(search) = captured("df_search", "fipa/wire/acl/03-df-search.acl") else { return };
-    let Some(jade_result) = captured("df_search", "fipa/wire/from-jade/03-df-search-result-inform.raw") else { return };
+    let Some(search) = captured("df_search", "fipa/wire/acl/03-df-search.acl") else {
+        return;
+    };
+    let Some(jade_result) = captured(
+        "df_search",
+        "fipa/wire/from-jade/03-df-search-result-inform.raw",
+    ) else {
+        return;
+    };
     let mut echo = platform.client("echo-client@WheelchairTest");
     let echo_entry = DfAgentDescription {
         name: Some(AgentId::new("echo-client@WheelchairTest")),
@@ -147,9 +201,13 @@ fn df_register_and_search_answer_like_jade() {
         }],
         ..DfAgentDescription::default()
     };
-    platform.send(&request("echo-client@WheelchairTest", DF, &df_action(ManagementAction::Register {
-        description: AgentDescription::Df(echo_entry),
-    })));
+    platform.send(&request(
+        "echo-client@WheelchairTest",
+        DF,
+        &df_action(ManagementAction::Register {
+            description: AgentDescription::Df(echo_entry),
+        }),
+    ));
     assert_eq!(next(&mut echo).unwrap().performative, Performative::Inform);
     platform.send(&search);
     let result = next(&mut me).unwrap();
@@ -164,56 +222,99 @@ fn df_register_and_search_answer_like_jade() {
 #[test]
 fn df_constraints_authorisation_modify_and_deregister() {
     let mut platform = Platform::new();
-    let mut clients: Vec<Mailbox> = (0..3).map(|i| platform.client(&format!("a{i}@P"))).collect();
+    let mut clients: Vec<Mailbox> = (0..3)
+        .map(|i| platform.client(&format!("a{i}@P")))
+        .collect();
     for (i, client) in clients.iter_mut().enumerate() {
         let name = format!("a{i}@P");
-        let register = ManagementAction::Register { description: AgentDescription::Df(registration(&name, "nav")) };
+        let register = ManagementAction::Register {
+            description: AgentDescription::Df(registration(&name, "nav")),
+        };
         platform.send(&request(&name, DF, &df_action(register)));
         assert_eq!(next(client).unwrap().performative, Performative::Inform);
     }
     let search = |max_results, service_type: &str| {
         df_action(ManagementAction::Search {
             description: AgentDescription::Df(DfAgentDescription {
-                services: vec![ServiceDescription { service_type: Some(service_type.into()), ..ServiceDescription::default() }],
+                services: vec![ServiceDescription {
+                    service_type: Some(service_type.into()),
+                    ..ServiceDescription::default()
+                }],
                 ..DfAgentDescription::default()
             }),
-            constraints: SearchConstraints { max_results, ..SearchConstraints::default() },
+            constraints: SearchConstraints {
+                max_results,
+                ..SearchConstraints::default()
+            },
         })
     };
-    let found = |platform: &mut Platform, clients: &mut [Mailbox], content: ManagementContent| -> usize {
-        platform.send(&request("a0@P", DF, &content));
-        match self::content(&next(&mut clients[0]).unwrap()) {
-            ManagementContent::Result { descriptions, .. } => descriptions.len(),
-            other => panic!("{other:?}"),
-        }
-    };
-    assert_eq!(found(&mut platform, &mut clients, search(Some(-1), "nav")), 3);
-    assert_eq!(found(&mut platform, &mut clients, search(Some(2), "nav")), 2);
+    let found =
+        |platform: &mut Platform, clients: &mut [Mailbox], content: ManagementContent| -> usize {
+            platform.send(&request("a0@P", DF, &content));
+            match self::content(&next(&mut clients[0]).unwrap()) {
+                ManagementContent::Result { descriptions, .. } => descriptions.len(),
+                other => panic!("{other:?}"),
+            }
+        };
+    assert_eq!(
+        found(&mut platform, &mut clients, search(Some(-1), "nav")),
+        3
+    );
+    assert_eq!(
+        found(&mut platform, &mut clients, search(Some(2), "nav")),
+        2
+    );
     assert_eq!(found(&mut platform, &mut clients, search(None, "map")), 0);
 
     // a0 may not deregister a1; a1 may modify and deregister itself, once.
-    let deregister_a1 = df_action(ManagementAction::Deregister { description: AgentDescription::Df(registration("a1@P", "nav")) });
+    let deregister_a1 = df_action(ManagementAction::Deregister {
+        description: AgentDescription::Df(registration("a1@P", "nav")),
+    });
     platform.send(&request("a0@P", DF, &deregister_a1));
     let refused = next(&mut clients[0]).unwrap();
-    assert_eq!((refused.performative, reason(&refused)), (Performative::Refuse, FipaError::Unauthorised));
-    let modify = df_action(ManagementAction::Modify { description: AgentDescription::Df(registration("a1@P", "map")) });
+    assert_eq!(
+        (refused.performative, reason(&refused)),
+        (Performative::Refuse, FipaError::Unauthorised)
+    );
+    let modify = df_action(ManagementAction::Modify {
+        description: AgentDescription::Df(registration("a1@P", "map")),
+    });
     platform.send(&request("a1@P", DF, &modify));
-    assert_eq!(next(&mut clients[1]).unwrap().performative, Performative::Inform);
+    assert_eq!(
+        next(&mut clients[1]).unwrap().performative,
+        Performative::Inform
+    );
     assert_eq!(found(&mut platform, &mut clients, search(None, "map")), 1);
     platform.send(&request("a1@P", DF, &deregister_a1));
-    assert_eq!(next(&mut clients[1]).unwrap().performative, Performative::Inform);
+    assert_eq!(
+        next(&mut clients[1]).unwrap().performative,
+        Performative::Inform
+    );
     platform.send(&request("a1@P", DF, &deregister_a1));
     let twice = next(&mut clients[1]).unwrap();
-    assert_eq!((twice.performative, reason(&twice)), (Performative::Failure, FipaError::NotRegistered));
+    assert_eq!(
+        (twice.performative, reason(&twice)),
+        (Performative::Failure, FipaError::NotRegistered)
+    );
     platform.send(&request("a1@P", DF, &modify));
-    assert_eq!(reason(&next(&mut clients[1]).unwrap()), FipaError::NotRegistered);
+    assert_eq!(
+        reason(&next(&mut clients[1]).unwrap()),
+        FipaError::NotRegistered
+    );
     assert_eq!(found(&mut platform, &mut clients, search(None, "map")), 0);
 
     // A description without a name, an AMS description, get-description: refused.
-    let nameless = DfAgentDescription { name: None, ..registration("x", "nav") };
+    let nameless = DfAgentDescription {
+        name: None,
+        ..registration("x", "nav")
+    };
     for action in [
-        ManagementAction::Register { description: AgentDescription::Df(nameless) },
-        ManagementAction::Register { description: AgentDescription::Ams(AmsAgentDescription::default()) },
+        ManagementAction::Register {
+            description: AgentDescription::Df(nameless),
+        },
+        ManagementAction::Register {
+            description: AgentDescription::Ams(AmsAgentDescription::default()),
+        },
         ManagementAction::GetDescription,
     ] {
         platform.send(&request("a2@P", DF, &df_action(action)));
@@ -221,27 +322,59 @@ fn df_constraints_authorisation_modify_and_deregister() {
         assert_eq!(answer.performative, Performative::Refuse, "{answer:?}");
         assert!(matches!(
             reason(&answer),
-            FipaError::MissingParameter { .. } | FipaError::UnexpectedArgument { .. } | FipaError::UnsupportedFunction { .. }
+            FipaError::MissingParameter { .. }
+                | FipaError::UnexpectedArgument { .. }
+                | FipaError::UnsupportedFunction { .. }
         ));
     }
 }
 
 #[test]
 fn df_subscription_notifies_like_jade_until_cancelled() {
-    let Some(subscribe) = captured("df_subscribe", "fipa/wire/acl/07-df-subscribe.acl") else { return };
-    let Some(register) = captured("df_subscribe", "fipa/wire/acl/06-df-register.acl") else { return };
-    let Some(jade_note) = captured("df_subscribe", "fipa/wire/from-jade/07-df-subscribe-notification-inform.raw") else { return };
+    let Some(subscribe) = captured("df_subscribe", "fipa/wire/acl/07-df-subscribe.acl") else {
+        return;
+    };
+    let Some(register) = captured("df_subscribe", "fipa/wire/acl/06-df-register.acl") else {
+        return;
+    };
+    let Some(jade_note) = captured(
+        "df_subscribe",
+        "fipa/wire/from-jade/07-df-subscribe-notification-inform.raw",
+    ) else {
+        return;
+    };
     let mut platform = Platform::new();
     let mut me = platform.client(ME);
     platform.send(&subscribe);
-    assert!(next(&mut me).is_none(), "nothing matches yet, so nothing is said (as JADE's DF)");
+    assert!(
+        next(&mut me).is_none(),
+        "nothing matches yet, so nothing is said (as JADE's DF)"
+    );
     platform.send(&register);
-    assert_eq!(next(&mut me).unwrap().performative, Performative::Inform, "done");
-    let note = next(&mut me).expect("a notification");
-    assert_eq!(note.content_text(), jade_note.content_text(), "same text as JADE's notification");
     assert_eq!(
-        (&note.language, &note.protocol, &note.in_reply_to, &note.conversation_id),
-        (&jade_note.language, &jade_note.protocol, &jade_note.in_reply_to, &jade_note.conversation_id)
+        next(&mut me).unwrap().performative,
+        Performative::Inform,
+        "done"
+    );
+    let note = next(&mut me).expect("a notification");
+    assert_eq!(
+        note.content_text(),
+        jade_note.content_text(),
+        "same text as JADE's notification"
+    );
+    assert_eq!(
+        (
+            &note.language,
+            &note.protocol,
+            &note.in_reply_to,
+            &note.conversation_id
+        ),
+        (
+            &jade_note.language,
+            &jade_note.protocol,
+            &jade_note.in_reply_to,
+            &jade_note.conversation_id
+        )
     );
 
     // A second subscriber hears of the existing match at once; another service type is silent.
@@ -249,24 +382,47 @@ fn df_subscription_notifies_like_jade_until_cancelled() {
     let mut late = subscribe.clone();
     late.sender = Some(AgentId::new("other@P"));
     platform.send(&late);
-    assert!(matches!(content(&next(&mut other).unwrap()), ManagementContent::Notification { descriptions, .. } if descriptions.len() == 1));
-    let unrelated = ManagementAction::Register { description: AgentDescription::Df(registration("other@P", "coffee")) };
+    assert!(
+        matches!(content(&next(&mut other).unwrap()), ManagementContent::Notification { descriptions, .. } if descriptions.len() == 1)
+    );
+    let unrelated = ManagementAction::Register {
+        description: AgentDescription::Df(registration("other@P", "coffee")),
+    };
     platform.send(&request("other@P", DF, &df_action(unrelated)));
-    assert_eq!(next(&mut other).unwrap().performative, Performative::Inform, "done");
+    assert_eq!(
+        next(&mut other).unwrap().performative,
+        Performative::Inform,
+        "done"
+    );
     assert!(next(&mut other).is_none() && next(&mut me).is_none());
 
     // Deregistration is announced by the bare name; after CANCEL nothing more comes.
-    let deregister = df_action(ManagementAction::Deregister { description: AgentDescription::Df(registration(ME, "x")) });
+    let deregister = df_action(ManagementAction::Deregister {
+        description: AgentDescription::Df(registration(ME, "x")),
+    });
     platform.send(&request(ME, DF, &deregister));
-    assert_eq!(next(&mut me).unwrap().performative, Performative::Inform, "done");
+    assert_eq!(
+        next(&mut me).unwrap().performative,
+        Performative::Inform,
+        "done"
+    );
     let gone = next(&mut me).unwrap();
     match content(&gone) {
         ManagementContent::Notification { descriptions, .. } => {
-            assert_eq!(descriptions, [AgentDescription::Df(DfAgentDescription { name: Some(AgentId::new(ME).with_address("http://127.0.0.1:9000/acc")), ..DfAgentDescription::default() })]);
+            assert_eq!(
+                descriptions,
+                [AgentDescription::Df(DfAgentDescription {
+                    name: Some(AgentId::new(ME).with_address("http://127.0.0.1:9000/acc")),
+                    ..DfAgentDescription::default()
+                })]
+            );
         }
         other => panic!("{other:?}"),
     }
-    assert!(next(&mut other).is_some(), "the other subscriber hears it too");
+    assert!(
+        next(&mut other).is_some(),
+        "the other subscriber hears it too"
+    );
     let cancel = AclMessage::new(Performative::Cancel)
         .with_sender(AgentId::new(ME))
         .with_receiver(AgentId::new(DF))
@@ -274,28 +430,46 @@ fn df_subscription_notifies_like_jade_until_cancelled() {
         .with_content(subscribe.content_text().unwrap());
     platform.send(&cancel);
     platform.send(&register);
-    assert_eq!(next(&mut me).unwrap().performative, Performative::Inform, "done");
+    assert_eq!(
+        next(&mut me).unwrap().performative,
+        Performative::Inform,
+        "done"
+    );
     assert!(next(&mut me).is_none(), "cancelled: no notification");
     assert!(next(&mut other).is_some(), "still subscribed");
 }
 
 fn ams_action(action: ManagementAction) -> ManagementContent {
-    ManagementContent::Request(ManagementRequest { actor: AgentId::new(AMS), action })
+    ManagementContent::Request(ManagementRequest {
+        actor: AgentId::new(AMS),
+        action,
+    })
 }
 
 fn ams_description(name: Option<&str>, state: Option<AgentState>) -> AgentDescription {
-    AgentDescription::Ams(AmsAgentDescription { name: name.map(AgentId::new), ownership: None, state })
+    AgentDescription::Ams(AmsAgentDescription {
+        name: name.map(AgentId::new),
+        ownership: None,
+        state,
+    })
 }
 
 #[test]
 fn ams_lists_hosted_agents_and_manages_registrations() {
-    let Some(search) = captured("ams_search", "fipa/wire/acl/04-ams-search.acl") else { return };
+    let Some(search) = captured("ams_search", "fipa/wire/acl/04-ams-search.acl") else {
+        return;
+    };
     let mut platform = Platform::new();
     let mut me = platform.client(ME);
     platform.send(&search);
     let result = next(&mut me).unwrap();
-    assert_eq!((result.performative, result.language.as_deref()), (Performative::Inform, Some("fipa-sl0")));
-    let ManagementContent::Result { descriptions, .. } = content(&result) else { panic!("{result:?}") };
+    assert_eq!(
+        (result.performative, result.language.as_deref()),
+        (Performative::Inform, Some("fipa-sl0"))
+    );
+    let ManagementContent::Result { descriptions, .. } = content(&result) else {
+        panic!("{result:?}")
+    };
     let names: Vec<String> = descriptions
         .iter()
         .map(|d| match d {
@@ -306,15 +480,29 @@ fn ams_lists_hosted_agents_and_manages_registrations() {
             other => panic!("{other:?}"),
         })
         .collect();
-    assert_eq!(names, [AMS, DF, "echo@WheelchairTest"], "JADE's platform lists the same three");
+    assert_eq!(
+        names,
+        [AMS, DF, "echo@WheelchairTest"],
+        "JADE's platform lists the same three"
+    );
 
-    let register = ams_action(ManagementAction::Register { description: ams_description(Some(ME), None) });
+    let register = ams_action(ManagementAction::Register {
+        description: ams_description(Some(ME), None),
+    });
     platform.send(&request(ME, AMS, &register));
     assert_eq!(next(&mut me).unwrap().performative, Performative::Inform);
-    assert_eq!(platform.pages.get(ME).unwrap().state, Some(AgentState::Active));
+    assert_eq!(
+        platform.pages.get(ME).unwrap().state,
+        Some(AgentState::Active)
+    );
     platform.send(&request(ME, AMS, &register));
-    assert_eq!(reason(&next(&mut me).unwrap()), FipaError::AlreadyRegistered);
-    let suspend = ams_action(ManagementAction::Modify { description: ams_description(Some(ME), Some(AgentState::Suspended)) });
+    assert_eq!(
+        reason(&next(&mut me).unwrap()),
+        FipaError::AlreadyRegistered
+    );
+    let suspend = ams_action(ManagementAction::Modify {
+        description: ams_description(Some(ME), Some(AgentState::Suspended)),
+    });
     platform.send(&request(ME, AMS, &suspend));
     assert_eq!(next(&mut me).unwrap().performative, Performative::Inform);
     let suspended = ams_action(ManagementAction::Search {
@@ -322,20 +510,32 @@ fn ams_lists_hosted_agents_and_manages_registrations() {
         constraints: SearchConstraints::default(),
     });
     platform.send(&request(ME, AMS, &suspended));
-    let ManagementContent::Result { descriptions, .. } = content(&next(&mut me).unwrap()) else { panic!() };
+    let ManagementContent::Result { descriptions, .. } = content(&next(&mut me).unwrap()) else {
+        panic!()
+    };
     assert_eq!(descriptions.len(), 1);
 
     // Acting on another agent's entry is refused; unknown entries are not registered.
-    let evict_df = ams_action(ManagementAction::Deregister { description: ams_description(Some(DF), None) });
+    let evict_df = ams_action(ManagementAction::Deregister {
+        description: ams_description(Some(DF), None),
+    });
     platform.send(&request(ME, AMS, &evict_df));
     let refused = next(&mut me).unwrap();
-    assert_eq!((refused.performative, reason(&refused)), (Performative::Refuse, FipaError::Unauthorised));
-    let leave = ams_action(ManagementAction::Deregister { description: ams_description(Some(ME), None) });
+    assert_eq!(
+        (refused.performative, reason(&refused)),
+        (Performative::Refuse, FipaError::Unauthorised)
+    );
+    let leave = ams_action(ManagementAction::Deregister {
+        description: ams_description(Some(ME), None),
+    });
     platform.send(&request(ME, AMS, &leave));
     assert_eq!(next(&mut me).unwrap().performative, Performative::Inform);
     platform.send(&request(ME, AMS, &leave));
     let failed = next(&mut me).unwrap();
-    assert_eq!((failed.performative, reason(&failed)), (Performative::Failure, FipaError::NotRegistered));
+    assert_eq!(
+        (failed.performative, reason(&failed)),
+        (Performative::Failure, FipaError::NotRegistered)
+    );
     assert_eq!(platform.pages.len(), 3);
 }
 
@@ -343,14 +543,42 @@ fn ams_lists_hosted_agents_and_manages_registrations() {
 fn services_do_not_understand_other_acts_ontologies_or_content() {
     let mut platform = Platform::new();
     let mut me = platform.client(ME);
-    let base = AclMessage::new(Performative::QueryRef).with_sender(AgentId::new(ME)).with_content("((iota ?x (p ?x)))");
+    let base = AclMessage::new(Performative::QueryRef)
+        .with_sender(AgentId::new(ME))
+        .with_content("((iota ?x (p ?x)))");
     for (receiver, message, expected) in [
         (AMS, base.clone(), "(unsupported-act query-ref)"),
-        (DF, base.clone().with_performative(Performative::Propose), "(unsupported-act propose)"),
-        (AMS, base.clone().with_performative(Performative::Request).with_ontology("other"), "(unrecognised-value ontology)"),
-        (DF, base.clone().with_performative(Performative::Request).with_language("klingon"), "(unrecognised-value language)"),
-        (DF, base.clone().with_performative(Performative::Request).with_content("((( not sl"), "(unrecognised-value content)"),
-        (DF, base.clone().with_performative(Performative::Subscribe), "(unrecognised-value content)"),
+        (
+            DF,
+            base.clone().with_performative(Performative::Propose),
+            "(unsupported-act propose)",
+        ),
+        (
+            AMS,
+            base.clone()
+                .with_performative(Performative::Request)
+                .with_ontology("other"),
+            "(unrecognised-value ontology)",
+        ),
+        (
+            DF,
+            base.clone()
+                .with_performative(Performative::Request)
+                .with_language("klingon"),
+            "(unrecognised-value language)",
+        ),
+        (
+            DF,
+            base.clone()
+                .with_performative(Performative::Request)
+                .with_content("((( not sl"),
+            "(unrecognised-value content)",
+        ),
+        (
+            DF,
+            base.clone().with_performative(Performative::Subscribe),
+            "(unrecognised-value content)",
+        ),
     ] {
         platform.send(&message.with_receiver(AgentId::new(receiver)));
         let answer = next(&mut me).unwrap();
@@ -358,21 +586,40 @@ fn services_do_not_understand_other_acts_ontologies_or_content() {
         assert_eq!(answer.content_text().unwrap(), format!("({expected})"));
     }
     // Answers are never answered.
-    for p in [Performative::Inform, Performative::Failure, Performative::NotUnderstood] {
-        platform.send(&base.clone().with_performative(p).with_receiver(AgentId::new(DF)));
+    for p in [
+        Performative::Inform,
+        Performative::Failure,
+        Performative::NotUnderstood,
+    ] {
+        platform.send(
+            &base
+                .clone()
+                .with_performative(p)
+                .with_receiver(AgentId::new(DF)),
+        );
         assert!(next(&mut me).is_none());
     }
 }
 
 #[test]
 fn delivery_failure_reads_like_jades_ams() {
-    let Some(jade) = captured("delivery_failure", "fipa/wire/from-jade/05-ams-failure-unknown-receiver.raw") else { return };
-    let Some(sent) = captured("delivery_failure", "fipa/wire/acl/05-unknown-receiver.acl") else { return };
+    let Some(jade) = captured(
+        "delivery_failure",
+        "fipa/wire/from-jade/05-ams-failure-unknown-receiver.raw",
+    ) else {
+        return;
+    };
+    let Some(sent) = captured("delivery_failure", "fipa/wire/acl/05-unknown-receiver.acl") else {
+        return;
+    };
     let nobody = AgentId::new("nobody@WheelchairTest").with_address("http://127.0.0.1:7778/acc");
     let reason = "Agent not found: getContainerID() failed to find agent nobody@WheelchairTest";
     let ours = delivery_failure(&sent, &nobody, AgentId::new(AMS), reason);
     assert_eq!(ours.performative, jade.performative);
-    assert_eq!((&ours.language, &ours.ontology, &ours.protocol), (&jade.language, &jade.ontology, &jade.protocol));
+    assert_eq!(
+        (&ours.language, &ours.ontology, &ours.protocol),
+        (&jade.language, &jade.ontology, &jade.protocol)
+    );
     assert_eq!(ours.conversation_id, jade.conversation_id);
     assert_eq!(ours.receivers[0].name, ME);
     // JADE spaces its terms irregularly: compare the SL trees.

@@ -37,7 +37,9 @@ pub struct FrameCodec {
 
 impl Default for FrameCodec {
     fn default() -> Self {
-        FrameCodec { max_frame_len: FrameCodec::DEFAULT_MAX_FRAME_LEN }
+        FrameCodec {
+            max_frame_len: FrameCodec::DEFAULT_MAX_FRAME_LEN,
+        }
     }
 }
 
@@ -64,10 +66,16 @@ impl FrameCodec {
         let trailer = signature_on_wire(h.flags);
         let len = frame_len(h, env.payload.len(), trailer);
         if len > self.max_frame_len {
-            return Err(BusError::FrameTooLarge { len, max: self.max_frame_len });
+            return Err(BusError::FrameTooLarge {
+                len,
+                max: self.max_frame_len,
+            });
         }
-        let payload_len = u32::try_from(env.payload.len())
-            .map_err(|_| BusError::FrameTooLarge { len, max: self.max_frame_len })?;
+        let payload_len =
+            u32::try_from(env.payload.len()).map_err(|_| BusError::FrameTooLarge {
+                len,
+                max: self.max_frame_len,
+            })?;
         let (s_len, r_len) = name_lens(h)?;
         out.reserve(len);
         write_fixed(h, s_len, r_len, out);
@@ -76,7 +84,10 @@ impl FrameCodec {
         out.extend_from_slice(h.receiver.as_bytes());
         out.extend_from_slice(&env.payload);
         if trailer {
-            let sig = env.signature.as_deref().ok_or(BusError::MissingSignature { id: h.id })?;
+            let sig = env
+                .signature
+                .as_deref()
+                .ok_or(BusError::MissingSignature { id: h.id })?;
             out.extend_from_slice(sig);
         }
         Ok(())
@@ -93,16 +104,26 @@ impl FrameCodec {
     /// `Ok(None)` if `buf` holds only part of a frame, `Err` if the bytes cannot be a frame
     /// (the stream is then corrupt and should be closed).
     pub fn decode(&self, buf: &[u8]) -> Result<Option<(Envelope, usize)>, BusError> {
-        let Some((env, range)) = self.decode_header(buf)? else { return Ok(None) };
+        let Some((env, range)) = self.decode_header(buf)? else {
+            return Ok(None);
+        };
         let len = range.end + env.trailer_len();
-        Ok(Some((Envelope { payload: buf[range].to_vec(), ..env }, len)))
+        Ok(Some((
+            Envelope {
+                payload: buf[range].to_vec(),
+                ..env
+            },
+            len,
+        )))
     }
 
     /// Decodes one whole datagram: exactly one frame, nothing missing, nothing after it.
     pub fn decode_datagram(&self, buf: &[u8]) -> Result<Envelope, BusError> {
         match self.decode(buf)? {
             Some((env, used)) if used == buf.len() => Ok(env),
-            Some((_, used)) => Err(BusError::TrailingBytes { extra: buf.len() - used }),
+            Some((_, used)) => Err(BusError::TrailingBytes {
+                extra: buf.len() - used,
+            }),
             None => Err(BusError::Truncated { have: buf.len() }),
         }
     }
@@ -110,24 +131,38 @@ impl FrameCodec {
     /// As [`FrameCodec::decode_datagram`], keeping the frame's buffer as the payload's (moved to
     /// its front): no allocation for a frame the transport handed over as its own.
     pub fn decode_datagram_owned(&self, mut buf: Vec<u8>) -> Result<Envelope, BusError> {
-        let Some((env, range)) = self.decode_header(&buf)? else { return Err(BusError::Truncated { have: buf.len() }) };
+        let Some((env, range)) = self.decode_header(&buf)? else {
+            return Err(BusError::Truncated { have: buf.len() });
+        };
         let used = range.end + env.trailer_len();
         if used != buf.len() {
-            return Err(BusError::TrailingBytes { extra: buf.len() - used });
+            return Err(BusError::TrailingBytes {
+                extra: buf.len() - used,
+            });
         }
         let payload_len = range.len();
         buf.copy_within(range, 0);
         buf.truncate(payload_len);
-        Ok(Envelope { payload: buf, ..env })
+        Ok(Envelope {
+            payload: buf,
+            ..env
+        })
     }
 
     /// Decodes everything but the payload, which is left empty: `Ok(Some((envelope, payload
     /// range in buf)))`; the signature trailer, if any, follows the range.
-    fn decode_header(&self, buf: &[u8]) -> Result<Option<(Envelope, std::ops::Range<usize>)>, BusError> {
+    fn decode_header(
+        &self,
+        buf: &[u8],
+    ) -> Result<Option<(Envelope, std::ops::Range<usize>)>, BusError> {
         if buf.len() >= 2 && buf[..2] != MAGIC {
-            return Err(BusError::BadMagic { found: [buf[0], buf[1]] });
+            return Err(BusError::BadMagic {
+                found: [buf[0], buf[1]],
+            });
         }
-        let Some(fixed) = buf.get(..FIXED_LEN) else { return Ok(None) };
+        let Some(fixed) = buf.get(..FIXED_LEN) else {
+            return Ok(None);
+        };
         let version = fixed[2];
         if version != WIRE_VERSION {
             return Err(BusError::UnsupportedVersion { found: version });
@@ -139,16 +174,25 @@ impl FrameCodec {
         let s_len = usize::from(fixed[36]);
         let r_len = usize::from(fixed[37]);
         let payload_len = usize::try_from(be_u32(&fixed[38..42])).unwrap_or(usize::MAX);
-        let trailer = if signature_on_wire(flags) { SIGNATURE_LEN } else { 0 };
+        let trailer = if signature_on_wire(flags) {
+            SIGNATURE_LEN
+        } else {
+            0
+        };
         let len = FIXED_LEN
             .saturating_add(s_len)
             .saturating_add(r_len)
             .saturating_add(payload_len)
             .saturating_add(trailer);
         if len > self.max_frame_len {
-            return Err(BusError::FrameTooLarge { len, max: self.max_frame_len });
+            return Err(BusError::FrameTooLarge {
+                len,
+                max: self.max_frame_len,
+            });
         }
-        let Some(frame) = buf.get(..len) else { return Ok(None) };
+        let Some(frame) = buf.get(..len) else {
+            return Ok(None);
+        };
         let mut at = FIXED_LEN;
         let sender = name(frame, &mut at, s_len, "sender")?;
         let receiver = name(frame, &mut at, r_len, "receiver")?;
@@ -170,14 +214,26 @@ impl FrameCodec {
             sender,
             receiver,
         };
-        Ok(Some((Envelope { header, payload: Vec::new(), signature, authenticated: None }, payload)))
+        Ok(Some((
+            Envelope {
+                header,
+                payload: Vec::new(),
+                signature,
+                authenticated: None,
+            },
+            payload,
+        )))
     }
 }
 
 impl Envelope {
     /// Length of the signature trailer this envelope's frame carries, bytes.
     fn trailer_len(&self) -> usize {
-        if signature_on_wire(self.header.flags) { SIGNATURE_LEN } else { 0 }
+        if signature_on_wire(self.header.flags) {
+            SIGNATURE_LEN
+        } else {
+            0
+        }
     }
 }
 
@@ -196,14 +252,22 @@ fn signature_on_wire(flags: Flags) -> bool {
 }
 
 fn frame_len(h: &Header, payload: usize, trailer: bool) -> usize {
-    FIXED_LEN + h.sender.len() + h.receiver.len() + payload + if trailer { SIGNATURE_LEN } else { 0 }
+    FIXED_LEN
+        + h.sender.len()
+        + h.receiver.len()
+        + payload
+        + if trailer { SIGNATURE_LEN } else { 0 }
 }
 
 fn name_lens(h: &Header) -> Result<(u8, u8), BusError> {
-    let s = u8::try_from(h.sender.len())
-        .map_err(|_| BusError::NameTooLong { field: "sender", len: h.sender.len() })?;
-    let r = u8::try_from(h.receiver.len())
-        .map_err(|_| BusError::NameTooLong { field: "receiver", len: h.receiver.len() })?;
+    let s = u8::try_from(h.sender.len()).map_err(|_| BusError::NameTooLong {
+        field: "sender",
+        len: h.sender.len(),
+    })?;
+    let r = u8::try_from(h.receiver.len()).map_err(|_| BusError::NameTooLong {
+        field: "receiver",
+        len: h.receiver.len(),
+    })?;
     Ok((s, r))
 }
 
@@ -246,7 +310,12 @@ mod tests {
     use proptest::prelude::*;
 
     fn sample() -> Envelope {
-        let mut env = Envelope::new(MsgId(0x0102_0304_0506_0708), "alice", "bob@wheelchair", b"(inform)".to_vec());
+        let mut env = Envelope::new(
+            MsgId(0x0102_0304_0506_0708),
+            "alice",
+            "bob@wheelchair",
+            b"(inform)".to_vec(),
+        );
         env.header.seq = 9;
         env.header.timestamp = Time(1_000);
         env.header.reply_by = Time(2_000);
@@ -261,12 +330,18 @@ mod tests {
         assert_eq!(&frame[..4], b"IW\x01\x00");
         assert_eq!(codec.decode_datagram(&frame).unwrap(), env);
         for cut in 0..frame.len() {
-            assert!(codec.decode(&frame[..cut]).unwrap().is_none(), "prefix {cut}");
+            assert!(
+                codec.decode(&frame[..cut]).unwrap().is_none(),
+                "prefix {cut}"
+            );
         }
         let mut two = frame.clone();
         two.extend_from_slice(&frame);
         assert_eq!(codec.decode(&two).unwrap().unwrap().1, frame.len());
-        assert!(matches!(codec.decode_datagram(&two), Err(BusError::TrailingBytes { .. })));
+        assert!(matches!(
+            codec.decode_datagram(&two),
+            Err(BusError::TrailingBytes { .. })
+        ));
     }
 
     #[test]
@@ -274,7 +349,10 @@ mod tests {
         let codec = FrameCodec::new();
         let mut env = sample();
         env.header.flags = Flags::SIGNED;
-        assert!(matches!(codec.encode_to_vec(&env), Err(BusError::MissingSignature { .. })));
+        assert!(matches!(
+            codec.encode_to_vec(&env),
+            Err(BusError::MissingSignature { .. })
+        ));
         env.signature = Some(Box::new([7; SIGNATURE_LEN]));
         let frame = codec.encode_to_vec(&env).unwrap();
         assert_eq!(codec.decode_datagram(&frame).unwrap(), env);
@@ -287,16 +365,31 @@ mod tests {
         let mut frame = FrameCodec::new().encode_to_vec(&env).unwrap();
         let mut big = env.clone();
         big.payload = vec![0; 200];
-        assert!(matches!(codec.encode_to_vec(&big), Err(BusError::FrameTooLarge { .. })));
+        assert!(matches!(
+            codec.encode_to_vec(&big),
+            Err(BusError::FrameTooLarge { .. })
+        ));
         frame[3] = 0x80;
-        assert!(matches!(codec.decode(&frame), Err(BusError::UnknownFlags { bits: 0x80 })));
+        assert!(matches!(
+            codec.decode(&frame),
+            Err(BusError::UnknownFlags { bits: 0x80 })
+        ));
         frame[2] = 9;
-        assert!(matches!(codec.decode(&frame), Err(BusError::UnsupportedVersion { found: 9 })));
+        assert!(matches!(
+            codec.decode(&frame),
+            Err(BusError::UnsupportedVersion { found: 9 })
+        ));
         frame[0] = b'X';
-        assert!(matches!(codec.decode(&frame), Err(BusError::BadMagic { .. })));
+        assert!(matches!(
+            codec.decode(&frame),
+            Err(BusError::BadMagic { .. })
+        ));
         let mut long = sample();
         long.header.sender = "x".repeat(300);
-        assert!(matches!(FrameCodec::new().encode_to_vec(&long), Err(BusError::NameTooLong { .. })));
+        assert!(matches!(
+            FrameCodec::new().encode_to_vec(&long),
+            Err(BusError::NameTooLong { .. })
+        ));
     }
 
     proptest! {

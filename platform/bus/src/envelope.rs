@@ -31,7 +31,10 @@ impl IdGen {
     }
     /// A generator with a chosen prefix (deterministic tests).
     pub fn with_prefix(prefix: u32) -> IdGen {
-        IdGen { prefix: u64::from(prefix) << 32, next: 0 }
+        IdGen {
+            prefix: u64::from(prefix) << 32,
+            next: 0,
+        }
     }
     /// The next id.
     pub fn next_id(&mut self) -> MsgId {
@@ -124,7 +127,12 @@ pub struct Envelope {
 impl Envelope {
     /// A new message from `sender` to `receiver`; timestamp and sequence number are the temporal
     /// layer's to fill in.
-    pub fn new(id: MsgId, sender: impl Into<String>, receiver: impl Into<String>, payload: Vec<u8>) -> Envelope {
+    pub fn new(
+        id: MsgId,
+        sender: impl Into<String>,
+        receiver: impl Into<String>,
+        payload: Vec<u8>,
+    ) -> Envelope {
         Envelope {
             header: Header {
                 id,

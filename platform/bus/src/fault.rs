@@ -65,16 +65,33 @@ impl<T: FrameTransport> FaultyTransport<T> {
 
     /// Wraps `inner`; the same `seed` gives the same faults for the same sends.
     pub fn new(inner: T, faults: Impairments, seed: u64) -> FaultyTransport<T> {
-        let state = State { rng: ChaCha8Rng::seed_from_u64(seed), held: None, history: Vec::new(), stats: FaultStats::default() };
-        FaultyTransport { inner, faults, state: Mutex::new(state) }
+        let state = State {
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            held: None,
+            history: Vec::new(),
+            stats: FaultStats::default(),
+        };
+        FaultyTransport {
+            inner,
+            faults,
+            state: Mutex::new(state),
+        }
     }
     /// Faults injected so far.
     pub fn stats(&self) -> FaultStats {
-        self.state.lock().unwrap_or_else(PoisonError::into_inner).stats
+        self.state
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .stats
     }
     /// Sends the frame held back for reordering, if any.
     pub fn flush(&self) -> Result<(), TransportError> {
-        let held = self.state.lock().unwrap_or_else(PoisonError::into_inner).held.take();
+        let held = self
+            .state
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .held
+            .take();
         match held {
             Some((to, frame)) => self.inner.send(&to, &frame),
             None => Ok(()),
@@ -148,7 +165,10 @@ impl<T: FrameTransport> FrameTransport for FaultyTransport<T> {
         }
         Ok(())
     }
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         self.inner.recv_timeout(timeout)
     }
 }
@@ -175,7 +195,14 @@ mod tests {
 
     #[test]
     fn seeded_and_every_fault_occurs() {
-        let f = Impairments { drop: 0.2, duplicate: 0.1, reorder: 0.1, corrupt: 0.1, replay: 0.05, inject: 0.05 };
+        let f = Impairments {
+            drop: 0.2,
+            duplicate: 0.1,
+            reorder: 0.1,
+            corrupt: 0.1,
+            replay: 0.05,
+            inject: 0.05,
+        };
         let (s1, g1) = run(f, 3);
         let (s2, g2) = run(f, 3);
         assert_eq!((s1, &g1), (s2, &g2));

@@ -32,10 +32,17 @@ impl InProcNetwork {
         let (tx, rx) = std::sync::mpsc::channel();
         let mut nodes = self.nodes.write().unwrap_or_else(PoisonError::into_inner);
         if nodes.contains_key(&addr) {
-            return Err(TransportError::BadAddress { addr: name.to_string(), reason: "endpoint name already in use".into() });
+            return Err(TransportError::BadAddress {
+                addr: name.to_string(),
+                reason: "endpoint name already in use".into(),
+            });
         }
         nodes.insert(addr.clone(), tx);
-        Ok(InProcTransport { addr, net: self.clone(), rx: Mutex::new(rx) })
+        Ok(InProcTransport {
+            addr,
+            net: self.clone(),
+            rx: Mutex::new(rx),
+        })
     }
 }
 
@@ -56,13 +63,22 @@ impl FrameTransport for InProcTransport {
     }
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
         if frame.len() > InProcNetwork::MAX_FRAME_LEN {
-            return Err(TransportError::FrameTooLarge { len: frame.len(), max: InProcNetwork::MAX_FRAME_LEN });
+            return Err(TransportError::FrameTooLarge {
+                len: frame.len(),
+                max: InProcNetwork::MAX_FRAME_LEN,
+            });
         }
-        let nodes = self.net.nodes.read().unwrap_or_else(PoisonError::into_inner);
-        let tx = nodes
-            .get(to)
-            .ok_or_else(|| TransportError::BadAddress { addr: to.0.clone(), reason: "no such in-process endpoint".into() })?;
-        tx.send((self.addr.clone(), frame.to_vec())).map_err(|_| TransportError::Closed)
+        let nodes = self
+            .net
+            .nodes
+            .read()
+            .unwrap_or_else(PoisonError::into_inner);
+        let tx = nodes.get(to).ok_or_else(|| TransportError::BadAddress {
+            addr: to.0.clone(),
+            reason: "no such in-process endpoint".into(),
+        })?;
+        tx.send((self.addr.clone(), frame.to_vec()))
+            .map_err(|_| TransportError::Closed)
     }
     fn recv_timeout(&self, timeout: Duration) -> Result<Option<Frame>, TransportError> {
         let rx = self.rx.lock().unwrap_or_else(PoisonError::into_inner);
@@ -84,7 +100,11 @@ impl FrameTransport for InProcTransport {
 
 impl Drop for InProcTransport {
     fn drop(&mut self) {
-        self.net.nodes.write().unwrap_or_else(PoisonError::into_inner).remove(&self.addr);
+        self.net
+            .nodes
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(&self.addr);
     }
 }
 

@@ -196,7 +196,10 @@ impl Counters {
     }
     /// `(reason, count)` for every reason with a non-zero count.
     pub fn nonzero(&self) -> impl Iterator<Item = (Reason, u64)> + '_ {
-        Reason::ALL.iter().map(|r| (*r, self.get(*r))).filter(|(_, n)| *n > 0)
+        Reason::ALL
+            .iter()
+            .map(|r| (*r, self.get(*r)))
+            .filter(|(_, n)| *n > 0)
     }
 }
 
@@ -281,7 +284,10 @@ pub struct Stack {
 impl std::fmt::Debug for Stack {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Stack")
-            .field("layers", &self.layers.iter().map(|l| l.name()).collect::<Vec<_>>())
+            .field(
+                "layers",
+                &self.layers.iter().map(|l| l.name()).collect::<Vec<_>>(),
+            )
             .field("counters", &self.counters)
             .finish()
     }
@@ -365,7 +371,11 @@ impl Layer for Stack {
     }
     /// A drop is counted here and reported as [`Verdict::Consumed`] (nothing to forward).
     fn outbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
-        if self.down_from(0, env, now) { Verdict::Pass } else { Verdict::Consumed }
+        if self.down_from(0, env, now) {
+            Verdict::Pass
+        } else {
+            Verdict::Consumed
+        }
     }
     fn inbound(&mut self, env: &mut Envelope, now: Time) -> Verdict {
         for i in (0..self.layers.len()).rev() {
@@ -411,7 +421,12 @@ pub enum LayerKind {
 
 impl LayerKind {
     /// All four, top to bottom.
-    pub const ALL: [LayerKind; 4] = [LayerKind::Parser, LayerKind::Temporal, LayerKind::Security, LayerKind::Comm];
+    pub const ALL: [LayerKind; 4] = [
+        LayerKind::Parser,
+        LayerKind::Temporal,
+        LayerKind::Security,
+        LayerKind::Comm,
+    ];
 
     /// Lower-case name, as in `--layers parser,comm`.
     pub fn name(self) -> &'static str {
@@ -440,7 +455,13 @@ impl LayerSet {
     }
     /// Exactly the given layers (any order, duplicates ignored).
     pub fn of(kinds: &[LayerKind]) -> LayerSet {
-        LayerSet(LayerKind::ALL.iter().copied().filter(|k| kinds.contains(k)).collect())
+        LayerSet(
+            LayerKind::ALL
+                .iter()
+                .copied()
+                .filter(|k| kinds.contains(k))
+                .collect(),
+        )
     }
     /// True if `kind` is switched on.
     pub fn contains(&self, kind: LayerKind) -> bool {
@@ -479,7 +500,9 @@ impl FromStr for LayerSet {
             let kind = LayerKind::ALL
                 .iter()
                 .find(|k| k.name() == part)
-                .ok_or_else(|| BusError::UnknownLayer { name: part.to_string() })?;
+                .ok_or_else(|| BusError::UnknownLayer {
+                    name: part.to_string(),
+                })?;
             kinds.push(*kind);
         }
         Ok(LayerSet::of(&kinds))
@@ -503,7 +526,11 @@ mod tests {
             Verdict::Pass
         }
         fn inbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
-            if env.payload.first() == Some(&b'x') { Verdict::Drop(Reason::Malformed) } else { Verdict::Pass }
+            if env.payload.first() == Some(&b'x') {
+                Verdict::Drop(Reason::Malformed)
+            } else {
+                Verdict::Pass
+            }
         }
         fn poll_transmit(&mut self, _now: Time) -> Option<Envelope> {
             self.echo.take()
@@ -531,7 +558,10 @@ mod tests {
 
     #[test]
     fn stack_orders_counts_and_forwards_transmits_below_origin() {
-        let mut s = Stack::new().push(Mark(b'1')).push(Picky { echo: None }).push(Mark(b'2'));
+        let mut s = Stack::new()
+            .push(Mark(b'1'))
+            .push(Picky { echo: None })
+            .push(Mark(b'2'));
         let mut out = env(b"m");
         assert_eq!(s.outbound(&mut out, Time::ZERO), Verdict::Pass);
         assert_eq!(out.payload, b"m12");
@@ -539,7 +569,10 @@ mod tests {
         // (not "m112": it does not pass the layer above its origin again).
         assert_eq!(s.poll_transmit(Time::ZERO).unwrap().payload, b"m12");
         assert!(s.poll_transmit(Time::ZERO).is_none());
-        assert_eq!(s.inbound(&mut env(b"x"), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert_eq!(
+            s.inbound(&mut env(b"x"), Time::ZERO),
+            Verdict::Drop(Reason::Malformed)
+        );
         assert_eq!(s.inbound(&mut env(b"ok"), Time::ZERO), Verdict::Pass);
         assert_eq!(s.counters().get(Reason::Malformed), 1);
         assert_eq!(s.counters().to_string(), "malformed=1");
@@ -563,6 +596,9 @@ mod tests {
         let s: LayerSet = "comm, parser".parse().unwrap();
         assert_eq!(s.kinds(), &[LayerKind::Parser, LayerKind::Comm]);
         assert_eq!(s.to_string(), "parser,comm");
-        assert!(matches!("comm,foo".parse::<LayerSet>(), Err(BusError::UnknownLayer { .. })));
+        assert!(matches!(
+            "comm,foo".parse::<LayerSet>(),
+            Err(BusError::UnknownLayer { .. })
+        ));
     }
 }

@@ -110,7 +110,9 @@ pub enum BusError {
         id: MsgId,
     },
     /// A layer name in a layer list is unknown.
-    #[error("unknown layer `{name}`: expected all, none, or a comma list of parser, temporal, security, comm")]
+    #[error(
+        "unknown layer `{name}`: expected all, none, or a comma list of parser, temporal, security, comm"
+    )]
     UnknownLayer {
         /// The name given.
         name: String,

@@ -63,7 +63,11 @@ pub struct BusConfig {
 
 impl Default for BusConfig {
     fn default() -> Self {
-        BusConfig { mailbox_capacity: 1024, tick: Duration::from_millis(1), codec: FrameCodec::new() }
+        BusConfig {
+            mailbox_capacity: 1024,
+            tick: Duration::from_millis(1),
+            codec: FrameCodec::new(),
+        }
     }
 }
 
@@ -116,7 +120,9 @@ impl Mailbox {
             Ok(env) => Some(env),
             Err(TryRecvError::Disconnected) => None,
             // A timeout beyond what `Instant` can represent is no timeout.
-            Err(TryRecvError::Empty) => self.recv_until(timeout.and_then(|t| Instant::now().checked_add(t))),
+            Err(TryRecvError::Empty) => {
+                self.recv_until(timeout.and_then(|t| Instant::now().checked_add(t)))
+            }
         }
     }
 
@@ -132,13 +138,19 @@ impl Mailbox {
                 Err(TryRecvError::Disconnected) => break None,
                 Err(TryRecvError::Empty) => {}
             }
-            let left = deadline.map_or(Duration::MAX, |d| d.saturating_duration_since(Instant::now()));
+            let left = deadline.map_or(Duration::MAX, |d| {
+                d.saturating_duration_since(Instant::now())
+            });
             if left.is_zero() {
                 break None;
             }
             // The bus is not kept while waiting (below): dropping it must end this stream.
             let mut following = false;
-            if let Some(bus) = self.bus.upgrade().filter(|bus| !bus.stop.load(Ordering::Acquire)) {
+            if let Some(bus) = self
+                .bus
+                .upgrade()
+                .filter(|bus| !bus.stop.load(Ordering::Acquire))
+            {
                 let mut lead = || match bus.try_lead(&self.name, left, spin_until, &mut frames) {
                     Some(received) => {
                         // Frames flowing (an acknowledgement before the reply): the next is near.
@@ -164,7 +176,8 @@ impl Mailbox {
             }
             // Follow (or, with the bus stopped or gone, wait for a local delivery or the end of
             // the stream): a delivery, the leader leaving or the channel closing wakes this thread.
-            let waker = waker.get_or_insert_with(|| Waker::from(Arc::new(Unpark(std::thread::current()))));
+            let waker =
+                waker.get_or_insert_with(|| Waker::from(Arc::new(Unpark(std::thread::current()))));
             let polled = self.rx.poll_recv(&mut Context::from_waker(waker));
             if polled.is_pending() {
                 std::thread::park_timeout(left.min(MAX_FOLLOW));
@@ -246,7 +259,9 @@ pub struct Bus {
 
 impl std::fmt::Debug for Bus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Bus").field("addr", self.inner.transport.local_addr()).finish()
+        f.debug_struct("Bus")
+            .field("addr", self.inner.transport.local_addr())
+            .finish()
     }
 }
 
@@ -256,7 +271,12 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 impl Bus {
     /// Starts a bus over `transport` with the given layers; spawns its pump thread.
-    pub fn start(stack: Stack, transport: Arc<dyn FrameTransport>, clock: Clock, config: BusConfig) -> Result<Bus, BusError> {
+    pub fn start(
+        stack: Stack,
+        transport: Arc<dyn FrameTransport>,
+        clock: Clock,
+        config: BusConfig,
+    ) -> Result<Bus, BusError> {
         let next_deadline = stack.next_deadline().map_or(NO_DEADLINE, Time::as_ns);
         let inner = Arc::new(Inner {
             stack: Mutex::new(stack),
@@ -278,33 +298,58 @@ impl Bus {
             .name(format!("bus-pump-{}", inner.transport.local_addr()))
             .spawn(move || pump_inner.pump())
             .map_err(|source| BusError::Spawn { source })?;
-        Ok(Bus { inner, pump: Some(pump) })
+        Ok(Bus {
+            inner,
+            pump: Some(pump),
+        })
     }
 
     /// Registers a local agent and returns its mailbox.
     pub fn register(&self, name: &str) -> Result<Mailbox, BusError> {
-        let mut local = self.inner.local.write().unwrap_or_else(PoisonError::into_inner);
+        let mut local = self
+            .inner
+            .local
+            .write()
+            .unwrap_or_else(PoisonError::into_inner);
         if local.contains_key(name) {
-            return Err(BusError::AgentExists { name: name.to_string() });
+            return Err(BusError::AgentExists {
+                name: name.to_string(),
+            });
         }
         let (tx, rx) = mpsc::channel(self.inner.config.mailbox_capacity.max(1));
         local.insert(name.to_string(), tx);
-        Ok(Mailbox { name: name.to_string(), rx, bus: Arc::downgrade(&self.inner) })
+        Ok(Mailbox {
+            name: name.to_string(),
+            rx,
+            bus: Arc::downgrade(&self.inner),
+        })
     }
 
     /// Removes a local agent; its mailbox sees the end of the stream.
     pub fn deregister(&self, name: &str) {
-        self.inner.local.write().unwrap_or_else(PoisonError::into_inner).remove(name);
+        self.inner
+            .local
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(name);
     }
 
     /// Routes envelopes for the remote agent `agent` to the endpoint `addr`.
     pub fn add_route(&self, agent: &str, addr: PeerAddr) {
-        self.inner.routes.write().unwrap_or_else(PoisonError::into_inner).insert(agent.to_string(), Arc::new(addr));
+        self.inner
+            .routes
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(agent.to_string(), Arc::new(addr));
     }
 
     /// Forgets the route to `agent`.
     pub fn remove_route(&self, agent: &str) {
-        self.inner.routes.write().unwrap_or_else(PoisonError::into_inner).remove(agent);
+        self.inner
+            .routes
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(agent);
     }
 
     /// This bus's transport address.
@@ -328,7 +373,9 @@ impl Bus {
     pub fn send_envelope(&self, mut env: Envelope) -> Result<(), BusError> {
         let Some(destination) = self.inner.destination(&env.header.receiver) else {
             lock(&self.inner.stack).record(Reason::NoRoute);
-            return Err(BusError::NoRoute { receiver: env.header.receiver });
+            return Err(BusError::NoRoute {
+                receiver: env.header.receiver,
+            });
         };
         // One lock for the message: down the stack, back up for a local receiver, and whatever
         // the layers originate meanwhile; delivery and sending happen after it is released.
@@ -337,7 +384,9 @@ impl Bus {
             let mut stack = lock(&self.inner.stack);
             let now = self.inner.clock.now();
             let remote = match stack.outbound(&mut env, now) {
-                Verdict::Pass => Inner::route_locked(&mut stack, destination, env, now, &mut out.deliver),
+                Verdict::Pass => {
+                    Inner::route_locked(&mut stack, destination, env, now, &mut out.deliver)
+                }
                 Verdict::Drop(_) | Verdict::Consumed => None,
             };
             self.inner.collect_locked(&mut stack, now, &mut out);
@@ -376,10 +425,20 @@ impl Drop for Bus {
 impl Inner {
     /// Where envelopes for `agent` go: its local mailbox, else its route; `None` without either.
     fn destination(&self, agent: &str) -> Option<Destination> {
-        if self.local.read().unwrap_or_else(PoisonError::into_inner).contains_key(agent) {
+        if self
+            .local
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .contains_key(agent)
+        {
             return Some(Destination::Local);
         }
-        self.routes.read().unwrap_or_else(PoisonError::into_inner).get(agent).cloned().map(Destination::Remote)
+        self.routes
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(agent)
+            .cloned()
+            .map(Destination::Remote)
     }
 
     /// An envelope that passed the stack outbound (the stack is locked): run it back up for a
@@ -412,7 +471,8 @@ impl Inner {
                 stack.record(Reason::NoRoute);
                 continue;
             };
-            if let Some(remote) = Self::route_locked(stack, destination, env, now, &mut out.deliver) {
+            if let Some(remote) = Self::route_locked(stack, destination, env, now, &mut out.deliver)
+            {
                 out.send.push(remote);
             }
         }
@@ -438,12 +498,20 @@ impl Inner {
             .unwrap_or_else(|_| self.encode_and_send(addr, env, &mut Vec::new()))
     }
 
-    fn encode_and_send(&self, addr: &PeerAddr, env: &Envelope, frame: &mut Vec<u8>) -> Result<(), BusError> {
+    fn encode_and_send(
+        &self,
+        addr: &PeerAddr,
+        env: &Envelope,
+        frame: &mut Vec<u8>,
+    ) -> Result<(), BusError> {
         frame.clear();
         self.config.codec.encode(env, frame)?;
         self.transport
             .send(addr, frame)
-            .map_err(|source| BusError::Transport { context: format!("sending to {addr}"), source })
+            .map_err(|source| BusError::Transport {
+                context: format!("sending to {addr}"),
+                source,
+            })
     }
 
     fn deliver(&self, env: Envelope) {
@@ -480,9 +548,16 @@ impl Inner {
     /// One round led by agent `me`'s thread (polling the transport until `spin_until`), unless
     /// another thread holds the pump role (`None`); the frames received. Renews the lease either
     /// way: a thread that wants to lead keeps the pump thread away.
-    fn try_lead(&self, me: &str, wait: Duration, spin_until: Instant, frames: &mut Vec<(PeerAddr, Vec<u8>)>) -> Option<usize> {
+    fn try_lead(
+        &self,
+        me: &str,
+        wait: Duration,
+        spin_until: Instant,
+        frames: &mut Vec<(PeerAddr, Vec<u8>)>,
+    ) -> Option<usize> {
         let wait = wait.min(self.config.tick);
-        let until = duration_ns(self.started.elapsed()).saturating_add(duration_ns(wait.saturating_add(LEASE)));
+        let until = duration_ns(self.started.elapsed())
+            .saturating_add(duration_ns(wait.saturating_add(LEASE)));
         self.lease_until.fetch_max(until, Ordering::AcqRel);
         let _role = match self.pump_role.try_lock() {
             Ok(role) => role,
@@ -516,7 +591,13 @@ impl Inner {
     }
 
     /// [`Inner::pump_round`]; a receive error stops all receiving.
-    fn round(&self, wait: Duration, spin_until: Option<Instant>, leader: Option<&str>, frames: &mut Vec<(PeerAddr, Vec<u8>)>) -> usize {
+    fn round(
+        &self,
+        wait: Duration,
+        spin_until: Option<Instant>,
+        leader: Option<&str>,
+        frames: &mut Vec<(PeerAddr, Vec<u8>)>,
+    ) -> usize {
         match self.pump_round(wait, spin_until, leader, frames) {
             Ok(received) => received,
             Err(e) => {
@@ -560,7 +641,10 @@ impl Inner {
             }
         }
         let received = frames.len();
-        let decoded: Vec<_> = frames.drain(..).map(|(from, frame)| (from, self.config.codec.decode_datagram_owned(frame))).collect();
+        let decoded: Vec<_> = frames
+            .drain(..)
+            .map(|(from, frame)| (from, self.config.codec.decode_datagram_owned(frame)))
+            .collect();
         // One lock and one clock read for the whole batch and what the layers originate in
         // answer.
         let mut out = Outcome::default();
@@ -594,9 +678,15 @@ impl Inner {
 
     /// The first frame of a round: polls (yielding the core) until `spin_until`, then blocks for
     /// the rest of `wait`.
-    fn first_frame(&self, wait: Duration, spin_until: Option<Instant>) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn first_frame(
+        &self,
+        wait: Duration,
+        spin_until: Option<Instant>,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         let start = Instant::now();
-        let Some(spin_until) = spin_until.map(|s| start.checked_add(wait).map_or(s, |end| s.min(end))) else {
+        let Some(spin_until) =
+            spin_until.map(|s| start.checked_add(wait).map_or(s, |end| s.min(end)))
+        else {
             return self.transport.recv_timeout(wait);
         };
         loop {
@@ -605,7 +695,9 @@ impl Inner {
             }
             let now = Instant::now();
             if now >= spin_until {
-                return self.transport.recv_timeout(wait.saturating_sub(now - start));
+                return self
+                    .transport
+                    .recv_timeout(wait.saturating_sub(now - start));
             }
             std::thread::yield_now();
         }
@@ -636,4 +728,3 @@ enum Destination {
     /// The endpoint of its route.
     Remote(Arc<PeerAddr>),
 }
-

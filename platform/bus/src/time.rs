@@ -10,7 +10,19 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// A point in time: nanoseconds since 1970-01-01T00:00:00Z. Arithmetic saturates (never wraps).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    PartialOrd,
+    Ord,
+    Hash,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+)]
 pub struct Time(pub u64);
 
 impl Time {
@@ -41,7 +53,12 @@ impl Time {
 
 impl std::fmt::Display for Time {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}.{:09}s", self.0 / 1_000_000_000, self.0 % 1_000_000_000)
+        write!(
+            f,
+            "{}.{:09}s",
+            self.0 / 1_000_000_000,
+            self.0 % 1_000_000_000
+        )
     }
 }
 
@@ -102,7 +119,9 @@ impl MockController {
         // fetch_update never fails with a closure that always returns Some.
         let _ = self
             .0
-            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |t| Some(t.saturating_add(ns)));
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |t| {
+                Some(t.saturating_add(ns))
+            });
     }
     /// Sets the time (may move backwards, to test clock steps).
     pub fn set(&self, t: Time) {
@@ -131,7 +150,10 @@ mod tests {
 
     #[test]
     fn arithmetic_saturates() {
-        assert_eq!(Time(u64::MAX - 1).plus(Duration::from_secs(1)), Time(u64::MAX));
+        assert_eq!(
+            Time(u64::MAX - 1).plus(Duration::from_secs(1)),
+            Time(u64::MAX)
+        );
         assert_eq!(Time(3).minus(Duration::from_secs(1)), Time::ZERO);
         assert_eq!(Time(3).since(Time(10)), Duration::ZERO);
     }

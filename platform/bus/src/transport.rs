@@ -8,7 +8,9 @@ use std::time::Duration;
 
 /// The address of an endpoint in a transport's own syntax (`127.0.0.1:7000`, an iceoryx2 service
 /// name, an in-process node name).
-#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct PeerAddr(pub String);
 
 impl std::fmt::Display for PeerAddr {
@@ -72,5 +74,8 @@ pub trait FrameTransport: Send + Sync {
     /// Sends one frame. Returns once the transport has taken it (not when the peer has it).
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError>;
     /// Waits up to `timeout` for the next frame: `Ok(Some((from, frame)))`, `Ok(None)` on timeout.
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError>;
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError>;
 }

@@ -6,7 +6,10 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
-use iw_bus::{Bus, BusConfig, BusError, Clock, Envelope, InProcNetwork, Layer, Mailbox, MsgId, Reason, Stack, Time, Verdict};
+use iw_bus::{
+    Bus, BusConfig, BusError, Clock, Envelope, InProcNetwork, Layer, Mailbox, MsgId, Reason, Stack,
+    Time, Verdict,
+};
 
 fn wait(mailbox: &mut Mailbox) -> Envelope {
     let deadline = Instant::now() + Duration::from_secs(10);
@@ -14,7 +17,11 @@ fn wait(mailbox: &mut Mailbox) -> Envelope {
         if let Some(env) = mailbox.try_recv() {
             return env;
         }
-        assert!(Instant::now() < deadline, "nothing arrived for {}", mailbox.name());
+        assert!(
+            Instant::now() < deadline,
+            "nothing arrived for {}",
+            mailbox.name()
+        );
         std::thread::sleep(Duration::from_millis(1));
     }
 }
@@ -22,8 +29,20 @@ fn wait(mailbox: &mut Mailbox) -> Envelope {
 #[test]
 fn routes_locally_and_to_remote_buses() {
     let net = InProcNetwork::new();
-    let one = Bus::start(Stack::new(), Arc::new(net.endpoint("one").unwrap()), Clock::system(), BusConfig::default()).unwrap();
-    let two = Bus::start(Stack::new(), Arc::new(net.endpoint("two").unwrap()), Clock::system(), BusConfig::default()).unwrap();
+    let one = Bus::start(
+        Stack::new(),
+        Arc::new(net.endpoint("one").unwrap()),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
+    let two = Bus::start(
+        Stack::new(),
+        Arc::new(net.endpoint("two").unwrap()),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut a = one.register("a").unwrap();
     let mut b = one.register("b").unwrap();
     let mut c = two.register("c").unwrap();
@@ -34,12 +53,21 @@ fn routes_locally_and_to_remote_buses() {
     assert_eq!(wait(&mut b).payload, b"local");
     one.send("a", "c", b"remote".to_vec()).unwrap();
     let got = wait(&mut c);
-    assert_eq!((got.header.sender.as_str(), got.payload.as_slice()), ("a", &b"remote"[..]));
+    assert_eq!(
+        (got.header.sender.as_str(), got.payload.as_slice()),
+        ("a", &b"remote"[..])
+    );
     two.send("c", "a", b"reply".to_vec()).unwrap();
     assert_eq!(wait(&mut a).payload, b"reply");
 
-    assert!(matches!(one.register("a"), Err(BusError::AgentExists { .. })));
-    assert!(matches!(one.send("a", "nobody", Vec::new()), Err(BusError::NoRoute { .. })));
+    assert!(matches!(
+        one.register("a"),
+        Err(BusError::AgentExists { .. })
+    ));
+    assert!(matches!(
+        one.send("a", "nobody", Vec::new()),
+        Err(BusError::NoRoute { .. })
+    ));
     assert_eq!(one.counters().get(Reason::NoRoute), 1);
     one.shutdown();
     two.shutdown();
@@ -48,7 +76,13 @@ fn routes_locally_and_to_remote_buses() {
 #[test]
 fn undecodable_frames_are_counted() {
     let net = InProcNetwork::new();
-    let bus = Bus::start(Stack::new(), Arc::new(net.endpoint("bus").unwrap()), Clock::system(), BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(net.endpoint("bus").unwrap()),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
     let attacker = net.endpoint("x").unwrap();
     attacker.send(bus.local_addr(), b"not a frame").unwrap();
     let deadline = Instant::now() + Duration::from_secs(10);
@@ -63,7 +97,13 @@ fn a_burst_of_waiting_frames_is_delivered_in_order() {
     use iw_bus::FrameCodec;
     let net = InProcNetwork::new();
     let sender = net.endpoint("x").unwrap();
-    let bus = Bus::start(Stack::new(), Arc::new(net.endpoint("bus").unwrap()), Clock::system(), BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(net.endpoint("bus").unwrap()),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut b = bus.register("b").unwrap();
     // More frames than the pump takes in one batch, queued before it can take any, with an
     // undecodable one in the middle.
@@ -72,7 +112,9 @@ fn a_burst_of_waiting_frames_is_delivered_in_order() {
         if n == 100 {
             sender.send(bus.local_addr(), b"not a frame").unwrap();
         }
-        let frame = codec.encode_to_vec(&Envelope::new(MsgId(n), "x", "b", n.to_be_bytes().to_vec())).unwrap();
+        let frame = codec
+            .encode_to_vec(&Envelope::new(MsgId(n), "x", "b", n.to_be_bytes().to_vec()))
+            .unwrap();
         sender.send(bus.local_addr(), &frame).unwrap();
     }
     for n in 0..200u64 {
@@ -99,7 +141,10 @@ impl FrameTransport for Recorder {
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
         self.inner.send(to, frame)
     }
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         let got = self.inner.recv_timeout(timeout)?;
         if got.is_some() {
             self.receivers.lock().unwrap().insert(thread_name());
@@ -113,11 +158,29 @@ fn thread_name() -> String {
 }
 
 /// Two buses on one in-process network, `one` routing to agents of `two` and back.
-fn pair(net: &InProcNetwork, stack_two: Stack) -> (Arc<Bus>, Arc<Bus>, Arc<Mutex<HashSet<String>>>) {
+fn pair(
+    net: &InProcNetwork,
+    stack_two: Stack,
+) -> (Arc<Bus>, Arc<Bus>, Arc<Mutex<HashSet<String>>>) {
     let receivers = Arc::new(Mutex::new(HashSet::new()));
-    let recorder = Recorder { inner: net.endpoint("two").unwrap(), receivers: receivers.clone() };
-    let one = Bus::start(Stack::new(), Arc::new(net.endpoint("one").unwrap()), Clock::system(), BusConfig::default()).unwrap();
-    let two = Bus::start(stack_two, Arc::new(recorder), Clock::system(), BusConfig::default()).unwrap();
+    let recorder = Recorder {
+        inner: net.endpoint("two").unwrap(),
+        receivers: receivers.clone(),
+    };
+    let one = Bus::start(
+        Stack::new(),
+        Arc::new(net.endpoint("one").unwrap()),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
+    let two = Bus::start(
+        stack_two,
+        Arc::new(recorder),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
     (Arc::new(one), Arc::new(two), receivers)
 }
 
@@ -158,7 +221,11 @@ fn a_blocked_agent_thread_receives_from_the_transport_itself_in_order() {
     }
     two.deregister("b");
     assert_eq!(echo.join().unwrap(), sent);
-    assert!(receivers.lock().unwrap().contains("echo"), "the echo thread never led: {:?}", receivers.lock().unwrap());
+    assert!(
+        receivers.lock().unwrap().contains("echo"),
+        "the echo thread never led: {:?}",
+        receivers.lock().unwrap()
+    );
     assert!(a.recv_timeout(Duration::from_millis(1)).is_none());
 }
 
@@ -194,7 +261,9 @@ fn two_agent_threads_blocked_on_one_bus_both_get_all_their_messages() {
     }
     for _ in 0..2 {
         // Generous: a failure here means a lost frame or a deadlock, not a slow machine.
-        done_rx.recv_timeout(Duration::from_secs(60)).expect("a thread is missing messages");
+        done_rx
+            .recv_timeout(Duration::from_secs(60))
+            .expect("a thread is missing messages");
     }
     two.deregister("b1");
     two.deregister("b2");
@@ -252,12 +321,28 @@ fn wait_for_tick_from(t: &mut Mailbox, senders: &Mutex<Vec<String>>, name: &str)
 #[test]
 fn layer_timers_run_while_an_agent_thread_leads_and_after_it_stops() {
     let senders = Arc::new(Mutex::new(Vec::new()));
-    let ticker = Ticker { next: Time::ZERO, period: Duration::from_millis(2), n: 0, senders: senders.clone() };
+    let ticker = Ticker {
+        next: Time::ZERO,
+        period: Duration::from_millis(2),
+        n: 0,
+        senders: senders.clone(),
+    };
     let net = InProcNetwork::new();
-    let bus = Arc::new(Bus::start(Stack::new().push(ticker), Arc::new(net.endpoint("bus").unwrap()), Clock::system(), BusConfig::default()).unwrap());
+    let bus = Arc::new(
+        Bus::start(
+            Stack::new().push(ticker),
+            Arc::new(net.endpoint("bus").unwrap()),
+            Clock::system(),
+            BusConfig::default(),
+        )
+        .unwrap(),
+    );
     let mut t = bus.register("t").unwrap();
     let mut x = bus.register("x").unwrap();
-    let leader = std::thread::Builder::new().name("leader".into()).spawn(move || x.blocking_recv()).unwrap();
+    let leader = std::thread::Builder::new()
+        .name("leader".into())
+        .spawn(move || x.blocking_recv())
+        .unwrap();
     wait_for_tick_from(&mut t, &senders, "leader");
     bus.deregister("x");
     assert!(leader.join().unwrap().is_none(), "nothing was sent to x");
@@ -273,10 +358,19 @@ fn async_agents_receive_from_the_pump_thread_before_and_after_a_thread_led() {
     one.add_route("c", two.local_addr().clone());
     let mut b = two.register("b").unwrap();
     let mut c = two.register("c").unwrap();
-    let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .build()
+        .unwrap();
     let mut recv_c = |payload: &[u8]| {
-        let got = runtime.block_on(async { tokio::time::timeout(Duration::from_secs(10), c.recv()).await });
-        assert_eq!(got.expect("c got nothing").expect("c's stream ended").payload, payload);
+        let got = runtime
+            .block_on(async { tokio::time::timeout(Duration::from_secs(10), c.recv()).await });
+        assert_eq!(
+            got.expect("c got nothing")
+                .expect("c's stream ended")
+                .payload,
+            payload
+        );
     };
     one.send("a", "c", b"before".to_vec()).unwrap();
     recv_c(b"before");
@@ -297,7 +391,13 @@ fn async_agents_receive_from_the_pump_thread_before_and_after_a_thread_led() {
 #[test]
 fn a_blocked_receiver_sees_the_end_of_the_stream_and_timeouts() {
     let net = InProcNetwork::new();
-    let bus = Bus::start(Stack::new(), Arc::new(net.endpoint("bus").unwrap()), Clock::system(), BusConfig::default()).unwrap();
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(net.endpoint("bus").unwrap()),
+        Clock::system(),
+        BusConfig::default(),
+    )
+    .unwrap();
     let mut a = bus.register("a").unwrap();
     assert!(a.recv_timeout(Duration::from_millis(5)).is_none());
     bus.send("b", "a", b"kept".to_vec()).unwrap();
@@ -326,7 +426,12 @@ impl Layer for Acker {
     }
     fn inbound(&mut self, env: &mut Envelope, _now: Time) -> Verdict {
         if env.payload != b"ack" {
-            self.pending.push(Envelope::new(env.header.id, env.header.receiver.clone(), env.header.sender.clone(), b"ack".to_vec()));
+            self.pending.push(Envelope::new(
+                env.header.id,
+                env.header.receiver.clone(),
+                env.header.sender.clone(),
+                b"ack".to_vec(),
+            ));
         }
         Verdict::Pass
     }
@@ -350,6 +455,11 @@ fn an_acknowledgement_left_by_a_leading_thread_goes_out_though_it_never_sends_ag
     let taker = std::thread::spawn(move || b.blocking_recv().map(|env| env.payload));
     one.send("a", "b", b"hello".to_vec()).unwrap();
     assert_eq!(taker.join().unwrap().as_deref(), Some(&b"hello"[..]));
-    let ack = a.recv_timeout(Duration::from_secs(10)).expect("the acknowledgement");
-    assert_eq!((ack.header.sender.as_str(), ack.payload.as_slice()), ("b", &b"ack"[..]));
+    let ack = a
+        .recv_timeout(Duration::from_secs(10))
+        .expect("the acknowledgement");
+    assert_eq!(
+        (ack.header.sender.as_str(), ack.payload.as_slice()),
+        ("b", &b"ack"[..])
+    );
 }

@@ -31,7 +31,9 @@ pub use machine::{Container, ContainerConfig, ContainerMsg, Outgoing};
 pub use node::ContainerNode;
 
 /// A container's identity; lower ids win elections.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct ContainerId(pub u64);
 
 impl std::fmt::Display for ContainerId {

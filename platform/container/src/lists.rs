@@ -31,7 +31,10 @@ pub struct LocalAgentList {
 impl LocalAgentList {
     /// An empty list for a container in its `incarnation`-th life (e.g. boot time in seconds).
     pub fn new(incarnation: u32) -> Self {
-        Self { generation: u64::from(incarnation) << 32, agents: BTreeMap::new() }
+        Self {
+            generation: u64::from(incarnation) << 32,
+            agents: BTreeMap::new(),
+        }
     }
 
     /// Adds or replaces an agent.
@@ -66,7 +69,10 @@ impl LocalAgentList {
 
     /// This list as a part of the global list.
     pub fn to_part(&self) -> Part {
-        Part { generation: self.generation, agents: self.agents.values().cloned().collect() }
+        Part {
+            generation: self.generation,
+            agents: self.agents.values().cloned().collect(),
+        }
     }
 }
 
@@ -111,17 +117,24 @@ impl GlobalAgentList {
 
     /// The generation held per container.
     pub fn versions(&self) -> VersionVector {
-        self.parts.iter().map(|(id, p)| (*id, p.generation)).collect()
+        self.parts
+            .iter()
+            .map(|(id, p)| (*id, p.generation))
+            .collect()
     }
 
     /// The agent named `name` and the container hosting it (lowest container id if two claim it).
     pub fn lookup(&self, name: &str) -> Option<(ContainerId, &AgentEntry)> {
-        self.parts.iter().find_map(|(id, p)| p.agents.iter().find(|a| a.name == name).map(|a| (*id, a)))
+        self.parts
+            .iter()
+            .find_map(|(id, p)| p.agents.iter().find(|a| a.name == name).map(|a| (*id, a)))
     }
 
     /// All agents with their containers.
     pub fn entries(&self) -> impl Iterator<Item = (ContainerId, &AgentEntry)> {
-        self.parts.iter().flat_map(|(id, p)| p.agents.iter().map(move |a| (*id, a)))
+        self.parts
+            .iter()
+            .flat_map(|(id, p)| p.agents.iter().map(move |a| (*id, a)))
     }
 
     /// Number of agents.
@@ -144,7 +157,11 @@ mod tests {
     use super::*;
 
     fn entry(name: &str) -> AgentEntry {
-        AgentEntry { name: name.into(), public_key: vec![1, 2, 3], addr: PeerAddr("127.0.0.1:1".into()) }
+        AgentEntry {
+            name: name.into(),
+            public_key: vec![1, 2, 3],
+            addr: PeerAddr("127.0.0.1:1".into()),
+        }
     }
 
     #[test]
@@ -159,13 +176,19 @@ mod tests {
         let mut reborn = LocalAgentList::new(2);
         reborn.insert(entry("b"));
         assert!(gal.merge_part(ContainerId(7), reborn.to_part()));
-        assert!(!gal.merge_part(ContainerId(7), lal.to_part()), "the older life is ignored");
+        assert!(
+            !gal.merge_part(ContainerId(7), lal.to_part()),
+            "the older life is ignored"
+        );
         assert_eq!(gal.lookup("b").map(|(id, _)| id), Some(ContainerId(7)));
     }
 
     #[test]
     fn merge_is_commutative_and_idempotent() {
-        let part = |g: u64, names: &[&str]| Part { generation: g, agents: names.iter().map(|n| entry(n)).collect() };
+        let part = |g: u64, names: &[&str]| Part {
+            generation: g,
+            agents: names.iter().map(|n| entry(n)).collect(),
+        };
         let mut x = GlobalAgentList::default();
         x.merge_part(ContainerId(1), part(3, &["a"]));
         x.merge_part(ContainerId(2), part(1, &["b"]));

@@ -44,12 +44,17 @@ pub enum ContainerMsg {
 impl ContainerMsg {
     /// Encodes for a frame transport (JSON: control traffic is small and rare).
     pub fn encode(&self) -> Result<Vec<u8>, ContainerError> {
-        serde_json::to_vec(self).map_err(|e| ContainerError::Encode { reason: e.to_string() })
+        serde_json::to_vec(self).map_err(|e| ContainerError::Encode {
+            reason: e.to_string(),
+        })
     }
 
     /// Decodes a frame; anything else is [`ContainerError::BadMessage`].
     pub fn decode(frame: &[u8]) -> Result<Self, ContainerError> {
-        serde_json::from_slice(frame).map_err(|e| ContainerError::BadMessage { len: frame.len(), reason: e.to_string() })
+        serde_json::from_slice(frame).map_err(|e| ContainerError::BadMessage {
+            len: frame.len(),
+            reason: e.to_string(),
+        })
     }
 }
 
@@ -82,7 +87,14 @@ pub struct ContainerConfig {
 impl ContainerConfig {
     /// Default periods for container `id` at `addr` greeting `seeds`.
     pub fn new(id: ContainerId, addr: PeerAddr, seeds: Vec<PeerAddr>) -> Self {
-        Self { id, incarnation: 0, addr, seeds, heartbeat_ms: 50, lease_ms: 250 }
+        Self {
+            id,
+            incarnation: 0,
+            addr,
+            seeds,
+            heartbeat_ms: 50,
+            lease_ms: 250,
+        }
     }
 }
 
@@ -120,7 +132,15 @@ impl Container {
         let lal = LocalAgentList::new(config.incarnation);
         let mut gal = GlobalAgentList::default();
         gal.merge_part(config.id, lal.to_part());
-        Self { leader: config.id, config, lal, gal, peers: BTreeMap::new(), elections: 0, next_heartbeat: Time::ZERO }
+        Self {
+            leader: config.id,
+            config,
+            lal,
+            gal,
+            peers: BTreeMap::new(),
+            elections: 0,
+            next_heartbeat: Time::ZERO,
+        }
     }
 
     /// This container's id.
@@ -168,18 +188,33 @@ impl Container {
 
     /// Finds an agent: local first (always available), then the GAL.
     pub fn resolve(&self, name: &str) -> Option<&AgentEntry> {
-        self.lal.get(name).or_else(|| self.gal.lookup(name).map(|(_, e)| e))
+        self.lal
+            .get(name)
+            .or_else(|| self.gal.lookup(name).map(|(_, e)| e))
     }
 
     /// Handles one frame from `from`.
     pub fn on_message(&mut self, from: &PeerAddr, msg: ContainerMsg, now: Time) -> Vec<Outgoing> {
         let mut out = Vec::new();
         match msg {
-            ContainerMsg::Heartbeat { id, leader, lal_generation: _, gal_versions } => {
+            ContainerMsg::Heartbeat {
+                id,
+                leader,
+                lal_generation: _,
+                gal_versions,
+            } => {
                 if id == self.config.id {
                     return out; // our own heartbeat, looped back by a seed list naming us
                 }
-                self.peers.insert(id, Peer { addr: from.clone(), last_heard: now, leader, gal_versions });
+                self.peers.insert(
+                    id,
+                    Peer {
+                        addr: from.clone(),
+                        last_heard: now,
+                        leader,
+                        gal_versions,
+                    },
+                );
                 self.elect();
                 self.sync_with(id, &mut out);
             }
@@ -223,7 +258,10 @@ impl Container {
             let mut targets: BTreeSet<&PeerAddr> = self.config.seeds.iter().collect();
             targets.extend(self.peers.values().map(|p| &p.addr));
             targets.remove(&self.config.addr);
-            out.extend(targets.into_iter().map(|to| Outgoing { to: to.clone(), msg: heartbeat.clone() }));
+            out.extend(targets.into_iter().map(|to| Outgoing {
+                to: to.clone(),
+                msg: heartbeat.clone(),
+            }));
             let ids: Vec<ContainerId> = self.peers.keys().copied().collect();
             for id in ids {
                 self.sync_with(id, &mut out);
@@ -233,7 +271,12 @@ impl Container {
     }
 
     fn elect(&mut self) {
-        let lowest = self.peers.keys().next().copied().map_or(self.config.id, |p| p.min(self.config.id));
+        let lowest = self
+            .peers
+            .keys()
+            .next()
+            .copied()
+            .map_or(self.config.id, |p| p.min(self.config.id));
         if lowest != self.leader {
             tracing::info!(container = %self.config.id, old = %self.leader, new = %lowest, "leader elected");
             self.leader = lowest;
@@ -247,16 +290,36 @@ impl Container {
         let Some(peer) = self.peers.get(&id) else {
             return;
         };
-        if self.leader == self.config.id && peer.gal_versions != self.gal.versions() && self.is_newer_than(&peer.gal_versions) {
-            out.push(Outgoing { to: peer.addr.clone(), msg: ContainerMsg::Gal { leader: self.config.id, gal: self.gal.clone() } });
+        if self.leader == self.config.id
+            && peer.gal_versions != self.gal.versions()
+            && self.is_newer_than(&peer.gal_versions)
+        {
+            out.push(Outgoing {
+                to: peer.addr.clone(),
+                msg: ContainerMsg::Gal {
+                    leader: self.config.id,
+                    gal: self.gal.clone(),
+                },
+            });
         }
-        if id == self.leader && peer.gal_versions.get(&self.config.id).copied() != Some(self.lal.generation()) {
-            out.push(Outgoing { to: peer.addr.clone(), msg: ContainerMsg::Lal { id: self.config.id, part: self.lal.to_part() } });
+        if id == self.leader
+            && peer.gal_versions.get(&self.config.id).copied() != Some(self.lal.generation())
+        {
+            out.push(Outgoing {
+                to: peer.addr.clone(),
+                msg: ContainerMsg::Lal {
+                    id: self.config.id,
+                    part: self.lal.to_part(),
+                },
+            });
         }
     }
 
     /// Whether our GAL holds some part newer than `versions` does.
     fn is_newer_than(&self, versions: &VersionVector) -> bool {
-        self.gal.parts().iter().any(|(id, p)| versions.get(id).is_none_or(|g| *g < p.generation))
+        self.gal
+            .parts()
+            .iter()
+            .any(|(id, p)| versions.get(id).is_none_or(|g| *g < p.generation))
     }
 }

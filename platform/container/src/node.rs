@@ -24,7 +24,12 @@ pub struct ContainerNode {
 
 impl ContainerNode {
     /// Runs `container` over `transport` (its own endpoint, not an agent bus), timed by `clock`.
-    pub fn start(container: Container, transport: Arc<dyn FrameTransport>, clock: Clock, tick: Duration) -> Result<Self, ContainerError> {
+    pub fn start(
+        container: Container,
+        transport: Arc<dyn FrameTransport>,
+        clock: Clock,
+        tick: Duration,
+    ) -> Result<Self, ContainerError> {
         let state = Arc::new(Mutex::new(container));
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
@@ -34,7 +39,11 @@ impl ContainerNode {
                 .spawn(move || run(&state, transport.as_ref(), &clock, tick, &stop))
                 .map_err(|source| ContainerError::Spawn { source })?
         };
-        Ok(Self { state, stop, thread: Some(thread) })
+        Ok(Self {
+            state,
+            stop,
+            thread: Some(thread),
+        })
     }
 
     /// Runs `f` on the container (register agents, resolve, read the lists).
@@ -63,7 +72,13 @@ impl Drop for ContainerNode {
     }
 }
 
-fn run(state: &Mutex<Container>, transport: &dyn FrameTransport, clock: &Clock, tick: Duration, stop: &AtomicBool) {
+fn run(
+    state: &Mutex<Container>,
+    transport: &dyn FrameTransport,
+    clock: &Clock,
+    tick: Duration,
+    stop: &AtomicBool,
+) {
     let lock = || state.lock().unwrap_or_else(PoisonError::into_inner);
     while !stop.load(Ordering::Relaxed) {
         let out = match transport.recv_timeout(tick) {

@@ -15,7 +15,11 @@ fn addr(i: u64) -> PeerAddr {
 }
 
 fn agent(name: &str, container: u64) -> AgentEntry {
-    AgentEntry { name: name.into(), public_key: name.as_bytes().to_vec(), addr: addr(container) }
+    AgentEntry {
+        name: name.into(),
+        public_key: name.as_bytes().to_vec(),
+        addr: addr(container),
+    }
 }
 
 struct SimNet {
@@ -32,10 +36,19 @@ impl SimNet {
         let nodes = (1..=n)
             .map(|i| {
                 let seeds = (1..=n).map(addr).collect();
-                Some(Container::new(ContainerConfig::new(ContainerId(i), addr(i), seeds)))
+                Some(Container::new(ContainerConfig::new(
+                    ContainerId(i),
+                    addr(i),
+                    seeds,
+                )))
             })
             .collect();
-        Self { nodes, group: vec![0; n as usize], now: Time::from_ns(1_000_000_000), lost: 0 }
+        Self {
+            nodes,
+            group: vec![0; n as usize],
+            now: Time::from_ns(1_000_000_000),
+            lost: 0,
+        }
     }
 
     fn node(&mut self, id: u64) -> &mut Container {
@@ -65,7 +78,11 @@ impl SimNet {
                     let t = Self::index_of(&to);
                     match self.nodes.get_mut(t) {
                         Some(Some(n)) if self.group[t] == self.group[from] => {
-                            next.extend(n.on_message(&addr(from as u64 + 1), msg, self.now).into_iter().map(|o| (t, o.to, o.msg)));
+                            next.extend(
+                                n.on_message(&addr(from as u64 + 1), msg, self.now)
+                                    .into_iter()
+                                    .map(|o| (t, o.to, o.msg)),
+                            );
                         }
                         _ => self.lost += 1,
                     }
@@ -76,11 +93,19 @@ impl SimNet {
     }
 
     fn leaders(&self) -> BTreeSet<(u64, u64)> {
-        self.nodes.iter().flatten().map(|n| (n.id().0, n.leader().0)).collect()
+        self.nodes
+            .iter()
+            .flatten()
+            .map(|n| (n.id().0, n.leader().0))
+            .collect()
     }
 
     fn gal_names(&mut self, id: u64) -> BTreeSet<String> {
-        self.node(id).gal().entries().map(|(_, e)| e.name.clone()).collect()
+        self.node(id)
+            .gal()
+            .entries()
+            .map(|(_, e)| e.name.clone())
+            .collect()
     }
 }
 
@@ -97,7 +122,11 @@ fn lowest_id_is_elected_and_the_gal_reaches_everyone() {
     net.run(Duration::from_millis(500));
     assert_eq!(net.leaders(), [(1, 1), (2, 1), (3, 1)].into());
     for id in 1..=3 {
-        assert_eq!(net.gal_names(id), names(&["a1", "a2", "a3"]), "container {id}");
+        assert_eq!(
+            net.gal_names(id),
+            names(&["a1", "a2", "a3"]),
+            "container {id}"
+        );
     }
     let key = net.node(3).resolve("a2").unwrap().public_key.clone();
     assert_eq!(key, b"a2");
@@ -118,13 +147,18 @@ fn losing_the_leader_elects_the_next_and_local_agents_keep_resolving() {
     for _ in 0..50 {
         net.run(STEP);
         // Throughout the outage, container 2's own agents resolve and so does 3's (in its GAL).
-        assert!(net.node(2).resolve("wheel").is_some() && net.node(2).resolve("joystick").is_some());
+        assert!(
+            net.node(2).resolve("wheel").is_some() && net.node(2).resolve("joystick").is_some()
+        );
         assert!(net.node(2).resolve("camera").is_some());
     }
     assert_eq!(net.leaders(), [(2, 2), (3, 2)].into());
     net.node(3).register(agent("after", 3));
     net.run(Duration::from_millis(300));
-    assert!(net.gal_names(2).contains("after"), "the new leader distributes");
+    assert!(
+        net.gal_names(2).contains("after"),
+        "the new leader distributes"
+    );
 }
 
 #[test]
@@ -182,6 +216,12 @@ fn same_inputs_same_history() {
 fn malformed_control_frames_are_refused() {
     let err = ContainerMsg::decode(b"{\"Heartbeat\":42}").unwrap_err();
     assert!(err.to_string().contains("16 bytes"));
-    let msg = ContainerMsg::Lal { id: ContainerId(1), part: iw_container::Part { generation: 3, agents: vec![agent("a", 1)] } };
+    let msg = ContainerMsg::Lal {
+        id: ContainerId(1),
+        part: iw_container::Part {
+            generation: 3,
+            agents: vec![agent("a", 1)],
+        },
+    };
     assert_eq!(ContainerMsg::decode(&msg.encode().unwrap()).unwrap(), msg);
 }

@@ -23,7 +23,13 @@ fn eventually(mut cond: impl FnMut() -> bool) -> bool {
     false
 }
 
-fn start(id: u64, incarnation: u32, transport: UdpTransport, seeds: &[PeerAddr], agents: &[&str]) -> ContainerNode {
+fn start(
+    id: u64,
+    incarnation: u32,
+    transport: UdpTransport,
+    seeds: &[PeerAddr],
+    agents: &[&str],
+) -> ContainerNode {
     let addr = transport.local_addr().clone();
     let mut config = ContainerConfig::new(ContainerId(id), addr.clone(), seeds.to_vec());
     config.incarnation = incarnation;
@@ -31,7 +37,11 @@ fn start(id: u64, incarnation: u32, transport: UdpTransport, seeds: &[PeerAddr],
     config.lease_ms = 150;
     let mut container = Container::new(config);
     for a in agents {
-        container.register(AgentEntry { name: a.to_string(), public_key: vec![id as u8; 32], addr: addr.clone() });
+        container.register(AgentEntry {
+            name: a.to_string(),
+            public_key: vec![id as u8; 32],
+            addr: addr.clone(),
+        });
     }
     let transport: Arc<dyn FrameTransport> = Arc::new(transport);
     ContainerNode::start(container, transport, Clock::system(), TICK).unwrap()
@@ -47,26 +57,50 @@ fn gal_len(node: &ContainerNode) -> usize {
 
 #[test]
 fn leader_dies_another_is_elected_and_lists_resync_on_return() {
-    let transports: Vec<UdpTransport> = (0..3).map(|_| UdpTransport::bind("127.0.0.1:0").unwrap()).collect();
+    let transports: Vec<UdpTransport> = (0..3)
+        .map(|_| UdpTransport::bind("127.0.0.1:0").unwrap())
+        .collect();
     let seeds: Vec<PeerAddr> = transports.iter().map(|t| t.local_addr().clone()).collect();
     let mut it = transports.into_iter();
     let (t1, t2, t3) = (it.next().unwrap(), it.next().unwrap(), it.next().unwrap());
     let c1 = start(1, 0, t1, &seeds, &["nav"]);
     let c2 = start(2, 0, t2, &seeds, &["wheel", "joystick"]);
     let c3 = start(3, 0, t3, &seeds, &["camera"]);
-    assert!(eventually(|| [&c1, &c2, &c3].iter().all(|c| leader(c) == 1 && gal_len(c) == 4)), "initial election and GAL");
+    assert!(
+        eventually(|| [&c1, &c2, &c3]
+            .iter()
+            .all(|c| leader(c) == 1 && gal_len(c) == 4)),
+        "initial election and GAL"
+    );
 
     c1.stop(); // the elected container dies
-    assert!(eventually(|| leader(&c2) == 2 && leader(&c3) == 2), "container 2 takes over");
+    assert!(
+        eventually(|| leader(&c2) == 2 && leader(&c3) == 2),
+        "container 2 takes over"
+    );
     assert!(c2.with(|c| c.resolve("wheel").is_some() && c.resolve("camera").is_some()));
     let addr3 = seeds[2].clone();
-    c3.with(|c| c.register(AgentEntry { name: "lidar".into(), public_key: vec![3; 32], addr: addr3 }));
-    assert!(eventually(|| c2.with(|c| c.resolve("lidar").is_some())), "the new leader distributes");
+    c3.with(|c| {
+        c.register(AgentEntry {
+            name: "lidar".into(),
+            public_key: vec![3; 32],
+            addr: addr3,
+        })
+    });
+    assert!(
+        eventually(|| c2.with(|c| c.resolve("lidar").is_some())),
+        "the new leader distributes"
+    );
 
     // Container 1 comes back on its old address, in a new incarnation, with a new agent.
     let t1 = UdpTransport::bind(&seeds[0].0).unwrap();
     let c1 = start(1, 1, t1, &seeds, &["nav", "planner"]);
-    assert!(eventually(|| [&c1, &c2, &c3].iter().all(|c| leader(c) == 1 && gal_len(c) == 6)), "resync after return");
+    assert!(
+        eventually(|| [&c1, &c2, &c3]
+            .iter()
+            .all(|c| leader(c) == 1 && gal_len(c) == 6)),
+        "resync after return"
+    );
     assert!(c3.with(|c| c.resolve("planner").is_some()));
     assert!(c1.with(|c| c.resolve("lidar").is_some()));
 }

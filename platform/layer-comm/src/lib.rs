@@ -89,11 +89,16 @@ impl Default for CommConfig {
 impl CommConfig {
     /// The payload limit of receiving agent `agent`, bytes.
     pub fn limit_for(&self, agent: &str) -> usize {
-        self.max_payload.get(agent).copied().unwrap_or(self.default_max_payload)
+        self.max_payload
+            .get(agent)
+            .copied()
+            .unwrap_or(self.default_max_payload)
     }
     /// Retransmission timeout before send number `attempt + 1` (attempt counts from 1).
     pub fn rto(&self, attempt: u32) -> Duration {
-        let factor = 1u32.checked_shl(attempt.saturating_sub(1)).unwrap_or(u32::MAX);
+        let factor = 1u32
+            .checked_shl(attempt.saturating_sub(1))
+            .unwrap_or(u32::MAX);
         self.initial_rto.saturating_mul(factor).min(self.max_rto)
     }
 }
@@ -190,7 +195,9 @@ impl CommLayer {
         let (from, to) = (&acked.header.receiver, &acked.header.sender);
         self.stats.acks_sent += 1;
         let room = self.acks.iter_mut().rev().find(|a| {
-            a.payload.len() < ACKS_PER_FRAME * ACK_ENTRY_LEN && a.header.sender == *from && a.header.receiver == *to
+            a.payload.len() < ACKS_PER_FRAME * ACK_ENTRY_LEN
+                && a.header.sender == *from
+                && a.header.receiver == *to
         });
         if let Some(ack) = room {
             push_entry(&mut ack.payload, acked);
@@ -212,7 +219,10 @@ impl CommLayer {
                 continue;
             };
             match self.in_flight.entry(id) {
-                Entry::Occupied(p) if p.get().env.header.receiver == ack.header.sender && echo(&p.get().env.payload) == echoed => {
+                Entry::Occupied(p)
+                    if p.get().env.header.receiver == ack.header.sender
+                        && echo(&p.get().env.payload) == echoed =>
+                {
                     p.remove();
                     self.stats.acks_matched += 1;
                 }
@@ -241,7 +251,11 @@ impl CommLayer {
 
     /// The payload limit of `agent`, without hashing when no agent has its own limit.
     fn limit_for(&self, agent: &str) -> usize {
-        if self.config.max_payload.is_empty() { self.config.default_max_payload } else { self.config.limit_for(agent) }
+        if self.config.max_payload.is_empty() {
+            self.config.default_max_payload
+        } else {
+            self.config.limit_for(agent)
+        }
     }
 }
 
@@ -280,8 +294,19 @@ impl Layer for CommLayer {
             return Verdict::Drop(Reason::TooLarge);
         }
         let next_at = now.plus(self.config.rto(1));
-        self.earliest = if self.in_flight.is_empty() { next_at } else { self.earliest.min(next_at) };
-        self.in_flight.insert(env.header.id, Pending { env: env.clone(), next_at, attempts: 1 });
+        self.earliest = if self.in_flight.is_empty() {
+            next_at
+        } else {
+            self.earliest.min(next_at)
+        };
+        self.in_flight.insert(
+            env.header.id,
+            Pending {
+                env: env.clone(),
+                next_at,
+                attempts: 1,
+            },
+        );
         Verdict::Pass
     }
 
@@ -325,7 +350,10 @@ impl Layer for CommLayer {
             self.earliest = earliest.unwrap_or(self.earliest);
             return None;
         };
-        let give_up = self.in_flight.get(&due).is_some_and(|p| p.attempts >= self.config.max_attempts);
+        let give_up = self
+            .in_flight
+            .get(&due)
+            .is_some_and(|p| p.attempts >= self.config.max_attempts);
         if give_up {
             if let Some(p) = self.in_flight.remove(&due) {
                 tracing::warn!(id = %due, receiver = %p.env.header.receiver, attempts = p.attempts, "undeliverable");
@@ -359,12 +387,23 @@ impl Layer for CommLayer {
         }
         let entry_of = |a: &Envelope| {
             (a.header.receiver == sender)
-                .then(|| a.payload.chunks(ACK_ENTRY_LEN).rposition(|e| split_entry(e).is_some_and(|(acked, _)| acked == id)))
+                .then(|| {
+                    a.payload
+                        .chunks(ACK_ENTRY_LEN)
+                        .rposition(|e| split_entry(e).is_some_and(|(acked, _)| acked == id))
+                })
                 .flatten()
         };
-        if let Some((at, entry)) = self.acks.iter().enumerate().rev().find_map(|(at, a)| entry_of(a).map(|e| (at, e))) {
+        if let Some((at, entry)) = self
+            .acks
+            .iter()
+            .enumerate()
+            .rev()
+            .find_map(|(at, a)| entry_of(a).map(|e| (at, e)))
+        {
             let ack = &mut self.acks[at];
-            ack.payload.drain(entry * ACK_ENTRY_LEN..(entry + 1) * ACK_ENTRY_LEN);
+            ack.payload
+                .drain(entry * ACK_ENTRY_LEN..(entry + 1) * ACK_ENTRY_LEN);
             if ack.payload.is_empty() {
                 self.acks.remove(at);
                 self.stats.ack_frames -= 1;
@@ -408,27 +447,44 @@ mod tests {
     fn duplicate_dropped_but_reacknowledged() {
         let mut rx = CommLayer::new(CommConfig::default());
         pass_in(&mut rx, data(1, b"hello"), Time::ZERO);
-        assert_eq!(rx.inbound(&mut data(1, b"hello"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        assert_eq!(
+            rx.inbound(&mut data(1, b"hello"), Time::ZERO),
+            Verdict::Drop(Reason::Duplicate)
+        );
         let ack = rx.poll_transmit(Time::ZERO).unwrap();
         assert!(ack.header.flags.contains(Flags::ACK));
-        assert_eq!(ack.payload.len(), 2 * ACK_ENTRY_LEN, "the repeat is acknowledged again");
+        assert_eq!(
+            ack.payload.len(),
+            2 * ACK_ENTRY_LEN,
+            "the repeat is acknowledged again"
+        );
         assert!(rx.poll_transmit(Time::ZERO).is_none());
     }
 
     #[test]
     fn window_is_bounded() {
-        let mut rx = CommLayer::new(CommConfig { dedup_window: 2, ..CommConfig::default() });
+        let mut rx = CommLayer::new(CommConfig {
+            dedup_window: 2,
+            ..CommConfig::default()
+        });
         for id in 1..=3 {
             pass_in(&mut rx, data(id, b"x"), Time::ZERO);
         }
         // Id 1 left the window: recognised no more (the temporal layer catches such replays).
         pass_in(&mut rx, data(1, b"x"), Time::ZERO);
-        assert_eq!(rx.inbound(&mut data(3, b"x"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        assert_eq!(
+            rx.inbound(&mut data(3, b"x"), Time::ZERO),
+            Verdict::Drop(Reason::Duplicate)
+        );
     }
 
     #[test]
     fn retransmits_with_backoff_until_acked() {
-        let cfg = CommConfig { initial_rto: Duration::from_millis(10), max_rto: Duration::from_millis(40), ..CommConfig::default() };
+        let cfg = CommConfig {
+            initial_rto: Duration::from_millis(10),
+            max_rto: Duration::from_millis(40),
+            ..CommConfig::default()
+        };
         let mut tx = CommLayer::new(cfg);
         let mut rx = CommLayer::new(CommConfig::default());
         let sent = pass_out(&mut tx, data(7, b"payload"), Time::ZERO);
@@ -436,9 +492,16 @@ mod tests {
         assert!(tx.poll_transmit(ms(9)).is_none());
         assert_eq!(tx.next_deadline(), Some(ms(10)));
         assert_eq!(tx.poll_transmit(ms(10)).unwrap(), sent);
-        assert!(tx.poll_transmit(ms(29)).is_none(), "second timeout doubles to 20 ms");
+        assert!(
+            tx.poll_transmit(ms(29)).is_none(),
+            "second timeout doubles to 20 ms"
+        );
         assert_eq!(tx.poll_transmit(ms(30)).unwrap(), sent);
-        assert_eq!(tx.next_deadline(), Some(ms(70)), "third timeout capped at 40 ms");
+        assert_eq!(
+            tx.next_deadline(),
+            Some(ms(70)),
+            "third timeout capped at 40 ms"
+        );
         pass_in(&mut rx, sent, ms(31));
         let mut ack = rx.poll_transmit(ms(31)).unwrap();
         assert_eq!(tx.inbound(&mut ack, ms(32)), Verdict::Consumed);
@@ -449,7 +512,11 @@ mod tests {
 
     #[test]
     fn gives_up_and_counts_undeliverable() {
-        let cfg = CommConfig { max_attempts: 3, initial_rto: Duration::from_millis(1), ..CommConfig::default() };
+        let cfg = CommConfig {
+            max_attempts: 3,
+            initial_rto: Duration::from_millis(1),
+            ..CommConfig::default()
+        };
         let mut tx = CommLayer::new(cfg);
         pass_out(&mut tx, data(1, b"x"), Time::ZERO);
         let mut t = Time::ZERO;
@@ -482,12 +549,18 @@ mod tests {
         let mut rx = CommLayer::new(CommConfig::default());
         pass_in(&mut rx, data(1, b"altered"), Time::ZERO);
         rx.rejected_above(MsgId(1), "a", Reason::BadTag);
-        assert!(rx.poll_transmit(Time::ZERO).is_none(), "acknowledgement withdrawn");
+        assert!(
+            rx.poll_transmit(Time::ZERO).is_none(),
+            "acknowledgement withdrawn"
+        );
         pass_in(&mut rx, data(1, b"genuine"), Time::ZERO);
         // A policy rejection of an authentic frame keeps it acknowledged.
         rx.rejected_above(MsgId(1), "a", Reason::Stale);
         assert!(rx.poll_transmit(Time::ZERO).is_some());
-        assert_eq!(rx.inbound(&mut data(1, b"genuine"), Time::ZERO), Verdict::Drop(Reason::Duplicate));
+        assert_eq!(
+            rx.inbound(&mut data(1, b"genuine"), Time::ZERO),
+            Verdict::Drop(Reason::Duplicate)
+        );
     }
 
     #[test]
@@ -497,13 +570,24 @@ mod tests {
         let n = ACKS_PER_FRAME as u64 + 2;
         for id in 0..n {
             // Payloads shorter and longer than the echo.
-            let sent = pass_out(&mut tx, data(id, &b"0123456789abcdefghij"[..(id % 20) as usize + 1]), Time::ZERO);
+            let sent = pass_out(
+                &mut tx,
+                data(id, &b"0123456789abcdefghij"[..(id % 20) as usize + 1]),
+                Time::ZERO,
+            );
             pass_in(&mut rx, sent, Time::ZERO);
         }
         // Another sender's acknowledgement goes in its own frame.
-        pass_in(&mut rx, Envelope::new(MsgId(1), "c", "b", b"x".to_vec()), Time::ZERO);
+        pass_in(
+            &mut rx,
+            Envelope::new(MsgId(1), "c", "b", b"x".to_vec()),
+            Time::ZERO,
+        );
         let frames: Vec<_> = std::iter::from_fn(|| rx.poll_transmit(Time::ZERO)).collect();
-        let sizes: Vec<_> = frames.iter().map(|f| (f.header.receiver.as_str(), f.payload.len() / ACK_ENTRY_LEN)).collect();
+        let sizes: Vec<_> = frames
+            .iter()
+            .map(|f| (f.header.receiver.as_str(), f.payload.len() / ACK_ENTRY_LEN))
+            .collect();
         assert_eq!(sizes, [("a", ACKS_PER_FRAME), ("a", 2), ("c", 1)]);
         assert_eq!((rx.stats().acks_sent, rx.stats().ack_frames), (n + 1, 3));
         for mut f in frames.into_iter().take(2) {
@@ -518,7 +602,11 @@ mod tests {
         let mut tx = CommLayer::new(CommConfig::default());
         let mut rx = CommLayer::new(CommConfig::default());
         for id in 1..=3 {
-            pass_in(&mut rx, pass_out(&mut tx, data(id, b"payload"), Time::ZERO), Time::ZERO);
+            pass_in(
+                &mut rx,
+                pass_out(&mut tx, data(id, b"payload"), Time::ZERO),
+                Time::ZERO,
+            );
         }
         rx.rejected_above(MsgId(2), "a", Reason::BadTag);
         let mut ack = rx.poll_transmit(Time::ZERO).unwrap();
@@ -532,15 +620,27 @@ mod tests {
     fn ack_with_a_wrong_echo_in_a_shared_frame_matches_only_the_others() {
         let mut tx = CommLayer::new(CommConfig::default());
         let mut rx = CommLayer::new(CommConfig::default());
-        pass_in(&mut rx, pass_out(&mut tx, data(1, b"first"), Time::ZERO), Time::ZERO);
-        pass_in(&mut rx, pass_out(&mut tx, data(2, b"second"), Time::ZERO), Time::ZERO);
+        pass_in(
+            &mut rx,
+            pass_out(&mut tx, data(1, b"first"), Time::ZERO),
+            Time::ZERO,
+        );
+        pass_in(
+            &mut rx,
+            pass_out(&mut tx, data(2, b"second"), Time::ZERO),
+            Time::ZERO,
+        );
         let mut ack = rx.poll_transmit(Time::ZERO).unwrap();
         let last = ack.payload.len() - 1;
         ack.payload[last] ^= 1;
         ack.payload.push(0);
         assert_eq!(tx.inbound(&mut ack, Time::ZERO), Verdict::Consumed);
         assert_eq!(tx.in_flight(), 1);
-        assert_eq!((tx.stats().acks_matched, tx.stats().acks_stray), (1, 2), "a wrong echo, a short entry");
+        assert_eq!(
+            (tx.stats().acks_matched, tx.stats().acks_stray),
+            (1, 2),
+            "a wrong echo, a short entry"
+        );
     }
 
     #[test]
@@ -548,10 +648,16 @@ mod tests {
         let mut cfg = CommConfig::default();
         cfg.max_payload.insert("b".into(), 4);
         let mut rx = CommLayer::new(cfg.clone());
-        assert_eq!(rx.inbound(&mut data(1, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
+        assert_eq!(
+            rx.inbound(&mut data(1, b"12345"), Time::ZERO),
+            Verdict::Drop(Reason::TooLarge)
+        );
         pass_in(&mut rx, data(2, b"1234"), Time::ZERO);
         let mut tx = CommLayer::new(cfg);
-        assert_eq!(tx.outbound(&mut data(3, b"12345"), Time::ZERO), Verdict::Drop(Reason::TooLarge));
+        assert_eq!(
+            tx.outbound(&mut data(3, b"12345"), Time::ZERO),
+            Verdict::Drop(Reason::TooLarge)
+        );
     }
 
     mod shared_ack_frames {
@@ -620,5 +726,4 @@ mod tests {
             }
         }
     }
-
 }

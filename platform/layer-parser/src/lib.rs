@@ -50,17 +50,26 @@ impl Registry {
     }
     /// Registers `agent`.
     pub fn insert(&self, agent: &str) {
-        self.0.write().unwrap_or_else(PoisonError::into_inner).insert(agent.to_string());
+        self.0
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(agent.to_string());
     }
     /// Deregisters `agent`.
     pub fn remove(&self, agent: &str) {
-        self.0.write().unwrap_or_else(PoisonError::into_inner).remove(agent);
+        self.0
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(agent);
     }
 }
 
 impl AgentRegistry for Registry {
     fn is_registered(&self, agent: &str) -> bool {
-        self.0.read().unwrap_or_else(PoisonError::into_inner).contains(agent)
+        self.0
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .contains(agent)
     }
 }
 
@@ -80,7 +89,11 @@ pub struct ParserConfig {
 
 impl Default for ParserConfig {
     fn default() -> Self {
-        ParserConfig { require_authenticated: true, check_outbound: false, parse: ParseOptions::default() }
+        ParserConfig {
+            require_authenticated: true,
+            check_outbound: false,
+            parse: ParseOptions::default(),
+        }
     }
 }
 
@@ -95,7 +108,9 @@ pub enum ParserError {
         performative: String,
     },
     /// The envelope's receiver is not among the message's receivers.
-    #[error("`{receiver}` is not among the :receiver set of the ACL message; add it with `with_receiver`")]
+    #[error(
+        "`{receiver}` is not among the :receiver set of the ACL message; add it with `with_receiver`"
+    )]
     NotAReceiver {
         /// The receiver asked for.
         receiver: String,
@@ -107,15 +122,21 @@ pub enum ParserError {
 
 /// Prints `msg` into an envelope to `receiver` (one of its receivers) with id `id`.
 pub fn envelope(id: MsgId, msg: &AclMessage, receiver: &str) -> Result<Envelope, ParserError> {
-    let sender = msg
-        .sender
-        .as_ref()
-        .ok_or_else(|| ParserError::NoSender { performative: msg.performative.to_string() })?;
+    let sender = msg.sender.as_ref().ok_or_else(|| ParserError::NoSender {
+        performative: msg.performative.to_string(),
+    })?;
     if !msg.receivers.iter().any(|r| r.name == receiver) {
-        return Err(ParserError::NotAReceiver { receiver: receiver.to_string() });
+        return Err(ParserError::NotAReceiver {
+            receiver: receiver.to_string(),
+        });
     }
     let text = iw_acl::codec::print_with(msg, &PrintOptions::default())?;
-    Ok(Envelope::new(id, sender.name.clone(), receiver, text.into_bytes()))
+    Ok(Envelope::new(
+        id,
+        sender.name.clone(),
+        receiver,
+        text.into_bytes(),
+    ))
 }
 
 /// The parser layer.
@@ -146,7 +167,9 @@ impl ParserLayer {
     }
 
     fn check_inbound(&self, env: &Envelope) -> Result<(), Reason> {
-        if self.config.require_authenticated && env.authenticated.as_deref() != Some(env.header.sender.as_str()) {
+        if self.config.require_authenticated
+            && env.authenticated.as_deref() != Some(env.header.sender.as_str())
+        {
             return Err(Reason::Unauthenticated);
         }
         if !self.registry.is_registered(&env.header.sender) {
@@ -220,31 +243,61 @@ mod tests {
         let mut p = layer(&["a", "b"]);
         p.config.check_outbound = true;
         let good = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
-        assert_eq!(p.inbound(&mut good.clone(), Time::ZERO), Verdict::Drop(Reason::Unauthenticated));
+        assert_eq!(
+            p.inbound(&mut good.clone(), Time::ZERO),
+            Verdict::Drop(Reason::Unauthenticated)
+        );
         let mut garbage = good.clone();
         garbage.payload = b"(inform :sender".to_vec();
-        assert_eq!(p.inbound(&mut authed(garbage), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert_eq!(
+            p.inbound(&mut authed(garbage), Time::ZERO),
+            Verdict::Drop(Reason::Malformed)
+        );
         let mut binary = good.clone();
         binary.payload = vec![0xff, 0xfe];
-        assert_eq!(p.inbound(&mut authed(binary), Time::ZERO), Verdict::Drop(Reason::Malformed));
+        assert_eq!(
+            p.inbound(&mut authed(binary), Time::ZERO),
+            Verdict::Drop(Reason::Malformed)
+        );
         let stranger = envelope(MsgId(2), &acl("x", "b"), "b").unwrap();
-        assert_eq!(p.inbound(&mut authed(stranger), Time::ZERO), Verdict::Drop(Reason::Unregistered));
+        assert_eq!(
+            p.inbound(&mut authed(stranger), Time::ZERO),
+            Verdict::Drop(Reason::Unregistered)
+        );
         // `a` authenticated, but the content claims to be from `b`.
         let mut masked = envelope(MsgId(3), &acl("b", "b"), "b").unwrap();
         masked.header.sender = "a".into();
-        assert_eq!(p.inbound(&mut authed(masked), Time::ZERO), Verdict::Drop(Reason::Mismatch));
-        assert!(matches!(envelope(MsgId(4), &acl("a", "c"), "b"), Err(ParserError::NotAReceiver { .. })));
+        assert_eq!(
+            p.inbound(&mut authed(masked), Time::ZERO),
+            Verdict::Drop(Reason::Mismatch)
+        );
+        assert!(matches!(
+            envelope(MsgId(4), &acl("a", "c"), "b"),
+            Err(ParserError::NotAReceiver { .. })
+        ));
         let mut misaddressed = envelope(MsgId(4), &acl("a", "c"), "c").unwrap();
         misaddressed.header.receiver = "b".into();
-        assert_eq!(p.inbound(&mut authed(misaddressed.clone()), Time::ZERO), Verdict::Drop(Reason::Mismatch));
-        assert_eq!(p.outbound(&mut misaddressed, Time::ZERO), Verdict::Drop(Reason::Mismatch));
+        assert_eq!(
+            p.inbound(&mut authed(misaddressed.clone()), Time::ZERO),
+            Verdict::Drop(Reason::Mismatch)
+        );
+        assert_eq!(
+            p.outbound(&mut misaddressed, Time::ZERO),
+            Verdict::Drop(Reason::Mismatch)
+        );
     }
 
     #[test]
     fn authentication_optional_when_configured() {
         let reg = Registry::new();
         reg.insert("a");
-        let mut p = ParserLayer::new(Arc::new(reg), ParserConfig { require_authenticated: false, ..Default::default() });
+        let mut p = ParserLayer::new(
+            Arc::new(reg),
+            ParserConfig {
+                require_authenticated: false,
+                ..Default::default()
+            },
+        );
         let mut env = envelope(MsgId(1), &acl("a", "b"), "b").unwrap();
         assert_eq!(p.inbound(&mut env, Time::ZERO), Verdict::Pass);
     }
@@ -252,6 +305,9 @@ mod tests {
     #[test]
     fn envelope_needs_a_sender() {
         let msg = AclMessage::new(Performative::Inform);
-        assert!(matches!(envelope(MsgId(1), &msg, "b"), Err(ParserError::NoSender { .. })));
+        assert!(matches!(
+            envelope(MsgId(1), &msg, "b"),
+            Err(ParserError::NoSender { .. })
+        ));
     }
 }

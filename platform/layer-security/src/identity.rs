@@ -25,23 +25,33 @@ pub struct Identity {
 
 impl std::fmt::Debug for Identity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Identity").field("public", &hex(&self.public)).finish_non_exhaustive()
+        f.debug_struct("Identity")
+            .field("public", &hex(&self.public))
+            .finish_non_exhaustive()
     }
 }
 
 impl Identity {
     /// A fresh random identity.
     pub fn generate() -> Result<Identity, SecurityError> {
-        let doc = Ed25519KeyPair::generate_pkcs8(&SystemRandom::new()).map_err(|_| SecurityError::Rng)?;
+        let doc =
+            Ed25519KeyPair::generate_pkcs8(&SystemRandom::new()).map_err(|_| SecurityError::Rng)?;
         Identity::from_pkcs8(doc.as_ref())
     }
 
     /// The identity stored as a PKCS#8 document (as [`Identity::pkcs8`] wrote it).
     pub fn from_pkcs8(pkcs8: &[u8]) -> Result<Identity, SecurityError> {
-        let pair = Ed25519KeyPair::from_pkcs8(pkcs8).map_err(|e| SecurityError::BadKey { what: "Ed25519 PKCS#8 document", reason: e.to_string() })?;
+        let pair = Ed25519KeyPair::from_pkcs8(pkcs8).map_err(|e| SecurityError::BadKey {
+            what: "Ed25519 PKCS#8 document",
+            reason: e.to_string(),
+        })?;
         let mut public = [0u8; 32];
         public.copy_from_slice(pair.public_key().as_ref());
-        Ok(Identity { pair, public, pkcs8: pkcs8.to_vec() })
+        Ok(Identity {
+            pair,
+            public,
+            pkcs8: pkcs8.to_vec(),
+        })
     }
 
     /// The public key, to publish in the agent lists.
@@ -64,7 +74,9 @@ impl Identity {
 
 /// Verifies an Ed25519 signature.
 pub fn verify(public: &PublicKey, msg: &[u8], sig: &[u8]) -> bool {
-    UnparsedPublicKey::new(&ED25519, public).verify(msg, sig).is_ok()
+    UnparsedPublicKey::new(&ED25519, public)
+        .verify(msg, sig)
+        .is_ok()
 }
 
 /// The bytes a message signature covers: the header with only the SIGNED flag (so the delivered,
@@ -85,7 +97,10 @@ pub fn signed_bytes(env: &Envelope) -> Vec<u8> {
 /// third party does with a forwarded message.
 pub fn verify_envelope(env: &Envelope, sender_key: &PublicKey) -> bool {
     env.header.flags.contains(Flags::SIGNED)
-        && env.signature.as_ref().is_some_and(|sig| verify(sender_key, &signed_bytes(env), &sig[..]))
+        && env
+            .signature
+            .as_ref()
+            .is_some_and(|sig| verify(sender_key, &signed_bytes(env), &sig[..]))
 }
 
 /// Where the security layer looks up agents' public keys: fed by the Local and Global Agent
@@ -106,17 +121,27 @@ impl Directory {
     }
     /// Records (or replaces) `agent`'s key.
     pub fn insert(&self, agent: &str, key: PublicKey) {
-        self.0.write().unwrap_or_else(PoisonError::into_inner).insert(agent.to_string(), key);
+        self.0
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(agent.to_string(), key);
     }
     /// Forgets `agent`.
     pub fn remove(&self, agent: &str) {
-        self.0.write().unwrap_or_else(PoisonError::into_inner).remove(agent);
+        self.0
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(agent);
     }
 }
 
 impl KeyDirectory for Directory {
     fn public_key(&self, agent: &str) -> Option<PublicKey> {
-        self.0.read().unwrap_or_else(PoisonError::into_inner).get(agent).copied()
+        self.0
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(agent)
+            .copied()
     }
 }
 

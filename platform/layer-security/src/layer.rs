@@ -83,10 +83,18 @@ impl SealInfo {
         if !f.contains(Flags::SEALED) {
             return None;
         }
-        let id_len = if f.contains(Flags::PRE_SHARED) { SALT_LEN } else { SID_LEN };
+        let id_len = if f.contains(Flags::PRE_SHARED) {
+            SALT_LEN
+        } else {
+            SID_LEN
+        };
         let mut key_id = vec![u8::from(f.contains(Flags::PRE_SHARED))];
         key_id.extend_from_slice(env.payload.get(..id_len)?);
-        let nonce = env.payload.get(id_len..id_len + NONCE_LEN)?.try_into().ok()?;
+        let nonce = env
+            .payload
+            .get(id_len..id_len + NONCE_LEN)?
+            .try_into()
+            .ok()?;
         Some(SealInfo { key_id, nonce })
     }
 }
@@ -120,11 +128,15 @@ fn nested<'a, V: Default>(m: &'a mut Nested<V>, a: &str, b: &str) -> &'a mut V {
     if !m.contains_key(a) {
         m.insert(a.to_string(), FxHashMap::default());
     }
-    let inner = m.get_mut(a).unwrap_or_else(|| unreachable!("inserted above"));
+    let inner = m
+        .get_mut(a)
+        .unwrap_or_else(|| unreachable!("inserted above"));
     if !inner.contains_key(b) {
         inner.insert(b.to_string(), V::default());
     }
-    inner.get_mut(b).unwrap_or_else(|| unreachable!("inserted above"))
+    inner
+        .get_mut(b)
+        .unwrap_or_else(|| unreachable!("inserted above"))
 }
 
 fn nested_get<'a, V>(m: &'a Nested<V>, a: &str, b: &str) -> Option<&'a V> {
@@ -152,9 +164,16 @@ fn write_aad_into(header: &iw_bus::Header, aad: &mut Vec<u8>) {
 
 /// Sets the flags, signs if asked (the signature is sealed after the payload), and writes the
 /// associated data of the sealed header into `aad`.
-fn prepare(config: &SecurityConfig, identity: &Identity, aad: &mut Vec<u8>, env: &mut Envelope, mode: Flags) -> Option<[u8; SIGNATURE_LEN]> {
+fn prepare(
+    config: &SecurityConfig,
+    identity: &Identity,
+    aad: &mut Vec<u8>,
+    env: &mut Envelope,
+    mode: Flags,
+) -> Option<[u8; SIGNATURE_LEN]> {
     let mut flags = env.header.flags.with(Flags::SEALED).with(mode);
-    let wants_signature = config.sign_all || (!config.sign_for.is_empty() && config.sign_for.contains(&env.header.receiver));
+    let wants_signature = config.sign_all
+        || (!config.sign_for.is_empty() && config.sign_for.contains(&env.header.receiver));
     let sig = if wants_signature {
         flags = flags.with(Flags::SIGNED);
         Some(identity.sign(&signed_bytes(env)))
@@ -216,7 +235,9 @@ fn hkdf32(salt: &[u8], ikm: &[u8], info: &[u8]) -> Result<[u8; 32], SecurityErro
 }
 
 fn ring_key(k: &[u8; 32]) -> Result<LessSafeKey, SecurityError> {
-    UnboundKey::new(&AES_256_GCM, k).map(LessSafeKey::new).map_err(|_| SecurityError::KeyDerivation)
+    UnboundKey::new(&AES_256_GCM, k)
+        .map(LessSafeKey::new)
+        .map_err(|_| SecurityError::KeyDerivation)
 }
 
 fn hello_transcript(id: &[u8], eph_a: &[u8], a: &str, b: &str) -> Vec<u8> {
@@ -227,13 +248,24 @@ fn reply_transcript(id: &[u8], eph_a: &[u8], eph_b: &[u8], a: &str, b: &str) -> 
     length_prefixed(&[b"iw-reply-v1", id, eph_a, eph_b, a.as_bytes(), b.as_bytes()])
 }
 
-fn session_key(shared: &[u8], eph_a: &[u8], eph_b: &[u8], a: &str, b: &str) -> Result<LessSafeKey, SecurityError> {
+fn session_key(
+    shared: &[u8],
+    eph_a: &[u8],
+    eph_b: &[u8],
+    a: &str,
+    b: &str,
+) -> Result<LessSafeKey, SecurityError> {
     let salt = [eph_a, eph_b].concat();
     let info = length_prefixed(&[b"iw-pk-v1", a.as_bytes(), b.as_bytes()]);
     ring_key(&hkdf32(&salt, shared, &info)?)
 }
 
-fn psk_cipher(psk: &PreSharedKey, salt: &[u8], sender: &str, receiver: &str) -> Result<Aes256Gcm, SecurityError> {
+fn psk_cipher(
+    psk: &PreSharedKey,
+    salt: &[u8],
+    sender: &str,
+    receiver: &str,
+) -> Result<Aes256Gcm, SecurityError> {
     let info = length_prefixed(&[b"iw-psk-v1", sender.as_bytes(), receiver.as_bytes()]);
     let key = hkdf32(salt, psk, &info)?;
     Aes256Gcm::new_from_slice(&key).map_err(|_| SecurityError::KeyDerivation)
@@ -247,7 +279,10 @@ fn split_handshake(payload: &[u8]) -> Option<Handshake> {
         return None;
     }
     let id = payload.get(1..1 + SID_LEN)?.try_into().ok()?;
-    let eph = payload.get(1 + SID_LEN..1 + SID_LEN + 32)?.try_into().ok()?;
+    let eph = payload
+        .get(1 + SID_LEN..1 + SID_LEN + 32)?
+        .try_into()
+        .ok()?;
     let sig = payload.get(1 + SID_LEN + 32..)?.try_into().ok()?;
     Some((payload[0], id, eph, sig))
 }
@@ -274,7 +309,11 @@ pub struct SecurityLayer {
 
 impl SecurityLayer {
     /// A layer speaking for `identity`, looking peers' keys up in `directory`.
-    pub fn new(identity: Arc<Identity>, directory: Arc<dyn KeyDirectory>, config: SecurityConfig) -> SecurityLayer {
+    pub fn new(
+        identity: Arc<Identity>,
+        directory: Arc<dyn KeyDirectory>,
+        config: SecurityConfig,
+    ) -> SecurityLayer {
         SecurityLayer {
             identity,
             directory,
@@ -303,7 +342,11 @@ impl SecurityLayer {
         if self.config.pre_shared.is_empty() {
             return self.config.group_key;
         }
-        self.config.pre_shared.get(peer).copied().or(self.config.group_key)
+        self.config
+            .pre_shared
+            .get(peer)
+            .copied()
+            .or(self.config.group_key)
     }
 
     /// Seals `env` in place under the pre-shared key `psk`.
@@ -312,12 +355,22 @@ impl SecurityLayer {
         if nested_get(&self.psk_send, s, r).is_none_or(Option::is_none) {
             let salt = self.random::<SALT_LEN>()?;
             let cipher = psk_cipher(&psk, &salt, s, r)?;
-            *nested(&mut self.psk_send, s, r) = Some(PskSend { salt, cipher, counter: 0 });
+            *nested(&mut self.psk_send, s, r) = Some(PskSend {
+                salt,
+                cipher,
+                counter: 0,
+            });
         }
         let sess = nested_get_mut(&mut self.psk_send, &env.header.sender, &env.header.receiver)
             .and_then(Option::as_mut)
             .ok_or(SecurityError::KeyDerivation)?;
-        let sig = prepare(&self.config, &self.identity, &mut self.aad, env, Flags::PRE_SHARED);
+        let sig = prepare(
+            &self.config,
+            &self.identity,
+            &mut self.aad,
+            env,
+            Flags::PRE_SHARED,
+        );
         let nonce = nonce_bytes(sess.counter);
         sess.counter += 1;
         let cipher = &sess.cipher;
@@ -334,24 +387,44 @@ impl SecurityLayer {
     /// Seals `env` in place under the session from its sender to its receiver, if there is one
     /// (`false`, and `env` untouched, otherwise).
     fn seal_pk(&mut self, env: &mut Envelope) -> Result<bool, SecurityError> {
-        let Some(sess) = nested_get_mut(&mut self.send, &env.header.sender, &env.header.receiver).and_then(Option::as_mut) else {
+        let Some(sess) = nested_get_mut(&mut self.send, &env.header.sender, &env.header.receiver)
+            .and_then(Option::as_mut)
+        else {
             return Ok(false);
         };
-        let sig = prepare(&self.config, &self.identity, &mut self.aad, env, Flags::NONE);
+        let sig = prepare(
+            &self.config,
+            &self.identity,
+            &mut self.aad,
+            env,
+            Flags::NONE,
+        );
         let nonce = nonce_bytes(sess.counter);
         sess.counter += 1;
         let key = &sess.key;
         let aad = &self.aad[..];
         env.payload = sealed_payload(&sess.id, &nonce, &env.payload, sig.as_ref(), |in_out| {
             let tag = key
-                .seal_in_place_separate_tag(Nonce::assume_unique_for_key(nonce), Aad::from(aad), in_out)
+                .seal_in_place_separate_tag(
+                    Nonce::assume_unique_for_key(nonce),
+                    Aad::from(aad),
+                    in_out,
+                )
                 .map_err(|_| SecurityError::KeyDerivation)?;
-            tag.as_ref().try_into().map_err(|_| SecurityError::KeyDerivation)
+            tag.as_ref()
+                .try_into()
+                .map_err(|_| SecurityError::KeyDerivation)
         })?;
         Ok(true)
     }
 
-    fn handshake_env(&mut self, sender: &str, receiver: &str, payload: Vec<u8>, now: Time) -> Envelope {
+    fn handshake_env(
+        &mut self,
+        sender: &str,
+        receiver: &str,
+        payload: Vec<u8>,
+        now: Time,
+    ) -> Envelope {
         let mut env = Envelope::new(self.ids.next_id(), sender, receiver, payload);
         env.header.flags = Flags::HANDSHAKE;
         env.header.timestamp = now;
@@ -361,7 +434,8 @@ impl SecurityLayer {
     /// Starts (or restarts) key agreement from `a` to `b`, keeping messages already queued.
     fn start_handshake(&mut self, a: &str, b: &str, now: Time) -> Result<(), SecurityError> {
         let id = self.random::<SID_LEN>()?;
-        let eph = EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
+        let eph =
+            EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
         let eph_pub: [u8; 32] = eph
             .compute_public_key()
             .map_err(|_| SecurityError::Rng)?
@@ -374,7 +448,13 @@ impl SecurityLayer {
         self.outbox.push_back(hello);
         let slot = nested(&mut self.pending, a, b);
         let queued = slot.take().map(|p| p.queued).unwrap_or_default();
-        *slot = Some(Pending { id, eph: Some(eph), eph_pub, queued, started: now });
+        *slot = Some(Pending {
+            id,
+            eph: Some(eph),
+            eph_pub,
+            queued,
+            started: now,
+        });
         let due = now.plus(self.config.handshake_timeout);
         self.restart_due = Some(self.restart_due.map_or(due, |d| d.min(due)));
         Ok(())
@@ -393,7 +473,9 @@ impl SecurityLayer {
             self.start_handshake(&a, &b, now)?;
         }
         let max = self.config.max_queued;
-        let Some(p) = nested(&mut self.pending, &a, &b).as_mut() else { return Err(SecurityError::KeyDerivation) };
+        let Some(p) = nested(&mut self.pending, &a, &b).as_mut() else {
+            return Err(SecurityError::KeyDerivation);
+        };
         if p.queued.len() >= max {
             tracing::warn!(sender = %a, receiver = %b, "key agreement pending, queue full");
             return Ok(Verdict::Drop(Reason::UnknownPeer));
@@ -405,23 +487,32 @@ impl SecurityLayer {
 
     fn on_hello(&mut self, env: &Envelope, now: Time) -> Result<Verdict, SecurityError> {
         let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
-        let Some((_, id, eph_a, sig)) = split_handshake(&env.payload) else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
-        let Some(key_a) = self.directory.public_key(a) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+        let Some((_, id, eph_a, sig)) = split_handshake(&env.payload) else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
+        let Some(key_a) = self.directory.public_key(a) else {
+            return Ok(Verdict::Drop(Reason::UnknownPeer));
+        };
         if !verify(&key_a, &hello_transcript(&id, &eph_a, a, b), &sig) {
             return Ok(Verdict::Drop(Reason::BadSignature));
         }
         if nested_get(&self.recv, a, b).is_some_and(|q| q.iter().any(|(sid, _)| *sid == id)) {
             return Ok(Verdict::Consumed);
         }
-        let eph = EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
+        let eph =
+            EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
         let eph_b: [u8; 32] = eph
             .compute_public_key()
             .map_err(|_| SecurityError::Rng)?
             .as_ref()
             .try_into()
             .map_err(|_| SecurityError::KeyDerivation)?;
-        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_a), |shared| session_key(shared, &eph_a, &eph_b, a, b));
-        let Ok(key) = key else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_a), |shared| {
+            session_key(shared, &eph_a, &eph_b, a, b)
+        });
+        let Ok(key) = key else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
         let key = key?;
         let kept = self.config.sessions_kept.max(1);
         let q = nested(&mut self.recv, a, b);
@@ -429,7 +520,9 @@ impl SecurityLayer {
         while q.len() > kept {
             q.pop_front();
         }
-        let sig_b = self.identity.sign(&reply_transcript(&id, &eph_a, &eph_b, a, b));
+        let sig_b = self
+            .identity
+            .sign(&reply_transcript(&id, &eph_a, &eph_b, a, b));
         let payload = [&[REPLY][..], &id, &eph_b, &sig_b].concat();
         let (a, b) = (a.to_string(), b.to_string());
         let reply = self.handshake_env(&b, &a, payload, now);
@@ -440,22 +533,44 @@ impl SecurityLayer {
     fn on_reply(&mut self, env: &Envelope) -> Result<Verdict, SecurityError> {
         // The reply comes from b (the peer) to a (who started the agreement).
         let (b, a) = (env.header.sender.clone(), env.header.receiver.clone());
-        let Some((_, id, eph_b, sig)) = split_handshake(&env.payload) else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
-        let matches = nested_get(&self.pending, &a, &b).and_then(Option::as_ref).is_some_and(|p| p.id == id && p.eph.is_some());
+        let Some((_, id, eph_b, sig)) = split_handshake(&env.payload) else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
+        let matches = nested_get(&self.pending, &a, &b)
+            .and_then(Option::as_ref)
+            .is_some_and(|p| p.id == id && p.eph.is_some());
         if !matches {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         }
-        let Some(key_b) = self.directory.public_key(&b) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
-        let Some(mut p) = nested(&mut self.pending, &a, &b).take() else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
-        if !verify(&key_b, &reply_transcript(&id, &p.eph_pub, &eph_b, &a, &b), &sig) {
+        let Some(key_b) = self.directory.public_key(&b) else {
+            return Ok(Verdict::Drop(Reason::UnknownPeer));
+        };
+        let Some(mut p) = nested(&mut self.pending, &a, &b).take() else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
+        if !verify(
+            &key_b,
+            &reply_transcript(&id, &p.eph_pub, &eph_b, &a, &b),
+            &sig,
+        ) {
             *nested(&mut self.pending, &a, &b) = Some(p);
             return Ok(Verdict::Drop(Reason::BadSignature));
         }
-        let Some(eph) = p.eph.take() else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
+        let Some(eph) = p.eph.take() else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
         let eph_a = p.eph_pub;
-        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_b), |shared| session_key(shared, &eph_a, &eph_b, &a, &b));
-        let Ok(key) = key else { return Ok(Verdict::Drop(Reason::BadHandshake)) };
-        *nested(&mut self.send, &a, &b) = Some(SendSession { id, key: key?, counter: 0 });
+        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_b), |shared| {
+            session_key(shared, &eph_a, &eph_b, &a, &b)
+        });
+        let Ok(key) = key else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
+        *nested(&mut self.send, &a, &b) = Some(SendSession {
+            id,
+            key: key?,
+            counter: 0,
+        });
         for mut queued in p.queued {
             if !self.seal_pk(&mut queued)? {
                 return Err(SecurityError::KeyDerivation);
@@ -493,20 +608,37 @@ impl SecurityLayer {
         // Payload: key id, nonce, ciphertext, tag. Opened in place: the plaintext ends up at
         // the front of the same buffer.
         let body = id_len + NONCE_LEN;
-        let nonce: [u8; NONCE_LEN] = env.payload[id_len..body].try_into().map_err(|_| SecurityError::KeyDerivation)?;
+        let nonce: [u8; NONCE_LEN] = env.payload[id_len..body]
+            .try_into()
+            .map_err(|_| SecurityError::KeyDerivation)?;
         let (s, r) = (env.header.sender.as_str(), env.header.receiver.as_str());
         let aad = &self.aad[..];
         if psk_mode {
-            let Some(psk) = self.psk_of(s) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
-            let salt: [u8; SALT_LEN] = env.payload[..SALT_LEN].try_into().map_err(|_| SecurityError::KeyDerivation)?;
-            let cached = nested_get(&self.psk_recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == salt));
+            let Some(psk) = self.psk_of(s) else {
+                return Ok(Verdict::Drop(Reason::UnknownPeer));
+            };
+            let salt: [u8; SALT_LEN] = env.payload[..SALT_LEN]
+                .try_into()
+                .map_err(|_| SecurityError::KeyDerivation)?;
+            let cached =
+                nested_get(&self.psk_recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == salt));
             let fresh = match cached {
                 Some(_) => None,
                 None => Some(psk_cipher(&psk, &salt, s, r)?),
             };
-            let Some(cipher) = cached.map(|(_, c)| c).or(fresh.as_ref()) else { return Err(SecurityError::KeyDerivation) };
+            let Some(cipher) = cached.map(|(_, c)| c).or(fresh.as_ref()) else {
+                return Err(SecurityError::KeyDerivation);
+            };
             let (ct, tag) = env.payload[body..].split_at_mut(len - body - TAG_LEN);
-            if cipher.decrypt_in_place_detached(aes_gcm::Nonce::from_slice(&nonce), aad, ct, aes_gcm::Tag::from_slice(tag)).is_err() {
+            if cipher
+                .decrypt_in_place_detached(
+                    aes_gcm::Nonce::from_slice(&nonce),
+                    aad,
+                    ct,
+                    aes_gcm::Tag::from_slice(tag),
+                )
+                .is_err()
+            {
                 return Ok(Verdict::Drop(Reason::BadTag));
             }
             if let Some(cipher) = fresh {
@@ -520,8 +652,11 @@ impl SecurityLayer {
             env.payload.truncate(len - TAG_LEN);
             env.payload.drain(..body);
         } else {
-            let sid: [u8; SID_LEN] = env.payload[..SID_LEN].try_into().map_err(|_| SecurityError::KeyDerivation)?;
-            let session = nested_get(&self.recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == sid));
+            let sid: [u8; SID_LEN] = env.payload[..SID_LEN]
+                .try_into()
+                .map_err(|_| SecurityError::KeyDerivation)?;
+            let session =
+                nested_get(&self.recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == sid));
             let Some((_, key)) = session else {
                 let payload = [&[REKEY][..], &sid].concat();
                 let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
@@ -529,18 +664,33 @@ impl SecurityLayer {
                 self.outbox.push_back(rekey);
                 return Ok(Verdict::Drop(Reason::UnknownSession));
             };
-            let plain_len = match key.open_within(Nonce::assume_unique_for_key(nonce), Aad::from(aad), &mut env.payload, body..) {
+            let plain_len = match key.open_within(
+                Nonce::assume_unique_for_key(nonce),
+                Aad::from(aad),
+                &mut env.payload,
+                body..,
+            ) {
                 Ok(p) => p.len(),
                 Err(_) => return Ok(Verdict::Drop(Reason::BadTag)),
             };
             env.payload.truncate(plain_len);
         }
-        env.header.flags = env.header.flags.without(Flags::SEALED).without(Flags::PRE_SHARED);
+        env.header.flags = env
+            .header
+            .flags
+            .without(Flags::SEALED)
+            .without(Flags::PRE_SHARED);
         if env.header.flags.contains(Flags::SIGNED) {
-            let Some(at) = env.payload.len().checked_sub(SIGNATURE_LEN) else { return Ok(Verdict::Drop(Reason::BadSignature)) };
-            let sig: [u8; SIGNATURE_LEN] = env.payload[at..].try_into().map_err(|_| SecurityError::KeyDerivation)?;
+            let Some(at) = env.payload.len().checked_sub(SIGNATURE_LEN) else {
+                return Ok(Verdict::Drop(Reason::BadSignature));
+            };
+            let sig: [u8; SIGNATURE_LEN] = env.payload[at..]
+                .try_into()
+                .map_err(|_| SecurityError::KeyDerivation)?;
             env.payload.truncate(at);
-            let Some(key) = self.directory.public_key(&env.header.sender) else { return Ok(Verdict::Drop(Reason::UnknownPeer)) };
+            let Some(key) = self.directory.public_key(&env.header.sender) else {
+                return Ok(Verdict::Drop(Reason::UnknownPeer));
+            };
             if !verify(&key, &signed_bytes(env), &sig) {
                 return Ok(Verdict::Drop(Reason::BadSignature));
             }
@@ -607,7 +757,12 @@ impl Layer for SecurityLayer {
                     tracing::error!(error = %e, "cannot restart key agreement");
                 }
             }
-            self.restart_due = self.pending.values().flat_map(|m| m.values()).filter_map(|p| p.as_ref().map(|p| p.started.plus(timeout))).min();
+            self.restart_due = self
+                .pending
+                .values()
+                .flat_map(|m| m.values())
+                .filter_map(|p| p.as_ref().map(|p| p.started.plus(timeout)))
+                .min();
         }
         self.outbox.pop_front()
     }
@@ -617,6 +772,10 @@ impl Layer for SecurityLayer {
             return Some(Time::ZERO);
         }
         let timeout = self.config.handshake_timeout;
-        self.pending.values().flat_map(|m| m.values()).filter_map(|p| p.as_ref().map(|p| p.started.plus(timeout))).min()
+        self.pending
+            .values()
+            .flat_map(|m| m.values())
+            .filter_map(|p| p.as_ref().map(|p| p.started.plus(timeout)))
+            .min()
     }
 }

@@ -43,7 +43,9 @@
 mod identity;
 mod layer;
 
-pub use identity::{Directory, Identity, KeyDirectory, PublicKey, signed_bytes, verify, verify_envelope};
+pub use identity::{
+    Directory, Identity, KeyDirectory, PublicKey, signed_bytes, verify, verify_envelope,
+};
 pub use layer::{PreSharedKey, SealInfo, SecurityConfig, SecurityLayer};
 
 /// Failures of key handling (never of message checks, which are drop verdicts).

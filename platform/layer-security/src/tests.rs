@@ -24,7 +24,12 @@ fn net(cfg_a: SecurityConfig, cfg_b: SecurityConfig) -> Net {
 }
 
 fn msg(n: u64) -> Envelope {
-    let mut e = Envelope::new(MsgId(n), "a", "b", format!("(inform :content \"{n}\")").into_bytes());
+    let mut e = Envelope::new(
+        MsgId(n),
+        "a",
+        "b",
+        format!("(inform :content \"{n}\")").into_bytes(),
+    );
     e.header.seq = n;
     e.header.timestamp = Time::from_ns(n);
     e
@@ -32,7 +37,11 @@ fn msg(n: u64) -> Envelope {
 
 /// Moves every pending frame between the two layers until quiet; returns what B delivered and
 /// the sealed frames A sent.
-fn exchange(a: &mut SecurityLayer, b: &mut SecurityLayer, out: Vec<Envelope>) -> (Vec<Envelope>, Vec<Envelope>) {
+fn exchange(
+    a: &mut SecurityLayer,
+    b: &mut SecurityLayer,
+    out: Vec<Envelope>,
+) -> (Vec<Envelope>, Vec<Envelope>) {
     let (mut delivered, mut wire) = (Vec::new(), Vec::new());
     let mut to_b: Vec<Envelope> = out;
     loop {
@@ -58,7 +67,11 @@ fn exchange(a: &mut SecurityLayer, b: &mut SecurityLayer, out: Vec<Envelope>) ->
     }
 }
 
-fn send(a: &mut SecurityLayer, b: &mut SecurityLayer, msgs: impl IntoIterator<Item = Envelope>) -> (Vec<Envelope>, Vec<Envelope>) {
+fn send(
+    a: &mut SecurityLayer,
+    b: &mut SecurityLayer,
+    msgs: impl IntoIterator<Item = Envelope>,
+) -> (Vec<Envelope>, Vec<Envelope>) {
     let mut out = Vec::new();
     for mut m in msgs {
         if let Verdict::Pass = a.outbound(&mut m, Time::ZERO) {
@@ -71,12 +84,19 @@ fn send(a: &mut SecurityLayer, b: &mut SecurityLayer, msgs: impl IntoIterator<It
 #[test]
 fn public_key_mode_agrees_once_then_seals() {
     let mut n = net(SecurityConfig::default(), SecurityConfig::default());
-    assert_eq!(n.a.outbound(&mut msg(1), Time::ZERO), Verdict::Consumed, "held until the key exists");
+    assert_eq!(
+        n.a.outbound(&mut msg(1), Time::ZERO),
+        Verdict::Consumed,
+        "held until the key exists"
+    );
     let (got, wire) = exchange(&mut n.a, &mut n.b, Vec::new());
     assert_eq!(got.len(), 1);
     assert_eq!(got[0].payload, msg(1).payload);
     assert_eq!(got[0].authenticated.as_deref(), Some("a"));
-    assert!(!wire[0].payload.windows(6).any(|w| w == b"inform"), "ciphertext hides the content");
+    assert!(
+        !wire[0].payload.windows(6).any(|w| w == b"inform"),
+        "ciphertext hides the content"
+    );
     // Now the key is cached: the next message is sealed at once.
     assert_eq!(n.a.outbound(&mut msg(2), Time::ZERO), Verdict::Pass);
 }
@@ -97,10 +117,19 @@ fn pre_shared_mode_round_trip() {
     // A wrong key on the receiving side is an authentication failure.
     let mut cw = SecurityConfig::default();
     cw.pre_shared.insert("a".into(), [8u8; 32]);
-    let mut w = net(SecurityConfig { pre_shared: [("b".to_string(), psk)].into(), ..Default::default() }, cw);
+    let mut w = net(
+        SecurityConfig {
+            pre_shared: [("b".to_string(), psk)].into(),
+            ..Default::default()
+        },
+        cw,
+    );
     let mut sealed = msg(2);
     assert_eq!(w.a.outbound(&mut sealed, Time::ZERO), Verdict::Pass);
-    assert_eq!(w.b.inbound(&mut sealed, Time::ZERO), Verdict::Drop(Reason::BadTag));
+    assert_eq!(
+        w.b.inbound(&mut sealed, Time::ZERO),
+        Verdict::Drop(Reason::BadTag)
+    );
 }
 
 #[test]
@@ -110,8 +139,15 @@ fn any_tampered_byte_is_rejected_in_both_modes() {
     let modes = [
         (SecurityConfig::default(), SecurityConfig::default()),
         (
-            SecurityConfig { pre_shared: [("b".to_string(), psk)].into(), sign_all: true, ..Default::default() },
-            SecurityConfig { pre_shared: [("a".to_string(), psk)].into(), ..Default::default() },
+            SecurityConfig {
+                pre_shared: [("b".to_string(), psk)].into(),
+                sign_all: true,
+                ..Default::default()
+            },
+            SecurityConfig {
+                pre_shared: [("a".to_string(), psk)].into(),
+                ..Default::default()
+            },
         ),
     ];
     for (ca, cb) in modes {
@@ -123,7 +159,9 @@ fn any_tampered_byte_is_rejected_in_both_modes() {
             for bit in [0x01u8, 0x80] {
                 let mut bad = frame.clone();
                 bad[i] ^= bit;
-                let Ok(mut env) = codec.decode_datagram(&bad) else { continue };
+                let Ok(mut env) = codec.decode_datagram(&bad) else {
+                    continue;
+                };
                 if let Verdict::Pass = n.b.inbound(&mut env, Time::ZERO) {
                     delivered += 1;
                 }
@@ -141,7 +179,11 @@ fn nonces_never_repeat_across_messages_and_restarts() {
     let psk = [5u8; 32];
     for pre_shared in [false, true] {
         let cfg = |peer: &str| SecurityConfig {
-            pre_shared: if pre_shared { [(peer.to_string(), psk)].into() } else { Default::default() },
+            pre_shared: if pre_shared {
+                [(peer.to_string(), psk)].into()
+            } else {
+                Default::default()
+            },
             ..Default::default()
         };
         let mut n = net(cfg("b"), cfg("a"));
@@ -172,7 +214,13 @@ fn nonces_never_repeat_across_messages_and_restarts() {
 
 #[test]
 fn signatures_verifiable_by_third_parties() {
-    let mut n = net(SecurityConfig { sign_all: true, ..Default::default() }, SecurityConfig::default());
+    let mut n = net(
+        SecurityConfig {
+            sign_all: true,
+            ..Default::default()
+        },
+        SecurityConfig::default(),
+    );
     let (got, _) = send(&mut n.a, &mut n.b, [msg(1)]);
     let env = &got[0];
     assert!(verify_envelope(env, &n.id_a.public_key()));
@@ -187,21 +235,34 @@ fn signatures_verifiable_by_third_parties() {
 fn masquerade_and_plaintext_insertion_rejected() {
     let mut n = net(SecurityConfig::default(), SecurityConfig::default());
     let mut plain = msg(1);
-    assert_eq!(n.b.inbound(&mut plain, Time::ZERO), Verdict::Drop(Reason::NotSealed));
+    assert_eq!(
+        n.b.inbound(&mut plain, Time::ZERO),
+        Verdict::Drop(Reason::NotSealed)
+    );
     // Mallory has a registered identity of her own and claims to be `a`.
     let mallory_id = Arc::new(Identity::generate().unwrap());
     n.dir.insert("m", mallory_id.public_key());
-    let mut m = SecurityLayer::new(mallory_id, Arc::new(n.dir.clone()), SecurityConfig::default());
+    let mut m = SecurityLayer::new(
+        mallory_id,
+        Arc::new(n.dir.clone()),
+        SecurityConfig::default(),
+    );
     assert_eq!(m.outbound(&mut msg(1), Time::ZERO), Verdict::Consumed);
     let mut hello = m.poll_transmit(Time::ZERO).unwrap();
-    assert_eq!(n.b.inbound(&mut hello, Time::ZERO), Verdict::Drop(Reason::BadSignature));
+    assert_eq!(
+        n.b.inbound(&mut hello, Time::ZERO),
+        Verdict::Drop(Reason::BadSignature)
+    );
     // Her own valid session, relabelled as `a`, names no session of `a`.
     let mut as_m = msg(2);
     as_m.header.sender = "m".into();
     let (_, wire) = send(&mut m, &mut n.b, [as_m]);
     let mut relabelled = wire[0].clone();
     relabelled.header.sender = "a".into();
-    assert_eq!(n.b.inbound(&mut relabelled, Time::ZERO), Verdict::Drop(Reason::UnknownSession));
+    assert_eq!(
+        n.b.inbound(&mut relabelled, Time::ZERO),
+        Verdict::Drop(Reason::UnknownSession)
+    );
 }
 
 #[test]
@@ -236,5 +297,8 @@ fn unknown_receiver_is_refused() {
     let mut n = net(SecurityConfig::default(), SecurityConfig::default());
     let mut e = msg(1);
     e.header.receiver = "nobody".into();
-    assert_eq!(n.a.outbound(&mut e, Time::ZERO), Verdict::Drop(Reason::UnknownPeer));
+    assert_eq!(
+        n.a.outbound(&mut e, Time::ZERO),
+        Verdict::Drop(Reason::UnknownPeer)
+    );
 }

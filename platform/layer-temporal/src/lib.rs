@@ -82,7 +82,10 @@ struct SeqWindow {
 impl SeqWindow {
     fn new(seq: u64, window: u64) -> SeqWindow {
         let words = usize::try_from(window.div_ceil(64)).unwrap_or(1).max(1);
-        let mut w = SeqWindow { newest: seq, bits: vec![0; words] };
+        let mut w = SeqWindow {
+            newest: seq,
+            bits: vec![0; words],
+        };
         w.set(seq);
         w
     }
@@ -129,7 +132,12 @@ pub struct TemporalLayer {
 impl TemporalLayer {
     /// A layer with the given limits.
     pub fn new(config: TemporalConfig) -> TemporalLayer {
-        TemporalLayer { config, next_seq: FxHashMap::default(), peers: HashMap::new(), stats: TemporalStats::default() }
+        TemporalLayer {
+            config,
+            next_seq: FxHashMap::default(),
+            peers: HashMap::new(),
+            stats: TemporalStats::default(),
+        }
     }
     /// What it saw so far.
     pub fn stats(&self) -> TemporalStats {
@@ -155,7 +163,8 @@ impl TemporalLayer {
         let window = self.config.seq_window.max(1);
         let strict = self.config.ordering == Ordering::Strict;
         let Some(w) = self.peers.get_mut(sender) else {
-            self.peers.insert(sender.to_string(), SeqWindow::new(seq, window));
+            self.peers
+                .insert(sender.to_string(), SeqWindow::new(seq, window));
             return Ok(());
         };
         if seq > w.newest {
@@ -194,7 +203,8 @@ impl Layer for TemporalLayer {
             }
             None => {
                 let seq = now.as_ns();
-                self.next_seq.insert(env.header.sender.clone(), seq.wrapping_add(1));
+                self.next_seq
+                    .insert(env.header.sender.clone(), seq.wrapping_add(1));
                 seq
             }
         };
@@ -248,18 +258,39 @@ mod tests {
 
     #[test]
     fn age_future_and_reply_by_with_skew() {
-        let cfg = TemporalConfig { max_age: Duration::from_millis(100), max_skew: Duration::from_millis(10), ..Default::default() };
+        let cfg = TemporalConfig {
+            max_age: Duration::from_millis(100),
+            max_skew: Duration::from_millis(10),
+            ..Default::default()
+        };
         let mut tx = TemporalLayer::new(cfg);
         let mut rx = TemporalLayer::new(cfg);
         let mut old = stamped(&mut tx, ms(0));
-        assert_eq!(rx.inbound(&mut old.clone(), ms(111)), Verdict::Drop(Reason::Stale));
-        assert_eq!(rx.inbound(&mut old, ms(110)), Verdict::Pass, "within age + skew");
+        assert_eq!(
+            rx.inbound(&mut old.clone(), ms(111)),
+            Verdict::Drop(Reason::Stale)
+        );
+        assert_eq!(
+            rx.inbound(&mut old, ms(110)),
+            Verdict::Pass,
+            "within age + skew"
+        );
         let mut future = stamped(&mut tx, ms(500));
-        assert_eq!(rx.inbound(&mut future.clone(), ms(489)), Verdict::Drop(Reason::FromFuture));
-        assert_eq!(rx.inbound(&mut future, ms(490)), Verdict::Pass, "skew tolerated");
+        assert_eq!(
+            rx.inbound(&mut future.clone(), ms(489)),
+            Verdict::Drop(Reason::FromFuture)
+        );
+        assert_eq!(
+            rx.inbound(&mut future, ms(490)),
+            Verdict::Pass,
+            "skew tolerated"
+        );
         let mut due = stamped(&mut tx, ms(600));
         due.header.reply_by = ms(620);
-        assert_eq!(rx.inbound(&mut due.clone(), ms(631)), Verdict::Drop(Reason::PastReplyBy));
+        assert_eq!(
+            rx.inbound(&mut due.clone(), ms(631)),
+            Verdict::Drop(Reason::PastReplyBy)
+        );
         assert_eq!(rx.inbound(&mut due, ms(630)), Verdict::Pass);
     }
 
@@ -272,10 +303,19 @@ mod tests {
         assert_eq!(rx.inbound(&mut e[2].clone(), ms(1)), Verdict::Pass);
         assert_eq!(rx.inbound(&mut e[1].clone(), ms(1)), Verdict::Pass);
         assert_eq!(rx.stats().reordered, 1);
-        assert_eq!(rx.inbound(&mut e[1].clone(), ms(1)), Verdict::Drop(Reason::ReplayedSequence));
-        let mut strict = TemporalLayer::new(TemporalConfig { ordering: Ordering::Strict, ..Default::default() });
+        assert_eq!(
+            rx.inbound(&mut e[1].clone(), ms(1)),
+            Verdict::Drop(Reason::ReplayedSequence)
+        );
+        let mut strict = TemporalLayer::new(TemporalConfig {
+            ordering: Ordering::Strict,
+            ..Default::default()
+        });
         assert_eq!(strict.inbound(&mut e[2].clone(), ms(1)), Verdict::Pass);
-        assert_eq!(strict.inbound(&mut e[1].clone(), ms(1)), Verdict::Drop(Reason::OutOfOrder));
+        assert_eq!(
+            strict.inbound(&mut e[1].clone(), ms(1)),
+            Verdict::Drop(Reason::OutOfOrder)
+        );
     }
 
     #[test]
@@ -283,19 +323,31 @@ mod tests {
         let mut rx = TemporalLayer::new(TemporalConfig::default());
         let mut first = TemporalLayer::new(TemporalConfig::default());
         for _ in 0..10 {
-            assert_eq!(rx.inbound(&mut stamped(&mut first, ms(0)), ms(0)), Verdict::Pass);
+            assert_eq!(
+                rx.inbound(&mut stamped(&mut first, ms(0)), ms(0)),
+                Verdict::Pass
+            );
         }
         let mut restarted = TemporalLayer::new(TemporalConfig::default());
-        assert_eq!(rx.inbound(&mut stamped(&mut restarted, ms(1)), ms(1)), Verdict::Pass);
+        assert_eq!(
+            rx.inbound(&mut stamped(&mut restarted, ms(1)), ms(1)),
+            Verdict::Pass
+        );
     }
 
     #[test]
     fn far_behind_is_rejected() {
-        let cfg = TemporalConfig { seq_window: 4, ..Default::default() };
+        let cfg = TemporalConfig {
+            seq_window: 4,
+            ..Default::default()
+        };
         let mut tx = TemporalLayer::new(cfg);
         let e: Vec<_> = (0..10).map(|_| stamped(&mut tx, ms(0))).collect();
         let mut rx = TemporalLayer::new(cfg);
         assert_eq!(rx.inbound(&mut e[9].clone(), ms(0)), Verdict::Pass);
-        assert_eq!(rx.inbound(&mut e[0].clone(), ms(0)), Verdict::Drop(Reason::OutOfOrder));
+        assert_eq!(
+            rx.inbound(&mut e[0].clone(), ms(0)),
+            Verdict::Drop(Reason::OutOfOrder)
+        );
     }
 }

@@ -37,8 +37,16 @@ struct Pair {
 impl Pair {
     async fn start() -> Pair {
         let echo: Box<dyn iw_agent::Agent> = Box::new(Echo);
-        let jade_like = HttpPlatform::start(GatewayConfig::new("WheelchairTest"), vec![("echo".into(), echo)], STEP).await.expect("platform");
-        let ours = HttpPlatform::start(GatewayConfig::new("RustPlatform"), Vec::new(), STEP).await.expect("platform");
+        let jade_like = HttpPlatform::start(
+            GatewayConfig::new("WheelchairTest"),
+            vec![("echo".into(), echo)],
+            STEP,
+        )
+        .await
+        .expect("platform");
+        let ours = HttpPlatform::start(GatewayConfig::new("RustPlatform"), Vec::new(), STEP)
+            .await
+            .expect("platform");
         let me = ours.gateway().aid("wheelchair1");
         let inbox = ours.bus().register(&me.name).expect("mailbox");
         let echo = jade_like.gateway().aid("echo");
@@ -51,13 +59,27 @@ impl Pair {
             .with_protocol("fipa-query")
             .with_conversation_id("conv-0002")
             .with_reply_with("q-1");
-        Pair { _jade_like: jade_like, ours, inbox, query: print(&query).into_bytes(), me: me.name, echo: echo.name }
+        Pair {
+            _jade_like: jade_like,
+            ours,
+            inbox,
+            query: print(&query).into_bytes(),
+            me: me.name,
+            echo: echo.name,
+        }
     }
 
     async fn round_trip(&mut self) {
-        self.ours.bus().send(&self.me, &self.echo, self.query.clone()).expect("send");
+        self.ours
+            .bus()
+            .send(&self.me, &self.echo, self.query.clone())
+            .expect("send");
         let answer = self.inbox.recv().await.expect("INFORM");
-        assert!(answer.payload_str().is_some_and(|p| p.starts_with("(INFORM")));
+        assert!(
+            answer
+                .payload_str()
+                .is_some_and(|p| p.starts_with("(INFORM"))
+        );
     }
 }
 
@@ -68,19 +90,30 @@ fn bench(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(4));
     group.warm_up_time(Duration::from_secs(1));
     group.sample_size(30);
-    group.bench_function("query_ref_inform", |b| b.iter(|| rt.block_on(pair.round_trip())));
+    group.bench_function("query_ref_inform", |b| {
+        b.iter(|| rt.block_on(pair.round_trip()))
+    });
 
     let (tx, mut rx) = mpsc::channel(1024);
-    let server = rt.block_on(MtpServer::bind(iw_mtp_http::server::LOOPBACK, None, tx)).expect("server");
+    let server = rt
+        .block_on(MtpServer::bind(iw_mtp_http::server::LOOPBACK, None, tx))
+        .expect("server");
     rt.spawn(async move { while rx.recv().await.is_some() {} });
-    let message = iw_acl::codec::parse(std::str::from_utf8(&pair.query).expect("text")).expect("ACL");
+    let message =
+        iw_acl::codec::parse(std::str::from_utf8(&pair.query).expect("text")).expect("ACL");
     let to = vec![AgentId::new("echo@WheelchairTest")];
     let kept = MtpClient::new();
     group.bench_function("one_post_keepalive", |b| {
-        b.iter(|| rt.block_on(kept.send(&server.url(), &message, to.clone())).expect("post"));
+        b.iter(|| {
+            rt.block_on(kept.send(&server.url(), &message, to.clone()))
+                .expect("post")
+        });
     });
     group.bench_function("one_post_new_connection", |b| {
-        b.iter(|| rt.block_on(MtpClient::new().send(&server.url(), &message, to.clone())).expect("post"));
+        b.iter(|| {
+            rt.block_on(MtpClient::new().send(&server.url(), &message, to.clone()))
+                .expect("post")
+        });
     });
     group.finish();
 
@@ -93,7 +126,11 @@ fn bench(c: &mut Criterion) {
         .collect();
     rtts.sort();
     let at = |q: f64| rtts[((rtts.len() - 1) as f64 * q) as usize].as_micros();
-    println!("mtp_http/query_ref_inform over {PERCENTILE_SAMPLES} round trips: p50 {} us, p99 {} us", at(0.5), at(0.99));
+    println!(
+        "mtp_http/query_ref_inform over {PERCENTILE_SAMPLES} round trips: p50 {} us, p99 {} us",
+        at(0.5),
+        at(0.99)
+    );
 }
 
 criterion_group!(benches, bench);

@@ -33,7 +33,9 @@ pub struct MtpClient {
 
 impl std::fmt::Debug for MtpClient {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MtpClient").field("tls", &self.tls.is_some()).finish_non_exhaustive()
+        f.debug_struct("MtpClient")
+            .field("tls", &self.tls.is_some())
+            .finish_non_exhaustive()
     }
 }
 
@@ -46,7 +48,10 @@ impl MtpClient {
     /// A client that also reaches `https://` addresses, trusting what `tls` trusts
     /// (see [`crate::tls::client_config`]).
     pub fn with_tls(tls: Arc<ClientConfig>) -> Self {
-        Self { tls: Some(tls), ..Self::default() }
+        Self {
+            tls: Some(tls),
+            ..Self::default()
+        }
     }
 
     /// The exact bytes of a POST of `message` to `url` for the receivers `to`.
@@ -54,13 +59,29 @@ impl MtpClient {
         let url = Url::parse(url)?;
         let payload = print_with(message, &PrintOptions::jade())?;
         let from = message.sender.clone().unwrap_or_default();
-        let envelope = Envelope::for_payload(from, to, &payload, FipaDateTime::from_unix_ms(now_unix_ms()));
+        let envelope = Envelope::for_payload(
+            from,
+            to,
+            &payload,
+            FipaDateTime::from_unix_ms(now_unix_ms()),
+        );
         let boundary = format!("{:031x}", rand::random::<u128>() >> 4);
-        Ok(wire::encode_request(&url, &envelope.to_xml(), &payload, &boundary, false))
+        Ok(wire::encode_request(
+            &url,
+            &envelope.to_xml(),
+            &payload,
+            &boundary,
+            false,
+        ))
     }
 
     /// Sends `message` to the receivers `to` at `url`; Ok once the platform answered 200.
-    pub async fn send(&self, url: &str, message: &AclMessage, to: Vec<AgentId>) -> Result<(), Error> {
+    pub async fn send(
+        &self,
+        url: &str,
+        message: &AclMessage,
+        to: Vec<AgentId>,
+    ) -> Result<(), Error> {
         let bytes = Self::encode(url, message, to)?;
         let target = Url::parse(url)?;
         let key = target.to_string();
@@ -80,10 +101,15 @@ impl MtpClient {
                     }
                     return match head.status {
                         200 => Ok(()),
-                        status => Err(Error::Rejected { url: url.to_owned(), status }),
+                        status => Err(Error::Rejected {
+                            url: url.to_owned(),
+                            status,
+                        }),
                     };
                 }
-                Err(e) if reused => tracing::debug!(%url, error = %e, "kept-alive connection was closed; reconnecting"),
+                Err(e) if reused => {
+                    tracing::debug!(%url, error = %e, "kept-alive connection was closed; reconnecting")
+                }
                 Err(e) => return Err(e),
             }
         }
@@ -91,9 +117,15 @@ impl MtpClient {
 
     async fn connect(&self, target: &Url) -> Result<BoxedIo, Error> {
         let peer = target.authority();
-        let io = |source| Error::Io { peer: peer.clone(), source };
+        let io = |source| Error::Io {
+            peer: peer.clone(),
+            source,
+        };
         let connect = TcpStream::connect((target.host.as_str(), target.port));
-        let tcp = tokio::time::timeout(ANSWER_TIMEOUT, connect).await.map_err(|_| timeout(&peer))?.map_err(io)?;
+        let tcp = tokio::time::timeout(ANSWER_TIMEOUT, connect)
+            .await
+            .map_err(|_| timeout(&peer))?
+            .map_err(io)?;
         tcp.set_nodelay(true).map_err(io)?;
         if !target.secure {
             return Ok(Box::new(tcp));
@@ -102,18 +134,26 @@ impl MtpClient {
             address: target.to_string(),
             reason: "https:// needs a client with trusted roots (MtpClient::with_tls)".into(),
         })?;
-        let name = ServerName::try_from(target.host.clone())
-            .map_err(|e| Error::Address { address: target.to_string(), reason: format!("not a TLS server name: {e}") })?;
+        let name = ServerName::try_from(target.host.clone()).map_err(|e| Error::Address {
+            address: target.to_string(),
+            reason: format!("not a TLS server name: {e}"),
+        })?;
         let handshake = TlsConnector::from(config).connect(name, tcp);
         let tls = tokio::time::timeout(ANSWER_TIMEOUT, handshake)
             .await
             .map_err(|_| timeout(&peer))?
-            .map_err(|e| Error::Tls { reason: format!("handshake with {peer}: {e}") })?;
+            .map_err(|e| Error::Tls {
+                reason: format!("handshake with {peer}: {e}"),
+            })?;
         Ok(Box::new(tls))
     }
 
     fn take_idle(&self, key: &str) -> Option<BoxedIo> {
-        self.idle.lock().unwrap_or_else(PoisonError::into_inner).get_mut(key).and_then(Vec::pop)
+        self.idle
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get_mut(key)
+            .and_then(Vec::pop)
     }
 
     fn put_idle(&self, key: String, stream: BoxedIo) {
@@ -126,13 +166,23 @@ impl MtpClient {
 }
 
 fn timeout(peer: &str) -> Error {
-    Error::Timeout { peer: peer.to_owned(), seconds: ANSWER_TIMEOUT.as_secs() }
+    Error::Timeout {
+        peer: peer.to_owned(),
+        seconds: ANSWER_TIMEOUT.as_secs(),
+    }
 }
 
 /// Writes one request and reads the answer's head (and its body, so the connection can be
 /// reused).
-async fn exchange(stream: &mut BoxedIo, request: &[u8], url: &str) -> Result<wire::ResponseHead, Error> {
-    let io = |source| Error::Io { peer: url.to_owned(), source };
+async fn exchange(
+    stream: &mut BoxedIo,
+    request: &[u8],
+    url: &str,
+) -> Result<wire::ResponseHead, Error> {
+    let io = |source| Error::Io {
+        peer: url.to_owned(),
+        source,
+    };
     stream.write_all(request).await.map_err(io)?;
     stream.flush().await.map_err(io)?;
     let mut buf = Vec::with_capacity(256);
@@ -143,11 +193,17 @@ async fn exchange(stream: &mut BoxedIo, request: &[u8], url: &str) -> Result<wir
                 break i + 4;
             }
             if buf.len() > wire::MAX_HEAD_LEN {
-                return Err(Error::TooLarge { what: "response head", len: buf.len(), max: wire::MAX_HEAD_LEN });
+                return Err(Error::TooLarge {
+                    what: "response head",
+                    len: buf.len(),
+                    max: wire::MAX_HEAD_LEN,
+                });
             }
             let n = stream.read(&mut chunk).await.map_err(io)?;
             if n == 0 {
-                return Err(Error::Http { reason: format!("{url} closed the connection without an answer") });
+                return Err(Error::Http {
+                    reason: format!("{url} closed the connection without an answer"),
+                });
             }
             buf.extend_from_slice(&chunk[..n]);
         };
@@ -157,17 +213,24 @@ async fn exchange(stream: &mut BoxedIo, request: &[u8], url: &str) -> Result<wir
             while buf.len() < head_end + body {
                 let n = stream.read(&mut chunk).await.map_err(io)?;
                 if n == 0 {
-                    return Ok(wire::ResponseHead { close: true, ..head });
+                    return Ok(wire::ResponseHead {
+                        close: true,
+                        ..head
+                    });
                 }
                 buf.extend_from_slice(&chunk[..n]);
             }
         }
         Ok(head)
     };
-    tokio::time::timeout(ANSWER_TIMEOUT, read).await.map_err(|_| timeout(url))?
+    tokio::time::timeout(ANSWER_TIMEOUT, read)
+        .await
+        .map_err(|_| timeout(url))?
 }
 
 /// Wall-clock time for envelope dates (a stamp for the receiver, not used in any decision).
 fn now_unix_ms() -> i64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as i64)
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as i64)
 }

@@ -53,7 +53,11 @@ impl Envelope {
 
     /// Receivers to deliver to: the intended receivers, or `to` when there are none.
     pub fn receivers(&self) -> &[AgentId] {
-        if self.intended_receiver.is_empty() { &self.to } else { &self.intended_receiver }
+        if self.intended_receiver.is_empty() {
+            &self.to
+        } else {
+            &self.intended_receiver
+        }
     }
 
     /// The XML text, in JADE's layout (prolog on its own line, the rest on one line).
@@ -69,10 +73,26 @@ impl Envelope {
             write_aid(&mut out, from);
             out.push_str("</from>");
         }
-        write_leaf(&mut out, "acl-representation", self.acl_representation.as_deref());
-        write_leaf(&mut out, "payload-length", self.payload_length.map(|n| n.to_string()).as_deref());
-        write_leaf(&mut out, "payload-encoding", self.payload_encoding.as_deref());
-        write_leaf(&mut out, "date", self.date.map(|d| d.to_string()).as_deref());
+        write_leaf(
+            &mut out,
+            "acl-representation",
+            self.acl_representation.as_deref(),
+        );
+        write_leaf(
+            &mut out,
+            "payload-length",
+            self.payload_length.map(|n| n.to_string()).as_deref(),
+        );
+        write_leaf(
+            &mut out,
+            "payload-encoding",
+            self.payload_encoding.as_deref(),
+        );
+        write_leaf(
+            &mut out,
+            "date",
+            self.date.map(|d| d.to_string()).as_deref(),
+        );
         for aid in &self.intended_receiver {
             out.push_str("<intended-receiver>");
             write_aid(&mut out, aid);
@@ -85,11 +105,18 @@ impl Envelope {
     /// Parses an envelope. Unknown elements are skipped; the first `params` set is used.
     pub fn from_xml(text: &str) -> Result<Self, Error> {
         if text.len() > MAX_ENVELOPE_LEN {
-            return Err(Error::TooLarge { what: "envelope", len: text.len(), max: MAX_ENVELOPE_LEN });
+            return Err(Error::TooLarge {
+                what: "envelope",
+                len: text.len(),
+                max: MAX_ENVELOPE_LEN,
+            });
         }
         let root = XmlParser { text, pos: 0 }.document()?;
         if root.name != "envelope" {
-            return Err(envelope_error(format!("root element is <{}>, expected <envelope>", root.name)));
+            return Err(envelope_error(format!(
+                "root element is <{}>, expected <envelope>",
+                root.name
+            )));
         }
         let params = root
             .children
@@ -165,7 +192,11 @@ fn write_aid(out: &mut String, aid: &AgentId) {
 }
 
 fn aids_in(node: &Node) -> Result<Vec<AgentId>, Error> {
-    node.children.iter().filter(|c| c.name == "agent-identifier").map(aid_from).collect()
+    node.children
+        .iter()
+        .filter(|c| c.name == "agent-identifier")
+        .map(aid_from)
+        .collect()
 }
 
 fn aid_from(node: &Node) -> Result<AgentId, Error> {
@@ -285,7 +316,11 @@ impl XmlParser<'_> {
         let mut quote = None;
         let mut self_closing = false;
         loop {
-            let c = self.rest().chars().next().ok_or_else(|| self.err("unterminated start tag"))?;
+            let c = self
+                .rest()
+                .chars()
+                .next()
+                .ok_or_else(|| self.err("unterminated start tag"))?;
             self.pos += c.len_utf8();
             match (quote, c) {
                 (Some(q), c) if c == q => quote = None,
@@ -300,7 +335,10 @@ impl XmlParser<'_> {
                 _ => {}
             }
         }
-        let mut node = Node { name, ..Node::default() };
+        let mut node = Node {
+            name,
+            ..Node::default()
+        };
         if self_closing {
             return Ok(node);
         }
@@ -308,7 +346,10 @@ impl XmlParser<'_> {
             let rest = self.rest();
             if rest.starts_with("</") {
                 self.pos += 2;
-                let end = self.rest().find('>').ok_or_else(|| self.err("unterminated end tag"))?;
+                let end = self
+                    .rest()
+                    .find('>')
+                    .ok_or_else(|| self.err("unterminated end tag"))?;
                 let closing = self.rest()[..end].trim();
                 if closing != node.name {
                     return Err(self.err(&format!("</{closing}> closes <{}>", node.name)));
@@ -319,7 +360,10 @@ impl XmlParser<'_> {
                 self.skip_misc()?;
             } else if rest.starts_with("<![CDATA[") {
                 self.pos += "<![CDATA[".len();
-                let end = self.rest().find("]]>").ok_or_else(|| self.err("unterminated CDATA"))?;
+                let end = self
+                    .rest()
+                    .find("]]>")
+                    .ok_or_else(|| self.err("unterminated CDATA"))?;
                 node.text.push_str(&self.rest()[..end]);
                 self.pos += end + 3;
             } else if rest.starts_with('<') {
@@ -341,7 +385,9 @@ fn unescape_into(raw: &str, out: &mut String) -> Result<(), String> {
     while let Some(amp) = rest.find('&') {
         out.push_str(&rest[..amp]);
         let after = &rest[amp + 1..];
-        let semi = after.find(';').ok_or_else(|| format!("unterminated entity in {raw:?}"))?;
+        let semi = after
+            .find(';')
+            .ok_or_else(|| format!("unterminated entity in {raw:?}"))?;
         let entity = &after[..semi];
         let c = match entity {
             "lt" => '<',
@@ -357,7 +403,8 @@ fn unescape_into(raw: &str, out: &mut String) -> Result<(), String> {
                 } else {
                     None
                 };
-                code.and_then(char::from_u32).ok_or_else(|| format!("unknown entity &{entity};"))?
+                code.and_then(char::from_u32)
+                    .ok_or_else(|| format!("unknown entity &{entity};"))?
             }
         };
         out.push(c);
@@ -378,29 +425,52 @@ mod tests {
     fn reads_jade_envelope_with_jade_date() {
         let env = Envelope::from_xml(JADE).unwrap();
         assert_eq!(env.to[0].name, "wheelchair1@RustPlatform");
-        assert_eq!(env.from.as_ref().unwrap().addresses, vec!["http://127.0.0.1:7778/acc"]);
+        assert_eq!(
+            env.from.as_ref().unwrap().addresses,
+            vec!["http://127.0.0.1:7778/acc"]
+        );
         assert_eq!(env.payload_length, Some(416));
         assert_eq!(env.payload_encoding, None);
         let date = env.date.unwrap();
-        assert_eq!((date.year, date.hour, date.minute, date.millisecond), (2026, 1, 42, 666));
+        assert_eq!(
+            (date.year, date.hour, date.minute, date.millisecond),
+            (2026, 1, 42, 666)
+        );
         // Re-encoded it is identical but for the date, which we write in FIPA form.
-        assert_eq!(env.to_xml(), JADE.replace("20261122Z014247666", "20261122T014247666"));
+        assert_eq!(
+            env.to_xml(),
+            JADE.replace("20261122Z014247666", "20261122T014247666")
+        );
     }
 
     #[test]
     fn fipa_date_form_and_errors() {
-        assert_eq!(parse_envelope_date("20261122T014247645Z").unwrap().zone, Some('Z'));
+        assert_eq!(
+            parse_envelope_date("20261122T014247645Z").unwrap().zone,
+            Some('Z')
+        );
         assert!(parse_envelope_date("2026-11-22").is_err());
         assert!(Envelope::from_xml("<envelope><params><to>").is_err());
         assert!(Envelope::from_xml("<other/>").is_err());
-        assert!(Envelope::from_xml("<envelope><params><payload-length>x</payload-length></params></envelope>").is_err());
+        assert!(
+            Envelope::from_xml(
+                "<envelope><params><payload-length>x</payload-length></params></envelope>"
+            )
+            .is_err()
+        );
         let deep = "<a>".repeat(100);
         assert!(Envelope::from_xml(&deep).is_err());
     }
 
     fn aid() -> impl Strategy<Value = AgentId> {
-        ("[a-z0-9]{1,8}@[A-Za-z]{1,8}", proptest::collection::vec("http://[a-z0-9.:<&>\"']{1,12}/acc", 0..3))
-            .prop_map(|(n, urls)| urls.into_iter().fold(AgentId::new(n), AgentId::with_address))
+        (
+            "[a-z0-9]{1,8}@[A-Za-z]{1,8}",
+            proptest::collection::vec("http://[a-z0-9.:<&>\"']{1,12}/acc", 0..3),
+        )
+            .prop_map(|(n, urls)| {
+                urls.into_iter()
+                    .fold(AgentId::new(n), AgentId::with_address)
+            })
     }
 
     proptest! {

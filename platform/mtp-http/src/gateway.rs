@@ -87,7 +87,10 @@ pub struct Gateway {
 
 impl std::fmt::Debug for Gateway {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Gateway").field("platform", &self.platform).field("url", &self.url()).finish_non_exhaustive()
+        f.debug_struct("Gateway")
+            .field("platform", &self.platform)
+            .field("url", &self.url())
+            .finish_non_exhaustive()
     }
 }
 
@@ -109,7 +112,9 @@ impl Gateway {
         tokio::spawn(async move {
             // One message at a time, so a conversation's messages keep their order.
             while let Some(delivery) = rx.recv().await {
-                let Some(gateway) = weak.upgrade() else { return };
+                let Some(gateway) = weak.upgrade() else {
+                    return;
+                };
                 gateway.dispatch(delivery).await;
             }
         });
@@ -144,16 +149,24 @@ impl Gateway {
         if foreign.len() >= self.max_foreign {
             return Err(Error::Unreachable {
                 agent: aid.name.clone(),
-                reason: format!("this platform already proxies its limit of {} foreign agents", self.max_foreign),
+                reason: format!(
+                    "this platform already proxies its limit of {} foreign agents",
+                    self.max_foreign
+                ),
             });
         }
-        let mailbox = self.bus.register(&aid.name).map_err(|e| Error::Unreachable {
-            agent: aid.name.clone(),
-            reason: match e {
-                BusError::AgentExists { .. } => "the name is a local agent's; a foreign agent cannot take it".into(),
-                other => other.to_string(),
-            },
-        })?;
+        let mailbox = self
+            .bus
+            .register(&aid.name)
+            .map_err(|e| Error::Unreachable {
+                agent: aid.name.clone(),
+                reason: match e {
+                    BusError::AgentExists { .. } => {
+                        "the name is a local agent's; a foreign agent cannot take it".into()
+                    }
+                    other => other.to_string(),
+                },
+            })?;
         foreign.insert(aid.name.clone(), aid.clone());
         drop(foreign);
         if let Some(admit) = &self.admit {
@@ -166,7 +179,10 @@ impl Gateway {
     /// Delivers a received message to each receiver on the bus; the AMS answers FAILURE for
     /// receivers this platform does not host.
     async fn dispatch(self: &Arc<Self>, delivery: Delivery) {
-        let Delivery { envelope, mut message } = delivery;
+        let Delivery {
+            envelope,
+            mut message,
+        } = delivery;
         let Some(sender) = message.sender.clone().or_else(|| envelope.from.clone()) else {
             tracing::warn!(envelope = ?envelope, "message without a sender dropped: no one to answer");
             return;
@@ -200,7 +216,10 @@ impl Gateway {
     /// Posts `message` to foreign agent `to`, trying its addresses in order (never our own).
     async fn post(&self, message: &AclMessage, to: &AgentId) -> Result<(), Error> {
         let own = self.url();
-        let mut last = Error::Unreachable { agent: to.name.clone(), reason: "Foreign agent unreachable: no transport address".into() };
+        let mut last = Error::Unreachable {
+            agent: to.name.clone(),
+            reason: "Foreign agent unreachable: no transport address".into(),
+        };
         for url in to.addresses.iter().filter(|u| **u != own) {
             match self.client.send(url, message, vec![to.clone()]).await {
                 Ok(()) => return Ok(()),
@@ -213,7 +232,15 @@ impl Gateway {
     /// Posts what a local agent sent to foreign agent `name`; tells the local sender (from the
     /// AMS) when that fails.
     async fn forward(&self, name: &str, mut message: AclMessage) {
-        let Some(to) = self.foreign.lock().unwrap_or_else(PoisonError::into_inner).get(name).cloned() else { return };
+        let Some(to) = self
+            .foreign
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(name)
+            .cloned()
+        else {
+            return;
+        };
         let own = self.url();
         if let Some(sender) = message.sender.as_mut()
             && !sender.addresses.contains(&own)
@@ -222,13 +249,28 @@ impl Gateway {
         }
         if let Err(e) = self.post(&message, &to).await {
             tracing::warn!(receiver = %name, error = %e, "post to a foreign agent failed");
-            let Some(sender) = message.sender.clone() else { return };
-            if self.foreign.lock().unwrap_or_else(PoisonError::into_inner).contains_key(&sender.name) {
+            let Some(sender) = message.sender.clone() else {
+                return;
+            };
+            if self
+                .foreign
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .contains_key(&sender.name)
+            {
                 return; // Relayed for another foreign agent: nobody local to tell.
             }
-            let failure = iw_ams_df::delivery_failure(&message, &to, self.aid("ams"), &format!("Foreign agent unreachable: {e}"));
+            let failure = iw_ams_df::delivery_failure(
+                &message,
+                &to,
+                self.aid("ams"),
+                &format!("Foreign agent unreachable: {e}"),
+            );
             let payload = iw_acl::codec::print(&failure).into_bytes();
-            if let Err(e) = self.bus.send(&format!("ams@{}", self.platform), &sender.name, payload) {
+            if let Err(e) = self
+                .bus
+                .send(&format!("ams@{}", self.platform), &sender.name, payload)
+            {
                 tracing::warn!(sender = %sender.name, error = %e, "could not report a failed post");
             }
         }
@@ -238,7 +280,12 @@ impl Gateway {
 impl Drop for Gateway {
     fn drop(&mut self) {
         // Ends the proxies' mailboxes, and so their tasks.
-        for name in self.foreign.get_mut().unwrap_or_else(PoisonError::into_inner).keys() {
+        for name in self
+            .foreign
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner)
+            .keys()
+        {
             self.bus.deregister(name);
         }
     }
@@ -247,10 +294,14 @@ impl Drop for Gateway {
 /// Posts, in order, what arrives in foreign agent `name`'s mailbox.
 async fn proxy(gateway: Weak<Gateway>, name: String, mut mailbox: Mailbox) {
     while let Some(envelope) = mailbox.recv().await {
-        let Some(gateway) = gateway.upgrade() else { return };
+        let Some(gateway) = gateway.upgrade() else {
+            return;
+        };
         match envelope.payload_str().map(iw_acl::codec::parse) {
             Some(Ok(message)) => gateway.forward(&name, message).await,
-            _ => tracing::warn!(receiver = %name, "payload for a foreign agent is not ACL; dropped"),
+            _ => {
+                tracing::warn!(receiver = %name, "payload for a foreign agent is not ACL; dropped")
+            }
         }
     }
 }

@@ -13,7 +13,10 @@ use iw_agent::{Agent, AgentHost, Context};
 use iw_ams_df::{Ams, Df, WhitePages};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
 use iw_ontology::OntologyContent;
-use iw_ontology::fipa::{AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest, ServiceDescription};
+use iw_ontology::fipa::{
+    AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
+    ServiceDescription,
+};
 
 use crate::{Error, Gateway, GatewayConfig};
 
@@ -28,7 +31,9 @@ pub struct HttpPlatform {
 
 impl std::fmt::Debug for HttpPlatform {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("HttpPlatform").field("gateway", &self.gateway).finish_non_exhaustive()
+        f.debug_struct("HttpPlatform")
+            .field("gateway", &self.gateway)
+            .finish_non_exhaustive()
     }
 }
 
@@ -36,23 +41,44 @@ impl HttpPlatform {
     /// Starts platform `config.platform` hosting `ams`, `df` and `agents` (local name, agent),
     /// each named `local@platform` with the gateway's address, stepped every `period`. The bus
     /// runs no EN 50159 layers: the HTTP side is for interoperability (use TLS for secrecy).
-    pub async fn start(config: GatewayConfig, agents: Vec<(String, Box<dyn Agent>)>, period: Duration) -> Result<Self, Error> {
+    pub async fn start(
+        config: GatewayConfig,
+        agents: Vec<(String, Box<dyn Agent>)>,
+        period: Duration,
+    ) -> Result<Self, Error> {
         let network = InProcNetwork::new();
-        let transport = network.endpoint(&config.platform).map_err(|e| Error::Unreachable {
+        let transport = network
+            .endpoint(&config.platform)
+            .map_err(|e| Error::Unreachable {
+                agent: config.platform.clone(),
+                reason: format!("in-process transport: {e}"),
+            })?;
+        let bus = Bus::start(
+            Stack::new(),
+            Arc::new(transport),
+            Clock::system(),
+            BusConfig::default(),
+        )
+        .map_err(|e| Error::Unreachable {
             agent: config.platform.clone(),
-            reason: format!("in-process transport: {e}"),
+            reason: e.to_string(),
         })?;
-        let bus = Bus::start(Stack::new(), Arc::new(transport), Clock::system(), BusConfig::default())
-            .map_err(|e| Error::Unreachable { agent: config.platform.clone(), reason: e.to_string() })?;
         let bus = Arc::new(bus);
         let gateway = Gateway::start(config, bus.clone()).await?;
         let mut host = AgentHost::new(bus.clone());
         let pages = WhitePages::new();
-        let services: Vec<(String, Box<dyn Agent>)> =
-            vec![("ams".into(), Box::new(Ams::new(pages.clone()))), ("df".into(), Box::new(Df::new()))];
+        let services: Vec<(String, Box<dyn Agent>)> = vec![
+            ("ams".into(), Box::new(Ams::new(pages.clone()))),
+            ("df".into(), Box::new(Df::new())),
+        ];
         for (local, agent) in services.into_iter().chain(agents) {
             let aid = gateway.aid(&local);
-            pages.host(&mut host, aid, agent).map_err(|e| Error::Unreachable { agent: local, reason: e.to_string() })?;
+            pages
+                .host(&mut host, aid, agent)
+                .map_err(|e| Error::Unreachable {
+                    agent: local,
+                    reason: e.to_string(),
+                })?;
         }
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
@@ -60,9 +86,18 @@ impl HttpPlatform {
             std::thread::Builder::new()
                 .name(format!("platform-{}", gateway.platform()))
                 .spawn(move || host.run_until(period, &stop))
-                .map_err(|source| Error::Io { peer: "agent host thread".into(), source })?
+                .map_err(|source| Error::Io {
+                    peer: "agent host thread".into(),
+                    source,
+                })?
         };
-        Ok(Self { bus, gateway, pages, stop, thread: Some(thread) })
+        Ok(Self {
+            bus,
+            gateway,
+            pages,
+            stop,
+            thread: Some(thread),
+        })
     }
 
     /// The gateway (address, foreign agents).
@@ -113,9 +148,13 @@ impl Agent for Echo {
         };
         let register = ManagementContent::Request(ManagementRequest {
             actor: df.clone(),
-            action: ManagementAction::Register { description: AgentDescription::Df(description) },
+            action: ManagementAction::Register {
+                description: AgentDescription::Df(description),
+            },
         });
-        let request = AclMessage::new(Performative::Request).with_receiver(df).with_protocol("fipa-request");
+        let request = AclMessage::new(Performative::Request)
+            .with_receiver(df)
+            .with_protocol("fipa-request");
         // A failure is logged and counted by the host; the echo works without the DF.
         let _ = ctx.send(register.fill(request));
     }
@@ -126,11 +165,17 @@ impl Agent for Echo {
         let replies = match message.performative {
             Performative::Request => vec![
                 reply.clone().with_performative(Performative::Agree),
-                reply.with_performative(Performative::Inform).with_content(format!("((done {content}))")),
+                reply
+                    .with_performative(Performative::Inform)
+                    .with_content(format!("((done {content}))")),
             ],
             Performative::QueryRef => {
                 let quoted = content.replace('\\', "\\\\").replace('"', "\\\"");
-                vec![reply.with_performative(Performative::Inform).with_content(format!("(echo \"{quoted}\")"))]
+                vec![
+                    reply
+                        .with_performative(Performative::Inform)
+                        .with_content(format!("(echo \"{quoted}\")")),
+                ]
             }
             _ => Vec::new(),
         };

@@ -24,11 +24,16 @@ fn provider() -> Arc<rustls::crypto::CryptoProvider> {
 }
 
 fn tls_error(what: &str, error: rustls::Error) -> Error {
-    Error::Tls { reason: format!("{what}: {error}") }
+    Error::Tls {
+        reason: format!("{what}: {error}"),
+    }
 }
 
 /// A server configuration presenting `chain` (leaf first) signed by `key`.
-pub fn server_config(chain: Vec<CertificateDer<'static>>, key: PrivateKeyDer<'static>) -> Result<Arc<ServerConfig>, Error> {
+pub fn server_config(
+    chain: Vec<CertificateDer<'static>>,
+    key: PrivateKeyDer<'static>,
+) -> Result<Arc<ServerConfig>, Error> {
     let config = ServerConfig::builder_with_provider(provider())
         .with_safe_default_protocol_versions()
         .map_err(|e| tls_error("protocol versions", e))?
@@ -42,7 +47,9 @@ pub fn server_config(chain: Vec<CertificateDer<'static>>, key: PrivateKeyDer<'st
 pub fn client_config(roots: &[CertificateDer<'static>]) -> Result<Arc<ClientConfig>, Error> {
     let mut store = RootCertStore::empty();
     for root in roots {
-        store.add(root.clone()).map_err(|e| tls_error("trusted root", e))?;
+        store
+            .add(root.clone())
+            .map_err(|e| tls_error("trusted root", e))?;
     }
     let config = ClientConfig::builder_with_provider(provider())
         .with_safe_default_protocol_versions()

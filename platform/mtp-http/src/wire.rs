@@ -35,23 +35,33 @@ pub fn find_head_end(buf: &[u8]) -> Result<Option<usize>, Error> {
         return Ok(Some(i + 4));
     }
     if buf.windows(2).any(|w| w == b"\n\n") {
-        return Err(Error::Http { reason: "request head uses LF-only line endings; FIPA HTTP MTP needs CRLF".into() });
+        return Err(Error::Http {
+            reason: "request head uses LF-only line endings; FIPA HTTP MTP needs CRLF".into(),
+        });
     }
     if buf.len() > MAX_HEAD_LEN {
-        return Err(Error::TooLarge { what: "request head", len: buf.len(), max: MAX_HEAD_LEN });
+        return Err(Error::TooLarge {
+            what: "request head",
+            len: buf.len(),
+            max: MAX_HEAD_LEN,
+        });
     }
     Ok(None)
 }
 
 /// Parses a request head (the bytes up to and including the blank line).
 pub fn parse_request_head(head: &[u8]) -> Result<RequestHead, Error> {
-    let text = std::str::from_utf8(head).map_err(|e| http_error(format!("request head is not UTF-8: {e}")))?;
+    let text = std::str::from_utf8(head)
+        .map_err(|e| http_error(format!("request head is not UTF-8: {e}")))?;
     let mut lines = text.split("\r\n");
     let request_line = lines.next().unwrap_or("");
     let mut parts = request_line.split(' ');
-    let (Some(method), Some(target), Some(version), None) = (parts.next(), parts.next(), parts.next(), parts.next())
+    let (Some(method), Some(target), Some(version), None) =
+        (parts.next(), parts.next(), parts.next(), parts.next())
     else {
-        return Err(http_error(format!("malformed request line {request_line:?}")));
+        return Err(http_error(format!(
+            "malformed request line {request_line:?}"
+        )));
     };
     if version != "HTTP/1.1" && version != "HTTP/1.0" {
         return Err(http_error(format!("unsupported HTTP version {version:?}")));
@@ -65,19 +75,23 @@ pub fn parse_request_head(head: &[u8]) -> Result<RequestHead, Error> {
     };
     let mut saw_length = false;
     for line in lines.filter(|l| !l.is_empty()) {
-        let (name, value) =
-            line.split_once(':').ok_or_else(|| http_error(format!("header line without ':' {line:?}")))?;
+        let (name, value) = line
+            .split_once(':')
+            .ok_or_else(|| http_error(format!("header line without ':' {line:?}")))?;
         let value = value.trim();
         match name.trim().to_ascii_lowercase().as_str() {
             "content-length" => {
-                head.content_length =
-                    value.parse().map_err(|_| http_error(format!("Content-Length {value:?} is not a number")))?;
+                head.content_length = value
+                    .parse()
+                    .map_err(|_| http_error(format!("Content-Length {value:?} is not a number")))?;
                 saw_length = true;
             }
             "content-type" => head.content_type = Some(value.to_owned()),
             "connection" => head.close = value.eq_ignore_ascii_case("close"),
             "transfer-encoding" => {
-                return Err(http_error(format!("Transfer-Encoding {value:?} unsupported; send Content-Length")));
+                return Err(http_error(format!(
+                    "Transfer-Encoding {value:?} unsupported; send Content-Length"
+                )));
             }
             _ => {}
         }
@@ -86,7 +100,11 @@ pub fn parse_request_head(head: &[u8]) -> Result<RequestHead, Error> {
         return Err(http_error("POST without Content-Length".into()));
     }
     if head.content_length > MAX_BODY_LEN {
-        return Err(Error::TooLarge { what: "request body", len: head.content_length, max: MAX_BODY_LEN });
+        return Err(Error::TooLarge {
+            what: "request body",
+            len: head.content_length,
+            max: MAX_BODY_LEN,
+        });
     }
     Ok(head)
 }
@@ -97,7 +115,9 @@ pub fn boundary_of(content_type: &str) -> Result<&str, Error> {
     let mut params = content_type.split(';');
     let media = params.next().unwrap_or("").trim();
     if !media.eq_ignore_ascii_case("multipart/mixed") {
-        return Err(Error::Multipart { reason: format!("content type {media:?} is not multipart/mixed") });
+        return Err(Error::Multipart {
+            reason: format!("content type {media:?} is not multipart/mixed"),
+        });
     }
     for param in params {
         if let Some((key, value)) = param.split_once('=')
@@ -109,11 +129,15 @@ pub fn boundary_of(content_type: &str) -> Result<&str, Error> {
                 .and_then(|v| v.strip_suffix('"'))
                 .filter(|v| !v.is_empty() && v.len() <= 70)
                 .ok_or_else(|| Error::Multipart {
-                    reason: format!("boundary {value:?} must be quoted (1..=70 characters), as JADE requires"),
+                    reason: format!(
+                        "boundary {value:?} must be quoted (1..=70 characters), as JADE requires"
+                    ),
                 });
         }
     }
-    Err(Error::Multipart { reason: format!("no boundary in {content_type:?}") })
+    Err(Error::Multipart {
+        reason: format!("no boundary in {content_type:?}"),
+    })
 }
 
 /// Splits a multipart body into its envelope (first part) and payload (last part) bodies. The
@@ -122,8 +146,9 @@ pub fn split_multipart<'a>(body: &'a [u8], boundary: &str) -> Result<(&'a [u8], 
     let delimiter = format!("--{boundary}");
     let delimiter = delimiter.as_bytes();
     let mut parts = Vec::new();
-    let mut pos = find(body, delimiter, 0)
-        .ok_or_else(|| Error::Multipart { reason: "no opening boundary delimiter".into() })?;
+    let mut pos = find(body, delimiter, 0).ok_or_else(|| Error::Multipart {
+        reason: "no opening boundary delimiter".into(),
+    })?;
     loop {
         let after = pos + delimiter.len();
         let tail = body.get(after..).unwrap_or(&[]);
@@ -131,32 +156,51 @@ pub fn split_multipart<'a>(body: &'a [u8], boundary: &str) -> Result<(&'a [u8], 
             break;
         }
         if !tail.starts_with(b"\r\n") {
-            return Err(Error::Multipart { reason: format!("boundary delimiter at byte {pos} not followed by CRLF") });
+            return Err(Error::Multipart {
+                reason: format!("boundary delimiter at byte {pos} not followed by CRLF"),
+            });
         }
         let part_start = after + 2;
-        let next = find(body, &[b"\r\n", delimiter].concat(), part_start)
-            .ok_or_else(|| Error::Multipart { reason: format!("part at byte {part_start} is never closed by \\r\\n--boundary") })?;
+        let next = find(body, &[b"\r\n", delimiter].concat(), part_start).ok_or_else(|| {
+            Error::Multipart {
+                reason: format!("part at byte {part_start} is never closed by \\r\\n--boundary"),
+            }
+        })?;
         let part = &body[part_start..next];
         let headers_end = find(part, b"\r\n\r\n", 0)
             .map(|i| i + 4)
             .or_else(|| part.starts_with(b"\r\n").then_some(2))
-            .ok_or_else(|| Error::Multipart { reason: format!("part at byte {part_start} has no blank line after its headers") })?;
+            .ok_or_else(|| Error::Multipart {
+                reason: format!("part at byte {part_start} has no blank line after its headers"),
+            })?;
         parts.push(&part[headers_end..]);
         pos = next + 2;
     }
     match (parts.first(), parts.last()) {
         (Some(first), Some(last)) if parts.len() >= 2 => Ok((first, last)),
-        _ => Err(Error::Multipart { reason: format!("{} part(s); need an envelope and a payload", parts.len()) }),
+        _ => Err(Error::Multipart {
+            reason: format!("{} part(s); need an envelope and a payload", parts.len()),
+        }),
     }
 }
 
 fn find(haystack: &[u8], needle: &[u8], from: usize) -> Option<usize> {
-    haystack.get(from..)?.windows(needle.len()).position(|w| w == needle).map(|i| i + from)
+    haystack
+        .get(from..)?
+        .windows(needle.len())
+        .position(|w| w == needle)
+        .map(|i| i + from)
 }
 
 /// A POST of one message in JADE's accepted form: absolute-form target, quoted boundary with a
 /// space before `;`, CRLF everywhere, envelope first and ACL payload last.
-pub fn encode_request(url: &Url, envelope_xml: &str, payload: &str, boundary: &str, close: bool) -> Vec<u8> {
+pub fn encode_request(
+    url: &Url,
+    envelope_xml: &str,
+    payload: &str,
+    boundary: &str,
+    close: bool,
+) -> Vec<u8> {
     let body = format!(
         "{PREAMBLE}\r\n--{boundary}\r\nContent-Type: application/xml\r\n\r\n{envelope_xml}\r\n--{boundary}\r\nContent-Type: application/text\r\n\r\n{payload}\r\n--{boundary}--\r\n"
     );
@@ -175,7 +219,8 @@ pub fn encode_request(url: &Url, envelope_xml: &str, payload: &str, boundary: &s
 /// The answer JADE reads: status line and headers only, `Content-Length: 0`.
 pub fn encode_response(status: u16, reason: &str, close: bool) -> Vec<u8> {
     let connection = if close { "close" } else { "keep-alive" };
-    format!("HTTP/1.1 {status} {reason}\r\nContent-Length: 0\r\nConnection: {connection}\r\n\r\n").into_bytes()
+    format!("HTTP/1.1 {status} {reason}\r\nContent-Length: 0\r\nConnection: {connection}\r\n\r\n")
+        .into_bytes()
 }
 
 /// A parsed response head.
@@ -200,12 +245,18 @@ pub fn parse_response_head(head: &[u8]) -> Result<ResponseHead, Error> {
         (Some(v), Some(Ok(code))) if v.starts_with("HTTP/1.") => (v, code),
         _ => return Err(http_error(format!("malformed status line {line:?}"))),
     };
-    let mut response = ResponseHead { status, content_length: None, close: version == "HTTP/1.0" };
+    let mut response = ResponseHead {
+        status,
+        content_length: None,
+        close: version == "HTTP/1.0",
+    };
     for (name, value) in lines.filter_map(|l| l.split_once(':')) {
         let value = value.trim();
         match name.trim().to_ascii_lowercase().as_str() {
             "content-length" => {
-                let len = value.parse().map_err(|_| http_error(format!("Content-Length {value:?} is not a number")))?;
+                let len = value
+                    .parse()
+                    .map_err(|_| http_error(format!("Content-Length {value:?} is not a number")))?;
                 response.content_length = Some(len);
             }
             "connection" => response.close = value.eq_ignore_ascii_case("close"),
@@ -238,7 +289,10 @@ pub struct Url {
 impl Url {
     /// Parses an `http://` or `https://` URL.
     pub fn parse(text: &str) -> Result<Self, Error> {
-        let bad = |why: &str| Error::Address { address: text.to_owned(), reason: why.to_owned() };
+        let bad = |why: &str| Error::Address {
+            address: text.to_owned(),
+            reason: why.to_owned(),
+        };
         let (secure, rest) = match (text.strip_prefix("http://"), text.strip_prefix("https://")) {
             (Some(rest), _) => (false, rest),
             (_, Some(rest)) => (true, rest),
@@ -255,7 +309,12 @@ impl Url {
         if host.is_empty() {
             return Err(bad("no host"));
         }
-        Ok(Self { secure, host: host.to_owned(), port, path: path.to_owned() })
+        Ok(Self {
+            secure,
+            host: host.to_owned(),
+            port,
+            path: path.to_owned(),
+        })
     }
 
     /// `host:port`, the key of a connection.
@@ -298,7 +357,14 @@ mod tests {
         let jade = b"HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nConnection: close\r\n\r\n";
         assert!(parse_response_head(jade).unwrap().close);
         let ours = encode_response(200, "OK", false);
-        assert_eq!(parse_response_head(&ours).unwrap(), ResponseHead { status: 200, content_length: Some(0), close: false });
+        assert_eq!(
+            parse_response_head(&ours).unwrap(),
+            ResponseHead {
+                status: 200,
+                content_length: Some(0),
+                close: false
+            }
+        );
     }
 
     proptest! {

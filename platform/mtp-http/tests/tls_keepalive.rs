@@ -23,7 +23,11 @@ fn self_signed() -> (CertificateDer<'static>, PrivateKeyDer<'static>) {
     (cert.cert.der().clone(), key.into())
 }
 
-fn tls_config(platform: &str, cert: &CertificateDer<'static>, key: &PrivateKeyDer<'static>) -> GatewayConfig {
+fn tls_config(
+    platform: &str,
+    cert: &CertificateDer<'static>,
+    key: &PrivateKeyDer<'static>,
+) -> GatewayConfig {
     let mut config = GatewayConfig::new(platform);
     config.tls = Some(tls::server_config(vec![cert.clone()], key.clone_key()).unwrap());
     config.client = MtpClient::with_tls(tls::client_config(std::slice::from_ref(cert)).unwrap());
@@ -34,8 +38,16 @@ fn tls_config(platform: &str, cert: &CertificateDer<'static>, key: &PrivateKeyDe
 async fn platforms_talk_over_tls() {
     let (cert, key) = self_signed();
     let echo: Box<dyn iw_agent::Agent> = Box::new(Echo);
-    let jade_like = HttpPlatform::start(tls_config("WheelchairTest", &cert, &key), vec![("echo".into(), echo)], STEP).await.unwrap();
-    let ours = HttpPlatform::start(tls_config("RustPlatform", &cert, &key), Vec::new(), STEP).await.unwrap();
+    let jade_like = HttpPlatform::start(
+        tls_config("WheelchairTest", &cert, &key),
+        vec![("echo".into(), echo)],
+        STEP,
+    )
+    .await
+    .unwrap();
+    let ours = HttpPlatform::start(tls_config("RustPlatform", &cert, &key), Vec::new(), STEP)
+        .await
+        .unwrap();
     assert!(jade_like.gateway().url().starts_with("https://127.0.0.1:"));
     let me = ours.gateway().aid("wheelchair1");
     let mut inbox = ours.bus().register(&me.name).unwrap();
@@ -47,21 +59,44 @@ async fn platforms_talk_over_tls() {
         .with_content("((action (agent-identifier :name echo@WheelchairTest) (stop)))")
         .with_protocol("fipa-request")
         .with_conversation_id("tls-1");
-    ours.bus().send(&me.name, &echo.name, print(&request).into_bytes()).unwrap();
+    ours.bus()
+        .send(&me.name, &echo.name, print(&request).into_bytes())
+        .unwrap();
     let mut answers = Vec::new();
     for _ in 0..2 {
-        let envelope = timeout(WAIT, inbox.recv()).await.expect("an answer over TLS").unwrap();
-        answers.push(iw_acl::codec::parse(envelope.payload_str().unwrap()).unwrap().performative);
+        let envelope = timeout(WAIT, inbox.recv())
+            .await
+            .expect("an answer over TLS")
+            .unwrap();
+        answers.push(
+            iw_acl::codec::parse(envelope.payload_str().unwrap())
+                .unwrap()
+                .performative,
+        );
     }
     assert_eq!(answers, [Performative::Agree, Performative::Inform]);
 
     // Without trusted roots, or trusting another certificate, nothing is sent.
-    let plain = MtpClient::new().send(&jade_like.gateway().url(), &request, vec![echo.clone()]).await.unwrap_err();
-    assert!(plain.to_string().contains("https:// needs a client with trusted roots"), "{plain}");
+    let plain = MtpClient::new()
+        .send(&jade_like.gateway().url(), &request, vec![echo.clone()])
+        .await
+        .unwrap_err();
+    assert!(
+        plain
+            .to_string()
+            .contains("https:// needs a client with trusted roots"),
+        "{plain}"
+    );
     let (other, _) = self_signed();
     let wrong = MtpClient::with_tls(tls::client_config(&[other]).unwrap());
-    let refused = wrong.send(&jade_like.gateway().url(), &request, vec![echo]).await.unwrap_err();
-    assert!(refused.to_string().starts_with("TLS: handshake"), "{refused}");
+    let refused = wrong
+        .send(&jade_like.gateway().url(), &request, vec![echo])
+        .await
+        .unwrap_err();
+    assert!(
+        refused.to_string().starts_with("TLS: handshake"),
+        "{refused}"
+    );
 }
 
 /// A server that answers every post 200 and counts connections; `close` answers as JADE does.
@@ -93,7 +128,10 @@ async fn counting_server(close: bool) -> (String, Arc<AtomicUsize>, Arc<AtomicUs
                     }
                     buf.drain(..end + head.content_length);
                     p.fetch_add(1, Ordering::SeqCst);
-                    stream.write_all(&wire::encode_response(200, "OK", close)).await.unwrap();
+                    stream
+                        .write_all(&wire::encode_response(200, "OK", close))
+                        .await
+                        .unwrap();
                     if close {
                         return;
                     }
@@ -114,9 +152,16 @@ async fn client_keeps_connections_alive_unless_told_to_close() {
         let (url, connections, posts) = counting_server(close).await;
         let client = MtpClient::new();
         for _ in 0..3 {
-            client.send(&url, &message, vec![AgentId::new("b@Q")]).await.unwrap();
+            client
+                .send(&url, &message, vec![AgentId::new("b@Q")])
+                .await
+                .unwrap();
         }
         assert_eq!(posts.load(Ordering::SeqCst), 3);
-        assert_eq!(connections.load(Ordering::SeqCst), expected_connections, "close = {close}");
+        assert_eq!(
+            connections.load(Ordering::SeqCst),
+            expected_connections,
+            "close = {close}"
+        );
     }
 }

@@ -60,7 +60,9 @@ pub struct FrameCodec {
 impl FrameCodec {
     /// A codec refusing payloads longer than `max_frame_len` bytes (capped at `u32::MAX`).
     pub fn new(max_frame_len: usize) -> Self {
-        Self { max_frame_len: max_frame_len.min(u32::MAX as usize) }
+        Self {
+            max_frame_len: max_frame_len.min(u32::MAX as usize),
+        }
     }
 
     /// Largest payload, bytes.
@@ -69,7 +71,12 @@ impl FrameCodec {
     }
 
     /// Appends the header and payload of one frame to `out`.
-    pub fn encode(&self, kind: FrameKind, payload: &[u8], out: &mut Vec<u8>) -> Result<(), NetError> {
+    pub fn encode(
+        &self,
+        kind: FrameKind,
+        payload: &[u8],
+        out: &mut Vec<u8>,
+    ) -> Result<(), NetError> {
         let len = self.check_len(payload.len())?;
         out.reserve(HEADER_LEN + payload.len());
         out.extend_from_slice(&MAGIC);
@@ -98,7 +105,10 @@ impl FrameCodec {
         };
         let len = u32::from_be_bytes([l0, l1, l2, l3]) as usize;
         if len > self.max_frame_len {
-            return Err(NetError::FrameTooLong { len, max: self.max_frame_len });
+            return Err(NetError::FrameTooLong {
+                len,
+                max: self.max_frame_len,
+            });
         }
         Ok(Some(FrameHeader { kind, len }))
     }
@@ -110,14 +120,22 @@ impl FrameCodec {
             return Ok(None);
         };
         let end = HEADER_LEN + header.len;
-        Ok(buf.get(HEADER_LEN..end).map(|payload| (header.kind, payload, end)))
+        Ok(buf
+            .get(HEADER_LEN..end)
+            .map(|payload| (header.kind, payload, end)))
     }
 
     fn check_len(&self, len: usize) -> Result<u32, NetError> {
         if len > self.max_frame_len {
-            return Err(NetError::FrameTooLong { len, max: self.max_frame_len });
+            return Err(NetError::FrameTooLong {
+                len,
+                max: self.max_frame_len,
+            });
         }
-        u32::try_from(len).map_err(|_| NetError::FrameTooLong { len, max: self.max_frame_len })
+        u32::try_from(len).map_err(|_| NetError::FrameTooLong {
+            len,
+            max: self.max_frame_len,
+        })
     }
 }
 
@@ -129,18 +147,37 @@ mod tests {
     #[test]
     fn header_layout_is_as_drawn() {
         let mut out = Vec::new();
-        FrameCodec::new(100).encode(FrameKind::Data, b"abc", &mut out).unwrap();
+        FrameCodec::new(100)
+            .encode(FrameKind::Data, b"abc", &mut out)
+            .unwrap();
         assert_eq!(out, [b'I', b'W', 1, 2, 0, 0, 0, 3, b'a', b'b', b'c']);
     }
 
     #[test]
     fn corrupt_headers_name_the_fault() {
         let codec = FrameCodec::new(10);
-        assert!(matches!(codec.decode(b"XW\x01\x02\0\0\0\0"), Err(NetError::BadMagic { found: [b'X', b'W'] })));
-        assert!(matches!(codec.decode(b"IW\x07\x02\0\0\0\0"), Err(NetError::UnsupportedVersion { found: 7 })));
-        assert!(matches!(codec.decode(b"IW\x01\x09\0\0\0\0"), Err(NetError::UnknownKind { found: 9 })));
-        assert!(matches!(codec.decode(b"IW\x01\x02\0\0\0\x0b"), Err(NetError::FrameTooLong { len: 11, max: 10 })));
-        assert!(matches!(codec.encode(FrameKind::Data, &[0; 11], &mut Vec::new()), Err(NetError::FrameTooLong { len: 11, max: 10 })));
+        assert!(matches!(
+            codec.decode(b"XW\x01\x02\0\0\0\0"),
+            Err(NetError::BadMagic {
+                found: [b'X', b'W']
+            })
+        ));
+        assert!(matches!(
+            codec.decode(b"IW\x07\x02\0\0\0\0"),
+            Err(NetError::UnsupportedVersion { found: 7 })
+        ));
+        assert!(matches!(
+            codec.decode(b"IW\x01\x09\0\0\0\0"),
+            Err(NetError::UnknownKind { found: 9 })
+        ));
+        assert!(matches!(
+            codec.decode(b"IW\x01\x02\0\0\0\x0b"),
+            Err(NetError::FrameTooLong { len: 11, max: 10 })
+        ));
+        assert!(matches!(
+            codec.encode(FrameKind::Data, &[0; 11], &mut Vec::new()),
+            Err(NetError::FrameTooLong { len: 11, max: 10 })
+        ));
     }
 
     proptest! {

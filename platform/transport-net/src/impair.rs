@@ -39,8 +39,8 @@
 //! most [`ImpairConfig::max_pending`] datagrams wait, the stop flag is checked at least every 5 ms);
 //! [`ImpairProxy::stop`] (or drop) ends the relay thread and joins it.
 
-use std::collections::{BinaryHeap, VecDeque};
 use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
 use std::io::ErrorKind;
 use std::net::{IpAddr, SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -127,7 +127,10 @@ impl ImpairConfig {
             }
         }
         if self.delay_min_ms > self.delay_max_ms {
-            return Err(NetError::BadDelayRange { min_ms: self.delay_min_ms, max_ms: self.delay_max_ms });
+            return Err(NetError::BadDelayRange {
+                min_ms: self.delay_min_ms,
+                max_ms: self.delay_max_ms,
+            });
         }
         Ok(())
     }
@@ -221,13 +224,19 @@ impl Impairer {
             let mut forged = vec![0u8; datagram.len().max(1)];
             self.rng.fill(forged.as_mut_slice());
             self.stats.forged += 1;
-            out.push(Emit { delay_ms: 0, bytes: forged });
+            out.push(Emit {
+                delay_ms: 0,
+                bytes: forged,
+            });
         }
         if self.rng.random_bool(self.config.inject_replay) && !self.history[side].is_empty() {
             let pick = self.rng.random_range(0..self.history[side].len());
             if let Some(old) = self.history[side].get(pick) {
                 self.stats.replayed += 1;
-                out.push(Emit { delay_ms: 0, bytes: old.clone() });
+                out.push(Emit {
+                    delay_ms: 0,
+                    bytes: old.clone(),
+                });
             }
         }
         if self.history[side].len() == REPLAY_HISTORY {
@@ -253,7 +262,8 @@ impl Impairer {
         }
         let delay_ms = if self.rng.random_bool(self.config.delay) {
             self.stats.delayed += 1;
-            self.rng.random_range(self.config.delay_min_ms..=self.config.delay_max_ms)
+            self.rng
+                .random_range(self.config.delay_min_ms..=self.config.delay_max_ms)
         } else {
             0
         };
@@ -272,12 +282,18 @@ impl Impairer {
             return self.counted(out);
         }
         for _ in 1..copies {
-            out.push(Emit { delay_ms, bytes: bytes.clone() });
+            out.push(Emit {
+                delay_ms,
+                bytes: bytes.clone(),
+            });
         }
         out.push(Emit { delay_ms, bytes });
         if let Some(held) = self.held[side].take() {
             self.stats.reordered += 1;
-            out.push(Emit { delay_ms, bytes: held });
+            out.push(Emit {
+                delay_ms,
+                bytes: held,
+            });
         }
         self.counted(out)
     }
@@ -323,18 +339,26 @@ impl ImpairProxy {
     }
 
     /// Binds a proxy on `listen` relaying between `a` and `b`; all three must be loopback.
-    pub fn start_on(listen: SocketAddr, a: SocketAddr, b: SocketAddr, config: ImpairConfig) -> Result<Self, NetError> {
+    pub fn start_on(
+        listen: SocketAddr,
+        a: SocketAddr,
+        b: SocketAddr,
+        config: ImpairConfig,
+    ) -> Result<Self, NetError> {
         for addr in [listen, a, b] {
             if !is_loopback(addr.ip()) {
                 return Err(NetError::NotLoopback { addr });
             }
         }
         let mut impairer = Impairer::new(config)?;
-        let socket = UdpSocket::bind(listen)
-            .map_err(|source| NetError::Io { context: format!("binding the proxy to {listen}"), source })?;
-        let addr = socket
-            .local_addr()
-            .map_err(|source| NetError::Io { context: "reading the proxy address".into(), source })?;
+        let socket = UdpSocket::bind(listen).map_err(|source| NetError::Io {
+            context: format!("binding the proxy to {listen}"),
+            source,
+        })?;
+        let addr = socket.local_addr().map_err(|source| NetError::Io {
+            context: "reading the proxy address".into(),
+            source,
+        })?;
         let stop = Arc::new(AtomicBool::new(false));
         let stats = Arc::new(Mutex::new(ImpairStats::default()));
         let thread = {
@@ -343,14 +367,29 @@ impl ImpairProxy {
             std::thread::Builder::new()
                 .name("iw-impair".into())
                 .spawn(move || {
-                    let mut relay = Relay { socket, a, b, pending: BinaryHeap::new(), next_seq: 0, held_since: [None, None] };
+                    let mut relay = Relay {
+                        socket,
+                        a,
+                        b,
+                        pending: BinaryHeap::new(),
+                        next_seq: 0,
+                        held_since: [None, None],
+                    };
                     if let Err(e) = relay.run(&mut impairer, &stop, &stats) {
                         tracing::error!(error = %e, "impairment proxy stopped");
                     }
                 })
-                .map_err(|source| NetError::Io { context: "spawning the proxy thread".into(), source })?
+                .map_err(|source| NetError::Io {
+                    context: "spawning the proxy thread".into(),
+                    source,
+                })?
         };
-        Ok(Self { addr, stop, stats, thread: Some(thread) })
+        Ok(Self {
+            addr,
+            stop,
+            stats,
+            thread: Some(thread),
+        })
     }
 
     /// The proxy's socket address: `a` and `b` send here.
@@ -409,7 +448,12 @@ struct Relay {
 }
 
 impl Relay {
-    fn run(&mut self, impairer: &mut Impairer, stop: &AtomicBool, stats: &Mutex<ImpairStats>) -> Result<(), NetError> {
+    fn run(
+        &mut self,
+        impairer: &mut Impairer,
+        stop: &AtomicBool,
+        stats: &Mutex<ImpairStats>,
+    ) -> Result<(), NetError> {
         let mut buf = vec![0u8; UDP_MAX_PAYLOAD + 1];
         let hold = Duration::from_millis(impairer.config.reorder_hold_ms);
         let max_pending = impairer.config.max_pending;
@@ -441,13 +485,31 @@ impl Relay {
             if current_timeout != Some(timeout) {
                 self.socket
                     .set_read_timeout(Some(timeout))
-                    .map_err(|source| NetError::Io { context: "setting the proxy read timeout".into(), source })?;
+                    .map_err(|source| NetError::Io {
+                        context: "setting the proxy read timeout".into(),
+                        source,
+                    })?;
                 current_timeout = Some(timeout);
             }
             let (len, from) = match self.socket.recv_from(&mut buf) {
                 Ok(got) => got,
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted | ErrorKind::ConnectionRefused) => continue,
-                Err(source) => return Err(NetError::Io { context: "proxy receive".into(), source }),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        ErrorKind::WouldBlock
+                            | ErrorKind::TimedOut
+                            | ErrorKind::Interrupted
+                            | ErrorKind::ConnectionRefused
+                    ) =>
+                {
+                    continue;
+                }
+                Err(source) => {
+                    return Err(NetError::Io {
+                        context: "proxy receive".into(),
+                        source,
+                    });
+                }
             };
             let dir = if from == self.a {
                 Direction::AToB
@@ -471,7 +533,8 @@ impl Relay {
                     overflowed += 1;
                 } else {
                     let due = Instant::now() + Duration::from_millis(emit.delay_ms);
-                    self.pending.push(Reverse((due, self.next_seq, to, emit.bytes)));
+                    self.pending
+                        .push(Reverse((due, self.next_seq, to, emit.bytes)));
                     self.next_seq += 1;
                 }
             }
@@ -491,7 +554,11 @@ impl Relay {
     /// Sends every datagram due by `now`; returns how many sends failed.
     fn send_due(&mut self, now: Instant) -> u64 {
         let mut failed = 0;
-        while self.pending.peek().is_some_and(|Reverse((due, ..))| *due <= now) {
+        while self
+            .pending
+            .peek()
+            .is_some_and(|Reverse((due, ..))| *due <= now)
+        {
             if let Some(Reverse((_, _, to, bytes))) = self.pending.pop() {
                 failed += u64::from(self.socket.send_to(&bytes, to).is_err());
             }
@@ -499,7 +566,14 @@ impl Relay {
         failed
     }
 
-    fn publish(&self, impairer: &Impairer, stats: &Mutex<ImpairStats>, strangers: u64, overflowed: u64, send_errors: u64) {
+    fn publish(
+        &self,
+        impairer: &Impairer,
+        stats: &Mutex<ImpairStats>,
+        strangers: u64,
+        overflowed: u64,
+        send_errors: u64,
+    ) {
         let mut s = impairer.stats();
         s.strangers = strangers;
         s.overflowed = overflowed;
@@ -514,13 +588,25 @@ mod tests {
 
     fn run(config: ImpairConfig, n: usize) -> (Vec<Vec<Emit>>, ImpairStats) {
         let mut imp = Impairer::new(config).unwrap();
-        let out = (0..n).map(|i| imp.decide(Direction::AToB, &(i as u32).to_le_bytes())).collect();
+        let out = (0..n)
+            .map(|i| imp.decide(Direction::AToB, &(i as u32).to_le_bytes()))
+            .collect();
         (out, imp.stats())
     }
 
     #[test]
     fn same_seed_same_decisions_and_other_seed_differs() {
-        let config = ImpairConfig { seed: 3, drop: 0.3, duplicate: 0.2, reorder: 0.2, corrupt: 0.1, delay: 0.1, inject_forged: 0.05, inject_replay: 0.05, ..Default::default() };
+        let config = ImpairConfig {
+            seed: 3,
+            drop: 0.3,
+            duplicate: 0.2,
+            reorder: 0.2,
+            corrupt: 0.1,
+            delay: 0.1,
+            inject_forged: 0.05,
+            inject_replay: 0.05,
+            ..Default::default()
+        };
         let (first, s1) = run(config.clone(), 500);
         let (second, s2) = run(config.clone(), 500);
         assert_eq!(first, second);
@@ -533,7 +619,13 @@ mod tests {
     fn no_faults_forwards_everything_in_order() {
         let (out, stats) = run(ImpairConfig::default(), 100);
         for (i, emits) in out.iter().enumerate() {
-            assert_eq!(emits, &vec![Emit { delay_ms: 0, bytes: (i as u32).to_le_bytes().to_vec() }]);
+            assert_eq!(
+                emits,
+                &vec![Emit {
+                    delay_ms: 0,
+                    bytes: (i as u32).to_le_bytes().to_vec()
+                }]
+            );
         }
         assert_eq!(stats.forwarded, 100);
         assert_eq!(stats.dropped + stats.duplicated + stats.corrupted, 0);
@@ -541,24 +633,47 @@ mod tests {
 
     #[test]
     fn drop_rate_is_near_the_probability() {
-        let (_, stats) = run(ImpairConfig { seed: 1, drop: 0.2, ..Default::default() }, 10_000);
-        assert!((1_700..2_300).contains(&stats.dropped), "dropped {}", stats.dropped);
+        let (_, stats) = run(
+            ImpairConfig {
+                seed: 1,
+                drop: 0.2,
+                ..Default::default()
+            },
+            10_000,
+        );
+        assert!(
+            (1_700..2_300).contains(&stats.dropped),
+            "dropped {}",
+            stats.dropped
+        );
         assert_eq!(stats.forwarded, 10_000 - stats.dropped);
     }
 
     #[test]
     fn reorder_releases_the_held_datagram_after_its_successor() {
-        let mut imp = Impairer::new(ImpairConfig { reorder: 1.0, ..Default::default() }).unwrap();
+        let mut imp = Impairer::new(ImpairConfig {
+            reorder: 1.0,
+            ..Default::default()
+        })
+        .unwrap();
         assert!(imp.decide(Direction::AToB, b"first").is_empty());
         assert!(imp.is_holding(Direction::AToB));
-        let out: Vec<_> = imp.decide(Direction::AToB, b"second").into_iter().map(|e| e.bytes).collect();
+        let out: Vec<_> = imp
+            .decide(Direction::AToB, b"second")
+            .into_iter()
+            .map(|e| e.bytes)
+            .collect();
         assert_eq!(out, vec![b"second".to_vec(), b"first".to_vec()]);
         assert_eq!(imp.stats().reordered, 1);
     }
 
     #[test]
     fn corruption_changes_bytes_but_not_length() {
-        let mut imp = Impairer::new(ImpairConfig { corrupt: 1.0, ..Default::default() }).unwrap();
+        let mut imp = Impairer::new(ImpairConfig {
+            corrupt: 1.0,
+            ..Default::default()
+        })
+        .unwrap();
         let data = [0u8; 32];
         for _ in 0..50 {
             let out = imp.decide(Direction::BToA, &data);
@@ -570,21 +685,47 @@ mod tests {
 
     #[test]
     fn replay_sends_an_earlier_datagram_of_the_same_direction() {
-        let mut imp = Impairer::new(ImpairConfig { inject_replay: 1.0, ..Default::default() }).unwrap();
+        let mut imp = Impairer::new(ImpairConfig {
+            inject_replay: 1.0,
+            ..Default::default()
+        })
+        .unwrap();
         imp.decide(Direction::AToB, b"old");
         imp.decide(Direction::BToA, b"other way");
-        let out: Vec<_> = imp.decide(Direction::AToB, b"new").into_iter().map(|e| e.bytes).collect();
+        let out: Vec<_> = imp
+            .decide(Direction::AToB, b"new")
+            .into_iter()
+            .map(|e| e.bytes)
+            .collect();
         assert_eq!(out, vec![b"old".to_vec(), b"new".to_vec()]);
     }
 
     #[test]
     fn bad_configs_are_refused_with_the_offending_value() {
-        let err = Impairer::new(ImpairConfig { drop: 1.5, ..Default::default() }).unwrap_err();
+        let err = Impairer::new(ImpairConfig {
+            drop: 1.5,
+            ..Default::default()
+        })
+        .unwrap_err();
         assert!(matches!(err, NetError::BadProbability { name: "drop", value } if value == 1.5));
-        let err = Impairer::new(ImpairConfig { delay_min_ms: 9, delay_max_ms: 3, ..Default::default() }).unwrap_err();
-        assert!(matches!(err, NetError::BadDelayRange { min_ms: 9, max_ms: 3 }));
+        let err = Impairer::new(ImpairConfig {
+            delay_min_ms: 9,
+            delay_max_ms: 3,
+            ..Default::default()
+        })
+        .unwrap_err();
+        assert!(matches!(
+            err,
+            NetError::BadDelayRange {
+                min_ms: 9,
+                max_ms: 3
+            }
+        ));
         let lan: SocketAddr = "192.0.2.1:9".parse().unwrap();
         let lo: SocketAddr = "127.0.0.1:9".parse().unwrap();
-        assert!(matches!(ImpairProxy::start(lan, lo, ImpairConfig::default()), Err(NetError::NotLoopback { .. })));
+        assert!(matches!(
+            ImpairProxy::start(lan, lo, ImpairConfig::default()),
+            Err(NetError::NotLoopback { .. })
+        ));
     }
 }

@@ -28,7 +28,9 @@ pub use udp::{UDP_MAX_PAYLOAD, UdpTransport};
 #[non_exhaustive]
 pub enum NetError {
     /// A frame did not start with the magic bytes `IW`: not our protocol, or a desynchronised stream.
-    #[error("frame starts with {found:02x?}, expected the magic \"IW\": wrong protocol or corrupt stream")]
+    #[error(
+        "frame starts with {found:02x?}, expected the magic \"IW\": wrong protocol or corrupt stream"
+    )]
     BadMagic {
         /// The two bytes found.
         found: [u8; 2],

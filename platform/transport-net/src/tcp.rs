@@ -58,20 +58,29 @@ impl TcpTransport {
 
     /// Listens on `addr`, refusing frames longer than `max_frame_len` bytes.
     pub fn bind_with_limit(addr: &str, max_frame_len: usize) -> Result<Self, TransportError> {
-        let listener = TcpListener::bind(addr)
-            .map_err(|source| TransportError::Io { context: format!("listening on TCP `{addr}`"), source })?;
-        let bound = listener
-            .local_addr()
-            .map_err(|source| TransportError::Io { context: "reading the TCP listening address".into(), source })?;
+        let listener = TcpListener::bind(addr).map_err(|source| TransportError::Io {
+            context: format!("listening on TCP `{addr}`"),
+            source,
+        })?;
+        let bound = listener.local_addr().map_err(|source| TransportError::Io {
+            context: "reading the TCP listening address".into(),
+            source,
+        })?;
         let codec = FrameCodec::new(max_frame_len);
         let (tx, rx) = std::sync::mpsc::sync_channel(INBOX_CAPACITY);
-        let shared = Arc::new(Shared { stop: AtomicBool::new(false), accepted: Mutex::new(Vec::new()) });
+        let shared = Arc::new(Shared {
+            stop: AtomicBool::new(false),
+            accepted: Mutex::new(Vec::new()),
+        });
         let acceptor = {
             let shared = Arc::clone(&shared);
             std::thread::Builder::new()
                 .name(format!("iw-tcp-accept-{bound}"))
                 .spawn(move || accept_loop(listener, codec, tx, shared))
-                .map_err(|source| TransportError::Io { context: "spawning the TCP accept thread".into(), source })?
+                .map_err(|source| TransportError::Io {
+                    context: "spawning the TCP accept thread".into(),
+                    source,
+                })?
         };
         Ok(Self {
             local: PeerAddr(bound.to_string()),
@@ -89,12 +98,18 @@ impl TcpTransport {
             let context = format!("{context} {to}");
             move |source| TransportError::Io { context, source }
         };
-        let mut stream = TcpStream::connect_timeout(&dest, CONNECT_TIMEOUT).map_err(io("connecting to"))?;
-        stream.set_nodelay(true).map_err(io("disabling Nagle on the connection to"))?;
+        let mut stream =
+            TcpStream::connect_timeout(&dest, CONNECT_TIMEOUT).map_err(io("connecting to"))?;
+        stream
+            .set_nodelay(true)
+            .map_err(io("disabling Nagle on the connection to"))?;
         let mut hello = Vec::new();
         self.codec
             .encode(FrameKind::Hello, self.local.0.as_bytes(), &mut hello)
-            .map_err(|e| TransportError::BadAddress { addr: self.local.0.clone(), reason: e.to_string() })?;
+            .map_err(|e| TransportError::BadAddress {
+                addr: self.local.0.clone(),
+                reason: e.to_string(),
+            })?;
         stream.write_all(&hello).map_err(io("greeting"))?;
         Ok(stream)
     }
@@ -111,10 +126,12 @@ impl FrameTransport for TcpTransport {
 
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
         let mut bytes = Vec::new();
-        self.codec.encode(FrameKind::Data, frame, &mut bytes).map_err(|_| TransportError::FrameTooLarge {
-            len: frame.len(),
-            max: self.codec.max_frame_len(),
-        })?;
+        self.codec
+            .encode(FrameKind::Data, frame, &mut bytes)
+            .map_err(|_| TransportError::FrameTooLarge {
+                len: frame.len(),
+                max: self.codec.max_frame_len(),
+            })?;
         let mut cache = self.outbound.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(stream) = cache.get_mut(to) {
             match stream.write_all(&bytes) {
@@ -128,12 +145,18 @@ impl FrameTransport for TcpTransport {
         let mut stream = self.connect(to)?;
         stream
             .write_all(&bytes)
-            .map_err(|source| TransportError::Io { context: format!("sending a frame to {to}"), source })?;
+            .map_err(|source| TransportError::Io {
+                context: format!("sending a frame to {to}"),
+                source,
+            })?;
         cache.insert(to.clone(), stream);
         Ok(())
     }
 
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         let inbox = self.inbox.lock().unwrap_or_else(PoisonError::into_inner);
         match inbox.recv_timeout(timeout) {
             Ok(got) => Ok(Some(got)),
@@ -146,10 +169,21 @@ impl FrameTransport for TcpTransport {
 impl Drop for TcpTransport {
     fn drop(&mut self) {
         self.shared.stop.store(true, Ordering::Relaxed);
-        for stream in self.shared.accepted.lock().unwrap_or_else(PoisonError::into_inner).drain(..) {
+        for stream in self
+            .shared
+            .accepted
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .drain(..)
+        {
             let _ = stream.shutdown(Shutdown::Both);
         }
-        for stream in self.outbound.lock().unwrap_or_else(PoisonError::into_inner).values() {
+        for stream in self
+            .outbound
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .values()
+        {
             let _ = stream.shutdown(Shutdown::Both);
         }
         // Wake the blocking accept so the thread sees `stop`.
@@ -162,7 +196,12 @@ impl Drop for TcpTransport {
     }
 }
 
-fn accept_loop(listener: TcpListener, codec: FrameCodec, tx: SyncSender<Inbound>, shared: Arc<Shared>) {
+fn accept_loop(
+    listener: TcpListener,
+    codec: FrameCodec,
+    tx: SyncSender<Inbound>,
+    shared: Arc<Shared>,
+) {
     for stream in listener.incoming() {
         if shared.stop.load(Ordering::Relaxed) {
             break;
@@ -177,19 +216,27 @@ fn accept_loop(listener: TcpListener, codec: FrameCodec, tx: SyncSender<Inbound>
         let _ = stream.set_nodelay(true);
         match stream.try_clone() {
             Ok(clone) => {
-                let mut accepted = shared.accepted.lock().unwrap_or_else(PoisonError::into_inner);
+                let mut accepted = shared
+                    .accepted
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner);
                 accepted.retain(|s| s.peer_addr().is_ok());
                 accepted.push(clone);
             }
             Err(e) => tracing::warn!(error = %e, "cannot track an accepted TCP connection"),
         }
         let tx = tx.clone();
-        let spawned = std::thread::Builder::new().name("iw-tcp-read".into()).spawn(move || {
-            let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
-            if let Err(e) = read_connection(stream, codec, &tx) {
-                tracing::debug!(%peer, error = %e, "TCP connection closed");
-            }
-        });
+        let spawned = std::thread::Builder::new()
+            .name("iw-tcp-read".into())
+            .spawn(move || {
+                let peer = stream
+                    .peer_addr()
+                    .map(|a| a.to_string())
+                    .unwrap_or_default();
+                if let Err(e) = read_connection(stream, codec, &tx) {
+                    tracing::debug!(%peer, error = %e, "TCP connection closed");
+                }
+            });
         if let Err(e) = spawned {
             tracing::warn!(error = %e, "cannot spawn a TCP reader thread");
         }
@@ -197,14 +244,23 @@ fn accept_loop(listener: TcpListener, codec: FrameCodec, tx: SyncSender<Inbound>
 }
 
 /// Reads frames until EOF or a corrupt frame; the first must be a hello naming the sender.
-fn read_connection(mut stream: TcpStream, codec: FrameCodec, tx: &SyncSender<Inbound>) -> Result<(), NetError> {
+fn read_connection(
+    mut stream: TcpStream,
+    codec: FrameCodec,
+    tx: &SyncSender<Inbound>,
+) -> Result<(), NetError> {
     let mut from: Option<PeerAddr> = None;
     let mut header = [0u8; HEADER_LEN];
     loop {
         match stream.read_exact(&mut header) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(()),
-            Err(source) => return Err(NetError::Io { context: "reading a frame header".into(), source }),
+            Err(source) => {
+                return Err(NetError::Io {
+                    context: "reading a frame header".into(),
+                    source,
+                });
+            }
         }
         let Some(h) = codec.decode_header(&header)? else {
             return Ok(());
@@ -212,17 +268,26 @@ fn read_connection(mut stream: TcpStream, codec: FrameCodec, tx: &SyncSender<Inb
         let mut payload = vec![0u8; h.len];
         stream
             .read_exact(&mut payload)
-            .map_err(|source| NetError::Io { context: format!("reading a {}-byte frame", h.len), source })?;
+            .map_err(|source| NetError::Io {
+                context: format!("reading a {}-byte frame", h.len),
+                source,
+            })?;
         match (h.kind, &from) {
             (FrameKind::Hello, None) if h.len <= MAX_HELLO_LEN => {
-                let addr = String::from_utf8(payload).map_err(|e| NetError::BadHello { reason: e.to_string() })?;
+                let addr = String::from_utf8(payload).map_err(|e| NetError::BadHello {
+                    reason: e.to_string(),
+                })?;
                 from = Some(PeerAddr(addr));
             }
             (FrameKind::Hello, _) => {
-                return Err(NetError::BadHello { reason: "a second or oversized hello".into() });
+                return Err(NetError::BadHello {
+                    reason: "a second or oversized hello".into(),
+                });
             }
             (FrameKind::Data, None) => {
-                return Err(NetError::BadHello { reason: "data before hello".into() });
+                return Err(NetError::BadHello {
+                    reason: "data before hello".into(),
+                });
             }
             (FrameKind::Data, Some(peer)) => {
                 let mut item = (peer.clone(), payload);
@@ -268,10 +333,18 @@ mod tests {
     fn max_frame_length_is_enforced_both_ways() {
         let small = TcpTransport::bind_with_limit("127.0.0.1:0", 16).unwrap();
         let big = TcpTransport::bind("127.0.0.1:0").unwrap();
-        assert!(matches!(small.send(big.local_addr(), &[0; 17]), Err(TransportError::FrameTooLarge { len: 17, max: 16 })));
+        assert!(matches!(
+            small.send(big.local_addr(), &[0; 17]),
+            Err(TransportError::FrameTooLarge { len: 17, max: 16 })
+        ));
         // Oversized frame closes the connection at the receiver; nothing is delivered.
         big.send(small.local_addr(), &[0; 17]).unwrap();
-        assert!(small.recv_timeout(Duration::from_millis(200)).unwrap().is_none());
+        assert!(
+            small
+                .recv_timeout(Duration::from_millis(200))
+                .unwrap()
+                .is_none()
+        );
     }
 
     #[test]
@@ -279,7 +352,11 @@ mod tests {
         let t = TcpTransport::bind("127.0.0.1:0").unwrap();
         let mut raw = TcpStream::connect(t.local_addr().0.as_str()).unwrap();
         raw.write_all(b"GET / HTTP/1.1\r\n\r\n").unwrap();
-        assert!(t.recv_timeout(Duration::from_millis(200)).unwrap().is_none());
+        assert!(
+            t.recv_timeout(Duration::from_millis(200))
+                .unwrap()
+                .is_none()
+        );
     }
 
     #[test]

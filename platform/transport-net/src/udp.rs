@@ -55,16 +55,22 @@ impl UdpTransport {
 
     /// The bound socket address.
     pub fn socket_addr(&self) -> Result<SocketAddr, TransportError> {
-        self.socket.local_addr().map_err(|source| TransportError::Io {
-            context: "reading the local UDP address".into(),
-            source,
-        })
+        self.socket
+            .local_addr()
+            .map_err(|source| TransportError::Io {
+                context: "reading the local UDP address".into(),
+                source,
+            })
     }
 
     /// Whether a datagram (or a pending socket error) is waiting, without blocking.
     fn readable_now(&self) -> Result<bool, TransportError> {
         use std::os::fd::AsRawFd;
-        let mut fd = libc::pollfd { fd: self.socket.as_raw_fd(), events: libc::POLLIN, revents: 0 };
+        let mut fd = libc::pollfd {
+            fd: self.socket.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
         // SAFETY: `fd` is one valid pollfd naming a socket this transport owns for the whole call;
         // a zero timeout makes poll return at once.
         let ready = unsafe { libc::poll(&mut fd, 1, 0) };
@@ -73,7 +79,10 @@ impl UdpTransport {
             if source.kind() == ErrorKind::Interrupted {
                 return Ok(false);
             }
-            return Err(TransportError::Io { context: "polling a UDP socket".into(), source });
+            return Err(TransportError::Io {
+                context: "polling a UDP socket".into(),
+                source,
+            });
         }
         Ok(ready > 0)
     }
@@ -100,10 +109,12 @@ pub(crate) fn resolve(to: &PeerAddr) -> Result<SocketAddr, TransportError> {
     if let Ok(addr) = to.0.parse::<SocketAddr>() {
         return Ok(addr);
     }
-    let mut addrs = to.0.to_socket_addrs().map_err(|e| TransportError::BadAddress {
-        addr: to.0.clone(),
-        reason: format!("expected `host:port`: {e}"),
-    })?;
+    let mut addrs =
+        to.0.to_socket_addrs()
+            .map_err(|e| TransportError::BadAddress {
+                addr: to.0.clone(),
+                reason: format!("expected `host:port`: {e}"),
+            })?;
     addrs.next().ok_or_else(|| TransportError::BadAddress {
         addr: to.0.clone(),
         reason: "the host name resolves to no address".into(),
@@ -121,17 +132,25 @@ impl FrameTransport for UdpTransport {
 
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
         if frame.len() > self.max_frame_len {
-            return Err(TransportError::FrameTooLarge { len: frame.len(), max: self.max_frame_len });
+            return Err(TransportError::FrameTooLarge {
+                len: frame.len(),
+                max: self.max_frame_len,
+            });
         }
         let dest = resolve(to)?;
-        self.socket.send_to(frame, dest).map_err(|source| TransportError::Io {
-            context: format!("sending a {}-byte UDP frame to {to}", frame.len()),
-            source,
-        })?;
+        self.socket
+            .send_to(frame, dest)
+            .map_err(|source| TransportError::Io {
+                context: format!("sending a {}-byte UDP frame to {to}", frame.len()),
+                source,
+            })?;
         Ok(())
     }
 
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         if timeout.is_zero() && !self.readable_now()? {
             return Ok(None);
         }
@@ -154,7 +173,10 @@ impl FrameTransport for UdpTransport {
                 Err(e) if e.kind() == ErrorKind::ConnectionRefused => continue,
                 Err(e) if e.kind() == ErrorKind::Interrupted => continue,
                 Err(source) => {
-                    return Err(TransportError::Io { context: "receiving a UDP frame".into(), source });
+                    return Err(TransportError::Io {
+                        context: "receiving a UDP frame".into(),
+                        source,
+                    });
                 }
             }
         }
@@ -198,7 +220,10 @@ mod tests {
         let small = UdpTransport::bind_with_limit("127.0.0.1:0", 8).unwrap();
         let big = UdpTransport::bind("127.0.0.1:0").unwrap();
         let err = small.send(big.local_addr(), &[0u8; 9]).unwrap_err();
-        assert!(matches!(err, TransportError::FrameTooLarge { len: 9, max: 8 }));
+        assert!(matches!(
+            err,
+            TransportError::FrameTooLarge { len: 9, max: 8 }
+        ));
         big.send(small.local_addr(), &[1u8; 9]).unwrap();
         big.send(small.local_addr(), &[2u8; 8]).unwrap();
         let (_, frame) = small.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
@@ -209,6 +234,8 @@ mod tests {
     fn malformed_addresses_are_reported() {
         let a = UdpTransport::bind("127.0.0.1:0").unwrap();
         let err = a.send(&PeerAddr("no-port-here".into()), b"x").unwrap_err();
-        assert!(matches!(err, TransportError::BadAddress { ref addr, .. } if addr == "no-port-here"));
+        assert!(
+            matches!(err, TransportError::BadAddress { ref addr, .. } if addr == "no-port-here")
+        );
     }
 }

@@ -9,7 +9,15 @@ use iw_transport_net::UdpTransport;
 
 fn bus() -> Arc<Bus> {
     let transport = UdpTransport::bind("127.0.0.1:0").unwrap();
-    Arc::new(Bus::start(Stack::new(), Arc::new(transport), Clock::system(), BusConfig::default()).unwrap())
+    Arc::new(
+        Bus::start(
+            Stack::new(),
+            Arc::new(transport),
+            Clock::system(),
+            BusConfig::default(),
+        )
+        .unwrap(),
+    )
 }
 
 #[test]

@@ -20,8 +20,15 @@ fn drain(t: &UdpTransport, quiet: Duration) -> Vec<Vec<u8>> {
 fn what_arrives_matches_the_counters_under_loss_duplication_and_reordering() {
     let a = UdpTransport::bind("127.0.0.1:0").unwrap();
     let b = UdpTransport::bind("127.0.0.1:0").unwrap();
-    let config = ImpairConfig { seed: 11, drop: 0.2, duplicate: 0.1, reorder: 0.1, ..Default::default() };
-    let proxy = ImpairProxy::start(a.socket_addr().unwrap(), b.socket_addr().unwrap(), config).unwrap();
+    let config = ImpairConfig {
+        seed: 11,
+        drop: 0.2,
+        duplicate: 0.1,
+        reorder: 0.1,
+        ..Default::default()
+    };
+    let proxy =
+        ImpairProxy::start(a.socket_addr().unwrap(), b.socket_addr().unwrap(), config).unwrap();
     let n = 400u32;
     // Receive while sending: an unread socket buffer holds only ~270 small datagrams.
     let receiver = std::thread::spawn(move || drain(&b, Duration::from_millis(300)));
@@ -34,27 +41,53 @@ fn what_arrives_matches_the_counters_under_loss_duplication_and_reordering() {
     let got = receiver.join().unwrap();
     let stats = proxy.stop();
     assert_eq!(stats.received, u64::from(n));
-    assert_eq!(got.len() as u64, stats.forwarded, "got {} for {stats:?}", got.len());
-    assert!(stats.dropped > 40 && stats.duplicated > 10 && stats.reordered > 10, "{stats:?}");
-    let seqs: Vec<u32> = got.iter().map(|f| u32::from_be_bytes(f[..4].try_into().unwrap())).collect();
+    assert_eq!(
+        got.len() as u64,
+        stats.forwarded,
+        "got {} for {stats:?}",
+        got.len()
+    );
+    assert!(
+        stats.dropped > 40 && stats.duplicated > 10 && stats.reordered > 10,
+        "{stats:?}"
+    );
+    let seqs: Vec<u32> = got
+        .iter()
+        .map(|f| u32::from_be_bytes(f[..4].try_into().unwrap()))
+        .collect();
     let distinct: HashSet<_> = seqs.iter().collect();
     assert_eq!(distinct.len() as u64, u64::from(n) - stats.dropped);
-    assert!(seqs.windows(2).any(|w| w[1] < w[0]), "reordering visible at the receiver");
+    assert!(
+        seqs.windows(2).any(|w| w[1] < w[0]),
+        "reordering visible at the receiver"
+    );
 }
 
 #[test]
 fn replies_travel_back_through_the_proxy() {
     let a = UdpTransport::bind("127.0.0.1:0").unwrap();
     let b = UdpTransport::bind("127.0.0.1:0").unwrap();
-    let proxy = ImpairProxy::start(a.socket_addr().unwrap(), b.socket_addr().unwrap(), ImpairConfig::default()).unwrap();
+    let proxy = ImpairProxy::start(
+        a.socket_addr().unwrap(),
+        b.socket_addr().unwrap(),
+        ImpairConfig::default(),
+    )
+    .unwrap();
     a.send(&proxy.peer_addr(), b"ping").unwrap();
     let (from, frame) = b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
     assert_eq!((from, frame.as_slice()), (proxy.peer_addr(), &b"ping"[..]));
     b.send(&proxy.peer_addr(), b"pong").unwrap();
-    assert_eq!(a.recv_timeout(Duration::from_secs(5)).unwrap().unwrap().1, b"pong");
+    assert_eq!(
+        a.recv_timeout(Duration::from_secs(5)).unwrap().unwrap().1,
+        b"pong"
+    );
     let stranger = UdpTransport::bind("127.0.0.1:0").unwrap();
     stranger.send(&proxy.peer_addr(), b"let me in").unwrap();
-    assert!(b.recv_timeout(Duration::from_millis(100)).unwrap().is_none());
+    assert!(
+        b.recv_timeout(Duration::from_millis(100))
+            .unwrap()
+            .is_none()
+    );
     let stats = proxy.stop();
     assert_eq!((stats.forwarded, stats.strangers), (2, 1));
 }
@@ -63,11 +96,20 @@ fn replies_travel_back_through_the_proxy() {
 fn delayed_datagrams_arrive_late_but_arrive() {
     let a = UdpTransport::bind("127.0.0.1:0").unwrap();
     let b = UdpTransport::bind("127.0.0.1:0").unwrap();
-    let config = ImpairConfig { delay: 1.0, delay_min_ms: 30, delay_max_ms: 30, ..Default::default() };
-    let proxy = ImpairProxy::start(a.socket_addr().unwrap(), b.socket_addr().unwrap(), config).unwrap();
+    let config = ImpairConfig {
+        delay: 1.0,
+        delay_min_ms: 30,
+        delay_max_ms: 30,
+        ..Default::default()
+    };
+    let proxy =
+        ImpairProxy::start(a.socket_addr().unwrap(), b.socket_addr().unwrap(), config).unwrap();
     a.send(&proxy.peer_addr(), b"late").unwrap();
     assert!(b.recv_timeout(Duration::from_millis(5)).unwrap().is_none());
-    assert_eq!(b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap().1, b"late");
+    assert_eq!(
+        b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap().1,
+        b"late"
+    );
     assert_eq!(proxy.stop().delayed, 1);
 }
 
@@ -75,10 +117,25 @@ fn delayed_datagrams_arrive_late_but_arrive() {
 fn the_iw_impair_process_relays_and_reports_its_counters() {
     let a = UdpTransport::bind("127.0.0.1:0").unwrap();
     let b = UdpTransport::bind("127.0.0.1:0").unwrap();
-    let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let listen = format!("127.0.0.1:{port}");
     let child = Command::new(env!("CARGO_BIN_EXE_iw-impair"))
-        .args(["--listen", &listen, "--seed", "5", "--drop", "0.5", "--duration-ms", "1500", "--report-ms", "10000"])
+        .args([
+            "--listen",
+            &listen,
+            "--seed",
+            "5",
+            "--drop",
+            "0.5",
+            "--duration-ms",
+            "1500",
+            "--report-ms",
+            "10000",
+        ])
         .args(["--a", &a.local_addr().0, "--b", &b.local_addr().0])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -96,7 +153,11 @@ fn the_iw_impair_process_relays_and_reports_its_counters() {
     let stats: serde_json::Value = serde_json::from_str(last.lines().last().unwrap()).unwrap();
     assert_eq!(stats["received"], 100);
     assert_eq!(stats["forwarded"].as_u64().unwrap(), got.len() as u64);
-    assert!((20..80).contains(&got.len()), "about half dropped, got {}", got.len());
+    assert!(
+        (20..80).contains(&got.len()),
+        "about half dropped, got {}",
+        got.len()
+    );
 }
 
 #[test]

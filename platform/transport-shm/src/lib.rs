@@ -70,7 +70,10 @@ impl From<ShmError> for TransportError {
     fn from(e: ShmError) -> Self {
         match e {
             ShmError::BadAddress { addr, reason } => TransportError::BadAddress { addr, reason },
-            other => TransportError::Middleware { context: "shared-memory transport".into(), message: other.to_string() },
+            other => TransportError::Middleware {
+                context: "shared-memory transport".into(),
+                message: other.to_string(),
+            },
         }
     }
 }
@@ -87,7 +90,10 @@ pub struct PollPolicy {
 impl Default for PollPolicy {
     /// Yield for 2 ms (latency of a few µs while traffic flows), then check every 50 µs.
     fn default() -> Self {
-        Self { yield_phase_us: 2_000, sleep_us: 50 }
+        Self {
+            yield_phase_us: 2_000,
+            sleep_us: 50,
+        }
     }
 }
 
@@ -109,7 +115,10 @@ pub struct ShmTransport {
 
 impl std::fmt::Debug for ShmTransport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ShmTransport").field("local", &self.local).field("max_frame_len", &self.max_frame_len).finish()
+        f.debug_struct("ShmTransport")
+            .field("local", &self.local)
+            .field("max_frame_len", &self.max_frame_len)
+            .finish()
     }
 }
 
@@ -125,21 +134,26 @@ impl ShmTransport {
     }
 
     /// Opens the endpoint `addr` with a frame limit and a poll policy.
-    pub fn open_with(addr: &str, max_frame_len: usize, poll: PollPolicy) -> Result<Self, TransportError> {
+    pub fn open_with(
+        addr: &str,
+        max_frame_len: usize,
+        poll: PollPolicy,
+    ) -> Result<Self, TransportError> {
         let service_name = inbox_service_name(addr)?;
         // An explicit default config: no search for a config file (and no warning when none exists).
         let node = NodeBuilder::new()
             .config(&Config::default())
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Svc>()
-            .map_err(|e| middleware(format!("creating the iceoryx2 node for `{addr}`"))(format!("{e:?}")))?;
+            .map_err(|e| {
+                middleware(format!("creating the iceoryx2 node for `{addr}`"))(format!("{e:?}"))
+            })?;
         // Leftovers of crashed processes would otherwise block reopening their services.
         let _ = node.try_cleanup_dead_nodes();
         let service = open_inbox(&node, &service_name)?;
-        let inbox = service
-            .subscriber_builder()
-            .create()
-            .map_err(|e| middleware(format!("subscribing to the inbox of `{addr}`"))(format!("{e:?}")))?;
+        let inbox = service.subscriber_builder().create().map_err(|e| {
+            middleware(format!("subscribing to the inbox of `{addr}`"))(format!("{e:?}"))
+        })?;
         Ok(Self {
             node,
             local: PeerAddr(addr.to_owned()),
@@ -159,21 +173,25 @@ impl ShmTransport {
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
             .map_err(|e| middleware(format!("publishing to `{to}`"))(format!("{e:?}")))?;
-        Ok(Outbox { publisher, scratch: Vec::with_capacity(INITIAL_SLICE_LEN) })
+        Ok(Outbox {
+            publisher,
+            scratch: Vec::with_capacity(INITIAL_SLICE_LEN),
+        })
     }
 
     fn try_receive(&self) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         loop {
-            let sample = self
-                .inbox
-                .receive()
-                .map_err(|e| middleware(format!("receiving on `{}`", self.local))(format!("{e:?}")))?;
+            let sample = self.inbox.receive().map_err(|e| {
+                middleware(format!("receiving on `{}`", self.local))(format!("{e:?}"))
+            })?;
             let Some(sample) = sample else {
                 return Ok(None);
             };
             match split_sample(sample.payload(), self.max_frame_len) {
                 Ok((from, frame)) => return Ok(Some((PeerAddr(from.to_owned()), frame.to_vec()))),
-                Err(e) => tracing::warn!(endpoint = %self.local, error = %e, "dropping a malformed sample"),
+                Err(e) => {
+                    tracing::warn!(endpoint = %self.local, error = %e, "dropping a malformed sample")
+                }
             }
         }
     }
@@ -182,24 +200,44 @@ impl ShmTransport {
 /// Splits a sample into sender address and frame.
 fn split_sample(sample: &[u8], max_frame_len: usize) -> Result<(&str, &[u8]), ShmError> {
     let len = sample.len();
-    let (&name_len, rest) = sample.split_first().ok_or(ShmError::MalformedSample { len, reason: "empty" })?;
+    let (&name_len, rest) = sample.split_first().ok_or(ShmError::MalformedSample {
+        len,
+        reason: "empty",
+    })?;
     let name_len = usize::from(name_len);
-    let name = rest.get(..name_len).ok_or(ShmError::MalformedSample { len, reason: "sender address cut short" })?;
+    let name = rest.get(..name_len).ok_or(ShmError::MalformedSample {
+        len,
+        reason: "sender address cut short",
+    })?;
     let frame = rest.get(name_len..).unwrap_or_default();
     if frame.len() > max_frame_len {
-        return Err(ShmError::MalformedSample { len, reason: "frame above the limit" });
+        return Err(ShmError::MalformedSample {
+            len,
+            reason: "frame above the limit",
+        });
     }
-    let name = std::str::from_utf8(name).map_err(|_| ShmError::MalformedSample { len, reason: "sender address not UTF-8" })?;
+    let name = std::str::from_utf8(name).map_err(|_| ShmError::MalformedSample {
+        len,
+        reason: "sender address not UTF-8",
+    })?;
     Ok((name, frame))
 }
 
 fn inbox_service_name(addr: &str) -> Result<ServiceName, ShmError> {
-    let bad = |reason: &str| ShmError::BadAddress { addr: addr.to_owned(), reason: reason.to_owned() };
+    let bad = |reason: &str| ShmError::BadAddress {
+        addr: addr.to_owned(),
+        reason: reason.to_owned(),
+    };
     if addr.is_empty() || addr.len() > 200 {
         return Err(bad("must be 1 to 200 bytes long"));
     }
-    if !addr.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.' | b'/')) {
-        return Err(bad("only letters, digits, `-`, `_`, `.` and `/` are allowed"));
+    if !addr
+        .bytes()
+        .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.' | b'/'))
+    {
+        return Err(bad(
+            "only letters, digits, `-`, `_`, `.` and `/` are allowed",
+        ));
     }
     ServiceName::new(&format!("{SERVICE_PREFIX}{addr}")).map_err(|e| bad(&format!("{e:?}")))
 }
@@ -207,7 +245,10 @@ fn inbox_service_name(addr: &str) -> Result<ServiceName, ShmError> {
 fn open_inbox(
     node: &Node<Svc>,
     name: &ServiceName,
-) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>, TransportError> {
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>,
+    TransportError,
+> {
     node.service_builder(name)
         .publish_subscribe::<[u8]>()
         .subscriber_max_buffer_size(INBOX_DEPTH)
@@ -229,7 +270,10 @@ impl FrameTransport for ShmTransport {
 
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
         if frame.len() > self.max_frame_len {
-            return Err(TransportError::FrameTooLarge { len: frame.len(), max: self.max_frame_len });
+            return Err(TransportError::FrameTooLarge {
+                len: frame.len(),
+                max: self.max_frame_len,
+            });
         }
         let mut outboxes = self.outboxes.lock().unwrap_or_else(PoisonError::into_inner);
         if !outboxes.contains_key(to) {
@@ -242,13 +286,19 @@ impl FrameTransport for ShmTransport {
         let name = self.local.0.as_bytes();
         outbox.scratch.clear();
         // Address length is checked at open (at most 200 bytes), so it fits in one byte.
-        outbox.scratch.push(u8::try_from(name.len()).unwrap_or(u8::MAX));
+        outbox
+            .scratch
+            .push(u8::try_from(name.len()).unwrap_or(u8::MAX));
         outbox.scratch.extend_from_slice(name);
         outbox.scratch.extend_from_slice(frame);
         let sample = outbox
             .publisher
             .loan_slice_uninit(outbox.scratch.len())
-            .map_err(|e| middleware(format!("loaning a {}-byte sample for `{to}`", frame.len()))(format!("{e:?}")))?;
+            .map_err(|e| {
+                middleware(format!("loaning a {}-byte sample for `{to}`", frame.len()))(format!(
+                    "{e:?}"
+                ))
+            })?;
         sample
             .write_from_slice(&outbox.scratch)
             .send()
@@ -256,7 +306,10 @@ impl FrameTransport for ShmTransport {
         Ok(())
     }
 
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         let start = Instant::now();
         let yield_phase = Duration::from_micros(self.poll.yield_phase_us);
         let sleep = Duration::from_micros(self.poll.sleep_us.max(1));
@@ -284,17 +337,46 @@ mod tests {
 
     #[test]
     fn addresses_are_checked() {
-        assert!(matches!(inbox_service_name(""), Err(ShmError::BadAddress { .. })));
-        assert!(matches!(inbox_service_name("a b"), Err(ShmError::BadAddress { ref addr, .. }) if addr == "a b"));
+        assert!(matches!(
+            inbox_service_name(""),
+            Err(ShmError::BadAddress { .. })
+        ));
+        assert!(
+            matches!(inbox_service_name("a b"), Err(ShmError::BadAddress { ref addr, .. }) if addr == "a b")
+        );
         assert!(inbox_service_name("test/x-1_y.z").is_ok());
     }
 
     #[test]
     fn sample_split_reports_malformed_input() {
-        assert!(matches!(split_sample(&[], 10), Err(ShmError::MalformedSample { reason: "empty", .. })));
-        assert!(matches!(split_sample(&[5, b'a'], 10), Err(ShmError::MalformedSample { reason: "sender address cut short", .. })));
-        assert!(matches!(split_sample(&[1, 0xff], 10), Err(ShmError::MalformedSample { reason: "sender address not UTF-8", .. })));
-        assert!(matches!(split_sample(&[1, b'a', 1, 2, 3], 2), Err(ShmError::MalformedSample { reason: "frame above the limit", .. })));
+        assert!(matches!(
+            split_sample(&[], 10),
+            Err(ShmError::MalformedSample {
+                reason: "empty",
+                ..
+            })
+        ));
+        assert!(matches!(
+            split_sample(&[5, b'a'], 10),
+            Err(ShmError::MalformedSample {
+                reason: "sender address cut short",
+                ..
+            })
+        ));
+        assert!(matches!(
+            split_sample(&[1, 0xff], 10),
+            Err(ShmError::MalformedSample {
+                reason: "sender address not UTF-8",
+                ..
+            })
+        ));
+        assert!(matches!(
+            split_sample(&[1, b'a', 1, 2, 3], 2),
+            Err(ShmError::MalformedSample {
+                reason: "frame above the limit",
+                ..
+            })
+        ));
         assert_eq!(split_sample(&[1, b'a', 9], 10).unwrap(), ("a", &[9u8][..]));
     }
 

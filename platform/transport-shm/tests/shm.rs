@@ -12,7 +12,10 @@ const CHILD_ENV: &str = "IW_SHM_ECHO_CHILD";
 
 /// A service name no other test or run uses.
 fn unique(tag: &str) -> String {
-    let nanos = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
+    let nanos = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
     format!("test/{}/{tag}/{nanos}", std::process::id())
 }
 
@@ -42,7 +45,9 @@ fn round_trips_between_threads_keep_content_order_and_sender() {
 fn one_inbox_hears_several_senders_in_order_each() {
     let inbox_addr = unique("fan-in");
     let inbox = ShmTransport::open(&inbox_addr).unwrap();
-    let senders: Vec<_> = (0..3).map(|i| ShmTransport::open(&unique(&format!("fan-{i}"))).unwrap()).collect();
+    let senders: Vec<_> = (0..3)
+        .map(|i| ShmTransport::open(&unique(&format!("fan-{i}"))).unwrap())
+        .collect();
     let to = PeerAddr(inbox_addr);
     for n in 0..20u8 {
         for s in &senders {
@@ -70,8 +75,17 @@ fn frames_grow_up_to_the_limit_and_not_beyond() {
     assert_eq!(b.recv_timeout(WAIT).unwrap().unwrap().1, b"small first");
     assert_eq!(b.recv_timeout(WAIT).unwrap().unwrap().1, big);
     let err = a.send(&to, &vec![0; 100_001]).unwrap_err();
-    assert!(matches!(err, TransportError::FrameTooLarge { len: 100_001, max: 100_000 }));
-    assert!(matches!(a.send(&PeerAddr("no spaces".into()), b"x"), Err(TransportError::BadAddress { .. })));
+    assert!(matches!(
+        err,
+        TransportError::FrameTooLarge {
+            len: 100_001,
+            max: 100_000
+        }
+    ));
+    assert!(matches!(
+        a.send(&PeerAddr("no spaces".into()), b"x"),
+        Err(TransportError::BadAddress { .. })
+    ));
 }
 
 #[test]
@@ -88,13 +102,21 @@ fn echo_between_two_processes() {
     let mut answered = false;
     for _ in 0..500 {
         me.send(&to, b"hello").unwrap();
-        if me.recv_timeout(Duration::from_millis(20)).unwrap().is_some() {
+        if me
+            .recv_timeout(Duration::from_millis(20))
+            .unwrap()
+            .is_some()
+        {
             answered = true;
             break;
         }
     }
     assert!(answered, "child process never answered");
-    while me.recv_timeout(Duration::from_millis(50)).unwrap().is_some() {}
+    while me
+        .recv_timeout(Duration::from_millis(50))
+        .unwrap()
+        .is_some()
+    {}
     for i in 0..200u32 {
         me.send(&to, &i.to_be_bytes()).unwrap();
         let (from, back) = me.recv_timeout(WAIT).unwrap().unwrap();

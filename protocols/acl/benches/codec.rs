@@ -39,7 +39,10 @@ fn bus_message() -> String {
 struct ThreadCpuTime;
 
 fn thread_cpu_ns() -> u64 {
-    let mut now = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    let mut now = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
     // SAFETY: `now` is a valid, writable timespec; the clock id is a constant Linux supports.
     let status = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut now) };
     assert_eq!(status, 0, "CLOCK_THREAD_CPUTIME_ID unavailable");
@@ -74,7 +77,12 @@ impl ValueFormatter for ThreadCpuTime {
     fn scale_values(&self, _typical_ns: f64, _values: &mut [f64]) -> &'static str {
         "ns (cpu)"
     }
-    fn scale_throughputs(&self, _typical_ns: f64, throughput: &Throughput, values: &mut [f64]) -> &'static str {
+    fn scale_throughputs(
+        &self,
+        _typical_ns: f64,
+        throughput: &Throughput,
+        values: &mut [f64],
+    ) -> &'static str {
         let (per, unit) = match throughput {
             Throughput::Bytes(n) | Throughput::BytesDecimal(n) => (*n as f64, "B/s (cpu)"),
             Throughput::Elements(n) => (*n as f64, "elem/s (cpu)"),
@@ -97,26 +105,49 @@ fn bench_cpu(c: &mut Criterion<ThreadCpuTime>) {
 }
 
 fn bench<M: Measurement>(c: &mut Criterion<M>, group_name: &str) {
-    let mut inputs = vec![("typical-380B", TYPICAL.to_owned()), ("bus-300B", bus_message())];
-    if let Some(path) = iw_testdata::require("acl codec bench", "fipa/vectors/bench-message-470B.acl") {
-        inputs.insert(0, ("jade-470B", std::fs::read_to_string(path).expect("readable bench message")));
+    let mut inputs = vec![
+        ("typical-380B", TYPICAL.to_owned()),
+        ("bus-300B", bus_message()),
+    ];
+    if let Some(path) =
+        iw_testdata::require("acl codec bench", "fipa/vectors/bench-message-470B.acl")
+    {
+        inputs.insert(
+            0,
+            (
+                "jade-470B",
+                std::fs::read_to_string(path).expect("readable bench message"),
+            ),
+        );
     }
     let mut group = c.benchmark_group(group_name);
-    group.measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_secs(1));
+    group
+        .measurement_time(Duration::from_secs(3))
+        .warm_up_time(Duration::from_secs(1));
     for (name, text) in &inputs {
         group.throughput(Throughput::Elements(1));
         let message = codec::parse(text).expect("bench message parses");
-        group.bench_function(format!("parse/{name}/{}B", text.len()), |b| b.iter(|| codec::parse(black_box(text))));
+        group.bench_function(format!("parse/{name}/{}B", text.len()), |b| {
+            b.iter(|| codec::parse(black_box(text)))
+        });
         let jade = ParseOptions::jade();
-        group.bench_function(format!("parse-jade/{name}"), |b| b.iter(|| codec::parse_with(black_box(text), &jade)));
+        group.bench_function(format!("parse-jade/{name}"), |b| {
+            b.iter(|| codec::parse_with(black_box(text), &jade))
+        });
         let standard = ParseOptions::default();
-        group.bench_function(format!("check/{name}"), |b| b.iter(|| codec::check_with(black_box(text), &standard)));
-        group.bench_function(format!("check-jade/{name}"), |b| b.iter(|| codec::check_with(black_box(text), &jade)));
+        group.bench_function(format!("check/{name}"), |b| {
+            b.iter(|| codec::check_with(black_box(text), &standard))
+        });
+        group.bench_function(format!("check-jade/{name}"), |b| {
+            b.iter(|| codec::check_with(black_box(text), &jade))
+        });
         let json = serde_json::to_string(&message).expect("serializable");
         group.bench_function(format!("json-peer-parse/{name}/{}B", json.len()), |b| {
             b.iter(|| serde_json::from_str::<iw_acl::AclMessage>(black_box(&json)))
         });
-        group.bench_function(format!("print/{name}"), |b| b.iter(|| codec::print(black_box(&message))));
+        group.bench_function(format!("print/{name}"), |b| {
+            b.iter(|| codec::print(black_box(&message)))
+        });
         let mut buffer = String::with_capacity(1024);
         let options = PrintOptions::default();
         group.bench_function(format!("print-into-reused-buffer/{name}"), |b| {

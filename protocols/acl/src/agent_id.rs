@@ -28,7 +28,10 @@ pub struct AgentId {
 impl AgentId {
     /// An identifier with a name only.
     pub fn new(name: impl Into<String>) -> Self {
-        Self { name: name.into(), ..Self::default() }
+        Self {
+            name: name.into(),
+            ..Self::default()
+        }
     }
 
     /// Adds a transport address (after the existing ones).
@@ -45,13 +48,16 @@ impl AgentId {
 
     /// Sets a user-defined slot; a leading `X-` on `key` is dropped (it is the wire prefix).
     pub fn with_user_param(mut self, key: &str, value: impl Into<String>) -> Self {
-        self.user_params.insert(crate::message::user_key(key).to_owned(), value.into());
+        self.user_params
+            .insert(crate::message::user_key(key).to_owned(), value.into());
         self
     }
 
     /// The local part of the name, before `@` (the whole name when there is no `@`).
     pub fn local_name(&self) -> &str {
-        self.name.split_once('@').map_or(&self.name, |(local, _)| local)
+        self.name
+            .split_once('@')
+            .map_or(&self.name, |(local, _)| local)
     }
 
     /// The platform part of the name, after `@`.
@@ -73,7 +79,10 @@ mod tests {
     #[test]
     fn name_parts() {
         let aid = AgentId::new("echo@WheelchairTest");
-        assert_eq!((aid.local_name(), aid.platform()), ("echo", Some("WheelchairTest")));
+        assert_eq!(
+            (aid.local_name(), aid.platform()),
+            ("echo", Some("WheelchairTest"))
+        );
         assert_eq!(AgentId::new("df").platform(), None);
     }
 }

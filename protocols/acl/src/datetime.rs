@@ -76,9 +76,14 @@ impl FipaDateTime {
             + i64::from(self.millisecond);
         match self.sign {
             Some(sign) => {
-                let days = i64::from(self.year) * 365 + i64::from(self.month) * 30 + i64::from(self.day);
+                let days =
+                    i64::from(self.year) * 365 + i64::from(self.month) * 30 + i64::from(self.day);
                 let offset = days * MS_PER_DAY + time_ms;
-                if sign == '-' { now_unix_ms - offset } else { now_unix_ms + offset }
+                if sign == '-' {
+                    now_unix_ms - offset
+                } else {
+                    now_unix_ms + offset
+                }
             }
             None => {
                 // Fields out of range (only possible in a value built by hand: parsing checks
@@ -94,7 +99,10 @@ impl FipaDateTime {
 
     /// Checks field ranges; `text` is only used for the error message.
     fn validate(self, text: &str) -> Result<Self, Error> {
-        let bad = |reason: &str| Error::InvalidDateTime { value: text.to_owned(), reason: reason.to_owned() };
+        let bad = |reason: &str| Error::InvalidDateTime {
+            value: text.to_owned(),
+            reason: reason.to_owned(),
+        };
         if self.sign.is_none() {
             if !(1..=12).contains(&self.month) {
                 return Err(bad("month must be 01..12"));
@@ -152,7 +160,10 @@ impl FromStr for FipaDateTime {
     type Err = Error;
 
     fn from_str(text: &str) -> Result<Self, Error> {
-        let bad = |reason: &str| Error::InvalidDateTime { value: text.to_owned(), reason: reason.to_owned() };
+        let bad = |reason: &str| Error::InvalidDateTime {
+            value: text.to_owned(),
+            reason: reason.to_owned(),
+        };
         let bytes = text.as_bytes();
         let (sign, rest) = match bytes.first() {
             Some(&b) if b == b'+' || b == b'-' => (Some(b as char), &bytes[1..]),
@@ -160,7 +171,10 @@ impl FromStr for FipaDateTime {
         };
         let (digits, zone) = match rest.len() {
             18 => (rest, None),
-            19 => (&rest[..18], rest.last().map(|&z| (z as char).to_ascii_uppercase())),
+            19 => (
+                &rest[..18],
+                rest.last().map(|&z| (z as char).to_ascii_uppercase()),
+            ),
             _ => return Err(bad("expected 18 or 19 characters after the sign")),
         };
         if !digits[8].eq_ignore_ascii_case(&b'T') {
@@ -168,7 +182,11 @@ impl FromStr for FipaDateTime {
         }
         let num = |range: std::ops::Range<usize>| -> Result<u16, Error> {
             digits[range].iter().try_fold(0u16, |acc, &d| {
-                if d.is_ascii_digit() { Ok(acc * 10 + u16::from(d - b'0')) } else { Err(bad("expected a digit")) }
+                if d.is_ascii_digit() {
+                    Ok(acc * 10 + u16::from(d - b'0'))
+                } else {
+                    Err(bad("expected a digit"))
+                }
             })
         };
         // Each field has at most 4 digits, so the narrowing casts cannot truncate.
@@ -208,7 +226,10 @@ mod tests {
     #[test]
     fn parses_and_prints_jade_form() {
         let t: FipaDateTime = "20991231T235959000Z".parse().unwrap();
-        assert_eq!((t.year, t.month, t.day, t.hour, t.zone), (2099, 12, 31, 23, Some('Z')));
+        assert_eq!(
+            (t.year, t.month, t.day, t.hour, t.zone),
+            (2099, 12, 31, 23, Some('Z'))
+        );
         assert_eq!(t.to_string(), "20991231T235959000Z");
     }
 
@@ -237,7 +258,13 @@ mod tests {
 
     #[test]
     fn rejects_bad_fields_with_the_value() {
-        for bad in ["20991331T000000000Z", "20990230T000000000", "2099123123595900Z", "20991231X235959000", "20991231T245959000"] {
+        for bad in [
+            "20991331T000000000Z",
+            "20990230T000000000",
+            "2099123123595900Z",
+            "20991231X235959000",
+            "20991231T245959000",
+        ] {
             let err = bad.parse::<FipaDateTime>().unwrap_err();
             assert!(err.to_string().contains(bad), "{err}");
         }

@@ -19,7 +19,9 @@ pub enum Error {
         found: String,
     },
     /// The message starts with a word that is no FIPA performative.
-    #[error("line {line}, column {column}: unknown performative `{word}` (expected a FIPA name such as REQUEST or INFORM)")]
+    #[error(
+        "line {line}, column {column}: unknown performative `{word}` (expected a FIPA name such as REQUEST or INFORM)"
+    )]
     UnknownPerformative {
         /// 1-based line.
         line: u32,
@@ -29,7 +31,9 @@ pub enum Error {
         word: String,
     },
     /// A parameter name that SC00061 does not define and that lacks the `X-` user prefix.
-    #[error("line {line}, column {column}: unknown parameter `:{name}` (user-defined parameters start with `:X-`)")]
+    #[error(
+        "line {line}, column {column}: unknown parameter `:{name}` (user-defined parameters start with `:X-`)"
+    )]
     UnknownParameter {
         /// 1-based line.
         line: u32,
@@ -67,7 +71,9 @@ pub enum Error {
         limit: usize,
     },
     /// A value that must be a FIPA date-time is not one.
-    #[error("invalid FIPA date-time `{value}`: {reason} (form: YYYYMMDDTHHMMSSmmm with optional sign and zone letter, e.g. 20991231T235959000Z)")]
+    #[error(
+        "invalid FIPA date-time `{value}`: {reason} (form: YYYYMMDDTHHMMSSmmm with optional sign and zone letter, e.g. 20991231T235959000Z)"
+    )]
     InvalidDateTime {
         /// The offending text.
         value: String,
@@ -101,7 +107,9 @@ pub enum Error {
         reason: String,
     },
     /// Input longer than the configured limit (a guard against memory exhaustion).
-    #[error("message of {len} bytes exceeds the {limit}-byte limit (raise ParseOptions::max_len if this is legitimate)")]
+    #[error(
+        "message of {len} bytes exceeds the {limit}-byte limit (raise ParseOptions::max_len if this is legitimate)"
+    )]
     TooLarge {
         /// Input length in bytes.
         len: usize,
@@ -109,7 +117,9 @@ pub enum Error {
         limit: usize,
     },
     /// A string JADE's escaping cannot carry: it would reach JADE altered or unparseable.
-    #[error("{slot} value `{value}` cannot be written with JADE escaping (it ends in a backslash); send it as byte content or use standard escaping")]
+    #[error(
+        "{slot} value `{value}` cannot be written with JADE escaping (it ends in a backslash); send it as byte content or use standard escaping"
+    )]
     NotRepresentable {
         /// The parameter holding it (`content`, `ontology`, ...).
         slot: &'static str,

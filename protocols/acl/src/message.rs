@@ -69,7 +69,10 @@ pub(crate) fn normalize_user_params<'de, D: Deserializer<'de>>(
     deserializer: D,
 ) -> Result<BTreeMap<String, String>, D::Error> {
     let raw = BTreeMap::<String, String>::deserialize(deserializer)?;
-    Ok(raw.into_iter().map(|(k, v)| (user_key(&k).to_owned(), v)).collect())
+    Ok(raw
+        .into_iter()
+        .map(|(k, v)| (user_key(&k).to_owned(), v))
+        .collect())
 }
 
 impl AclMessage {
@@ -212,7 +215,8 @@ impl AclMessage {
 
     /// Sets a user-defined parameter; a leading `X-` on `key` is dropped (it is the wire prefix).
     pub fn with_user_param(mut self, key: &str, value: impl Into<String>) -> Self {
-        self.user_params.insert(user_key(key).to_owned(), value.into());
+        self.user_params
+            .insert(user_key(key).to_owned(), value.into());
         self
     }
 }
@@ -290,20 +294,32 @@ impl TryFrom<MessageRepr> for AclMessage {
     type Error = Error;
 
     fn try_from(r: MessageRepr) -> Result<Self, Error> {
-        let inconsistent = |reason: &str| Error::InconsistentContent { reason: reason.to_owned() };
+        let inconsistent = |reason: &str| Error::InconsistentContent {
+            reason: reason.to_owned(),
+        };
         let content = match (r.content, r.byte_content, r.byte_content_len) {
-            (Some(_), Some(_), _) => return Err(inconsistent("both `content` and `byte_content` are set")),
+            (Some(_), Some(_), _) => {
+                return Err(inconsistent("both `content` and `byte_content` are set"));
+            }
             (Some(text), None, None) => Some(Content::Text(text)),
-            (Some(_), None, Some(_)) => return Err(inconsistent("`byte_content_len` is set with text `content`")),
+            (Some(_), None, Some(_)) => {
+                return Err(inconsistent(
+                    "`byte_content_len` is set with text `content`",
+                ));
+            }
             (None, Some(encoded), len) => {
                 let bytes = crate::codec::decode_base64(&encoded)?;
                 if len.is_some_and(|len| len != bytes.len()) {
-                    return Err(inconsistent("`byte_content_len` differs from the decoded `byte_content`"));
+                    return Err(inconsistent(
+                        "`byte_content_len` differs from the decoded `byte_content`",
+                    ));
                 }
                 Some(Content::Bytes(bytes))
             }
             (None, None, Some(_)) => {
-                return Err(inconsistent("`byte_content_len` without the bytes (give them Base64 in `byte_content`)"));
+                return Err(inconsistent(
+                    "`byte_content_len` without the bytes (give them Base64 in `byte_content`)",
+                ));
             }
             (None, None, None) => None,
         };
@@ -339,7 +355,9 @@ mod tests {
             .with_conversation_id("c1")
             .with_reply_with("r1")
             .with_language("fipa-sl");
-        let reply = request.create_reply().with_performative(Performative::Agree);
+        let reply = request
+            .create_reply()
+            .with_performative(Performative::Agree);
         assert_eq!(reply.receivers, vec![AgentId::new("a@p")]);
         assert_eq!(reply.in_reply_to.as_deref(), Some("r1"));
         assert_eq!(reply.conversation_id.as_deref(), Some("c1"));
@@ -368,7 +386,10 @@ mod tests {
         assert_eq!(json["reply_by"], "20991231T235959000Z");
         assert_eq!(serde_json::from_value::<AclMessage>(json).unwrap(), m);
         let text = AclMessage::new(Performative::Cfp).with_content("(x)");
-        assert_eq!(serde_json::from_str::<AclMessage>(&serde_json::to_string(&text).unwrap()).unwrap(), text);
+        assert_eq!(
+            serde_json::from_str::<AclMessage>(&serde_json::to_string(&text).unwrap()).unwrap(),
+            text
+        );
     }
 
     #[test]

@@ -104,7 +104,10 @@ impl Performative {
             }
             names
         };
-        NAMES.iter().position(|known| known.eq_ignore_ascii_case(name)).map(|i| Self::ALL[i])
+        NAMES
+            .iter()
+            .position(|known| known.eq_ignore_ascii_case(name))
+            .map(|i| Self::ALL[i])
     }
 }
 
@@ -146,7 +149,13 @@ mod tests {
     fn every_name_round_trips_in_any_case() {
         for p in Performative::ALL {
             assert_eq!(p.to_string().parse::<Performative>().unwrap(), p);
-            assert_eq!(p.fipa_name().to_lowercase().parse::<Performative>().unwrap(), p);
+            assert_eq!(
+                p.fipa_name()
+                    .to_lowercase()
+                    .parse::<Performative>()
+                    .unwrap(),
+                p
+            );
         }
     }
 

@@ -10,27 +10,51 @@ use common::{assert_check_agrees, message, text};
 
 /// Both escapings with the default limits, and now and then tight ones.
 fn options() -> impl Strategy<Value = ParseOptions> {
-    (any::<bool>(), prop::option::weighted(0.1, 0..4usize), prop::option::weighted(0.1, 0..400usize)).prop_map(
-        |(jade, max_depth, max_len)| {
-            let mut options = if jade { ParseOptions::jade() } else { ParseOptions::default() };
+    (
+        any::<bool>(),
+        prop::option::weighted(0.1, 0..4usize),
+        prop::option::weighted(0.1, 0..400usize),
+    )
+        .prop_map(|(jade, max_depth, max_len)| {
+            let mut options = if jade {
+                ParseOptions::jade()
+            } else {
+                ParseOptions::default()
+            };
             if let Some(depth) = max_depth {
                 options.max_depth = depth;
             }
             max_len.map_or(options, |len| options.with_max_len(len))
-        },
-    )
+        })
 }
 
 /// A generated message as one of the two printers writes it.
 fn printed() -> impl Strategy<Value = String> {
     (message(), any::<bool>()).prop_map(|(m, jade)| {
         let standard = || codec::print(&m);
-        if jade { codec::print_with(&m, &PrintOptions::jade()).unwrap_or_else(|_| standard()) } else { standard() }
+        if jade {
+            codec::print_with(&m, &PrintOptions::jade()).unwrap_or_else(|_| standard())
+        } else {
+            standard()
+        }
     })
 }
 
 /// Words that shape a message, right and wrong.
-const FRAME: &[&str] = &["(", ")", "(", ")", "inform", "REQUEST", "informs", "agent-identifier", "AGENT-Identifier", "set", "SET", "sequence"];
+const FRAME: &[&str] = &[
+    "(",
+    ")",
+    "(",
+    ")",
+    "inform",
+    "REQUEST",
+    "informs",
+    "agent-identifier",
+    "AGENT-Identifier",
+    "set",
+    "SET",
+    "sequence",
+];
 
 /// Parameter and slot names, right and wrong, user ones among them.
 const PARAMS: &[&str] = &[
@@ -106,8 +130,11 @@ const AGENTS: &[&str] = &[
 fn word_soup() -> impl Strategy<Value = String> {
     let words: Vec<&str> = [FRAME, PARAMS, VALUES, AGENTS].concat();
     let token = prop_oneof![4 => prop::sample::select(words).prop_map(str::to_owned), 1 => text()];
-    prop::collection::vec((token, prop::sample::select(&[" ", " ", "\n", "\t", ""][..])), 0..40)
-        .prop_map(|tokens| tokens.into_iter().map(|(t, sep)| t + sep).collect())
+    prop::collection::vec(
+        (token, prop::sample::select(&[" ", " ", "\n", "\t", ""][..])),
+        0..40,
+    )
+    .prop_map(|tokens| tokens.into_iter().map(|(t, sep)| t + sep).collect())
 }
 
 /// A message frame around parameters drawn from the words above: deep enough to reach the
@@ -121,17 +148,32 @@ fn message_of_words() -> impl Strategy<Value = String> {
         1 => word_soup(),
     ];
     let performative = prop_oneof![8 => Just("inform"), 1 => Just("informs"), 1 => Just("(")];
-    (performative, prop::collection::vec((prop::sample::select(PARAMS), value), 0..8)).prop_map(|(performative, params)| {
-        let params: String = params.into_iter().map(|(p, v)| format!(" {p} {v}")).collect();
-        format!("({performative}{params})")
-    })
+    (
+        performative,
+        prop::collection::vec((prop::sample::select(PARAMS), value), 0..8),
+    )
+        .prop_map(|(performative, params)| {
+            let params: String = params
+                .into_iter()
+                .map(|(p, v)| format!(" {p} {v}"))
+                .collect();
+            format!("({performative}{params})")
+        })
 }
 
 /// Printed text with a few bytes replaced, removed or added, and perhaps cut short.
 fn damaged() -> impl Strategy<Value = String> {
-    let edit = (any::<prop::sample::Index>(), 0..4u8, prop::sample::select(&b"()\":\\# aX-\n\x80\xff"[..]));
-    (printed(), prop::collection::vec(edit, 1..4), prop::option::of(any::<prop::sample::Index>())).prop_map(
-        |(text, edits, cut)| {
+    let edit = (
+        any::<prop::sample::Index>(),
+        0..4u8,
+        prop::sample::select(&b"()\":\\# aX-\n\x80\xff"[..]),
+    );
+    (
+        printed(),
+        prop::collection::vec(edit, 1..4),
+        prop::option::of(any::<prop::sample::Index>()),
+    )
+        .prop_map(|(text, edits, cut)| {
             let mut bytes = text.into_bytes();
             for (at, kind, byte) in edits {
                 let at = at.index(bytes.len() + 1);
@@ -146,8 +188,7 @@ fn damaged() -> impl Strategy<Value = String> {
                 bytes.truncate(cut.index(bytes.len() + 1));
             }
             String::from_utf8_lossy(&bytes).into_owned()
-        },
-    )
+        })
 }
 
 proptest! {

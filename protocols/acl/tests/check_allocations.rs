@@ -70,7 +70,10 @@ fn typical_messages_are_checked_without_allocating() {
     ];
     for options in [ParseOptions::default(), ParseOptions::jade()] {
         for text in &texts {
-            let (count, summary) = allocations(|| codec::check_with(text, &options).map(|s| (s.sender().map(str::len), s.receiver_count())));
+            let (count, summary) = allocations(|| {
+                codec::check_with(text, &options)
+                    .map(|s| (s.sender().map(str::len), s.receiver_count()))
+            });
             assert!(summary.is_ok(), "{summary:?}: {text}");
             assert_eq!(count, 0, "{text}");
             let (parse_count, _) = allocations(|| codec::parse_with(text, &options));

@@ -10,7 +10,9 @@ use crate::{Protocol, SessionState};
 #[non_exhaustive]
 pub enum Error {
     /// `:protocol` names no protocol this crate runs.
-    #[error("unknown interaction protocol `{name}` (expected fipa-request, fipa-query, fipa-request-when, fipa-contract-net, fipa-iterated-contract-net, fipa-subscribe or fipa-propose)")]
+    #[error(
+        "unknown interaction protocol `{name}` (expected fipa-request, fipa-query, fipa-request-when, fipa-contract-net, fipa-iterated-contract-net, fipa-subscribe or fipa-propose)"
+    )]
     UnknownProtocol {
         /// The name given.
         name: String,
@@ -78,7 +80,9 @@ pub enum Error {
         participant: String,
     },
     /// An answer after the `reply-by` deadline.
-    #[error("{act} from/to `{participant}` at {now_unix_ms} ms is after the reply-by deadline {deadline_unix_ms} ms")]
+    #[error(
+        "{act} from/to `{participant}` at {now_unix_ms} ms is after the reply-by deadline {deadline_unix_ms} ms"
+    )]
     Late {
         /// The late act.
         act: Performative,
@@ -90,7 +94,9 @@ pub enum Error {
         now_unix_ms: i64,
     },
     /// A contract-net decision while some bidders may still answer.
-    #[error("still awaiting responses from {waiting:?}; decide after they answer or after tick() passes the deadline")]
+    #[error(
+        "still awaiting responses from {waiting:?}; decide after they answer or after tick() passes the deadline"
+    )]
     RoundOpen {
         /// Participants not yet answered.
         waiting: Vec<String>,

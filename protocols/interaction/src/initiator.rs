@@ -126,10 +126,21 @@ impl Initiator {
     pub fn start(opening: AclMessage, now_unix_ms: i64) -> Result<(Self, Vec<AclMessage>), Error> {
         let protocol = opening_protocol(&opening)?;
         if opening.receivers.is_empty() {
-            return Err(Error::NoReceivers { performative: opening.performative });
+            return Err(Error::NoReceivers {
+                performative: opening.performative,
+            });
         }
-        let conversation_id = opening.conversation_id.clone().ok_or(Error::MissingConversationId { performative: opening.performative })?;
-        let tag_base = opening.reply_with.clone().unwrap_or_else(|| conversation_id.clone());
+        let conversation_id =
+            opening
+                .conversation_id
+                .clone()
+                .ok_or(Error::MissingConversationId {
+                    performative: opening.performative,
+                })?;
+        let tag_base = opening
+            .reply_with
+            .clone()
+            .unwrap_or_else(|| conversation_id.clone());
         let mut initiator = Self {
             protocol,
             conversation_id,
@@ -147,7 +158,11 @@ impl Initiator {
             let mut message = initiator.opening.clone();
             message.receivers = vec![participant.clone()];
             message.reply_with = Some(initiator.new_tag(index));
-            initiator.sessions.push(Session { participant, state: SessionState::AwaitingResponse, last_received: None });
+            initiator.sessions.push(Session {
+                participant,
+                state: SessionState::AwaitingResponse,
+                last_received: None,
+            });
             out.push(message);
         }
         Ok((initiator, out))
@@ -170,7 +185,9 @@ impl Initiator {
 
     /// The session with this participant (by name).
     pub fn session(&self, participant: &str) -> Option<&Session> {
-        self.sessions.iter().find(|s| s.participant.name == participant)
+        self.sessions
+            .iter()
+            .find(|s| s.participant.name == participant)
     }
 
     /// Contract-net round, from 1.
@@ -185,11 +202,14 @@ impl Initiator {
 
     /// When [`Initiator::tick`] next has something to time out, Unix ms.
     pub fn next_deadline(&self) -> Option<i64> {
-        self.deadline_unix_ms.filter(|_| self.waiting().next().is_some())
+        self.deadline_unix_ms
+            .filter(|_| self.waiting().next().is_some())
     }
 
     fn waiting(&self) -> impl Iterator<Item = &Session> {
-        self.sessions.iter().filter(|s| s.state == SessionState::AwaitingResponse)
+        self.sessions
+            .iter()
+            .filter(|s| s.state == SessionState::AwaitingResponse)
     }
 
     fn new_tag(&mut self, index: usize) -> String {
@@ -208,16 +228,33 @@ impl Initiator {
         let participant = session.participant.name.as_str();
         check_sender(message, participant)?;
         let act = message.performative;
-        let state = self.protocol.step(Actor::Participant, session.state, act, participant)?;
-        check_deadline(session.state, self.deadline_unix_ms, act, participant, now_unix_ms)?;
+        let state = self
+            .protocol
+            .step(Actor::Participant, session.state, act, participant)?;
+        check_deadline(
+            session.state,
+            self.deadline_unix_ms,
+            act,
+            participant,
+            now_unix_ms,
+        )?;
         let session = &mut self.sessions[index];
         session.state = state;
         session.last_received = Some(message.clone());
-        Ok(Event { participant: session.participant.clone(), kind: event_kind(act, state), state })
+        Ok(Event {
+            participant: session.participant.clone(),
+            kind: event_kind(act, state),
+            state,
+        })
     }
 
     /// [`Initiator::handle`], then the matching [`Handler`] method.
-    pub fn dispatch(&mut self, message: &AclMessage, now_unix_ms: i64, handler: &mut impl Handler) -> Result<Event, Error> {
+    pub fn dispatch(
+        &mut self,
+        message: &AclMessage,
+        now_unix_ms: i64,
+        handler: &mut impl Handler,
+    ) -> Result<Event, Error> {
         let event = self.handle(message, now_unix_ms)?;
         match message.performative {
             Performative::Agree => handler.on_agree(message),
@@ -236,7 +273,9 @@ impl Initiator {
 
     /// Times out every session still awaiting its first answer past the deadline.
     pub fn tick(&mut self, now_unix_ms: i64) -> Vec<Event> {
-        let Some(deadline) = self.deadline_unix_ms else { return Vec::new() };
+        let Some(deadline) = self.deadline_unix_ms else {
+            return Vec::new();
+        };
         if now_unix_ms <= deadline {
             return Vec::new();
         }
@@ -246,7 +285,11 @@ impl Initiator {
             .filter(|s| s.state == SessionState::AwaitingResponse)
             .map(|s| {
                 s.state = timed_out;
-                Event { participant: s.participant.clone(), kind: EventKind::TimedOut, state: timed_out }
+                Event {
+                    participant: s.participant.clone(),
+                    kind: EventKind::TimedOut,
+                    state: timed_out,
+                }
             })
             .collect()
     }
@@ -254,7 +297,9 @@ impl Initiator {
     /// [`Initiator::tick`], calling [`Handler::on_timeout`] for each timed-out participant.
     pub fn tick_with(&mut self, now_unix_ms: i64, handler: &mut impl Handler) -> Vec<Event> {
         let events = self.tick(now_unix_ms);
-        events.iter().for_each(|e| handler.on_timeout(&e.participant));
+        events
+            .iter()
+            .for_each(|e| handler.on_timeout(&e.participant));
         events
     }
 
@@ -266,7 +311,12 @@ impl Initiator {
 
     /// Iterated contract net: sends `next_cfp` (its content, `reply-by` and parameters) to the
     /// bidders in `keep` for a new round and rejects every other standing bid.
-    pub fn iterate(&mut self, keep: &[&str], next_cfp: &AclMessage, now_unix_ms: i64) -> Result<Vec<AclMessage>, Error> {
+    pub fn iterate(
+        &mut self,
+        keep: &[&str],
+        next_cfp: &AclMessage,
+        now_unix_ms: i64,
+    ) -> Result<Vec<AclMessage>, Error> {
         let out = self.close_round(keep, Performative::Cfp, Some(next_cfp))?;
         self.round += 1;
         self.deadline_unix_ms = next_cfp.reply_by.map(|t| t.to_unix_ms(now_unix_ms));
@@ -274,13 +324,20 @@ impl Initiator {
     }
 
     /// Sends `chosen_act` to the chosen bidders and REJECT-PROPOSAL to the other proposers.
-    fn close_round(&mut self, chosen: &[&str], chosen_act: Performative, template: Option<&AclMessage>) -> Result<Vec<AclMessage>, Error> {
+    fn close_round(
+        &mut self,
+        chosen: &[&str],
+        chosen_act: Performative,
+        template: Option<&AclMessage>,
+    ) -> Result<Vec<AclMessage>, Error> {
         let waiting: Vec<String> = self.waiting().map(|s| s.participant.name.clone()).collect();
         if !waiting.is_empty() {
             return Err(Error::RoundOpen { waiting });
         }
         if let Some(name) = chosen.iter().find(|name| self.session(name).is_none()) {
-            return Err(Error::UnknownParticipant { name: (*name).to_owned() });
+            return Err(Error::UnknownParticipant {
+                name: (*name).to_owned(),
+            });
         }
         let mut plan = Vec::new();
         for (index, session) in self.sessions.iter().enumerate() {
@@ -291,10 +348,18 @@ impl Initiator {
             } else {
                 continue;
             };
-            let state = self.protocol.step(Actor::Initiator, session.state, act, &session.participant.name)?;
+            let state = self.protocol.step(
+                Actor::Initiator,
+                session.state,
+                act,
+                &session.participant.name,
+            )?;
             plan.push((index, act, state));
         }
-        Ok(plan.into_iter().map(|(index, act, state)| self.follow_up(index, act, state, template)).collect())
+        Ok(plan
+            .into_iter()
+            .map(|(index, act, state)| self.follow_up(index, act, state, template))
+            .collect())
     }
 
     /// Subscribe: ends the subscription with this participant (CANCEL carrying the
@@ -304,25 +369,37 @@ impl Initiator {
             .sessions
             .iter()
             .position(|s| s.participant.name == participant)
-            .ok_or_else(|| Error::UnknownParticipant { name: participant.to_owned() })?;
+            .ok_or_else(|| Error::UnknownParticipant {
+                name: participant.to_owned(),
+            })?;
         let session = &self.sessions[index];
         let act = Performative::Cancel;
-        let state = self.protocol.step(Actor::Initiator, session.state, act, participant)?;
+        let state = self
+            .protocol
+            .step(Actor::Initiator, session.state, act, participant)?;
         Ok(self.follow_up(index, act, state, None))
     }
 
     /// Builds an initiator follow-up (answering the participant's last message when there is
     /// one), registers its `reply-with`, and moves the session to `state`.
-    fn follow_up(&mut self, index: usize, act: Performative, state: SessionState, template: Option<&AclMessage>) -> AclMessage {
+    fn follow_up(
+        &mut self,
+        index: usize,
+        act: Performative,
+        state: SessionState,
+        template: Option<&AclMessage>,
+    ) -> AclMessage {
         let session = &self.sessions[index];
-        let mut message = template.cloned().unwrap_or_else(|| match &session.last_received {
-            Some(last) => last.create_reply(),
-            None => {
-                let mut fresh = self.opening.clone();
-                fresh.reply_by = None;
-                fresh
-            }
-        });
+        let mut message = template
+            .cloned()
+            .unwrap_or_else(|| match &session.last_received {
+                Some(last) => last.create_reply(),
+                None => {
+                    let mut fresh = self.opening.clone();
+                    fresh.reply_by = None;
+                    fresh
+                }
+            });
         message.performative = act;
         message.sender = self.me.clone();
         message.receivers = vec![session.participant.clone()];
@@ -345,12 +422,19 @@ impl Initiator {
 
     /// The session a reply belongs to: by `in-reply-to`, else by sender when unambiguous.
     fn session_index(&self, message: &AclMessage) -> Result<usize, Error> {
-        let unknown = || Error::UnknownReply { in_reply_to: message.in_reply_to.clone(), sender: message.sender.as_ref().map(|s| s.name.clone()) };
+        let unknown = || Error::UnknownReply {
+            in_reply_to: message.in_reply_to.clone(),
+            sender: message.sender.as_ref().map(|s| s.name.clone()),
+        };
         if let Some(tag) = &message.in_reply_to {
             return self.by_tag.get(tag).copied().ok_or_else(unknown);
         }
         let sender = message.sender.as_ref().ok_or_else(unknown)?;
-        let mut matching = self.sessions.iter().enumerate().filter(|(_, s)| s.participant.name == sender.name);
+        let mut matching = self
+            .sessions
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.participant.name == sender.name);
         match (matching.next(), matching.next()) {
             (Some((index, _)), None) => Ok(index),
             _ => Err(unknown()),
@@ -360,10 +444,15 @@ impl Initiator {
 
 /// The protocol named by `opening`, checked against its performative.
 pub(crate) fn opening_protocol(opening: &AclMessage) -> Result<Protocol, Error> {
-    let name = opening.protocol.as_deref().ok_or(Error::MissingProtocol { performative: opening.performative })?;
+    let name = opening.protocol.as_deref().ok_or(Error::MissingProtocol {
+        performative: opening.performative,
+    })?;
     let protocol: Protocol = name.parse()?;
     if !protocol.is_initiating(opening.performative) {
-        return Err(Error::NotInitiating { protocol, performative: opening.performative });
+        return Err(Error::NotInitiating {
+            protocol,
+            performative: opening.performative,
+        });
     }
     Ok(protocol)
 }

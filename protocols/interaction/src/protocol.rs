@@ -74,7 +74,11 @@ impl Protocol {
 
     /// The state after the participant (responder) sends `act` in `state`; `None` when the
     /// protocol does not allow it. Both sides run this same table.
-    pub fn after_participant_act(self, state: SessionState, act: Performative) -> Option<SessionState> {
+    pub fn after_participant_act(
+        self,
+        state: SessionState,
+        act: Performative,
+    ) -> Option<SessionState> {
         use Performative as P;
         use SessionState as S;
         let done = |outcome| Some(S::Done(outcome));
@@ -84,16 +88,28 @@ impl Protocol {
             (S::AwaitingResponse, P::Agree) if self.is_request_like() => Some(S::AwaitingResult),
             (S::AwaitingResponse, P::Agree) if self == Self::Subscribe => Some(S::Subscribed),
             // An INFORM or FAILURE without a prior AGREE is allowed (the agreement is implied).
-            (S::AwaitingResponse | S::AwaitingResult, P::Inform) if self.is_request_like() => done(Outcome::Informed),
-            (S::AwaitingResponse | S::AwaitingResult, P::Failure) if self.is_request_like() => done(Outcome::Failed),
-            (S::AwaitingResponse | S::Subscribed, P::Inform) if self == Self::Subscribe => Some(S::Subscribed),
-            (S::AwaitingResponse | S::Subscribed | S::Cancelling, P::Failure) if self == Self::Subscribe => {
+            (S::AwaitingResponse | S::AwaitingResult, P::Inform) if self.is_request_like() => {
+                done(Outcome::Informed)
+            }
+            (S::AwaitingResponse | S::AwaitingResult, P::Failure) if self.is_request_like() => {
+                done(Outcome::Failed)
+            }
+            (S::AwaitingResponse | S::Subscribed, P::Inform) if self == Self::Subscribe => {
+                Some(S::Subscribed)
+            }
+            (S::AwaitingResponse | S::Subscribed | S::Cancelling, P::Failure)
+                if self == Self::Subscribe =>
+            {
                 done(Outcome::Failed)
             }
             (S::Cancelling, P::Inform) => done(Outcome::Cancelled),
             (S::AwaitingResponse, P::Propose) if self.is_contract_net() => Some(S::Proposed),
-            (S::AwaitingResponse, P::AcceptProposal) if self == Self::Propose => done(Outcome::Accepted),
-            (S::AwaitingResponse, P::RejectProposal) if self == Self::Propose => done(Outcome::Rejected),
+            (S::AwaitingResponse, P::AcceptProposal) if self == Self::Propose => {
+                done(Outcome::Accepted)
+            }
+            (S::AwaitingResponse, P::RejectProposal) if self == Self::Propose => {
+                done(Outcome::Rejected)
+            }
             (S::AwaitingResult, P::Inform) if self.is_contract_net() => done(Outcome::Informed),
             (S::AwaitingResult, P::Failure) if self.is_contract_net() => done(Outcome::Failed),
             _ => None,
@@ -101,14 +117,22 @@ impl Protocol {
     }
 
     /// The state after the initiator sends a follow-up `act` (not the opening one) in `state`.
-    pub fn after_initiator_act(self, state: SessionState, act: Performative) -> Option<SessionState> {
+    pub fn after_initiator_act(
+        self,
+        state: SessionState,
+        act: Performative,
+    ) -> Option<SessionState> {
         use Performative as P;
         use SessionState as S;
         match (state, act) {
             (S::Proposed, P::AcceptProposal) if self.is_contract_net() => Some(S::AwaitingResult),
-            (S::Proposed, P::RejectProposal) if self.is_contract_net() => Some(S::Done(Outcome::Rejected)),
+            (S::Proposed, P::RejectProposal) if self.is_contract_net() => {
+                Some(S::Done(Outcome::Rejected))
+            }
             (S::Proposed, P::Cfp) if self == Self::IteratedContractNet => Some(S::AwaitingResponse),
-            (S::AwaitingResponse | S::Subscribed, P::Cancel) if self == Self::Subscribe => Some(S::Cancelling),
+            (S::AwaitingResponse | S::Subscribed, P::Cancel) if self == Self::Subscribe => {
+                Some(S::Cancelling)
+            }
             _ => None,
         }
     }
@@ -123,12 +147,23 @@ pub(crate) enum Actor {
 
 impl Protocol {
     /// The next state, or why `act` is not allowed; `participant` names the other agent.
-    pub(crate) fn step(self, actor: Actor, state: SessionState, act: Performative, participant: &str) -> Result<SessionState, Error> {
+    pub(crate) fn step(
+        self,
+        actor: Actor,
+        state: SessionState,
+        act: Performative,
+        participant: &str,
+    ) -> Result<SessionState, Error> {
         let next = match actor {
             Actor::Initiator => self.after_initiator_act(state, act),
             Actor::Participant => self.after_participant_act(state, act),
         };
-        next.ok_or_else(|| Error::OutOfProtocol { protocol: self, state, act, participant: participant.to_owned() })
+        next.ok_or_else(|| Error::OutOfProtocol {
+            protocol: self,
+            state,
+            act,
+            participant: participant.to_owned(),
+        })
     }
 }
 
@@ -141,8 +176,15 @@ pub(crate) fn check_deadline(
     now_unix_ms: i64,
 ) -> Result<(), Error> {
     match deadline_unix_ms {
-        Some(deadline_unix_ms) if state == SessionState::AwaitingResponse && now_unix_ms > deadline_unix_ms => {
-            Err(Error::Late { act, participant: participant.to_owned(), deadline_unix_ms, now_unix_ms })
+        Some(deadline_unix_ms)
+            if state == SessionState::AwaitingResponse && now_unix_ms > deadline_unix_ms =>
+        {
+            Err(Error::Late {
+                act,
+                participant: participant.to_owned(),
+                deadline_unix_ms,
+                now_unix_ms,
+            })
         }
         _ => Ok(()),
     }
@@ -153,14 +195,20 @@ pub(crate) fn check_conversation(message: &AclMessage, expected: &str) -> Result
     if message.conversation_id.as_deref() == Some(expected) {
         Ok(())
     } else {
-        Err(Error::WrongConversation { expected: expected.to_owned(), found: message.conversation_id.clone() })
+        Err(Error::WrongConversation {
+            expected: expected.to_owned(),
+            found: message.conversation_id.clone(),
+        })
     }
 }
 
 /// The message, if it names a sender, comes from `expected`.
 pub(crate) fn check_sender(message: &AclMessage, expected: &str) -> Result<(), Error> {
     match &message.sender {
-        Some(sender) if sender.name != expected => Err(Error::WrongSender { expected: expected.to_owned(), found: sender.name.clone() }),
+        Some(sender) if sender.name != expected => Err(Error::WrongSender {
+            expected: expected.to_owned(),
+            found: sender.name.clone(),
+        }),
         _ => Ok(()),
     }
 }
@@ -179,7 +227,9 @@ impl FromStr for Protocol {
         Self::ALL
             .into_iter()
             .find(|p| p.fipa_name().eq_ignore_ascii_case(name))
-            .ok_or_else(|| Error::UnknownProtocol { name: name.to_owned() })
+            .ok_or_else(|| Error::UnknownProtocol {
+                name: name.to_owned(),
+            })
     }
 }
 
@@ -244,19 +294,44 @@ mod tests {
     #[test]
     fn request_table() {
         let r = Protocol::Request;
-        assert_eq!(r.after_participant_act(SessionState::AwaitingResponse, P::Agree), Some(SessionState::AwaitingResult));
-        assert_eq!(r.after_participant_act(SessionState::AwaitingResult, P::Agree), None);
-        assert_eq!(r.after_participant_act(SessionState::AwaitingResult, P::Refuse), None);
-        assert_eq!(r.after_participant_act(SessionState::AwaitingResponse, P::Propose), None);
-        assert_eq!(r.after_initiator_act(SessionState::AwaitingResult, P::Cancel), None);
-        for state in [SessionState::Done(Outcome::Informed), SessionState::Done(Outcome::TimedOut)] {
-            assert!(Performative::ALL.iter().all(|&p| r.after_participant_act(state, p).is_none()));
+        assert_eq!(
+            r.after_participant_act(SessionState::AwaitingResponse, P::Agree),
+            Some(SessionState::AwaitingResult)
+        );
+        assert_eq!(
+            r.after_participant_act(SessionState::AwaitingResult, P::Agree),
+            None
+        );
+        assert_eq!(
+            r.after_participant_act(SessionState::AwaitingResult, P::Refuse),
+            None
+        );
+        assert_eq!(
+            r.after_participant_act(SessionState::AwaitingResponse, P::Propose),
+            None
+        );
+        assert_eq!(
+            r.after_initiator_act(SessionState::AwaitingResult, P::Cancel),
+            None
+        );
+        for state in [
+            SessionState::Done(Outcome::Informed),
+            SessionState::Done(Outcome::TimedOut),
+        ] {
+            assert!(
+                Performative::ALL
+                    .iter()
+                    .all(|&p| r.after_participant_act(state, p).is_none())
+            );
         }
     }
 
     #[test]
     fn only_iterated_contract_net_calls_new_rounds() {
-        assert_eq!(Protocol::ContractNet.after_initiator_act(SessionState::Proposed, P::Cfp), None);
+        assert_eq!(
+            Protocol::ContractNet.after_initiator_act(SessionState::Proposed, P::Cfp),
+            None
+        );
         assert_eq!(
             Protocol::IteratedContractNet.after_initiator_act(SessionState::Proposed, P::Cfp),
             Some(SessionState::AwaitingResponse)

@@ -29,7 +29,13 @@ impl Responder {
     /// properly and carry a conversation id), answering as `me`.
     pub fn accept(opening: &AclMessage, me: AgentId, now_unix_ms: i64) -> Result<Self, Error> {
         let protocol = opening_protocol(opening)?;
-        let conversation_id = opening.conversation_id.clone().ok_or(Error::MissingConversationId { performative: opening.performative })?;
+        let conversation_id =
+            opening
+                .conversation_id
+                .clone()
+                .ok_or(Error::MissingConversationId {
+                    performative: opening.performative,
+                })?;
         Ok(Self {
             protocol,
             state: SessionState::AwaitingResponse,
@@ -60,8 +66,16 @@ impl Responder {
     /// for a first answer, the `reply-by` deadline has not passed. The caller adds content.
     pub fn reply(&mut self, act: Performative, now_unix_ms: i64) -> Result<AclMessage, Error> {
         let initiator = self.initiator_name();
-        let state = self.protocol.step(Actor::Participant, self.state, act, &initiator)?;
-        check_deadline(self.state, self.deadline_unix_ms, act, &initiator, now_unix_ms)?;
+        let state = self
+            .protocol
+            .step(Actor::Participant, self.state, act, &initiator)?;
+        check_deadline(
+            self.state,
+            self.deadline_unix_ms,
+            act,
+            &initiator,
+            now_unix_ms,
+        )?;
         self.state = state;
         let mut reply = self.latest.create_reply();
         reply.performative = act;
@@ -72,14 +86,20 @@ impl Responder {
     }
 
     /// Applies an initiator follow-up; returns the new state.
-    pub fn handle(&mut self, message: &AclMessage, now_unix_ms: i64) -> Result<SessionState, Error> {
+    pub fn handle(
+        &mut self,
+        message: &AclMessage,
+        now_unix_ms: i64,
+    ) -> Result<SessionState, Error> {
         check_conversation(message, &self.conversation_id)?;
         let initiator = self.initiator_name();
         if self.initiator.is_some() {
             check_sender(message, &initiator)?;
         }
         let act = message.performative;
-        let state = self.protocol.step(Actor::Initiator, self.state, act, &initiator)?;
+        let state = self
+            .protocol
+            .step(Actor::Initiator, self.state, act, &initiator)?;
         if act == Performative::Cfp {
             self.deadline_unix_ms = message.reply_by.map(|t| t.to_unix_ms(now_unix_ms));
         }
@@ -89,6 +109,8 @@ impl Responder {
     }
 
     fn initiator_name(&self) -> String {
-        self.initiator.as_ref().map_or_else(String::new, |a| a.name.clone())
+        self.initiator
+            .as_ref()
+            .map_or_else(String::new, |a| a.name.clone())
     }
 }

@@ -183,7 +183,8 @@ fn failure_keeps_actions_outside_the_ontology() {
 
 #[test]
 fn nameless_user_slot_is_refused_not_dropped() {
-    let text = "((done (action (agent-identifier :name a@A :X- a) (register (df-agent-description)))))";
+    let text =
+        "((done (action (agent-identifier :name a@A :X- a) (register (df-agent-description)))))";
     let err = ManagementContent::parse(text, iw_sl::Level::Sl0).unwrap_err();
     assert!(err.to_string().contains("needs a name after `X-`"), "{err}");
 }

@@ -59,7 +59,8 @@ fn action() -> impl Strategy<Value = WheelchairAction> {
         Just(WheelchairAction::Stop),
         name().prop_map(|door| WheelchairAction::OpenDoor { door }),
         name().prop_map(|door| WheelchairAction::CloseDoor { door }),
-        (name(), name()).prop_map(|(passage, direction)| WheelchairAction::Pass { passage, direction }),
+        (name(), name())
+            .prop_map(|(passage, direction)| WheelchairAction::Pass { passage, direction }),
     ];
     leaf.prop_recursive(3, 16, 4, |inner| {
         prop::collection::vec(inner, 0..4).prop_map(|steps| WheelchairAction::Sequence { steps })

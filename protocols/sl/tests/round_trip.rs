@@ -254,5 +254,10 @@ fn a_float_beyond_f64_keeps_its_text_and_round_trips() {
     let content = parse("((p 4e444444444 -4e999 1e3))", Level::Full).unwrap();
     let printed = content.to_string();
     assert_eq!(parse(&printed, Level::Full).unwrap(), content, "{printed}");
-    assert!(printed.contains("\"4e444444444\"") && printed.contains("\"-4e999\"") && printed.contains("1000"), "{printed}");
+    assert!(
+        printed.contains("\"4e444444444\"")
+            && printed.contains("\"-4e999\"")
+            && printed.contains("1000"),
+        "{printed}"
+    );
 }

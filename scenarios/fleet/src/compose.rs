@@ -17,7 +17,9 @@ use iw_agent::{Agent, Tap};
 use iw_assistant::{AssistantAgent, AssistantConfig};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::Bus;
-use iw_cognitive::agent::{BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage};
+use iw_cognitive::agent::{
+    BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
+};
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_control_agent::{ControlAgent, ControlConfig};
 use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
@@ -81,10 +83,17 @@ pub fn remote_agents(container: &str, chairs: &[String]) -> Vec<(String, String)
     if container == SERVICES {
         chairs
             .iter()
-            .flat_map(|c| CHAIR_ROLES.iter().map(move |r| (agent_id(r, c).name, c.clone())))
+            .flat_map(|c| {
+                CHAIR_ROLES
+                    .iter()
+                    .map(move |r| (agent_id(r, c).name, c.clone()))
+            })
             .collect()
     } else {
-        SERVICE_ROLES.iter().map(|r| (agent_id(r, SERVICES).name, SERVICES.to_string())).collect()
+        SERVICE_ROLES
+            .iter()
+            .map(|r| (agent_id(r, SERVICES).name, SERVICES.to_string()))
+            .collect()
     }
 }
 
@@ -113,7 +122,8 @@ impl Building {
     /// side. Places named `landmark...` are landmarks (relocalisation points), not destinations.
     pub fn from_map(map: Map) -> Result<Self, FleetError> {
         let plan_err = |reason: String| FleetError::Plan { reason };
-        let domain = Domain::parse(BUILDING_DOMAIN).map_err(|e| plan_err(format!("building domain: {e}")))?;
+        let domain = Domain::parse(BUILDING_DOMAIN)
+            .map_err(|e| plan_err(format!("building domain: {e}")))?;
         let grid = plan::raster(&map, |_| false)?;
         let rooms = Rooms::of(&map)?;
         let mut places = BTreeMap::new();
@@ -143,23 +153,31 @@ impl Building {
                 })
             };
             match (approach(1.0), approach(-1.0)) {
-                (Some(p), Some(q)) if rooms.at(&p) != rooms.at(&q) && free_near(&passable, mid).is_some() => {
+                (Some(p), Some(q))
+                    if rooms.at(&p) != rooms.at(&q) && free_near(&passable, mid).is_some() =>
+                {
                     // on the straight line between the two sides, so the chair drives through
                     // without turning in the doorway
                     let at = nalgebra::center(&p, &q);
                     let (a, b) = (format!("{name}-side-1"), format!("{name}-side-2"));
                     for (side, point) in [(&a, p), (&b, q)] {
                         if places.insert(side.clone(), point).is_some() {
-                            return Err(plan_err(format!("place `{side}` clashes with the planner's name for a side of door `{}`", door.id)));
+                            return Err(plan_err(format!(
+                                "place `{side}` clashes with the planner's name for a side of door `{}`",
+                                door.id
+                            )));
                         }
                         approaches.insert(side.clone());
                     }
                     doors.push(DoorPassage { name, a, b, at });
                 }
-                _ => tracing::warn!(door = %door.id, "door too narrow or with one room on both sides; the planner will not use it"),
+                _ => {
+                    tracing::warn!(door = %door.id, "door too narrow or with one room on both sides; the planner will not use it")
+                }
             }
         }
-        let room_of: BTreeMap<&String, Option<usize>> = places.iter().map(|(n, p)| (n, rooms.at(p))).collect();
+        let room_of: BTreeMap<&String, Option<usize>> =
+            places.iter().map(|(n, p)| (n, rooms.at(p))).collect();
         let mut connections = Vec::new();
         for (a, ra) in &room_of {
             for (b, rb) in &room_of {
@@ -170,41 +188,78 @@ impl Building {
         }
         let lanes: Vec<(Point2<f64>, Point2<f64>)> =
             doors.iter().map(|d| (places[&d.a], places[&d.b])).collect();
-        let grid = carve_lanes(&grid.inflated(WALL_CLEARANCE_M), &lanes)?.with_comfort(PATH_COMFORT_M);
+        let grid =
+            carve_lanes(&grid.inflated(WALL_CLEARANCE_M), &lanes)?.with_comfort(PATH_COMFORT_M);
         let passages = map
             .passages
             .iter()
-            .map(|p| NarrowPassage { name: p.name.clone(), a: p.a, b: p.b, width_m: p.width_m })
+            .map(|p| NarrowPassage {
+                name: p.name.clone(),
+                a: p.a,
+                b: p.b,
+                width_m: p.width_m,
+            })
             .collect();
-        Ok(Building { map, plan: BuildingMap { places, connections, doors, landmarks, passages }, approaches, grid, domain })
+        Ok(Building {
+            map,
+            plan: BuildingMap {
+                places,
+                connections,
+                doors,
+                landmarks,
+                passages,
+            },
+            approaches,
+            grid,
+            domain,
+        })
     }
 
     /// The building as chair `chair` starting at `t_world_body` plans on: with a place of its
     /// own there (`CHAIR-start`, returned too), connected to the places of its room (to the
     /// nearest place if it starts outside every room), so its first goal is always driven to.
-    pub fn with_start(&self, chair: &str, t_world_body: &Isometry2<f64>) -> Result<(BuildingMap, String), FleetError> {
+    pub fn with_start(
+        &self,
+        chair: &str,
+        t_world_body: &Isometry2<f64>,
+    ) -> Result<(BuildingMap, String), FleetError> {
         let p = Point2::from(t_world_body.translation.vector);
         let start = format!("{chair}-start");
         if self.plan.places.contains_key(&start) {
-            return Err(FleetError::Plan { reason: format!("place `{start}` clashes with the start place of chair `{chair}`") });
+            return Err(FleetError::Plan {
+                reason: format!("place `{start}` clashes with the start place of chair `{chair}`"),
+            });
         }
         let rooms = Rooms::of(&self.map)?;
         let room = rooms.at(&p);
-        let mut neighbours: Vec<String> =
-            self.plan.places.iter().filter(|(_, q)| room.is_some() && rooms.at(q) == room).map(|(n, _)| n.clone()).collect();
+        let mut neighbours: Vec<String> = self
+            .plan
+            .places
+            .iter()
+            .filter(|(_, q)| room.is_some() && rooms.at(q) == room)
+            .map(|(n, _)| n.clone())
+            .collect();
         if neighbours.is_empty() {
-            let nearest = self.plan.places.iter().min_by(|a, b| (a.1 - p).norm().total_cmp(&(b.1 - p).norm()));
+            let nearest = self
+                .plan
+                .places
+                .iter()
+                .min_by(|a, b| (a.1 - p).norm().total_cmp(&(b.1 - p).norm()));
             neighbours.extend(nearest.map(|(n, _)| n.clone()));
         }
         let mut plan = self.plan.clone();
         plan.places.insert(start.clone(), p);
-        plan.connections.extend(neighbours.into_iter().map(|n| (start.clone(), n)));
+        plan.connections
+            .extend(neighbours.into_iter().map(|n| (start.clone(), n)));
         Ok((plan, start))
     }
 
     /// The map's places (destinations), without the doors' sides.
     pub fn destinations(&self) -> impl Iterator<Item = (&String, &Point2<f64>)> {
-        self.plan.places.iter().filter(|(n, _)| !self.approaches.contains(*n))
+        self.plan
+            .places
+            .iter()
+            .filter(|(n, _)| !self.approaches.contains(*n))
     }
 
     /// The place at `target` (within 0.5 m), for goals given as points.
@@ -218,18 +273,28 @@ impl Building {
                     "({:.2}, {:.2}) is not a place of the map (places: {})",
                     target.x,
                     target.y,
-                    self.destinations().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+                    self.destinations()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ),
             })
     }
 }
 
 /// `grid` with every cell within half a cell of a lane's segment freed.
-fn carve_lanes(grid: &OccupancyGrid, lanes: &[(Point2<f64>, Point2<f64>)]) -> Result<OccupancyGrid, FleetError> {
+fn carve_lanes(
+    grid: &OccupancyGrid,
+    lanes: &[(Point2<f64>, Point2<f64>)],
+) -> Result<OccupancyGrid, FleetError> {
     let (width, height) = grid.size();
-    let mut occupied: Vec<bool> = (0..width * height).map(|i| grid.is_occupied((i % width) as i64, (i / width) as i64)).collect();
+    let mut occupied: Vec<bool> = (0..width * height)
+        .map(|i| grid.is_occupied((i % width) as i64, (i / width) as i64))
+        .collect();
     for (a, b) in lanes {
-        let steps = ((b - a).norm() / (plan::RESOLUTION_M / 4.0)).ceil().max(1.0) as usize;
+        let steps = ((b - a).norm() / (plan::RESOLUTION_M / 4.0))
+            .ceil()
+            .max(1.0) as usize;
         for k in 0..=steps {
             let p = a + (b - a) * (k as f64 / steps as f64);
             if let Some((col, row)) = grid.cell_of(&p) {
@@ -238,7 +303,11 @@ fn carve_lanes(grid: &OccupancyGrid, lanes: &[(Point2<f64>, Point2<f64>)]) -> Re
         }
     }
     let origin = grid.centre(0, 0) - Vector2::repeat(plan::RESOLUTION_M / 2.0);
-    OccupancyGrid::new(width, height, plan::RESOLUTION_M, origin, occupied).map_err(|e| FleetError::Plan { reason: e.to_string() })
+    OccupancyGrid::new(width, height, plan::RESOLUTION_M, origin, occupied).map_err(|e| {
+        FleetError::Plan {
+            reason: e.to_string(),
+        }
+    })
 }
 
 /// The centre of the free cell of `grid` nearest to `p`, within 0.3 m: the doorway's middle may
@@ -310,7 +379,9 @@ type Cached = (Box<dyn Body + Send>, Option<SensorFrame>);
 impl SharedBody {
     /// Shares `body`.
     pub fn new(body: impl Body + Send + 'static) -> Self {
-        SharedBody { inner: Arc::new(Mutex::new((Box::new(body), None))) }
+        SharedBody {
+            inner: Arc::new(Mutex::new((Box::new(body), None))),
+        }
     }
 }
 
@@ -355,18 +426,31 @@ pub fn chair_agents(
     visual: Option<VisualConfig>,
     recognizer: Recognizer<iw_interface::Command>,
 ) -> Result<ChairAgents, FleetError> {
-    let setup = |reason: String| FleetError::Setup { container: name.to_string(), reason };
-    let start = Pose2 { x: t_world_body.translation.x, y: t_world_body.translation.y, theta: t_world_body.rotation.angle() };
+    let setup = |reason: String| FleetError::Setup {
+        container: name.to_string(),
+        reason,
+    };
+    let start = Pose2 {
+        x: t_world_body.translation.x,
+        y: t_world_body.translation.y,
+        theta: t_world_body.rotation.angle(),
+    };
     let perception_id = agent_id("perception", name);
     let control_id = agent_id("control", name);
     let cognitive_id = agent_id("cognitive", name);
-    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(body.clone()), visual)
-        .map_err(|e| setup(e.to_string()))?;
-    let mut control_config = ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
+    let perception = PerceptionAgent::new(
+        PerceptionConfig::prototype(AgentId::new(name), start),
+        Box::new(body.clone()),
+        visual,
+    )
+    .map_err(|e| setup(e.to_string()))?;
+    let mut control_config =
+        ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep
     // into door posts when it lines up with a doorway.
     control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
-    let control = ControlAgent::new(control_config, Box::new(body)).map_err(|e| setup(e.to_string()))?;
+    let control =
+        ControlAgent::new(control_config, Box::new(body)).map_err(|e| setup(e.to_string()))?;
     let (plan, start_place) = building.with_start(name, t_world_body)?;
     let cognitive = CognitiveAgent::new(CognitiveConfig {
         chair: name.to_string(),
@@ -388,7 +472,11 @@ pub fn chair_agents(
     let inputs = InputQueue::default();
     let display = Arc::new(Mutex::new(Display::default()));
     let interface = InterfaceAgent::new(
-        InterfaceConfig { cognitive: cognitive_id.clone(), control: control_id.clone(), tick: Duration::from_millis(50) },
+        InterfaceConfig {
+            cognitive: cognitive_id.clone(),
+            control: control_id.clone(),
+            tick: Duration::from_millis(50),
+        },
         recognizer,
         inputs.clone(),
         display.clone(),
@@ -399,7 +487,11 @@ pub fn chair_agents(
         (cognitive_id, Box::new(cognitive)),
         (agent_id("interface", name), Box::new(interface)),
     ];
-    Ok(ChairAgents { agents, inputs, display })
+    Ok(ChairAgents {
+        agents,
+        inputs,
+        display,
+    })
 }
 
 /// What the service container is given.
@@ -422,7 +514,13 @@ impl ServiceConfig {
     /// No restricted doors, the log synced every 64 records (and every logger tick),
     /// [`PASS_LEASE`] leases.
     pub fn new(chairs: Vec<String>, log_path: PathBuf) -> Self {
-        ServiceConfig { chairs, log_path, sync: SyncPolicy::EveryN(64), restricted: BTreeMap::new(), lease: PASS_LEASE }
+        ServiceConfig {
+            chairs,
+            log_path,
+            sync: SyncPolicy::EveryN(64),
+            restricted: BTreeMap::new(),
+            lease: PASS_LEASE,
+        }
     }
 }
 
@@ -436,11 +534,20 @@ pub struct ServiceAgents {
 
 /// Composes the door, logger, watcher and assistant agents of `building`; `doors` moves the
 /// doors (the simulator's world or door controllers).
-pub fn service_agents(config: &ServiceConfig, building: &Building, doors: Box<dyn DoorActuator>) -> Result<ServiceAgents, FleetError> {
-    let setup = |reason: String| FleetError::Setup { container: SERVICES.to_string(), reason };
+pub fn service_agents(
+    config: &ServiceConfig,
+    building: &Building,
+    doors: Box<dyn DoorActuator>,
+) -> Result<ServiceAgents, FleetError> {
+    let setup = |reason: String| FleetError::Setup {
+        container: SERVICES.to_string(),
+        reason,
+    };
     for door in config.restricted.keys() {
         if !building.map.doors.iter().any(|d| &d.id == door) {
-            return Err(setup(format!("restricted door `{door}` is not a door of the map")));
+            return Err(setup(format!(
+                "restricted door `{door}` is not a door of the map"
+            )));
         }
     }
     let policies = building
@@ -451,23 +558,40 @@ pub fn service_agents(config: &ServiceConfig, building: &Building, doors: Box<dy
             let authorised = config.restricted.get(&d.id);
             let policy = DoorPolicy {
                 restricted: authorised.is_some(),
-                authorised: authorised.into_iter().flatten().map(|chair| agent_id("cognitive", chair).name).collect(),
+                authorised: authorised
+                    .into_iter()
+                    .flatten()
+                    .map(|chair| agent_id("cognitive", chair).name)
+                    .collect(),
             };
             (door_name(&d.id), policy)
         })
         .collect();
     let refusals = RefusalLog::default();
     let door = DoorAgent::new(DoorConfig { doors: policies }, doors, refusals.clone());
-    let logger = LoggerAgent::open(&LoggerConfig { path: config.log_path.clone(), policy: config.sync, sync_period: Duration::from_millis(500) })
-        .map_err(|e| setup(format!("log {}: {e}", config.log_path.display())))?;
+    let logger = LoggerAgent::open(&LoggerConfig {
+        path: config.log_path.clone(),
+        policy: config.sync,
+        sync_period: Duration::from_millis(500),
+    })
+    .map_err(|e| setup(format!("log {}: {e}", config.log_path.display())))?;
     let watcher = WatcherAgent::new(WatcherConfig {
-        passages: building.plan.passages.iter().map(|p| p.name.clone()).collect(),
+        passages: building
+            .plan
+            .passages
+            .iter()
+            .map(|p| p.name.clone())
+            .collect(),
         lease: config.lease,
         period: Duration::from_millis(100),
     })
     .map_err(|e| setup(e.to_string()))?;
     let assistant = AssistantAgent::new(AssistantConfig {
-        chairs: config.chairs.iter().map(|c| (c.clone(), agent_id("cognitive", c))).collect(),
+        chairs: config
+            .chairs
+            .iter()
+            .map(|c| (c.clone(), agent_id("cognitive", c)))
+            .collect(),
         staff: BTreeSet::new(),
     });
     let agents: Vec<(AgentId, Box<dyn Agent>)> = vec![
@@ -482,15 +606,30 @@ pub fn service_agents(config: &ServiceConfig, building: &Building, doors: Box<dy
 /// A tap for a container's host that sends the logger a copy of every message its agents send
 /// (not the logger's own copies and queries), so the log holds every message exchanged; also
 /// calls `also` with each message (counting, dashboards). Copies cross the bus like any message.
-pub fn log_tap(bus: Arc<Bus>, logger: AgentId, mut also: impl FnMut(&AclMessage) + Send + 'static) -> Tap {
+pub fn log_tap(
+    bus: Arc<Bus>,
+    logger: AgentId,
+    mut also: impl FnMut(&AclMessage) + Send + 'static,
+) -> Tap {
     Box::new(move |message: &AclMessage, now| {
-        if message.ontology.as_deref().is_some_and(|o| o.eq_ignore_ascii_case(LOG_ONTOLOGY)) {
+        if message
+            .ontology
+            .as_deref()
+            .is_some_and(|o| o.eq_ignore_ascii_case(LOG_ONTOLOGY))
+        {
             return;
         }
         also(message);
         let copy = copy_for_logger(message, &logger, now.0);
-        let sender = message.sender.as_ref().map_or("unknown", |s| s.name.as_str());
-        if let Err(err) = bus.send(sender, &logger.name, iw_acl::codec::print(&copy).into_bytes()) {
+        let sender = message
+            .sender
+            .as_ref()
+            .map_or("unknown", |s| s.name.as_str());
+        if let Err(err) = bus.send(
+            sender,
+            &logger.name,
+            iw_acl::codec::print(&copy).into_bytes(),
+        ) {
             tracing::warn!(error = %err, "copy for the logger not sent");
         }
     })

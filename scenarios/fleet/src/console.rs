@@ -31,12 +31,15 @@ pub struct GoalEvent {
 fn error_message(message: &AclMessage) -> Option<String> {
     let content = iw_sl::parse(message.content_text()?, iw_sl::Level::Full).ok()?;
     content.expressions.into_iter().find_map(|e| match e {
-        iw_sl::ContentExpression::Formula(iw_sl::Formula::Atomic { predicate, mut args }) if predicate == "error-message" && args.len() == 1 => {
-            match args.pop() {
-                Some(iw_sl::Term::Constant { value: iw_sl::Constant::String(text) }) => Some(text),
-                _ => None,
-            }
-        }
+        iw_sl::ContentExpression::Formula(iw_sl::Formula::Atomic {
+            predicate,
+            mut args,
+        }) if predicate == "error-message" && args.len() == 1 => match args.pop() {
+            Some(iw_sl::Term::Constant {
+                value: iw_sl::Constant::String(text),
+            }) => Some(text),
+            _ => None,
+        },
         _ => None,
     })
 }
@@ -69,23 +72,50 @@ impl Console {
         Console { desk, assistant }
     }
 
-    fn record(&self, ctx: &Context<'_>, conversation: String, from: String, performative: Performative, reason: Option<String>) {
+    fn record(
+        &self,
+        ctx: &Context<'_>,
+        conversation: String,
+        from: String,
+        performative: Performative,
+        reason: Option<String>,
+    ) {
         let time_s = ctx.now().0 as f64 * 1e-9;
-        desk(&self.desk).events.push(GoalEvent { conversation, from, performative: performative.to_string(), time_s, reason });
+        desk(&self.desk).events.push(GoalEvent {
+            conversation,
+            from,
+            performative: performative.to_string(),
+            time_s,
+            reason,
+        });
     }
 }
 
 impl Agent for Console {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let conversation = message.conversation_id.clone().unwrap_or_default();
-        let from = message.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default();
-        self.record(ctx, conversation, from, message.performative, error_message(&message));
+        let from = message
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
+        self.record(
+            ctx,
+            conversation,
+            from,
+            message.performative,
+            error_message(&message),
+        );
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
         let pending: Vec<(String, String, String)> = desk(&self.desk).outbox.drain(..).collect();
         for (conversation, chair, place) in pending {
-            let request = WheelchairContent::Request { actor: AgentId::new(chair), action: WheelchairAction::GoTo { place } }.fill(
+            let request = WheelchairContent::Request {
+                actor: AgentId::new(chair),
+                action: WheelchairAction::GoTo { place },
+            }
+            .fill(
                 AclMessage::new(Performative::Request)
                     .with_receiver(self.assistant.clone())
                     .with_protocol("fipa-request")
@@ -93,7 +123,13 @@ impl Agent for Console {
             );
             if ctx.send(request).is_err() {
                 let me = ctx.name().to_string();
-                self.record(ctx, conversation, me, Performative::Failure, Some("the request could not be sent".into()));
+                self.record(
+                    ctx,
+                    conversation,
+                    me,
+                    Performative::Failure,
+                    Some("the request could not be sent".into()),
+                );
             }
         }
     }

@@ -46,7 +46,10 @@ use std::time::Duration;
 
 use iw_acl::AclMessage;
 use iw_agent::{AgentHost, HostStats};
-use iw_body::{BoardEmulator, Body, BodyError, MixedBody, Odometry, SensorFrame, SerialBody, VirtualSensors, WheelGeometry, WheelSpeeds};
+use iw_body::{
+    BoardEmulator, Body, BodyError, MixedBody, Odometry, SensorFrame, SerialBody, VirtualSensors,
+    WheelGeometry, WheelSpeeds,
+};
 use iw_bus::{Bus, BusConfig, Clock, MockController, Stack, Time};
 use iw_door::{ActuatorFault, DoorActuator, Refusal, RefusalLog};
 use iw_interface::{Display, InputQueue, Recognizer};
@@ -56,8 +59,8 @@ use iw_sim::{ChairId, ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, Virt
 use nalgebra::{Isometry2, Point2};
 
 use compose::{Building, ServiceConfig, SharedBody, agent_id};
-use iw_perception_agent::VisualConfig;
 pub use console::{Console, Desk, GoalEvent, SharedDesk};
+use iw_perception_agent::VisualConfig;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
 
 /// The service container's endpoint name.
@@ -127,7 +130,9 @@ impl<B: Body> FaultyBody<B> {
 impl<B: Body> Body for FaultyBody<B> {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
         if self.failed.load(Ordering::Acquire) {
-            return Err(BodyError::Virtual { reason: "sensor failure injected".into() });
+            return Err(BodyError::Virtual {
+                reason: "sensor failure injected".into(),
+            });
         }
         self.inner.read()
     }
@@ -183,27 +188,51 @@ pub struct FleetOptions {
 /// most frames (with 4 mm it refused up to a fifth of them and the drift came back); frames the
 /// gate finds inconsistent (fast spins close to a wall) are not fused.
 fn sim_camera(world: &SharedWorld, id: ChairId, name: &str) -> Result<VisualConfig, FleetError> {
-    let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| FleetError::Setup { container: name.to_string(), reason: e.to_string() })?;
+    let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| FleetError::Setup {
+        container: name.to_string(),
+        reason: e.to_string(),
+    })?;
     Ok(VisualConfig {
         t_base_camera: camera.t_base_camera(),
         source: Box::new(camera),
-        vo: iw_sim::vo::sim_vo_config(iw_features::DetectorKind::LsacSurf, iw_vo::Pipeline::Keyframe),
-        motion_noise: nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(0.01f64.powi(2), 0.01f64.powi(2), 0.0005f64.powi(2))),
+        vo: iw_sim::vo::sim_vo_config(
+            iw_features::DetectorKind::LsacSurf,
+            iw_vo::Pipeline::Keyframe,
+        ),
+        motion_noise: nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            0.01f64.powi(2),
+            0.01f64.powi(2),
+            0.0005f64.powi(2),
+        )),
     })
 }
 
-fn bus_for(network: &LockstepNetwork, clock: &Clock, container: &str) -> Result<Arc<Bus>, FleetError> {
-    let setup = |reason: String| FleetError::Setup { container: container.to_string(), reason };
-    let transport = network.endpoint(container).map_err(|e| setup(e.to_string()))?;
-    let config = BusConfig { tick: Duration::from_millis(1), ..BusConfig::default() };
-    let bus = Bus::start(Stack::new(), Arc::new(transport), clock.clone(), config).map_err(|e| setup(e.to_string()))?;
+fn bus_for(
+    network: &LockstepNetwork,
+    clock: &Clock,
+    container: &str,
+) -> Result<Arc<Bus>, FleetError> {
+    let setup = |reason: String| FleetError::Setup {
+        container: container.to_string(),
+        reason,
+    };
+    let transport = network
+        .endpoint(container)
+        .map_err(|e| setup(e.to_string()))?;
+    let config = BusConfig {
+        tick: Duration::from_millis(1),
+        ..BusConfig::default()
+    };
+    let bus = Bus::start(Stack::new(), Arc::new(transport), clock.clone(), config)
+        .map_err(|e| setup(e.to_string()))?;
     Ok(Arc::new(bus))
 }
 
 /// Routes `host`'s bus to the agents of the other containers.
 fn route(host: &AgentHost, container: &str, chairs: &[String]) {
     for (agent, peer) in compose::remote_agents(container, chairs) {
-        host.bus().add_route(&agent, iw_bus::transport::PeerAddr(peer));
+        host.bus()
+            .add_route(&agent, iw_bus::transport::PeerAddr(peer));
     }
 }
 
@@ -217,9 +246,17 @@ struct Traffic {
 impl Traffic {
     fn saw(&self, message: &AclMessage) {
         self.sent.fetch_add(1, Ordering::AcqRel);
-        let from_cognitive = message.sender.as_ref().and_then(|s| s.name.strip_prefix("cognitive@"));
-        let (Some(chair), Ok(WheelchairContent::Request { action: WheelchairAction::Sequence { steps }, .. })) =
-            (from_cognitive, WheelchairContent::from_message(message))
+        let from_cognitive = message
+            .sender
+            .as_ref()
+            .and_then(|s| s.name.strip_prefix("cognitive@"));
+        let (
+            Some(chair),
+            Ok(WheelchairContent::Request {
+                action: WheelchairAction::Sequence { steps },
+                ..
+            }),
+        ) = (from_cognitive, WheelchairContent::from_message(message))
         else {
             return;
         };
@@ -230,13 +267,18 @@ impl Traffic {
                 _ => None,
             })
             .collect();
-        self.paths.lock().unwrap_or_else(PoisonError::into_inner).insert(chair.to_string(), points);
+        self.paths
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(chair.to_string(), points);
     }
 }
 
 fn tap_into(host: &mut AgentHost, traffic: &Arc<Traffic>) {
     let traffic = traffic.clone();
-    let tap = compose::log_tap(host.bus().clone(), agent_id("logger", SERVICES), move |m| traffic.saw(m));
+    let tap = compose::log_tap(host.bus().clone(), agent_id("logger", SERVICES), move |m| {
+        traffic.saw(m)
+    });
     host.set_tap(tap);
 }
 
@@ -245,7 +287,11 @@ fn tap_into(host: &mut AgentHost, traffic: &Arc<Traffic>) {
 struct PoseFeed(GhostSensors);
 
 impl VirtualSensors for PoseFeed {
-    fn sense_at(&mut self, t_world_body: Isometry2<f64>, time_ns: u64) -> Result<SensorFrame, BodyError> {
+    fn sense_at(
+        &mut self,
+        t_world_body: Isometry2<f64>,
+        time_ns: u64,
+    ) -> Result<SensorFrame, BodyError> {
         self.0.sense_at(t_world_body, time_ns)?;
         Ok(SensorFrame::empty(time_ns))
     }
@@ -260,19 +306,33 @@ fn body_for(
     t_world_body: Isometry2<f64>,
     failed: Arc<AtomicBool>,
 ) -> Result<(SharedBody, Option<BoardEmulator>), FleetError> {
-    let setup = |reason: String| FleetError::Setup { container: name.to_string(), reason };
+    let setup = |reason: String| FleetError::Setup {
+        container: name.to_string(),
+        reason,
+    };
     if kind == BodyKind::Virtual {
-        return Ok((SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), failed)), None));
+        return Ok((
+            SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), failed)),
+            None,
+        ));
     }
     let geometry = WheelGeometry::default();
-    let board = BoardEmulator::spawn(geometry, compose::CONTROL_PERIOD.as_nanos() as u64).map_err(|e| setup(e.to_string()))?;
-    let serial = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2)).map_err(|e| setup(e.to_string()))?;
+    let board = BoardEmulator::spawn(geometry, compose::CONTROL_PERIOD.as_nanos() as u64)
+        .map_err(|e| setup(e.to_string()))?;
+    let serial = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2))
+        .map_err(|e| setup(e.to_string()))?;
     let odometry = Odometry::new(geometry, t_world_body);
     let ghost = GhostSensors::new(world.clone(), id);
     let body = if kind == BodyKind::Mixed {
-        SharedBody::new(FaultyBody::new(MixedBody::new(serial, ghost, odometry), failed))
+        SharedBody::new(FaultyBody::new(
+            MixedBody::new(serial, ghost, odometry),
+            failed,
+        ))
     } else {
-        SharedBody::new(FaultyBody::new(MixedBody::new(serial, PoseFeed(ghost), odometry), failed))
+        SharedBody::new(FaultyBody::new(
+            MixedBody::new(serial, PoseFeed(ghost), odometry),
+            failed,
+        ))
     };
     Ok((body, Some(board)))
 }
@@ -319,12 +379,27 @@ struct WorldDoors {
 
 impl DoorActuator for WorldDoors {
     fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
-        let fault = |reason: String| ActuatorFault { door: door.to_string(), reason };
-        let id = self.ids.get(door).ok_or_else(|| fault("not a door of the map".into()))?;
-        if self.jammed.lock().unwrap_or_else(PoisonError::into_inner).contains(id) {
+        let fault = |reason: String| ActuatorFault {
+            door: door.to_string(),
+            reason,
+        };
+        let id = self
+            .ids
+            .get(door)
+            .ok_or_else(|| fault("not a door of the map".into()))?;
+        if self
+            .jammed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .contains(id)
+        {
             return Err(fault("jammed".into()));
         }
-        self.world.lock().unwrap_or_else(PoisonError::into_inner).set_door(id, open).map_err(|e| fault(e.to_string()))
+        self.world
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .set_door(id, open)
+            .map_err(|e| fault(e.to_string()))
     }
 }
 
@@ -407,16 +482,29 @@ impl Fleet {
 
     /// A fleet of `chairs` on `map` with real or mixed bodies, restricted doors and a log path
     /// as `options` say.
-    pub fn with_options(map: Map, seed: u64, chairs: &[ChairConfig], options: FleetOptions) -> Result<Self, FleetError> {
+    pub fn with_options(
+        map: Map,
+        seed: u64,
+        chairs: &[ChairConfig],
+        options: FleetOptions,
+    ) -> Result<Self, FleetError> {
         let mut names: Vec<String> = Vec::new();
         for c in chairs {
-            if c.name == SERVICES || names.contains(&c.name) || c.name.contains('@') || c.name.is_empty() {
-                return Err(FleetError::DuplicateChair { name: c.name.clone() });
+            if c.name == SERVICES
+                || names.contains(&c.name)
+                || c.name.contains('@')
+                || c.name.is_empty()
+            {
+                return Err(FleetError::DuplicateChair {
+                    name: c.name.clone(),
+                });
             }
             names.push(c.name.clone());
         }
         if let Some(unknown) = options.bodies.keys().find(|n| !names.contains(n)) {
-            return Err(FleetError::NoSuchChair { name: unknown.clone() });
+            return Err(FleetError::NoSuchChair {
+                name: unknown.clone(),
+            });
         }
         let (clock, controller) = Clock::mock(Time::from_ns(0));
         let network = LockstepNetwork::new();
@@ -426,51 +514,102 @@ impl Fleet {
             .iter()
             .map(|c| {
                 let kind = options.bodies.get(&c.name).copied().unwrap_or_default();
-                let sim_kind = if kind == BodyKind::Virtual { ChairKind::Simulated } else { ChairKind::Tracked };
+                let sim_kind = if kind == BodyKind::Virtual {
+                    ChairKind::Simulated
+                } else {
+                    ChairKind::Tracked
+                };
                 world.add_chair(ChairSpec::default(), c.t_world_body, sim_kind)
             })
             .collect();
         let world = iw_sim::shared(world);
         let traffic = Arc::new(Traffic::default());
         let log = match options.log_path {
-            Some(path) => LogFile { path, temporary: false },
+            Some(path) => LogFile {
+                path,
+                temporary: false,
+            },
             None => {
                 static FLEETS: AtomicU64 = AtomicU64::new(0);
                 let n = FLEETS.fetch_add(1, Ordering::AcqRel);
-                let path = std::env::temp_dir().join(format!("iw-fleet-{}-{n}.log", std::process::id()));
+                let path =
+                    std::env::temp_dir().join(format!("iw-fleet-{}-{n}.log", std::process::id()));
                 let _ = std::fs::remove_file(&path); // a stale file of a dead process with our pid
-                LogFile { path, temporary: true }
+                LogFile {
+                    path,
+                    temporary: true,
+                }
             }
         };
         let jammed = Arc::new(Mutex::new(BTreeSet::new()));
 
         let mut host = AgentHost::new(bus_for(&network, &clock, SERVICES)?);
-        let service_config = ServiceConfig { restricted: options.restricted, ..ServiceConfig::new(names.clone(), log.path.clone()) };
-        let ids_by_name = building.map.doors.iter().map(|d| (compose::door_name(&d.id), d.id.clone())).collect();
-        let doors = WorldDoors { world: world.clone(), ids: ids_by_name, jammed: jammed.clone() };
+        let service_config = ServiceConfig {
+            restricted: options.restricted,
+            ..ServiceConfig::new(names.clone(), log.path.clone())
+        };
+        let ids_by_name = building
+            .map
+            .doors
+            .iter()
+            .map(|d| (compose::door_name(&d.id), d.id.clone()))
+            .collect();
+        let doors = WorldDoors {
+            world: world.clone(),
+            ids: ids_by_name,
+            jammed: jammed.clone(),
+        };
         let service_agents = compose::service_agents(&service_config, &building, Box::new(doors))?;
         let add_err = |container: &str| {
             let container = container.to_string();
-            move |e: iw_agent::AgentError| FleetError::Setup { container: container.clone(), reason: e.to_string() }
+            move |e: iw_agent::AgentError| FleetError::Setup {
+                container: container.clone(),
+                reason: e.to_string(),
+            }
         };
         for (aid, agent) in service_agents.agents {
             host.add(aid, agent).map_err(add_err(SERVICES))?;
         }
         let desk = SharedDesk::default();
-        host.add(agent_id("staff", SERVICES), Box::new(Console::new(desk.clone(), agent_id("assistant", SERVICES))))
-            .map_err(add_err(SERVICES))?;
+        host.add(
+            agent_id("staff", SERVICES),
+            Box::new(Console::new(desk.clone(), agent_id("assistant", SERVICES))),
+        )
+        .map_err(add_err(SERVICES))?;
         route(&host, SERVICES, &names);
         tap_into(&mut host, &traffic);
-        let services = ServiceContainer { host, desk, refusals: service_agents.refusals };
+        let services = ServiceContainer {
+            host,
+            desk,
+            refusals: service_agents.refusals,
+        };
 
         let mut containers = Vec::new();
         for (config, id) in chairs.iter().zip(ids) {
             let name = &config.name;
             let kind = options.bodies.get(name).copied().unwrap_or_default();
             let sensor_failed = Arc::new(AtomicBool::new(false));
-            let (body, board) = body_for(kind, name, &world, id, config.t_world_body, sensor_failed.clone())?;
-            let visual = if options.visual_odometry && kind == BodyKind::Virtual { Some(sim_camera(&world, id, name)?) } else { None };
-            let agents = compose::chair_agents(name, &config.t_world_body, &building, body, visual, Recognizer::new(1500))?;
+            let (body, board) = body_for(
+                kind,
+                name,
+                &world,
+                id,
+                config.t_world_body,
+                sensor_failed.clone(),
+            )?;
+            let visual = if options.visual_odometry && kind == BodyKind::Virtual {
+                Some(sim_camera(&world, id, name)?)
+            } else {
+                None
+            };
+            let agents = compose::chair_agents(
+                name,
+                &config.t_world_body,
+                &building,
+                body,
+                visual,
+                Recognizer::new(1500),
+            )?;
             let mut host = AgentHost::new(bus_for(&network, &clock, name)?);
             for (aid, agent) in agents.agents {
                 host.add(aid, agent).map_err(add_err(name))?;
@@ -489,11 +628,26 @@ impl Fleet {
             });
         }
         let goals = containers.iter().map(|_| None).collect();
-        Ok(Fleet { world, clock: controller, network, building, chairs: containers, goals, services, jammed, traffic, conversations: 0, log })
+        Ok(Fleet {
+            world,
+            clock: controller,
+            network,
+            building,
+            chairs: containers,
+            goals,
+            services,
+            jammed,
+            traffic,
+            conversations: 0,
+            log,
+        })
     }
 
     fn index(&self, chair: &str) -> Result<usize, FleetError> {
-        self.chairs.iter().position(|c| c.name == chair).ok_or_else(|| FleetError::NoSuchChair { name: chair.into() })
+        self.chairs
+            .iter()
+            .position(|c| c.name == chair)
+            .ok_or_else(|| FleetError::NoSuchChair { name: chair.into() })
     }
 
     fn world(&self) -> std::sync::MutexGuard<'_, World> {
@@ -522,12 +676,28 @@ impl Fleet {
     /// Returns the goal's conversation id; its answers arrive in [`Fleet::goal_events`].
     pub fn goal_place(&mut self, chair: &str, place: &str) -> Result<String, FleetError> {
         let i = self.index(chair)?;
-        let target = self.building.destinations().find(|(n, _)| *n == place).map(|(_, p)| *p).ok_or_else(|| FleetError::Plan {
-            reason: format!("no place `{place}` (places: {})", self.building.destinations().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")),
-        })?;
+        let target = self
+            .building
+            .destinations()
+            .find(|(n, _)| *n == place)
+            .map(|(_, p)| *p)
+            .ok_or_else(|| FleetError::Plan {
+                reason: format!(
+                    "no place `{place}` (places: {})",
+                    self.building
+                        .destinations()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            })?;
         self.conversations += 1;
         let conversation = format!("goal-{}-{}", chair, self.conversations);
-        console::desk(&self.services.desk).outbox.push_back((conversation.clone(), chair.to_string(), place.to_string()));
+        console::desk(&self.services.desk).outbox.push_back((
+            conversation.clone(),
+            chair.to_string(),
+            place.to_string(),
+        ));
         self.goals[i] = Some(Goal { target });
         Ok(conversation)
     }
@@ -582,13 +752,22 @@ impl Fleet {
             let i = self.index(container)?;
             self.chairs[i].host.remove(&name, now)
         };
-        if removed { Ok(()) } else { Err(FleetError::NoSuchAgent { container: container.into(), agent: agent.into() }) }
+        if removed {
+            Ok(())
+        } else {
+            Err(FleetError::NoSuchAgent {
+                container: container.into(),
+                agent: agent.into(),
+            })
+        }
     }
 
     /// Fails (or restores) every sensor read of `chair`.
     pub fn set_sensor_failure(&mut self, chair: &str, failed: bool) -> Result<(), FleetError> {
         let i = self.index(chair)?;
-        self.chairs[i].sensor_failed.store(failed, Ordering::Release);
+        self.chairs[i]
+            .sensor_failed
+            .store(failed, Ordering::Release);
         Ok(())
     }
 
@@ -596,13 +775,22 @@ impl Fleet {
     /// actuator faults on it.
     pub fn jam_door(&mut self, door: &str) -> Result<(), FleetError> {
         self.world().set_door(door, false)?;
-        self.jammed.lock().unwrap_or_else(PoisonError::into_inner).insert(door.to_string());
+        self.jammed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(door.to_string());
         Ok(())
     }
 
     /// Opens or closes `door` by hand (a jammed door stays closed).
     pub fn set_door(&mut self, door: &str, open: bool) -> Result<(), FleetError> {
-        if open && self.jammed.lock().unwrap_or_else(PoisonError::into_inner).contains(door) {
+        if open
+            && self
+                .jammed
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .contains(door)
+        {
             self.world().door_is_open(door)?;
             return Ok(());
         }
@@ -617,7 +805,11 @@ impl Fleet {
 
     /// The door agent's refusals so far.
     pub fn door_refusals(&self) -> Vec<Refusal> {
-        self.services.refusals.lock().unwrap_or_else(PoisonError::into_inner).clone()
+        self.services
+            .refusals
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
     }
 
     /// Where raw inputs for `chair`'s interface agent go (joystick, voice, ...).
@@ -627,7 +819,11 @@ impl Fleet {
 
     /// What `chair`'s interface agent shows.
     pub fn display(&self, chair: &str) -> Result<Display, FleetError> {
-        Ok(self.chairs[self.index(chair)?].display.lock().unwrap_or_else(PoisonError::into_inner).clone())
+        Ok(self.chairs[self.index(chair)?]
+            .display
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone())
     }
 
     /// `chair`'s body kind.
@@ -649,7 +845,10 @@ impl Fleet {
     /// Records in the logger agent's log, read back from its file.
     pub fn messages_logged(&self) -> Result<u64, FleetError> {
         let records = iw_logger::read_records(&self.log.path, iw_logger::DEFAULT_MAX_RECORD_LEN)
-            .map_err(|e| FleetError::Setup { container: SERVICES.into(), reason: format!("reading the log: {e}") })?;
+            .map_err(|e| FleetError::Setup {
+                container: SERVICES.into(),
+                reason: format!("reading the log: {e}"),
+            })?;
         Ok(records.len() as u64)
     }
 
@@ -660,7 +859,11 @@ impl Fleet {
 
     /// Per-container agent host statistics, chairs first then `services`.
     pub fn host_stats(&self) -> Vec<(String, HostStats)> {
-        let mut out: Vec<(String, HostStats)> = self.chairs.iter().map(|c| (c.name.clone(), c.host.stats())).collect();
+        let mut out: Vec<(String, HostStats)> = self
+            .chairs
+            .iter()
+            .map(|c| (c.name.clone(), c.host.stats()))
+            .collect();
         out.push((SERVICES.to_string(), self.services.host.stats()));
         out
     }
@@ -673,7 +876,12 @@ impl Fleet {
 
     /// The fleet now.
     pub fn snapshot(&self) -> Snapshot {
-        let paths = self.traffic.paths.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        let paths = self
+            .traffic
+            .paths
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone();
         let world = self.world();
         let chairs = self
             .chairs
@@ -683,9 +891,16 @@ impl Fleet {
                 let pose = world.pose(c.id).unwrap_or_else(|_| Isometry2::identity());
                 ChairSnapshot {
                     name: c.name.clone(),
-                    pose: [pose.translation.x, pose.translation.y, pose.rotation.angle()],
+                    pose: [
+                        pose.translation.x,
+                        pose.translation.y,
+                        pose.rotation.angle(),
+                    ],
                     twist: world.twist(c.id).map(|(v, w)| [v, w]).unwrap_or([0.0, 0.0]),
-                    sonar_m: world.sensors(c.id).map(|s| s.sonar_m.to_vec()).unwrap_or_default(),
+                    sonar_m: world
+                        .sensors(c.id)
+                        .map(|s| s.sonar_m.to_vec())
+                        .unwrap_or_default(),
                     collisions: world.collisions(c.id).unwrap_or(0),
                     distance_m: world.distance_m(c.id).unwrap_or(0.0),
                     goal: goal.as_ref().map(|g| [g.target.x, g.target.y]),
@@ -694,7 +909,12 @@ impl Fleet {
                 }
             })
             .collect();
-        let doors = world.map().doors.iter().map(|d| (d.id.clone(), world.door_is_open(&d.id).unwrap_or(d.open))).collect();
+        let doors = world
+            .map()
+            .doors
+            .iter()
+            .map(|d| (d.id.clone(), world.door_is_open(&d.id).unwrap_or(d.open)))
+            .collect();
         Snapshot {
             time_s: self.clock.now().0 as f64 * 1e-9,
             chairs,

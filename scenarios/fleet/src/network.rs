@@ -55,7 +55,10 @@ impl Default for LockstepNetwork {
     fn default() -> Self {
         LockstepNetwork {
             inner: InProcNetwork::new(),
-            shared: Arc::new(Shared { state: Mutex::new(State::default()), in_flight: AtomicI64::new(0) }),
+            shared: Arc::new(Shared {
+                state: Mutex::new(State::default()),
+                in_flight: AtomicI64::new(0),
+            }),
         }
     }
 }
@@ -142,10 +145,23 @@ impl FrameTransport for LockstepTransport {
         let from = &self.local_addr().0;
         let dropped = state.down.contains(from) || state.down.contains(&to.0);
         let (sender, receiver, acl) = match FrameCodec::new().decode_datagram(frame) {
-            Ok(env) => (env.header.sender, env.header.receiver, String::from_utf8_lossy(&env.payload).into_owned()),
-            Err(e) => (from.clone(), to.0.clone(), format!("<undecodable frame: {e}>")),
+            Ok(env) => (
+                env.header.sender,
+                env.header.receiver,
+                String::from_utf8_lossy(&env.payload).into_owned(),
+            ),
+            Err(e) => (
+                from.clone(),
+                to.0.clone(),
+                format!("<undecodable frame: {e}>"),
+            ),
         };
-        state.exchanges.push(Exchange { sender, receiver, acl, dropped });
+        state.exchanges.push(Exchange {
+            sender,
+            receiver,
+            acl,
+            dropped,
+        });
         if dropped {
             return Ok(()); // a lost link loses frames silently, as a radio does
         }
@@ -159,15 +175,24 @@ impl FrameTransport for LockstepTransport {
 
     fn recv_timeout(&self, timeout: Duration) -> Result<Option<Frame>, TransportError> {
         if !timeout.is_zero() {
-            self.shared.in_flight.fetch_sub(self.handed.swap(0, Ordering::AcqRel), Ordering::AcqRel);
+            self.shared
+                .in_flight
+                .fetch_sub(self.handed.swap(0, Ordering::AcqRel), Ordering::AcqRel);
         }
         if lock(&self.shared.state).open {
-            let stashed = self.stash.lock().unwrap_or_else(PoisonError::into_inner).pop_front();
+            let stashed = self
+                .stash
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .pop_front();
             if let Some(frame) = stashed {
                 return Ok(self.hand_over(frame));
             }
         }
-        let Some(frame) = self.inner.recv_timeout(timeout.min(Duration::from_millis(1)))? else {
+        let Some(frame) = self
+            .inner
+            .recv_timeout(timeout.min(Duration::from_millis(1)))?
+        else {
             return Ok(None);
         };
         // Decide under the state lock, so a settle cannot close between the check and the hand-over.
@@ -176,7 +201,10 @@ impl FrameTransport for LockstepTransport {
             drop(state);
             Ok(self.hand_over(frame))
         } else {
-            self.stash.lock().unwrap_or_else(PoisonError::into_inner).push_back(frame);
+            self.stash
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .push_back(frame);
             Ok(None)
         }
     }

@@ -45,7 +45,13 @@ pub struct ContainerSection {
 
 impl Default for ContainerSection {
     fn default() -> Self {
-        ContainerSection { id: 0, heartbeat_ms: 50, lease_ms: 250, step_ms: 20, shutdown_grace_ms: 300 }
+        ContainerSection {
+            id: 0,
+            heartbeat_ms: 50,
+            lease_ms: 250,
+            step_ms: 20,
+            shutdown_grace_ms: 300,
+        }
     }
 }
 
@@ -66,7 +72,11 @@ impl std::str::FromStr for TransportKind {
         match s {
             "udp" => Ok(TransportKind::Udp),
             "iceoryx2" => Ok(TransportKind::Iceoryx2),
-            other => Err(NodeError::Flag { flag: "--transport", value: other.into(), reason: "expected `udp` or `iceoryx2`".into() }),
+            other => Err(NodeError::Flag {
+                flag: "--transport",
+                value: other.into(),
+                reason: "expected `udp` or `iceoryx2`".into(),
+            }),
         }
     }
 }
@@ -89,7 +99,12 @@ pub struct TransportSection {
 
 impl Default for TransportSection {
     fn default() -> Self {
-        TransportSection { kind: TransportKind::Udp, listen: "127.0.0.1:7700".into(), advertise: String::new(), peers: Vec::new() }
+        TransportSection {
+            kind: TransportKind::Udp,
+            listen: "127.0.0.1:7700".into(),
+            advertise: String::new(),
+            peers: Vec::new(),
+        }
     }
 }
 
@@ -110,7 +125,11 @@ pub struct SecuritySection {
 
 impl Default for SecuritySection {
     fn default() -> Self {
-        SecuritySection { identity_key: String::new(), control_key: String::new(), layers: "all".into() }
+        SecuritySection {
+            identity_key: String::new(),
+            control_key: String::new(),
+            layers: "all".into(),
+        }
     }
 }
 
@@ -126,7 +145,10 @@ pub struct WorldSection {
 
 impl Default for WorldSection {
     fn default() -> Self {
-        WorldSection { map: String::new(), seed: 1 }
+        WorldSection {
+            map: String::new(),
+            seed: 1,
+        }
     }
 }
 
@@ -161,7 +183,13 @@ pub struct BodySection {
 
 impl Default for BodySection {
     fn default() -> Self {
-        BodySection { kind: BodyKind::Virtual, port: String::new(), baud: 115_200, timeout_ms: 200, start: [1.0, 6.0, 0.0] }
+        BodySection {
+            kind: BodyKind::Virtual,
+            port: String::new(),
+            baud: 115_200,
+            timeout_ms: 200,
+            start: [1.0, 6.0, 0.0],
+        }
     }
 }
 
@@ -187,42 +215,76 @@ pub struct ServicesSection {
 
 impl Default for ServicesSection {
     fn default() -> Self {
-        ServicesSection { goals: Vec::new(), pose_report_ms: 1000 }
+        ServicesSection {
+            goals: Vec::new(),
+            pose_report_ms: 1000,
+        }
     }
 }
 
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
-        toml::from_str(text).map_err(|e| NodeError::Config { file: file.into(), reason: e.to_string() })
+        toml::from_str(text).map_err(|e| NodeError::Config {
+            file: file.into(),
+            reason: e.to_string(),
+        })
     }
 
     /// Reads and parses a configuration file.
     pub fn load(path: &Path) -> Result<SpawnConfig, NodeError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| NodeError::Config { file: path.display().to_string(), reason: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| NodeError::Config {
+            file: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
         SpawnConfig::parse(&text, &path.display().to_string())
     }
 
     /// Checks what the types cannot: periods, addresses, a port for a real body.
     pub fn validate(&self, role: &crate::Role) -> Result<(), NodeError> {
-        let bad = |key: &str, reason: String| Err(NodeError::Config { file: key.into(), reason });
+        let bad = |key: &str, reason: String| {
+            Err(NodeError::Config {
+                file: key.into(),
+                reason,
+            })
+        };
         let c = &self.container;
-        for (key, value) in [("container.heartbeat_ms", c.heartbeat_ms), ("container.step_ms", c.step_ms)] {
+        for (key, value) in [
+            ("container.heartbeat_ms", c.heartbeat_ms),
+            ("container.step_ms", c.step_ms),
+        ] {
             if value == 0 || value > 10_000 {
                 return bad(key, format!("{value} ms is outside 1..=10000"));
             }
         }
         if c.lease_ms <= c.heartbeat_ms {
-            return bad("container.lease_ms", format!("{} ms must exceed the heartbeat period ({} ms)", c.lease_ms, c.heartbeat_ms));
+            return bad(
+                "container.lease_ms",
+                format!(
+                    "{} ms must exceed the heartbeat period ({} ms)",
+                    c.lease_ms, c.heartbeat_ms
+                ),
+            );
         }
         if self.transport.listen.is_empty() {
             return bad("transport.listen", "empty".into());
         }
-        self.security.layers.parse::<iw_bus::LayerSet>().map_err(|e| NodeError::Config { file: "security.layers".into(), reason: e.to_string() })?;
+        self.security
+            .layers
+            .parse::<iw_bus::LayerSet>()
+            .map_err(|e| NodeError::Config {
+                file: "security.layers".into(),
+                reason: e.to_string(),
+            })?;
         if let crate::Role::Chair { .. } = role {
             if self.body.kind != BodyKind::Virtual && self.body.port.is_empty() {
-                return bad("body.port", format!("a {:?} body needs the serial port of its board", self.body.kind));
+                return bad(
+                    "body.port",
+                    format!(
+                        "a {:?} body needs the serial port of its board",
+                        self.body.kind
+                    ),
+                );
             }
             if self.body.start.iter().any(|v| !v.is_finite()) {
                 return bad("body.start", format!("{:?} is not finite", self.body.start));
@@ -239,10 +301,17 @@ mod tests {
 
     #[test]
     fn empty_file_is_the_default_and_unknown_keys_are_refused() {
-        assert_eq!(SpawnConfig::parse("", "t.toml").unwrap(), SpawnConfig::default());
-        let err = SpawnConfig::parse("[container]\nheartbeat = 5\n", "t.toml").unwrap_err().to_string();
+        assert_eq!(
+            SpawnConfig::parse("", "t.toml").unwrap(),
+            SpawnConfig::default()
+        );
+        let err = SpawnConfig::parse("[container]\nheartbeat = 5\n", "t.toml")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("t.toml") && err.contains("heartbeat"), "{err}");
-        let err = SpawnConfig::parse("[body]\nkind = \"wooden\"\n", "t.toml").unwrap_err().to_string();
+        let err = SpawnConfig::parse("[body]\nkind = \"wooden\"\n", "t.toml")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("wooden"), "{err}");
     }
 
@@ -250,11 +319,17 @@ mod tests {
     fn validation_names_the_key() {
         let mut config = SpawnConfig::default();
         config.container.lease_ms = 10;
-        let err = config.validate(&crate::Role::Services).unwrap_err().to_string();
+        let err = config
+            .validate(&crate::Role::Services)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("container.lease_ms"), "{err}");
         let mut config = SpawnConfig::default();
         config.body.kind = BodyKind::Serial;
-        let err = config.validate(&crate::Role::Chair { name: "c".into() }).unwrap_err().to_string();
+        let err = config
+            .validate(&crate::Role::Chair { name: "c".into() })
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("body.port"), "{err}");
     }
 

@@ -67,9 +67,32 @@ pub struct Dispatcher {
 impl Dispatcher {
     /// A dispatcher planning on `grid`, with `goals` (chair, place name, place) to give, reporting
     /// poses at most every `report_every`.
-    pub fn new(grid: OccupancyGrid, goals: Vec<(String, String, Point2<f64>)>, roster: Roster, report_every: Duration, events: Sender<Event>) -> Self {
-        let goals = goals.into_iter().map(|(chair, place, target)| Goal { chair, place, target, state: GoalState::Waiting }).collect();
-        Dispatcher { grid, goals, roster, subscribed: BTreeSet::new(), last_report: BTreeMap::new(), report_every, conversations: 0, events }
+    pub fn new(
+        grid: OccupancyGrid,
+        goals: Vec<(String, String, Point2<f64>)>,
+        roster: Roster,
+        report_every: Duration,
+        events: Sender<Event>,
+    ) -> Self {
+        let goals = goals
+            .into_iter()
+            .map(|(chair, place, target)| Goal {
+                chair,
+                place,
+                target,
+                state: GoalState::Waiting,
+            })
+            .collect();
+        Dispatcher {
+            grid,
+            goals,
+            roster,
+            subscribed: BTreeSet::new(),
+            last_report: BTreeMap::new(),
+            report_every,
+            conversations: 0,
+            events,
+        }
     }
 
     fn emit(&self, event: Event) {
@@ -77,13 +100,33 @@ impl Dispatcher {
         let _ = self.events.send(event);
     }
 
-    fn on_pose(&mut self, ctx: &mut Context<'_>, chair: &str, position: Point2<f64>, theta_rad: f64) {
-        let due = self.last_report.get(chair).is_none_or(|last| ctx.now() >= last.plus(self.report_every));
+    fn on_pose(
+        &mut self,
+        ctx: &mut Context<'_>,
+        chair: &str,
+        position: Point2<f64>,
+        theta_rad: f64,
+    ) {
+        let due = self
+            .last_report
+            .get(chair)
+            .is_none_or(|last| ctx.now() >= last.plus(self.report_every));
         if due {
             self.last_report.insert(chair.to_string(), ctx.now());
-            self.emit(Event::Pose { chair: chair.into(), x_m: position.x, y_m: position.y, theta_rad });
+            self.emit(Event::Pose {
+                chair: chair.into(),
+                x_m: position.x,
+                y_m: position.y,
+                theta_rad,
+            });
         }
-        let Some(i) = self.goals.iter().position(|g| g.chair == chair && g.state == GoalState::Waiting) else { return };
+        let Some(i) = self
+            .goals
+            .iter()
+            .position(|g| g.chair == chair && g.state == GoalState::Waiting)
+        else {
+            return;
+        };
         self.conversations += 1;
         let number = self.conversations;
         self.goals[i].state = GoalState::Sent(number);
@@ -100,9 +143,16 @@ impl Dispatcher {
             Ok(path) => path,
             Err(e) => return self.emit(failed(format!("no path to `{}`: {e}", goal.place))),
         };
-        let steps = waypoints(&path.waypoints, WAYPOINT_SPACING_M).into_iter().map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y }).collect();
+        let steps = waypoints(&path.waypoints, WAYPOINT_SPACING_M)
+            .into_iter()
+            .map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y })
+            .collect();
         let actor = AgentId::new(format!("control@{chair}"));
-        let request = WheelchairContent::Request { actor: actor.clone(), action: WheelchairAction::Sequence { steps } }.fill(
+        let request = WheelchairContent::Request {
+            actor: actor.clone(),
+            action: WheelchairAction::Sequence { steps },
+        }
+        .fill(
             AclMessage::new(Performative::Request)
                 .with_receiver(actor)
                 .with_protocol("fipa-request")
@@ -114,7 +164,9 @@ impl Dispatcher {
     }
 
     fn on_answer(&self, message: &AclMessage) {
-        let Some(conversation) = message.conversation_id.as_deref() else { return };
+        let Some(conversation) = message.conversation_id.as_deref() else {
+            return;
+        };
         let goal = self.goals.iter().find(|g| matches!(g.state, GoalState::Sent(n) if conversation == format!("goal-{}-{n}", g.chair)));
         if let Some(goal) = goal {
             self.emit(Event::Goal {
@@ -131,20 +183,34 @@ impl Dispatcher {
 impl Agent for Dispatcher {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         if message.performative == Performative::Inform
-            && let Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) = WheelchairContent::from_message(&message)
+            && let Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) =
+                WheelchairContent::from_message(&message)
         {
             let position = Point2::new(pose.x_m, pose.y_m);
             return self.on_pose(ctx, &agent.name, position, pose.theta_rad);
         }
-        if message.conversation_id.as_deref().is_some_and(|c| c.starts_with("goal-")) {
+        if message
+            .conversation_id
+            .as_deref()
+            .is_some_and(|c| c.starts_with("goal-"))
+        {
             self.on_answer(&message);
         }
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let present: BTreeSet<String> = self.roster.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        let present: BTreeSet<String> = self
+            .roster
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone();
         // A chair that left loses its subscription and gets its goal again when it is back.
-        let gone: Vec<String> = self.subscribed.iter().filter(|c| !present.contains(&format!("perception@{c}"))).cloned().collect();
+        let gone: Vec<String> = self
+            .subscribed
+            .iter()
+            .filter(|c| !present.contains(&format!("perception@{c}")))
+            .cloned()
+            .collect();
         for chair in gone {
             self.subscribed.remove(&chair);
             for goal in self.goals.iter_mut().filter(|g| g.chair == chair) {
@@ -152,7 +218,9 @@ impl Agent for Dispatcher {
             }
         }
         for agent in &present {
-            let Some(chair) = agent.strip_prefix("perception@") else { continue };
+            let Some(chair) = agent.strip_prefix("perception@") else {
+                continue;
+            };
             if self.subscribed.contains(chair) {
                 continue;
             }

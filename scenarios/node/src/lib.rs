@@ -40,8 +40,8 @@ mod event;
 mod runtime;
 
 pub use config::{
-    BodyKind, BodySection, ContainerSection, GoalSpec, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
-    WorldSection,
+    BodyKind, BodySection, ContainerSection, GoalSpec, SecuritySection, ServicesSection,
+    SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
 pub use dispatcher::{Dispatcher, Roster};
 pub use event::Event;

@@ -12,9 +12,9 @@ use iw_agent::AgentHost;
 use iw_body::{Body, MixedBody, Odometry, SerialBody, WheelGeometry};
 use iw_bus::transport::{FrameTransport, PeerAddr};
 use iw_bus::{Bus, BusConfig, Clock, LayerSet};
-use iw_fleet::compose::SharedBody;
 use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode};
 use iw_control_agent::{ControlAgent, ControlConfig};
+use iw_fleet::compose::SharedBody;
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
 use iw_sim::{ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
 use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
@@ -43,12 +43,23 @@ pub fn control_addr(kind: TransportKind, addr: &str) -> Result<String, NodeError
     match kind {
         TransportKind::Iceoryx2 => Ok(format!("{addr}-ctl")),
         TransportKind::Udp => {
-            let bad = |reason: &str| NodeError::Transport { addr: addr.into(), reason: reason.into() };
-            let (host, port) = addr.rsplit_once(':').ok_or_else(|| bad("expected `host:port`"))?;
-            let port: u16 = port.parse().map_err(|_| bad("the port is not a number in 1..=65534"))?;
+            let bad = |reason: &str| NodeError::Transport {
+                addr: addr.into(),
+                reason: reason.into(),
+            };
+            let (host, port) = addr
+                .rsplit_once(':')
+                .ok_or_else(|| bad("expected `host:port`"))?;
+            let port: u16 = port
+                .parse()
+                .map_err(|_| bad("the port is not a number in 1..=65534"))?;
             match port {
-                0 => Err(bad("port 0 cannot be used: the control channel takes the next port, so both must be known")),
-                u16::MAX => Err(bad("port 65535 leaves no next port for the control channel")),
+                0 => Err(bad(
+                    "port 0 cannot be used: the control channel takes the next port, so both must be known",
+                )),
+                u16::MAX => Err(bad(
+                    "port 65535 leaves no next port for the control channel",
+                )),
                 p => Ok(format!("{host}:{}", p + 1)),
             }
         }
@@ -56,7 +67,10 @@ pub fn control_addr(kind: TransportKind, addr: &str) -> Result<String, NodeError
 }
 
 fn open_transport(kind: TransportKind, addr: &str) -> Result<Arc<dyn FrameTransport>, NodeError> {
-    let bad = |e: iw_bus::transport::TransportError| NodeError::Transport { addr: addr.into(), reason: e.to_string() };
+    let bad = |e: iw_bus::transport::TransportError| NodeError::Transport {
+        addr: addr.into(),
+        reason: e.to_string(),
+    };
     Ok(match kind {
         TransportKind::Udp => Arc::new(UdpTransport::bind(addr).map_err(bad)?),
         TransportKind::Iceoryx2 => Arc::new(ShmTransport::open(addr).map_err(bad)?),
@@ -66,23 +80,34 @@ fn open_transport(kind: TransportKind, addr: &str) -> Result<Arc<dyn FrameTransp
 /// Writes a new Ed25519 identity to `path` (PKCS#8, mode 0600, fsynced); refuses to overwrite.
 pub fn write_identity(path: &Path) -> Result<PublicKey, NodeError> {
     use std::io::Write;
-    let bad = |reason: String| NodeError::Key { path: path.display().to_string(), reason };
+    let bad = |reason: String| NodeError::Key {
+        path: path.display().to_string(),
+        reason,
+    };
     let identity = Identity::generate().map_err(|e| bad(e.to_string()))?;
     let mut options = std::fs::OpenOptions::new();
     options.write(true).create_new(true);
     #[cfg(unix)]
     std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
     let mut file = options.open(path).map_err(|e| bad(e.to_string()))?;
-    file.write_all(identity.pkcs8()).and_then(|()| file.sync_all()).map_err(|e| bad(e.to_string()))?;
+    file.write_all(identity.pkcs8())
+        .and_then(|()| file.sync_all())
+        .map_err(|e| bad(e.to_string()))?;
     Ok(identity.public_key())
 }
 
 fn load_identity(path: &str) -> Result<Identity, NodeError> {
     if path.is_empty() {
         tracing::warn!("no security.identity_key: using a fresh key for this run only");
-        return Identity::generate().map_err(|e| NodeError::Key { path: "<generated>".into(), reason: e.to_string() });
+        return Identity::generate().map_err(|e| NodeError::Key {
+            path: "<generated>".into(),
+            reason: e.to_string(),
+        });
     }
-    let bad = |reason: String| NodeError::Key { path: path.into(), reason };
+    let bad = |reason: String| NodeError::Key {
+        path: path.into(),
+        reason,
+    };
     let pkcs8 = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
     Identity::from_pkcs8(&pkcs8).map_err(|e| bad(e.to_string()))
 }
@@ -94,11 +119,17 @@ fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
         tracing::warn!("no security.control_key: container control traffic is not authenticated");
         return Ok(None);
     }
-    let bad = |reason: String| NodeError::ControlKey { path: path.into(), reason };
+    let bad = |reason: String| NodeError::ControlKey {
+        path: path.into(),
+        reason,
+    };
     let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
     let hex = text.trim();
     if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(bad(format!("expected 64 hex digits, found {} characters", hex.chars().count())));
+        return Err(bad(format!(
+            "expected 64 hex digits, found {} characters",
+            hex.chars().count()
+        )));
     }
     let mut key = [0u8; 32];
     for (i, byte) in key.iter_mut().enumerate() {
@@ -109,10 +140,15 @@ fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
 
 fn load_map(path: &str) -> Result<Map, NodeError> {
     if path.is_empty() {
-        return Map::parse(SAMPLE_BUILDING, "sample-building.map")
-            .map_err(|e| NodeError::Map { map: "embedded sample building".into(), reason: e.to_string() });
+        return Map::parse(SAMPLE_BUILDING, "sample-building.map").map_err(|e| NodeError::Map {
+            map: "embedded sample building".into(),
+            reason: e.to_string(),
+        });
     }
-    Map::load(path).map_err(|e| NodeError::Map { map: path.into(), reason: e.to_string() })
+    Map::load(path).map_err(|e| NodeError::Map {
+        map: path.into(),
+        reason: e.to_string(),
+    })
 }
 
 /// The id a container gets when the configuration leaves it 0: the services 1 (they lead), a
@@ -122,7 +158,9 @@ fn derived_id(role: &Role) -> u64 {
         Role::Services => 1,
         Role::Chair { name } => {
             // FNV-1a: stable across builds and platforms, unlike the std hasher
-            let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3));
+            let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+                (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+            });
             1000 + hash % 1_000_000_000
         }
     }
@@ -143,60 +181,110 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
     let [x, y, heading_deg] = config.body.start;
     let t_world_body = Isometry2::new(Vector2::new(x, y), heading_deg.to_radians());
     let serial = || {
-        SerialBody::open(&config.body.port, config.body.baud, Duration::from_millis(config.body.timeout_ms))
-            .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
+        SerialBody::open(
+            &config.body.port,
+            config.body.baud,
+            Duration::from_millis(config.body.timeout_ms),
+        )
+        .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
     };
     let (body, world) = match config.body.kind {
         BodyKind::Serial => (SharedBody::new(serial()?), None),
         BodyKind::Virtual | BodyKind::Mixed => {
             let mut world = World::new(load_map(&config.world.map)?, config.world.seed);
-            let kind = if config.body.kind == BodyKind::Virtual { ChairKind::Simulated } else { ChairKind::Tracked };
+            let kind = if config.body.kind == BodyKind::Virtual {
+                ChairKind::Simulated
+            } else {
+                ChairKind::Tracked
+            };
             let id = world.add_chair(ChairSpec::default(), t_world_body, kind);
             let world = iw_sim::shared(world);
             let body = if config.body.kind == BodyKind::Virtual {
                 SharedBody::new(VirtualBody::new(world.clone(), id))
             } else {
                 let ghost = GhostSensors::new(world.clone(), id);
-                SharedBody::new(MixedBody::new(serial()?, ghost, Odometry::new(WheelGeometry::default(), t_world_body)))
+                SharedBody::new(MixedBody::new(
+                    serial()?,
+                    ghost,
+                    Odometry::new(WheelGeometry::default(), t_world_body),
+                ))
             };
             (body, Some(world))
         }
     };
-    let setup = |reason: String| NodeError::Setup { container: name.into(), reason };
-    let start = Pose2 { x, y, theta: heading_deg.to_radians() };
+    let setup = |reason: String| NodeError::Setup {
+        container: name.into(),
+        reason,
+    };
+    let start = Pose2 {
+        x,
+        y,
+        theta: heading_deg.to_radians(),
+    };
     let perception_id = AgentId::new(format!("perception@{name}"));
-    let perception = PerceptionAgent::new(PerceptionConfig::prototype(AgentId::new(name), start), Box::new(body.clone()), None)
+    let perception = PerceptionAgent::new(
+        PerceptionConfig::prototype(AgentId::new(name), start),
+        Box::new(body.clone()),
+        None,
+    )
+    .map_err(|e| setup(e.to_string()))?;
+    let control_config =
+        ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
+    let control = ControlAgent::new(control_config, Box::new(body.clone()))
         .map_err(|e| setup(e.to_string()))?;
-    let control_config = ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
-    let control = ControlAgent::new(control_config, Box::new(body.clone())).map_err(|e| setup(e.to_string()))?;
     Ok(ChairParts {
-        agents: vec![(perception_id, Box::new(perception)), (AgentId::new(format!("control@{name}")), Box::new(control))],
+        agents: vec![
+            (perception_id, Box::new(perception)),
+            (AgentId::new(format!("control@{name}")), Box::new(control)),
+        ],
         world,
         body,
     })
 }
 
-fn service_agents(config: &SpawnConfig, roster: Roster, events: Sender<Event>) -> Result<Agents, NodeError> {
-    let map_name = if config.world.map.is_empty() { "embedded sample building" } else { &config.world.map };
+fn service_agents(
+    config: &SpawnConfig,
+    roster: Roster,
+    events: Sender<Event>,
+) -> Result<Agents, NodeError> {
+    let map_name = if config.world.map.is_empty() {
+        "embedded sample building"
+    } else {
+        &config.world.map
+    };
     let map = load_map(&config.world.map)?;
-    let grid = iw_fleet::plan::raster(&map, |door| map.doors.iter().any(|d| d.id == door && !d.open))
-        .map_err(|e| NodeError::Map { map: map_name.into(), reason: e.to_string() })?
-        .inflated(CLEARANCE_M);
+    let grid = iw_fleet::plan::raster(&map, |door| {
+        map.doors.iter().any(|d| d.id == door && !d.open)
+    })
+    .map_err(|e| NodeError::Map {
+        map: map_name.into(),
+        reason: e.to_string(),
+    })?
+    .inflated(CLEARANCE_M);
     let goals = config
         .services
         .goals
         .iter()
         .map(|g| {
-            let target = map.place(&g.place).or_else(|| parse_point(&g.place)).ok_or_else(|| NodeError::Map {
-                map: map_name.into(),
-                reason: format!("goal of {}: `{}` is neither a place of the map nor `x,y` in metres", g.chair, g.place),
-            })?;
+            let target = map
+                .place(&g.place)
+                .or_else(|| parse_point(&g.place))
+                .ok_or_else(|| NodeError::Map {
+                    map: map_name.into(),
+                    reason: format!(
+                        "goal of {}: `{}` is neither a place of the map nor `x,y` in metres",
+                        g.chair, g.place
+                    ),
+                })?;
             Ok((g.chair.clone(), g.place.clone(), target))
         })
         .collect::<Result<Vec<_>, NodeError>>()?;
     let report_every = Duration::from_millis(config.services.pose_report_ms);
     let dispatcher = Dispatcher::new(grid, goals, roster, report_every, events);
-    Ok(vec![(AgentId::new(format!("dispatcher@{SERVICES}")), Box::new(dispatcher))])
+    Ok(vec![(
+        AgentId::new(format!("dispatcher@{SERVICES}")),
+        Box::new(dispatcher),
+    )])
 }
 
 /// `x,y` in metres, both finite.
@@ -230,11 +318,25 @@ pub struct Runtime {
 
 impl Runtime {
     /// Binds, registers and starts everything `config` asks for `role`; reports [`Event::Ready`].
-    pub fn start(role: &Role, config: SpawnConfig, events: Sender<Event>) -> Result<Runtime, NodeError> {
+    pub fn start(
+        role: &Role,
+        config: SpawnConfig,
+        events: Sender<Event>,
+    ) -> Result<Runtime, NodeError> {
         config.validate(role)?;
         let name = role.name().to_string();
-        let setup = |reason: String| NodeError::Setup { container: name.clone(), reason };
-        let layers: LayerSet = config.security.layers.parse().map_err(|e: iw_bus::BusError| NodeError::Config { file: "security.layers".into(), reason: e.to_string() })?;
+        let setup = |reason: String| NodeError::Setup {
+            container: name.clone(),
+            reason,
+        };
+        let layers: LayerSet = config
+            .security
+            .layers
+            .parse()
+            .map_err(|e: iw_bus::BusError| NodeError::Config {
+                file: "security.layers".into(),
+                reason: e.to_string(),
+            })?;
         let identity = Arc::new(load_identity(&config.security.identity_key)?);
         let control_key = load_control_key(&config.security.control_key)?;
         let roster: Roster = Arc::new(Mutex::new(BTreeSet::new()));
@@ -243,25 +345,41 @@ impl Runtime {
                 let parts = chair_parts(name, &config)?;
                 (parts.agents, parts.world, Some(parts.body))
             }
-            Role::Services => (service_agents(&config, roster.clone(), events.clone())?, None, None),
+            Role::Services => (
+                service_agents(&config, roster.clone(), events.clone())?,
+                None,
+                None,
+            ),
         };
 
         let t = &config.transport;
-        let advertise = if t.advertise.is_empty() { t.listen.clone() } else { t.advertise.clone() };
+        let advertise = if t.advertise.is_empty() {
+            t.listen.clone()
+        } else {
+            t.advertise.clone()
+        };
         let bus_transport = open_transport(t.kind, &t.listen)?;
         let control_listen = control_addr(t.kind, &t.listen)?;
         let control_transport = open_transport(t.kind, &control_listen)?;
-        let seeds = t.peers.iter().map(|p| control_addr(t.kind, p).map(PeerAddr)).collect::<Result<Vec<_>, _>>()?;
+        let seeds = t
+            .peers
+            .iter()
+            .map(|p| control_addr(t.kind, p).map(PeerAddr))
+            .collect::<Result<Vec<_>, _>>()?;
 
         let platform = Platform::new();
         let names: Vec<&str> = agents.iter().map(|(aid, _)| aid.name.as_str()).collect();
         for agent in &names {
             platform.register(agent, identity.public_key());
         }
-        let node = iw_stack::Node { identity: identity.clone(), agents: names.iter().map(|a| a.to_string()).collect() };
+        let node = iw_stack::Node {
+            identity: identity.clone(),
+            agents: names.iter().map(|a| a.to_string()).collect(),
+        };
         let stack = platform.stack(&node, &StackConfig::with_layers(layers));
         let clock = Clock::system();
-        let bus = Bus::start(stack, bus_transport, clock.clone(), BusConfig::default()).map_err(|e| setup(e.to_string()))?;
+        let bus = Bus::start(stack, bus_transport, clock.clone(), BusConfig::default())
+            .map_err(|e| setup(e.to_string()))?;
         let mut host = AgentHost::new(Arc::new(bus));
         let agent_names: Vec<String> = names.iter().map(|a| a.to_string()).collect();
         for (aid, agent) in agents {
@@ -272,7 +390,9 @@ impl Runtime {
             0 => derived_id(role),
             id => id,
         };
-        let incarnation = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as u32);
+        let incarnation = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs() as u32);
         let container_config = ContainerConfig {
             incarnation,
             heartbeat_ms: config.container.heartbeat_ms,
@@ -281,19 +401,45 @@ impl Runtime {
         };
         let mut container = Container::new(container_config);
         for agent in &agent_names {
-            container.register(AgentEntry { name: agent.clone(), public_key: identity.public_key().to_vec(), addr: PeerAddr(advertise.clone()) });
+            container.register(AgentEntry {
+                name: agent.clone(),
+                public_key: identity.public_key().to_vec(),
+                addr: PeerAddr(advertise.clone()),
+            });
         }
         let control_transport: Arc<dyn FrameTransport> = match control_key {
             Some(key) => Arc::new(
-                GuardedTransport::new(control_transport, &format!("container-{id}.{incarnation}"), key, clock.clone())
-                    .map_err(|e| setup(e.to_string()))?,
+                GuardedTransport::new(
+                    control_transport,
+                    &format!("container-{id}.{incarnation}"),
+                    key,
+                    clock.clone(),
+                )
+                .map_err(|e| setup(e.to_string()))?,
             ),
             None => control_transport,
         };
-        let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK).map_err(|e| setup(e.to_string()))?;
+        let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK)
+            .map_err(|e| setup(e.to_string()))?;
         // a closed receiver only means nobody is listening to reports
-        let _ = events.send(Event::Ready { container: name.clone(), id, bus: advertise, agents: agent_names });
-        Ok(Runtime { name, config, host, platform, container: Some(container), installed: BTreeMap::new(), roster, world, body, events })
+        let _ = events.send(Event::Ready {
+            container: name.clone(),
+            id,
+            bus: advertise,
+            agents: agent_names,
+        });
+        Ok(Runtime {
+            name,
+            config,
+            host,
+            platform,
+            container: Some(container),
+            installed: BTreeMap::new(),
+            roster,
+            world,
+            body,
+            events,
+        })
     }
 
     /// Steps the agents (and a virtual body's world) every `container.step_ms` of real time until
@@ -308,7 +454,10 @@ impl Runtime {
             self.host.step(now);
             if let Some(world) = &self.world {
                 let dt_s = now.since(last).as_secs_f64().min(MAX_SIM_STEP_S);
-                iw_sim::step(&mut world.lock().unwrap_or_else(PoisonError::into_inner), dt_s);
+                iw_sim::step(
+                    &mut world.lock().unwrap_or_else(PoisonError::into_inner),
+                    dt_s,
+                );
             }
             last = now;
             std::thread::sleep(period.saturating_sub(clock.now().since(now)));
@@ -319,7 +468,9 @@ impl Runtime {
     /// Routes and trusts exactly the other containers' agents the GAL lists under a live
     /// container; reports who joined and who left.
     fn sync_agent_lists(&mut self) {
-        let Some(container) = &self.container else { return };
+        let Some(container) = &self.container else {
+            return;
+        };
         let present: BTreeMap<String, Installed> = container.with(|c| {
             let live = c.live_peers();
             c.gal()
@@ -327,18 +478,32 @@ impl Runtime {
                 .filter(|(id, _)| live.contains(id))
                 .filter_map(|(id, e)| {
                     let key = <PublicKey>::try_from(e.public_key.as_slice()).ok()?;
-                    Some((e.name.clone(), Installed { container: id, key, addr: e.addr.clone() }))
+                    Some((
+                        e.name.clone(),
+                        Installed {
+                            container: id,
+                            key,
+                            addr: e.addr.clone(),
+                        },
+                    ))
                 })
                 .collect()
         });
         let bus = self.host.bus().clone();
-        let gone: Vec<(String, Installed)> =
-            self.installed.iter().filter(|(name, was)| present.get(*name) != Some(was)).map(|(n, w)| (n.clone(), w.clone())).collect();
+        let gone: Vec<(String, Installed)> = self
+            .installed
+            .iter()
+            .filter(|(name, was)| present.get(*name) != Some(was))
+            .map(|(n, w)| (n.clone(), w.clone()))
+            .collect();
         for (agent, was) in gone {
             self.platform.deregister(&agent);
             bus.remove_route(&agent);
             self.installed.remove(&agent);
-            let _ = self.events.send(Event::Left { agent, container: was.container.0 });
+            let _ = self.events.send(Event::Left {
+                agent,
+                container: was.container.0,
+            });
         }
         for (agent, entry) in present {
             if self.installed.contains_key(&agent) {
@@ -346,10 +511,14 @@ impl Runtime {
             }
             self.platform.register(&agent, entry.key);
             bus.add_route(&agent, entry.addr.clone());
-            let _ = self.events.send(Event::Joined { agent: agent.clone(), container: entry.container.0 });
+            let _ = self.events.send(Event::Joined {
+                agent: agent.clone(),
+                container: entry.container.0,
+            });
             self.installed.insert(agent, entry);
         }
-        *self.roster.lock().unwrap_or_else(PoisonError::into_inner) = self.installed.keys().cloned().collect();
+        *self.roster.lock().unwrap_or_else(PoisonError::into_inner) =
+            self.installed.keys().cloned().collect();
     }
 
     fn shutdown(mut self) {
@@ -368,10 +537,14 @@ impl Runtime {
                 }
             });
             // The leader asks for the new list with its next heartbeat; give it that long.
-            std::thread::sleep(Duration::from_millis(self.config.container.shutdown_grace_ms));
+            std::thread::sleep(Duration::from_millis(
+                self.config.container.shutdown_grace_ms,
+            ));
             container.stop();
         }
-        let _ = self.events.send(Event::Stopped { container: self.name.clone() });
+        let _ = self.events.send(Event::Stopped {
+            container: self.name.clone(),
+        });
     }
 }
 
@@ -384,14 +557,27 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("control.key");
         std::fs::write(&path, format!("{}\n", "0f".repeat(32))).unwrap();
-        assert_eq!(load_control_key(path.to_str().unwrap()).unwrap(), Some([0x0f; 32]));
+        assert_eq!(
+            load_control_key(path.to_str().unwrap()).unwrap(),
+            Some([0x0f; 32])
+        );
         assert_eq!(load_control_key("").unwrap(), None);
         for bad in ["0f".repeat(31), "zz".repeat(32), "é".repeat(64)] {
             std::fs::write(&path, &bad).unwrap();
-            let err = load_control_key(path.to_str().unwrap()).unwrap_err().to_string();
-            assert!(err.contains("control.key") && err.contains("64 hex digits"), "{err}");
+            let err = load_control_key(path.to_str().unwrap())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("control.key") && err.contains("64 hex digits"),
+                "{err}"
+            );
         }
         let missing = dir.path().join("missing.key");
-        assert!(load_control_key(missing.to_str().unwrap()).unwrap_err().to_string().contains("missing.key"));
+        assert!(
+            load_control_key(missing.to_str().unwrap())
+                .unwrap_err()
+                .to_string()
+                .contains("missing.key")
+        );
     }
 }

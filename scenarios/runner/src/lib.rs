@@ -176,7 +176,10 @@ pub enum Fault {
 impl Fault {
     fn at_s(&self) -> f64 {
         match self {
-            Fault::LinkLoss { at_s, .. } | Fault::KillAgent { at_s, .. } | Fault::SensorFailure { at_s, .. } | Fault::JammedDoor { at_s, .. } => *at_s,
+            Fault::LinkLoss { at_s, .. }
+            | Fault::KillAgent { at_s, .. }
+            | Fault::SensorFailure { at_s, .. }
+            | Fault::JammedDoor { at_s, .. } => *at_s,
         }
     }
 }
@@ -296,54 +299,101 @@ impl Scenario {
     /// Reads and parses `path`.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ScenarioError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::parse(&text, path)
     }
 
     /// Parses `text` as if read from `path`.
     pub fn parse(text: &str, path: &Path) -> Result<Self, ScenarioError> {
-        let mut scenario: Scenario =
-            toml::from_str(text).map_err(|e| ScenarioError::Parse { path: path.display().to_string(), reason: e.to_string() })?;
+        let mut scenario: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
         scenario.source = path.to_path_buf();
         Ok(scenario)
     }
 
     fn invalid(&self, entry: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
-        ScenarioError::Invalid { path: self.source.display().to_string(), entry: entry.into(), reason: reason.into() }
+        ScenarioError::Invalid {
+            path: self.source.display().to_string(),
+            entry: entry.into(),
+            reason: reason.into(),
+        }
     }
 
     /// The map, resolved beside the scenario file.
     pub fn load_map(&self) -> Result<Map, ScenarioError> {
         let base = self.source.parent().unwrap_or(Path::new("."));
-        Map::load(base.join(&self.map)).map_err(|source| ScenarioError::Map { path: self.source.display().to_string(), source })
+        Map::load(base.join(&self.map)).map_err(|source| ScenarioError::Map {
+            path: self.source.display().to_string(),
+            source,
+        })
     }
 
     /// Checks names and numbers against `map`.
     pub fn validate(&self, map: &Map) -> Result<(), ScenarioError> {
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(self.duration_s) || self.duration_s > 3600.0 {
-            return Err(self.invalid("duration_s", format!("{} is not in (0, 3600] s", self.duration_s)));
+            return Err(self.invalid(
+                "duration_s",
+                format!("{} is not in (0, 3600] s", self.duration_s),
+            ));
         }
         if self.step_ms == 0 || self.step_ms > 1000 {
-            return Err(self.invalid("step_ms", format!("{} is not in [1, 1000] ms", self.step_ms)));
+            return Err(self.invalid(
+                "step_ms",
+                format!("{} is not in [1, 1000] ms", self.step_ms),
+            ));
         }
         if self.chairs.is_empty() {
             return Err(self.invalid("chair", "a scenario needs at least one chair"));
         }
         let chair = |entry: String, name: &str| {
-            if self.chairs.iter().any(|c| c.name == name) { Ok(()) } else { Err(self.invalid(entry, format!("no chair `{name}`"))) }
+            if self.chairs.iter().any(|c| c.name == name) {
+                Ok(())
+            } else {
+                Err(self.invalid(entry, format!("no chair `{name}`")))
+            }
         };
         let time = |entry: String, t: f64| {
-            if t.is_finite() && t >= 0.0 { Ok(()) } else { Err(self.invalid(entry, format!("time {t} s is not a non-negative number"))) }
+            if t.is_finite() && t >= 0.0 {
+                Ok(())
+            } else {
+                Err(self.invalid(entry, format!("time {t} s is not a non-negative number")))
+            }
         };
         let door = |entry: String, id: &str| {
-            if map.doors.iter().any(|d| d.id == id) { Ok(()) } else { Err(self.invalid(entry, format!("no door `{id}` in the map"))) }
+            if map.doors.iter().any(|d| d.id == id) {
+                Ok(())
+            } else {
+                Err(self.invalid(entry, format!("no door `{id}` in the map")))
+            }
         };
-        let container = |entry: String, name: &str| if name == iw_fleet::SERVICES { Ok(()) } else { chair(entry, name) };
+        let container = |entry: String, name: &str| {
+            if name == iw_fleet::SERVICES {
+                Ok(())
+            } else {
+                chair(entry, name)
+            }
+        };
         for (i, c) in self.chairs.iter().enumerate() {
-            self.start_of(c, map).map_err(|reason| self.invalid(format!("chair[{i}]"), reason))?;
-            if c.name.is_empty() || c.name == iw_fleet::SERVICES || c.name.contains('@') || self.chairs[..i].iter().any(|o| o.name == c.name) {
-                return Err(self.invalid(format!("chair[{i}]"), format!("name `{}` is empty, reserved, has `@` or is used twice", c.name)));
+            self.start_of(c, map)
+                .map_err(|reason| self.invalid(format!("chair[{i}]"), reason))?;
+            if c.name.is_empty()
+                || c.name == iw_fleet::SERVICES
+                || c.name.contains('@')
+                || self.chairs[..i].iter().any(|o| o.name == c.name)
+            {
+                return Err(self.invalid(
+                    format!("chair[{i}]"),
+                    format!(
+                        "name `{}` is empty, reserved, has `@` or is used twice",
+                        c.name
+                    ),
+                ));
             }
         }
         for (i, r) in self.restricted.iter().enumerate() {
@@ -355,7 +405,8 @@ impl Scenario {
         for (i, g) in self.goals.iter().enumerate() {
             chair(format!("goal[{i}]"), &g.chair)?;
             time(format!("goal[{i}]"), g.at_s)?;
-            self.goal_point(g, map).map_err(|reason| self.invalid(format!("goal[{i}]"), reason))?;
+            self.goal_point(g, map)
+                .map_err(|reason| self.invalid(format!("goal[{i}]"), reason))?;
         }
         for (i, d) in self.doors.iter().enumerate() {
             door(format!("door[{i}]"), &d.door)?;
@@ -365,14 +416,20 @@ impl Scenario {
             let entry = format!("fault[{i}]");
             time(entry.clone(), f.at_s())?;
             match f {
-                Fault::LinkLoss { container: c, for_s, .. } => {
+                Fault::LinkLoss {
+                    container: c,
+                    for_s,
+                    ..
+                } => {
                     container(entry.clone(), c)?;
                     if let Some(d) = for_s {
                         time(entry, *d)?;
                     }
                 }
                 Fault::KillAgent { container: c, .. } => container(entry, c)?,
-                Fault::SensorFailure { chair: c, for_s, .. } => {
+                Fault::SensorFailure {
+                    chair: c, for_s, ..
+                } => {
                     chair(entry.clone(), c)?;
                     if let Some(d) = for_s {
                         time(entry, *d)?;
@@ -385,11 +442,17 @@ impl Scenario {
             let entry = format!("assert[{i}]");
             match a {
                 Assertion::NoCollision { chair: Some(c) } => chair(entry, c)?,
-                Assertion::GoalReached { chair: c, by_s, within_m } => {
+                Assertion::GoalReached {
+                    chair: c,
+                    by_s,
+                    within_m,
+                } => {
                     chair(entry.clone(), c)?;
                     time(entry.clone(), *by_s)?;
                     if !positive(*within_m) {
-                        return Err(self.invalid(entry, format!("within_m {within_m} must be positive")));
+                        return Err(
+                            self.invalid(entry, format!("within_m {within_m} must be positive"))
+                        );
                     }
                     if !self.goals.iter().any(|g| &g.chair == c) {
                         return Err(self.invalid(entry, format!("chair `{c}` is given no goal")));
@@ -408,7 +471,9 @@ impl Scenario {
                     door(entry, d)?;
                 }
                 Assertion::DoorFailed { door: d } => door(entry, d)?,
-                Assertion::NoCollision { chair: None } | Assertion::MessagesDropped { .. } | Assertion::AllMessagesLogged => {}
+                Assertion::NoCollision { chair: None }
+                | Assertion::MessagesDropped { .. }
+                | Assertion::AllMessagesLogged => {}
             }
         }
         Ok(())
@@ -423,13 +488,18 @@ impl Scenario {
             (None, Some([x, y, deg])) if x.is_finite() && y.is_finite() && deg.is_finite() => {
                 Ok(Isometry2::new(Vector2::new(x, y), deg.to_radians()))
             }
-            _ => Err("give exactly one of `start` (a name) or `pose` ([x, y, heading_deg], finite)".into()),
+            _ => Err(
+                "give exactly one of `start` (a name) or `pose` ([x, y, heading_deg], finite)"
+                    .into(),
+            ),
         }
     }
 
     fn goal_point(&self, goal: &GoalEntry, map: &Map) -> Result<Point2<f64>, String> {
         match (&goal.place, goal.xy) {
-            (Some(name), None) => map.place(name).ok_or_else(|| format!("no place `{name}` in the map")),
+            (Some(name), None) => map
+                .place(name)
+                .ok_or_else(|| format!("no place `{name}` in the map")),
             (None, Some([x, y])) if x.is_finite() && y.is_finite() => Ok(Point2::new(x, y)),
             _ => Err("give exactly one of `place` (a name) or `xy` ([x, y], finite)".into()),
         }
@@ -494,7 +564,10 @@ pub struct Report {
 impl Report {
     /// The human-readable report.
     pub fn render(&self) -> String {
-        let mut out = format!("scenario {} (seed {}), {:.1} s simulated\n", self.name, self.seed, self.simulated_s);
+        let mut out = format!(
+            "scenario {} (seed {}), {:.1} s simulated\n",
+            self.name, self.seed, self.simulated_s
+        );
         for line in &self.timeline {
             out.push_str(&format!("  {line}\n"));
         }
@@ -510,10 +583,21 @@ impl Report {
                 c.agents.join(" ")
             ));
         }
-        out.push_str(&format!("  {} messages between containers, {} dropped\n", self.messages, self.dropped));
-        out.push_str(&format!("  {} messages sent by agents, {} in the log\n", self.sent, self.logged));
+        out.push_str(&format!(
+            "  {} messages between containers, {} dropped\n",
+            self.messages, self.dropped
+        ));
+        out.push_str(&format!(
+            "  {} messages sent by agents, {} in the log\n",
+            self.sent, self.logged
+        ));
         for o in &self.outcomes {
-            out.push_str(&format!("  [{}] {}: {}\n", if o.passed { "PASS" } else { "FAIL" }, o.assertion, o.detail));
+            out.push_str(&format!(
+                "  [{}] {}: {}\n",
+                if o.passed { "PASS" } else { "FAIL" },
+                o.assertion,
+                o.detail
+            ));
         }
         out.push_str(if self.passed { "PASS\n" } else { "FAIL\n" });
         out
@@ -545,42 +629,71 @@ pub fn run(scenario: &Scenario) -> Result<Report, ScenarioError> {
 }
 
 /// [`run`], calling `progress(step, steps)` after each step.
-pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)) -> Result<Report, ScenarioError> {
+pub fn run_with_progress(
+    scenario: &Scenario,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<Report, ScenarioError> {
     let mut map = scenario.load_map()?;
     scenario.validate(&map)?;
     // A goal given as a point becomes a place of the map, so the cognitive agents can plan to it.
     for (i, g) in scenario.goals.iter().enumerate() {
         if let Some([x, y]) = g.xy {
             let position = Point2::new(x, y);
-            if !map.places.iter().any(|p| (p.position - position).norm() <= 0.5) {
-                map.places.push(iw_sim::Place { name: format!("goal-{i}"), position });
+            if !map
+                .places
+                .iter()
+                .any(|p| (p.position - position).norm() <= 0.5)
+            {
+                map.places.push(iw_sim::Place {
+                    name: format!("goal-{i}"),
+                    position,
+                });
             }
         }
     }
     let path = scenario.source.display().to_string();
     let fleet_err = |time_s: f64| {
         let path = path.clone();
-        move |source: FleetError| ScenarioError::Fleet { path, time_s, source }
+        move |source: FleetError| ScenarioError::Fleet {
+            path,
+            time_s,
+            source,
+        }
     };
     let configs = scenario
         .chairs
         .iter()
         .map(|c| {
-            let t_world_body = scenario.start_of(c, &map).map_err(|reason| scenario.invalid(c.name.clone(), reason))?;
-            Ok(ChairConfig { name: c.name.clone(), t_world_body })
+            let t_world_body = scenario
+                .start_of(c, &map)
+                .map_err(|reason| scenario.invalid(c.name.clone(), reason))?;
+            Ok(ChairConfig {
+                name: c.name.clone(),
+                t_world_body,
+            })
         })
         .collect::<Result<Vec<_>, ScenarioError>>()?;
     let mut schedule: Vec<(f64, Action)> = Vec::new();
     for g in &scenario.goals {
-        let point = scenario.goal_point(g, &map).map_err(|reason| scenario.invalid(g.chair.clone(), reason))?;
+        let point = scenario
+            .goal_point(g, &map)
+            .map_err(|reason| scenario.invalid(g.chair.clone(), reason))?;
         schedule.push((g.at_s, Action::Goal(g, point)));
     }
     schedule.extend(scenario.doors.iter().map(|d| (d.at_s, Action::Door(d))));
     for f in &scenario.faults {
         schedule.push((f.at_s(), Action::Fault(f)));
         match f {
-            Fault::LinkLoss { at_s, container, for_s: Some(d) } => schedule.push((at_s + d, Action::LinkUp(container))),
-            Fault::SensorFailure { at_s, chair, for_s: Some(d) } => schedule.push((at_s + d, Action::SensorsBack(chair))),
+            Fault::LinkLoss {
+                at_s,
+                container,
+                for_s: Some(d),
+            } => schedule.push((at_s + d, Action::LinkUp(container))),
+            Fault::SensorFailure {
+                at_s,
+                chair,
+                for_s: Some(d),
+            } => schedule.push((at_s + d, Action::SensorsBack(chair))),
             _ => {}
         }
     }
@@ -588,12 +701,21 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
     schedule.sort_by(|a, b| a.0.total_cmp(&b.0));
 
     let options = FleetOptions {
-        bodies: scenario.chairs.iter().map(|c| (c.name.clone(), c.body)).collect(),
-        restricted: scenario.restricted.iter().map(|r| (r.door.clone(), r.authorised.iter().cloned().collect())).collect(),
+        bodies: scenario
+            .chairs
+            .iter()
+            .map(|c| (c.name.clone(), c.body))
+            .collect(),
+        restricted: scenario
+            .restricted
+            .iter()
+            .map(|r| (r.door.clone(), r.authorised.iter().cloned().collect()))
+            .collect(),
         log_path: None,
         visual_odometry: scenario.visual_odometry,
     };
-    let mut fleet = Fleet::with_options(map, scenario.seed, &configs, options).map_err(fleet_err(0.0))?;
+    let mut fleet =
+        Fleet::with_options(map, scenario.seed, &configs, options).map_err(fleet_err(0.0))?;
     let dt = Duration::from_millis(scenario.step_ms);
     let steps = (scenario.duration_s * 1000.0 / scenario.step_ms as f64).ceil() as u64;
     let mut timeline = Vec::new();
@@ -613,23 +735,35 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
                 Action::Goal(g, point) => match fleet.goal(&g.chair, *point) {
                     Ok(conversation) => {
                         conversations.push((conversation.clone(), g.chair.clone()));
-                        format!("goal {} -> ({:.2}, {:.2}) [{conversation}]", g.chair, point.x, point.y)
+                        format!(
+                            "goal {} -> ({:.2}, {:.2}) [{conversation}]",
+                            g.chair, point.x, point.y
+                        )
                     }
                     // no path (e.g. behind a jammed door): the goal fails before any request
                     Err(FleetError::Plan { reason }) => {
                         unplannable.push((g.chair.clone(), now_s));
-                        format!("goal {} -> ({:.2}, {:.2}) failed: no path: {reason}", g.chair, point.x, point.y)
+                        format!(
+                            "goal {} -> ({:.2}, {:.2}) failed: no path: {reason}",
+                            g.chair, point.x, point.y
+                        )
                     }
                     Err(e) => return Err(fleet_err(now_s)(e)),
                 },
                 Action::Door(d) => {
                     fleet.set_door(&d.door, d.open).map_err(fleet_err(now_s))?;
-                    format!("door {} {}", d.door, if d.open { "opened" } else { "closed" })
+                    format!(
+                        "door {} {}",
+                        d.door,
+                        if d.open { "opened" } else { "closed" }
+                    )
                 }
                 Action::Fault(f) => {
                     match f {
                         Fault::LinkLoss { container, .. } => fleet.set_link(container, false),
-                        Fault::KillAgent { container, agent, .. } => fleet.kill_agent(container, agent),
+                        Fault::KillAgent {
+                            container, agent, ..
+                        } => fleet.kill_agent(container, agent),
                         Fault::SensorFailure { chair, .. } => fleet.set_sensor_failure(chair, true),
                         Fault::JammedDoor { door, .. } => fleet.jam_door(door),
                     }
@@ -641,7 +775,9 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
                     format!("link {container} restored")
                 }
                 Action::SensorsBack(chair) => {
-                    fleet.set_sensor_failure(chair, false).map_err(fleet_err(now_s))?;
+                    fleet
+                        .set_sensor_failure(chair, false)
+                        .map_err(fleet_err(now_s))?;
                     format!("sensors of {chair} restored")
                 }
             };
@@ -650,14 +786,22 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
         fleet.step(dt);
         let snapshot = fleet.snapshot();
         for event in fleet.goal_events().iter().skip(events_seen) {
-            timeline.push(format!("{:7.2} s: {} from {} [{}]", event.time_s, event.performative, event.from, event.conversation));
+            timeline.push(format!(
+                "{:7.2} s: {} from {} [{}]",
+                event.time_s, event.performative, event.from, event.conversation
+            ));
         }
         events_seen = fleet.goal_events().len();
         for (assertion, watch) in scenario.assertions.iter().zip(&mut watches) {
             match assertion {
-                Assertion::GoalReached { chair, within_m, .. } => {
+                Assertion::GoalReached {
+                    chair, within_m, ..
+                } => {
                     let c = snapshot.chairs.iter().find(|c| &c.name == chair);
-                    let near = c.and_then(|c| c.goal.map(|g| ((c.pose[0] - g[0]).hypot(c.pose[1] - g[1])) <= *within_m));
+                    let near = c.and_then(|c| {
+                        c.goal
+                            .map(|g| ((c.pose[0] - g[0]).hypot(c.pose[1] - g[1])) <= *within_m)
+                    });
                     if near == Some(true) && watch.reached_at.is_none() {
                         watch.reached_at = Some(snapshot.time_s);
                     }
@@ -686,7 +830,9 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
         events.iter().find(|e| {
             e.performative == performative
                 && e.time_s <= by_s + 1e-9
-                && conversations.iter().any(|(conv, c)| conv == &e.conversation && c == chair)
+                && conversations
+                    .iter()
+                    .any(|(conv, c)| conv == &e.conversation && c == chair)
         })
     };
     let outcomes: Vec<Outcome> = scenario
@@ -703,59 +849,116 @@ pub fn run_with_progress(scenario: &Scenario, mut progress: impl FnMut(u64, u64)
                         .filter(|c| chair.as_ref().is_none_or(|n| n == &c.name) && c.collisions > 0)
                         .map(|c| format!("{} {}", c.name, c.collisions))
                         .collect();
-                    (hits.is_empty(), if hits.is_empty() { "no contact".into() } else { format!("contacts: {}", hits.join(", ")) })
+                    (
+                        hits.is_empty(),
+                        if hits.is_empty() {
+                            "no contact".into()
+                        } else {
+                            format!("contacts: {}", hits.join(", "))
+                        },
+                    )
                 }
                 Assertion::GoalReached { chair, by_s, .. } => {
                     let done = answered(chair, "INFORM", *by_s);
                     let reached = watch.reached_at.filter(|t| *t <= *by_s + 1e-9);
                     let detail = match (reached, done) {
-                        (Some(t), Some(d)) => format!("within tolerance at {t:.2} s, done reported at {:.2} s", d.time_s),
-                        (Some(t), None) => format!("within tolerance at {t:.2} s but no done reported by {by_s} s"),
+                        (Some(t), Some(d)) => format!(
+                            "within tolerance at {t:.2} s, done reported at {:.2} s",
+                            d.time_s
+                        ),
+                        (Some(t), None) => {
+                            format!("within tolerance at {t:.2} s but no done reported by {by_s} s")
+                        }
                         (None, _) => format!("not within tolerance by {by_s} s"),
                     };
                     (reached.is_some() && done.is_some(), detail)
                 }
                 Assertion::GoalFailed { chair, by_s } => {
-                    let unplanned = unplannable.iter().find(|(c, t)| c == chair && *t <= *by_s + 1e-9);
+                    let unplanned = unplannable
+                        .iter()
+                        .find(|(c, t)| c == chair && *t <= *by_s + 1e-9);
                     match (answered(chair, "FAILURE", *by_s), unplanned) {
                         (Some(e), _) => (true, format!("failure reported at {:.2} s", e.time_s)),
                         (None, Some((_, t))) => (true, format!("no path at {t:.2} s")),
                         (None, None) => (false, format!("no failure reported by {by_s} s")),
                     }
                 }
-                Assertion::Stopped { .. } => {
-                    (watch.max_speed < 0.02, format!("highest speed afterwards {:.3} m/s", watch.max_speed))
+                Assertion::Stopped { .. } => (
+                    watch.max_speed < 0.02,
+                    format!("highest speed afterwards {:.3} m/s", watch.max_speed),
+                ),
+                Assertion::MessagesDropped { at_least } => {
+                    (dropped >= *at_least, format!("{dropped} dropped"))
                 }
-                Assertion::MessagesDropped { at_least } => (dropped >= *at_least, format!("{dropped} dropped")),
                 Assertion::DoorRefused { chair, door } => {
                     let requester = format!("cognitive@{chair}");
                     let name = iw_fleet::compose::door_name(door);
-                    match refusals.iter().find(|r| r.requester == requester && r.door == name) {
-                        Some(r) => (true, format!("refused at {:.2} s: {}", r.time_ns as f64 * 1e-9, r.reason)),
-                        None => (false, format!("{} refusals, none of `{name}` for {requester}", refusals.len())),
+                    match refusals
+                        .iter()
+                        .find(|r| r.requester == requester && r.door == name)
+                    {
+                        Some(r) => (
+                            true,
+                            format!("refused at {:.2} s: {}", r.time_ns as f64 * 1e-9, r.reason),
+                        ),
+                        None => (
+                            false,
+                            format!(
+                                "{} refusals, none of `{name}` for {requester}",
+                                refusals.len()
+                            ),
+                        ),
                     }
                 }
                 Assertion::DoorFailed { door } => {
                     let name = iw_fleet::compose::door_name(door);
                     let failures = exchanges
                         .iter()
-                        .filter(|e| e.sender == "door@services" && e.acl.starts_with("(FAILURE") && e.acl.contains(&name))
+                        .filter(|e| {
+                            e.sender == "door@services"
+                                && e.acl.starts_with("(FAILURE")
+                                && e.acl.contains(&name)
+                        })
                         .count();
-                    (failures > 0, format!("{failures} FAILURE answers about `{name}`"))
+                    (
+                        failures > 0,
+                        format!("{failures} FAILURE answers about `{name}`"),
+                    )
                 }
-                Assertion::AllMessagesLogged => (sent > 0 && logged == sent, format!("{sent} messages sent, {logged} in the log")),
+                Assertion::AllMessagesLogged => (
+                    sent > 0 && logged == sent,
+                    format!("{sent} messages sent, {logged} in the log"),
+                ),
             };
-            Outcome { assertion: text, passed, detail }
+            Outcome {
+                assertion: text,
+                passed,
+                detail,
+            }
         })
         .collect();
     let chairs = snapshot
         .chairs
         .iter()
-        .map(|c| ChairSummary { name: c.name.clone(), pose: c.pose, distance_m: c.distance_m, collisions: c.collisions, agents: c.agents.clone() })
+        .map(|c| ChairSummary {
+            name: c.name.clone(),
+            pose: c.pose,
+            distance_m: c.distance_m,
+            collisions: c.collisions,
+            agents: c.agents.clone(),
+        })
         .collect();
     let trace = exchanges
         .iter()
-        .map(|e| format!("{} -> {}{}: {}", e.sender, e.receiver, if e.dropped { " [dropped]" } else { "" }, e.acl))
+        .map(|e| {
+            format!(
+                "{} -> {}{}: {}",
+                e.sender,
+                e.receiver,
+                if e.dropped { " [dropped]" } else { "" },
+                e.acl
+            )
+        })
         .collect();
     Ok(Report {
         name: scenario.name.clone(),

@@ -12,7 +12,11 @@ const SAMPLE: &str = include_str!("../../maps/sample-building.map");
 
 fn name() -> impl Strategy<Value = String> {
     // names with quotes, backslashes, unicode and newlines exercise TOML escaping
-    prop_oneof!["[a-z][a-z0-9-]{0,8}", "\\PC{0,6}", Just("a\"b\\c\nd".to_string())]
+    prop_oneof![
+        "[a-z][a-z0-9-]{0,8}",
+        "\\PC{0,6}",
+        Just("a\"b\\c\nd".to_string())
+    ]
 }
 
 fn time() -> impl Strategy<Value = f64> {
@@ -20,21 +24,36 @@ fn time() -> impl Strategy<Value = f64> {
 }
 
 fn chair() -> impl Strategy<Value = ChairEntry> {
-    (name(), proptest::option::of(name()), proptest::option::of(proptest::array::uniform3(-50.0..50.0f64)), 0..3u8).prop_map(
-        |(name, start, pose, body)| ChairEntry {
+    (
+        name(),
+        proptest::option::of(name()),
+        proptest::option::of(proptest::array::uniform3(-50.0..50.0f64)),
+        0..3u8,
+    )
+        .prop_map(|(name, start, pose, body)| ChairEntry {
             name,
             start,
             pose,
             body: [BodyKind::Virtual, BodyKind::Real, BodyKind::Mixed][body as usize],
-        },
-    )
+        })
 }
 
 fn fault() -> impl Strategy<Value = Fault> {
     prop_oneof![
-        (time(), name(), proptest::option::of(time())).prop_map(|(at_s, container, for_s)| Fault::LinkLoss { at_s, container, for_s }),
-        (time(), name(), name()).prop_map(|(at_s, container, agent)| Fault::KillAgent { at_s, container, agent }),
-        (time(), name(), proptest::option::of(time())).prop_map(|(at_s, chair, for_s)| Fault::SensorFailure { at_s, chair, for_s }),
+        (time(), name(), proptest::option::of(time())).prop_map(|(at_s, container, for_s)| {
+            Fault::LinkLoss {
+                at_s,
+                container,
+                for_s,
+            }
+        }),
+        (time(), name(), name()).prop_map(|(at_s, container, agent)| Fault::KillAgent {
+            at_s,
+            container,
+            agent
+        }),
+        (time(), name(), proptest::option::of(time()))
+            .prop_map(|(at_s, chair, for_s)| Fault::SensorFailure { at_s, chair, for_s }),
         (time(), name()).prop_map(|(at_s, door)| Fault::JammedDoor { at_s, door }),
     ]
 }
@@ -42,10 +61,16 @@ fn fault() -> impl Strategy<Value = Fault> {
 fn assertion() -> impl Strategy<Value = Assertion> {
     prop_oneof![
         proptest::option::of(name()).prop_map(|chair| Assertion::NoCollision { chair }),
-        (name(), time(), 0.01..5.0f64).prop_map(|(chair, by_s, within_m)| Assertion::GoalReached { chair, by_s, within_m }),
+        (name(), time(), 0.01..5.0f64).prop_map(|(chair, by_s, within_m)| Assertion::GoalReached {
+            chair,
+            by_s,
+            within_m
+        }),
         (name(), time()).prop_map(|(chair, by_s)| Assertion::GoalFailed { chair, by_s }),
         (name(), time()).prop_map(|(chair, from_s)| Assertion::Stopped { chair, from_s }),
-        any::<u64>().prop_map(|at_least| Assertion::MessagesDropped { at_least: at_least >> 1 }),
+        any::<u64>().prop_map(|at_least| Assertion::MessagesDropped {
+            at_least: at_least >> 1
+        }),
         (name(), name()).prop_map(|(chair, door)| Assertion::DoorRefused { chair, door }),
         name().prop_map(|door| Assertion::DoorFailed { door }),
         Just(Assertion::AllMessagesLogged),

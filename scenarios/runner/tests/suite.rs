@@ -20,8 +20,16 @@ fn every_scenario_file_passes() {
     for file in files {
         let report = iw_scenario::run(&iw_scenario::Scenario::load(&file).unwrap()).unwrap();
         let collisions: u64 = report.chairs.iter().map(|c| c.collisions).sum();
-        let goals = report.outcomes.iter().filter(|o| o.assertion.contains("goal-reached") && o.passed).count();
-        println!("{}: {} ({goals} goal-reached assertions held, {collisions} collisions)", report.name, if report.passed { "PASS" } else { "FAIL" });
+        let goals = report
+            .outcomes
+            .iter()
+            .filter(|o| o.assertion.contains("goal-reached") && o.passed)
+            .count();
+        println!(
+            "{}: {} ({goals} goal-reached assertions held, {collisions} collisions)",
+            report.name,
+            if report.passed { "PASS" } else { "FAIL" }
+        );
         if !report.passed {
             failed.push(format!("{}:\n{}", file.display(), report.render()));
         }
@@ -34,11 +42,17 @@ fn a_false_assertion_fails_and_runs_are_deterministic() {
     let path = scenarios_dir().join("sensor-failure.toml");
     let text = std::fs::read_to_string(&path).unwrap();
     // the chair cannot reach a point 10 m away in 15 s with its sensors failed at 5 s
-    let false_text = format!("{text}\n[[assert]]\nkind = \"goal-reached\"\nchair = \"chair1\"\nby_s = 15\n");
+    let false_text =
+        format!("{text}\n[[assert]]\nkind = \"goal-reached\"\nchair = \"chair1\"\nby_s = 15\n");
     let scenario = iw_scenario::Scenario::parse(&false_text, &path).unwrap();
     let first = iw_scenario::run(&scenario).unwrap();
     assert!(!first.passed, "{}", first.render());
-    assert_eq!(first.outcomes.iter().filter(|o| !o.passed).count(), 1, "{}", first.render());
+    assert_eq!(
+        first.outcomes.iter().filter(|o| !o.passed).count(),
+        1,
+        "{}",
+        first.render()
+    );
     let second = iw_scenario::run(&scenario).unwrap();
     assert_eq!(first, second, "same seed, same report and trace");
 }
@@ -48,7 +62,10 @@ fn runs_with_real_bodies_on_a_pty_are_deterministic() {
     let scenario = iw_scenario::Scenario::load(scenarios_dir().join("mixed-reality.toml")).unwrap();
     let first = iw_scenario::run(&scenario).unwrap();
     let second = iw_scenario::run(&scenario).unwrap();
-    assert_eq!(first, second, "same seed, same report and trace, whatever the board emulator's thread timing");
+    assert_eq!(
+        first, second,
+        "same seed, same report and trace, whatever the board emulator's thread timing"
+    );
 }
 
 #[test]
@@ -56,6 +73,9 @@ fn bad_files_are_errors_naming_the_entry() {
     let path = scenarios_dir().join("bad.toml");
     let text = "name = \"x\"\nmap = \"maps/sample-building.map\"\nduration_s = 5\n[[chair]]\nname = \"c\"\nstart = \"nowhere\"\n";
     let err = iw_scenario::run(&iw_scenario::Scenario::parse(text, &path).unwrap()).unwrap_err();
-    assert!(err.to_string().contains("chair[0]") && err.to_string().contains("nowhere"), "{err}");
+    assert!(
+        err.to_string().contains("chair[0]") && err.to_string().contains("nowhere"),
+        "{err}"
+    );
     assert!(iw_scenario::Scenario::parse("name = 3", &path).is_err());
 }

@@ -18,11 +18,15 @@ pub fn shared(world: World) -> SharedWorld {
 
 pub(crate) fn lock(world: &SharedWorld) -> MutexGuard<'_, World> {
     // the world holds plain data; a panicked holder cannot leave it unusable
-    world.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    world
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 fn virtual_err(e: crate::SimError) -> BodyError {
-    BodyError::Virtual { reason: e.to_string() }
+    BodyError::Virtual {
+        reason: e.to_string(),
+    }
 }
 
 /// A handle to one simulated chair. `read` returns the frame of the last [`crate::step`];
@@ -47,11 +51,16 @@ impl VirtualBody {
 
 impl Body for VirtualBody {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
-        lock(&self.world).sensors(self.id).cloned().map_err(virtual_err)
+        lock(&self.world)
+            .sensors(self.id)
+            .cloned()
+            .map_err(virtual_err)
     }
 
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
-        lock(&self.world).command(self.id, speeds).map_err(virtual_err)
+        lock(&self.world)
+            .command(self.id, speeds)
+            .map_err(virtual_err)
     }
 }
 
@@ -71,7 +80,11 @@ impl GhostSensors {
 }
 
 impl VirtualSensors for GhostSensors {
-    fn sense_at(&mut self, t_world_body: Isometry2<f64>, _time_ns: u64) -> Result<SensorFrame, BodyError> {
+    fn sense_at(
+        &mut self,
+        t_world_body: Isometry2<f64>,
+        _time_ns: u64,
+    ) -> Result<SensorFrame, BodyError> {
         let mut world = lock(&self.world);
         world.place(self.id, t_world_body).map_err(virtual_err)?;
         world.sensors(self.id).cloned().map_err(virtual_err)

@@ -65,7 +65,12 @@ impl CameraModel {
     /// Pinhole intrinsics `(fx, fy, cx, cy)` in px (square pixels).
     pub fn intrinsics(&self) -> (f64, f64, f64, f64) {
         let fx = self.width_px as f64 / 2.0 / (self.hfov_deg.to_radians() / 2.0).tan();
-        (fx, fx, self.width_px as f64 / 2.0 - 0.5, self.height_px as f64 / 2.0 - 0.5)
+        (
+            fx,
+            fx,
+            self.width_px as f64 / 2.0 - 0.5,
+            self.height_px as f64 / 2.0 - 0.5,
+        )
     }
 }
 
@@ -112,7 +117,11 @@ impl Default for ChairSpec {
     /// A mid-size rear-wheel-drive powered wheelchair, 0.65 x 1.1 m, with the IntellWheels
     /// sensor bars.
     fn default() -> Self {
-        let iw_body::layout::Footprint { front_m, rear_m, half_width_m } = iw_body::layout::Footprint::PROTOTYPE;
+        let iw_body::layout::Footprint {
+            front_m,
+            rear_m,
+            half_width_m,
+        } = iw_body::layout::Footprint::PROTOTYPE;
         Self {
             front_m,
             rear_m,
@@ -120,9 +129,19 @@ impl Default for ChairSpec {
             geometry: WheelGeometry::default(),
             max_wheel_mps: 1.5,
             max_wheel_accel_mps2: 1.2,
-            encoder: EncoderModel { compression: (0.005, 0.03), slip_std: 0.01, slip_per_mps2: 0.02 },
+            encoder: EncoderModel {
+                compression: (0.005, 0.03),
+                slip_std: 0.01,
+                slip_per_mps2: 0.02,
+            },
             sonars: sonar_layout(front_m, rear_m, half_width_m),
-            sonar: SonarModel { cone_deg: 45.0, rays: 7, min_range_m: 0.05, max_range_m: 3.0, noise_std_m: 0.01 },
+            sonar: SonarModel {
+                cone_deg: 45.0,
+                rays: 7,
+                min_range_m: 0.05,
+                max_range_m: 3.0,
+                noise_std_m: 0.01,
+            },
             laser: Some(LaserModel {
                 t_body_laser: Isometry2::new(Vector2::new(front_m - 0.05, half_width_m), 0.0),
                 fov_deg: 270.0,
@@ -147,14 +166,24 @@ impl Default for ChairSpec {
 /// origin at the drive axle centre): [`iw_body::layout::Footprint::sonar_mounts`], the layout
 /// the control agent uses too.
 pub fn sonar_layout(front_m: f64, rear_m: f64, half_width_m: f64) -> [SonarMount; SONAR_COUNT] {
-    iw_body::layout::Footprint { front_m, rear_m, half_width_m }.sonar_mounts().map(|t_body_sonar| SonarMount { t_body_sonar })
+    iw_body::layout::Footprint {
+        front_m,
+        rear_m,
+        half_width_m,
+    }
+    .sonar_mounts()
+    .map(|t_body_sonar| SonarMount { t_body_sonar })
 }
 
 impl ChairSpec {
     /// The footprint rectangle as the body crate describes it (what the control agent's guard
     /// and sonar layout take).
     pub fn body_footprint(&self) -> iw_body::layout::Footprint {
-        iw_body::layout::Footprint { front_m: self.front_m, rear_m: self.rear_m, half_width_m: self.half_width_m }
+        iw_body::layout::Footprint {
+            front_m: self.front_m,
+            rear_m: self.rear_m,
+            half_width_m: self.half_width_m,
+        }
     }
 
     /// Footprint corners in the body frame, counter-clockwise.
@@ -172,7 +201,13 @@ impl ChairSpec {
         let rays = self.sonar.rays.max(1);
         let half_cone = self.sonar.cone_deg.to_radians() / 2.0;
         (0..rays)
-            .map(|k| if rays == 1 { 0.0 } else { -half_cone + 2.0 * half_cone * k as f64 / (rays - 1) as f64 })
+            .map(|k| {
+                if rays == 1 {
+                    0.0
+                } else {
+                    -half_cone + 2.0 * half_cone * k as f64 / (rays - 1) as f64
+                }
+            })
             .map(|a| Vector2::new(a.cos(), a.sin()))
             .collect()
     }
@@ -180,18 +215,29 @@ impl ChairSpec {
     /// Unit beam directions of the laser, first at -fov/2, in the laser frame (empty without
     /// a laser).
     pub fn laser_beam_dirs(&self) -> Vec<Vector2<f64>> {
-        let Some(laser) = &self.laser else { return Vec::new() };
+        let Some(laser) = &self.laser else {
+            return Vec::new();
+        };
         let n = laser.beams.max(1);
         let fov = laser.fov_deg.to_radians();
         (0..n)
-            .map(|k| if n == 1 { 0.0 } else { -fov / 2.0 + fov * k as f64 / (n - 1) as f64 })
+            .map(|k| {
+                if n == 1 {
+                    0.0
+                } else {
+                    -fov / 2.0 + fov * k as f64 / (n - 1) as f64
+                }
+            })
             .map(|a| Vector2::new(a.cos(), a.sin()))
             .collect()
     }
 
     /// Distance from the body origin to the farthest footprint corner, m.
     pub fn reach_m(&self) -> f64 {
-        self.footprint().iter().map(|p| p.coords.norm()).fold(0.0, f64::max)
+        self.footprint()
+            .iter()
+            .map(|p| p.coords.norm())
+            .fold(0.0, f64::max)
     }
 
     /// Footprint corners in the world for a body at `t_world_body`.
@@ -209,7 +255,9 @@ mod tests {
         let spec = ChairSpec::default();
         let s = &spec.sonars;
         for k in 2..5 {
-            let d = (s[k].t_body_sonar.translation.vector - s[k + 1].t_body_sonar.translation.vector).norm();
+            let d = (s[k].t_body_sonar.translation.vector
+                - s[k + 1].t_body_sonar.translation.vector)
+                .norm();
             assert!((d - 0.22).abs() < 1e-12);
         }
         let half_cone = (spec.sonar.cone_deg / 2.0).to_radians();
@@ -222,7 +270,8 @@ mod tests {
         let half_cone = (spec.sonar.cone_deg / 2.0).to_radians();
         spec.sonars.iter().any(|s| {
             let local = s.t_body_sonar.inverse() * p;
-            local.coords.norm() <= spec.sonar.max_range_m && local.y.atan2(local.x).abs() <= half_cone + 1e-12
+            local.coords.norm() <= spec.sonar.max_range_m
+                && local.y.atan2(local.x).abs() <= half_cone + 1e-12
         })
     }
 
@@ -230,12 +279,18 @@ mod tests {
     fn safety_perimeter_sides_from_27cm_everywhere_from_80cm() {
         let spec = ChairSpec::default();
         let (f, r, w) = (spec.front_m, spec.rear_m, spec.half_width_m);
-        let lateral: Vec<f64> = [2, 5].iter().map(|&k| spec.sonars[k].t_body_sonar.translation.x).collect();
+        let lateral: Vec<f64> = [2, 5]
+            .iter()
+            .map(|&k| spec.sonars[k].t_body_sonar.translation.x)
+            .collect();
         // beside the lateral sonars: every point from 27 cm out is seen
         for d in [0.27, 0.4, 0.6, 0.8] {
             for k in 0..=50 {
                 let x = lateral[1] + (lateral[0] - lateral[1]) * k as f64 / 50.0;
-                assert!(covered(&spec, Point2::new(x, -w - d)) && covered(&spec, Point2::new(x, w + d)), "side x {x} d {d}");
+                assert!(
+                    covered(&spec, Point2::new(x, -w - d)) && covered(&spec, Point2::new(x, w + d)),
+                    "side x {x} d {d}"
+                );
             }
         }
         // all four sides: every point 80 cm out is seen (the corner arcs between a tip pair and the
@@ -245,10 +300,18 @@ mod tests {
         for k in 0..=100 {
             let t = k as f64 / 100.0;
             let (x, y) = (-r + (f + r) * t, -w + 2.0 * w * t);
-            ring.extend([Point2::new(f + d, y), Point2::new(-r - d, y), Point2::new(x, w + d), Point2::new(x, -w - d)]);
+            ring.extend([
+                Point2::new(f + d, y),
+                Point2::new(-r - d, y),
+                Point2::new(x, w + d),
+                Point2::new(x, -w - d),
+            ]);
         }
         for p in ring {
-            assert!(covered(&spec, p), "point {p:?} 80 cm out is in no sonar cone");
+            assert!(
+                covered(&spec, p),
+                "point {p:?} 80 cm out is in no sonar cone"
+            );
         }
     }
 
@@ -256,7 +319,11 @@ mod tests {
     fn front_and_rear_pairs_differ_by_45_degrees() {
         let s = ChairSpec::default().sonars;
         for (a, b) in [(0, 1), (6, 7), (8, 9), (14, 15)] {
-            let d = s[a].t_body_sonar.rotation.angle_to(&s[b].t_body_sonar.rotation).abs();
+            let d = s[a]
+                .t_body_sonar
+                .rotation
+                .angle_to(&s[b].t_body_sonar.rotation)
+                .abs();
             assert!((d - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
         }
     }

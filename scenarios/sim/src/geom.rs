@@ -32,7 +32,12 @@ pub struct Segment {
 
 /// `t` along the ray `origin + t * dir` (|dir| = 1) where it meets segment `a`-`b`, if `t >= 0`;
 /// also the hit's fraction along the segment.
-pub fn ray_segment(origin: &Point2<f64>, dir: &Vector2<f64>, a: &Point2<f64>, b: &Point2<f64>) -> Option<(f64, f64)> {
+pub fn ray_segment(
+    origin: &Point2<f64>,
+    dir: &Vector2<f64>,
+    a: &Point2<f64>,
+    b: &Point2<f64>,
+) -> Option<(f64, f64)> {
     let e = b - a;
     let denom = cross(dir, &e);
     if denom.abs() < 1e-12 {
@@ -50,12 +55,19 @@ pub fn cross(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
 }
 
 /// Whether closed segments `p1`-`p2` and `q1`-`q2` touch.
-pub fn segments_intersect(p1: &Point2<f64>, p2: &Point2<f64>, q1: &Point2<f64>, q2: &Point2<f64>) -> bool {
+pub fn segments_intersect(
+    p1: &Point2<f64>,
+    p2: &Point2<f64>,
+    q1: &Point2<f64>,
+    q2: &Point2<f64>,
+) -> bool {
     let d1 = orient(q1, q2, p1);
     let d2 = orient(q1, q2, p2);
     let d3 = orient(p1, p2, q1);
     let d4 = orient(p1, p2, q2);
-    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
         return true;
     }
     (d1 == 0.0 && on_segment(q1, q2, p1))
@@ -88,7 +100,8 @@ pub fn point_in_polygon(p: &Point2<f64>, poly: &[Point2<f64>]) -> bool {
 /// Whether segment `a`-`b` touches the convex or simple polygon `poly` (edge crossing or inside).
 pub fn segment_hits_polygon(a: &Point2<f64>, b: &Point2<f64>, poly: &[Point2<f64>]) -> bool {
     let n = poly.len();
-    (0..n).any(|i| segments_intersect(a, b, &poly[i], &poly[(i + 1) % n])) || point_in_polygon(a, poly)
+    (0..n).any(|i| segments_intersect(a, b, &poly[i], &poly[(i + 1) % n]))
+        || point_in_polygon(a, poly)
 }
 
 /// Most cells along one grid axis: a 1 km building still gets 1 m cells, a huge map coarser ones.
@@ -113,7 +126,14 @@ impl Grid {
         let cell_m = cell_m.max(extent / MAX_CELLS_PER_AXIS as f64);
         let cols = (((max.x - min.x) / cell_m).ceil() as usize).clamp(1, MAX_CELLS_PER_AXIS);
         let rows = (((max.y - min.y) / cell_m).ceil() as usize).clamp(1, MAX_CELLS_PER_AXIS);
-        Self { origin: min, cell_m, cols, rows, cells: vec![Vec::new(); cols * rows], touched: Vec::new() }
+        Self {
+            origin: min,
+            cell_m,
+            cols,
+            rows,
+            cells: vec![Vec::new(); cols * rows],
+            touched: Vec::new(),
+        }
     }
 
     /// Empties the cells filled since the last clear (cheap for sparse dynamic content).
@@ -125,8 +145,12 @@ impl Grid {
     }
 
     fn cell_of(&self, p: &Point2<f64>) -> (usize, usize) {
-        let cx = ((p.x - self.origin.x) / self.cell_m).floor().clamp(0.0, (self.cols - 1) as f64) as usize;
-        let cy = ((p.y - self.origin.y) / self.cell_m).floor().clamp(0.0, (self.rows - 1) as f64) as usize;
+        let cx = ((p.x - self.origin.x) / self.cell_m)
+            .floor()
+            .clamp(0.0, (self.cols - 1) as f64) as usize;
+        let cy = ((p.y - self.origin.y) / self.cell_m)
+            .floor()
+            .clamp(0.0, (self.rows - 1) as f64) as usize;
         (cx, cy)
     }
 
@@ -159,7 +183,11 @@ impl Grid {
 
     /// An empty grid with the same cells (cell indices are interchangeable between the two).
     pub fn empty_like(&self) -> Self {
-        Self { cells: vec![Vec::new(); self.cells.len()], touched: Vec::new(), ..*self }
+        Self {
+            cells: vec![Vec::new(); self.cells.len()],
+            touched: Vec::new(),
+            ..*self
+        }
     }
 
     /// The segment indices in cell `cell` (as passed by [`Self::walk_ray`]).
@@ -170,15 +198,37 @@ impl Grid {
     /// Walks the cells along the ray from `origin` in direction `dir` (unit) up to `max_t`, in
     /// order (Amanatides-Woo). `visit(cell)` returns the best hit `t` found so far; the walk
     /// stops once that hit lies before the current cell's exit.
-    pub fn walk_ray(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_t: f64, mut visit: impl FnMut(usize) -> f64) {
+    pub fn walk_ray(
+        &self,
+        origin: &Point2<f64>,
+        dir: &Vector2<f64>,
+        max_t: f64,
+        mut visit: impl FnMut(usize) -> f64,
+    ) {
         let (mut cx, mut cy) = self.cell_of(origin);
         let step_x: isize = if dir.x >= 0.0 { 1 } else { -1 };
         let step_y: isize = if dir.y >= 0.0 { 1 } else { -1 };
         let next_boundary = |c: usize, s: isize, o: f64| self.origin_axis(o, c, s);
-        let mut t_max_x = if dir.x.abs() < 1e-12 { f64::INFINITY } else { (next_boundary(cx, step_x, self.origin.x) - origin.x) / dir.x };
-        let mut t_max_y = if dir.y.abs() < 1e-12 { f64::INFINITY } else { (next_boundary(cy, step_y, self.origin.y) - origin.y) / dir.y };
-        let t_delta_x = if dir.x.abs() < 1e-12 { f64::INFINITY } else { self.cell_m / dir.x.abs() };
-        let t_delta_y = if dir.y.abs() < 1e-12 { f64::INFINITY } else { self.cell_m / dir.y.abs() };
+        let mut t_max_x = if dir.x.abs() < 1e-12 {
+            f64::INFINITY
+        } else {
+            (next_boundary(cx, step_x, self.origin.x) - origin.x) / dir.x
+        };
+        let mut t_max_y = if dir.y.abs() < 1e-12 {
+            f64::INFINITY
+        } else {
+            (next_boundary(cy, step_y, self.origin.y) - origin.y) / dir.y
+        };
+        let t_delta_x = if dir.x.abs() < 1e-12 {
+            f64::INFINITY
+        } else {
+            self.cell_m / dir.x.abs()
+        };
+        let t_delta_y = if dir.y.abs() < 1e-12 {
+            f64::INFINITY
+        } else {
+            self.cell_m / dir.y.abs()
+        };
         loop {
             let t_exit = t_max_x.min(t_max_y);
             let best = visit(cy * self.cols + cx);
@@ -215,20 +265,51 @@ mod tests {
 
     #[test]
     fn ray_hits_segment_at_analytic_distance() {
-        let (t, u) = ray_segment(&Point2::new(0.0, 0.0), &Vector2::new(1.0, 0.0), &Point2::new(3.0, -1.0), &Point2::new(3.0, 1.0)).unwrap();
+        let (t, u) = ray_segment(
+            &Point2::new(0.0, 0.0),
+            &Vector2::new(1.0, 0.0),
+            &Point2::new(3.0, -1.0),
+            &Point2::new(3.0, 1.0),
+        )
+        .unwrap();
         assert_relative_eq!(t, 3.0);
         assert_relative_eq!(u, 0.5);
-        assert!(ray_segment(&Point2::new(0.0, 0.0), &Vector2::new(-1.0, 0.0), &Point2::new(3.0, -1.0), &Point2::new(3.0, 1.0)).is_none());
+        assert!(
+            ray_segment(
+                &Point2::new(0.0, 0.0),
+                &Vector2::new(-1.0, 0.0),
+                &Point2::new(3.0, -1.0),
+                &Point2::new(3.0, 1.0)
+            )
+            .is_none()
+        );
     }
 
     #[test]
     fn polygon_tests() {
-        let sq = [Point2::new(0.0, 0.0), Point2::new(1.0, 0.0), Point2::new(1.0, 1.0), Point2::new(0.0, 1.0)];
+        let sq = [
+            Point2::new(0.0, 0.0),
+            Point2::new(1.0, 0.0),
+            Point2::new(1.0, 1.0),
+            Point2::new(0.0, 1.0),
+        ];
         assert!(point_in_polygon(&Point2::new(0.5, 0.5), &sq));
         assert!(!point_in_polygon(&Point2::new(1.5, 0.5), &sq));
-        assert!(segment_hits_polygon(&Point2::new(0.2, 0.2), &Point2::new(0.3, 0.3), &sq));
-        assert!(segment_hits_polygon(&Point2::new(-1.0, 0.5), &Point2::new(2.0, 0.5), &sq));
-        assert!(!segment_hits_polygon(&Point2::new(-1.0, 2.0), &Point2::new(2.0, 2.0), &sq));
+        assert!(segment_hits_polygon(
+            &Point2::new(0.2, 0.2),
+            &Point2::new(0.3, 0.3),
+            &sq
+        ));
+        assert!(segment_hits_polygon(
+            &Point2::new(-1.0, 0.5),
+            &Point2::new(2.0, 0.5),
+            &sq
+        ));
+        assert!(!segment_hits_polygon(
+            &Point2::new(-1.0, 2.0),
+            &Point2::new(2.0, 2.0),
+            &sq
+        ));
     }
 
     #[test]
@@ -236,11 +317,16 @@ mod tests {
         let mut g = Grid::new(Point2::new(0.0, 0.0), Point2::new(10.0, 10.0), 1.0);
         g.insert(7, &Point2::new(8.5, 0.0), &Point2::new(8.5, 10.0));
         let mut seen = Vec::new();
-        g.walk_ray(&Point2::new(0.5, 5.5), &Vector2::new(1.0, 0.0), 20.0, |cell| {
-            let ids = g.cell(cell);
-            seen.extend_from_slice(ids);
-            if ids.is_empty() { f64::INFINITY } else { 8.0 }
-        });
+        g.walk_ray(
+            &Point2::new(0.5, 5.5),
+            &Vector2::new(1.0, 0.0),
+            20.0,
+            |cell| {
+                let ids = g.cell(cell);
+                seen.extend_from_slice(ids);
+                if ids.is_empty() { f64::INFINITY } else { 8.0 }
+            },
+        );
         assert_eq!(seen, vec![7]);
     }
 }

@@ -44,7 +44,9 @@ pub mod vo;
 mod world;
 
 pub use body::{GhostSensors, SharedWorld, VirtualBody, shared};
-pub use chair::{CameraModel, ChairSpec, EncoderModel, LaserModel, SonarModel, SonarMount, sonar_layout};
+pub use chair::{
+    CameraModel, ChairSpec, EncoderModel, LaserModel, SonarModel, SonarMount, sonar_layout,
+};
 pub use geom::Owner;
 pub use map::{Area, Door, Furniture, Map, NarrowPassage, Place, Route, Start};
 pub use render::{RgbdFrame, TUM_DEPTH_PER_M, TextureSet, optical_pose};

@@ -120,27 +120,51 @@ impl Map {
     /// Reads and parses a map file; errors name the file and line.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, SimError> {
         let path = path.as_ref();
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
             return Self::from_occupancy_png(path, 0.05);
         }
-        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::parse(&text, &path.display().to_string())
     }
 
     /// Parses map text; `file` is only used to name the source in errors (`file:line: reason`).
     pub fn parse(text: &str, file: &str) -> Result<Self, SimError> {
-        let mut map = Map { name: String::new(), wall_height_m: DEFAULT_WALL_HEIGHT_M, ..Map::default() };
+        let mut map = Map {
+            name: String::new(),
+            wall_height_m: DEFAULT_WALL_HEIGHT_M,
+            ..Map::default()
+        };
         for (index, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
                 continue;
             }
-            let err = |reason: String| SimError::Parse { file: file.to_string(), line: index + 1, reason };
+            let err = |reason: String| SimError::Parse {
+                file: file.to_string(),
+                line: index + 1,
+                reason,
+            };
             parse_line(&mut map, line).map_err(err)?;
         }
-        check_unique(map.doors.iter().map(|d| &d.id), "door").map_err(|reason| SimError::Parse { file: file.to_string(), line: 0, reason })?;
+        check_unique(map.doors.iter().map(|d| &d.id), "door").map_err(|reason| {
+            SimError::Parse {
+                file: file.to_string(),
+                line: 0,
+                reason,
+            }
+        })?;
         if map.walls.is_empty() && map.furniture.is_empty() && map.doors.is_empty() {
-            return Err(SimError::Parse { file: file.to_string(), line: 0, reason: "map has no walls, furniture or doors".into() });
+            return Err(SimError::Parse {
+                file: file.to_string(),
+                line: 0,
+                reason: "map has no walls, furniture or doors".into(),
+            });
         }
         Ok(map)
     }
@@ -150,36 +174,69 @@ impl Map {
     /// between solid and free pixels, merged into straight runs).
     pub fn from_occupancy_png(path: &Path, resolution_m: f64) -> Result<Self, SimError> {
         let img = image::open(path)
-            .map_err(|e| SimError::Image { path: path.display().to_string(), reason: e.to_string() })?
+            .map_err(|e| SimError::Image {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })?
             .to_luma8();
         let (w, h) = (img.width() as usize, img.height() as usize);
         let solid = |x: isize, y: isize| -> bool {
-            x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h && img.get_pixel(x as u32, y as u32).0[0] < 128
+            x >= 0
+                && y >= 0
+                && (x as usize) < w
+                && (y as usize) < h
+                && img.get_pixel(x as u32, y as u32).0[0] < 128
         };
-        let to_world = |x: usize, row: usize| Point2::new(x as f64 * resolution_m, (h - row) as f64 * resolution_m);
+        let to_world = |x: usize, row: usize| {
+            Point2::new(x as f64 * resolution_m, (h - row) as f64 * resolution_m)
+        };
         let mut walls = Vec::new();
         // horizontal edges at the top of pixel row `row` (between row-1 and row)
-        edge_runs(h + 1, w, |row, x| solid(x as isize, row as isize) != solid(x as isize, row as isize - 1), |row, x0, x1| {
-            walls.push(vec![to_world(x0, row), to_world(x1, row)]);
-        });
+        edge_runs(
+            h + 1,
+            w,
+            |row, x| solid(x as isize, row as isize) != solid(x as isize, row as isize - 1),
+            |row, x0, x1| {
+                walls.push(vec![to_world(x0, row), to_world(x1, row)]);
+            },
+        );
         // vertical edges at the left of pixel column `col`
-        edge_runs(w + 1, h, |col, row| solid(col as isize, row as isize) != solid(col as isize - 1, row as isize), |col, r0, r1| {
-            walls.push(vec![to_world(col, r0), to_world(col, r1)]);
-        });
+        edge_runs(
+            w + 1,
+            h,
+            |col, row| solid(col as isize, row as isize) != solid(col as isize - 1, row as isize),
+            |col, r0, r1| {
+                walls.push(vec![to_world(col, r0), to_world(col, r1)]);
+            },
+        );
         if walls.is_empty() {
-            return Err(SimError::Image { path: path.display().to_string(), reason: "no dark (occupied) pixels".into() });
+            return Err(SimError::Image {
+                path: path.display().to_string(),
+                reason: "no dark (occupied) pixels".into(),
+            });
         }
-        Ok(Map { name: path.display().to_string(), wall_height_m: DEFAULT_WALL_HEIGHT_M, walls, ..Map::default() })
+        Ok(Map {
+            name: path.display().to_string(),
+            wall_height_m: DEFAULT_WALL_HEIGHT_M,
+            walls,
+            ..Map::default()
+        })
     }
 
     /// The start pose called `name`.
     pub fn start(&self, name: &str) -> Option<Isometry2<f64>> {
-        self.starts.iter().find(|s| s.name == name).map(|s| s.t_world_body)
+        self.starts
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| s.t_world_body)
     }
 
     /// The place called `name`.
     pub fn place(&self, name: &str) -> Option<Point2<f64>> {
-        self.places.iter().find(|p| p.name == name).map(|p| p.position)
+        self.places
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.position)
     }
 
     /// The route called `name`.
@@ -213,7 +270,12 @@ impl Map {
 
 /// For each `line` in `0..lines`, finds the maximal runs `start..end` of `0..len` where
 /// `is_edge(line, i)` holds and calls `emit(line, start, end)`.
-fn edge_runs(lines: usize, len: usize, is_edge: impl Fn(usize, usize) -> bool, mut emit: impl FnMut(usize, usize, usize)) {
+fn edge_runs(
+    lines: usize,
+    len: usize,
+    is_edge: impl Fn(usize, usize) -> bool,
+    mut emit: impl FnMut(usize, usize, usize),
+) {
     for line in 0..lines {
         let mut run: Option<usize> = None;
         for i in 0..=len {
@@ -255,25 +317,42 @@ impl<'a> Args<'a> {
                 None => positional.push(*t),
             }
         }
-        Self { positional, options }
+        Self {
+            positional,
+            options,
+        }
     }
 
     fn option(&self, key: &str) -> Option<&'a str> {
-        self.options.iter().find(|(k, _)| *k == key).map(|(_, v)| *v)
+        self.options
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, v)| *v)
     }
 
     fn check_options(&self, allowed: &[&str]) -> Result<(), String> {
         match self.options.iter().find(|(k, _)| !allowed.contains(k)) {
-            Some((k, _)) => Err(format!("unknown option `{k}=` (allowed: {})", if allowed.is_empty() { "none".to_string() } else { allowed.join(", ") })),
+            Some((k, _)) => Err(format!(
+                "unknown option `{k}=` (allowed: {})",
+                if allowed.is_empty() {
+                    "none".to_string()
+                } else {
+                    allowed.join(", ")
+                }
+            )),
             None => Ok(()),
         }
     }
 }
 
 fn number(token: &str, what: &str) -> Result<f64, String> {
-    let v: f64 = token.parse().map_err(|_| format!("{what}: `{token}` is not a number"))?;
+    let v: f64 = token
+        .parse()
+        .map_err(|_| format!("{what}: `{token}` is not a number"))?;
     if !v.is_finite() || v.abs() > MAX_COORD_M {
-        return Err(format!("{what}: `{token}` is not finite or beyond +-{MAX_COORD_M} m"));
+        return Err(format!(
+            "{what}: `{token}` is not finite or beyond +-{MAX_COORD_M} m"
+        ));
     }
     Ok(v)
 }
@@ -288,10 +367,16 @@ fn positive(token: &str, what: &str) -> Result<f64, String> {
 
 fn points(tokens: &[&str], min: usize, what: &str) -> Result<Vec<Point2<f64>>, String> {
     if !tokens.len().is_multiple_of(2) {
-        return Err(format!("{what}: coordinates come in x y pairs, got {} numbers", tokens.len()));
+        return Err(format!(
+            "{what}: coordinates come in x y pairs, got {} numbers",
+            tokens.len()
+        ));
     }
     if tokens.len() / 2 < min {
-        return Err(format!("{what}: needs at least {min} points, got {}", tokens.len() / 2));
+        return Err(format!(
+            "{what}: needs at least {min} points, got {}",
+            tokens.len() / 2
+        ));
     }
     let pts = tokens
         .chunks(2)
@@ -304,7 +389,10 @@ fn points(tokens: &[&str], min: usize, what: &str) -> Result<Vec<Point2<f64>>, S
 }
 
 fn name(tokens: &[&str], what: &str) -> Result<String, String> {
-    tokens.first().map(|s| s.to_string()).ok_or_else(|| format!("{what}: missing name"))
+    tokens
+        .first()
+        .map(|s| s.to_string())
+        .ok_or_else(|| format!("{what}: missing name"))
 }
 
 fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
@@ -318,7 +406,10 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
         }
         "wall_height" => {
             args.check_options(&[])?;
-            map.wall_height_m = positive(pos.first().ok_or("wall_height: missing value")?, "wall_height")?;
+            map.wall_height_m = positive(
+                pos.first().ok_or("wall_height: missing value")?,
+                "wall_height",
+            )?;
         }
         "wall" => {
             args.check_options(&[])?;
@@ -335,19 +426,41 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
         "box" => {
             args.check_options(&["angle", "height", "name"])?;
             if pos.len() != 4 {
-                return Err(format!("box: expected `box cx cy width depth [angle=deg] [height=m] [name=..]`, got {} numbers", pos.len()));
+                return Err(format!(
+                    "box: expected `box cx cy width depth [angle=deg] [height=m] [name=..]`, got {} numbers",
+                    pos.len()
+                ));
             }
             let (cx, cy) = (number(pos[0], "box cx")?, number(pos[1], "box cy")?);
-            let (w, d) = (positive(pos[2], "box width")?, positive(pos[3], "box depth")?);
-            let angle = args.option("angle").map(|a| number(a, "box angle")).transpose()?.unwrap_or(0.0).to_radians();
+            let (w, d) = (
+                positive(pos[2], "box width")?,
+                positive(pos[3], "box depth")?,
+            );
+            let angle = args
+                .option("angle")
+                .map(|a| number(a, "box angle"))
+                .transpose()?
+                .unwrap_or(0.0)
+                .to_radians();
             let iso = Isometry2::new(Vector2::new(cx, cy), angle);
-            let polygon = [(-w, -d), (w, -d), (w, d), (-w, d)].iter().map(|(x, y)| iso * Point2::new(x / 2.0, y / 2.0)).collect();
-            map.furniture.push(Furniture { name: args.option("name").map(str::to_string), polygon, height_m: height(&args)? });
+            let polygon = [(-w, -d), (w, -d), (w, d), (-w, d)]
+                .iter()
+                .map(|(x, y)| iso * Point2::new(x / 2.0, y / 2.0))
+                .collect();
+            map.furniture.push(Furniture {
+                name: args.option("name").map(str::to_string),
+                polygon,
+                height_m: height(&args)?,
+            });
         }
         "polygon" => {
             args.check_options(&["height", "name"])?;
             let polygon = points(pos, 3, "polygon")?;
-            map.furniture.push(Furniture { name: args.option("name").map(str::to_string), polygon, height_m: height(&args)? });
+            map.furniture.push(Furniture {
+                name: args.option("name").map(str::to_string),
+                polygon,
+                height_m: height(&args)?,
+            });
         }
         "door" => {
             args.check_options(&[])?;
@@ -355,48 +468,88 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
             let state = match pos.len() {
                 5 => "closed",
                 6 => pos[5],
-                n => return Err(format!("door: expected `door ID x1 y1 x2 y2 [open|closed]`, got {} tokens", n)),
+                n => {
+                    return Err(format!(
+                        "door: expected `door ID x1 y1 x2 y2 [open|closed]`, got {} tokens",
+                        n
+                    ));
+                }
             };
             let open = match state {
                 "open" => true,
                 "closed" => false,
-                other => return Err(format!("door {id}: state `{other}` is neither `open` nor `closed`")),
+                other => {
+                    return Err(format!(
+                        "door {id}: state `{other}` is neither `open` nor `closed`"
+                    ));
+                }
             };
             let pts = points(&pos[1..5], 2, "door")?;
-            map.doors.push(Door { id, a: pts[0], b: pts[1], open });
+            map.doors.push(Door {
+                id,
+                a: pts[0],
+                b: pts[1],
+                open,
+            });
         }
         "restricted" => {
             args.check_options(&[])?;
             let area = name(pos, "restricted")?;
-            map.restricted.push(Area { name: area, polygon: points(&pos[1..], 3, "restricted")? });
+            map.restricted.push(Area {
+                name: area,
+                polygon: points(&pos[1..], 3, "restricted")?,
+            });
         }
         "passage" => {
             args.check_options(&["width"])?;
             let passage = name(pos, "passage")?;
             if pos.len() != 5 {
-                return Err(format!("passage: expected `passage NAME x1 y1 x2 y2 width=W`, got {} tokens", pos.len()));
+                return Err(format!(
+                    "passage: expected `passage NAME x1 y1 x2 y2 width=W`, got {} tokens",
+                    pos.len()
+                ));
             }
-            let width_m = positive(args.option("width").ok_or("passage: missing `width=`")?, "passage width")?;
+            let width_m = positive(
+                args.option("width").ok_or("passage: missing `width=`")?,
+                "passage width",
+            )?;
             let axis = points(&pos[1..5], 2, "passage")?;
-            map.passages.push(NarrowPassage { name: passage, a: axis[0], b: axis[1], width_m });
+            map.passages.push(NarrowPassage {
+                name: passage,
+                a: axis[0],
+                b: axis[1],
+                width_m,
+            });
         }
         "place" => {
             args.check_options(&[])?;
             let place = name(pos, "place")?;
             if pos.len() != 3 {
-                return Err(format!("place: expected `place NAME x y`, got {} tokens", pos.len()));
+                return Err(format!(
+                    "place: expected `place NAME x y`, got {} tokens",
+                    pos.len()
+                ));
             }
-            map.places.push(Place { name: place, position: Point2::new(number(pos[1], "place x")?, number(pos[2], "place y")?) });
+            map.places.push(Place {
+                name: place,
+                position: Point2::new(number(pos[1], "place x")?, number(pos[2], "place y")?),
+            });
         }
         "start" => {
             args.check_options(&[])?;
             let start = name(pos, "start")?;
             if pos.len() != 4 {
-                return Err(format!("start: expected `start NAME x y heading_deg`, got {} tokens", pos.len()));
+                return Err(format!(
+                    "start: expected `start NAME x y heading_deg`, got {} tokens",
+                    pos.len()
+                ));
             }
             let (x, y) = (number(pos[1], "start x")?, number(pos[2], "start y")?);
             let heading = number(pos[3], "start heading")?.to_radians();
-            map.starts.push(Start { name: start, t_world_body: Isometry2::new(Vector2::new(x, y), heading) });
+            map.starts.push(Start {
+                name: start,
+                t_world_body: Isometry2::new(Vector2::new(x, y), heading),
+            });
         }
         "route" => {
             args.check_options(&[])?;
@@ -405,15 +558,26 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
                 Some(&"closed") => (true, &pos[2..]),
                 _ => (false, &pos[1..]),
             };
-            map.routes.push(Route { name: route, points: points(coords, 2, "route")?, closed });
+            map.routes.push(Route {
+                name: route,
+                points: points(coords, 2, "route")?,
+                closed,
+            });
         }
-        other => return Err(format!("unknown keyword `{other}` (expected name, wall_height, wall, box, polygon, door, restricted, passage, place, start, route)")),
+        other => {
+            return Err(format!(
+                "unknown keyword `{other}` (expected name, wall_height, wall, box, polygon, door, restricted, passage, place, start, route)"
+            ));
+        }
     }
     Ok(())
 }
 
 fn height(args: &Args) -> Result<f64, String> {
-    args.option("height").map(|h| positive(h, "height")).transpose().map(|h| h.unwrap_or(DEFAULT_FURNITURE_HEIGHT_M))
+    args.option("height")
+        .map(|h| positive(h, "height"))
+        .transpose()
+        .map(|h| h.unwrap_or(DEFAULT_FURNITURE_HEIGHT_M))
 }
 
 #[cfg(test)]
@@ -431,9 +595,14 @@ mod tests {
         assert_eq!(m.furniture.len(), 2);
         assert_eq!(m.furniture[1].height_m, 1.8);
         assert!(m.doors[0].open);
-        assert_eq!((m.passages[0].name.as_str(), m.passages[0].width_m), ("hall", 2.0));
+        assert_eq!(
+            (m.passages[0].name.as_str(), m.passages[0].width_m),
+            ("hall", 2.0)
+        );
         assert_eq!(m.place("kitchen"), Some(Point2::new(2.0, 6.0)));
-        assert!((m.start("s0").unwrap().rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!(
+            (m.start("s0").unwrap().rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12
+        );
         assert!(m.route("lap").unwrap().closed);
         // rotated box: width 1 along y now
         let ys: Vec<f64> = m.furniture[0].polygon.iter().map(|p| p.y).collect();
@@ -447,9 +616,13 @@ mod tests {
         assert!(e.starts_with("bad.map:3: box: expected"), "{e}");
         let e = Map::parse("wall 0 0 x 1", "w.map").unwrap_err().to_string();
         assert_eq!(e, "w.map:1: wall: `x` is not a number");
-        let e = Map::parse("wall 0 0 1 1\ndoor a 0 0 1 0 ajar", "d.map").unwrap_err().to_string();
+        let e = Map::parse("wall 0 0 1 1\ndoor a 0 0 1 0 ajar", "d.map")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("d.map:2:") && e.contains("ajar"), "{e}");
-        let e = Map::parse("passage p 0 0 1 0", "p.map").unwrap_err().to_string();
+        let e = Map::parse("passage p 0 0 1 0", "p.map")
+            .unwrap_err()
+            .to_string();
         assert_eq!(e, "p.map:1: passage: missing `width=`");
         let e = Map::parse("sofa 1 2", "k.map").unwrap_err().to_string();
         assert!(e.contains("unknown keyword `sofa`"), "{e}");

@@ -5,7 +5,10 @@
 use std::path::Path;
 
 use image::{ImageBuffer, Luma, Rgb, RgbImage};
-use nalgebra::{Isometry2, Isometry3, Matrix3, Point2, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{
+    Isometry2, Isometry3, Matrix3, Point2, Rotation3, Translation3, UnitQuaternion, Vector2,
+    Vector3,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -41,7 +44,10 @@ pub struct RgbdFrame {
 impl RgbdFrame {
     /// Writes the colour image and the 16-bit depth image as PNGs (the TUM RGB-D layout).
     pub fn save(&self, rgb_path: &Path, depth_path: &Path) -> Result<(), SimError> {
-        let err = |path: &Path, e: image::ImageError| SimError::Image { path: path.display().to_string(), reason: e.to_string() };
+        let err = |path: &Path, e: image::ImageError| SimError::Image {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        };
         self.rgb.save(rgb_path).map_err(|e| err(rgb_path, e))?;
         self.depth.save(depth_path).map_err(|e| err(depth_path, e))
     }
@@ -56,23 +62,41 @@ pub struct TextureSet {
 impl TextureSet {
     /// Loads every `.png`/`.jpg` in `dir` (sorted by name; grey images become RGB).
     pub fn load_dir(dir: &Path) -> Result<Self, SimError> {
-        let io = |source| SimError::Io { path: dir.display().to_string(), source };
+        let io = |source| SimError::Io {
+            path: dir.display().to_string(),
+            source,
+        };
         let mut paths: Vec<_> = std::fs::read_dir(dir)
             .map_err(io)?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().and_then(|e| e.to_str()).is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg")))
+            .filter(|p| {
+                p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                    matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg")
+                })
+            })
             .collect();
         paths.sort();
         let textures = paths
             .iter()
-            .map(|p| image::open(p).map(|i| i.to_rgb8()).map_err(|e| SimError::Image { path: p.display().to_string(), reason: e.to_string() }))
+            .map(|p| {
+                image::open(p)
+                    .map(|i| i.to_rgb8())
+                    .map_err(|e| SimError::Image {
+                        path: p.display().to_string(),
+                        reason: e.to_string(),
+                    })
+            })
             .collect::<Result<Vec<_>, _>>()?;
-        Self::from_images(textures).ok_or_else(|| SimError::Image { path: dir.display().to_string(), reason: "no png/jpg images in the folder".into() })
+        Self::from_images(textures).ok_or_else(|| SimError::Image {
+            path: dir.display().to_string(),
+            reason: "no png/jpg images in the folder".into(),
+        })
     }
 
     /// Textures from images (`None` if the list is empty or an image has no pixels).
     pub fn from_images(textures: Vec<RgbImage>) -> Option<Self> {
-        (!textures.is_empty() && textures.iter().all(|t| t.width() > 0 && t.height() > 0)).then_some(Self { textures })
+        (!textures.is_empty() && textures.iter().all(|t| t.width() > 0 && t.height() > 0))
+            .then_some(Self { textures })
     }
 
     /// Procedural textures (brick-like courses with seeded noise), used when no photographs
@@ -81,8 +105,14 @@ impl TextureSet {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let textures = (0..4)
             .map(|k| {
-                let base: [f64; 3] = [rng.random_range(90.0..200.0), rng.random_range(70.0..180.0), rng.random_range(60.0..170.0)];
-                let noise: Vec<f64> = (0..256 * 256).map(|_| rng.random_range(-25.0..25.0)).collect();
+                let base: [f64; 3] = [
+                    rng.random_range(90.0..200.0),
+                    rng.random_range(70.0..180.0),
+                    rng.random_range(60.0..170.0),
+                ];
+                let noise: Vec<f64> = (0..256 * 256)
+                    .map(|_| rng.random_range(-25.0..25.0))
+                    .collect();
                 RgbImage::from_fn(256, 256, |x, y| {
                     let course = y / 32;
                     let offset = if course % 2 == 0 { 0 } else { 32 };
@@ -101,7 +131,9 @@ impl TextureSet {
         let (w, h) = (tex.width() as f64, tex.height() as f64);
         let x = ((along_m / TILE_WIDTH_M).rem_euclid(1.0) * w) as u32;
         let y = ((1.0 - (height_m / TILE_HEIGHT_M).rem_euclid(1.0)) * h) as u32;
-        let p = tex.get_pixel(x.min(tex.width() - 1), y.min(tex.height() - 1)).0;
+        let p = tex
+            .get_pixel(x.min(tex.width() - 1), y.min(tex.height() - 1))
+            .0;
         p.map(f64::from)
     }
 }
@@ -113,15 +145,28 @@ pub fn optical_pose(t_world_cam2: &Isometry2<f64>, height_m: f64) -> Isometry3<f
     let x_right = Vector3::new(h.sin(), -h.cos(), 0.0);
     let y_down = Vector3::new(0.0, 0.0, -1.0);
     let z_forward = Vector3::new(h.cos(), h.sin(), 0.0);
-    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x_right, y_down, z_forward])));
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
+        Matrix3::from_columns(&[x_right, y_down, z_forward]),
+    ));
     let t = t_world_cam2.translation.vector;
     Isometry3::from_parts(Translation3::new(t.x, t.y, height_m), rotation)
 }
 
 /// Renders chair `ignore`'s camera at body pose `t_world_body`.
-pub(crate) fn render(world: &World, ignore: usize, camera: &CameraModel, t_world_body: &Isometry2<f64>, textures: &TextureSet, light: f64) -> RgbdFrame {
+pub(crate) fn render(
+    world: &World,
+    ignore: usize,
+    camera: &CameraModel,
+    t_world_body: &Isometry2<f64>,
+    textures: &TextureSet,
+    light: f64,
+) -> RgbdFrame {
     let (w, h) = (camera.width_px.max(1), camera.height_px.max(1));
-    let cam = CameraModel { width_px: w, height_px: h, ..*camera };
+    let cam = CameraModel {
+        width_px: w,
+        height_px: h,
+        ..*camera
+    };
     let (fx, fy, cx, cy) = cam.intrinsics();
     let t_world_cam2 = t_world_body * cam.t_body_camera;
     let origin = Point2::from(t_world_cam2.translation.vector);
@@ -133,7 +178,10 @@ pub(crate) fn render(world: &World, ignore: usize, camera: &CameraModel, t_world
     let mut hits: Vec<Hit> = Vec::new();
     for u in 0..w {
         let offset = ((cx - u as f64) / fx).atan();
-        let (cos_off, dir) = (offset.cos(), Vector2::new((heading + offset).cos(), (heading + offset).sin()));
+        let (cos_off, dir) = (
+            offset.cos(),
+            Vector2::new((heading + offset).cos(), (heading + offset).sin()),
+        );
         world.cast_all(&origin, &dir, DRAW_RANGE_M, Some(ignore), &mut hits);
         for v in 0..h {
             let slope = (cy - v as f64) / fy; // height gained per metre of optical depth
@@ -155,14 +203,20 @@ pub(crate) fn render(world: &World, ignore: usize, camera: &CameraModel, t_world
                     let colour = match hit.owner {
                         Owner::Door(_) => [150.0, 100.0, 60.0],
                         Owner::Chair(_) => [40.0, 45.0, 60.0],
-                        Owner::Wall | Owner::Furniture => textures.sample(hit.texture, hit.along_m, z),
+                        Owner::Wall | Owner::Furniture => {
+                            textures.sample(hit.texture, hit.along_m, z)
+                        }
                     };
                     (hit.range_m, colour)
                 }
                 None if plane_range.is_finite() => {
                     let p = origin + dir * plane_range;
                     let colour = if slope < 0.0 {
-                        if ((p.x / 0.5).floor() + (p.y / 0.5).floor()).rem_euclid(2.0) < 1.0 { [170.0, 160.0, 140.0] } else { [120.0, 110.0, 95.0] }
+                        if ((p.x / 0.5).floor() + (p.y / 0.5).floor()).rem_euclid(2.0) < 1.0 {
+                            [170.0, 160.0, 140.0]
+                        } else {
+                            [120.0, 110.0, 95.0]
+                        }
                     } else {
                         [225.0, 225.0, 220.0]
                     };
@@ -171,11 +225,25 @@ pub(crate) fn render(world: &World, ignore: usize, camera: &CameraModel, t_world
                 None => (f64::INFINITY, [0.0; 3]),
             };
             let shade = light / (1.0 + 0.06 * range.min(DRAW_RANGE_M));
-            rgb.put_pixel(u, v, Rgb(colour.map(|c| (c * shade).clamp(0.0, 255.0) as u8)));
+            rgb.put_pixel(
+                u,
+                v,
+                Rgb(colour.map(|c| (c * shade).clamp(0.0, 255.0) as u8)),
+            );
             let z_m = range * cos_off;
-            let raw = if z_m >= cam.min_depth_m && z_m <= cam.max_depth_m { (z_m * TUM_DEPTH_PER_M).round() as u16 } else { 0 };
+            let raw = if z_m >= cam.min_depth_m && z_m <= cam.max_depth_m {
+                (z_m * TUM_DEPTH_PER_M).round() as u16
+            } else {
+                0
+            };
             depth.put_pixel(u, v, Luma([raw]));
         }
     }
-    RgbdFrame { time_ns: world.time_ns(), rgb, depth, t_world_camera: optical_pose(&t_world_cam2, hc), intrinsics: (fx, fy, cx, cy) }
+    RgbdFrame {
+        time_ns: world.time_ns(),
+        rgb,
+        depth,
+        t_world_camera: optical_pose(&t_world_cam2, hc),
+        intrinsics: (fx, fy, cx, cy),
+    }
 }

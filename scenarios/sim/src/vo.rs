@@ -11,20 +11,35 @@ use std::time::Instant;
 use iw_body::WheelSpeeds;
 use iw_features::DetectorKind;
 use iw_vo::{
-    CameraSource, DiffDriveParams, Intrinsics, OdometryFusion, Pipeline, Pose2, VisualOdometry, VoConfig, VoError, WheelOdometry,
-    planar_motion,
+    CameraSource, DiffDriveParams, Intrinsics, OdometryFusion, Pipeline, Pose2, VisualOdometry,
+    VoConfig, VoError, WheelOdometry, planar_motion,
 };
 use nalgebra::{Isometry2, Isometry3, Matrix3, Point2, Vector2, Vector3};
 
 use crate::body::lock;
-use crate::{CameraModel, ChairId, Route, RgbdFrame, SharedWorld, SimError, TUM_DEPTH_PER_M, optical_pose};
+use crate::{
+    CameraModel, ChairId, RgbdFrame, Route, SharedWorld, SimError, TUM_DEPTH_PER_M, optical_pose,
+};
 
 /// The calibration iw-vo needs for frames of `camera`: its pinhole, no distortion (the renderer
 /// is an ideal pinhole), TUM depth units and the camera's valid depth range.
 pub fn vo_intrinsics(camera: &CameraModel) -> Intrinsics {
-    let cam = CameraModel { width_px: camera.width_px.max(1), height_px: camera.height_px.max(1), ..*camera };
+    let cam = CameraModel {
+        width_px: camera.width_px.max(1),
+        height_px: camera.height_px.max(1),
+        ..*camera
+    };
     let (fx, fy, cx, cy) = cam.intrinsics();
-    Intrinsics { fx, fy, cx, cy, distortion: None, depth_units_per_m: TUM_DEPTH_PER_M, min_depth_m: cam.min_depth_m, max_depth_m: cam.max_depth_m }
+    Intrinsics {
+        fx,
+        fy,
+        cx,
+        cy,
+        distortion: None,
+        depth_units_per_m: TUM_DEPTH_PER_M,
+        min_depth_m: cam.min_depth_m,
+        max_depth_m: cam.max_depth_m,
+    }
 }
 
 /// Where `camera` sits on the base (base frame: x forward, y left, z up; optical frame: x right,
@@ -35,7 +50,12 @@ pub fn t_base_camera(camera: &CameraModel) -> Isometry3<f64> {
 
 /// A rendered frame as iw-vo's frame: images and time only (the ground truth stays behind).
 pub fn vo_frame(frame: &RgbdFrame) -> iw_vo::RgbdFrame {
-    iw_vo::RgbdFrame { timestamp_s: frame.time_ns as f64 * 1e-9, rgb: frame.rgb.clone(), depth: frame.depth.clone(), decode_ms: 0.0 }
+    iw_vo::RgbdFrame {
+        timestamp_s: frame.time_ns as f64 * 1e-9,
+        rgb: frame.rgb.clone(),
+        depth: frame.depth.clone(),
+        decode_ms: 0.0,
+    }
 }
 
 /// The camera of one simulated chair: each [`CameraSource::next_frame`] renders what it sees in
@@ -52,7 +72,12 @@ impl SimCamera {
     /// The camera of chair `id` (an error if the world has no such chair).
     pub fn new(world: SharedWorld, id: ChairId) -> Result<Self, SimError> {
         let camera = lock(&world).spec(id)?.camera;
-        Ok(SimCamera { intrinsics: vo_intrinsics(&camera), t_base_camera: t_base_camera(&camera), world, id })
+        Ok(SimCamera {
+            intrinsics: vo_intrinsics(&camera),
+            t_base_camera: t_base_camera(&camera),
+            world,
+            id,
+        })
     }
 
     /// Where the camera sits on the chair's base.
@@ -72,7 +97,14 @@ impl CameraSource for SimCamera {
     }
 
     fn next_frame(&mut self) -> Option<Result<iw_vo::RgbdFrame, VoError>> {
-        Some(self.render().map(|f| vo_frame(&f)).map_err(|e| VoError::Image { path: format!("simulated camera of chair {}", self.id.0), reason: e.to_string() }))
+        Some(
+            self.render()
+                .map(|f| vo_frame(&f))
+                .map_err(|e| VoError::Image {
+                    path: format!("simulated camera of chair {}", self.id.0),
+                    reason: e.to_string(),
+                }),
+        )
     }
 }
 
@@ -116,7 +148,11 @@ impl Default for TrialConfig {
             speed_mps: 0.4,
             vo: sim_vo_config(DetectorKind::LsacSurf, Pipeline::Keyframe),
             light_change: None,
-            vo_noise: Matrix3::from_diagonal(&Vector3::new(0.004f64.powi(2), 0.004f64.powi(2), 0.002f64.powi(2))),
+            vo_noise: Matrix3::from_diagonal(&Vector3::new(
+                0.004f64.powi(2),
+                0.004f64.powi(2),
+                0.002f64.powi(2),
+            )),
         }
     }
 }
@@ -152,7 +188,13 @@ pub struct TrialResult {
 impl TrialResult {
     fn rmse(&self, pick: impl Fn(&TrialPoint) -> Pose2) -> f64 {
         let n = self.points.len().max(1) as f64;
-        (self.points.iter().map(|p| (pick(p).x - p.truth.x).powi(2) + (pick(p).y - p.truth.y).powi(2)).sum::<f64>() / n).sqrt()
+        (self
+            .points
+            .iter()
+            .map(|p| (pick(p).x - p.truth.x).powi(2) + (pick(p).y - p.truth.y).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt()
     }
 
     /// Position RMSE of wheel odometry against the truth, m.
@@ -187,15 +229,21 @@ fn steer(pose: &Isometry2<f64>, target: &Point2<f64>, speed: f64, track_m: f64) 
     let error = iw_vo::wrap_angle(to.y.atan2(to.x) - pose.rotation.angle());
     let omega = (1.5 * error).clamp(-0.6, 0.6);
     let v = speed * error.cos().max(0.2);
-    WheelSpeeds { left_mps: v - omega * track_m / 2.0, right_mps: v + omega * track_m / 2.0 }
+    WheelSpeeds {
+        left_mps: v - omega * track_m / 2.0,
+        right_mps: v + omega * track_m / 2.0,
+    }
 }
 
 /// The route's waypoints in driving order from `start`: from the nearest one if it lies ahead,
 /// else the one after it; a closed route wraps round to end where it began.
 pub fn waypoints_ahead(start: &Isometry2<f64>, route: &Route) -> Vec<Point2<f64>> {
     let from = Point2::from(start.translation.vector);
-    let Some(nearest) = (0..route.points.len()).min_by(|&a, &b| (route.points[a] - from).norm().total_cmp(&(route.points[b] - from).norm()))
-    else {
+    let Some(nearest) = (0..route.points.len()).min_by(|&a, &b| {
+        (route.points[a] - from)
+            .norm()
+            .total_cmp(&(route.points[b] - from).norm())
+    }) else {
         return Vec::new();
     };
     let ahead = (route.points[nearest] - from).dot(&(start.rotation * Vector2::x())) > 0.0;
@@ -211,7 +259,12 @@ pub fn waypoints_ahead(start: &Isometry2<f64>, route: &Route) -> Vec<Point2<f64>
 /// estimates its pose three ways from its encoders and camera: wheel odometry, visual odometry
 /// on the rendered frames ([`SimCamera`]), and their EKF ([`OdometryFusion`]), all started at
 /// the true start pose. The caller owns the world; the trial steps it.
-pub fn run_trial(world: &SharedWorld, id: ChairId, waypoints: &[Point2<f64>], config: &TrialConfig) -> Result<TrialResult, SimError> {
+pub fn run_trial(
+    world: &SharedWorld,
+    id: ChairId,
+    waypoints: &[Point2<f64>],
+    config: &TrialConfig,
+) -> Result<TrialResult, SimError> {
     let spec = lock(world).spec(id)?.clone();
     let mut camera = SimCamera::new(world.clone(), id)?;
     let drive = DiffDriveParams {
@@ -222,23 +275,38 @@ pub fn run_trial(world: &SharedWorld, id: ChairId, waypoints: &[Point2<f64>], co
     };
     let start = pose2(&lock(world).pose(id)?);
     let mut wheels = WheelOdometry::new(drive, start);
-    let mut fusion = OdometryFusion::new(start, Matrix3::from_diagonal(&Vector3::new(1e-6, 1e-6, 1e-6)), drive.alpha);
+    let mut fusion = OdometryFusion::new(
+        start,
+        Matrix3::from_diagonal(&Vector3::new(1e-6, 1e-6, 1e-6)),
+        drive.alpha,
+    );
     let mut vo = VisualOdometry::new(config.vo.clone(), *camera.intrinsics());
     let t_base_camera = camera.t_base_camera();
     let (mut vo_pose, mut last_camera): (Pose2, Option<Isometry3<f64>>) = (start, None);
     let first = lock(world).sensors(id)?.clone();
     wheels.update(first.left_ticks, first.right_ticks);
-    let mut result = TrialResult { points: Vec::with_capacity(config.frames), vo_frames: 0, vo_seconds: 0.0, render_seconds: 0.0 };
+    let mut result = TrialResult {
+        points: Vec::with_capacity(config.frames),
+        vo_frames: 0,
+        vo_seconds: 0.0,
+        render_seconds: 0.0,
+    };
     let mut next_waypoint = 0;
     for frame_index in 0..config.frames {
         if frame_index > 0 {
             for _ in 0..config.steps_per_frame.max(1) {
                 let truth = lock(world).pose(id)?;
-                while next_waypoint + 1 < waypoints.len() && (waypoints[next_waypoint] - Point2::from(truth.translation.vector)).norm() < 0.5 {
+                while next_waypoint + 1 < waypoints.len()
+                    && (waypoints[next_waypoint] - Point2::from(truth.translation.vector)).norm()
+                        < 0.5
+                {
                     next_waypoint += 1;
                 }
                 if let Some(target) = waypoints.get(next_waypoint) {
-                    lock(world).command(id, steer(&truth, target, config.speed_mps, spec.geometry.track_m))?;
+                    lock(world).command(
+                        id,
+                        steer(&truth, target, config.speed_mps, spec.geometry.track_m),
+                    )?;
                 }
                 crate::step(&mut lock(world), config.dt_s);
                 let sensed = lock(world).sensors(id)?.clone();
@@ -263,13 +331,18 @@ pub fn run_trial(world: &SharedWorld, id: ChairId, waypoints: &[Point2<f64>], co
                 Ok((stamped, _)) => {
                     result.vo_frames += 1;
                     if let Some(last) = last_camera {
-                        let motion = planar_motion(&t_base_camera, &(last.inverse() * stamped.t_world_camera));
+                        let motion = planar_motion(
+                            &t_base_camera,
+                            &(last.inverse() * stamped.t_world_camera),
+                        );
                         vo_pose = vo_pose.compose(&motion);
                         fusion.update_visual(&motion, &config.vo_noise);
                     }
                     last_camera = Some(stamped.t_world_camera);
                 }
-                Err(err) => tracing::warn!(frame = frame_index, error = %err, "visual odometry failed on a simulated frame"),
+                Err(err) => {
+                    tracing::warn!(frame = frame_index, error = %err, "visual odometry failed on a simulated frame")
+                }
             }
         }
         let w = lock(world);

@@ -99,24 +99,45 @@ impl World {
     /// A world from `map`; `seed` drives every random error (encoders, sensor noise).
     pub fn new(map: Map, seed: u64) -> Self {
         let (min, max) = map.bounds();
-        let (min, max) = (min - Vector2::repeat(MARGIN_M), max + Vector2::repeat(MARGIN_M));
+        let (min, max) = (
+            min - Vector2::repeat(MARGIN_M),
+            max + Vector2::repeat(MARGIN_M),
+        );
         let mut statics = Vec::new();
         let mut texture = 0;
         for wall in &map.walls {
             for w in wall.windows(2) {
-                statics.push(Segment { a: w[0], b: w[1], owner: Owner::Wall, height_m: map.wall_height_m, texture });
+                statics.push(Segment {
+                    a: w[0],
+                    b: w[1],
+                    owner: Owner::Wall,
+                    height_m: map.wall_height_m,
+                    texture,
+                });
             }
             texture += 1;
         }
         for f in &map.furniture {
             let n = f.polygon.len();
             for i in 0..n {
-                statics.push(Segment { a: f.polygon[i], b: f.polygon[(i + 1) % n], owner: Owner::Furniture, height_m: f.height_m, texture });
+                statics.push(Segment {
+                    a: f.polygon[i],
+                    b: f.polygon[(i + 1) % n],
+                    owner: Owner::Furniture,
+                    height_m: f.height_m,
+                    texture,
+                });
             }
             texture += 1;
         }
         for (i, d) in map.doors.iter().enumerate() {
-            statics.push(Segment { a: d.a, b: d.b, owner: Owner::Door(i), height_m: map.wall_height_m, texture: usize::MAX });
+            statics.push(Segment {
+                a: d.a,
+                b: d.b,
+                owner: Owner::Door(i),
+                height_m: map.wall_height_m,
+                texture: usize::MAX,
+            });
         }
         let mut static_grid = Grid::new(min, max, CELL_M);
         for (i, s) in statics.iter().enumerate() {
@@ -150,11 +171,24 @@ impl World {
 
     /// Adds a chair at `t_world_body`. Its random errors come from the world seed and its index,
     /// so adding chairs in the same order reproduces the same run.
-    pub fn add_chair(&mut self, spec: ChairSpec, t_world_body: Isometry2<f64>, kind: ChairKind) -> ChairId {
+    pub fn add_chair(
+        &mut self,
+        spec: ChairSpec,
+        t_world_body: Isometry2<f64>,
+        kind: ChairKind,
+    ) -> ChairId {
         let index = self.chairs.len();
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            self.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
         let (lo, hi) = spec.encoder.compression;
-        let mut compression = || if hi > lo { rng.random_range(lo..hi) } else { lo };
+        let mut compression = || {
+            if hi > lo {
+                rng.random_range(lo..hi)
+            } else {
+                lo
+            }
+        };
         let radius_scale = (1.0 - compression(), 1.0 - compression());
         let (sonar_rays, laser_beams) = (spec.sonar_ray_dirs(), spec.laser_beam_dirs());
         self.chairs.push(Chair {
@@ -189,12 +223,17 @@ impl World {
     }
 
     fn chair(&self, id: ChairId) -> Result<&Chair, SimError> {
-        self.chairs.get(id.0).ok_or(SimError::NoSuchChair { id: id.0, count: self.chairs.len() })
+        self.chairs.get(id.0).ok_or(SimError::NoSuchChair {
+            id: id.0,
+            count: self.chairs.len(),
+        })
     }
 
     fn chair_mut(&mut self, id: ChairId) -> Result<&mut Chair, SimError> {
         let count = self.chairs.len();
-        self.chairs.get_mut(id.0).ok_or(SimError::NoSuchChair { id: id.0, count })
+        self.chairs
+            .get_mut(id.0)
+            .ok_or(SimError::NoSuchChair { id: id.0, count })
     }
 
     /// The chair's model.
@@ -206,8 +245,17 @@ impl World {
     pub fn command(&mut self, id: ChairId, speeds: WheelSpeeds) -> Result<(), SimError> {
         let chair = self.chair_mut(id)?;
         let limit = chair.spec.max_wheel_mps;
-        let clean = |v: f64| if v.is_finite() { v.clamp(-limit, limit) } else { 0.0 };
-        chair.reference = WheelSpeeds { left_mps: clean(speeds.left_mps), right_mps: clean(speeds.right_mps) };
+        let clean = |v: f64| {
+            if v.is_finite() {
+                v.clamp(-limit, limit)
+            } else {
+                0.0
+            }
+        };
+        chair.reference = WheelSpeeds {
+            left_mps: clean(speeds.left_mps),
+            right_mps: clean(speeds.right_mps),
+        };
         Ok(())
     }
 
@@ -253,7 +301,12 @@ impl World {
     /// How many times the chair entered a restricted area, and the one it is in now.
     pub fn restricted(&self, id: ChairId) -> Result<(u64, Option<&str>), SimError> {
         let c = self.chair(id)?;
-        Ok((c.restricted_entries, c.inside_restricted.and_then(|i| self.map.restricted.get(i)).map(|a| a.name.as_str())))
+        Ok((
+            c.restricted_entries,
+            c.inside_restricted
+                .and_then(|i| self.map.restricted.get(i))
+                .map(|a| a.name.as_str()),
+        ))
     }
 
     /// Places a chair (mixed reality: the real chair's pose). Overlaps are counted as collisions
@@ -261,7 +314,8 @@ impl World {
     /// distance travelled.
     pub fn place(&mut self, id: ChairId, t_world_body: Isometry2<f64>) -> Result<(), SimError> {
         let chair = self.chair_mut(id)?;
-        chair.distance_m += (t_world_body.translation.vector - chair.t_world_body.translation.vector).norm();
+        chair.distance_m +=
+            (t_world_body.translation.vector - chair.t_world_body.translation.vector).norm();
         chair.t_world_body = t_world_body;
         let hit = self.footprint_collides(id.0, &t_world_body);
         let near = hit || self.footprint_collides_within(id.0, &t_world_body, CONTACT_RELEASE_M);
@@ -278,11 +332,23 @@ impl World {
 
     /// Opens or closes the door `door_id`. Closing fails while a chair stands in the doorway.
     pub fn set_door(&mut self, door_id: &str, open: bool) -> Result<(), SimError> {
-        let index = self.map.doors.iter().position(|d| d.id == door_id).ok_or_else(|| SimError::NoSuchDoor { id: door_id.to_string() })?;
+        let index = self
+            .map
+            .doors
+            .iter()
+            .position(|d| d.id == door_id)
+            .ok_or_else(|| SimError::NoSuchDoor {
+                id: door_id.to_string(),
+            })?;
         if !open {
             let door = &self.map.doors[index];
-            if let Some(blocker) = self.chairs.iter().position(|c| segment_hits_polygon(&door.a, &door.b, &c.spec.footprint_at(&c.t_world_body))) {
-                return Err(SimError::DoorBlocked { id: door_id.to_string(), chair: blocker });
+            if let Some(blocker) = self.chairs.iter().position(|c| {
+                segment_hits_polygon(&door.a, &door.b, &c.spec.footprint_at(&c.t_world_body))
+            }) {
+                return Err(SimError::DoorBlocked {
+                    id: door_id.to_string(),
+                    chair: blocker,
+                });
             }
         }
         self.door_open[index] = open;
@@ -291,13 +357,24 @@ impl World {
 
     /// Whether door `door_id` is open.
     pub fn door_is_open(&self, door_id: &str) -> Result<bool, SimError> {
-        let index = self.map.doors.iter().position(|d| d.id == door_id).ok_or_else(|| SimError::NoSuchDoor { id: door_id.to_string() })?;
+        let index = self
+            .map
+            .doors
+            .iter()
+            .position(|d| d.id == door_id)
+            .ok_or_else(|| SimError::NoSuchDoor {
+                id: door_id.to_string(),
+            })?;
         Ok(self.door_open[index])
     }
 
     /// Global light level: 1 nominal, 0 dark, above 1 brighter (RGB only, depth unaffected).
     pub fn set_light(&mut self, level: f64) {
-        self.light = if level.is_finite() { level.max(0.0) } else { 1.0 };
+        self.light = if level.is_finite() {
+            level.max(0.0)
+        } else {
+            1.0
+        };
     }
 
     /// Wall and furniture textures for the RGB-D camera (default: procedural).
@@ -323,7 +400,14 @@ impl World {
     /// Renders an RGB-D frame for this chair now.
     pub fn render_rgbd(&self, id: ChairId) -> Result<RgbdFrame, SimError> {
         let c = self.chair(id)?;
-        Ok(crate::render::render(self, id.0, &c.spec.camera, &c.t_world_body, &self.textures, self.light))
+        Ok(crate::render::render(
+            self,
+            id.0,
+            &c.spec.camera,
+            &c.t_world_body,
+            &self.textures,
+            self.light,
+        ))
     }
 
     /// Advances the world by `dt_s` seconds: drives, collisions, then sensors.
@@ -362,7 +446,10 @@ impl World {
         let (enc_l, enc_r) = ((l0 + l1) / 2.0 * dt, (r0 + r1) / 2.0 * dt);
         // the ground sees the compressed tyre, less what slips
         let enc = spec.encoder;
-        let mut slip = |accel: f64| (gaussian(&mut chair.rng).abs() * enc.slip_std + enc.slip_per_mps2 * accel.abs()).min(0.5);
+        let mut slip = |accel: f64| {
+            (gaussian(&mut chair.rng).abs() * enc.slip_std + enc.slip_per_mps2 * accel.abs())
+                .min(0.5)
+        };
         let slip_l = slip((l1 - l0) / dt.max(1e-9));
         let slip_r = slip((r1 - r0) / dt.max(1e-9));
         let ground_l = enc_l * chair.radius_scale.0 * (1.0 - slip_l);
@@ -370,14 +457,16 @@ impl World {
         let ds = (ground_l + ground_r) / 2.0;
         let dtheta = (ground_r - ground_l) / spec.geometry.track_m;
         let reach = spec.reach_m();
-        let substeps = ((ds.abs().max(dtheta.abs() * reach) / SUBSTEP_M).ceil() as usize).clamp(1, 10_000);
+        let substeps =
+            ((ds.abs().max(dtheta.abs() * reach) / SUBSTEP_M).ceil() as usize).clamp(1, 10_000);
         let start = chair.t_world_body;
         let mut pose = start;
         let mut hit = false;
         for k in 1..=substeps {
             let f = k as f64 / substeps as f64;
             let (s, th) = (ds * f, dtheta * f);
-            let t_start_now = Isometry2::new(Vector2::new(s * (th / 2.0).cos(), s * (th / 2.0).sin()), th);
+            let t_start_now =
+                Isometry2::new(Vector2::new(s * (th / 2.0).cos(), s * (th / 2.0).sin()), th);
             let candidate = start * t_start_now;
             if self.footprint_collides(i, &candidate) {
                 hit = true;
@@ -391,7 +480,11 @@ impl World {
         let per_tick = chair.spec.geometry.m_per_tick();
         if hit {
             // the motors stall against the obstacle: count what turned before the contact only
-            let fraction = if ds.abs() > 1e-12 { ((pose.translation.vector - start.translation.vector).norm() / ds.abs()).min(1.0) } else { 0.0 };
+            let fraction = if ds.abs() > 1e-12 {
+                ((pose.translation.vector - start.translation.vector).norm() / ds.abs()).min(1.0)
+            } else {
+                0.0
+            };
             chair.ticks.0 += enc_l * fraction / per_tick;
             chair.ticks.1 += enc_r * fraction / per_tick;
             chair.wheel_mps = (0.0, 0.0);
@@ -405,7 +498,8 @@ impl World {
             chair.wheel_mps = (l1, r1);
         }
         let was_in_contact = chair.in_contact;
-        let released = !hit && was_in_contact && !self.footprint_collides_within(i, &pose, CONTACT_RELEASE_M);
+        let released =
+            !hit && was_in_contact && !self.footprint_collides_within(i, &pose, CONTACT_RELEASE_M);
         let chair = &mut self.chairs[i];
         chair.in_contact = hit || (was_in_contact && !released);
     }
@@ -419,12 +513,22 @@ impl World {
     /// [`Self::footprint_collides`] for the footprint grown by `margin_m` on every side.
     fn footprint_collides_within(&self, i: usize, pose: &Isometry2<f64>, margin_m: f64) -> bool {
         let spec = &self.chairs[i].spec;
-        let grown = ChairSpec { front_m: spec.front_m + margin_m, rear_m: spec.rear_m + margin_m, half_width_m: spec.half_width_m + margin_m, ..spec.clone() };
+        let grown = ChairSpec {
+            front_m: spec.front_m + margin_m,
+            rear_m: spec.rear_m + margin_m,
+            half_width_m: spec.half_width_m + margin_m,
+            ..spec.clone()
+        };
         let poly = grown.footprint_at(pose);
-        let (min, max) = poly.iter().fold((poly[0], poly[0]), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+        let (min, max) = poly
+            .iter()
+            .fold((poly[0], poly[0]), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
         let mut hit = false;
         self.static_grid.query_box(&min, &max, |s| {
-            if !hit && let Some(seg) = self.statics.get(s as usize) && self.solid(seg) {
+            if !hit
+                && let Some(seg) = self.statics.get(s as usize)
+                && self.solid(seg)
+            {
                 hit = segment_hits_polygon(&seg.a, &seg.b, &poly);
             }
         });
@@ -435,19 +539,25 @@ impl World {
         // proposes candidates within one cell of margin, more than any chair moves per tick
         let margin = Vector2::repeat(CELL_M);
         let mut candidates: Vec<usize> = Vec::new();
-        self.chair_grid.query_box(&(min - margin), &(max + margin), |s| {
-            if let Some(Segment { owner: Owner::Chair(j), .. }) = self.chair_segments.get(s as usize)
-                && *j != i
-                && !candidates.contains(j)
-            {
-                candidates.push(*j);
-            }
-        });
+        self.chair_grid
+            .query_box(&(min - margin), &(max + margin), |s| {
+                if let Some(Segment {
+                    owner: Owner::Chair(j),
+                    ..
+                }) = self.chair_segments.get(s as usize)
+                    && *j != i
+                    && !candidates.contains(j)
+                {
+                    candidates.push(*j);
+                }
+            });
         candidates.into_iter().any(|j| {
             let other = &self.chairs[j];
             let theirs = other.spec.footprint_at(&other.t_world_body);
             (0..4).any(|k| segment_hits_polygon(&theirs[k], &theirs[(k + 1) % 4], &poly))
-                || (0..4).any(|k| segments_intersect(&poly[k], &poly[(k + 1) % 4], &theirs[0], &theirs[2]))
+                || (0..4).any(|k| {
+                    segments_intersect(&poly[k], &poly[(k + 1) % 4], &theirs[0], &theirs[2])
+                })
         })
     }
 
@@ -464,8 +574,15 @@ impl World {
         for (j, c) in self.chairs.iter().enumerate() {
             let poly = c.spec.footprint_at(&c.t_world_body);
             for k in 0..4 {
-                let seg = Segment { a: poly[k], b: poly[(k + 1) % 4], owner: Owner::Chair(j), height_m: 1.2, texture: usize::MAX - 1 };
-                self.chair_grid.insert(self.chair_segments.len() as u32, &seg.a, &seg.b);
+                let seg = Segment {
+                    a: poly[k],
+                    b: poly[(k + 1) % 4],
+                    owner: Owner::Chair(j),
+                    height_m: 1.2,
+                    texture: usize::MAX - 1,
+                };
+                self.chair_grid
+                    .insert(self.chair_segments.len() as u32, &seg.a, &seg.b);
                 self.chair_segments.push(seg);
             }
         }
@@ -473,7 +590,11 @@ impl World {
 
     fn update_restricted(&mut self, i: usize) {
         let p = Point2::from(self.chairs[i].t_world_body.translation.vector);
-        let now = self.map.restricted.iter().position(|a| crate::geom::point_in_polygon(&p, &a.polygon));
+        let now = self
+            .map
+            .restricted
+            .iter()
+            .position(|a| crate::geom::point_in_polygon(&p, &a.polygon));
         let chair = &mut self.chairs[i];
         if now.is_some() && now != chair.inside_restricted {
             chair.restricted_entries += 1;
@@ -483,11 +604,23 @@ impl World {
 
     /// The nearest solid thing along a ray from `origin` (unit `dir`) within `max_m`, ignoring
     /// chair `ignore` (the one casting).
-    pub fn cast(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_m: f64, ignore: Option<usize>) -> Option<Hit> {
+    pub fn cast(
+        &self,
+        origin: &Point2<f64>,
+        dir: &Vector2<f64>,
+        max_m: f64,
+        ignore: Option<usize>,
+    ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         self.walk(origin, dir, max_m, ignore, |seg, t, u| {
             if best.is_none_or(|b| t < b.range_m) {
-                best = Some(Hit { range_m: t, owner: seg.owner, height_m: seg.height_m, texture: seg.texture, along_m: u * (seg.b - seg.a).norm() });
+                best = Some(Hit {
+                    range_m: t,
+                    owner: seg.owner,
+                    height_m: seg.height_m,
+                    texture: seg.texture,
+                    along_m: u * (seg.b - seg.a).norm(),
+                });
             }
             best.map_or(f64::INFINITY, |b| b.range_m)
         });
@@ -496,12 +629,25 @@ impl World {
 
     /// Every solid surface along a ray within `max_m`, nearest first (for the camera, which
     /// sees over low furniture).
-    pub fn cast_all(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_m: f64, ignore: Option<usize>, out: &mut Vec<Hit>) {
+    pub fn cast_all(
+        &self,
+        origin: &Point2<f64>,
+        dir: &Vector2<f64>,
+        max_m: f64,
+        ignore: Option<usize>,
+        out: &mut Vec<Hit>,
+    ) {
         out.clear();
         self.walk(origin, dir, max_m, ignore, |seg, t, u| {
             // a segment spanning several cells is met once per cell: keep one hit per surface
             if !out.iter().any(|h| h.range_m == t && h.owner == seg.owner) {
-                out.push(Hit { range_m: t, owner: seg.owner, height_m: seg.height_m, texture: seg.texture, along_m: u * (seg.b - seg.a).norm() });
+                out.push(Hit {
+                    range_m: t,
+                    owner: seg.owner,
+                    height_m: seg.height_m,
+                    texture: seg.texture,
+                    along_m: u * (seg.b - seg.a).norm(),
+                });
             }
             f64::INFINITY
         });
@@ -510,12 +656,29 @@ impl World {
 
     /// One grid walk over static and chair segments: `on_hit(segment, t, u)` for every solid
     /// segment the ray meets within `max_m`, returning the range beyond which the walk may stop.
-    fn walk(&self, origin: &Point2<f64>, dir: &Vector2<f64>, max_m: f64, ignore: Option<usize>, mut on_hit: impl FnMut(&Segment, f64, f64) -> f64) {
+    fn walk(
+        &self,
+        origin: &Point2<f64>,
+        dir: &Vector2<f64>,
+        max_m: f64,
+        ignore: Option<usize>,
+        mut on_hit: impl FnMut(&Segment, f64, f64) -> f64,
+    ) {
         let own = Owner::Chair(ignore.unwrap_or(usize::MAX));
         let mut stop_at = f64::INFINITY;
         self.static_grid.walk_ray(origin, dir, max_m, |cell| {
-            let statics = self.static_grid.cell(cell).iter().filter_map(|&s| self.statics.get(s as usize)).filter(|seg| self.solid(seg));
-            let chairs = self.chair_grid.cell(cell).iter().filter_map(|&s| self.chair_segments.get(s as usize)).filter(|seg| seg.owner != own);
+            let statics = self
+                .static_grid
+                .cell(cell)
+                .iter()
+                .filter_map(|&s| self.statics.get(s as usize))
+                .filter(|seg| self.solid(seg));
+            let chairs = self
+                .chair_grid
+                .cell(cell)
+                .iter()
+                .filter_map(|&s| self.chair_segments.get(s as usize))
+                .filter(|seg| seg.owner != own);
             for seg in statics.chain(chairs) {
                 if let Some((t, u)) = ray_segment(origin, dir, &seg.a, &seg.b)
                     && t <= max_m
@@ -540,11 +703,20 @@ impl World {
             let nearest = chair
                 .sonar_rays
                 .iter()
-                .filter_map(|local| self.cast(&origin, &(t_world_sonar.rotation * local), model.max_range_m, Some(i)))
+                .filter_map(|local| {
+                    self.cast(
+                        &origin,
+                        &(t_world_sonar.rotation * local),
+                        model.max_range_m,
+                        Some(i),
+                    )
+                })
                 .map(|hit| hit.range_m)
                 .fold(f64::INFINITY, f64::min);
             let noise = gaussian(&mut rng) * model.noise_std_m;
-            *reading = nearest.is_finite().then(|| (nearest + noise).clamp(model.min_range_m, model.max_range_m));
+            *reading = nearest
+                .is_finite()
+                .then(|| (nearest + noise).clamp(model.min_range_m, model.max_range_m));
         }
         let laser_m = match &spec.laser {
             Some(laser) => {
@@ -553,9 +725,17 @@ impl World {
                 chair
                     .laser_beams
                     .iter()
-                    .map(|local| match self.cast(&origin, &(t_world_laser.rotation * local), laser.max_range_m, Some(i)) {
-                        Some(hit) => (hit.range_m + gaussian(&mut rng) * laser.noise_std_m).clamp(0.0, laser.max_range_m),
-                        None => laser.max_range_m,
+                    .map(|local| {
+                        match self.cast(
+                            &origin,
+                            &(t_world_laser.rotation * local),
+                            laser.max_range_m,
+                            Some(i),
+                        ) {
+                            Some(hit) => (hit.range_m + gaussian(&mut rng) * laser.noise_std_m)
+                                .clamp(0.0, laser.max_range_m),
+                            None => laser.max_range_m,
+                        }
                     })
                     .collect()
             }

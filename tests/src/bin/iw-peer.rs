@@ -29,14 +29,22 @@ fn try_main() -> anyhow::Result<()> {
     let platform = Platform::new();
     let node = platform.node(&["b"]).context("making b's identity")?;
     let transport = UdpTransport::bind("127.0.0.1:0").context("binding the UDP socket")?;
-    let addr = transport.socket_addr().context("reading the socket address")?;
+    let addr = transport
+        .socket_addr()
+        .context("reading the socket address")?;
     let stdout = std::io::stdout();
-    writeln!(stdout.lock(), "READY {addr} {}", hex(&node.identity.public_key()))?;
+    writeln!(
+        stdout.lock(),
+        "READY {addr} {}",
+        hex(&node.identity.public_key())
+    )?;
 
     let mut lines = std::io::stdin().lock().lines();
     let peer_line = lines.next().context("stdin closed before PEER")??;
     let parts: Vec<&str> = peer_line.split_whitespace().collect();
-    let [cmd, key, route] = parts.as_slice() else { bail!("expected `PEER <key> <addr>`, got `{peer_line}`") };
+    let [cmd, key, route] = parts.as_slice() else {
+        bail!("expected `PEER <key> <addr>`, got `{peer_line}`")
+    };
     if *cmd != "PEER" {
         bail!("expected PEER, got `{peer_line}`");
     }
@@ -48,7 +56,12 @@ fn try_main() -> anyhow::Result<()> {
     cfg.comm.initial_rto = Duration::from_millis(10);
     cfg.comm.max_rto = Duration::from_millis(200);
     let stack = platform.stack(&node, &cfg);
-    let bus = Arc::new(Bus::start(stack, Arc::new(transport), Clock::system(), BusConfig::default())?);
+    let bus = Arc::new(Bus::start(
+        stack,
+        Arc::new(transport),
+        Clock::system(),
+        BusConfig::default(),
+    )?);
     bus.add_route("a", PeerAddr(route.to_string()));
     let mut mailbox = bus.register("b")?;
 
@@ -66,7 +79,8 @@ fn try_main() -> anyhow::Result<()> {
                 };
                 report.delivered += 1;
                 // Genuine means: from `a`, and byte for byte the message `a` sends with that number.
-                let genuine = number_of(&env.payload).filter(|n| env.header.sender == "a" && env.payload == acl("a", "b", *n));
+                let genuine = number_of(&env.payload)
+                    .filter(|n| env.header.sender == "a" && env.payload == acl("a", "b", *n));
                 match genuine {
                     Some(n) => {
                         *seen.entry(n).or_default() += 1;
@@ -88,7 +102,9 @@ fn try_main() -> anyhow::Result<()> {
         }
     }
     stop.store(true, Ordering::Release);
-    let mut report = worker.join().map_err(|_| anyhow::anyhow!("worker thread panicked"))?;
+    let mut report = worker
+        .join()
+        .map_err(|_| anyhow::anyhow!("worker thread panicked"))?;
     report.counters = bus.counters().to_string();
     writeln!(stdout.lock(), "{}", report.to_line())?;
     Ok(())

@@ -24,7 +24,9 @@ pub fn require(test: &str, relative: &str) -> Option<PathBuf> {
         _ => {
             skip(
                 test,
-                &format!("shared data `{relative}` not found (set INTELLWHEELS_SHARED or place shared/ beside the clone)"),
+                &format!(
+                    "shared data `{relative}` not found (set INTELLWHEELS_SHARED or place shared/ beside the clone)"
+                ),
             );
             None
         }

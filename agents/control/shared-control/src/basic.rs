@@ -20,11 +20,19 @@ pub struct DiffDrive {
 
 impl DiffDrive {
     /// Checks the geometry.
-    pub fn new(track_width_m: f64, max_wheel_mps: f64, max_wheel_accel_mps2: f64) -> Result<Self, ControlError> {
+    pub fn new(
+        track_width_m: f64,
+        max_wheel_mps: f64,
+        max_wheel_accel_mps2: f64,
+    ) -> Result<Self, ControlError> {
         check_positive("track_width_m", track_width_m)?;
         check_positive("max_wheel_mps", max_wheel_mps)?;
         check_positive("max_wheel_accel_mps2", max_wheel_accel_mps2)?;
-        Ok(DiffDrive { track_width_m, max_wheel_mps, max_wheel_accel_mps2 })
+        Ok(DiffDrive {
+            track_width_m,
+            max_wheel_mps,
+            max_wheel_accel_mps2,
+        })
     }
 
     /// Wheel speeds for `command`; when a wheel would exceed `max_wheel_mps` both are scaled down
@@ -32,9 +40,15 @@ impl DiffDrive {
     pub fn wheel_speeds(&self, command: VelocityCommand) -> Result<WheelSpeeds, ControlError> {
         let command = command.validate()?;
         let half_turn = command.angular_radps * self.track_width_m / 2.0;
-        let (left, right) = (command.linear_mps - half_turn, command.linear_mps + half_turn);
+        let (left, right) = (
+            command.linear_mps - half_turn,
+            command.linear_mps + half_turn,
+        );
         let scale = (self.max_wheel_mps / left.abs().max(right.abs())).min(1.0);
-        Ok(WheelSpeeds { left_mps: left * scale, right_mps: right * scale })
+        Ok(WheelSpeeds {
+            left_mps: left * scale,
+            right_mps: right * scale,
+        })
     }
 
     /// The chair motion that wheel speeds produce (inverse kinematics).
@@ -49,7 +63,10 @@ impl DiffDrive {
     pub fn ramp(&self, from: WheelSpeeds, to: WheelSpeeds, dt_s: f64) -> WheelSpeeds {
         let step = self.max_wheel_accel_mps2 * dt_s.max(0.0);
         let toward = |a: f64, b: f64| a + (b - a).clamp(-step, step);
-        WheelSpeeds { left_mps: toward(from.left_mps, to.left_mps), right_mps: toward(from.right_mps, to.right_mps) }
+        WheelSpeeds {
+            left_mps: toward(from.left_mps, to.left_mps),
+            right_mps: toward(from.right_mps, to.right_mps),
+        }
     }
 }
 
@@ -63,7 +80,10 @@ pub struct Watchdog {
 impl Watchdog {
     /// A watchdog that has not been fed yet (so it reports expired until the first command).
     pub fn new(timeout_ns: u64) -> Self {
-        Watchdog { timeout_ns, last_feed_ns: None }
+        Watchdog {
+            timeout_ns,
+            last_feed_ns: None,
+        }
     }
 
     /// A command arrived at `now_ns`.
@@ -73,7 +93,8 @@ impl Watchdog {
 
     /// True when the last command is older than the timeout at `now_ns` (or none ever came).
     pub fn expired(&self, now_ns: u64) -> bool {
-        self.last_feed_ns.is_none_or(|last| now_ns.saturating_sub(last) > self.timeout_ns)
+        self.last_feed_ns
+            .is_none_or(|last| now_ns.saturating_sub(last) > self.timeout_ns)
     }
 }
 
@@ -124,9 +145,19 @@ impl BasicControl {
     /// The wheel speed references to send at `now_ns`: ramped towards the last command, or towards
     /// zero once the watchdog has fired.
     pub fn output(&mut self, now_ns: u64) -> WheelSpeeds {
-        let goal = if self.watchdog.expired(now_ns) { WheelSpeeds::default() } else { self.target };
-        let dt_s = self.last_output_ns.map_or(0.0, |last| now_ns.saturating_sub(last) as f64 * 1e-9);
-        self.output = if self.last_output_ns.is_none() { goal } else { self.drive.ramp(self.output, goal, dt_s) };
+        let goal = if self.watchdog.expired(now_ns) {
+            WheelSpeeds::default()
+        } else {
+            self.target
+        };
+        let dt_s = self
+            .last_output_ns
+            .map_or(0.0, |last| now_ns.saturating_sub(last) as f64 * 1e-9);
+        self.output = if self.last_output_ns.is_none() {
+            goal
+        } else {
+            self.drive.ramp(self.output, goal, dt_s)
+        };
         self.last_output_ns = Some(now_ns);
         self.output
     }
@@ -168,7 +199,11 @@ mod tests {
         now += 100_000_000;
         basic.command(VelocityCommand::new(0.6, 0.0), now).unwrap();
         // one 100 ms step at 1 m/s^2 from rest, not back to 0.6 m/s
-        assert!((basic.output(now).left_mps - 0.1).abs() < 1e-9, "{:?}", basic.output(now));
+        assert!(
+            (basic.output(now).left_mps - 0.1).abs() < 1e-9,
+            "{:?}",
+            basic.output(now)
+        );
     }
 
     #[test]

@@ -16,11 +16,17 @@ pub struct VelocityCommand {
 
 impl VelocityCommand {
     /// Standing still.
-    pub const STOP: VelocityCommand = VelocityCommand { linear_mps: 0.0, angular_radps: 0.0 };
+    pub const STOP: VelocityCommand = VelocityCommand {
+        linear_mps: 0.0,
+        angular_radps: 0.0,
+    };
 
     /// A command from its two speeds.
     pub fn new(linear_mps: f64, angular_radps: f64) -> Self {
-        VelocityCommand { linear_mps, angular_radps }
+        VelocityCommand {
+            linear_mps,
+            angular_radps,
+        }
     }
 
     /// Rejects NaN or infinite speeds (a broken input device must not reach the wheels).
@@ -73,7 +79,9 @@ impl MotionIntent {
 
     /// The attractive force `F_a` in the chair frame (m/s).
     pub fn force_chair(&self) -> Vector2<f64> {
-        self.sign * self.speed_mps * Vector2::new(self.direction_rad.cos(), self.direction_rad.sin())
+        self.sign
+            * self.speed_mps
+            * Vector2::new(self.direction_rad.cos(), self.direction_rad.sin())
     }
 
     /// Turns a vector in the chair frame into the motion frame of this intent.
@@ -97,7 +105,11 @@ mod tests {
 
     #[test]
     fn round_trip_forward_and_reverse() {
-        for cmd in [VelocityCommand::new(0.7, 0.4), VelocityCommand::new(-0.3, -0.8), VelocityCommand::new(0.5, 0.0)] {
+        for cmd in [
+            VelocityCommand::new(0.7, 0.4),
+            VelocityCommand::new(-0.3, -0.8),
+            VelocityCommand::new(0.5, 0.0),
+        ] {
             let intent = MotionIntent::from_command(cmd, 1.0);
             let back = intent.to_command(1.0);
             assert!((back.linear_mps - cmd.linear_mps).abs() < 1e-12);

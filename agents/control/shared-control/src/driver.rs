@@ -33,7 +33,12 @@ impl Circuit {
     pub fn new(waypoints: Vec<Point2<f64>>) -> Result<Self, ControlError> {
         for p in &waypoints {
             if !(p.x.is_finite() && p.y.is_finite()) {
-                return Err(ControlError::NonFinitePose { what: "waypoint", x: p.x, y: p.y, theta: 0.0 });
+                return Err(ControlError::NonFinitePose {
+                    what: "waypoint",
+                    x: p.x,
+                    y: p.y,
+                    theta: 0.0,
+                });
             }
         }
         let mut starts = vec![0.0];
@@ -42,7 +47,9 @@ impl Circuit {
             starts.push(starts[i] + (next - waypoints[i]).norm());
         }
         if waypoints.len() < 2 || starts.last().copied().unwrap_or(0.0) <= 0.0 {
-            return Err(ControlError::ShortCircuit { count: waypoints.len() });
+            return Err(ControlError::ShortCircuit {
+                count: waypoints.len(),
+            });
         }
         Ok(Circuit { waypoints, starts })
     }
@@ -60,11 +67,19 @@ impl Circuit {
     /// The point at arc length `s` (any real; wraps around laps).
     pub fn point_at(&self, s: f64) -> Point2<f64> {
         let s = s.rem_euclid(self.length_m());
-        let i = self.starts.partition_point(|&start| start <= s).saturating_sub(1).min(self.waypoints.len() - 1);
+        let i = self
+            .starts
+            .partition_point(|&start| start <= s)
+            .saturating_sub(1)
+            .min(self.waypoints.len() - 1);
         let a = self.waypoints[i];
         let b = self.waypoints[(i + 1) % self.waypoints.len()];
         let seg = self.starts[i + 1] - self.starts[i];
-        if seg <= 0.0 { a } else { a + (b - a) * ((s - self.starts[i]) / seg) }
+        if seg <= 0.0 {
+            a
+        } else {
+            a + (b - a) * ((s - self.starts[i]) / seg)
+        }
     }
 
     /// Direction of travel at arc length `s`, rad.
@@ -80,7 +95,11 @@ impl Circuit {
         let count = ((behind + ahead) / step).ceil() as usize;
         (0..=count)
             .map(|k| hint - behind + k as f64 * step)
-            .min_by(|a, b| (self.point_at(*a) - p).norm_squared().total_cmp(&(self.point_at(*b) - p).norm_squared()))
+            .min_by(|a, b| {
+                (self.point_at(*a) - p)
+                    .norm_squared()
+                    .total_cmp(&(self.point_at(*b) - p).norm_squared())
+            })
             .unwrap_or(hint)
     }
 }
@@ -197,25 +216,41 @@ impl HeadGestureDriver {
     }
 
     /// One period at `time_ns` with the chair at `t_world_chair` (the person sees the real pose).
-    pub fn step(&mut self, time_ns: u64, t_world_chair: Isometry2<f64>) -> Result<DriverOutput, ControlError> {
+    pub fn step(
+        &mut self,
+        time_ns: u64,
+        t_world_chair: Isometry2<f64>,
+    ) -> Result<DriverOutput, ControlError> {
         let position = Point2::from(t_world_chair.translation.vector);
         let heading = t_world_chair.rotation.angle();
         if !(position.x.is_finite() && position.y.is_finite() && heading.is_finite()) {
-            return Err(ControlError::NonFinitePose { what: "chair pose", x: position.x, y: position.y, theta: heading });
+            return Err(ControlError::NonFinitePose {
+                what: "chair pose",
+                x: position.x,
+                y: position.y,
+                theta: heading,
+            });
         }
-        let dt_s = self.last_ns.map_or(0.0, |last| time_ns.saturating_sub(last) as f64 * 1e-9);
+        let dt_s = self
+            .last_ns
+            .map_or(0.0, |last| time_ns.saturating_sub(last) as f64 * 1e-9);
         self.last_ns = Some(time_ns);
         let start_m = match self.start_m {
             Some(start) => start,
             None => {
                 // First period: find the chair anywhere on the loop; laps count from there.
-                let start = self.circuit.project_near(position, 0.0, 0.0, self.circuit.length_m());
+                let start = self
+                    .circuit
+                    .project_near(position, 0.0, 0.0, self.circuit.length_m());
                 self.progress_m = start;
                 self.checkpoint = (time_ns, start);
                 *self.start_m.insert(start)
             }
         };
-        self.progress_m = self.circuit.project_near(position, self.progress_m, 0.5, 1.5).max(self.progress_m - 0.5);
+        self.progress_m = self
+            .circuit
+            .project_near(position, self.progress_m, 0.5, 1.5)
+            .max(self.progress_m - 0.5);
         let intended = self.intend(time_ns, position, heading);
         self.intended.push_back((time_ns, intended));
         let delay_ns = (self.profile.reaction_delay_s * 1e9) as u64;
@@ -230,7 +265,11 @@ impl HeadGestureDriver {
         let command = self.head_cap(time_ns, dt_s, delayed);
         let driven_m = self.progress_m - start_m;
         let laps = (driven_m / self.circuit.length_m()).floor().max(0.0) as usize;
-        Ok(DriverOutput { command, laps, progress_m: driven_m })
+        Ok(DriverOutput {
+            command,
+            laps,
+            progress_m: driven_m,
+        })
     }
 
     /// What the person wants now: pure pursuit along the circuit, or backing off when stuck.
@@ -262,20 +301,29 @@ impl HeadGestureDriver {
         if time_ns < self.lapse_until_ns {
             return self.held;
         }
-        if self.rng.random_bool((p.lapse_rate_hz * dt_s).clamp(0.0, 1.0)) {
+        if self
+            .rng
+            .random_bool((p.lapse_rate_hz * dt_s).clamp(0.0, 1.0))
+        {
             self.lapse_until_ns = time_ns + (p.lapse_s * 1e9) as u64;
             return self.held;
         }
         // First-order autoregressive tremor with stationary deviation tremor_*.
         let keep = (-dt_s / p.tremor_time_s).exp();
         let fresh = (1.0 - keep * keep).sqrt();
-        self.tremor.linear_mps = keep * self.tremor.linear_mps + fresh * p.tremor_mps * self.gaussian();
-        self.tremor.angular_radps = keep * self.tremor.angular_radps + fresh * p.tremor_radps * self.gaussian();
+        self.tremor.linear_mps =
+            keep * self.tremor.linear_mps + fresh * p.tremor_mps * self.gaussian();
+        self.tremor.angular_radps =
+            keep * self.tremor.angular_radps + fresh * p.tremor_radps * self.gaussian();
         let linear = delayed.linear_mps + self.tremor.linear_mps;
         let angular = delayed.angular_radps + self.tremor.angular_radps;
         // Coarse levels: stop / half / full tilt forward, one reverse level; n turn levels a side.
         let full = p.preferred_speed_mps;
-        let linear = if linear < -0.1 { -0.25 } else { (linear / (full / 2.0)).round().clamp(0.0, 2.0) * full / 2.0 };
+        let linear = if linear < -0.1 {
+            -0.25
+        } else {
+            (linear / (full / 2.0)).round().clamp(0.0, 2.0) * full / 2.0
+        };
         let levels = f64::from(p.turn_levels.max(1));
         let step = p.max_angular_radps / levels;
         let angular = (angular / step).round().clamp(-levels, levels) * step;
@@ -297,15 +345,21 @@ mod tests {
     use nalgebra::Vector2;
 
     fn square() -> Circuit {
-        Circuit::new(vec![Point2::new(0.0, 0.0), Point2::new(6.0, 0.0), Point2::new(6.0, 4.0), Point2::new(0.0, 4.0)])
-            .unwrap()
+        Circuit::new(vec![
+            Point2::new(0.0, 0.0),
+            Point2::new(6.0, 0.0),
+            Point2::new(6.0, 4.0),
+            Point2::new(0.0, 4.0),
+        ])
+        .unwrap()
     }
 
     /// Drives a unicycle in free space with the driver; returns laps done and the worst distance
     /// from the circuit.
     fn drive(seed: u64, seconds: f64) -> (usize, f64) {
         let circuit = square();
-        let mut driver = HeadGestureDriver::new(DriverProfile::from_seed(seed), circuit.clone(), seed);
+        let mut driver =
+            HeadGestureDriver::new(DriverProfile::from_seed(seed), circuit.clone(), seed);
         let mut pose = Isometry2::new(Vector2::zeros(), 0.0);
         let mut worst: f64 = 0.0;
         let mut laps = 0;
@@ -340,13 +394,23 @@ mod tests {
         let run = |seed| {
             let mut d = HeadGestureDriver::new(DriverProfile::from_seed(seed), square(), seed);
             (0..200u64)
-                .map(|k| d.step(k * 50_000_000, Isometry2::new(Vector2::new(0.01 * k as f64, 0.0), 0.0)).unwrap().command)
+                .map(|k| {
+                    d.step(
+                        k * 50_000_000,
+                        Isometry2::new(Vector2::new(0.01 * k as f64, 0.0), 0.0),
+                    )
+                    .unwrap()
+                    .command
+                })
                 .collect::<Vec<_>>()
         };
         let a = run(7);
         assert_eq!(a, run(7));
         assert_ne!(a, run(8));
-        let levels: std::collections::BTreeSet<i64> = a.iter().map(|c| (c.angular_radps * 1000.0).round() as i64).collect();
+        let levels: std::collections::BTreeSet<i64> = a
+            .iter()
+            .map(|c| (c.angular_radps * 1000.0).round() as i64)
+            .collect();
         assert!(levels.len() <= 5, "{levels:?}");
     }
 

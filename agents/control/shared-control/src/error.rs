@@ -5,7 +5,9 @@
 #[non_exhaustive]
 pub enum ControlError {
     /// A command had a NaN or infinite speed.
-    #[error("command ({linear_mps} m/s, {angular_radps} rad/s) is not finite; check the input device")]
+    #[error(
+        "command ({linear_mps} m/s, {angular_radps} rad/s) is not finite; check the input device"
+    )]
     NonFiniteCommand {
         /// Linear speed given.
         linear_mps: f64,
@@ -69,11 +71,19 @@ pub enum ControlError {
 }
 
 /// Checks one range reading.
-pub(crate) fn check_range(sensor: &'static str, index: usize, value: f64) -> Result<f64, ControlError> {
+pub(crate) fn check_range(
+    sensor: &'static str,
+    index: usize,
+    value: f64,
+) -> Result<f64, ControlError> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
-        Err(ControlError::BadReading { sensor, index, value })
+        Err(ControlError::BadReading {
+            sensor,
+            index,
+            value,
+        })
     }
 }
 
@@ -82,6 +92,10 @@ pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64, Cont
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(ControlError::BadParameter { name, value, why: "must be finite and > 0" })
+        Err(ControlError::BadParameter {
+            name,
+            value,
+            why: "must be finite and > 0",
+        })
     }
 }

@@ -78,7 +78,11 @@ pub struct Intervention {
 
 impl Intervention {
     /// Difference between a corrected and a user command.
-    pub fn between(user: VelocityCommand, corrected: VelocityCommand, active_readings: usize) -> Self {
+    pub fn between(
+        user: VelocityCommand,
+        corrected: VelocityCommand,
+        active_readings: usize,
+    ) -> Self {
         Intervention {
             delta_linear_mps: corrected.linear_mps - user.linear_mps,
             delta_angular_radps: corrected.angular_radps - user.angular_radps,
@@ -95,7 +99,9 @@ impl Intervention {
     /// track width, m/s (linear and angular changes in the same unit).
     pub fn wheel_change_mps(&self, track_width_m: f64) -> f64 {
         let turn = self.delta_angular_radps * track_width_m / 2.0;
-        (self.delta_linear_mps - turn).abs().max((self.delta_linear_mps + turn).abs())
+        (self.delta_linear_mps - turn)
+            .abs()
+            .max((self.delta_linear_mps + turn).abs())
     }
 }
 

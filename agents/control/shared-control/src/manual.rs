@@ -9,6 +9,9 @@ pub struct Manual;
 impl SharedController for Manual {
     fn step(&mut self, input: &SharedInput<'_>) -> Result<SharedOutput, ControlError> {
         let command = input.user.validate()?;
-        Ok(SharedOutput { command, intervention: Intervention::default() })
+        Ok(SharedOutput {
+            command,
+            intervention: Intervention::default(),
+        })
     }
 }

@@ -20,7 +20,8 @@ use nalgebra::{Point2, Vector2};
 
 use crate::error::{check_positive, check_range};
 use crate::{
-    ControlError, Intervention, MotionIntent, SensorMount, SharedController, SharedInput, SharedOutput,
+    ControlError, Intervention, MotionIntent, SensorMount, SharedController, SharedInput,
+    SharedOutput,
 };
 
 /// Constants of equation 3.2 and the safety range; defaults are the thesis's.
@@ -84,7 +85,8 @@ impl PotentialFieldParams {
 
     /// The safety range at `speed_mps`, m: readings beyond it are ignored.
     pub fn safety_range_m(&self, speed_mps: f64) -> f64 {
-        let cm = (self.omega_s_per_m * speed_mps.abs() - (self.epsilon / self.alpha).ln()) / self.beta_per_cm;
+        let cm = (self.omega_s_per_m * speed_mps.abs() - (self.epsilon / self.alpha).ln())
+            / self.beta_per_cm;
         (cm / 100.0).clamp(self.min_safety_range_m, self.max_safety_range_m)
     }
 }
@@ -107,7 +109,10 @@ pub struct Repulsion {
 
 impl PotentialField {
     /// A controller for sonars at `mounts` (`t_chair_sonar`, x along the acoustic axis).
-    pub fn new(params: PotentialFieldParams, mounts: Vec<SensorMount>) -> Result<Self, ControlError> {
+    pub fn new(
+        params: PotentialFieldParams,
+        mounts: Vec<SensorMount>,
+    ) -> Result<Self, ControlError> {
         params.validate()?;
         Ok(PotentialField { params, mounts })
     }
@@ -118,9 +123,17 @@ impl PotentialField {
     }
 
     /// Equations 3.1-3.3: the summed repulsion for an attractive force of magnitude `fa`.
-    pub fn repulsion(&self, sonar_m: &[Option<f64>], speed_mps: f64, fa: f64) -> Result<Repulsion, ControlError> {
+    pub fn repulsion(
+        &self,
+        sonar_m: &[Option<f64>],
+        speed_mps: f64,
+        fa: f64,
+    ) -> Result<Repulsion, ControlError> {
         if sonar_m.len() != self.mounts.len() {
-            return Err(ControlError::SonarCount { expected: self.mounts.len(), got: sonar_m.len() });
+            return Err(ControlError::SonarCount {
+                expected: self.mounts.len(),
+                got: sonar_m.len(),
+            });
         }
         let speed_mps = check_range("speed", 0, speed_mps.abs())?;
         let safety_m = self.params.safety_range_m(speed_mps);
@@ -134,11 +147,16 @@ impl PotentialField {
             }
             // Equation 3.1: the obstacle sits on the acoustic axis; it pushes along O_i -> C.
             let o_chair = mount * Point2::new(distance_m, 0.0);
-            let Some(away) = (-o_chair.coords).try_normalize(1e-9) else { continue };
+            let Some(away) = (-o_chair.coords).try_normalize(1e-9) else {
+                continue;
+            };
             force_chair += away * (self.params.force_ratio(distance_m, speed_mps) * fa);
             active_readings += 1;
         }
-        Ok(Repulsion { force_chair, active_readings })
+        Ok(Repulsion {
+            force_chair,
+            active_readings,
+        })
     }
 }
 
@@ -149,7 +167,10 @@ impl SharedController for PotentialField {
         let repulsion = self.repulsion(input.sonar_m, input.speed_mps, intent.speed_mps)?;
         if repulsion.active_readings == 0 || intent.sign == 0.0 {
             // Free space (or spinning in place, where F_a = 0): the user keeps full control.
-            return Ok(SharedOutput { command: user, intervention: Intervention::default() });
+            return Ok(SharedOutput {
+                command: user,
+                intervention: Intervention::default(),
+            });
         }
         // Equation 3.4, then back to a command in the motion frame.
         let total = intent.to_motion_frame(intent.force_chair() + repulsion.force_chair);
@@ -164,7 +185,10 @@ impl SharedController for PotentialField {
             direction_rad: raw_direction.clamp(-half_pi, half_pi),
         };
         let command = corrected.to_command(self.params.lookahead_s);
-        Ok(SharedOutput { command, intervention: Intervention::between(user, command, repulsion.active_readings) })
+        Ok(SharedOutput {
+            command,
+            intervention: Intervention::between(user, command, repulsion.active_readings),
+        })
     }
 }
 
@@ -203,12 +227,21 @@ mod tests {
     fn forces_point_away_from_obstacles() {
         let f = field();
         let fa = 0.8;
-        for (index, away) in [(0, V2::new(-1.0, 0.0)), (1, V2::new(0.0, -1.0)), (2, V2::new(0.0, 1.0)), (3, V2::new(1.0, 0.0))] {
+        for (index, away) in [
+            (0, V2::new(-1.0, 0.0)),
+            (1, V2::new(0.0, -1.0)),
+            (2, V2::new(0.0, 1.0)),
+            (3, V2::new(1.0, 0.0)),
+        ] {
             let mut sonar = [None; 4];
             sonar[index] = Some(0.2);
             let r = f.repulsion(&sonar, 0.8, fa).unwrap();
             assert_eq!(r.active_readings, 1);
-            assert!(r.force_chair.dot(&away) > 0.99 * r.force_chair.norm(), "sonar {index}: {:?}", r.force_chair);
+            assert!(
+                r.force_chair.dot(&away) > 0.99 * r.force_chair.norm(),
+                "sonar {index}: {:?}",
+                r.force_chair
+            );
         }
     }
 
@@ -217,10 +250,18 @@ mod tests {
         let f = field();
         let speed = 0.5;
         let safety = f.params().safety_range_m(speed);
-        let r = f.repulsion(&[Some(safety + 0.01), Some(2.0), None, Some(5.0)], speed, 1.0).unwrap();
+        let r = f
+            .repulsion(
+                &[Some(safety + 0.01), Some(2.0), None, Some(5.0)],
+                speed,
+                1.0,
+            )
+            .unwrap();
         assert_eq!(r.active_readings, 0);
         assert_eq!(r.force_chair, V2::zeros());
-        let r = f.repulsion(&[Some(safety - 0.01), None, None, None], speed, 1.0).unwrap();
+        let r = f
+            .repulsion(&[Some(safety - 0.01), None, None, None], speed, 1.0)
+            .unwrap();
         assert_eq!(r.active_readings, 1);
     }
 
@@ -229,7 +270,12 @@ mod tests {
         let mut f = field();
         let user = VelocityCommand::new(0.9, 0.37);
         let out = f
-            .step(&SharedInput { user, speed_mps: 0.9, sonar_m: &[Some(1.5), None, Some(0.9), Some(3.0)], points_chair: &[] })
+            .step(&SharedInput {
+                user,
+                speed_mps: 0.9,
+                sonar_m: &[Some(1.5), None, Some(0.9), Some(3.0)],
+                points_chair: &[],
+            })
             .unwrap();
         assert_eq!(out.command, user);
         assert!(!out.intervention.changed());
@@ -240,12 +286,22 @@ mod tests {
         let mut f = field();
         let user = VelocityCommand::new(0.6, 0.0);
         let ahead = f
-            .step(&SharedInput { user, speed_mps: 0.6, sonar_m: &[Some(0.2), None, None, None], points_chair: &[] })
+            .step(&SharedInput {
+                user,
+                speed_mps: 0.6,
+                sonar_m: &[Some(0.2), None, None, None],
+                points_chair: &[],
+            })
             .unwrap();
         assert!(ahead.command.linear_mps < 0.6 && ahead.command.linear_mps >= 0.0);
         assert!(ahead.intervention.changed());
         let left = f
-            .step(&SharedInput { user, speed_mps: 0.6, sonar_m: &[None, Some(0.2), None, None], points_chair: &[] })
+            .step(&SharedInput {
+                user,
+                speed_mps: 0.6,
+                sonar_m: &[None, Some(0.2), None, None],
+                points_chair: &[],
+            })
             .unwrap();
         assert!(left.command.angular_radps < 0.0, "{left:?}");
         assert!(left.command.linear_mps <= 0.6);
@@ -255,9 +311,28 @@ mod tests {
     fn bad_readings_are_errors() {
         let mut f = field();
         let user = VelocityCommand::new(0.5, 0.0);
-        let bad = f.step(&SharedInput { user, speed_mps: 0.5, sonar_m: &[Some(f64::NAN), None, None, None], points_chair: &[] });
-        assert!(matches!(bad, Err(ControlError::BadReading { index: 0, .. })));
-        let short = f.step(&SharedInput { user, speed_mps: 0.5, sonar_m: &[None], points_chair: &[] });
-        assert!(matches!(short, Err(ControlError::SonarCount { expected: 4, got: 1 })));
+        let bad = f.step(&SharedInput {
+            user,
+            speed_mps: 0.5,
+            sonar_m: &[Some(f64::NAN), None, None, None],
+            points_chair: &[],
+        });
+        assert!(matches!(
+            bad,
+            Err(ControlError::BadReading { index: 0, .. })
+        ));
+        let short = f.step(&SharedInput {
+            user,
+            speed_mps: 0.5,
+            sonar_m: &[None],
+            points_chair: &[],
+        });
+        assert!(matches!(
+            short,
+            Err(ControlError::SonarCount {
+                expected: 4,
+                got: 1
+            })
+        ));
     }
 }

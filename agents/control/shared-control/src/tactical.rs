@@ -138,10 +138,20 @@ pub struct TacticalOutput {
 /// An action started against a pose and time: its running state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Running {
-    FollowLine { from: Point2<f64>, to: Point2<f64> },
-    Spin { remaining_rad: f64, last_heading_rad: f64 },
-    TurnTo { heading_rad: f64 },
-    GoTo { target: Point2<f64> },
+    FollowLine {
+        from: Point2<f64>,
+        to: Point2<f64>,
+    },
+    Spin {
+        remaining_rad: f64,
+        last_heading_rad: f64,
+    },
+    TurnTo {
+        heading_rad: f64,
+    },
+    GoTo {
+        target: Point2<f64>,
+    },
     FollowWall {
         side: Side,
         distance_m: f64,
@@ -150,7 +160,9 @@ enum Running {
         last_clearance_m: Option<f64>,
         toward_wall_rad: f64,
     },
-    Wait { until_ns: u64 },
+    Wait {
+        until_ns: u64,
+    },
     Stop,
 }
 
@@ -164,12 +176,26 @@ fn check_point(what: &'static str, p: Point2<f64>) -> Result<(), ControlError> {
     if p.x.is_finite() && p.y.is_finite() {
         Ok(())
     } else {
-        Err(ControlError::NonFinitePose { what, x: p.x, y: p.y, theta: 0.0 })
+        Err(ControlError::NonFinitePose {
+            what,
+            x: p.x,
+            y: p.y,
+            theta: 0.0,
+        })
     }
 }
 
 fn check_angle(what: &'static str, a: f64) -> Result<(), ControlError> {
-    if a.is_finite() { Ok(()) } else { Err(ControlError::NonFinitePose { what, x: 0.0, y: 0.0, theta: a }) }
+    if a.is_finite() {
+        Ok(())
+    } else {
+        Err(ControlError::NonFinitePose {
+            what,
+            x: 0.0,
+            y: 0.0,
+            theta: a,
+        })
+    }
 }
 
 impl Running {
@@ -184,7 +210,10 @@ impl Running {
             }
             Action::Spin { angle_rad } => {
                 check_angle("spin angle", angle_rad)?;
-                Running::Spin { remaining_rad: angle_rad, last_heading_rad: heading }
+                Running::Spin {
+                    remaining_rad: angle_rad,
+                    last_heading_rad: heading,
+                }
             }
             Action::TurnTo { heading_rad } => {
                 check_angle("heading", heading_rad)?;
@@ -194,7 +223,11 @@ impl Running {
                 check_point("target", target)?;
                 Running::GoTo { target }
             }
-            Action::FollowWall { side, distance_m, length_m } => {
+            Action::FollowWall {
+                side,
+                distance_m,
+                length_m,
+            } => {
                 check_positive("distance_m", distance_m)?;
                 check_positive("length_m", length_m)?;
                 Running::FollowWall {
@@ -206,7 +239,9 @@ impl Running {
                     toward_wall_rad: 0.0,
                 }
             }
-            Action::Wait { duration_ns } => Running::Wait { until_ns: input.time_ns.saturating_add(duration_ns) },
+            Action::Wait { duration_ns } => Running::Wait {
+                until_ns: input.time_ns.saturating_add(duration_ns),
+            },
             Action::Stop => Running::Stop,
         })
     }
@@ -215,7 +250,8 @@ impl Running {
     fn step(&mut self, p: &TacticalParams, input: &TacticalInput) -> Option<VelocityCommand> {
         let heading = input.t_world_chair.rotation.angle();
         let position = Point2::from(input.t_world_chair.translation.vector);
-        let turn = |error: f64| (p.heading_gain * error).clamp(-p.max_angular_radps, p.max_angular_radps);
+        let turn =
+            |error: f64| (p.heading_gain * error).clamp(-p.max_angular_radps, p.max_angular_radps);
         match self {
             Running::FollowLine { from, to } => {
                 let along = *to - *from;
@@ -228,9 +264,15 @@ impl Running {
                 let lateral = u.perp(&offset);
                 let desired = u.y.atan2(u.x) - (p.lateral_gain * lateral).atan();
                 let error = wrap_angle(desired - heading);
-                Some(VelocityCommand::new(p.cruise_mps * error.cos().max(0.0), turn(error)))
+                Some(VelocityCommand::new(
+                    p.cruise_mps * error.cos().max(0.0),
+                    turn(error),
+                ))
             }
-            Running::Spin { remaining_rad, last_heading_rad } => {
+            Running::Spin {
+                remaining_rad,
+                last_heading_rad,
+            } => {
                 *remaining_rad -= wrap_angle(heading - *last_heading_rad);
                 *last_heading_rad = heading;
                 if remaining_rad.abs() <= p.angle_tolerance_rad {
@@ -259,7 +301,14 @@ impl Running {
                 };
                 Some(VelocityCommand::new(linear, turn(error)))
             }
-            Running::FollowWall { side, distance_m, remaining_m, last_position, last_clearance_m, toward_wall_rad } => {
+            Running::FollowWall {
+                side,
+                distance_m,
+                remaining_m,
+                last_position,
+                last_clearance_m,
+                toward_wall_rad,
+            } => {
                 let travelled = (position - *last_position).norm();
                 *remaining_m -= travelled;
                 *last_position = position;
@@ -282,10 +331,17 @@ impl Running {
                 let Some(clearance) = clearance else {
                     return Some(VelocityCommand::new(p.cruise_mps, 0.0));
                 };
-                let setpoint = (p.lateral_gain * (clearance - *distance_m)).atan().clamp(-0.6, 0.6);
-                Some(VelocityCommand::new(p.cruise_mps, toward_wall * turn(setpoint - *toward_wall_rad)))
+                let setpoint = (p.lateral_gain * (clearance - *distance_m))
+                    .atan()
+                    .clamp(-0.6, 0.6);
+                Some(VelocityCommand::new(
+                    p.cruise_mps,
+                    toward_wall * turn(setpoint - *toward_wall_rad),
+                ))
             }
-            Running::Wait { until_ns } => (input.time_ns < *until_ns).then_some(VelocityCommand::STOP),
+            Running::Wait { until_ns } => {
+                (input.time_ns < *until_ns).then_some(VelocityCommand::STOP)
+            }
             Running::Stop => None,
         }
     }
@@ -302,12 +358,20 @@ pub struct ActionSequence {
 
 impl ActionSequence {
     /// A sequence that will run `actions` in order.
-    pub fn new(params: TacticalParams, actions: impl IntoIterator<Item = Action>) -> Result<Self, ControlError> {
+    pub fn new(
+        params: TacticalParams,
+        actions: impl IntoIterator<Item = Action>,
+    ) -> Result<Self, ControlError> {
         check_positive("cruise_mps", params.cruise_mps)?;
         check_positive("max_angular_radps", params.max_angular_radps)?;
         check_positive("position_tolerance_m", params.position_tolerance_m)?;
         check_positive("angle_tolerance_rad", params.angle_tolerance_rad)?;
-        Ok(ActionSequence { params, pending: actions.into_iter().collect(), current: None, index: 0 })
+        Ok(ActionSequence {
+            params,
+            pending: actions.into_iter().collect(),
+            current: None,
+            index: 0,
+        })
     }
 
     /// Appends an action after the ones already queued.
@@ -318,7 +382,10 @@ impl ActionSequence {
     /// One period.
     pub fn step(&mut self, input: &TacticalInput) -> Result<TacticalOutput, ControlError> {
         let t = input.t_world_chair;
-        if !(t.translation.x.is_finite() && t.translation.y.is_finite() && t.rotation.angle().is_finite()) {
+        if !(t.translation.x.is_finite()
+            && t.translation.y.is_finite()
+            && t.rotation.angle().is_finite())
+        {
             return Err(ControlError::NonFinitePose {
                 what: "chair pose",
                 x: t.translation.x,
@@ -331,13 +398,19 @@ impl ActionSequence {
                 Some(running) => running,
                 None => {
                     let Some(next) = self.pending.pop_front() else {
-                        return Ok(TacticalOutput { command: VelocityCommand::STOP, status: SequenceStatus::Finished });
+                        return Ok(TacticalOutput {
+                            command: VelocityCommand::STOP,
+                            status: SequenceStatus::Finished,
+                        });
                     };
                     self.current.insert(Running::start(next, input)?)
                 }
             };
             if let Some(command) = running.step(&self.params, input) {
-                return Ok(TacticalOutput { command, status: SequenceStatus::Running { index: self.index } });
+                return Ok(TacticalOutput {
+                    command,
+                    status: SequenceStatus::Running { index: self.index },
+                });
             }
             self.current = None;
             self.index += 1;
@@ -362,7 +435,12 @@ mod tests {
                 let heading = self.pose.rotation.angle();
                 (y - self.pose.translation.y) / heading.cos().max(0.1)
             });
-            TacticalInput { time_ns: self.time_ns, t_world_chair: self.pose, left_wall_m, right_wall_m: None }
+            TacticalInput {
+                time_ns: self.time_ns,
+                t_world_chair: self.pose,
+                left_wall_m,
+                right_wall_m: None,
+            }
         }
 
         fn run(&mut self, seq: &mut ActionSequence, max_steps: usize) -> usize {
@@ -385,14 +463,19 @@ mod tests {
     }
 
     fn at(x: f64, y: f64, theta: f64) -> Kinematic {
-        Kinematic { pose: Isometry2::new(Vector2::new(x, y), theta), time_ns: 0, wall_y: None }
+        Kinematic {
+            pose: Isometry2::new(Vector2::new(x, y), theta),
+            time_ns: 0,
+            wall_y: None,
+        }
     }
 
     #[test]
     fn go_to_reaches_the_target() {
         let mut sim = at(0.0, 0.0, 0.0);
         let target = Point2::new(-2.0, 3.0);
-        let mut seq = ActionSequence::new(TacticalParams::default(), [Action::GoTo { target }]).unwrap();
+        let mut seq =
+            ActionSequence::new(TacticalParams::default(), [Action::GoTo { target }]).unwrap();
         sim.run(&mut seq, 2000);
         let p = Point2::from(sim.pose.translation.vector);
         assert!((p - target).norm() <= 0.1 + 1e-9, "ended at {p}");
@@ -401,7 +484,13 @@ mod tests {
     #[test]
     fn spin_reaches_the_angle_even_beyond_a_turn() {
         let mut sim = at(1.0, 1.0, 0.3);
-        let mut seq = ActionSequence::new(TacticalParams::default(), [Action::Spin { angle_rad: 1.5 * 2.0 * PI }]).unwrap();
+        let mut seq = ActionSequence::new(
+            TacticalParams::default(),
+            [Action::Spin {
+                angle_rad: 1.5 * 2.0 * PI,
+            }],
+        )
+        .unwrap();
         sim.run(&mut seq, 2000);
         assert!(wrap_angle(sim.pose.rotation.angle() - (0.3 + PI)).abs() < 0.05);
         assert!((sim.pose.translation.x - 1.0).abs() < 1e-12);
@@ -411,10 +500,19 @@ mod tests {
     fn sequence_runs_every_action_in_order() {
         let mut sim = at(0.0, 0.0, 0.0);
         let actions = [
-            Action::FollowLine { from: Point2::new(0.0, 0.5), to: Point2::new(3.0, 0.5) },
-            Action::TurnTo { heading_rad: -PI / 2.0 },
-            Action::Wait { duration_ns: 1_000_000_000 },
-            Action::GoTo { target: Point2::new(3.0, -2.0) },
+            Action::FollowLine {
+                from: Point2::new(0.0, 0.5),
+                to: Point2::new(3.0, 0.5),
+            },
+            Action::TurnTo {
+                heading_rad: -PI / 2.0,
+            },
+            Action::Wait {
+                duration_ns: 1_000_000_000,
+            },
+            Action::GoTo {
+                target: Point2::new(3.0, -2.0),
+            },
             Action::Stop,
         ];
         let mut seq = ActionSequence::new(TacticalParams::default(), actions).unwrap();
@@ -427,18 +525,31 @@ mod tests {
     fn follow_left_wall_converges_to_the_clearance() {
         let mut sim = at(0.0, 0.0, 0.0);
         sim.wall_y = Some(1.2);
-        let wall = Action::FollowWall { side: Side::Left, distance_m: 0.5, length_m: 6.0 };
+        let wall = Action::FollowWall {
+            side: Side::Left,
+            distance_m: 0.5,
+            length_m: 6.0,
+        };
         let mut seq = ActionSequence::new(TacticalParams::default(), [wall]).unwrap();
         sim.run(&mut seq, 2000);
-        assert!((1.2 - sim.pose.translation.y - 0.5).abs() < 0.05, "y = {}", sim.pose.translation.y);
+        assert!(
+            (1.2 - sim.pose.translation.y - 0.5).abs() < 0.05,
+            "y = {}",
+            sim.pose.translation.y
+        );
         assert!(sim.pose.translation.x > 5.0);
     }
 
     #[test]
     fn bad_target_is_an_error() {
         let sim = at(0.0, 0.0, 0.0);
-        let mut seq =
-            ActionSequence::new(TacticalParams::default(), [Action::GoTo { target: Point2::new(f64::NAN, 0.0) }]).unwrap();
+        let mut seq = ActionSequence::new(
+            TacticalParams::default(),
+            [Action::GoTo {
+                target: Point2::new(f64::NAN, 0.0),
+            }],
+        )
+        .unwrap();
         assert!(seq.step(&sim.input()).is_err());
     }
 }

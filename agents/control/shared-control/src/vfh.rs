@@ -24,7 +24,8 @@ use nalgebra::{Point2, Vector2};
 
 use crate::error::{check_positive, check_range};
 use crate::{
-    ControlError, Intervention, MotionIntent, SensorMount, SharedController, SharedInput, SharedOutput,
+    ControlError, Intervention, MotionIntent, SensorMount, SharedController, SharedInput,
+    SharedOutput,
 };
 
 /// VFH+ tuning; defaults suit a 0.7 m wide chair in an office.
@@ -89,7 +90,10 @@ impl VfhParams {
         check_positive("robot_radius_m", self.robot_radius_m)?;
         check_positive("lookahead_s", self.lookahead_s)?;
         check_positive("max_angular_radps", self.max_angular_radps)?;
-        if !(0.0 < self.threshold_low && self.threshold_low < self.threshold_high && self.threshold_high <= 1.0) {
+        if !(0.0 < self.threshold_low
+            && self.threshold_low < self.threshold_high
+            && self.threshold_high <= 1.0)
+        {
             return Err(ControlError::BadParameter {
                 name: "threshold_low",
                 value: self.threshold_low,
@@ -153,22 +157,36 @@ impl Vfh {
     }
 
     /// Gathers sonar echoes and dense points into the motion frame.
-    fn collect_points(&mut self, input: &SharedInput<'_>, intent: &MotionIntent) -> Result<(), ControlError> {
+    fn collect_points(
+        &mut self,
+        input: &SharedInput<'_>,
+        intent: &MotionIntent,
+    ) -> Result<(), ControlError> {
         if input.sonar_m.len() != self.sonar_mounts.len() {
-            return Err(ControlError::SonarCount { expected: self.sonar_mounts.len(), got: input.sonar_m.len() });
+            return Err(ControlError::SonarCount {
+                expected: self.sonar_mounts.len(),
+                got: input.sonar_m.len(),
+            });
         }
         self.points.clear();
         for (index, (mount, reading)) in self.sonar_mounts.iter().zip(input.sonar_m).enumerate() {
             if let Some(d) = *reading {
                 let d = check_range("sonar", index, d)?;
-                self.points.push(Point2::from(intent.to_motion_frame((mount * Point2::new(d, 0.0)).coords)));
+                self.points.push(Point2::from(
+                    intent.to_motion_frame((mount * Point2::new(d, 0.0)).coords),
+                ));
             }
         }
         for (index, p) in input.points_chair.iter().enumerate() {
             if !(p.x.is_finite() && p.y.is_finite()) {
-                return Err(ControlError::BadReading { sensor: "laser point", index, value: p.x + p.y });
+                return Err(ControlError::BadReading {
+                    sensor: "laser point",
+                    index,
+                    value: p.x + p.y,
+                });
             }
-            self.points.push(Point2::from(intent.to_motion_frame(p.coords)));
+            self.points
+                .push(Point2::from(intent.to_motion_frame(p.coords)));
         }
         Ok(())
     }
@@ -192,7 +210,11 @@ impl Vfh {
                 active += 1;
             }
             let beta = point.y.atan2(point.x);
-            let gamma = if d > enlarge { (enlarge / d).asin() } else { FRAC_PI_2 };
+            let gamma = if d > enlarge {
+                (enlarge / d).asin()
+            } else {
+                FRAC_PI_2
+            };
             let first = beta - gamma;
             let sectors = ((2.0 * gamma) / self.sector_width()).ceil() as usize + 1;
             for step in 0..sectors.min(p.sector_count) {
@@ -260,7 +282,9 @@ impl Vfh {
                 + p.mu_heading * distance(c, heading)
                 + p.mu_previous * self.previous_sector.map_or(0.0, |prev| distance(c, prev))
         };
-        candidates.into_iter().min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
+        candidates
+            .into_iter()
+            .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
     }
 }
 
@@ -270,7 +294,10 @@ impl SharedController for Vfh {
         let intent = MotionIntent::from_command(user, self.params.lookahead_s);
         self.collect_points(input, &intent)?;
         if intent.sign == 0.0 {
-            return Ok(SharedOutput { command: user, intervention: Intervention::default() });
+            return Ok(SharedOutput {
+                command: user,
+                intervention: Intervention::default(),
+            });
         }
         let (masked, active) = self.masked_histogram(intent.speed_mps);
         let target = self.sector_of(intent.direction_rad);
@@ -278,18 +305,37 @@ impl SharedController for Vfh {
             // Boxed in: stop moving, leave the user free to spin away.
             self.previous_sector = None;
             let command = crate::VelocityCommand::new(0.0, user.angular_radps);
-            return Ok(SharedOutput { command, intervention: Intervention::between(user, command, active) });
+            return Ok(SharedOutput {
+                command,
+                intervention: Intervention::between(user, command, active),
+            });
         };
         self.previous_sector = Some(chosen);
         let p = self.params;
-        let slow = ((p.threshold_high - self.primary[chosen]) / (p.threshold_high - p.threshold_low)).clamp(0.0, 1.0);
+        let slow = ((p.threshold_high - self.primary[chosen])
+            / (p.threshold_high - p.threshold_low))
+            .clamp(0.0, 1.0);
         if chosen == target && slow == 1.0 {
-            return Ok(SharedOutput { command: user, intervention: Intervention::default() });
+            return Ok(SharedOutput {
+                command: user,
+                intervention: Intervention::default(),
+            });
         }
-        let direction_rad = if chosen == target { intent.direction_rad } else { self.sector_angle(chosen) };
-        let corrected = MotionIntent { sign: intent.sign, speed_mps: intent.speed_mps * slow, direction_rad };
+        let direction_rad = if chosen == target {
+            intent.direction_rad
+        } else {
+            self.sector_angle(chosen)
+        };
+        let corrected = MotionIntent {
+            sign: intent.sign,
+            speed_mps: intent.speed_mps * slow,
+            direction_rad,
+        };
         let command = corrected.to_command(p.lookahead_s);
-        Ok(SharedOutput { command, intervention: Intervention::between(user, command, active) })
+        Ok(SharedOutput {
+            command,
+            intervention: Intervention::between(user, command, active),
+        })
     }
 }
 
@@ -300,11 +346,19 @@ mod tests {
 
     fn wall(x: f64, y0: f64, y1: f64) -> Vec<Point2<f64>> {
         let n = ((y1 - y0) / 0.05) as usize;
-        (0..=n).map(|i| Point2::new(x, y0 + i as f64 * 0.05)).collect()
+        (0..=n)
+            .map(|i| Point2::new(x, y0 + i as f64 * 0.05))
+            .collect()
     }
 
     fn step(vfh: &mut Vfh, user: VelocityCommand, points: &[Point2<f64>]) -> SharedOutput {
-        vfh.step(&SharedInput { user, speed_mps: user.linear_mps.abs(), sonar_m: &[], points_chair: points }).unwrap()
+        vfh.step(&SharedInput {
+            user,
+            speed_mps: user.linear_mps.abs(),
+            sonar_m: &[],
+            points_chair: points,
+        })
+        .unwrap()
     }
 
     #[test]
@@ -348,7 +402,10 @@ mod tests {
 
     #[test]
     fn rejects_weights_that_override_the_user() {
-        let params = VfhParams { mu_target: 1.0, ..VfhParams::default() };
+        let params = VfhParams {
+            mu_target: 1.0,
+            ..VfhParams::default()
+        };
         assert!(Vfh::new(params, vec![]).is_err());
     }
 }

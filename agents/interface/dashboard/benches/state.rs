@@ -16,18 +16,40 @@ fn state(chairs: usize) -> State {
                     k: "virtual".into(),
                     p: [round_cm(x), round_cm(5.0 + x.sin()), round_cm(x.cos())],
                     v: [round_cm(0.537), round_cm(-0.1234)],
-                    s: (0..16).map(|s| if s % 3 == 0 { -1.0 } else { round_cm(1.0 + s as f64 * 0.137) }).collect(),
+                    s: (0..16)
+                        .map(|s| {
+                            if s % 3 == 0 {
+                                -1.0
+                            } else {
+                                round_cm(1.0 + s as f64 * 0.137)
+                            }
+                        })
+                        .collect(),
                     g: Some([round_cm(20.51), round_cm(7.25)]),
-                    path: (0..20).map(|k| [round_cm(x + k as f64 * 0.5), round_cm(5.25)]).collect(),
+                    path: (0..20)
+                        .map(|k| [round_cm(x + k as f64 * 0.5), round_cm(5.25)])
+                        .collect(),
                     u: round_cm(0.1234),
                     c: 0,
-                    d: ChairDisplay { action: "goal".into(), goal: Some("dining-hall".into()), warn: i % 7 == 0, seq: None, answer: Some("agree".into()) },
+                    d: ChairDisplay {
+                        action: "goal".into(),
+                        goal: Some("dining-hall".into()),
+                        warn: i % 7 == 0,
+                        seq: None,
+                        answer: Some("agree".into()),
+                    },
                 }
             })
             .collect(),
         doors: (0..10).map(|i| (format!("door-{i}"), i % 2 == 0)).collect(),
         msgs: (0..30)
-            .map(|i| MessageView { from: "cognitive@chair-1".into(), to: "control@chair-1".into(), act: "request".into(), conv: format!("goal-chair-1-{i}"), dropped: false })
+            .map(|i| MessageView {
+                from: "cognitive@chair-1".into(),
+                to: "control@chair-1".into(),
+                act: "request".into(),
+                conv: format!("goal-chair-1-{i}"),
+                dropped: false,
+            })
             .collect(),
         ..State::default()
     }
@@ -53,18 +75,32 @@ fn bench(c: &mut Criterion) {
                 name: format!("chair-{i}"),
                 pose: [x, 5.0 + x.sin(), x.cos()],
                 twist: [0.537, -0.1234],
-                sonar_m: (0..16).map(|s| if s % 3 == 0 { None } else { Some(1.0 + s as f64 * 0.137) }).collect(),
+                sonar_m: (0..16)
+                    .map(|s| {
+                        if s % 3 == 0 {
+                            None
+                        } else {
+                            Some(1.0 + s as f64 * 0.137)
+                        }
+                    })
+                    .collect(),
                 goal: Some([20.51, 7.25]),
                 path: (0..20).map(|k| [x + k as f64 * 0.5, 5.25]).collect(),
             }
         })
         .collect();
     let compact = serde_json::to_string(&s).map(|t| t.len()).unwrap_or(0);
-    let full = serde_json::to_string(&verbose).map(|t| t.len()).unwrap_or(0);
+    let full = serde_json::to_string(&verbose)
+        .map(|t| t.len())
+        .unwrap_or(0);
     println!("100 chairs: dashboard frame {compact} bytes; verbose f64 peer {full} bytes");
     let mut group = c.benchmark_group("dashboard_frame_100_chairs");
-    group.bench_function("compact_state", |b| b.iter(|| serde_json::to_string(black_box(&s)).map(|t| t.len())));
-    group.bench_function("verbose_f64_peer", |b| b.iter(|| serde_json::to_string(black_box(&verbose)).map(|t| t.len())));
+    group.bench_function("compact_state", |b| {
+        b.iter(|| serde_json::to_string(black_box(&s)).map(|t| t.len()))
+    });
+    group.bench_function("verbose_f64_peer", |b| {
+        b.iter(|| serde_json::to_string(black_box(&verbose)).map(|t| t.len()))
+    });
     group.finish();
 }
 

@@ -18,4 +18,7 @@ mod server;
 mod state;
 
 pub use server::{Dashboard, DashboardConfig, DashboardError};
-pub use state::{Action, ChairDisplay, ChairView, ContainerView, DoorView, FeatureView, MapView, MessageView, PassageView, PlaceView, State, round_cm};
+pub use state::{
+    Action, ChairDisplay, ChairView, ContainerView, DoorView, FeatureView, MapView, MessageView,
+    PassageView, PlaceView, State, round_cm,
+};

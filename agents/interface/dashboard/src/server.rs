@@ -25,11 +25,16 @@ const MAX_ACTION_BYTES: usize = 4096;
 #[derive(Debug, thiserror::Error)]
 pub enum DashboardError {
     /// A non-loopback bind without a token.
-    #[error("binding {addr} (not loopback) needs a token: pass one (e.g. --token) or bind 127.0.0.1")]
+    #[error(
+        "binding {addr} (not loopback) needs a token: pass one (e.g. --token) or bind 127.0.0.1"
+    )]
     TokenRequired { addr: SocketAddr },
     /// The listening socket could not be set up.
     #[error("binding the dashboard on {addr}: {source}")]
-    Bind { addr: SocketAddr, source: std::io::Error },
+    Bind {
+        addr: SocketAddr,
+        source: std::io::Error,
+    },
     /// The state could not be encoded.
     #[error("encoding the dashboard state: {0}")]
     Encode(#[from] serde_json::Error),
@@ -46,7 +51,10 @@ pub struct DashboardConfig {
 
 impl Default for DashboardConfig {
     fn default() -> Self {
-        Self { bind: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0), token: None }
+        Self {
+            bind: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
+            token: None,
+        }
     }
 }
 
@@ -76,9 +84,14 @@ impl Dashboard {
         if !addr.ip().is_loopback() && token.is_none() {
             return Err(DashboardError::TokenRequired { addr });
         }
-        let listener = std::net::TcpListener::bind(addr).map_err(|source| DashboardError::Bind { addr, source })?;
-        listener.set_nonblocking(true).map_err(|source| DashboardError::Bind { addr, source })?;
-        let local = listener.local_addr().map_err(|source| DashboardError::Bind { addr, source })?;
+        let listener = std::net::TcpListener::bind(addr)
+            .map_err(|source| DashboardError::Bind { addr, source })?;
+        listener
+            .set_nonblocking(true)
+            .map_err(|source| DashboardError::Bind { addr, source })?;
+        let local = listener
+            .local_addr()
+            .map_err(|source| DashboardError::Bind { addr, source })?;
         let (frames, frames_rx) = watch::channel(Arc::<str>::from("{}"));
         let (actions_tx, actions) = mpsc::channel();
         let shared = Shared {
@@ -110,7 +123,14 @@ impl Dashboard {
                 })
             })
             .map_err(|source| DashboardError::Bind { addr, source })?;
-        Ok(Self { addr: local, token, frames, actions, stop: Some(stop), thread: Some(thread) })
+        Ok(Self {
+            addr: local,
+            token,
+            frames,
+            actions,
+            stop: Some(stop),
+            thread: Some(thread),
+        })
     }
 
     /// The address it listens on.
@@ -154,7 +174,15 @@ impl Drop for Dashboard {
 fn router(shared: Shared) -> Router {
     Router::new()
         .route("/", get(|| async { Html(INDEX_HTML) }))
-        .route("/map.json", get(|Extract(s): Extract<Shared>| async move { ([(header::CONTENT_TYPE, "application/json")], s.map.to_string()) }))
+        .route(
+            "/map.json",
+            get(|Extract(s): Extract<Shared>| async move {
+                (
+                    [(header::CONTENT_TYPE, "application/json")],
+                    s.map.to_string(),
+                )
+            }),
+        )
         .route("/ws", get(websocket))
         .layer(middleware::from_fn_with_state(shared.clone(), authorise))
         .with_state(shared)
@@ -162,7 +190,9 @@ fn router(shared: Shared) -> Router {
 
 /// Lets a request through when no token is set, or when it carries the token.
 async fn authorise(Extract(s): Extract<Shared>, request: Request, next: Next) -> Response {
-    let Some(token) = &s.token else { return next.run(request).await };
+    let Some(token) = &s.token else {
+        return next.run(request).await;
+    };
     let from_query = request
         .uri()
         .query()
@@ -179,7 +209,11 @@ async fn authorise(Extract(s): Extract<Shared>, request: Request, next: Next) ->
     if from_query || from_header {
         next.run(request).await
     } else {
-        (StatusCode::UNAUTHORIZED, "401: this dashboard needs its token (?token= or Authorization: Bearer)\n").into_response()
+        (
+            StatusCode::UNAUTHORIZED,
+            "401: this dashboard needs its token (?token= or Authorization: Bearer)\n",
+        )
+            .into_response()
     }
 }
 
@@ -189,14 +223,20 @@ fn same(a: &[u8], b: &[u8]) -> bool {
 }
 
 async fn websocket(Extract(s): Extract<Shared>, upgrade: WebSocketUpgrade) -> Response {
-    upgrade.max_message_size(MAX_ACTION_BYTES).on_upgrade(move |socket| session(socket, s))
+    upgrade
+        .max_message_size(MAX_ACTION_BYTES)
+        .on_upgrade(move |socket| session(socket, s))
 }
 
 /// One page: frames out as they are published, actions in.
 async fn session(mut socket: WebSocket, s: Shared) {
     let mut frames = s.frames.clone();
     let first = frames.borrow_and_update().clone();
-    if socket.send(Message::Text(first.to_string().into())).await.is_err() {
+    if socket
+        .send(Message::Text(first.to_string().into()))
+        .await
+        .is_err()
+    {
         return;
     }
     loop {

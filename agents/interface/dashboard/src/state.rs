@@ -6,7 +6,11 @@ use serde::{Deserialize, Serialize};
 /// Rounds `x` to 0.01 (cm for metres, 0.01 rad for angles), as `f32` so it prints short.
 /// Non-finite values become 0.
 pub fn round_cm(x: f64) -> f32 {
-    if x.is_finite() { ((x * 100.0).round() / 100.0) as f32 } else { 0.0 }
+    if x.is_finite() {
+        ((x * 100.0).round() / 100.0) as f32
+    } else {
+        0.0
+    }
 }
 
 /// The static building, sent once at `/map.json`.
@@ -170,8 +174,16 @@ mod tests {
 
     #[test]
     fn actions_parse_from_the_page_shape() {
-        let goal: Action = serde_json::from_str(r#"{"do":"goal","chair":"chair-0","x":3.5,"y":2}"#).unwrap();
-        assert_eq!(goal, Action::Goal { chair: "chair-0".into(), x: 3.5, y: 2.0 });
+        let goal: Action =
+            serde_json::from_str(r#"{"do":"goal","chair":"chair-0","x":3.5,"y":2}"#).unwrap();
+        assert_eq!(
+            goal,
+            Action::Goal {
+                chair: "chair-0".into(),
+                x: 3.5,
+                y: 2.0
+            }
+        );
         let step: Action = serde_json::from_str(r#"{"do":"step"}"#).unwrap();
         assert_eq!(step, Action::Step);
         assert!(serde_json::from_str::<Action>(r#"{"do":"explode"}"#).is_err());

@@ -5,13 +5,22 @@ use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;
 
-use iw_dashboard::{Action, ChairDisplay, ChairView, Dashboard, DashboardConfig, DashboardError, MapView, MessageView, State};
+use iw_dashboard::{
+    Action, ChairDisplay, ChairView, Dashboard, DashboardConfig, DashboardError, MapView,
+    MessageView, State,
+};
 
 fn get(addr: SocketAddr, target: &str, extra: &str) -> String {
     let port = addr.port();
     let mut stream = TcpStream::connect(("127.0.0.1", port)).expect("connect");
-    stream.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    write!(stream, "GET {target} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n{extra}\r\n").unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    write!(
+        stream,
+        "GET {target} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n{extra}\r\n"
+    )
+    .unwrap();
     let mut reply = String::new();
     stream.read_to_string(&mut reply).expect("read reply");
     reply
@@ -19,10 +28,19 @@ fn get(addr: SocketAddr, target: &str, extra: &str) -> String {
 
 #[test]
 fn a_non_loopback_bind_needs_a_token_and_refuses_requests_without_it() {
-    let open = DashboardConfig { bind: "0.0.0.0:0".parse().unwrap(), token: None };
-    assert!(matches!(Dashboard::start(open, &MapView::default()), Err(DashboardError::TokenRequired { .. })));
+    let open = DashboardConfig {
+        bind: "0.0.0.0:0".parse().unwrap(),
+        token: None,
+    };
+    assert!(matches!(
+        Dashboard::start(open, &MapView::default()),
+        Err(DashboardError::TokenRequired { .. })
+    ));
 
-    let config = DashboardConfig { bind: "0.0.0.0:0".parse().unwrap(), token: Some("s3cret".into()) };
+    let config = DashboardConfig {
+        bind: "0.0.0.0:0".parse().unwrap(),
+        token: Some("s3cret".into()),
+    };
     let dashboard = Dashboard::start(config, &MapView::default()).expect("start");
     let addr = dashboard.addr();
     assert!(get(addr, "/", "").starts_with("HTTP/1.1 401"));
@@ -38,7 +56,14 @@ fn a_non_loopback_bind_needs_a_token_and_refuses_requests_without_it() {
 
 #[test]
 fn loopback_serves_without_token() {
-    let dashboard = Dashboard::start(DashboardConfig::default(), &MapView { name: "b".into(), ..MapView::default() }).expect("start");
+    let dashboard = Dashboard::start(
+        DashboardConfig::default(),
+        &MapView {
+            name: "b".into(),
+            ..MapView::default()
+        },
+    )
+    .expect("start");
     assert!(dashboard.addr().ip().is_loopback());
     let map = get(dashboard.addr(), "/map.json", "");
     assert!(map.starts_with("HTTP/1.1 200"), "{map}");
@@ -47,17 +72,28 @@ fn loopback_serves_without_token() {
 
 #[test]
 fn frames_go_out_and_actions_come_back_over_the_websocket() {
-    let dashboard = Dashboard::start(DashboardConfig::default(), &MapView::default()).expect("start");
-    let (mut socket, _) = tungstenite::connect(format!("ws://{}/ws", dashboard.addr())).expect("websocket");
+    let dashboard =
+        Dashboard::start(DashboardConfig::default(), &MapView::default()).expect("start");
+    let (mut socket, _) =
+        tungstenite::connect(format!("ws://{}/ws", dashboard.addr())).expect("websocket");
     #[allow(irrefutable_let_patterns)]
     if let tungstenite::stream::MaybeTlsStream::Plain(s) = socket.get_mut() {
         s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     }
     let _first = socket.read().expect("first frame");
-    let state = State { t: 1.5, chairs: vec![chair(0)], ..State::default() };
+    let state = State {
+        t: 1.5,
+        chairs: vec![chair(0)],
+        ..State::default()
+    };
     dashboard.publish(&state).unwrap();
     let frame = loop {
-        let text = socket.read().expect("frame").into_text().expect("text").to_string();
+        let text = socket
+            .read()
+            .expect("frame")
+            .into_text()
+            .expect("text")
+            .to_string();
         let parsed: State = serde_json::from_str(&text).expect("state json");
         if parsed.t == 1.5 {
             break parsed;
@@ -65,16 +101,34 @@ fn frames_go_out_and_actions_come_back_over_the_websocket() {
     };
     assert_eq!(frame, state);
 
-    socket.send(tungstenite::Message::text(r#"{"do":"goal","chair":"chair-0","x":3,"y":4}"#)).unwrap();
-    socket.send(tungstenite::Message::text(r#"{"do":"self-destruct"}"#)).unwrap();
+    socket
+        .send(tungstenite::Message::text(
+            r#"{"do":"goal","chair":"chair-0","x":3,"y":4}"#,
+        ))
+        .unwrap();
+    socket
+        .send(tungstenite::Message::text(r#"{"do":"self-destruct"}"#))
+        .unwrap();
     let error = loop {
-        let text = socket.read().expect("reply").into_text().expect("text").to_string();
+        let text = socket
+            .read()
+            .expect("reply")
+            .into_text()
+            .expect("text")
+            .to_string();
         if text.contains("error") {
             break text;
         }
     };
     assert!(error.contains("not understood"), "{error}");
-    assert_eq!(dashboard.try_action(), Some(Action::Goal { chair: "chair-0".into(), x: 3.0, y: 4.0 }));
+    assert_eq!(
+        dashboard.try_action(),
+        Some(Action::Goal {
+            chair: "chair-0".into(),
+            x: 3.0,
+            y: 4.0
+        })
+    );
     assert_eq!(dashboard.try_action(), None);
 }
 
@@ -85,12 +139,26 @@ fn chair(i: usize) -> ChairView {
         k: "virtual".into(),
         p: [12.34 + f, 5.67, -3.1],
         v: [0.55, -0.12],
-        s: (0..16).map(|s| if s % 3 == 0 { -1.0 } else { 1.23 + s as f32 / 100.0 }).collect(),
+        s: (0..16)
+            .map(|s| {
+                if s % 3 == 0 {
+                    -1.0
+                } else {
+                    1.23 + s as f32 / 100.0
+                }
+            })
+            .collect(),
         g: Some([20.5, 7.25]),
         path: (0..20).map(|k| [10.0 + k as f32 * 0.5, 5.25]).collect(),
         u: 0.12,
         c: 3,
-        d: ChairDisplay { action: "forward 0.55".into(), goal: Some("dining-hall".into()), warn: true, seq: Some((1, 3)), answer: Some("agree".into()) },
+        d: ChairDisplay {
+            action: "forward 0.55".into(),
+            goal: Some("dining-hall".into()),
+            warn: true,
+            seq: Some((1, 3)),
+            answer: Some("agree".into()),
+        },
     }
 }
 
@@ -101,7 +169,13 @@ fn a_hundred_chair_frame_stays_small() {
         chairs: (0..100).map(chair).collect(),
         doors: (0..10).map(|i| (format!("door-{i}"), i % 2 == 0)).collect(),
         msgs: (0..30)
-            .map(|i| MessageView { from: "cognitive@chair-1".into(), to: "control@chair-1".into(), act: "request".into(), conv: format!("goal-chair-1-{i}"), dropped: false })
+            .map(|i| MessageView {
+                from: "cognitive@chair-1".into(),
+                to: "control@chair-1".into(),
+                act: "request".into(),
+                conv: format!("goal-chair-1-{i}"),
+                dropped: false,
+            })
             .collect(),
         ..State::default()
     };

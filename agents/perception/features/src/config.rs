@@ -64,36 +64,72 @@ impl DetectorConfig {
         };
         match kind {
             DetectorKind::Surf => base,
-            DetectorKind::LnSurf => DetectorConfig { threshold: 0.02, ..base },
-            DetectorKind::LsacSurf => DetectorConfig { soft_band: Some((10, 245)), ..base },
+            DetectorKind::LnSurf => DetectorConfig {
+                threshold: 0.02,
+                ..base
+            },
+            DetectorKind::LsacSurf => DetectorConfig {
+                soft_band: Some((10, 245)),
+                ..base
+            },
         }
     }
 
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), FeatureError> {
-        let bad = |field, value: String, reason| Err(FeatureError::InvalidConfig { field, value, reason });
+        let bad = |field, value: String, reason| {
+            Err(FeatureError::InvalidConfig {
+                field,
+                value,
+                reason,
+            })
+        };
         if !(1..=6).contains(&self.octaves) {
             return bad("octaves", self.octaves.to_string(), "expected 1..=6");
         }
         if !(3..=8).contains(&self.levels) {
-            return bad("levels", self.levels.to_string(), "expected 3..=8 (two neighbours per tested level)");
+            return bad(
+                "levels",
+                self.levels.to_string(),
+                "expected 3..=8 (two neighbours per tested level)",
+            );
         }
         if !(self.threshold.is_finite() && self.threshold >= 0.0) {
-            return bad("threshold", self.threshold.to_string(), "expected a finite value >= 0");
+            return bad(
+                "threshold",
+                self.threshold.to_string(),
+                "expected a finite value >= 0",
+            );
         }
         if !(self.ln_min_variance.is_finite() && self.ln_min_variance > 0.0) {
-            return bad("ln_min_variance", self.ln_min_variance.to_string(), "expected a finite value > 0");
+            return bad(
+                "ln_min_variance",
+                self.ln_min_variance.to_string(),
+                "expected a finite value > 0",
+            );
         }
         if !(1..=256).contains(&self.lsac_radius_px) {
-            return bad("lsac_radius_px", self.lsac_radius_px.to_string(), "expected 1..=256");
+            return bad(
+                "lsac_radius_px",
+                self.lsac_radius_px.to_string(),
+                "expected 1..=256",
+            );
         }
         if !(self.lsac_min_average.is_finite() && self.lsac_min_average >= 0.5) {
-            return bad("lsac_min_average", self.lsac_min_average.to_string(), "expected a finite value >= 0.5");
+            return bad(
+                "lsac_min_average",
+                self.lsac_min_average.to_string(),
+                "expected a finite value >= 0.5",
+            );
         }
         if let Some((lower, upper)) = self.soft_band
             && lower >= upper
         {
-            return bad("soft_band", format!("({lower}, {upper})"), "expected lower < upper");
+            return bad(
+                "soft_band",
+                format!("({lower}, {upper})"),
+                "expected lower < upper",
+            );
         }
         Ok(())
     }
@@ -114,7 +150,12 @@ pub struct MatchConfig {
 
 impl Default for MatchConfig {
     fn default() -> Self {
-        MatchConfig { ratio: 0.8, mutual: true, hard_queries_only: true, max_distance: 0.6 }
+        MatchConfig {
+            ratio: 0.8,
+            mutual: true,
+            hard_queries_only: true,
+            max_distance: 0.6,
+        }
     }
 }
 

@@ -18,8 +18,10 @@ use crate::{IntegralImage, Keypoint};
 fn haar(ii: &IntegralImage, x: isize, y: isize, side: isize) -> (f32, f32) {
     let h = side / 2;
     if x < h || y < h || x + h > ii.width() as isize || y + h > ii.height() as isize {
-        let dx = ii.box_sum_clipped(x, y - h, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x, y + h);
-        let dy = ii.box_sum_clipped(x - h, y, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x + h, y);
+        let dx =
+            ii.box_sum_clipped(x, y - h, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x, y + h);
+        let dy =
+            ii.box_sum_clipped(x - h, y, x + h, y + h) - ii.box_sum_clipped(x - h, y - h, x + h, y);
         return (dx, dy);
     }
     // Inside the image: the four half boxes share a 3x3 grid of table corners.
@@ -31,7 +33,9 @@ fn haar(ii: &IntegralImage, x: isize, y: isize, side: isize) -> (f32, f32) {
         (corners[0], corners[h], corners[2 * h])
     };
     let ((a0, a1, a2), (b0, _, b2), (c0, c1, c2)) = (row(y - h), row(y), row(y + h));
-    let sum = |br: u32, tr: u32, bl: u32, tl: u32| br.wrapping_sub(tr).wrapping_sub(bl).wrapping_add(tl) as i32 as f32 / FIXED;
+    let sum = |br: u32, tr: u32, bl: u32, tl: u32| {
+        br.wrapping_sub(tr).wrapping_sub(bl).wrapping_add(tl) as i32 as f32 / FIXED
+    };
     let dx = sum(c2, a2, c1, a1) - sum(c1, a1, c0, a0);
     let dy = sum(c2, b2, c0, b0) - sum(b2, a2, b0, a0);
     (dx, dy)
@@ -59,7 +63,10 @@ struct Weights {
 
 impl Weights {
     fn new() -> Self {
-        let mut w = Weights { orientation: [[0.0; 13]; 13], descriptor: [[0.0; 20]; 20] };
+        let mut w = Weights {
+            orientation: [[0.0; 13]; 13],
+            descriptor: [[0.0; 20]; 20],
+        };
         for j in -6i32..=6 {
             for i in -6i32..=6 {
                 let d2 = (i * i + j * j) as f32;
@@ -78,7 +85,11 @@ impl Weights {
 }
 
 /// Fills each keypoint's orientation (unless `upright`) and returns the descriptors.
-pub(crate) fn describe(ii: &IntegralImage, keypoints: &mut [Keypoint], upright: bool) -> Vec<[f32; 64]> {
+pub(crate) fn describe(
+    ii: &IntegralImage,
+    keypoints: &mut [Keypoint],
+    upright: bool,
+) -> Vec<[f32; 64]> {
     let weights = Weights::new();
     keypoints
         .par_iter_mut()

@@ -54,11 +54,24 @@ impl Collection {
     /// would score 100 % by construction.
     pub fn changes(self) -> Vec<Relight> {
         match self {
-            Collection::Lic => {
-                [1.0 / 2.0, 1.0 / 1.5, 1.0 / 1.2, 1.0 / 1.1, 1.1, 1.2, 1.5, 2.0].map(Relight::Intensity).to_vec()
-            }
-            Collection::Lis => [-20.0, -15.0, -10.0, -5.0, 5.0, 10.0, 15.0, 20.0].map(Relight::Shift).to_vec(),
-            Collection::Lcc => [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9].map(Relight::Colour).to_vec(),
+            Collection::Lic => [
+                1.0 / 2.0,
+                1.0 / 1.5,
+                1.0 / 1.2,
+                1.0 / 1.1,
+                1.1,
+                1.2,
+                1.5,
+                2.0,
+            ]
+            .map(Relight::Intensity)
+            .to_vec(),
+            Collection::Lis => [-20.0, -15.0, -10.0, -5.0, 5.0, 10.0, 15.0, 20.0]
+                .map(Relight::Shift)
+                .to_vec(),
+            Collection::Lcc => [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+                .map(Relight::Colour)
+                .to_vec(),
         }
     }
 }
@@ -98,7 +111,8 @@ pub fn repeatability(relit: &[Keypoint], reference: &[Keypoint]) -> f64 {
     // Candidate pairs within tolerance, via a grid of DIST_TOL_PX cells over the reference.
     let cell = DIST_TOL_PX;
     let key = |x: f32, y: f32| ((x / cell).floor() as i64, (y / cell).floor() as i64);
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = std::collections::HashMap::new();
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> =
+        std::collections::HashMap::new();
     for (j, kp) in reference.iter().enumerate() {
         grid.entry(key(kp.x, kp.y)).or_default().push(j);
     }
@@ -107,7 +121,11 @@ pub fn repeatability(relit: &[Keypoint], reference: &[Keypoint]) -> f64 {
         let (gx, gy) = key(kp.x, kp.y);
         for dy in -1..=1 {
             for dx in -1..=1 {
-                for &j in grid.get(&(gx + dx, gy + dy)).map(Vec::as_slice).unwrap_or(&[]) {
+                for &j in grid
+                    .get(&(gx + dx, gy + dy))
+                    .map(Vec::as_slice)
+                    .unwrap_or(&[])
+                {
                     let r = &reference[j];
                     let d = ((kp.x - r.x).powi(2) + (kp.y - r.y).powi(2)).sqrt();
                     let ratio = kp.size / r.size.max(1e-12);
@@ -159,8 +177,17 @@ impl Summary {
         let mut v = values.to_vec();
         v.sort_by(f64::total_cmp);
         let q = |p| quantile(&v, p).unwrap_or(0.0);
-        let mean = if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 };
-        Summary { median: q(0.5), mean, iqr: q(0.75) - q(0.25), n: v.len() }
+        let mean = if v.is_empty() {
+            0.0
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        };
+        Summary {
+            median: q(0.5),
+            mean,
+            iqr: q(0.75) - q(0.25),
+            n: v.len(),
+        }
     }
 }
 
@@ -170,14 +197,28 @@ mod tests {
     use crate::FeatureClass;
 
     fn kp(x: f32, y: f32, size: f32) -> Keypoint {
-        Keypoint { x, y, scale: size * 1.2 / 9.0, size, orientation: 0.0, response: 1.0, laplacian_sign: 1, class: FeatureClass::Hard }
+        Keypoint {
+            x,
+            y,
+            scale: size * 1.2 / 9.0,
+            size,
+            orientation: 0.0,
+            response: 1.0,
+            laplacian_sign: 1,
+            class: FeatureClass::Hard,
+        }
     }
 
     #[test]
     fn protocol_counts_one_to_one_within_tolerances() {
         let reference = [kp(10.0, 10.0, 9.0), kp(50.0, 50.0, 9.0)];
         // Two relit keypoints compete for the first reference one: only the nearer counts.
-        let relit = [kp(10.5, 10.0, 9.0), kp(11.0, 10.0, 9.0), kp(50.0, 51.0, 20.0), kp(90.0, 90.0, 9.0)];
+        let relit = [
+            kp(10.5, 10.0, 9.0),
+            kp(11.0, 10.0, 9.0),
+            kp(50.0, 51.0, 20.0),
+            kp(90.0, 90.0, 9.0),
+        ];
         assert_eq!(repeatability(&relit, &reference), 25.0);
         assert_eq!(repeatability(&reference, &reference), 100.0);
         assert_eq!(repeatability(&[], &reference), 0.0);
@@ -186,10 +227,25 @@ mod tests {
     #[test]
     fn relighting_clips_and_rounds() {
         let img = RgbImage::from_pixel(1, 1, image::Rgb([100, 200, 50]));
-        assert_eq!(Relight::Intensity(1.5).apply(&img).get_pixel(0, 0).0, [150, 255, 75]);
-        assert_eq!(Relight::Shift(-60.0).apply(&img).get_pixel(0, 0).0, [40, 140, 0]);
-        assert_eq!(Relight::Colour(0.25).apply(&img).get_pixel(0, 0).0, [25, 50, 50]);
-        assert_eq!(Relight::Intensity(0.5).apply(&RgbImage::from_pixel(1, 1, image::Rgb([3, 3, 3]))).get_pixel(0, 0).0, [2, 2, 2]);
+        assert_eq!(
+            Relight::Intensity(1.5).apply(&img).get_pixel(0, 0).0,
+            [150, 255, 75]
+        );
+        assert_eq!(
+            Relight::Shift(-60.0).apply(&img).get_pixel(0, 0).0,
+            [40, 140, 0]
+        );
+        assert_eq!(
+            Relight::Colour(0.25).apply(&img).get_pixel(0, 0).0,
+            [25, 50, 50]
+        );
+        assert_eq!(
+            Relight::Intensity(0.5)
+                .apply(&RgbImage::from_pixel(1, 1, image::Rgb([3, 3, 3])))
+                .get_pixel(0, 0)
+                .0,
+            [2, 2, 2]
+        );
     }
 
     #[test]

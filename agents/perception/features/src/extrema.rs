@@ -12,9 +12,18 @@ const MAX_MOVES: usize = 3;
 
 /// Map cells of octave `o`, level `l` whose 26 neighbours all carry full filters: the valid
 /// window of the next (largest) level shrunk by one cell.
-fn interior(space: &ScaleSpace, octave: usize, level: usize) -> Option<(usize, usize, usize, usize)> {
+fn interior(
+    space: &ScaleSpace,
+    octave: usize,
+    level: usize,
+) -> Option<(usize, usize, usize, usize)> {
     let top = &space.layers[octave * space.levels + level + 1];
-    let (c0, c1, r0, r1) = (top.first_col + 1, top.last_col.checked_sub(1)?, top.first_row + 1, top.last_row.checked_sub(1)?);
+    let (c0, c1, r0, r1) = (
+        top.first_col + 1,
+        top.last_col.checked_sub(1)?,
+        top.first_row + 1,
+        top.last_row.checked_sub(1)?,
+    );
     (c0 <= c1 && r0 <= r1 && top.first_col <= top.last_col).then_some((c0, c1, r0, r1))
 }
 
@@ -48,7 +57,14 @@ pub(crate) fn find(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Keypoint>
         .collect()
 }
 
-fn is_maximum(space: &ScaleSpace, octave: usize, level: usize, c: usize, r: usize, threshold: f32) -> bool {
+fn is_maximum(
+    space: &ScaleSpace,
+    octave: usize,
+    level: usize,
+    c: usize,
+    r: usize,
+    threshold: f32,
+) -> bool {
     let base = octave * space.levels;
     let v = space.layers[base + level].at(c, r);
     if v <= threshold {
@@ -70,11 +86,22 @@ fn is_maximum(space: &ScaleSpace, octave: usize, level: usize, c: usize, r: usiz
 
 /// Fits a 3-D quadratic to the 27 samples around `(c, r, level)` and returns the keypoint at its
 /// maximum; moves to the neighbouring sample when the offset exceeds half a cell (thesis 2.8.4).
-fn interpolate(space: &ScaleSpace, octave: usize, level: usize, c: usize, r: usize, threshold: f32) -> Option<Keypoint> {
+fn interpolate(
+    space: &ScaleSpace,
+    octave: usize,
+    level: usize,
+    c: usize,
+    r: usize,
+    threshold: f32,
+) -> Option<Keypoint> {
     let base = octave * space.levels;
     let (mut level, mut c, mut r) = (level, c, r);
     for _ in 0..MAX_MOVES {
-        let (b, m, t) = (&space.layers[base + level - 1], &space.layers[base + level], &space.layers[base + level + 1]);
+        let (b, m, t) = (
+            &space.layers[base + level - 1],
+            &space.layers[base + level],
+            &space.layers[base + level + 1],
+        );
         let v = m.at(c, r);
         let gradient = Vector3::new(
             (m.at(c + 1, r) - m.at(c - 1, r)) / 2.0,
@@ -84,7 +111,9 @@ fn interpolate(space: &ScaleSpace, octave: usize, level: usize, c: usize, r: usi
         let dxx = m.at(c + 1, r) + m.at(c - 1, r) - 2.0 * v;
         let dyy = m.at(c, r + 1) + m.at(c, r - 1) - 2.0 * v;
         let dss = t.at(c, r) + b.at(c, r) - 2.0 * v;
-        let dxy = (m.at(c + 1, r + 1) - m.at(c - 1, r + 1) - m.at(c + 1, r - 1) + m.at(c - 1, r - 1)) / 4.0;
+        let dxy = (m.at(c + 1, r + 1) - m.at(c - 1, r + 1) - m.at(c + 1, r - 1)
+            + m.at(c - 1, r - 1))
+            / 4.0;
         let dxs = (t.at(c + 1, r) - t.at(c - 1, r) - b.at(c + 1, r) + b.at(c - 1, r)) / 4.0;
         let dys = (t.at(c, r + 1) - t.at(c, r - 1) - b.at(c, r + 1) + b.at(c, r - 1)) / 4.0;
         let hessian = Matrix3::new(dxx, dxy, dxs, dxy, dyy, dys, dxs, dys, dss);
@@ -107,12 +136,24 @@ fn interpolate(space: &ScaleSpace, octave: usize, level: usize, c: usize, r: usi
                 size,
                 orientation: 0.0,
                 response,
-                laplacian_sign: if m.laplacian_positive[r * m.cols + c] { 1 } else { -1 },
+                laplacian_sign: if m.laplacian_positive[r * m.cols + c] {
+                    1
+                } else {
+                    -1
+                },
                 class: FeatureClass::Hard,
             });
         }
         // Move one sample toward the extremum and refit there, if that sample can be fitted.
-        let shift = |v: usize, o: f32| if o >= 0.5 { v + 1 } else if o <= -0.5 { v.saturating_sub(1) } else { v };
+        let shift = |v: usize, o: f32| {
+            if o >= 0.5 {
+                v + 1
+            } else if o <= -0.5 {
+                v.saturating_sub(1)
+            } else {
+                v
+            }
+        };
         let next_level = shift(level, offset.z);
         if next_level < 1 || next_level + 1 >= space.levels {
             return None;

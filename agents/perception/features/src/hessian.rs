@@ -45,8 +45,11 @@ impl Layer {
     fn clear_outside_window(&mut self) {
         let cols = self.cols;
         let valid = self.first_col <= self.last_col && self.first_row <= self.last_row;
-        for (r, (responses, laplacian)) in
-            self.responses.chunks_mut(cols.max(1)).zip(self.laplacian_positive.chunks_mut(cols.max(1))).enumerate()
+        for (r, (responses, laplacian)) in self
+            .responses
+            .chunks_mut(cols.max(1))
+            .zip(self.laplacian_positive.chunks_mut(cols.max(1)))
+            .enumerate()
         {
             if valid && (self.first_row..=self.last_row).contains(&r) {
                 responses[..self.first_col].fill(0.0);
@@ -81,7 +84,12 @@ pub(crate) fn filter_size(octave: usize, level: usize) -> usize {
 impl ScaleSpace {
     /// Fills every layer from the working integral image; `normalise` (LN-SURF) must carry the
     /// integral of squares of the same image.
-    pub(crate) fn compute(&mut self, working: &IntegralImage, normalise: Option<&IntegralImage>, config: &DetectorConfig) {
+    pub(crate) fn compute(
+        &mut self,
+        working: &IntegralImage,
+        normalise: Option<&IntegralImage>,
+        config: &DetectorConfig,
+    ) {
         self.compute_with(working, normalise, config, simd::has_avx2(), true);
     }
 
@@ -112,14 +120,24 @@ impl ScaleSpace {
             layer.first_col = half.div_ceil(step);
             layer.first_row = half.div_ceil(step);
             // Last centre c with c * step + half <= dim - 1; none when the filter exceeds the image.
-            layer.last_col = if w > 2 * half { (w - 1 - half) / step } else { 0 };
-            layer.last_row = if h > 2 * half { (h - 1 - half) / step } else { 0 };
+            layer.last_col = if w > 2 * half {
+                (w - 1 - half) / step
+            } else {
+                0
+            };
+            layer.last_row = if h > 2 * half {
+                (h - 1 - half) / step
+            } else {
+                0
+            };
             if w <= 2 * half || h <= 2 * half {
                 layer.first_col = 1;
                 layer.last_col = 0;
             }
             layer.responses.resize(layer.cols * layer.rows, 0.0);
-            layer.laplacian_positive.resize(layer.cols * layer.rows, false);
+            layer
+                .laplacian_positive
+                .resize(layer.cols * layer.rows, false);
             layer.clear_outside_window();
         }
         let min_variance = config.ln_min_variance;
@@ -178,17 +196,29 @@ impl<'a> Corners<'a> {
     /// Row `row` of the table, shifted by `dx` columns from the first centre, `span` entries.
     fn new(table: &'a [u32], stride: usize, row: usize, dx: isize, span: usize) -> Self {
         let base = (row * stride).wrapping_add_signed(dx);
-        Corners { row: &table[base..base + span], base }
+        Corners {
+            row: &table[base..base + span],
+            base,
+        }
     }
 }
 
 /// Box sum from its four corner rows/columns, wrapping (exact, see `integral`).
 #[inline(always)]
 fn box4(bottom_right: u32, top_right: u32, bottom_left: u32, top_left: u32) -> i32 {
-    bottom_right.wrapping_sub(top_right).wrapping_sub(bottom_left).wrapping_add(top_left) as i32
+    bottom_right
+        .wrapping_sub(top_right)
+        .wrapping_sub(bottom_left)
+        .wrapping_add(top_left) as i32
 }
 
-fn fill(layer: &mut Layer, ii: &IntegralImage, normalise: Option<&IntegralImage>, min_variance: f32, avx2: bool) {
+fn fill(
+    layer: &mut Layer,
+    ii: &IntegralImage,
+    normalise: Option<&IntegralImage>,
+    min_variance: f32,
+    avx2: bool,
+) {
     if layer.first_col > layer.last_col || layer.first_row > layer.last_row {
         return;
     }
@@ -220,8 +250,13 @@ fn fill_rows<const STEP: usize>(
     let area = (size * size) as f32;
     let scale = 1.0 / (area * FIXED);
     let n = area as f64;
-    let (first_col, last_col, first_row, last_row, cols) =
-        (layer.first_col, layer.last_col, layer.first_row, layer.last_row, layer.cols);
+    let (first_col, last_col, first_row, last_row, cols) = (
+        layer.first_col,
+        layer.last_col,
+        layer.first_row,
+        layer.last_row,
+        layer.cols,
+    );
     let count = last_col - first_col + 1;
     layer
         .responses
@@ -234,16 +269,43 @@ fn fill_rows<const STEP: usize>(
             // Table row of image row `y + dy` as the bottom edge of a box ending there.
             let row = |dy: isize| (y + dy) as usize;
             let span = (count - 1) * STEP + 1;
-            let at = |dy: isize, dx: isize| Corners::new(table, stride, row(dy), dx + (first_col * STEP) as isize, span);
+            let at = |dy: isize, dx: isize| {
+                Corners::new(
+                    table,
+                    stride,
+                    row(dy),
+                    dx + (first_col * STEP) as isize,
+                    span,
+                )
+            };
             // Dxx: +1 over the full (2 lobe - 1) x size band, -3 over its centre lobe => 1, -2, 1.
             let (xt, xb) = (-(lobe - 1), lobe);
-            let (xa_l, xa_r, xm_l, xm_r) = (at(xt, -half), at(xt, half + 1), at(xt, -lobe_half), at(xt, lobe_half + 1));
-            let (xb_l, xb_r, xn_l, xn_r) = (at(xb, -half), at(xb, half + 1), at(xb, -lobe_half), at(xb, lobe_half + 1));
+            let (xa_l, xa_r, xm_l, xm_r) = (
+                at(xt, -half),
+                at(xt, half + 1),
+                at(xt, -lobe_half),
+                at(xt, lobe_half + 1),
+            );
+            let (xb_l, xb_r, xn_l, xn_r) = (
+                at(xb, -half),
+                at(xb, half + 1),
+                at(xb, -lobe_half),
+                at(xb, lobe_half + 1),
+            );
             // Dyy: the same turned by 90 degrees.
             let (yl, yr) = (-(lobe - 1), lobe);
-            let (ya_l, ya_r, ym_l, ym_r) = (at(-half, yl), at(-half, yr), at(-lobe_half, yl), at(-lobe_half, yr));
-            let (yb_l, yb_r, yn_l, yn_r) =
-                (at(half + 1, yl), at(half + 1, yr), at(lobe_half + 1, yl), at(lobe_half + 1, yr));
+            let (ya_l, ya_r, ym_l, ym_r) = (
+                at(-half, yl),
+                at(-half, yr),
+                at(-lobe_half, yl),
+                at(-lobe_half, yr),
+            );
+            let (yb_l, yb_r, yn_l, yn_r) = (
+                at(half + 1, yl),
+                at(half + 1, yr),
+                at(lobe_half + 1, yl),
+                at(lobe_half + 1, yr),
+            );
             // Dxy: + top-left, + bottom-right, - top-right, - bottom-left lobes, one pixel off the axes.
             let corners = |dy: isize| [at(dy, -lobe), at(dy, 0), at(dy, 1), at(dy, lobe + 1)];
             let (t0, t1, t2, t3) = (corners(-lobe), corners(0), corners(1), corners(lobe + 1));
@@ -324,7 +386,14 @@ impl<'a> RowFilter<'a> {
 
 /// LN-SURF: divides one row of determinants by the variance of the working image under each
 /// filter (`size` x `size` box whose top-left table corner for the first centre is `corner`).
-fn normalise_row<const STEP: usize>(out: &mut [f32], sq: &IntegralImage, corner: usize, size: usize, n: f64, min_variance: f32) {
+fn normalise_row<const STEP: usize>(
+    out: &mut [f32],
+    sq: &IntegralImage,
+    corner: usize,
+    size: usize,
+    n: f64,
+    min_variance: f32,
+) {
     let stride = sq.stride();
     let top_left = corner.wrapping_sub((size - 1) / 2);
     let (sums, squares) = (sq.table(), sq.squares_table());
@@ -333,7 +402,10 @@ fn normalise_row<const STEP: usize>(out: &mut [f32], sq: &IntegralImage, corner:
         let (tr, bl, br) = (tl + size, tl + size * stride, tl + size * stride + size);
         let fixed = box4(sums[br], sums[tr], sums[bl], sums[tl]);
         let mean = f64::from(fixed as f32 / FIXED) / n;
-        let fixed_sq = squares[br].wrapping_sub(squares[tr]).wrapping_sub(squares[bl]).wrapping_add(squares[tl]);
+        let fixed_sq = squares[br]
+            .wrapping_sub(squares[tr])
+            .wrapping_sub(squares[bl])
+            .wrapping_add(squares[tl]);
         let mean_sq = fixed_sq as f64 / f64::from(FIXED * FIXED) / n;
         let variance = ((mean_sq - mean * mean) as f32).max(min_variance);
         *det /= variance;
@@ -346,8 +418,17 @@ mod tests {
 
     #[test]
     fn filter_sizes_follow_the_thesis() {
-        let sizes: Vec<Vec<usize>> = (0..3).map(|o| (0..4).map(|l| filter_size(o, l)).collect()).collect();
-        assert_eq!(sizes, vec![vec![9, 15, 21, 27], vec![15, 27, 39, 51], vec![27, 51, 75, 99]]);
+        let sizes: Vec<Vec<usize>> = (0..3)
+            .map(|o| (0..4).map(|l| filter_size(o, l)).collect())
+            .collect();
+        assert_eq!(
+            sizes,
+            vec![
+                vec![9, 15, 21, 27],
+                vec![15, 27, 39, 51],
+                vec![27, 51, 75, 99]
+            ]
+        );
     }
 
     /// A textured working image with odd dimensions (partial last map cells).
@@ -373,10 +454,20 @@ mod tests {
             let mut fast = ScaleSpace::default();
             fast.compute_with(&ii, normalise, &config, simd::has_avx2(), true);
             for (i, (a, b)) in direct.layers.iter().zip(&fast.layers).enumerate() {
-                let same = a.responses.iter().zip(&b.responses).all(|(x, y)| x.to_bits() == y.to_bits());
-                assert!(same && a.laplacian_positive == b.laplacian_positive, "layer {i} (ln {ln}) differs");
+                let same = a
+                    .responses
+                    .iter()
+                    .zip(&b.responses)
+                    .all(|(x, y)| x.to_bits() == y.to_bits());
+                assert!(
+                    same && a.laplacian_positive == b.laplacian_positive,
+                    "layer {i} (ln {ln}) differs"
+                );
             }
-            assert!(direct.layers[5].responses.iter().any(|&v| v != 0.0), "octave 1 has responses");
+            assert!(
+                direct.layers[5].responses.iter().any(|&v| v != 0.0),
+                "octave 1 has responses"
+            );
         }
     }
 }

@@ -11,7 +11,11 @@ pub struct GrayImage32 {
 impl GrayImage32 {
     /// A `width x height` image of zeros.
     pub fn new(width: usize, height: usize) -> Self {
-        GrayImage32 { width, height, data: vec![0.0; width * height] }
+        GrayImage32 {
+            width,
+            height,
+            data: vec![0.0; width * height],
+        }
     }
 
     /// Resizes in place (contents unspecified afterwards), reusing the allocation.
@@ -43,7 +47,11 @@ impl GrayImage32 {
 
     /// The sample at column `x`, row `y`, or `None` outside the image.
     pub fn get(&self, x: usize, y: usize) -> Option<f32> {
-        if x < self.width { self.data.get(y * self.width + x).copied() } else { None }
+        if x < self.width {
+            self.data.get(y * self.width + x).copied()
+        } else {
+            None
+        }
     }
 
     /// Luma (0.299 R + 0.587 G + 0.114 B, ITU-R BT.601, as OpenCV's gray) of an RGB image.

@@ -47,12 +47,18 @@ impl IntegralImage {
         }
         for (y, row) in image.as_slice().chunks_exact(w).take(h).enumerate() {
             let (above, here) = self.sum.split_at_mut((y + 1) * stride);
-            accumulate_row(&above[y * stride + 1..], &mut here[1..stride], row.iter().map(|&v| to_fixed(v)));
+            accumulate_row(
+                &above[y * stride + 1..],
+                &mut here[1..stride],
+                row.iter().map(|&v| to_fixed(v)),
+            );
         }
         if with_squares {
             for (y, row) in image.as_slice().chunks_exact(w).take(h).enumerate() {
                 let (above, here) = self.squares.split_at_mut((y + 1) * stride);
-                let squares = row.iter().map(|&v| u64::from(to_fixed(v)) * u64::from(to_fixed(v)));
+                let squares = row
+                    .iter()
+                    .map(|&v| u64::from(to_fixed(v)) * u64::from(to_fixed(v)));
                 accumulate_row(&above[y * stride + 1..], &mut here[1..stride], squares);
             }
         }
@@ -73,7 +79,9 @@ impl IntegralImage {
         }
         for (y, row) in image.as_raw().chunks_exact(3 * w).take(h).enumerate() {
             let (above, here) = self.sum.split_at_mut((y + 1) * stride);
-            let fixed = row.chunks_exact(3).map(|px| u32::from(px[channel]) * FIXED as u32);
+            let fixed = row
+                .chunks_exact(3)
+                .map(|px| u32::from(px[channel]) * FIXED as u32);
             accumulate_row(&above[y * stride + 1..], &mut here[1..stride], fixed);
         }
     }
@@ -130,8 +138,10 @@ impl IntegralImage {
     pub(crate) fn box_sum_fixed(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> i32 {
         let s = self.stride();
         let t = &self.sum;
-        t[y1 * s + x1].wrapping_sub(t[y0 * s + x1]).wrapping_sub(t[y1 * s + x0]).wrapping_add(t[y0 * s + x0])
-            as i32
+        t[y1 * s + x1]
+            .wrapping_sub(t[y0 * s + x1])
+            .wrapping_sub(t[y1 * s + x0])
+            .wrapping_add(t[y0 * s + x0]) as i32
     }
 
     /// Sum of squared samples over the half-open box, in 8-bit units squared (`None` without
@@ -142,13 +152,20 @@ impl IntegralImage {
         }
         let s = self.stride();
         let t = &self.squares;
-        let fixed = t[y1 * s + x1].wrapping_sub(t[y0 * s + x1]).wrapping_sub(t[y1 * s + x0]).wrapping_add(t[y0 * s + x0]);
+        let fixed = t[y1 * s + x1]
+            .wrapping_sub(t[y0 * s + x1])
+            .wrapping_sub(t[y1 * s + x0])
+            .wrapping_add(t[y0 * s + x0]);
         Some(fixed as f64 / f64::from(FIXED * FIXED))
     }
 }
 
 /// `here[x] = above[x] + samples[0..=x]`, wrapping: one row of the running table.
-fn accumulate_row<T: Copy + Default + WrappingAdd>(above: &[T], here: &mut [T], samples: impl Iterator<Item = T>) {
+fn accumulate_row<T: Copy + Default + WrappingAdd>(
+    above: &[T],
+    here: &mut [T],
+    samples: impl Iterator<Item = T>,
+) {
     let mut run = T::default();
     for ((out, &up), q) in here.iter_mut().zip(above).zip(samples) {
         run = run.wrapping_add(q);
@@ -198,7 +215,10 @@ mod tests {
 
     #[test]
     fn thesis_table_2_1() {
-        let a = [57, 57, 66, 72, 76, 64, 65, 66, 70, 78, 65, 61, 64, 69, 69, 109, 76, 84, 109, 107, 115, 69, 101, 132, 124];
+        let a = [
+            57, 57, 66, 72, 76, 64, 65, 66, 70, 78, 65, 61, 64, 69, 69, 109, 76, 84, 109, 107, 115,
+            69, 101, 132, 124,
+        ];
         let mut img = GrayImage32::new(5, 5);
         for (o, v) in img.as_mut_slice().iter_mut().zip(a) {
             *o = v as f32;
@@ -216,7 +236,11 @@ mod tests {
         let mut v = -3.0f32;
         while v < 1030.0 {
             for x in [v, v.next_up(), v.next_down(), v + 1.0 / 32.0] {
-                assert_eq!(to_fixed(x), (x.clamp(0.0, MAX_SAMPLE) * FIXED).round() as u32, "{x}");
+                assert_eq!(
+                    to_fixed(x),
+                    (x.clamp(0.0, MAX_SAMPLE) * FIXED).round() as u32,
+                    "{x}"
+                );
             }
             v += 1.0 / 64.0;
         }
@@ -225,7 +249,9 @@ mod tests {
 
     #[test]
     fn channel_table_equals_the_table_of_the_channel_image() {
-        let rgb = image::RgbImage::from_fn(37, 23, |x, y| image::Rgb([(x * 7 + y) as u8, (x * y) as u8, 255 - x as u8]));
+        let rgb = image::RgbImage::from_fn(37, 23, |x, y| {
+            image::Rgb([(x * 7 + y) as u8, (x * y) as u8, 255 - x as u8])
+        });
         for c in 0..3 {
             let mut plane = GrayImage32::new(37, 23);
             for (o, px) in plane.as_mut_slice().iter_mut().zip(rgb.pixels()) {
@@ -233,7 +259,11 @@ mod tests {
             }
             let mut direct = IntegralImage::default();
             direct.compute_channel(&rgb, c);
-            assert_eq!(direct.sum, IntegralImage::from_image(&plane, false).sum, "channel {c}");
+            assert_eq!(
+                direct.sum,
+                IntegralImage::from_image(&plane, false).sum,
+                "channel {c}"
+            );
         }
     }
 
@@ -246,8 +276,17 @@ mod tests {
             *v = ((i * 7919) % 256) as f32 + 0.25;
         }
         let ii = IntegralImage::from_image(&img, false);
-        for &(x0, y0, x1, y1) in &[(0, 0, 3, 3), (650, 640, 700, 700), (10, 690, 200, 700), (0, 0, 37, 700)] {
-            assert_eq!(f64::from(ii.box_sum(x0, y0, x1, y1)), brute(&img, x0, y0, x1, y1), "box {x0},{y0},{x1},{y1}");
+        for &(x0, y0, x1, y1) in &[
+            (0, 0, 3, 3),
+            (650, 640, 700, 700),
+            (10, 690, 200, 700),
+            (0, 0, 37, 700),
+        ] {
+            assert_eq!(
+                f64::from(ii.box_sum(x0, y0, x1, y1)),
+                brute(&img, x0, y0, x1, y1),
+                "box {x0},{y0},{x1},{y1}"
+            );
         }
         assert_eq!(ii.box_sum_clipped(-5, -5, 2, 1), ii.box_sum(0, 0, 2, 1));
         assert_eq!(ii.box_sum_clipped(690, 690, 710, 690), 0.0);

@@ -59,7 +59,11 @@ pub enum DetectorKind {
 
 impl DetectorKind {
     /// All detectors, in the order the thesis compares them.
-    pub const ALL: [DetectorKind; 3] = [DetectorKind::Surf, DetectorKind::LnSurf, DetectorKind::LsacSurf];
+    pub const ALL: [DetectorKind; 3] = [
+        DetectorKind::Surf,
+        DetectorKind::LnSurf,
+        DetectorKind::LsacSurf,
+    ];
 
     /// The command-line and JSON name: `surf`, `ln-surf`, `lsac-surf`.
     pub fn name(self) -> &'static str {
@@ -78,7 +82,9 @@ impl std::str::FromStr for DetectorKind {
         DetectorKind::ALL
             .into_iter()
             .find(|k| k.name() == s)
-            .ok_or_else(|| FeatureError::UnknownDetector { name: s.to_string() })
+            .ok_or_else(|| FeatureError::UnknownDetector {
+                name: s.to_string(),
+            })
     }
 }
 
@@ -189,7 +195,8 @@ impl Detector {
         }
         self.scratch.prepare(kind, image, config);
         let normalise = (kind == DetectorKind::LnSurf).then_some(&self.scratch.gray_integral);
-        self.layers.compute(self.scratch.working(kind), normalise, config);
+        self.layers
+            .compute(self.scratch.working(kind), normalise, config);
         let candidates = extrema::find(&self.layers, config);
         // LN-SURF describes on the intensity image (Algorithm 1), LSAC-SURF on its working space.
         let describe_on = self.scratch.working(kind);
@@ -202,12 +209,19 @@ impl Detector {
             kp.class = working::classify(&self.scratch.gray, kp, config.soft_band);
         }
         let descriptors = describe::describe(describe_on, &mut keypoints, config.upright);
-        Ok(Features { keypoints, descriptors })
+        Ok(Features {
+            keypoints,
+            descriptors,
+        })
     }
 }
 
 /// One-shot detection with fresh buffers (see [`Detector`] to reuse them across frames).
-pub fn detect(kind: DetectorKind, image: &RgbImage, config: &DetectorConfig) -> Result<Features, FeatureError> {
+pub fn detect(
+    kind: DetectorKind,
+    image: &RgbImage,
+    config: &DetectorConfig,
+) -> Result<Features, FeatureError> {
     Detector::new().detect(kind, image, config)
 }
 

@@ -51,7 +51,11 @@ pub fn match_features(query: &Features, train: &Features, config: &MatchConfig) 
                     return None;
                 }
             }
-            Some(Match { query_index: i, train_index: j, distance: d1.sqrt() })
+            Some(Match {
+                query_index: i,
+                train_index: j,
+                distance: d1.sqrt(),
+            })
         })
         .collect()
 }
@@ -72,7 +76,10 @@ mod tests {
             laplacian_sign: 1,
             class: FeatureClass::Hard,
         };
-        Features { keypoints: vec![kp; descs.len()], descriptors: descs.to_vec() }
+        Features {
+            keypoints: vec![kp; descs.len()],
+            descriptors: descs.to_vec(),
+        }
     }
 
     fn unit(k: usize) -> [f32; 64] {
@@ -86,7 +93,10 @@ mod tests {
         let f = features(&(0..10).map(unit).collect::<Vec<_>>());
         let m = match_features(&f, &f, &MatchConfig::default());
         assert_eq!(m.len(), 10);
-        assert!(m.iter().all(|m| m.query_index == m.train_index && m.distance == 0.0));
+        assert!(
+            m.iter()
+                .all(|m| m.query_index == m.train_index && m.distance == 0.0)
+        );
     }
 
     #[test]

@@ -4,7 +4,9 @@
 use image::{Rgb, RgbImage};
 
 use crate::experiment::{Relight, repeatability};
-use crate::{DetectorConfig, DetectorKind, FeatureClass, Keypoint, MatchConfig, detect, match_features};
+use crate::{
+    DetectorConfig, DetectorKind, FeatureClass, Keypoint, MatchConfig, detect, match_features,
+};
 
 /// A gray image from `f(x, y)` in 8-bit units (clamped).
 fn render(width: u32, height: u32, f: impl Fn(f32, f32) -> f32) -> RgbImage {
@@ -22,7 +24,9 @@ fn gaussian(x: f32, y: f32, cx: f32, cy: f32, sigma: f32) -> f32 {
 fn texture(width: u32, height: u32, seed: u64) -> RgbImage {
     let mut state = seed;
     let mut next = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (state >> 33) as f32 / (1u64 << 31) as f32
     };
     let blobs: Vec<(f32, f32, f32, f32, [f32; 3])> = (0..400)
@@ -46,17 +50,32 @@ fn texture(width: u32, height: u32, seed: u64) -> RgbImage {
 }
 
 fn nearest(kps: &[Keypoint], x: f32, y: f32) -> Option<&Keypoint> {
-    kps.iter().min_by(|a, b| ((a.x - x).hypot(a.y - y)).total_cmp(&(b.x - x).hypot(b.y - y)))
+    kps.iter()
+        .min_by(|a, b| ((a.x - x).hypot(a.y - y)).total_cmp(&(b.x - x).hypot(b.y - y)))
 }
 
 #[test]
 fn a_gaussian_blob_is_found_at_its_centre_and_scale() {
     for sigma in [2.5f32, 4.0, 6.0] {
-        let img = render(160, 160, |x, y| 40.0 + 180.0 * gaussian(x, y, 80.3, 76.6, sigma));
-        let f = detect(DetectorKind::Surf, &img, &DetectorConfig::for_kind(DetectorKind::Surf)).unwrap();
+        let img = render(160, 160, |x, y| {
+            40.0 + 180.0 * gaussian(x, y, 80.3, 76.6, sigma)
+        });
+        let f = detect(
+            DetectorKind::Surf,
+            &img,
+            &DetectorConfig::for_kind(DetectorKind::Surf),
+        )
+        .unwrap();
         let kp = nearest(&f.keypoints, 80.3, 76.6).expect("the blob is detected");
-        assert!((kp.x - 80.3).abs() < 0.7 && (kp.y - 76.6).abs() < 0.7, "sigma {sigma}: centre {kp:?}");
-        assert!((kp.scale / sigma - 1.0).abs() < 0.3, "sigma {sigma}: scale {}", kp.scale);
+        assert!(
+            (kp.x - 80.3).abs() < 0.7 && (kp.y - 76.6).abs() < 0.7,
+            "sigma {sigma}: centre {kp:?}"
+        );
+        assert!(
+            (kp.scale / sigma - 1.0).abs() < 0.3,
+            "sigma {sigma}: scale {}",
+            kp.scale
+        );
         // A bright blob on a dark background has a negative Laplacian.
         assert_eq!(kp.laplacian_sign, -1);
     }
@@ -74,19 +93,28 @@ fn orientation_turns_with_the_image() {
     let mut agree = 0;
     for kp in a.keypoints.iter().filter(|k| k.scale < 6.0) {
         let (x, y) = (199.0 - kp.y, kp.x);
-        let Some(other) = nearest(&b.keypoints, x, y) else { continue };
+        let Some(other) = nearest(&b.keypoints, x, y) else {
+            continue;
+        };
         if (other.x - x).hypot(other.y - y) > 0.5 || (other.size / kp.size - 1.0).abs() > 0.1 {
             continue;
         }
         checked += 1;
-        let diff = (other.orientation - kp.orientation - std::f32::consts::FRAC_PI_2).rem_euclid(std::f32::consts::TAU);
+        let diff = (other.orientation - kp.orientation - std::f32::consts::FRAC_PI_2)
+            .rem_euclid(std::f32::consts::TAU);
         if diff.min(std::f32::consts::TAU - diff) < 0.25 {
             agree += 1;
         }
     }
-    assert!(checked >= 20, "only {checked} keypoints found again after rotation");
+    assert!(
+        checked >= 20,
+        "only {checked} keypoints found again after rotation"
+    );
     // Pixel rounding of the Haar samples and ambiguous textures leave a minority off.
-    assert!(agree * 10 >= checked * 6, "{agree}/{checked} orientations turned by pi/2");
+    assert!(
+        agree * 10 >= checked * 6,
+        "{agree}/{checked} orientations turned by pi/2"
+    );
 }
 
 #[test]
@@ -98,22 +126,34 @@ fn ln_and_lsac_descriptors_ignore_a_brightness_change() {
         let a = detect(kind, &img, &config).unwrap();
         let b = detect(kind, &dim, &config).unwrap();
         let r = repeatability(&b.keypoints, &a.keypoints);
-        assert!(r > 70.0, "{kind}: repeatability {r:.1} % under a x0.5 change");
+        assert!(
+            r > 70.0,
+            "{kind}: repeatability {r:.1} % under a x0.5 change"
+        );
         let mut close = 0;
         let mut total = 0;
         for (kp, d) in a.keypoints.iter().zip(&a.descriptors) {
-            let Some(j) = (0..b.keypoints.len())
-                .find(|&j| (b.keypoints[j].x - kp.x).hypot(b.keypoints[j].y - kp.y) < 0.3 && (b.keypoints[j].size / kp.size - 1.0).abs() < 0.05)
-            else {
+            let Some(j) = (0..b.keypoints.len()).find(|&j| {
+                (b.keypoints[j].x - kp.x).hypot(b.keypoints[j].y - kp.y) < 0.3
+                    && (b.keypoints[j].size / kp.size - 1.0).abs() < 0.05
+            }) else {
                 continue;
             };
             total += 1;
-            let dist: f32 = d.iter().zip(&b.descriptors[j]).map(|(p, q)| (p - q) * (p - q)).sum::<f32>().sqrt();
+            let dist: f32 = d
+                .iter()
+                .zip(&b.descriptors[j])
+                .map(|(p, q)| (p - q) * (p - q))
+                .sum::<f32>()
+                .sqrt();
             if dist < 0.15 {
                 close += 1;
             }
         }
-        assert!(total >= 20 && close * 10 >= total * 9, "{kind}: {close}/{total} descriptors unchanged");
+        assert!(
+            total >= 20 && close * 10 >= total * 9,
+            "{kind}: {close}/{total} descriptors unchanged"
+        );
     }
 }
 
@@ -123,20 +163,47 @@ fn matching_an_image_with_itself_finds_the_identity() {
     for kind in DetectorKind::ALL {
         let f = detect(kind, &img, &DetectorConfig::for_kind(kind)).unwrap();
         let m = match_features(&f, &f, &MatchConfig::default());
-        let hard = f.keypoints.iter().filter(|k| k.class == FeatureClass::Hard).count();
-        assert!(f.keypoints.len() >= 30, "{kind}: {} keypoints", f.keypoints.len());
-        assert!(m.iter().all(|m| m.query_index == m.train_index), "{kind}: a non-identity match");
-        assert!(m.len() * 10 >= hard * 9, "{kind}: {} of {hard} hard features matched", m.len());
+        let hard = f
+            .keypoints
+            .iter()
+            .filter(|k| k.class == FeatureClass::Hard)
+            .count();
+        assert!(
+            f.keypoints.len() >= 30,
+            "{kind}: {} keypoints",
+            f.keypoints.len()
+        );
+        assert!(
+            m.iter().all(|m| m.query_index == m.train_index),
+            "{kind}: a non-identity match"
+        );
+        assert!(
+            m.len() * 10 >= hard * 9,
+            "{kind}: {} of {hard} hard features matched",
+            m.len()
+        );
     }
 }
 
 #[test]
 fn lsac_marks_features_near_saturation_soft() {
-    let img = render(120, 120, |x, y| 255.0 * (gaussian(x, y, 40.0, 60.0, 4.0) * 2.0) + 120.0 * gaussian(x, y, 85.0, 60.0, 4.0) + 20.0);
-    let f = detect(DetectorKind::LsacSurf, &img, &DetectorConfig::for_kind(DetectorKind::LsacSurf)).unwrap();
+    let img = render(120, 120, |x, y| {
+        255.0 * (gaussian(x, y, 40.0, 60.0, 4.0) * 2.0)
+            + 120.0 * gaussian(x, y, 85.0, 60.0, 4.0)
+            + 20.0
+    });
+    let f = detect(
+        DetectorKind::LsacSurf,
+        &img,
+        &DetectorConfig::for_kind(DetectorKind::LsacSurf),
+    )
+    .unwrap();
     let saturated = nearest(&f.keypoints, 40.0, 60.0).unwrap();
     let normal = nearest(&f.keypoints, 85.0, 60.0).unwrap();
-    assert_eq!((saturated.class, normal.class), (FeatureClass::Soft, FeatureClass::Hard));
+    assert_eq!(
+        (saturated.class, normal.class),
+        (FeatureClass::Soft, FeatureClass::Hard)
+    );
 }
 
 #[test]

@@ -6,7 +6,9 @@ use rayon::prelude::*;
 use crate::image32::LUMA_WEIGHTS;
 use crate::integral::FIXED;
 use crate::simd;
-use crate::{DetectorConfig, DetectorKind, FeatureClass, GrayImage32, IntegralImage, Keypoint, LsacSpace};
+use crate::{
+    DetectorConfig, DetectorKind, FeatureClass, GrayImage32, IntegralImage, Keypoint, LsacSpace,
+};
 
 /// Buffers reused frame after frame.
 #[derive(Debug, Default)]
@@ -20,10 +22,16 @@ pub(crate) struct Scratch {
 
 impl Scratch {
     /// Fills the buffers `kind` needs from `image`.
-    pub(crate) fn prepare(&mut self, kind: DetectorKind, image: &image::RgbImage, config: &DetectorConfig) {
+    pub(crate) fn prepare(
+        &mut self,
+        kind: DetectorKind,
+        image: &image::RgbImage,
+        config: &DetectorConfig,
+    ) {
         self.gray.luma_into(image);
         if kind != DetectorKind::LsacSurf {
-            self.gray_integral.compute(&self.gray, kind == DetectorKind::LnSurf);
+            self.gray_integral
+                .compute(&self.gray, kind == DetectorKind::LnSurf);
             return;
         }
         let (w, h) = (self.gray.width(), self.gray.height());
@@ -34,35 +42,50 @@ impl Scratch {
             LsacSpace::Gray => {
                 self.gray_integral.compute(&self.gray, false);
                 let (gray, ii) = (&self.gray, &self.gray_integral);
-                self.lsac.as_mut_slice().par_chunks_mut(w).enumerate().for_each_init(
-                    || vec![0.0; w],
-                    |average, (y, row)| {
-                        local_average_row(ii, y, &radii, average);
-                        let intensity = &gray.as_slice()[y * w..(y + 1) * w];
-                        for ((out, &i), &a) in row.iter_mut().zip(intensity).zip(average.iter()) {
-                            *out = lsac_sample(i, a, floor);
-                        }
-                    },
-                );
+                self.lsac
+                    .as_mut_slice()
+                    .par_chunks_mut(w)
+                    .enumerate()
+                    .for_each_init(
+                        || vec![0.0; w],
+                        |average, (y, row)| {
+                            local_average_row(ii, y, &radii, average);
+                            let intensity = &gray.as_slice()[y * w..(y + 1) * w];
+                            for ((out, &i), &a) in row.iter_mut().zip(intensity).zip(average.iter())
+                            {
+                                *out = lsac_sample(i, a, floor);
+                            }
+                        },
+                    );
             }
             LsacSpace::PerChannel => {
-                self.channel_integrals.par_iter_mut().enumerate().for_each(|(c, ii)| ii.compute_channel(image, c));
+                self.channel_integrals
+                    .par_iter_mut()
+                    .enumerate()
+                    .for_each(|(c, ii)| ii.compute_channel(image, c));
                 let iis = &self.channel_integrals;
                 let raw = image.as_raw();
-                self.lsac.as_mut_slice().par_chunks_mut(w).enumerate().for_each_init(
-                    || vec![0.0; w],
-                    |average, (y, row)| {
-                        // Luma of the three ratios, summed channel by channel in luma_f32's order.
-                        for (c, (ii, weight)) in iis.iter().zip(LUMA_WEIGHTS).enumerate() {
-                            local_average_row(ii, y, &radii, average);
-                            let pixels = raw[3 * y * w..3 * (y + 1) * w].iter().skip(c).step_by(3);
-                            for ((out, &i), &a) in row.iter_mut().zip(pixels).zip(average.iter()) {
-                                let term = weight * lsac_sample(f32::from(i), a, floor);
-                                *out = if c == 0 { term } else { *out + term };
+                self.lsac
+                    .as_mut_slice()
+                    .par_chunks_mut(w)
+                    .enumerate()
+                    .for_each_init(
+                        || vec![0.0; w],
+                        |average, (y, row)| {
+                            // Luma of the three ratios, summed channel by channel in luma_f32's order.
+                            for (c, (ii, weight)) in iis.iter().zip(LUMA_WEIGHTS).enumerate() {
+                                local_average_row(ii, y, &radii, average);
+                                let pixels =
+                                    raw[3 * y * w..3 * (y + 1) * w].iter().skip(c).step_by(3);
+                                for ((out, &i), &a) in
+                                    row.iter_mut().zip(pixels).zip(average.iter())
+                                {
+                                    let term = weight * lsac_sample(f32::from(i), a, floor);
+                                    *out = if c == 0 { term } else { *out + term };
+                                }
                             }
-                        }
-                    },
-                );
+                        },
+                    );
             }
         }
         self.lsac_integral.compute(&self.lsac, false);
@@ -117,7 +140,15 @@ fn local_average_row(ii: &IntegralImage, y: usize, radii: &[usize; 3], out: &mut
         let slice = |row: usize, col: usize| &t[row * s + col..row * s + col + n];
         let (top, bottom) = (y - r, y + r + 1);
         let (left, right) = (inner_cols.start - r, inner_cols.start + r + 1);
-        ([slice(bottom, right), slice(top, right), slice(bottom, left), slice(top, left)], ((2 * r + 1) * (2 * r + 1)) as f32)
+        (
+            [
+                slice(bottom, right),
+                slice(top, right),
+                slice(bottom, left),
+                slice(top, left),
+            ],
+            ((2 * r + 1) * (2 * r + 1)) as f32,
+        )
     });
     average_interior(simd::has_avx2(), &corners, &mut out[inner_cols]);
 }
@@ -148,7 +179,11 @@ fn average_interior_avx2(corners: &[BoxRun<'_>; 3], out: &mut [f32]) {
 fn average_interior_portable<'a>(corners: &[BoxRun<'a>; 3], out: &mut [f32]) {
     let n = out.len();
     let cut = |(rows, area): &BoxRun<'a>| -> BoxRun<'a> { (rows.map(|r| &r[..n]), *area) };
-    let [([br0, tr0, bl0, tl0], area0), ([br1, tr1, bl1, tl1], area1), ([br2, tr2, bl2, tl2], area2)] = corners.each_ref().map(cut);
+    let [
+        ([br0, tr0, bl0, tl0], area0),
+        ([br1, tr1, bl1, tl1], area1),
+        ([br2, tr2, bl2, tl2], area2),
+    ] = corners.each_ref().map(cut);
     let mean = |br: u32, tr: u32, bl: u32, tl: u32, area: f32| {
         br.wrapping_sub(tr).wrapping_sub(bl).wrapping_add(tl) as i32 as f32 / FIXED / area
     };
@@ -169,8 +204,13 @@ fn lsac_sample(intensity: f32, average: f32, floor: f32) -> f32 {
 
 /// Hard if the gray pixel under the keypoint lies strictly inside `band`, else soft.
 pub(crate) fn classify(gray: &GrayImage32, kp: &Keypoint, band: Option<(u8, u8)>) -> FeatureClass {
-    let Some((lower, upper)) = band else { return FeatureClass::Hard };
-    let (x, y) = (kp.x.round().max(0.0) as usize, kp.y.round().max(0.0) as usize);
+    let Some((lower, upper)) = band else {
+        return FeatureClass::Hard;
+    };
+    let (x, y) = (
+        kp.x.round().max(0.0) as usize,
+        kp.y.round().max(0.0) as usize,
+    );
     match gray.get(x, y) {
         Some(v) if v > f32::from(lower) && v < f32::from(upper) => FeatureClass::Hard,
         _ => FeatureClass::Soft,
@@ -194,7 +234,11 @@ mod tests {
             for y in 0..h {
                 local_average_row(&ii, y, &radii, &mut row);
                 for (x, &a) in row.iter().enumerate() {
-                    assert_eq!(a.to_bits(), local_average(&ii, x, y, &radii).to_bits(), "{w}x{h} r {radius} at ({x}, {y})");
+                    assert_eq!(
+                        a.to_bits(),
+                        local_average(&ii, x, y, &radii).to_bits(),
+                        "{w}x{h} r {radius} at ({x}, {y})"
+                    );
                 }
             }
         }

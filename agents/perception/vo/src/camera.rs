@@ -73,12 +73,24 @@ pub struct Intrinsics {
 impl Intrinsics {
     /// TUM freiburg1 Kinect (fx 517.3, fy 516.5, cx 318.6, cy 255.3), with its published distortion.
     pub fn tum_freiburg1() -> Self {
-        Self::tum(517.3, 516.5, 318.6, 255.3, Some([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]))
+        Self::tum(
+            517.3,
+            516.5,
+            318.6,
+            255.3,
+            Some([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),
+        )
     }
 
     /// TUM freiburg2 Kinect (fx 520.9, fy 521.0, cx 325.1, cy 249.7), with its published distortion.
     pub fn tum_freiburg2() -> Self {
-        Self::tum(520.9, 521.0, 325.1, 249.7, Some([0.2312, -0.7849, -0.0033, -0.0001, 0.9172]))
+        Self::tum(
+            520.9,
+            521.0,
+            325.1,
+            249.7,
+            Some([0.2312, -0.7849, -0.0033, -0.0001, 0.9172]),
+        )
     }
 
     /// TUM freiburg3 Asus Xtion (fx 535.4, fy 539.2, cx 320.1, cy 247.6); its images are rectified.
@@ -105,7 +117,9 @@ impl Intrinsics {
             "freiburg1" | "fr1" => Ok(Self::tum_freiburg1()),
             "freiburg2" | "fr2" => Ok(Self::tum_freiburg2()),
             "freiburg3" | "fr3" => Ok(Self::tum_freiburg3()),
-            _ => Err(VoError::UnknownCamera { name: name.to_string() }),
+            _ => Err(VoError::UnknownCamera {
+                name: name.to_string(),
+            }),
         }
     }
 
@@ -150,7 +164,10 @@ impl Intrinsics {
             Some(dist) => dist.distort(n),
             None => n,
         };
-        Some(Point2::new(d.x * self.fx + self.cx, d.y * self.fy + self.cy))
+        Some(Point2::new(
+            d.x * self.fx + self.cx,
+            d.y * self.fy + self.cy,
+        ))
     }
 }
 
@@ -165,7 +182,10 @@ mod tests {
             let p = k.back_project(Point2::new(u, v), z);
             assert!((p.z - z).abs() < 1e-12);
             let back = k.project(&p).expect("in front");
-            assert!((back.x - u).abs() < 1e-3 && (back.y - v).abs() < 1e-3, "{u},{v} -> {back}");
+            assert!(
+                (back.x - u).abs() < 1e-3 && (back.y - v).abs() < 1e-3,
+                "{u},{v} -> {back}"
+            );
         }
     }
 
@@ -182,8 +202,14 @@ mod tests {
     fn camera_from_folder_name() {
         let fr2 = Intrinsics::from_sequence_name("rgbd_dataset_freiburg2_xyz").expect("fr2");
         assert_eq!(fr2.fx, 520.9);
-        assert_eq!(Intrinsics::from_sequence_name("my_fr3_walk").map(|k| k.fx), Some(535.4));
+        assert_eq!(
+            Intrinsics::from_sequence_name("my_fr3_walk").map(|k| k.fx),
+            Some(535.4)
+        );
         assert!(Intrinsics::from_sequence_name("office").is_none());
-        assert!(matches!(Intrinsics::by_name("kinect"), Err(VoError::UnknownCamera { .. })));
+        assert!(matches!(
+            Intrinsics::by_name("kinect"),
+            Err(VoError::UnknownCamera { .. })
+        ));
     }
 }

@@ -61,7 +61,9 @@ pub enum VoError {
         reason: String,
     },
     /// Two trajectories share no timestamps within the association limit.
-    #[error("no estimate pose is within {max_dt_s} s of a ground-truth pose ({estimate} vs {reference} poses)")]
+    #[error(
+        "no estimate pose is within {max_dt_s} s of a ground-truth pose ({estimate} vs {reference} poses)"
+    )]
     NoCommonTimestamps {
         /// Poses in the estimate.
         estimate: usize,
@@ -75,11 +77,18 @@ pub enum VoError {
 impl VoError {
     /// An I/O error on `path`.
     pub(crate) fn io(path: &Path, source: std::io::Error) -> Self {
-        VoError::Io { path: path.display().to_string(), source }
+        VoError::Io {
+            path: path.display().to_string(),
+            source,
+        }
     }
 
     /// A parse error at `path:line`.
     pub(crate) fn parse(path: &Path, line: usize, reason: impl Into<String>) -> Self {
-        VoError::Parse { path: path.display().to_string(), line, reason: reason.into() }
+        VoError::Parse {
+            path: path.display().to_string(),
+            line,
+            reason: reason.into(),
+        }
     }
 }

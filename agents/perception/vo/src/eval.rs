@@ -46,14 +46,22 @@ pub fn associate_poses<'a>(
         .map(|(i, j)| (&estimate[i], &reference[j]))
         .collect();
     if pairs.is_empty() {
-        return Err(VoError::NoCommonTimestamps { estimate: estimate.len(), reference: reference.len(), max_dt_s });
+        return Err(VoError::NoCommonTimestamps {
+            estimate: estimate.len(),
+            reference: reference.len(),
+            max_dt_s,
+        });
     }
     Ok(pairs)
 }
 
 /// ATE: associates poses within `max_dt_s`, aligns the estimate's positions to the reference's
 /// with Umeyama (rigid, as `evo_ape -a`), and summarises the remaining position errors.
-pub fn ate(estimate: &[StampedPose], reference: &[StampedPose], max_dt_s: f64) -> Result<Ate, VoError> {
+pub fn ate(
+    estimate: &[StampedPose],
+    reference: &[StampedPose],
+    max_dt_s: f64,
+) -> Result<Ate, VoError> {
     let pairs = associate_poses(estimate, reference, max_dt_s)?;
     let position = |p: &StampedPose| Point3::from(p.t_world_camera.translation.vector);
     let est: Vec<_> = pairs.iter().map(|(e, _)| position(e)).collect();
@@ -68,7 +76,11 @@ pub fn ate(estimate: &[StampedPose], reference: &[StampedPose], max_dt_s: f64) -
     let mut sorted: Vec<f64> = errors.iter().map(|e| e.1).collect();
     sorted.sort_by(f64::total_cmp);
     let mid = sorted.len() / 2;
-    let median_m = if sorted.len().is_multiple_of(2) { 0.5 * (sorted[mid - 1] + sorted[mid]) } else { sorted[mid] };
+    let median_m = if sorted.len().is_multiple_of(2) {
+        0.5 * (sorted[mid - 1] + sorted[mid])
+    } else {
+        sorted[mid]
+    };
     Ok(Ate {
         rmse_m: (sorted.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
         mean_m: sorted.iter().sum::<f64>() / n,
@@ -81,7 +93,12 @@ pub fn ate(estimate: &[StampedPose], reference: &[StampedPose], max_dt_s: f64) -
 
 /// RPE between associated poses `step` apart (TUM/evo definition, no alignment needed):
 /// `E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`.
-pub fn rpe(estimate: &[StampedPose], reference: &[StampedPose], max_dt_s: f64, step: usize) -> Result<Rpe, VoError> {
+pub fn rpe(
+    estimate: &[StampedPose],
+    reference: &[StampedPose],
+    max_dt_s: f64,
+    step: usize,
+) -> Result<Rpe, VoError> {
     let pairs = associate_poses(estimate, reference, max_dt_s)?;
     let step = step.max(1);
     let (mut sum_t, mut sum_r, mut count) = (0.0, 0.0, 0usize);
@@ -94,7 +111,10 @@ pub fn rpe(estimate: &[StampedPose], reference: &[StampedPose], max_dt_s: f64, s
         count += 1;
     }
     if count == 0 {
-        return Err(VoError::TooFewPoints { found: pairs.len(), needed: step + 1 });
+        return Err(VoError::TooFewPoints {
+            found: pairs.len(),
+            needed: step + 1,
+        });
     }
     Ok(Rpe {
         trans_rmse_m: (sum_t / count as f64).sqrt(),
@@ -112,8 +132,14 @@ mod tests {
         (0..100)
             .map(|i| {
                 let a = i as f64 * 0.06;
-                let pose = Isometry3::new(Vector3::new(a.cos(), a.sin(), 0.1 * a + noise(i)), Vector3::new(0.0, 0.0, a));
-                StampedPose { timestamp_s: i as f64 * 0.1, t_world_camera: offset * pose }
+                let pose = Isometry3::new(
+                    Vector3::new(a.cos(), a.sin(), 0.1 * a + noise(i)),
+                    Vector3::new(0.0, 0.0, a),
+                );
+                StampedPose {
+                    timestamp_s: i as f64 * 0.1,
+                    t_world_camera: offset * pose,
+                }
             })
             .collect()
     }
@@ -121,7 +147,10 @@ mod tests {
     #[test]
     fn ate_is_zero_after_alignment_of_a_moved_copy() {
         let gt = circle(Isometry3::identity(), |_| 0.0);
-        let moved = circle(Isometry3::new(Vector3::new(3.0, -1.0, 0.5), Vector3::new(0.3, 0.2, 1.0)), |_| 0.0);
+        let moved = circle(
+            Isometry3::new(Vector3::new(3.0, -1.0, 0.5), Vector3::new(0.3, 0.2, 1.0)),
+            |_| 0.0,
+        );
         let r = ate(&moved, &gt, 0.02).expect("aligned");
         assert!(r.rmse_m < 1e-9, "{}", r.rmse_m);
         assert_eq!(r.errors.len(), 100);
@@ -133,7 +162,10 @@ mod tests {
     fn ate_measures_known_offsets() {
         // Alternating +-1 cm along z cannot be aligned away: RMSE is exactly 1 cm.
         let gt = circle(Isometry3::identity(), |_| 0.0);
-        let est = circle(Isometry3::identity(), |i| if i % 2 == 0 { 0.01 } else { -0.01 });
+        let est = circle(
+            Isometry3::identity(),
+            |i| if i % 2 == 0 { 0.01 } else { -0.01 },
+        );
         let r = ate(&est, &gt, 0.02).expect("aligned");
         assert!((r.rmse_m - 0.01).abs() < 1e-4, "{}", r.rmse_m);
         assert!((r.max_m - 0.01).abs() < 1e-3 && (r.median_m - 0.01).abs() < 1e-3);
@@ -144,8 +176,21 @@ mod tests {
     #[test]
     fn disjoint_times_are_an_error() {
         let gt = circle(Isometry3::identity(), |_| 0.0);
-        let late: Vec<_> = gt.iter().map(|p| StampedPose { timestamp_s: p.timestamp_s + 100.0, ..*p }).collect();
+        let late: Vec<_> = gt
+            .iter()
+            .map(|p| StampedPose {
+                timestamp_s: p.timestamp_s + 100.0,
+                ..*p
+            })
+            .collect();
         let err = ate(&late, &gt, 0.02).expect_err("no overlap");
-        assert!(matches!(err, VoError::NoCommonTimestamps { estimate: 100, reference: 100, .. }));
+        assert!(matches!(
+            err,
+            VoError::NoCommonTimestamps {
+                estimate: 100,
+                reference: 100,
+                ..
+            }
+        ));
     }
 }

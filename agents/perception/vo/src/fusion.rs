@@ -13,10 +13,17 @@ use crate::wheel::{OdometryStep, Pose2, wrap_angle};
 
 /// The planar motion of a robot base between two camera poses: the camera's motion expressed in
 /// the base frame (`t_base_camera` is the camera mount; base z points up), reduced to x, y, yaw.
-pub fn planar_motion(t_base_camera: &Isometry3<f64>, t_previous_current_camera: &Isometry3<f64>) -> Pose2 {
+pub fn planar_motion(
+    t_base_camera: &Isometry3<f64>,
+    t_previous_current_camera: &Isometry3<f64>,
+) -> Pose2 {
     let t_base_motion = t_base_camera * t_previous_current_camera * t_base_camera.inverse();
     let (_, _, yaw) = t_base_motion.rotation.euler_angles();
-    Pose2::new(t_base_motion.translation.vector.x, t_base_motion.translation.vector.y, yaw)
+    Pose2::new(
+        t_base_motion.translation.vector.x,
+        t_base_motion.translation.vector.y,
+        yaw,
+    )
 }
 
 /// EKF over (clone pose, current pose).
@@ -39,7 +46,12 @@ impl OdometryFusion {
         for (r, c) in [(0, 0), (0, 3), (3, 0), (3, 3)] {
             p.fixed_view_mut::<3, 3>(r, c).copy_from(&covariance);
         }
-        OdometryFusion { clone: pose, current: pose, covariance: p, alpha }
+        OdometryFusion {
+            clone: pose,
+            current: pose,
+            covariance: p,
+            alpha,
+        }
     }
 
     /// The fused current pose.
@@ -59,7 +71,8 @@ impl OdometryFusion {
         let mut f = Matrix6::identity();
         f.fixed_view_mut::<3, 3>(3, 3).copy_from(&g);
         let mut q = Matrix6::zeros();
-        q.fixed_view_mut::<3, 3>(3, 3).copy_from(&(v * step.covariance(&self.alpha) * v.transpose()));
+        q.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(v * step.covariance(&self.alpha) * v.transpose()));
         self.covariance = f * self.covariance * f.transpose() + q;
         self.current = next;
     }
@@ -73,13 +86,34 @@ impl OdometryFusion {
         let (s, c) = self.clone.theta.sin_cos();
         let (dx, dy) = (self.current.x - self.clone.x, self.current.y - self.clone.y);
         let h = Matrix3x6::new(
-            -c, -s, -s * dx + c * dy, c, s, 0.0, //
-            s, -c, -c * dx - s * dy, -s, c, 0.0, //
-            0.0, 0.0, -1.0, 0.0, 0.0, 1.0,
+            -c,
+            -s,
+            -s * dx + c * dy,
+            c,
+            s,
+            0.0, //
+            s,
+            -c,
+            -c * dx - s * dy,
+            -s,
+            c,
+            0.0, //
+            0.0,
+            0.0,
+            -1.0,
+            0.0,
+            0.0,
+            1.0,
         );
-        let innovation = Vector3::new(motion.x - predicted.x, motion.y - predicted.y, wrap_angle(motion.theta - predicted.theta));
+        let innovation = Vector3::new(
+            motion.x - predicted.x,
+            motion.y - predicted.y,
+            wrap_angle(motion.theta - predicted.theta),
+        );
         let s_mat = h * self.covariance * h.transpose() + noise;
-        let s_inv = s_mat.try_inverse().filter(|s_inv| (innovation.transpose() * s_inv * innovation)[0] <= VISUAL_GATE_CHI2);
+        let s_inv = s_mat
+            .try_inverse()
+            .filter(|s_inv| (innovation.transpose() * s_inv * innovation)[0] <= VISUAL_GATE_CHI2);
         let fused = s_inv.is_some();
         if let Some(s_inv) = s_inv {
             let k: SMatrix<f64, 6, 3> = self.covariance * h.transpose() * s_inv;
@@ -118,7 +152,11 @@ mod tests {
     }
 
     fn rmse(estimate: &[Pose2], truth: &[Pose2]) -> f64 {
-        let sum: f64 = estimate.iter().zip(truth).map(|(e, t)| (e.x - t.x).powi(2) + (e.y - t.y).powi(2)).sum();
+        let sum: f64 = estimate
+            .iter()
+            .zip(truth)
+            .map(|(e, t)| (e.x - t.x).powi(2) + (e.y - t.y).powi(2))
+            .sum();
         (sum / truth.len() as f64).sqrt()
     }
 
@@ -130,7 +168,11 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let track = 0.56;
         let alpha = [0.01, 0.002, 0.0005, 0.0005];
-        let vo_noise = Matrix3::from_diagonal(&Vector3::new(0.02f64.powi(2), 0.02f64.powi(2), 0.3f64.to_radians().powi(2)));
+        let vo_noise = Matrix3::from_diagonal(&Vector3::new(
+            0.02f64.powi(2),
+            0.02f64.powi(2),
+            0.3f64.to_radians().powi(2),
+        ));
         let (mut truth, mut wheel, mut vo) = (Pose2::default(), Pose2::default(), Pose2::default());
         let mut fusion = OdometryFusion::new(Pose2::default(), Matrix3::zeros(), alpha);
         let mut vo_clone_truth = truth;
@@ -139,7 +181,10 @@ mod tests {
             let time = k as f64 * 0.1;
             let v = 0.5;
             let omega = 0.35 * (time * std::f64::consts::TAU / 40.0).sin();
-            let (left, right) = ((v - 0.5 * omega * track) * 0.1, (v + 0.5 * omega * track) * 0.1);
+            let (left, right) = (
+                (v - 0.5 * omega * track) * 0.1,
+                (v + 0.5 * omega * track) * 0.1,
+            );
             let true_step = OdometryStep::from_wheels(left, right, track);
             truth = truth.compose(&true_step.as_delta());
             let measured = OdometryStep::from_wheels(
@@ -165,15 +210,24 @@ mod tests {
             v_all.push(vo);
             f_all.push(fusion.pose());
         }
-        (rmse(&w_all, &t_all), rmse(&v_all, &t_all), rmse(&f_all, &t_all))
+        (
+            rmse(&w_all, &t_all),
+            rmse(&v_all, &t_all),
+            rmse(&f_all, &t_all),
+        )
     }
 
     #[test]
     fn fused_pose_beats_wheel_and_visual_odometry_alone() {
         for seed in 0..4 {
             let (wheel, visual, fused) = run(seed);
-            eprintln!("seed {seed}: position RMSE fused {fused:.3} m, wheel {wheel:.3} m, visual {visual:.3} m");
-            assert!(fused < wheel && fused < visual, "seed {seed}: fused {fused:.3} m, wheel {wheel:.3} m, visual {visual:.3} m");
+            eprintln!(
+                "seed {seed}: position RMSE fused {fused:.3} m, wheel {wheel:.3} m, visual {visual:.3} m"
+            );
+            assert!(
+                fused < wheel && fused < visual,
+                "seed {seed}: fused {fused:.3} m, wheel {wheel:.3} m, visual {visual:.3} m"
+            );
         }
     }
 
@@ -182,18 +236,24 @@ mod tests {
         // Camera looking along base x (camera z forward = base x, camera x right = base -y).
         let t_base_camera = Isometry3::from_parts(
             nalgebra::Translation3::new(0.2, 0.0, 1.0),
-            nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
-                0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
-            ))),
+            nalgebra::UnitQuaternion::from_rotation_matrix(
+                &nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+                    0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
+                )),
+            ),
         );
         // Base drives 1 m forward: the camera moves 1 m along its own z.
         let m = planar_motion(&t_base_camera, &Isometry3::translation(0.0, 0.0, 1.0));
-        assert!((m.x - 1.0).abs() < 1e-12 && m.y.abs() < 1e-12 && m.theta.abs() < 1e-12, "{m:?}");
+        assert!(
+            (m.x - 1.0).abs() < 1e-12 && m.y.abs() < 1e-12 && m.theta.abs() < 1e-12,
+            "{m:?}"
+        );
     }
 
     #[test]
     fn covariance_shrinks_on_a_visual_update() {
-        let mut f = OdometryFusion::new(Pose2::default(), Matrix3::zeros(), [0.01, 0.01, 0.01, 0.01]);
+        let mut f =
+            OdometryFusion::new(Pose2::default(), Matrix3::zeros(), [0.01, 0.01, 0.01, 0.01]);
         for _ in 0..10 {
             f.predict(&OdometryStep::from_wheels(0.1, 0.12, 0.56));
         }

@@ -20,11 +20,20 @@ use crate::VoError;
 pub fn umeyama(src: &[Point3<f64>], dst: &[Point3<f64>]) -> Result<Isometry3<f64>, VoError> {
     let n = src.len().min(dst.len());
     if n < 3 {
-        return Err(VoError::TooFewPoints { found: n, needed: 3 });
+        return Err(VoError::TooFewPoints {
+            found: n,
+            needed: 3,
+        });
     }
     let inv_n = 1.0 / n as f64;
-    let mean_src = src[..n].iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) * inv_n;
-    let mean_dst = dst[..n].iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) * inv_n;
+    let mean_src = src[..n]
+        .iter()
+        .fold(Vector3::zeros(), |acc, p| acc + p.coords)
+        * inv_n;
+    let mean_dst = dst[..n]
+        .iter()
+        .fold(Vector3::zeros(), |acc, p| acc + p.coords)
+        * inv_n;
     let mut cov = Matrix3::zeros();
     for (s, d) in src[..n].iter().zip(&dst[..n]) {
         cov += (d.coords - mean_dst) * (s.coords - mean_src).transpose();
@@ -32,13 +41,19 @@ pub fn umeyama(src: &[Point3<f64>], dst: &[Point3<f64>]) -> Result<Isometry3<f64
     cov *= inv_n;
     let svd = cov.svd(true, true);
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
-        return Err(VoError::TooFewPoints { found: n, needed: 3 });
+        return Err(VoError::TooFewPoints {
+            found: n,
+            needed: 3,
+        });
     };
     let mut sorted = svd.singular_values;
     sorted.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
     // Collinear or coincident points leave the rotation about their line undetermined.
     if sorted[1] <= 1e-12 * sorted[0].max(1e-300) {
-        return Err(VoError::TooFewPoints { found: 2, needed: 3 });
+        return Err(VoError::TooFewPoints {
+            found: 2,
+            needed: 3,
+        });
     }
     let mut s = Matrix3::identity();
     if (u.determinant() * v_t.determinant()) < 0.0 {
@@ -46,7 +61,10 @@ pub fn umeyama(src: &[Point3<f64>], dst: &[Point3<f64>]) -> Result<Isometry3<f64
     }
     let rotation = Rotation3::from_matrix_unchecked(u * s * v_t);
     let translation = mean_dst - rotation * mean_src;
-    Ok(Isometry3::from_parts(Translation3::from(translation), UnitQuaternion::from_rotation_matrix(&rotation)))
+    Ok(Isometry3::from_parts(
+        Translation3::from(translation),
+        UnitQuaternion::from_rotation_matrix(&rotation),
+    ))
 }
 
 /// RANSAC settings (thesis: 35 hypotheses, 4 cm inlier threshold).
@@ -87,7 +105,12 @@ pub struct RigidFit {
     pub inliers: Vec<usize>,
 }
 
-fn inliers_of(t: &Isometry3<f64>, src: &[Point3<f64>], dst: &[Point3<f64>], threshold_m: f64) -> (Vec<usize>, f64) {
+fn inliers_of(
+    t: &Isometry3<f64>,
+    src: &[Point3<f64>],
+    dst: &[Point3<f64>],
+    threshold_m: f64,
+) -> (Vec<usize>, f64) {
     let limit2 = threshold_m * threshold_m;
     let mut inliers = Vec::new();
     let mut cost = 0.0;
@@ -113,7 +136,10 @@ pub fn ransac_rigid(
 ) -> Result<RigidFit, VoError> {
     let n = src.len().min(dst.len());
     if n < 3 {
-        return Err(VoError::TooFewPoints { found: n, needed: 3 });
+        return Err(VoError::TooFewPoints {
+            found: n,
+            needed: 3,
+        });
     }
     let (src, dst) = (&src[..n], &dst[..n]);
     let mut best: Option<(Vec<usize>, f64)> = None;
@@ -151,7 +177,10 @@ pub fn ransac_rigid(
         }
     }
     let Some((mut inliers, _)) = best else {
-        return Err(VoError::TooFewPoints { found: 0, needed: 3 });
+        return Err(VoError::TooFewPoints {
+            found: 0,
+            needed: 3,
+        });
     };
     let pick = |idx: &[usize], pts: &[Point3<f64>]| idx.iter().map(|&i| pts[i]).collect::<Vec<_>>();
     let mut t = umeyama(&pick(&inliers, src), &pick(&inliers, dst))?;
@@ -163,7 +192,10 @@ pub fn ransac_rigid(
         inliers = again;
         t = umeyama(&pick(&inliers, src), &pick(&inliers, dst))?;
     }
-    Ok(RigidFit { t_dst_src: t, inliers })
+    Ok(RigidFit {
+        t_dst_src: t,
+        inliers,
+    })
 }
 
 #[cfg(test)]
@@ -174,18 +206,34 @@ mod tests {
 
     fn cloud(rng: &mut ChaCha8Rng, n: usize) -> Vec<Point3<f64>> {
         (0..n)
-            .map(|_| Point3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.0..1.0), rng.random_range(0.8..4.0)))
+            .map(|_| {
+                Point3::new(
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(0.8..4.0),
+                )
+            })
             .collect()
     }
 
     #[test]
     fn umeyama_recovers_transform_under_noise() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let t = Isometry3::new(Vector3::new(0.05, 0.02, -0.03), Vector3::new(0.02, -0.08, 0.01));
+        let t = Isometry3::new(
+            Vector3::new(0.05, 0.02, -0.03),
+            Vector3::new(0.02, -0.08, 0.01),
+        );
         let src = cloud(&mut rng, 200);
         let dst: Vec<_> = src
             .iter()
-            .map(|p| t * p + Vector3::new(rng.random_range(-0.005..0.005), rng.random_range(-0.005..0.005), rng.random_range(-0.005..0.005)))
+            .map(|p| {
+                t * p
+                    + Vector3::new(
+                        rng.random_range(-0.005..0.005),
+                        rng.random_range(-0.005..0.005),
+                        rng.random_range(-0.005..0.005),
+                    )
+            })
             .collect();
         let est = umeyama(&src, &dst).expect("fit");
         assert!((est.translation.vector - t.translation.vector).norm() < 0.003);
@@ -194,34 +242,69 @@ mod tests {
 
     #[test]
     fn umeyama_rejects_degenerate_input() {
-        let line = [Point3::new(0.0, 0.0, 1.0), Point3::new(0.0, 0.0, 2.0), Point3::new(0.0, 0.0, 3.0)];
+        let line = [
+            Point3::new(0.0, 0.0, 1.0),
+            Point3::new(0.0, 0.0, 2.0),
+            Point3::new(0.0, 0.0, 3.0),
+        ];
         assert!(umeyama(&line, &line).is_err());
-        assert!(matches!(umeyama(&line[..2], &line[..2]), Err(VoError::TooFewPoints { found: 2, needed: 3 })));
+        assert!(matches!(
+            umeyama(&line[..2], &line[..2]),
+            Err(VoError::TooFewPoints {
+                found: 2,
+                needed: 3
+            })
+        ));
     }
 
     #[test]
     fn ransac_finds_transform_and_inliers_among_outliers() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let t = Isometry3::new(Vector3::new(-0.04, 0.01, 0.06), Vector3::new(-0.05, 0.1, 0.03));
+        let t = Isometry3::new(
+            Vector3::new(-0.04, 0.01, 0.06),
+            Vector3::new(-0.05, 0.1, 0.03),
+        );
         let src = cloud(&mut rng, 120);
         let mut dst: Vec<_> = src.iter().map(|p| t * p).collect();
         // 40 % gross outliers: wrong matches land anywhere.
         for d in dst.iter_mut().take(48) {
-            *d = Point3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.0..1.0), rng.random_range(0.8..4.0));
+            *d = Point3::new(
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(0.8..4.0),
+            );
         }
-        let fit = ransac_rigid(&src, &dst, &RansacParams::default(), &mut ChaCha8Rng::seed_from_u64(1)).expect("fit");
+        let fit = ransac_rigid(
+            &src,
+            &dst,
+            &RansacParams::default(),
+            &mut ChaCha8Rng::seed_from_u64(1),
+        )
+        .expect("fit");
         assert!((fit.t_dst_src.translation.vector - t.translation.vector).norm() < 1e-6);
         assert!(fit.t_dst_src.rotation.angle_to(&t.rotation) < 1e-6);
         assert_eq!(fit.inliers, (48..120).collect::<Vec<_>>());
         // Same seed, same answer.
-        let again = ransac_rigid(&src, &dst, &RansacParams::default(), &mut ChaCha8Rng::seed_from_u64(1)).expect("fit");
+        let again = ransac_rigid(
+            &src,
+            &dst,
+            &RansacParams::default(),
+            &mut ChaCha8Rng::seed_from_u64(1),
+        )
+        .expect("fit");
         assert_eq!(fit, again);
     }
 
     #[test]
     fn ransac_on_too_few_pairs_is_an_error() {
         let p = [Point3::origin(); 2];
-        let err = ransac_rigid(&p, &p, &RansacParams::default(), &mut ChaCha8Rng::seed_from_u64(0)).expect_err("two pairs");
+        let err = ransac_rigid(
+            &p,
+            &p,
+            &RansacParams::default(),
+            &mut ChaCha8Rng::seed_from_u64(0),
+        )
+        .expect_err("two pairs");
         assert_eq!(err.to_string(), "too few point pairs: 2 (need at least 3)");
     }
 }

@@ -37,7 +37,9 @@ impl std::str::FromStr for Pipeline {
         match s {
             "thesis" => Ok(Pipeline::Thesis),
             "keyframe" => Ok(Pipeline::Keyframe),
-            _ => Err(format!("unknown pipeline `{s}` (expected thesis or keyframe)")),
+            _ => Err(format!(
+                "unknown pipeline `{s}` (expected thesis or keyframe)"
+            )),
         }
     }
 }
@@ -100,11 +102,18 @@ impl VoConfig {
     pub fn new(detector: DetectorKind, pipeline: Pipeline) -> Self {
         let ransac = match pipeline {
             Pipeline::Thesis => RansacParams::default(),
-            Pipeline::Keyframe => RansacParams { iterations: 100, refit_rounds: 2, ..RansacParams::default() },
+            Pipeline::Keyframe => RansacParams {
+                iterations: 100,
+                refit_rounds: 2,
+                ..RansacParams::default()
+            },
         };
         // Thesis 5.3: brute force with a cross check only; the keyframe pipeline adds Lowe's ratio.
         let match_config = match pipeline {
-            Pipeline::Thesis => MatchConfig { ratio: 1.0, ..MatchConfig::default() },
+            Pipeline::Thesis => MatchConfig {
+                ratio: 1.0,
+                ..MatchConfig::default()
+            },
             Pipeline::Keyframe => MatchConfig::default(),
         };
         VoConfig {
@@ -226,50 +235,90 @@ impl VisualOdometry {
         let started = Instant::now();
         let features = self
             .detector
-            .detect(self.config.detector, &frame.rgb, &self.config.detector_config)
-            .map_err(|e| VoError::Detector { reason: e.to_string() })?;
+            .detect(
+                self.config.detector,
+                &frame.rgb,
+                &self.config.detector_config,
+            )
+            .map_err(|e| VoError::Detector {
+                reason: e.to_string(),
+            })?;
         stats.detect_ms = started.elapsed().as_secs_f64() * 1e3;
         let k = &self.intrinsics;
-        let normalised: Vec<Point2<f64>> =
-            features.keypoints.iter().map(|kp| k.normalise(Point2::new(f64::from(kp.x), f64::from(kp.y)))).collect();
+        let normalised: Vec<Point2<f64>> = features
+            .keypoints
+            .iter()
+            .map(|kp| k.normalise(Point2::new(f64::from(kp.x), f64::from(kp.y))))
+            .collect();
         let points: Vec<Option<Point3<f64>>> = features
             .keypoints
             .iter()
             .zip(&normalised)
-            .map(|(kp, n)| keypoint_depth(&frame.depth, k, kp.x, kp.y).map(|z| Point3::new(n.x * z, n.y * z, z)))
+            .map(|(kp, n)| {
+                keypoint_depth(&frame.depth, k, kp.x, kp.y)
+                    .map(|z| Point3::new(n.x * z, n.y * z, z))
+            })
             .collect();
         stats.features = features.keypoints.len();
         stats.with_depth = points.iter().filter(|p| p.is_some()).count();
-        Ok(Observed { features, points, normalised })
+        Ok(Observed {
+            features,
+            points,
+            normalised,
+        })
     }
 
     /// Processes the next frame: returns its pose and what happened.
     pub fn process(&mut self, frame: &RgbdFrame) -> Result<(StampedPose, FrameStats), VoError> {
-        let mut stats = FrameStats { timestamp_s: frame.timestamp_s, decode_ms: frame.decode_ms, ..FrameStats::default() };
+        let mut stats = FrameStats {
+            timestamp_s: frame.timestamp_s,
+            decode_ms: frame.decode_ms,
+            ..FrameStats::default()
+        };
         let current = self.observe(frame, &mut stats)?;
         match self.window.back() {
             None => {
                 stats.keyframe = true;
                 stats.tracked = true;
-                self.window.push_back(Keyframe { t_world_camera: self.t_world_camera, observed: current });
+                self.window.push_back(Keyframe {
+                    t_world_camera: self.t_world_camera,
+                    observed: current,
+                });
             }
             Some(_) => match self.config.pipeline {
                 Pipeline::Thesis => self.track_thesis(current, &mut stats),
                 Pipeline::Keyframe => self.track_keyframe(current, &mut stats),
             },
         }
-        Ok((StampedPose { timestamp_s: frame.timestamp_s, t_world_camera: self.t_world_camera }, stats))
+        Ok((
+            StampedPose {
+                timestamp_s: frame.timestamp_s,
+                t_world_camera: self.t_world_camera,
+            },
+            stats,
+        ))
     }
 
     /// RANSAC + Umeyama between the newest reference and `current`: `t_reference_current` and inliers.
-    fn fit_to_reference(&mut self, current: &Observed, stats: &mut FrameStats) -> Option<ReferenceFit> {
+    fn fit_to_reference(
+        &mut self,
+        current: &Observed,
+        stats: &mut FrameStats,
+    ) -> Option<ReferenceFit> {
         let started = Instant::now();
         let reference = &self.window.back()?.observed;
-        let matches = match_features(&current.features, &reference.features, &self.config.match_config);
+        let matches = match_features(
+            &current.features,
+            &reference.features,
+            &self.config.match_config,
+        );
         let mut pairs = Vec::new();
         let (mut src, mut dst) = (Vec::new(), Vec::new());
         for m in &matches {
-            if let (Some(Some(pc)), Some(Some(pr))) = (current.points.get(m.query_index), reference.points.get(m.train_index)) {
+            if let (Some(Some(pc)), Some(Some(pr))) = (
+                current.points.get(m.query_index),
+                reference.points.get(m.train_index),
+            ) {
                 pairs.push((m.query_index, m.train_index));
                 src.push(*pc);
                 dst.push(*pr);
@@ -282,8 +331,12 @@ impl VisualOdometry {
         stats.ransac_ms = started.elapsed().as_secs_f64() * 1e3;
         let fit = fit.ok()?;
         stats.inliers = fit.inliers.len();
-        (fit.inliers.len() >= self.config.min_inliers)
-            .then(|| (fit.t_dst_src, fit.inliers.iter().map(|&i| pairs[i]).collect()))
+        (fit.inliers.len() >= self.config.min_inliers).then(|| {
+            (
+                fit.t_dst_src,
+                fit.inliers.iter().map(|&i| pairs[i]).collect(),
+            )
+        })
     }
 
     fn track_thesis(&mut self, current: Observed, stats: &mut FrameStats) {
@@ -293,11 +346,16 @@ impl VisualOdometry {
         }
         // Algorithm 3 returns the current keypoints as the next call's previous ones.
         self.window.clear();
-        self.window.push_back(Keyframe { t_world_camera: self.t_world_camera, observed: current });
+        self.window.push_back(Keyframe {
+            t_world_camera: self.t_world_camera,
+            observed: current,
+        });
     }
 
     fn track_keyframe(&mut self, current: Observed, stats: &mut FrameStats) {
-        let Some(t_world_keyframe) = self.window.back().map(|kf| kf.t_world_camera) else { return };
+        let Some(t_world_keyframe) = self.window.back().map(|kf| kf.t_world_camera) else {
+            return;
+        };
         let fit = self.fit_to_reference(&current, stats);
         let Some((t_keyframe_current, inlier_pairs)) = fit else {
             // Lost the keyframe: hold the pose and restart tracking from this frame.
@@ -308,7 +366,11 @@ impl VisualOdometry {
         let started = Instant::now();
         let t_world_current = t_world_keyframe * t_keyframe_current;
         let observations = self.observations(&current, &inlier_pairs, &t_world_current);
-        let refined = refine_pose(t_world_current.inverse(), &observations, &self.config.refine);
+        let refined = refine_pose(
+            t_world_current.inverse(),
+            &observations,
+            &self.config.refine,
+        );
         stats.refined_inliers = refined.inlier_count;
         self.t_world_camera = refined.t_camera_world.inverse();
         stats.refine_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -324,7 +386,10 @@ impl VisualOdometry {
 
     fn push_keyframe(&mut self, current: Observed, stats: &mut FrameStats) {
         stats.keyframe = true;
-        self.window.push_back(Keyframe { t_world_camera: self.t_world_camera, observed: current });
+        self.window.push_back(Keyframe {
+            t_world_camera: self.t_world_camera,
+            observed: current,
+        });
         while self.window.len() > self.config.keyframe.window.max(1) {
             self.window.pop_front();
         }
@@ -332,9 +397,16 @@ impl VisualOdometry {
 
     /// Observations for the refinement: the RANSAC inliers with the newest keyframe, plus
     /// projection-guided matches with the older keyframes of the window.
-    fn observations(&self, current: &Observed, inlier_pairs: &[(usize, usize)], t_world_current: &Isometry3<f64>) -> Vec<Observation> {
+    fn observations(
+        &self,
+        current: &Observed,
+        inlier_pairs: &[(usize, usize)],
+        t_world_current: &Isometry3<f64>,
+    ) -> Vec<Observation> {
         let mut out = Vec::new();
-        let Some(newest) = self.window.back() else { return out };
+        let Some(newest) = self.window.back() else {
+            return out;
+        };
         let observation = |kf: &Keyframe, i_kf: usize, i_cur: usize| {
             kf.observed.points[i_kf].map(|p| Observation {
                 p_world: kf.t_world_camera * p,
@@ -343,7 +415,11 @@ impl VisualOdometry {
                 source_depth_m: p.z,
             })
         };
-        out.extend(inlier_pairs.iter().filter_map(|&(i_cur, i_kf)| observation(newest, i_kf, i_cur)));
+        out.extend(
+            inlier_pairs
+                .iter()
+                .filter_map(|&(i_cur, i_kf)| observation(newest, i_kf, i_cur)),
+        );
         let older = self.window.len().saturating_sub(1);
         if older == 0 {
             return out;
@@ -354,7 +430,12 @@ impl VisualOdometry {
         for kf in self.window.iter().take(older) {
             for (i_kf, point) in kf.observed.points.iter().enumerate() {
                 let Some(point) = point else { continue };
-                let Some(pixel) = self.intrinsics.project(&(t_current_world * (kf.t_world_camera * point))) else { continue };
+                let Some(pixel) = self
+                    .intrinsics
+                    .project(&(t_current_world * (kf.t_world_camera * point)))
+                else {
+                    continue;
+                };
                 let kp = &kf.observed.features.keypoints[i_kf];
                 let desc = &kf.observed.features.descriptors[i_kf];
                 let (mut best, mut second) = ((f32::INFINITY, usize::MAX), f32::INFINITY);
@@ -391,16 +472,33 @@ struct Grid<'a> {
 
 impl<'a> Grid<'a> {
     fn new(features: &'a Features, cell_px: f64) -> Self {
-        let max_x = features.keypoints.iter().map(|k| f64::from(k.x)).fold(0.0, f64::max);
-        let max_y = features.keypoints.iter().map(|k| f64::from(k.y)).fold(0.0, f64::max);
+        let max_x = features
+            .keypoints
+            .iter()
+            .map(|k| f64::from(k.x))
+            .fold(0.0, f64::max);
+        let max_y = features
+            .keypoints
+            .iter()
+            .map(|k| f64::from(k.y))
+            .fold(0.0, f64::max);
         let cols = (max_x / cell_px) as usize + 1;
         let rows = (max_y / cell_px) as usize + 1;
         let mut cells = vec![Vec::new(); cols * rows];
         for (i, k) in features.keypoints.iter().enumerate() {
-            let (c, r) = ((f64::from(k.x).max(0.0) / cell_px) as usize, (f64::from(k.y).max(0.0) / cell_px) as usize);
+            let (c, r) = (
+                (f64::from(k.x).max(0.0) / cell_px) as usize,
+                (f64::from(k.y).max(0.0) / cell_px) as usize,
+            );
             cells[r.min(rows - 1) * cols + c.min(cols - 1)].push(i);
         }
-        Grid { features, cell_px, cols, rows, cells }
+        Grid {
+            features,
+            cell_px,
+            cols,
+            rows,
+            cells,
+        }
     }
 
     /// Calls `visit` with every keypoint within `radius_px` of `pixel`.

@@ -38,7 +38,13 @@ pub struct RefineParams {
 
 impl Default for RefineParams {
     fn default() -> Self {
-        RefineParams { iterations: 6, focal_px: 517.0, sigma_px: 1.0, huber: 2.0, chi2_outlier: 9.21 }
+        RefineParams {
+            iterations: 6,
+            focal_px: 517.0,
+            sigma_px: 1.0,
+            huber: 2.0,
+            chi2_outlier: 9.21,
+        }
     }
 }
 
@@ -71,14 +77,20 @@ fn huber_weight(whitened: f64, k: f64) -> f64 {
 }
 
 /// Whitened squared residuals (reprojection, depth) of one observation, `None` behind the camera.
-fn residual(t: &Isometry3<f64>, o: &Observation, p: &RefineParams) -> Option<(nalgebra::Vector2<f64>, Option<f64>, Vector3<f64>)> {
+fn residual(
+    t: &Isometry3<f64>,
+    o: &Observation,
+    p: &RefineParams,
+) -> Option<(nalgebra::Vector2<f64>, Option<f64>, Vector3<f64>)> {
     let pc = (t * o.p_world).coords;
     if pc.z < 0.05 {
         return None;
     }
     let proj = Point2::new(pc.x / pc.z, pc.y / pc.z);
     let r_uv = (proj - o.normalised) * (p.focal_px / p.sigma_px);
-    let r_z = o.depth_m.map(|z| (pc.z - z) / (sigma_depth_m(z).powi(2) + sigma_depth_m(o.source_depth_m).powi(2)).sqrt());
+    let r_z = o.depth_m.map(|z| {
+        (pc.z - z) / (sigma_depth_m(z).powi(2) + sigma_depth_m(o.source_depth_m).powi(2)).sqrt()
+    });
     Some((r_uv, r_z, pc))
 }
 
@@ -89,30 +101,50 @@ fn chi2(t: &Isometry3<f64>, o: &Observation, p: &RefineParams) -> f64 {
     }
 }
 
-fn gauss_newton(mut t: Isometry3<f64>, obs: &[Observation], active: &[bool], p: &RefineParams) -> Isometry3<f64> {
+fn gauss_newton(
+    mut t: Isometry3<f64>,
+    obs: &[Observation],
+    active: &[bool],
+    p: &RefineParams,
+) -> Isometry3<f64> {
     for _ in 0..p.iterations {
         let mut h = Matrix6::<f64>::zeros();
         let mut g = Vector6::<f64>::zeros();
         for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
-            let Some((r_uv, r_z, pc)) = residual(&t, o, p) else { continue };
+            let Some((r_uv, r_z, pc)) = residual(&t, o, p) else {
+                continue;
+            };
             let j_point = skew_jacobian(&pc);
             let inv_z = 1.0 / pc.z;
             let s = p.focal_px / p.sigma_px;
-            let j_proj = nalgebra::Matrix2x3::new(inv_z, 0.0, -pc.x * inv_z * inv_z, 0.0, inv_z, -pc.y * inv_z * inv_z) * s;
+            let j_proj = nalgebra::Matrix2x3::new(
+                inv_z,
+                0.0,
+                -pc.x * inv_z * inv_z,
+                0.0,
+                inv_z,
+                -pc.y * inv_z * inv_z,
+            ) * s;
             let j_uv: Matrix2x6<f64> = j_proj * j_point;
             let w = huber_weight(r_uv.norm(), p.huber);
             h += j_uv.transpose() * j_uv * w;
             g += j_uv.transpose() * r_uv * w;
             if let (Some(r), Some(z)) = (r_z, o.depth_m) {
-                let scale = 1.0 / (sigma_depth_m(z).powi(2) + sigma_depth_m(o.source_depth_m).powi(2)).sqrt();
+                let scale = 1.0
+                    / (sigma_depth_m(z).powi(2) + sigma_depth_m(o.source_depth_m).powi(2)).sqrt();
                 let j_z: RowVector6<f64> = j_point.row(2) * scale;
                 let w = huber_weight(r.abs(), p.huber);
                 h += j_z.transpose() * j_z * w;
                 g += j_z.transpose() * r * w;
             }
         }
-        let Some(delta) = h.cholesky().map(|c| -c.solve(&g)) else { break };
-        let step = Isometry3::new(delta.fixed_rows::<3>(0).into_owned(), delta.fixed_rows::<3>(3).into_owned());
+        let Some(delta) = h.cholesky().map(|c| -c.solve(&g)) else {
+            break;
+        };
+        let step = Isometry3::new(
+            delta.fixed_rows::<3>(0).into_owned(),
+            delta.fixed_rows::<3>(3).into_owned(),
+        );
         t = step * t;
         if delta.norm() < 1e-9 {
             break;
@@ -124,18 +156,36 @@ fn gauss_newton(mut t: Isometry3<f64>, obs: &[Observation], active: &[bool], p: 
 /// Refines `t_camera_world` from its initial guess: a Huber-weighted round on all observations,
 /// then a round on the ones within `chi2_outlier`. Returns the guess unchanged when fewer than
 /// six observations agree (the 6-DoF problem would be under-determined).
-pub fn refine_pose(t_camera_world: Isometry3<f64>, observations: &[Observation], params: &RefineParams) -> Refined {
+pub fn refine_pose(
+    t_camera_world: Isometry3<f64>,
+    observations: &[Observation],
+    params: &RefineParams,
+) -> Refined {
     let all = vec![true; observations.len()];
     let first = gauss_newton(t_camera_world, observations, &all, params);
-    let inliers: Vec<bool> = observations.iter().map(|o| chi2(&first, o, params) < params.chi2_outlier).collect();
+    let inliers: Vec<bool> = observations
+        .iter()
+        .map(|o| chi2(&first, o, params) < params.chi2_outlier)
+        .collect();
     let inlier_count = inliers.iter().filter(|i| **i).count();
     if inlier_count < 6 {
-        let inliers: Vec<bool> = observations.iter().map(|o| chi2(&t_camera_world, o, params) < params.chi2_outlier).collect();
+        let inliers: Vec<bool> = observations
+            .iter()
+            .map(|o| chi2(&t_camera_world, o, params) < params.chi2_outlier)
+            .collect();
         let inlier_count = inliers.iter().filter(|i| **i).count();
-        return Refined { t_camera_world, inliers, inlier_count };
+        return Refined {
+            t_camera_world,
+            inliers,
+            inlier_count,
+        };
     }
     let refined = gauss_newton(first, observations, &inliers, params);
-    Refined { t_camera_world: refined, inliers, inlier_count }
+    Refined {
+        t_camera_world: refined,
+        inliers,
+        inlier_count,
+    }
 }
 
 #[cfg(test)]
@@ -147,24 +197,45 @@ mod tests {
     #[test]
     fn recovers_pose_from_noisy_observations_with_outliers() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let t_true = Isometry3::new(Vector3::new(0.03, -0.02, 0.05), Vector3::new(0.04, -0.03, 0.02));
+        let t_true = Isometry3::new(
+            Vector3::new(0.03, -0.02, 0.05),
+            Vector3::new(0.04, -0.03, 0.02),
+        );
         let params = RefineParams::default();
         let obs: Vec<Observation> = (0..150)
             .map(|i| {
-                let p_world = Point3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.0..1.0), rng.random_range(1.0..3.5));
+                let p_world = Point3::new(
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(1.0..3.5),
+                );
                 let pc = t_true * p_world;
-                let noise_px = Point2::new(rng.random_range(-0.7..0.7), rng.random_range(-0.7..0.7)) / params.focal_px;
+                let noise_px =
+                    Point2::new(rng.random_range(-0.7..0.7), rng.random_range(-0.7..0.7))
+                        / params.focal_px;
                 let mut normalised = Point2::new(pc.x / pc.z, pc.y / pc.z) + noise_px.coords;
                 if i % 10 == 0 {
                     normalised.x += 0.1; // a wrong match, 50 px off
                 }
-                Observation { p_world, normalised, depth_m: Some(pc.z + rng.random_range(-0.005..0.005)), source_depth_m: p_world.z }
+                Observation {
+                    p_world,
+                    normalised,
+                    depth_m: Some(pc.z + rng.random_range(-0.005..0.005)),
+                    source_depth_m: p_world.z,
+                }
             })
             .collect();
         let r = refine_pose(Isometry3::identity(), &obs, &params);
-        assert!((r.t_camera_world.translation.vector - t_true.translation.vector).norm() < 0.003, "{}", r.t_camera_world);
+        assert!(
+            (r.t_camera_world.translation.vector - t_true.translation.vector).norm() < 0.003,
+            "{}",
+            r.t_camera_world
+        );
         assert!(r.t_camera_world.rotation.angle_to(&t_true.rotation) < 0.002);
-        assert!(r.inliers.iter().step_by(10).all(|i| !i), "every wrong match is rejected");
+        assert!(
+            r.inliers.iter().step_by(10).all(|i| !i),
+            "every wrong match is rejected"
+        );
         assert!(r.inlier_count >= 130);
     }
 

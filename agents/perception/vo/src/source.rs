@@ -45,7 +45,10 @@ pub trait CameraSource {
 pub fn load_pair(pair: &FramePair) -> Result<RgbdFrame, VoError> {
     let started = std::time::Instant::now();
     let open = |path: &Path| {
-        image::open(path).map_err(|e| VoError::Image { path: path.display().to_string(), reason: e.to_string() })
+        image::open(path).map_err(|e| VoError::Image {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })
     };
     let rgb = open(&pair.rgb)?.into_rgb8();
     let depth = match open(&pair.depth)? {
@@ -60,10 +63,19 @@ pub fn load_pair(pair: &FramePair) -> Result<RgbdFrame, VoError> {
     if rgb.dimensions() != depth.dimensions() {
         return Err(VoError::Image {
             path: pair.depth.display().to_string(),
-            reason: format!("depth is {:?} but colour is {:?}; they must be registered", depth.dimensions(), rgb.dimensions()),
+            reason: format!(
+                "depth is {:?} but colour is {:?}; they must be registered",
+                depth.dimensions(),
+                rgb.dimensions()
+            ),
         });
     }
-    Ok(RgbdFrame { timestamp_s: pair.timestamp_s, rgb, depth, decode_ms: started.elapsed().as_secs_f64() * 1e3 })
+    Ok(RgbdFrame {
+        timestamp_s: pair.timestamp_s,
+        rgb,
+        depth,
+        decode_ms: started.elapsed().as_secs_f64() * 1e3,
+    })
 }
 
 /// Replays a TUM sequence: `threads` loaders decode frames ahead, at most `lookahead` waiting.
@@ -79,7 +91,12 @@ pub struct TumReplay {
 
 impl TumReplay {
     /// Starts the loaders on `frames` (at least one thread, at least one frame of lookahead).
-    pub fn new(frames: Vec<FramePair>, intrinsics: Intrinsics, threads: usize, lookahead: usize) -> Self {
+    pub fn new(
+        frames: Vec<FramePair>,
+        intrinsics: Intrinsics,
+        threads: usize,
+        lookahead: usize,
+    ) -> Self {
         let total = frames.len();
         let frames = Arc::new(frames);
         let cursor = Arc::new(AtomicUsize::new(0));
@@ -87,7 +104,8 @@ impl TumReplay {
         let (sender, receiver) = mpsc::sync_channel(lookahead.max(1));
         let workers = (0..threads.max(1))
             .map(|_| {
-                let (frames, cursor, stop, sender) = (frames.clone(), cursor.clone(), stop.clone(), sender.clone());
+                let (frames, cursor, stop, sender) =
+                    (frames.clone(), cursor.clone(), stop.clone(), sender.clone());
                 std::thread::spawn(move || {
                     while !stop.load(Ordering::Relaxed) {
                         let i = cursor.fetch_add(1, Ordering::Relaxed);
@@ -99,7 +117,15 @@ impl TumReplay {
                 })
             })
             .collect();
-        TumReplay { intrinsics, total, next: 0, receiver: Some(receiver), pending: BTreeMap::new(), stop, workers }
+        TumReplay {
+            intrinsics,
+            total,
+            next: 0,
+            receiver: Some(receiver),
+            pending: BTreeMap::new(),
+            stop,
+            workers,
+        }
     }
 }
 

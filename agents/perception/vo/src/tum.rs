@@ -61,13 +61,20 @@ impl TumSequence {
     /// within `max_dt_s`.
     pub fn open(dir: &Path, max_dt_s: f64) -> Result<Self, VoError> {
         if !dir.is_dir() {
-            return Err(VoError::io(dir, std::io::Error::new(std::io::ErrorKind::NotFound, "not a sequence folder")));
+            return Err(VoError::io(
+                dir,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "not a sequence folder"),
+            ));
         }
         let associations = dir.join("associations.txt");
         let frames = if associations.is_file() {
             parse_associations(&associations, &read(&associations)?)?
                 .into_iter()
-                .map(|p| FramePair { rgb: dir.join(p.rgb), depth: dir.join(p.depth), ..p })
+                .map(|p| FramePair {
+                    rgb: dir.join(p.rgb),
+                    depth: dir.join(p.depth),
+                    ..p
+                })
                 .collect()
         } else {
             let rgb_path = dir.join("rgb.txt");
@@ -86,10 +93,17 @@ impl TumSequence {
         };
         let frames: Vec<FramePair> = frames;
         if frames.is_empty() {
-            return Err(VoError::NoAssociations { dir: dir.display().to_string(), max_dt_s });
+            return Err(VoError::NoAssociations {
+                dir: dir.display().to_string(),
+                max_dt_s,
+            });
         }
         let gt = dir.join("groundtruth.txt");
-        Ok(TumSequence { dir: dir.to_path_buf(), frames, groundtruth: gt.is_file().then_some(gt) })
+        Ok(TumSequence {
+            dir: dir.to_path_buf(),
+            frames,
+            groundtruth: gt.is_file().then_some(gt),
+        })
     }
 }
 
@@ -102,15 +116,25 @@ pub fn read(path: &Path) -> Result<String, VoError> {
 fn data_lines(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
     text.lines().enumerate().filter_map(|(i, line)| {
         let line = line.trim();
-        (!line.is_empty() && !line.starts_with('#'))
-            .then(|| (i + 1, line.split([' ', '\t', ',']).filter(|f| !f.is_empty()).collect()))
+        (!line.is_empty() && !line.starts_with('#')).then(|| {
+            (
+                i + 1,
+                line.split([' ', '\t', ','])
+                    .filter(|f| !f.is_empty())
+                    .collect(),
+            )
+        })
     })
 }
 
 fn number(path: &Path, line: usize, field: &str, what: &str) -> Result<f64, VoError> {
     match field.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(VoError::parse(path, line, format!("{what} `{field}` is not a finite number"))),
+        _ => Err(VoError::parse(
+            path,
+            line,
+            format!("{what} `{field}` is not a finite number"),
+        )),
     }
 }
 
@@ -118,8 +142,15 @@ fn number(path: &Path, line: usize, field: &str, what: &str) -> Result<f64, VoEr
 pub fn parse_list(path: &Path, text: &str) -> Result<Vec<ListEntry>, VoError> {
     let mut entries: Vec<ListEntry> = data_lines(text)
         .map(|(line, fields)| match fields.as_slice() {
-            [t, file] => Ok(ListEntry { timestamp_s: number(path, line, t, "timestamp")?, file: file.to_string() }),
-            _ => Err(VoError::parse(path, line, format!("expected `timestamp filename`, got {} fields", fields.len()))),
+            [t, file] => Ok(ListEntry {
+                timestamp_s: number(path, line, t, "timestamp")?,
+                file: file.to_string(),
+            }),
+            _ => Err(VoError::parse(
+                path,
+                line,
+                format!("expected `timestamp filename`, got {} fields", fields.len()),
+            )),
         })
         .collect::<Result<_, _>>()?;
     entries.sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
@@ -139,7 +170,10 @@ pub fn parse_associations(path: &Path, text: &str) -> Result<Vec<FramePair>, VoE
             _ => Err(VoError::parse(
                 path,
                 line,
-                format!("expected `t_rgb rgb_file t_depth depth_file`, got {} fields", fields.len()),
+                format!(
+                    "expected `t_rgb rgb_file t_depth depth_file`, got {} fields",
+                    fields.len()
+                ),
             )),
         })
         .collect()
@@ -148,7 +182,11 @@ pub fn parse_associations(path: &Path, text: &str) -> Result<Vec<FramePair>, VoE
 /// Greedy one-to-one nearest-timestamp association of two time-sorted lists (TUM `associate.py`):
 /// index pairs `(a, b)` with `|t_a - t_b| < max_dt_s`, closest first, returned in `a` order.
 pub fn associate(a: &[ListEntry], b: &[ListEntry], max_dt_s: f64) -> Vec<(usize, usize)> {
-    associate_times(&a.iter().map(|e| e.timestamp_s).collect::<Vec<_>>(), &b.iter().map(|e| e.timestamp_s).collect::<Vec<_>>(), max_dt_s)
+    associate_times(
+        &a.iter().map(|e| e.timestamp_s).collect::<Vec<_>>(),
+        &b.iter().map(|e| e.timestamp_s).collect::<Vec<_>>(),
+        max_dt_s,
+    )
 }
 
 /// [`associate`] on bare timestamps (both sorted ascending).
@@ -182,10 +220,26 @@ pub fn parse_trajectory(path: &Path, text: &str) -> Result<Vec<StampedPose>, VoE
     let mut poses: Vec<StampedPose> = data_lines(text)
         .map(|(line, fields)| {
             if fields.len() != 8 {
-                return Err(VoError::parse(path, line, format!("expected `timestamp tx ty tz qx qy qz qw`, got {} fields", fields.len())));
+                return Err(VoError::parse(
+                    path,
+                    line,
+                    format!(
+                        "expected `timestamp tx ty tz qx qy qz qw`, got {} fields",
+                        fields.len()
+                    ),
+                ));
             }
             let mut v = [0.0; 8];
-            for (slot, (field, what)) in v.iter_mut().zip(fields.iter().zip(["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"])) {
+            for (slot, (field, what)) in v.iter_mut().zip(fields.iter().zip([
+                "timestamp",
+                "tx",
+                "ty",
+                "tz",
+                "qx",
+                "qy",
+                "qz",
+                "qw",
+            ])) {
                 *slot = number(path, line, field, what)?;
             }
             let q = Quaternion::new(v[7], v[4], v[5], v[6]);
@@ -194,7 +248,10 @@ pub fn parse_trajectory(path: &Path, text: &str) -> Result<Vec<StampedPose>, VoE
             }
             Ok(StampedPose {
                 timestamp_s: v[0],
-                t_world_camera: Isometry3::from_parts(Translation3::new(v[1], v[2], v[3]), UnitQuaternion::from_quaternion(q)),
+                t_world_camera: Isometry3::from_parts(
+                    Translation3::new(v[1], v[2], v[3]),
+                    UnitQuaternion::from_quaternion(q),
+                ),
             })
         })
         .collect::<Result<_, _>>()?;
@@ -212,7 +269,11 @@ pub fn write_trajectory(mut out: impl Write, poses: &[StampedPose]) -> std::io::
     for p in poses {
         let t = p.t_world_camera.translation.vector;
         let q = p.t_world_camera.rotation.into_inner();
-        writeln!(out, "{:.6} {:.7} {:.7} {:.7} {:.7} {:.7} {:.7} {:.7}", p.timestamp_s, t.x, t.y, t.z, q.i, q.j, q.k, q.w)?;
+        writeln!(
+            out,
+            "{:.6} {:.7} {:.7} {:.7} {:.7} {:.7} {:.7} {:.7}",
+            p.timestamp_s, t.x, t.y, t.z, q.i, q.j, q.k, q.w
+        )?;
     }
     out.flush()
 }
@@ -233,7 +294,10 @@ mod tests {
         assert_eq!(associate_times(&a, &b, 0.02), vec![(0, 0), (1, 1), (2, 2)]);
         // A depth stamp is used once even when two rgb stamps want it.
         assert_eq!(associate_times(&[1.0, 1.01], &[1.006], 0.02), vec![(1, 0)]);
-        assert!(associate_times(&[1.0], &[1.02], 0.02).is_empty(), "limit is exclusive");
+        assert!(
+            associate_times(&[1.0], &[1.02], 0.02).is_empty(),
+            "limit is exclusive"
+        );
     }
 
     #[test]
@@ -243,25 +307,51 @@ mod tests {
         assert_eq!(list.len(), 2);
         assert_eq!(list[0].file, "rgb/1.0.png", "sorted by time");
         let err = parse_list(p(), "# h\n1.0 a.png\nabc b.png\n").expect_err("bad timestamp");
-        assert_eq!(err.to_string(), "x.txt:3: timestamp `abc` is not a finite number");
+        assert_eq!(
+            err.to_string(),
+            "x.txt:3: timestamp `abc` is not a finite number"
+        );
         let err = parse_list(p(), "1.0\n").expect_err("one field");
-        assert!(err.to_string().starts_with("x.txt:1: expected `timestamp filename`"), "{err}");
+        assert!(
+            err.to_string()
+                .starts_with("x.txt:1: expected `timestamp filename`"),
+            "{err}"
+        );
         assert!(parse_list(p(), "nan a.png").is_err());
     }
 
     #[test]
     fn trajectory_round_trips_and_rejects_bad_lines() {
-        let poses = parse_trajectory(p(), "# gt\n1.0 1 2 3 0 0 0 1\n2.0 0.5 0 0 0 0.7071068 0 0.7071068\n").expect("valid");
+        let poses = parse_trajectory(
+            p(),
+            "# gt\n1.0 1 2 3 0 0 0 1\n2.0 0.5 0 0 0 0.7071068 0 0.7071068\n",
+        )
+        .expect("valid");
         let mut out = Vec::new();
         write_trajectory(&mut out, &poses).expect("in memory");
-        let again = parse_trajectory(p(), std::str::from_utf8(&out).expect("utf8")).expect("own output parses");
+        let again = parse_trajectory(p(), std::str::from_utf8(&out).expect("utf8"))
+            .expect("own output parses");
         assert_eq!(again.len(), 2);
         for (a, b) in poses.iter().zip(&again) {
-            assert!((a.t_world_camera.inverse() * b.t_world_camera).translation.vector.norm() < 1e-6);
-            assert!(a.t_world_camera.rotation.angle_to(&b.t_world_camera.rotation) < 1e-6);
+            assert!(
+                (a.t_world_camera.inverse() * b.t_world_camera)
+                    .translation
+                    .vector
+                    .norm()
+                    < 1e-6
+            );
+            assert!(
+                a.t_world_camera
+                    .rotation
+                    .angle_to(&b.t_world_camera.rotation)
+                    < 1e-6
+            );
         }
         let err = parse_trajectory(p(), "1 2 3\n").expect_err("short line");
-        assert_eq!(err.to_string(), "x.txt:1: expected `timestamp tx ty tz qx qy qz qw`, got 3 fields");
+        assert_eq!(
+            err.to_string(),
+            "x.txt:1: expected `timestamp tx ty tz qx qy qz qw`, got 3 fields"
+        );
         let err = parse_trajectory(p(), "1 0 0 0 0 0 0 0\n").expect_err("zero quaternion");
         assert!(err.to_string().contains("zero length"), "{err}");
         let err = parse_associations(p(), "1 a 2\n").expect_err("three fields");

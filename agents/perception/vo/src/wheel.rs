@@ -19,19 +19,31 @@ pub struct Pose2 {
 /// Wraps an angle to (-pi, pi].
 pub fn wrap_angle(a: f64) -> f64 {
     let w = a.rem_euclid(std::f64::consts::TAU);
-    if w > std::f64::consts::PI { w - std::f64::consts::TAU } else { w }
+    if w > std::f64::consts::PI {
+        w - std::f64::consts::TAU
+    } else {
+        w
+    }
 }
 
 impl Pose2 {
     /// A pose.
     pub fn new(x: f64, y: f64, theta: f64) -> Self {
-        Pose2 { x, y, theta: wrap_angle(theta) }
+        Pose2 {
+            x,
+            y,
+            theta: wrap_angle(theta),
+        }
     }
 
     /// `self ⊕ delta`: applies a motion expressed in this pose's own frame.
     pub fn compose(&self, delta: &Pose2) -> Pose2 {
         let (s, c) = self.theta.sin_cos();
-        Pose2::new(self.x + c * delta.x - s * delta.y, self.y + s * delta.x + c * delta.y, self.theta + delta.theta)
+        Pose2::new(
+            self.x + c * delta.x - s * delta.y,
+            self.y + s * delta.x + c * delta.y,
+            self.theta + delta.theta,
+        )
     }
 
     /// `self^-1 ⊕ other`: `other` seen from this pose's frame.
@@ -60,14 +72,23 @@ impl Default for DiffDriveParams {
     /// A powered wheelchair: 0.175 m wheels 0.56 m apart, 36 864 ticks per revolution, and noise
     /// of a few percent of the motion.
     fn default() -> Self {
-        DiffDriveParams { wheel_radius_m: 0.175, track_m: 0.56, ticks_per_rev: 36_864.0, alpha: [0.01, 0.002, 0.01, 0.002] }
+        DiffDriveParams {
+            wheel_radius_m: 0.175,
+            track_m: 0.56,
+            ticks_per_rev: 36_864.0,
+            alpha: [0.01, 0.002, 0.01, 0.002],
+        }
     }
 }
 
 impl DiffDriveParams {
     /// The drive geometry alone.
     pub fn geometry(&self) -> WheelGeometry {
-        WheelGeometry { track_m: self.track_m, wheel_radius_m: self.wheel_radius_m, ticks_per_rev: self.ticks_per_rev }
+        WheelGeometry {
+            track_m: self.track_m,
+            wheel_radius_m: self.wheel_radius_m,
+            ticks_per_rev: self.ticks_per_rev,
+        }
     }
 }
 
@@ -86,7 +107,11 @@ impl OdometryStep {
     /// The step from wheel travel: the mid-point arc approximation (half the turn before, half after).
     pub fn from_wheels(left_m: f64, right_m: f64, track_m: f64) -> Self {
         let dtheta = (right_m - left_m) / track_m;
-        OdometryStep { rot1: 0.5 * dtheta, trans: 0.5 * (left_m + right_m), rot2: 0.5 * dtheta }
+        OdometryStep {
+            rot1: 0.5 * dtheta,
+            trans: 0.5 * (left_m + right_m),
+            rot2: 0.5 * dtheta,
+        }
     }
 
     /// The motion in the start pose's frame.
@@ -97,7 +122,11 @@ impl OdometryStep {
 
     /// Covariance of (rot1, trans, rot2) under the model's alphas (Thrun table 5.6).
     pub fn covariance(&self, alpha: &[f64; 4]) -> Matrix3<f64> {
-        let (r1, t, r2) = (self.rot1 * self.rot1, self.trans * self.trans, self.rot2 * self.rot2);
+        let (r1, t, r2) = (
+            self.rot1 * self.rot1,
+            self.trans * self.trans,
+            self.rot2 * self.rot2,
+        );
         Matrix3::from_diagonal(&Vector3::new(
             alpha[0] * r1 + alpha[1] * t,
             alpha[2] * t + alpha[3] * (r1 + r2),
@@ -109,16 +138,44 @@ impl OdometryStep {
     /// (rot1, trans, rot2) (V).
     pub fn jacobians(&self, theta: f64) -> (Matrix3<f64>, Matrix3<f64>) {
         let (s, c) = (theta + self.rot1).sin_cos();
-        let g = Matrix3::new(1.0, 0.0, -self.trans * s, 0.0, 1.0, self.trans * c, 0.0, 0.0, 1.0);
-        let v = Matrix3::new(-self.trans * s, c, 0.0, self.trans * c, s, 0.0, 1.0, 0.0, 1.0);
+        let g = Matrix3::new(
+            1.0,
+            0.0,
+            -self.trans * s,
+            0.0,
+            1.0,
+            self.trans * c,
+            0.0,
+            0.0,
+            1.0,
+        );
+        let v = Matrix3::new(
+            -self.trans * s,
+            c,
+            0.0,
+            self.trans * c,
+            s,
+            0.0,
+            1.0,
+            0.0,
+            1.0,
+        );
         (g, v)
     }
 
     /// Applies the step to `pose` and propagates `covariance`: `G P G^T + V M V^T`.
-    pub fn propagate(&self, pose: &Pose2, covariance: &Matrix3<f64>, alpha: &[f64; 4]) -> (Pose2, Matrix3<f64>) {
+    pub fn propagate(
+        &self,
+        pose: &Pose2,
+        covariance: &Matrix3<f64>,
+        alpha: &[f64; 4],
+    ) -> (Pose2, Matrix3<f64>) {
         let (g, v) = self.jacobians(pose.theta);
         let next = pose.compose(&self.as_delta());
-        (next, g * covariance * g.transpose() + v * self.covariance(alpha) * v.transpose())
+        (
+            next,
+            g * covariance * g.transpose() + v * self.covariance(alpha) * v.transpose(),
+        )
     }
 }
 
@@ -135,7 +192,11 @@ impl WheelOdometry {
     /// Starts at `pose` with zero uncertainty.
     pub fn new(params: DiffDriveParams, pose: Pose2) -> Self {
         let start = Isometry2::new(Vector2::new(pose.x, pose.y), pose.theta);
-        WheelOdometry { params, dead_reckoning: Odometry::new(params.geometry(), start), covariance: Matrix3::zeros() }
+        WheelOdometry {
+            params,
+            dead_reckoning: Odometry::new(params.geometry(), start),
+            covariance: Matrix3::zeros(),
+        }
     }
 
     /// Feeds the cumulative tick counts of both wheels; returns the step since the last call
@@ -145,7 +206,9 @@ impl WheelOdometry {
         let travel = self.dead_reckoning.advance(left_ticks, right_ticks)?;
         let step = OdometryStep::from_wheels(travel.left_m, travel.right_m, self.params.track_m);
         // The pose is the dead reckoning's; the model contributes the covariance.
-        self.covariance = step.propagate(&before, &self.covariance, &self.params.alpha).1;
+        self.covariance = step
+            .propagate(&before, &self.covariance, &self.params.alpha)
+            .1;
         Some(step)
     }
 
@@ -199,7 +262,10 @@ mod tests {
             last_trace = trace;
         }
         let eig = odo.covariance().symmetric_eigenvalues();
-        assert!(eig.iter().all(|e| *e >= -1e-12), "positive semi-definite: {eig}");
+        assert!(
+            eig.iter().all(|e| *e >= -1e-12),
+            "positive semi-definite: {eig}"
+        );
     }
 
     #[test]
@@ -208,7 +274,13 @@ mod tests {
         let d = Pose2::new(0.3, 0.1, 1.2);
         let b = a.compose(&d);
         let back = a.between(&b);
-        assert!((back.x - d.x).abs() < 1e-12 && (back.y - d.y).abs() < 1e-12 && (back.theta - d.theta).abs() < 1e-12);
-        assert!((wrap_angle(3.5 * std::f64::consts::PI) + 0.5 * std::f64::consts::PI).abs() < 1e-12);
+        assert!(
+            (back.x - d.x).abs() < 1e-12
+                && (back.y - d.y).abs() < 1e-12
+                && (back.theta - d.theta).abs() < 1e-12
+        );
+        assert!(
+            (wrap_angle(3.5 * std::f64::consts::PI) + 0.5 * std::f64::consts::PI).abs() < 1e-12
+        );
     }
 }

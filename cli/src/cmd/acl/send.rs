@@ -56,24 +56,40 @@ pub struct SendArgs {
 /// any; INFORM ends a request or a query (AGREE does not); a subscription lasts until the
 /// timeout; without a protocol the first reply ends it.
 pub fn ends_conversation(protocol: Option<&str>, reply: Performative) -> bool {
-    if matches!(reply, Performative::Failure | Performative::Refuse | Performative::NotUnderstood) {
+    if matches!(
+        reply,
+        Performative::Failure | Performative::Refuse | Performative::NotUnderstood
+    ) {
         return true;
     }
     match protocol.map(str::to_ascii_lowercase).as_deref() {
         Some("fipa-subscribe") => false,
         Some("fipa-request" | "fipa-request-when" | "fipa-query") => {
-            matches!(reply, Performative::Inform | Performative::InformIf | Performative::InformRef)
+            matches!(
+                reply,
+                Performative::Inform | Performative::InformIf | Performative::InformRef
+            )
         }
         _ => true,
     }
 }
 
 pub fn run(args: &SendArgs) -> anyhow::Result<ExitCode> {
-    let performative: Performative =
-        args.performative.parse().map_err(|e| anyhow::anyhow!("--performative {:?}: {e}", args.performative))?;
-    anyhow::ensure!(args.to.contains('@'), "--to {:?} must be a full agent name, NAME@PLATFORM", args.to);
-    anyhow::ensure!(args.timeout.is_finite() && args.timeout > 0.0, "--timeout must be a positive number of seconds");
-    iw_mtp_http::wire::Url::parse(&args.address).with_context(|| format!("--address {:?}", args.address))?;
+    let performative: Performative = args
+        .performative
+        .parse()
+        .map_err(|e| anyhow::anyhow!("--performative {:?}: {e}", args.performative))?;
+    anyhow::ensure!(
+        args.to.contains('@'),
+        "--to {:?} must be a full agent name, NAME@PLATFORM",
+        args.to
+    );
+    anyhow::ensure!(
+        args.timeout.is_finite() && args.timeout > 0.0,
+        "--timeout must be a positive number of seconds"
+    );
+    iw_mtp_http::wire::Url::parse(&args.address)
+        .with_context(|| format!("--address {:?}", args.address))?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -85,16 +101,26 @@ pub fn run(args: &SendArgs) -> anyhow::Result<ExitCode> {
 async fn converse(args: &SendArgs, performative: Performative) -> anyhow::Result<ExitCode> {
     let network = InProcNetwork::new();
     let transport = network.endpoint(PLATFORM).context("in-process transport")?;
-    let bus = Arc::new(Bus::start(Stack::new(), Arc::new(transport), Clock::system(), BusConfig::default())?);
+    let bus = Arc::new(Bus::start(
+        Stack::new(),
+        Arc::new(transport),
+        Clock::system(),
+        BusConfig::default(),
+    )?);
     let mut config = GatewayConfig::new(PLATFORM);
     config.bind = args.bind;
-    let gateway = Gateway::start(config, bus.clone()).await.context("starting the reply endpoint")?;
+    let gateway = Gateway::start(config, bus.clone())
+        .await
+        .context("starting the reply endpoint")?;
     let me = gateway.aid(SENDER);
     let mut inbox = bus.register(&me.name)?;
     let receiver = AgentId::new(&args.to).with_address(&args.address);
     gateway.add_foreign(&receiver)?;
 
-    let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default().as_millis();
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default()
+        .as_millis();
     let mut message = AclMessage::new(performative)
         .with_sender(me.clone())
         .with_receiver(receiver.clone())
@@ -106,26 +132,43 @@ async fn converse(args: &SendArgs, performative: Performative) -> anyhow::Result
     if let Some(content) = &args.content {
         message = message.with_content(content.clone());
     }
-    bus.send(&me.name, &receiver.name, iw_acl::codec::print(&message).into_bytes())?;
+    bus.send(
+        &me.name,
+        &receiver.name,
+        iw_acl::codec::print(&message).into_bytes(),
+    )?;
 
     let own_ams = format!("ams@{PLATFORM}");
     let deadline = tokio::time::Instant::now() + Duration::from_secs_f64(args.timeout);
     let mut replies = 0usize;
     loop {
         let Ok(next) = tokio::time::timeout_at(deadline, inbox.recv()).await else {
-            let subscribed = args.protocol.as_deref().is_some_and(|p| p.eq_ignore_ascii_case("fipa-subscribe"));
+            let subscribed = args
+                .protocol
+                .as_deref()
+                .is_some_and(|p| p.eq_ignore_ascii_case("fipa-subscribe"));
             if subscribed && replies > 0 {
                 return Ok(ExitCode::SUCCESS);
             }
-            eprintln!("no end of the conversation within {} s ({replies} replies)", args.timeout);
+            eprintln!(
+                "no end of the conversation within {} s ({replies} replies)",
+                args.timeout
+            );
             return Ok(ExitCode::from(1));
         };
         let envelope = next.context("the reply endpoint stopped")?;
         let text = envelope.payload_str().context("a reply that is not text")?;
         let reply = iw_acl::codec::parse(text).context("a reply that is not ACL")?;
-        let content = reply.content_text().unwrap_or_default().replace('\n', "\\n");
+        let content = reply
+            .content_text()
+            .unwrap_or_default()
+            .replace('\n', "\\n");
         if reply.sender.as_ref().is_some_and(|s| s.name == own_ams) {
-            anyhow::bail!("the message could not be delivered to {} at {}: {content}", args.to, args.address);
+            anyhow::bail!(
+                "the message could not be delivered to {} at {}: {content}",
+                args.to,
+                args.address
+            );
         }
         replies += 1;
         if content.is_empty() {
@@ -145,12 +188,30 @@ mod tests {
 
     #[test]
     fn protocols_end_where_fipa_says() {
-        assert!(!ends_conversation(Some("fipa-request"), Performative::Agree));
-        assert!(ends_conversation(Some("FIPA-Request"), Performative::Inform));
-        assert!(ends_conversation(Some("fipa-query"), Performative::InformRef));
-        assert!(!ends_conversation(Some("fipa-subscribe"), Performative::Inform));
-        assert!(ends_conversation(Some("fipa-subscribe"), Performative::Refuse));
+        assert!(!ends_conversation(
+            Some("fipa-request"),
+            Performative::Agree
+        ));
+        assert!(ends_conversation(
+            Some("FIPA-Request"),
+            Performative::Inform
+        ));
+        assert!(ends_conversation(
+            Some("fipa-query"),
+            Performative::InformRef
+        ));
+        assert!(!ends_conversation(
+            Some("fipa-subscribe"),
+            Performative::Inform
+        ));
+        assert!(ends_conversation(
+            Some("fipa-subscribe"),
+            Performative::Refuse
+        ));
         assert!(ends_conversation(None, Performative::Agree));
-        assert!(ends_conversation(Some("fipa-request"), Performative::NotUnderstood));
+        assert!(ends_conversation(
+            Some("fipa-request"),
+            Performative::NotUnderstood
+        ));
     }
 }

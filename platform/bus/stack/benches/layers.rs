@@ -14,7 +14,10 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
 /// CPU time of this thread (the machine is shared: wall time also counts other processes).
 fn thread_cpu() -> Duration {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
     // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant the kernel knows.
     unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
     Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
@@ -27,7 +30,11 @@ fn bench(c: &mut Criterion) {
 }
 
 fn run(c: &mut Criterion, cpu: bool) {
-    let mut group = c.benchmark_group(if cpu { "layers_300B_cpu" } else { "layers_300B" });
+    let mut group = c.benchmark_group(if cpu {
+        "layers_300B_cpu"
+    } else {
+        "layers_300B"
+    });
     group.throughput(Throughput::Elements(1));
     group.measurement_time(Duration::from_secs(3));
     group.warm_up_time(Duration::from_secs(1));
@@ -47,7 +54,12 @@ fn run(c: &mut Criterion, cpu: bool) {
                 bench.iter(&mut one)
             }
         });
-        assert_eq!(exchange.rejected().total(), 0, "{set}: {}", exchange.rejected());
+        assert_eq!(
+            exchange.rejected().total(),
+            0,
+            "{set}: {}",
+            exchange.rejected()
+        );
     }
     group.finish();
 }

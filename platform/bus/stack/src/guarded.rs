@@ -5,9 +5,13 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
-use iw_bus::{Clock, Counters, Envelope, FrameCodec, IdGen, Layer, LayerKind, LayerSet, Stack, Verdict};
+use iw_bus::{
+    Clock, Counters, Envelope, FrameCodec, IdGen, Layer, LayerKind, LayerSet, Stack, Verdict,
+};
 
-use crate::{Directory, Identity, PreSharedKey, Registry, SecurityConfig, SecurityError, StackConfig, build};
+use crate::{
+    Directory, Identity, PreSharedKey, Registry, SecurityConfig, SecurityError, StackConfig, build,
+};
 
 /// The receiver name every guarded frame is addressed to (the group, not one member).
 pub const GROUP: &str = "containers";
@@ -29,14 +33,34 @@ pub struct GuardedTransport {
 
 impl GuardedTransport {
     /// Guards `inner` with the group key `key`; this member speaks as `name`.
-    pub fn new(inner: Arc<dyn FrameTransport>, name: &str, key: PreSharedKey, clock: Clock) -> Result<Self, SecurityError> {
-        let mut config = StackConfig::with_layers(LayerSet::of(&[LayerKind::Temporal, LayerKind::Security]));
-        config.security = SecurityConfig { group_key: Some(key), ..SecurityConfig::default() };
+    pub fn new(
+        inner: Arc<dyn FrameTransport>,
+        name: &str,
+        key: PreSharedKey,
+        clock: Clock,
+    ) -> Result<Self, SecurityError> {
+        let mut config =
+            StackConfig::with_layers(LayerSet::of(&[LayerKind::Temporal, LayerKind::Security]));
+        config.security = SecurityConfig {
+            group_key: Some(key),
+            ..SecurityConfig::default()
+        };
         // Pre-shared-key mode only: the identity is never used to agree keys or sign.
         let identity = Arc::new(Identity::generate()?);
-        let stack = build(&config, identity, Arc::new(Directory::default()), Arc::new(Registry::default()));
+        let stack = build(
+            &config,
+            identity,
+            Arc::new(Directory::default()),
+            Arc::new(Registry::default()),
+        );
         let codec = FrameCodec::with_max_frame_len(inner.max_frame_len());
-        Ok(Self { inner, name: name.to_string(), clock, codec, state: Mutex::new((stack, IdGen::new())) })
+        Ok(Self {
+            inner,
+            name: name.to_string(),
+            clock,
+            codec,
+            state: Mutex::new((stack, IdGen::new())),
+        })
     }
 
     /// Frames refused so far, per reason.
@@ -51,7 +75,9 @@ impl GuardedTransport {
 
 impl std::fmt::Debug for GuardedTransport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GuardedTransport").field("name", &self.name).finish_non_exhaustive()
+        f.debug_struct("GuardedTransport")
+            .field("name", &self.name)
+            .finish_non_exhaustive()
     }
 }
 
@@ -73,24 +99,40 @@ impl FrameTransport for GuardedTransport {
                 Verdict::Pass => env,
                 // Nothing is held back in pre-shared-key mode; a refusal is a layer failure.
                 Verdict::Drop(_) | Verdict::Consumed => {
-                    return Err(TransportError::Middleware { context: format!("guarding a control frame for {to}"), message: "refused by the layers".into() });
+                    return Err(TransportError::Middleware {
+                        context: format!("guarding a control frame for {to}"),
+                        message: "refused by the layers".into(),
+                    });
                 }
             }
         };
-        let bytes = self.codec.encode_to_vec(&sealed).map_err(|e| TransportError::Middleware { context: format!("encoding a control frame for {to}"), message: e.to_string() })?;
+        let bytes = self
+            .codec
+            .encode_to_vec(&sealed)
+            .map_err(|e| TransportError::Middleware {
+                context: format!("encoding a control frame for {to}"),
+                message: e.to_string(),
+            })?;
         self.inner.send(to, &bytes)
     }
 
-    fn recv_timeout(&self, timeout: Duration) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         let deadline = Instant::now() + timeout;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
-            let Some((from, bytes)) = self.inner.recv_timeout(left)? else { return Ok(None) };
+            let Some((from, bytes)) = self.inner.recv_timeout(left)? else {
+                return Ok(None);
+            };
             let mut state = self.lock();
             match self.codec.decode_datagram(&bytes) {
                 Ok(mut env) => match state.0.inbound(&mut env, self.clock.now()) {
                     Verdict::Pass => return Ok(Some((from, env.payload))),
-                    Verdict::Drop(reason) => tracing::debug!(%from, %reason, "control frame refused"),
+                    Verdict::Drop(reason) => {
+                        tracing::debug!(%from, %reason, "control frame refused")
+                    }
                     Verdict::Consumed => {}
                 },
                 Err(e) => {

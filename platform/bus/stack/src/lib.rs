@@ -27,7 +27,10 @@ pub use guarded::{GROUP, GuardedTransport};
 pub use iw_bus::{LayerKind, LayerSet, Stack};
 pub use iw_layer_comm::{CommConfig, CommLayer};
 pub use iw_layer_parser::{AgentRegistry, ParserConfig, ParserLayer, Registry};
-pub use iw_layer_security::{Directory, Identity, KeyDirectory, PreSharedKey, PublicKey, SecurityConfig, SecurityError, SecurityLayer};
+pub use iw_layer_security::{
+    Directory, Identity, KeyDirectory, PreSharedKey, PublicKey, SecurityConfig, SecurityError,
+    SecurityLayer,
+};
 pub use iw_layer_temporal::{Ordering, TemporalConfig, TemporalLayer};
 
 /// Which layers, and the settings of each.
@@ -92,7 +95,10 @@ impl Platform {
         for a in agents {
             self.register(a, identity.public_key());
         }
-        Ok(Node { identity, agents: agents.iter().map(|a| a.to_string()).collect() })
+        Ok(Node {
+            identity,
+            agents: agents.iter().map(|a| a.to_string()).collect(),
+        })
     }
     /// The key directory (feed it from the Global Agent List).
     pub fn directory(&self) -> &Directory {
@@ -104,7 +110,12 @@ impl Platform {
     }
     /// The stack of `node` on this platform.
     pub fn stack(&self, node: &Node, config: &StackConfig) -> Stack {
-        build(config, node.identity.clone(), Arc::new(self.directory.clone()), Arc::new(self.registry.clone()))
+        build(
+            config,
+            node.identity.clone(),
+            Arc::new(self.directory.clone()),
+            Arc::new(self.registry.clone()),
+        )
     }
 }
 
@@ -118,18 +129,30 @@ pub struct Node {
 }
 
 /// Builds the stack `config` asks for.
-pub fn build(config: &StackConfig, identity: Arc<Identity>, keys: Arc<dyn KeyDirectory>, registry: Arc<dyn AgentRegistry>) -> Stack {
+pub fn build(
+    config: &StackConfig,
+    identity: Arc<Identity>,
+    keys: Arc<dyn KeyDirectory>,
+    registry: Arc<dyn AgentRegistry>,
+) -> Stack {
     let mut stack = Stack::new();
     let security_on = config.layers.contains(LayerKind::Security);
     for kind in config.layers.kinds() {
         match kind {
             LayerKind::Parser => {
-                let parser = ParserConfig { require_authenticated: security_on && config.parser.require_authenticated, ..config.parser };
+                let parser = ParserConfig {
+                    require_authenticated: security_on && config.parser.require_authenticated,
+                    ..config.parser
+                };
                 stack.push_boxed(Box::new(ParserLayer::new(registry.clone(), parser)));
             }
             LayerKind::Temporal => stack.push_boxed(Box::new(TemporalLayer::new(config.temporal))),
             LayerKind::Security => {
-                stack.push_boxed(Box::new(SecurityLayer::new(identity.clone(), keys.clone(), config.security.clone())));
+                stack.push_boxed(Box::new(SecurityLayer::new(
+                    identity.clone(),
+                    keys.clone(),
+                    config.security.clone(),
+                )));
             }
             LayerKind::Comm => stack.push_boxed(Box::new(CommLayer::new(config.comm.clone()))),
         }
@@ -172,7 +195,14 @@ mod tests {
 
     #[test]
     fn every_layer_set_delivers() {
-        for set in ["all", "none", "comm", "security,parser", "temporal,comm", "parser"] {
+        for set in [
+            "all",
+            "none",
+            "comm",
+            "security,parser",
+            "temporal,comm",
+            "parser",
+        ] {
             let platform = Platform::new();
             let na = platform.node(&["a"]).unwrap();
             let nb = platform.node(&["b"]).unwrap();

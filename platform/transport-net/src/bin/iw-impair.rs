@@ -64,7 +64,9 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt().with_writer(std::io::stderr).init();
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .init();
     match try_main() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -89,7 +91,8 @@ fn try_main() -> anyhow::Result<()> {
         inject_replay: args.inject_replay,
         ..ImpairConfig::default()
     };
-    let proxy = ImpairProxy::start_on(args.listen, args.a, args.b, config).context("starting the proxy")?;
+    let proxy =
+        ImpairProxy::start_on(args.listen, args.a, args.b, config).context("starting the proxy")?;
     eprintln!("iw-impair: listening on {}", proxy.addr());
     let started = Instant::now();
     let report = Duration::from_millis(args.report_ms.max(10));

@@ -95,7 +95,11 @@ struct Inline<T, const N: usize> {
 
 impl<T: Default, const N: usize> Default for Inline<T, N> {
     fn default() -> Self {
-        Self { first: std::array::from_fn(|_| T::default()), len: 0, more: Vec::new() }
+        Self {
+            first: std::array::from_fn(|_| T::default()),
+            len: 0,
+            more: Vec::new(),
+        }
     }
 }
 
@@ -160,7 +164,11 @@ impl<'a> Build<'a> for SummaryBuilder {
     type UserParams = Keys<'a>;
 
     fn message(&mut self, performative: Performative) -> AclSummary<'a> {
-        AclSummary { performative, sender: None, receivers: Names::default() }
+        AclSummary {
+            performative,
+            sender: None,
+            receivers: Names::default(),
+        }
     }
 
     fn agent(&mut self) -> CheckedAgent<'a> {
@@ -196,7 +204,11 @@ impl<'a> Build<'a> for SummaryBuilder {
 
     fn remove_jade_marker(&mut self, _message: &mut AclSummary<'a>) {}
 
-    fn base64_content(&mut self, _message: &mut AclSummary<'a>, content: RawText<'a>) -> Result<(), Error> {
+    fn base64_content(
+        &mut self,
+        _message: &mut AclSummary<'a>,
+        content: RawText<'a>,
+    ) -> Result<(), Error> {
         check_base64(&content.into_cow())
     }
 
@@ -238,11 +250,21 @@ mod tests {
         }
         text.push(')');
         let summary = check(&text).unwrap();
-        assert_eq!(summary.receivers().collect::<Vec<_>>(), (0..10).map(|i| format!("r{i}")).collect::<Vec<_>>());
+        assert_eq!(
+            summary.receivers().collect::<Vec<_>>(),
+            (0..10).map(|i| format!("r{i}")).collect::<Vec<_>>()
+        );
         for dup in ["k0", "k7", "k8", "k19"] {
             let twice = format!("{} :x-X-{dup} w)", &text[..text.len() - 1]);
-            assert!(matches!(check(&twice), Err(Error::DuplicateParameter { .. })), "{twice}");
-            assert_eq!(check(&twice).unwrap_err(), parse(&twice).unwrap_err(), "{twice}");
+            assert!(
+                matches!(check(&twice), Err(Error::DuplicateParameter { .. })),
+                "{twice}"
+            );
+            assert_eq!(
+                check(&twice).unwrap_err(),
+                parse(&twice).unwrap_err(),
+                "{twice}"
+            );
         }
     }
 

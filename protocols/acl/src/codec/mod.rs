@@ -65,14 +65,21 @@ pub struct ParseOptions {
 
 impl Default for ParseOptions {
     fn default() -> Self {
-        Self { escaping: Escaping::Standard, max_len: DEFAULT_MAX_LEN, max_depth: DEFAULT_MAX_DEPTH }
+        Self {
+            escaping: Escaping::Standard,
+            max_len: DEFAULT_MAX_LEN,
+            max_depth: DEFAULT_MAX_DEPTH,
+        }
     }
 }
 
 impl ParseOptions {
     /// Default limits with JADE's escaping.
     pub fn jade() -> Self {
-        Self { escaping: Escaping::Jade, ..Self::default() }
+        Self {
+            escaping: Escaping::Jade,
+            ..Self::default()
+        }
     }
 
     /// These options with another input limit.
@@ -92,13 +99,17 @@ pub struct PrintOptions {
 impl PrintOptions {
     /// JADE's escaping.
     pub fn jade() -> Self {
-        Self { escaping: Escaping::Jade }
+        Self {
+            escaping: Escaping::Jade,
+        }
     }
 }
 
 /// Decodes standard Base64 (JADE's byte-content form).
 pub(crate) fn decode_base64(text: &str) -> Result<Vec<u8>, Error> {
-    STANDARD.decode(text.trim()).map_err(|err| base64_error(&err, text))
+    STANDARD
+        .decode(text.trim())
+        .map_err(|err| base64_error(&err, text))
 }
 
 /// Whether [`decode_base64`] would succeed, with its error if not; up to 1 KiB of decoded
@@ -118,5 +129,8 @@ pub(crate) fn check_base64(text: &str) -> Result<(), Error> {
 }
 
 fn base64_error(err: &base64::DecodeError, text: &str) -> Error {
-    Error::InvalidBase64 { reason: err.to_string(), start: text.chars().take(24).collect() }
+    Error::InvalidBase64 {
+        reason: err.to_string(),
+        start: text.chars().take(24).collect(),
+    }
 }

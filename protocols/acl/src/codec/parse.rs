@@ -26,11 +26,23 @@ pub fn parse_with(text: &str, options: &ParseOptions) -> Result<AclMessage, Erro
 }
 
 /// Reads one message from `text` into `builder`: the one entry to the grammar.
-pub(super) fn run<'a, B: Build<'a>>(text: &'a str, options: &ParseOptions, builder: &mut B) -> Result<B::Message, Error> {
+pub(super) fn run<'a, B: Build<'a>>(
+    text: &'a str,
+    options: &ParseOptions,
+    builder: &mut B,
+) -> Result<B::Message, Error> {
     if text.len() > options.max_len {
-        return Err(Error::TooLarge { len: text.len(), limit: options.max_len });
+        return Err(Error::TooLarge {
+            len: text.len(),
+            limit: options.max_len,
+        });
     }
-    let mut parser = Parser { text, pos: 0, escaping: options.escaping, max_depth: options.max_depth };
+    let mut parser = Parser {
+        text,
+        pos: 0,
+        escaping: options.escaping,
+        max_depth: options.max_depth,
+    };
     let message = parser.message(builder)?;
     let end = parser.next()?;
     if !matches!(end.kind, Kind::End) {
@@ -74,7 +86,9 @@ impl Param {
 
     fn lookup(name: &str) -> Option<Param> {
         let exact = Self::ALL.iter().find(|(_, n)| *n == name);
-        exact.or_else(|| Self::ALL.iter().find(|(_, n)| is_keyword(name, n))).map(|&(p, _)| p)
+        exact
+            .or_else(|| Self::ALL.iter().find(|(_, n)| is_keyword(name, n)))
+            .map(|&(p, _)| p)
     }
 }
 
@@ -103,7 +117,10 @@ enum Unescape {
 
 impl<'a> RawText<'a> {
     fn plain(body: &'a str) -> Self {
-        Self { body, unescape: Unescape::No }
+        Self {
+            body,
+            unescape: Unescape::No,
+        }
     }
 
     fn escaped(body: &'a str, escaping: Escaping) -> Self {
@@ -133,7 +150,9 @@ impl<'a> RawText<'a> {
     /// The value, borrowed from the input unless unescaping changes it.
     pub(super) fn into_cow(self) -> Cow<'a, str> {
         match self.escaping() {
-            Some(escaping) if unescaping_changes(self.body, escaping) => Cow::Owned(unescape(self.body, escaping)),
+            Some(escaping) if unescaping_changes(self.body, escaping) => {
+                Cow::Owned(unescape(self.body, escaping))
+            }
             _ => Cow::Borrowed(self.body),
         }
     }
@@ -171,7 +190,12 @@ pub(super) trait Build<'a> {
     /// No user parameters yet: made for a message or an identifier when its first is read.
     fn user_params(&mut self) -> Self::UserParams;
     /// Adds user parameter `key` (non-empty, without `X-`); false if `params` already has it.
-    fn user_param(&mut self, params: &mut Self::UserParams, key: &'a str, value: RawText<'a>) -> bool;
+    fn user_param(
+        &mut self,
+        params: &mut Self::UserParams,
+        key: &'a str,
+        value: RawText<'a>,
+    ) -> bool;
     /// The message's user parameters, once its `)` is read (if it has any).
     fn message_params(&mut self, message: &mut Self::Message, params: Self::UserParams);
     /// The identifier's user parameters, once its `)` is read (if it has any).
@@ -189,7 +213,11 @@ pub(super) trait Build<'a> {
     fn remove_jade_marker(&mut self, message: &mut Self::Message);
     /// Under that marker, the text content holds Base64: decode it, or at least check that it
     /// decodes ([`Error::InvalidBase64`] if not).
-    fn base64_content(&mut self, message: &mut Self::Message, content: RawText<'a>) -> Result<(), Error>;
+    fn base64_content(
+        &mut self,
+        message: &mut Self::Message,
+        content: RawText<'a>,
+    ) -> Result<(), Error>;
     /// The identifier's `:name`, given after its other slots.
     fn agent_name(&mut self, agent: &mut Self::Agent, name: RawText<'a>);
     /// One of the identifier's `:addresses`, in order.
@@ -264,7 +292,12 @@ fn bytes_below(x: u64, n: u8) -> u64 {
 
 /// Scans `bytes` from `from` eight bytes at a time; `flags` marks candidate bytes of a chunk
 /// (its lowest flag exact) and `is_hit` confirms one. Returns the first confirmed index.
-fn scan(bytes: &[u8], from: usize, flags: impl Fn(u64) -> u64, is_hit: impl Fn(u8) -> bool) -> Option<usize> {
+fn scan(
+    bytes: &[u8],
+    from: usize,
+    flags: impl Fn(u64) -> u64,
+    is_hit: impl Fn(u8) -> bool,
+) -> Option<usize> {
     let mut i = from;
     while let Some(chunk) = bytes.get(i..i + 8) {
         let mut word = [0u8; 8];
@@ -280,13 +313,22 @@ fn scan(bytes: &[u8], from: usize, flags: impl Fn(u64) -> u64, is_hit: impl Fn(u
         }
         i = at + 1;
     }
-    bytes.get(i..)?.iter().position(|&b| is_hit(b)).map(|p| i + p)
+    bytes
+        .get(i..)?
+        .iter()
+        .position(|&b| is_hit(b))
+        .map(|p| i + p)
 }
 
 /// The first index at or after `from` holding `a` or `b`.
 fn find_either(bytes: &[u8], from: usize, a: u8, b: u8) -> Option<usize> {
     let (splat_a, splat_b) = (LOW * u64::from(a), LOW * u64::from(b));
-    scan(bytes, from, |x| bytes_below(x ^ splat_a, 1) | bytes_below(x ^ splat_b, 1), |x| x == a || x == b)
+    scan(
+        bytes,
+        from,
+        |x| bytes_below(x ^ splat_a, 1) | bytes_below(x ^ splat_b, 1),
+        |x| x == a || x == b,
+    )
 }
 
 /// The first delimiter (whitespace, parenthesis, quote) at or after `from`. Candidates are the
@@ -295,7 +337,12 @@ fn find_either(bytes: &[u8], from: usize, a: u8, b: u8) -> Option<usize> {
 #[inline(never)]
 fn find_delimiter(bytes: &[u8], from: usize) -> Option<usize> {
     let parens = LOW * 0x28;
-    scan(bytes, from, |x| bytes_below(x, b'#') | bytes_below(x ^ parens, 2), |b| CLASS[usize::from(b)] & DELIMITER != 0)
+    scan(
+        bytes,
+        from,
+        |x| bytes_below(x, b'#') | bytes_below(x ^ parens, 2),
+        |b| CLASS[usize::from(b)] & DELIMITER != 0,
+    )
 }
 
 impl<'a> Parser<'a> {
@@ -305,7 +352,10 @@ impl<'a> Parser<'a> {
         let line = before.bytes().filter(|&b| b == b'\n').count() + 1;
         let line_start = before.rfind('\n').map_or(0, |i| i + 1);
         let column = before.get(line_start..).map_or(0, |s| s.chars().count()) + 1;
-        (u32::try_from(line).unwrap_or(u32::MAX), u32::try_from(column).unwrap_or(u32::MAX))
+        (
+            u32::try_from(line).unwrap_or(u32::MAX),
+            u32::try_from(column).unwrap_or(u32::MAX),
+        )
     }
 
     fn describe(token: &Token<'_>) -> String {
@@ -328,24 +378,40 @@ impl<'a> Parser<'a> {
 
     fn syntax(&self, token: &Token<'_>, expected: &'static str) -> Error {
         let (line, column) = self.position(token.start);
-        Error::Syntax { line, column, expected, found: Self::describe(token) }
+        Error::Syntax {
+            line,
+            column,
+            expected,
+            found: Self::describe(token),
+        }
     }
 
     fn invalid_value(&self, token: &Token<'_>, param: &str, reason: String) -> Error {
         let (line, column) = self.position(token.start);
-        Error::InvalidValue { line, column, param: param.to_owned(), reason }
+        Error::InvalidValue {
+            line,
+            column,
+            param: param.to_owned(),
+            reason,
+        }
     }
 
     /// The next token; at the end of input, `Kind::End` (repeatedly).
     #[inline(always)]
     fn next(&mut self) -> Result<Token<'a>, Error> {
         let bytes = self.text.as_bytes();
-        while bytes.get(self.pos).is_some_and(|&b| CLASS[usize::from(b)] & WHITESPACE != 0) {
+        while bytes
+            .get(self.pos)
+            .is_some_and(|&b| CLASS[usize::from(b)] & WHITESPACE != 0)
+        {
             self.pos += 1;
         }
         let start = self.pos;
         let Some(&first) = bytes.get(start) else {
-            return Ok(Token { kind: Kind::End, start });
+            return Ok(Token {
+                kind: Kind::End,
+                start,
+            });
         };
         let kind = match first {
             b'(' => {
@@ -377,7 +443,12 @@ impl<'a> Parser<'a> {
     fn slice(&self, from: usize, to: usize) -> Result<&'a str, Error> {
         self.text.get(from..to).ok_or_else(|| {
             let (line, column) = self.position(from);
-            Error::Syntax { line, column, expected: "UTF-8 text after a byte string", found: "a split character".to_owned() }
+            Error::Syntax {
+                line,
+                column,
+                expected: "UTF-8 text after a byte string",
+                found: "a split character".to_owned(),
+            }
         })
     }
 
@@ -403,7 +474,9 @@ impl<'a> Parser<'a> {
             Escaping::Jade => {
                 let mut last_escaped_quote = None;
                 loop {
-                    let Some(j) = find_either(bytes, i, b'"', b'\\') else { break last_escaped_quote };
+                    let Some(j) = find_either(bytes, i, b'"', b'\\') else {
+                        break last_escaped_quote;
+                    };
                     if bytes[j] == b'\\' {
                         escaped = true;
                     } else if bytes[j - 1] != b'\\' {
@@ -418,24 +491,40 @@ impl<'a> Parser<'a> {
         };
         let Some(end) = end else {
             let (line, column) = self.position(start);
-            return Err(Error::Syntax { line, column, expected: "a closing `\"` for this string", found: "end of input".to_owned() });
+            return Err(Error::Syntax {
+                line,
+                column,
+                expected: "a closing `\"` for this string",
+                found: "end of input".to_owned(),
+            });
         };
         self.pos = end + 1;
         let body = self.slice(body_start, end)?;
-        Ok(if escaped { Kind::Escaped(body) } else { Kind::Quoted(body) })
+        Ok(if escaped {
+            Kind::Escaped(body)
+        } else {
+            Kind::Quoted(body)
+        })
     }
 
     /// `#N"` + N bytes; `None` when the `#` does not start one (it is then a word).
     fn byte_string(&mut self, start: usize) -> Result<Option<Kind<'a>>, Error> {
         let bytes = self.text.as_bytes();
-        let digits = bytes[start + 1..].iter().take_while(|b| b.is_ascii_digit()).count();
+        let digits = bytes[start + 1..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count();
         let quote = start + 1 + digits;
         if digits == 0 || bytes.get(quote) != Some(&b'"') {
             return Ok(None);
         }
         let len_text = self.slice(start + 1, quote)?;
         let body_start = quote + 1;
-        let end = len_text.parse::<usize>().ok().and_then(|len| body_start.checked_add(len)).filter(|&end| end <= bytes.len());
+        let end = len_text
+            .parse::<usize>()
+            .ok()
+            .and_then(|len| body_start.checked_add(len))
+            .filter(|&end| end <= bytes.len());
         let Some(end) = end else {
             let (line, column) = self.position(start);
             return Err(Error::Syntax {
@@ -459,7 +548,11 @@ impl<'a> Parser<'a> {
     }
 
     #[inline(always)]
-    fn expect_keyword(&mut self, keyword: &'static str, expected: &'static str) -> Result<(), Error> {
+    fn expect_keyword(
+        &mut self,
+        keyword: &'static str,
+        expected: &'static str,
+    ) -> Result<(), Error> {
         let token = self.next()?;
         match token.kind {
             Kind::Word(word) if is_keyword(word, keyword) => Ok(()),
@@ -476,7 +569,11 @@ impl<'a> Parser<'a> {
         };
         let performative = Performative::from_fipa_name(word).ok_or_else(|| {
             let (line, column) = self.position(token.start);
-            Error::UnknownPerformative { line, column, word: word.to_owned() }
+            Error::UnknownPerformative {
+                line,
+                column,
+                word: word.to_owned(),
+            }
         })?;
         let mut message = builder.message(performative);
         let mut seen = 0u16;
@@ -503,12 +600,20 @@ impl<'a> Parser<'a> {
             }
             let Some(param) = Param::lookup(name) else {
                 let (line, column) = self.position(token.start);
-                return Err(Error::UnknownParameter { line, column, name: name.to_owned() });
+                return Err(Error::UnknownParameter {
+                    line,
+                    column,
+                    name: name.to_owned(),
+                });
             };
             let bit = 1u16 << param as u16;
             if seen & bit != 0 {
                 let (line, column) = self.position(token.start);
-                return Err(Error::DuplicateParameter { line, column, name: name.to_owned() });
+                return Err(Error::DuplicateParameter {
+                    line,
+                    column,
+                    name: name.to_owned(),
+                });
             }
             seen |= bit;
             match param {
@@ -533,7 +638,9 @@ impl<'a> Parser<'a> {
                 Param::ReplyBy => {
                     let value = self.next()?;
                     let text = self.text_value(&value)?.into_cow();
-                    let deadline = text.parse::<FipaDateTime>().map_err(|err| self.invalid_value(&value, name, err.to_string()))?;
+                    let deadline = text
+                        .parse::<FipaDateTime>()
+                        .map_err(|err| self.invalid_value(&value, name, err.to_string()))?;
                     builder.reply_by(&mut message, deadline);
                 }
                 Param::Language
@@ -552,7 +659,9 @@ impl<'a> Parser<'a> {
             builder.message_params(&mut message, params);
         }
         // JADE's byte content: `:X-JADE-Encoding Base64` turns the text content into bytes.
-        if jade_encoding.is_some_and(|marker: RawText<'_>| marker.into_cow().eq_ignore_ascii_case("Base64")) {
+        if jade_encoding
+            .is_some_and(|marker: RawText<'_>| marker.into_cow().eq_ignore_ascii_case("Base64"))
+        {
             builder.remove_jade_marker(&mut message);
             if let Some((token, text)) = text_content {
                 builder
@@ -575,11 +684,19 @@ impl<'a> Parser<'a> {
         let key = user_key(name);
         if key.is_empty() {
             let (line, column) = self.position(name_token.start);
-            return Err(Error::UnknownParameter { line, column, name: name.to_owned() });
+            return Err(Error::UnknownParameter {
+                line,
+                column,
+                name: name.to_owned(),
+            });
         }
         if !builder.user_param(params, key, value) {
             let (line, column) = self.position(name_token.start);
-            return Err(Error::DuplicateParameter { line, column, name: name.to_owned() });
+            return Err(Error::DuplicateParameter {
+                line,
+                column,
+                name: name.to_owned(),
+            });
         }
         Ok(key)
     }
@@ -605,7 +722,12 @@ impl<'a> Parser<'a> {
     }
 
     /// `(set (agent-identifier ...) ...)`, each member handed to the builder as `param`.
-    fn agent_set<B: Build<'a>>(&mut self, builder: &mut B, message: &mut B::Message, param: Param) -> Result<(), Error> {
+    fn agent_set<B: Build<'a>>(
+        &mut self,
+        builder: &mut B,
+        message: &mut B::Message,
+        param: Param,
+    ) -> Result<(), Error> {
         self.expect_open("`(set (agent-identifier ...) ...)`")?;
         self.expect_keyword("set", "`set` (agent identifiers come as `(set ...)`)")?;
         loop {
@@ -616,16 +738,29 @@ impl<'a> Parser<'a> {
                     let agent = self.agent_id(builder, &token, 0)?;
                     builder.agent_param(message, param, agent);
                 }
-                _ => return Err(self.syntax(&token, "`(agent-identifier ...)` or `)` closing the set")),
+                _ => {
+                    return Err(
+                        self.syntax(&token, "`(agent-identifier ...)` or `)` closing the set")
+                    );
+                }
             }
         }
     }
 
     /// The rest of `(agent-identifier :name ... )` after its `(`.
-    fn agent_id<B: Build<'a>>(&mut self, builder: &mut B, open: &Token<'a>, depth: usize) -> Result<B::Agent, Error> {
+    fn agent_id<B: Build<'a>>(
+        &mut self,
+        builder: &mut B,
+        open: &Token<'a>,
+        depth: usize,
+    ) -> Result<B::Agent, Error> {
         if depth >= self.max_depth {
             let (line, column) = self.position(open.start);
-            return Err(Error::TooDeep { line, column, limit: self.max_depth });
+            return Err(Error::TooDeep {
+                line,
+                column,
+                limit: self.max_depth,
+            });
         }
         self.expect_keyword("agent-identifier", "`agent-identifier`")?;
         let mut name = None;
@@ -637,7 +772,12 @@ impl<'a> Parser<'a> {
             let slot = match token.kind {
                 Kind::Close => break,
                 Kind::Word(word) if word.len() > 1 && word.starts_with(':') => &word[1..],
-                _ => return Err(self.syntax(&token, "`:name`, `:addresses`, `:resolvers`, `:X-...` or `)`")),
+                _ => {
+                    return Err(self.syntax(
+                        &token,
+                        "`:name`, `:addresses`, `:resolvers`, `:X-...` or `)`",
+                    ));
+                }
             };
             let duplicate = if is_keyword(slot, "name") {
                 name.replace(self.next_text()?).is_some()
@@ -665,11 +805,19 @@ impl<'a> Parser<'a> {
                 false
             } else {
                 let (line, column) = self.position(token.start);
-                return Err(Error::UnknownParameter { line, column, name: slot.to_owned() });
+                return Err(Error::UnknownParameter {
+                    line,
+                    column,
+                    name: slot.to_owned(),
+                });
             };
             if duplicate {
                 let (line, column) = self.position(token.start);
-                return Err(Error::DuplicateParameter { line, column, name: slot.to_owned() });
+                return Err(Error::DuplicateParameter {
+                    line,
+                    column,
+                    name: slot.to_owned(),
+                });
             }
         }
         let Some(name) = name else {
@@ -684,7 +832,10 @@ impl<'a> Parser<'a> {
     }
 
     /// `(sequence item*)`, each item read by `item` from its first token.
-    fn sequence(&mut self, mut item: impl FnMut(&mut Self, &Token<'a>) -> Result<(), Error>) -> Result<(), Error> {
+    fn sequence(
+        &mut self,
+        mut item: impl FnMut(&mut Self, &Token<'a>) -> Result<(), Error>,
+    ) -> Result<(), Error> {
         self.expect_open("`(sequence ...)`")?;
         self.expect_keyword("sequence", "`sequence`")?;
         loop {
@@ -725,7 +876,12 @@ impl<'a> Build<'a> for MessageBuilder {
         agent.user_params = params;
     }
 
-    fn user_param(&mut self, params: &mut Self::UserParams, key: &'a str, value: RawText<'a>) -> bool {
+    fn user_param(
+        &mut self,
+        params: &mut Self::UserParams,
+        key: &'a str,
+        value: RawText<'a>,
+    ) -> bool {
         params.insert(key.to_owned(), value.into_string()).is_none()
     }
 
@@ -765,7 +921,11 @@ impl<'a> Build<'a> for MessageBuilder {
         message.user_params.remove(JADE_ENCODING_PARAM);
     }
 
-    fn base64_content(&mut self, message: &mut AclMessage, _content: RawText<'a>) -> Result<(), Error> {
+    fn base64_content(
+        &mut self,
+        message: &mut AclMessage,
+        _content: RawText<'a>,
+    ) -> Result<(), Error> {
         // The text was unescaped into the message already.
         if let Some(Content::Text(text)) = &message.content {
             message.content = Some(Content::Bytes(decode_base64(text)?));
@@ -812,7 +972,10 @@ fn unescape(body: &str, escaping: Escaping) -> String {
 /// Whether [`unescape`] changes `body`: it holds `\"` or (standard escaping) `\\`. Every such
 /// pair either starts an escape or follows one.
 fn unescaping_changes(body: &str, escaping: Escaping) -> bool {
-    body.as_bytes().windows(2).any(|pair| pair[0] == b'\\' && (pair[1] == b'"' || (pair[1] == b'\\' && escaping == Escaping::Standard)))
+    body.as_bytes().windows(2).any(|pair| {
+        pair[0] == b'\\'
+            && (pair[1] == b'"' || (pair[1] == b'\\' && escaping == Escaping::Standard))
+    })
 }
 
 /// `word` is `keyword` in any case (the usual lower case compared first: it is the hot path).
@@ -849,7 +1012,10 @@ mod tests {
     #[test]
     fn escaping_modes_differ_only_on_backslashes() {
         let text = r#"(INFORM :content "a\\b \"q\" \\\" c\d")"#;
-        assert_eq!(parse(text).unwrap().content_text(), Some(r#"a\b "q" \" c\d"#));
+        assert_eq!(
+            parse(text).unwrap().content_text(),
+            Some(r#"a\b "q" \" c\d"#)
+        );
         let jade = parse_with(text, &ParseOptions::jade()).unwrap();
         assert_eq!(jade.content_text(), Some(r#"a\\b "q" \\" c\d"#));
     }
@@ -859,15 +1025,49 @@ mod tests {
         let err = parse("(INFORM\n  :content \"x\" oops)").unwrap_err();
         assert_eq!(
             err,
-            Error::Syntax { line: 2, column: 16, expected: "a parameter such as `:receiver`, or `)`", found: "`oops`".into() }
+            Error::Syntax {
+                line: 2,
+                column: 16,
+                expected: "a parameter such as `:receiver`, or `)`",
+                found: "`oops`".into()
+            }
         );
-        assert!(matches!(parse("(INFORMS)"), Err(Error::UnknownPerformative { line: 1, column: 2, .. })));
-        assert!(matches!(parse("(INFORM :conversationID c)"), Err(Error::UnknownParameter { .. })));
-        assert!(matches!(parse("(INFORM :content \"a\" :content \"b\")"), Err(Error::DuplicateParameter { .. })));
-        assert!(matches!(parse("(INFORM :content \"abc"), Err(Error::Syntax { line: 1, column: 18, .. })));
-        assert!(matches!(parse("(INFORM :sender (agent-identifier))"), Err(Error::MissingAgentName { .. })));
-        assert!(matches!(parse("(INFORM :reply-by 2099)"), Err(Error::InvalidValue { .. })));
-        assert!(matches!(parse("(INFORM) (INFORM)"), Err(Error::Syntax { .. })));
+        assert!(matches!(
+            parse("(INFORMS)"),
+            Err(Error::UnknownPerformative {
+                line: 1,
+                column: 2,
+                ..
+            })
+        ));
+        assert!(matches!(
+            parse("(INFORM :conversationID c)"),
+            Err(Error::UnknownParameter { .. })
+        ));
+        assert!(matches!(
+            parse("(INFORM :content \"a\" :content \"b\")"),
+            Err(Error::DuplicateParameter { .. })
+        ));
+        assert!(matches!(
+            parse("(INFORM :content \"abc"),
+            Err(Error::Syntax {
+                line: 1,
+                column: 18,
+                ..
+            })
+        ));
+        assert!(matches!(
+            parse("(INFORM :sender (agent-identifier))"),
+            Err(Error::MissingAgentName { .. })
+        ));
+        assert!(matches!(
+            parse("(INFORM :reply-by 2099)"),
+            Err(Error::InvalidValue { .. })
+        ));
+        assert!(matches!(
+            parse("(INFORM) (INFORM)"),
+            Err(Error::Syntax { .. })
+        ));
         assert!(matches!(parse(""), Err(Error::Syntax { .. })));
     }
 
@@ -885,12 +1085,21 @@ mod tests {
     #[test]
     fn byte_content_in_both_wire_forms() {
         let jade = parse("(INFORM :X-JADE-Encoding Base64 :content \"AAEC/yJc\")").unwrap();
-        assert_eq!(jade.content, Some(Content::Bytes(vec![0, 1, 2, 255, 0x22, 0x5c])));
+        assert_eq!(
+            jade.content,
+            Some(Content::Bytes(vec![0, 1, 2, 255, 0x22, 0x5c]))
+        );
         assert!(jade.user_params.is_empty());
         let fipa = parse("(INFORM :content #3\"a\"b :language x)").unwrap();
         assert_eq!(fipa.content, Some(Content::Bytes(b"a\"b".to_vec())));
-        assert!(matches!(parse("(INFORM :content #9\"ab)"), Err(Error::Syntax { .. })));
-        assert!(matches!(parse("(INFORM :X-JADE-Encoding Base64 :content \"***\")"), Err(Error::InvalidValue { .. })));
+        assert!(matches!(
+            parse("(INFORM :content #9\"ab)"),
+            Err(Error::Syntax { .. })
+        ));
+        assert!(matches!(
+            parse("(INFORM :X-JADE-Encoding Base64 :content \"***\")"),
+            Err(Error::InvalidValue { .. })
+        ));
     }
 
     #[test]
@@ -898,14 +1107,23 @@ mod tests {
         let text = "abcdefgh\"ijklmnopqrs\\tuvwxyz0123456789\"é\\\"";
         let bytes = text.as_bytes();
         for from in 0..=bytes.len() + 2 {
-            let naive = bytes.get(from..).and_then(|rest| rest.iter().position(|&b| b == b'"' || b == b'\\')).map(|p| from + p);
+            let naive = bytes
+                .get(from..)
+                .and_then(|rest| rest.iter().position(|&b| b == b'"' || b == b'\\'))
+                .map(|p| from + p);
             assert_eq!(find_either(bytes, from, b'"', b'\\'), naive, "from {from}");
         }
-        assert_eq!(find_either(&[0x80, 0x22 + 1, 0x01, 0x22], 0, b'"', b'"'), Some(3));
+        assert_eq!(
+            find_either(&[0x80, 0x22 + 1, 0x01, 0x22], 0, b'"', b'"'),
+            Some(3)
+        );
         let words = "a!b\x01c\u{80}(d)e f\"g\th\ni-j:k@l#m!!!!!!!!!!!!!!!!)";
         let bytes = words.as_bytes();
         for from in 0..=bytes.len() {
-            let naive = bytes[from..].iter().position(|&b| CLASS[usize::from(b)] & DELIMITER != 0).map(|p| from + p);
+            let naive = bytes[from..]
+                .iter()
+                .position(|&b| CLASS[usize::from(b)] & DELIMITER != 0)
+                .map(|p| from + p);
             assert_eq!(find_delimiter(bytes, from), naive, "from {from}");
         }
     }
@@ -914,13 +1132,19 @@ mod tests {
     fn unescaping_changes_exactly_when_unescape_does() {
         let mut bodies = vec![String::new()];
         for _ in 0..5 {
-            let longer: Vec<String> =
-                bodies.iter().flat_map(|body| ["\\", "\"", "a"].map(|c| format!("{body}{c}"))).collect();
+            let longer: Vec<String> = bodies
+                .iter()
+                .flat_map(|body| ["\\", "\"", "a"].map(|c| format!("{body}{c}")))
+                .collect();
             bodies.extend(longer);
         }
         for body in &bodies {
             for escaping in [Escaping::Standard, Escaping::Jade] {
-                assert_eq!(unescaping_changes(body, escaping), unescape(body, escaping) != *body, "{body:?} {escaping:?}");
+                assert_eq!(
+                    unescaping_changes(body, escaping),
+                    unescape(body, escaping) != *body,
+                    "{body:?} {escaping:?}"
+                );
             }
         }
     }

@@ -24,7 +24,11 @@ pub fn print_with(message: &AclMessage, options: &PrintOptions) -> Result<String
 }
 
 /// Appends the message to `out` (reuse one buffer to print many). On error `out` is left as it was.
-pub fn print_into(message: &AclMessage, out: &mut String, options: &PrintOptions) -> Result<(), Error> {
+pub fn print_into(
+    message: &AclMessage,
+    out: &mut String,
+    options: &PrintOptions,
+) -> Result<(), Error> {
     let len = out.len();
     write_message(message, out, options.escaping).inspect_err(|_| out.truncate(len))
 }
@@ -75,7 +79,12 @@ fn write_message(m: &AclMessage, out: &mut String, escaping: Escaping) -> Result
     Ok(())
 }
 
-fn write_slot(name: &'static str, value: &str, out: &mut String, escaping: Escaping) -> Result<(), Error> {
+fn write_slot(
+    name: &'static str,
+    value: &str,
+    out: &mut String,
+    escaping: Escaping,
+) -> Result<(), Error> {
     out.push_str("\n :");
     out.push_str(name);
     out.push(' ');
@@ -84,7 +93,12 @@ fn write_slot(name: &'static str, value: &str, out: &mut String, escaping: Escap
 
 /// User parameters with their `X-` prefix. JADE's byte-content marker (`JADE-Encoding Base64`)
 /// is written from the content, never from the map (the parser never leaves it there).
-fn write_user_params(params: &BTreeMap<String, String>, lead: &str, out: &mut String, escaping: Escaping) -> Result<(), Error> {
+fn write_user_params(
+    params: &BTreeMap<String, String>,
+    lead: &str,
+    out: &mut String,
+    escaping: Escaping,
+) -> Result<(), Error> {
     for (key, value) in params {
         if key == JADE_ENCODING_PARAM && value.eq_ignore_ascii_case("Base64") {
             continue;
@@ -97,7 +111,12 @@ fn write_user_params(params: &BTreeMap<String, String>, lead: &str, out: &mut St
     Ok(())
 }
 
-fn write_agent_set(name: &str, agents: &[AgentId], out: &mut String, escaping: Escaping) -> Result<(), Error> {
+fn write_agent_set(
+    name: &str,
+    agents: &[AgentId],
+    out: &mut String,
+    escaping: Escaping,
+) -> Result<(), Error> {
     if agents.is_empty() {
         return Ok(());
     }
@@ -144,10 +163,17 @@ fn is_word(value: &str) -> bool {
         return false;
     };
     !matches!(first, b'#' | b'0'..=b'9' | b'-' | b'+' | b'@' | b':')
-        && bytes.iter().all(|&b| b > b' ' && b != 0x7f && !matches!(b, b'(' | b')' | b'"' | b'\\'))
+        && bytes
+            .iter()
+            .all(|&b| b > b' ' && b != 0x7f && !matches!(b, b'(' | b')' | b'"' | b'\\'))
 }
 
-fn write_value(slot: &'static str, value: &str, out: &mut String, escaping: Escaping) -> Result<(), Error> {
+fn write_value(
+    slot: &'static str,
+    value: &str,
+    out: &mut String,
+    escaping: Escaping,
+) -> Result<(), Error> {
     if is_word(value) {
         out.push_str(value);
         Ok(())
@@ -156,10 +182,18 @@ fn write_value(slot: &'static str, value: &str, out: &mut String, escaping: Esca
     }
 }
 
-fn write_quoted(slot: &'static str, value: &str, out: &mut String, escaping: Escaping) -> Result<(), Error> {
+fn write_quoted(
+    slot: &'static str,
+    value: &str,
+    out: &mut String,
+    escaping: Escaping,
+) -> Result<(), Error> {
     if escaping == Escaping::Jade && value.ends_with('\\') {
         // The closing quote would read as escaped.
-        return Err(Error::NotRepresentable { slot, value: value.to_owned() });
+        return Err(Error::NotRepresentable {
+            slot,
+            value: value.to_owned(),
+        });
     }
     out.reserve(value.len() + 2);
     out.push('"');
@@ -186,7 +220,9 @@ mod tests {
     fn sample() -> AclMessage {
         AclMessage::new(Performative::Request)
             .with_sender(AgentId::new("a@P").with_address("http://h:1/acc"))
-            .with_receiver(AgentId::new("b@P").with_resolver(AgentId::new("r").with_user_param("X-k", "v w")))
+            .with_receiver(
+                AgentId::new("b@P").with_resolver(AgentId::new("r").with_user_param("X-k", "v w")),
+            )
             .with_content("(move-to :room \"kitchen\") \\ end")
             .with_ontology("two words")
             .with_conversation_id("123")
@@ -206,9 +242,13 @@ mod tests {
 
     #[test]
     fn jade_escaping_round_trips_through_jade_reading() {
-        let m = AclMessage::new(Performative::Inform).with_content(r#"say "hi" \\" and \\ back\slash"#);
+        let m =
+            AclMessage::new(Performative::Inform).with_content(r#"say "hi" \\" and \\ back\slash"#);
         let text = print_with(&m, &PrintOptions::jade()).unwrap();
-        assert!(text.contains(r#""say \"hi\" \\\" and \\ back\slash""#), "{text}");
+        assert!(
+            text.contains(r#""say \"hi\" \\\" and \\ back\slash""#),
+            "{text}"
+        );
         assert_eq!(parse_with(&text, &ParseOptions::jade()).unwrap(), m);
     }
 
@@ -218,7 +258,16 @@ mod tests {
             let m = AclMessage::new(Performative::Inform).with_content(content);
             let mut out = String::from("keep");
             let err = print_into(&m, &mut out, &PrintOptions::jade()).unwrap_err();
-            assert!(matches!(err, Error::NotRepresentable { slot: "content", .. }), "{err}");
+            assert!(
+                matches!(
+                    err,
+                    Error::NotRepresentable {
+                        slot: "content",
+                        ..
+                    }
+                ),
+                "{err}"
+            );
             assert_eq!(out, "keep");
             assert_eq!(parse(&print(&m)).unwrap(), m);
         }
@@ -226,9 +275,13 @@ mod tests {
 
     #[test]
     fn bytes_travel_as_jade_base64() {
-        let m = AclMessage::new(Performative::Inform).with_byte_content(vec![0, 1, 2, 255, b'"', b'\\']);
+        let m = AclMessage::new(Performative::Inform)
+            .with_byte_content(vec![0, 1, 2, 255, b'"', b'\\']);
         let text = print(&m);
-        assert_eq!(text, "(INFORM\n :X-JADE-Encoding Base64\n :content \"AAEC/yJc\")");
+        assert_eq!(
+            text,
+            "(INFORM\n :X-JADE-Encoding Base64\n :content \"AAEC/yJc\")"
+        );
         assert_eq!(parse(&text).unwrap(), m);
     }
 

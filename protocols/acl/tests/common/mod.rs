@@ -20,10 +20,16 @@ pub fn user_params() -> impl Strategy<Value = Vec<(String, String)>> {
 }
 
 pub fn agent_id() -> impl Strategy<Value = AgentId> {
-    let leaf = (text(), prop::collection::vec(text(), 0..3), user_params()).prop_map(|(name, addresses, params)| {
-        let aid = addresses.into_iter().fold(AgentId::new(name), AgentId::with_address);
-        params.into_iter().fold(aid, |aid, (k, v)| aid.with_user_param(&k, v))
-    });
+    let leaf = (text(), prop::collection::vec(text(), 0..3), user_params()).prop_map(
+        |(name, addresses, params)| {
+            let aid = addresses
+                .into_iter()
+                .fold(AgentId::new(name), AgentId::with_address);
+            params
+                .into_iter()
+                .fold(aid, |aid, (k, v)| aid.with_user_param(&k, v))
+        },
+    );
     leaf.prop_recursive(2, 6, 2, |inner| {
         (inner.clone(), prop::collection::vec(inner, 0..2))
             .prop_map(|(aid, resolvers)| resolvers.into_iter().fold(aid, AgentId::with_resolver))
@@ -72,11 +78,22 @@ pub fn assert_check_agrees(text: &str, options: &ParseOptions) {
     match (&parsed, &checked) {
         (Ok(message), Ok(summary)) => {
             assert_eq!(summary.performative(), message.performative, "{text:?}");
-            assert_eq!(summary.sender(), message.sender.as_ref().map(|s| s.name.as_str()), "{text:?}");
+            assert_eq!(
+                summary.sender(),
+                message.sender.as_ref().map(|s| s.name.as_str()),
+                "{text:?}"
+            );
             let receivers: Vec<&str> = message.receivers.iter().map(|r| r.name.as_str()).collect();
-            assert_eq!(summary.receivers().collect::<Vec<_>>(), receivers, "{text:?}");
+            assert_eq!(
+                summary.receivers().collect::<Vec<_>>(),
+                receivers,
+                "{text:?}"
+            );
             assert_eq!(summary.receiver_count(), receivers.len(), "{text:?}");
-            assert!(receivers.iter().all(|r| summary.has_receiver(r)), "{text:?}");
+            assert!(
+                receivers.iter().all(|r| summary.has_receiver(r)),
+                "{text:?}"
+            );
         }
         (Err(parse_err), Err(check_err)) => assert_eq!(check_err, parse_err, "{text:?}"),
         _ => panic!("parse_with and check_with disagree on {text:?}: {parsed:?} vs {checked:?}"),

@@ -7,8 +7,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let laps = args.next().map_or(Ok(3), |a| a.parse())?;
     let out = std::path::PathBuf::from(args.next().unwrap_or_else(|| "shared-control-out".into()));
     let map = iw_shared_control_experiment::office_circuit()?;
-    let config = iw_shared_control_experiment::Config { drivers, laps, ..Default::default() };
-    let report = iw_shared_control_experiment::run(&map, &config, |t| eprintln!("driver {} {}: {} collisions", t.driver + 1, t.mode.key(), t.collisions))?;
+    let config = iw_shared_control_experiment::Config {
+        drivers,
+        laps,
+        ..Default::default()
+    };
+    let report = iw_shared_control_experiment::run(&map, &config, |t| {
+        eprintln!(
+            "driver {} {}: {} collisions",
+            t.driver + 1,
+            t.mode.key(),
+            t.collisions
+        )
+    })?;
     let summary = iw_shared_control_experiment::write_outputs(&report, &map, &out)?;
     println!("{}", serde_json::to_string_pretty(&summary)?);
     Ok(())

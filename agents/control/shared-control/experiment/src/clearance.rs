@@ -44,7 +44,11 @@ impl Obstacles {
 fn point_segment(p: Point2<f64>, a: Point2<f64>, b: Point2<f64>) -> f64 {
     let ab = b - a;
     let len2 = ab.norm_squared();
-    let t = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if len2 > 0.0 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (p - (a + ab * t)).norm()
 }
 
@@ -58,7 +62,10 @@ fn segment_segment(p: Point2<f64>, q: Point2<f64>, a: Point2<f64>, b: Point2<f64
     if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
         return 0.0;
     }
-    point_segment(p, a, b).min(point_segment(q, a, b)).min(point_segment(a, p, q)).min(point_segment(b, p, q))
+    point_segment(p, a, b)
+        .min(point_segment(q, a, b))
+        .min(point_segment(a, p, q))
+        .min(point_segment(b, p, q))
 }
 
 #[cfg(test)]
@@ -68,8 +75,14 @@ mod tests {
     #[test]
     fn distances() {
         let p = |x, y| Point2::new(x, y);
-        assert_eq!(segment_segment(p(0.0, 0.0), p(2.0, 0.0), p(1.0, -1.0), p(1.0, 1.0)), 0.0);
-        assert!((segment_segment(p(0.0, 0.0), p(2.0, 0.0), p(0.0, 1.0), p(2.0, 1.5)) - 1.0).abs() < 1e-12);
+        assert_eq!(
+            segment_segment(p(0.0, 0.0), p(2.0, 0.0), p(1.0, -1.0), p(1.0, 1.0)),
+            0.0
+        );
+        assert!(
+            (segment_segment(p(0.0, 0.0), p(2.0, 0.0), p(0.0, 1.0), p(2.0, 1.5)) - 1.0).abs()
+                < 1e-12
+        );
         let map = Map::parse("wall 0 1 10 1\n", "t").unwrap();
         let obstacles = Obstacles::from_map(&map);
         let footprint = [p(0.0, -0.5), p(1.0, -0.5), p(1.0, 0.5), p(0.0, 0.5)];

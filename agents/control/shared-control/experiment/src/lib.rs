@@ -24,8 +24,8 @@ pub use output::{Summary, write_outputs};
 use iw_shared_control::basic::{BasicControl, DiffDrive};
 use iw_shared_control::driver::{Circuit, DriverProfile, HeadGestureDriver};
 use iw_shared_control::{
-    ArcGuard, ArcGuardParams, ControlError, Guarded, Intervention, Manual, PotentialField, PotentialFieldParams, SharedController, SharedInput, Vfh,
-    VfhParams,
+    ArcGuard, ArcGuardParams, ControlError, Guarded, Intervention, Manual, PotentialField,
+    PotentialFieldParams, SharedController, SharedInput, Vfh, VfhParams,
 };
 use iw_sim::{ChairKind, ChairSpec, Map, SimError, World};
 use nalgebra::{Isometry2, Point2};
@@ -48,7 +48,9 @@ pub enum ExperimentError {
     #[error("statistics: {0}")]
     Stats(#[from] iw_stats::StatsError),
     /// The map has no route to drive.
-    #[error("map has no route `{name}` (routes: {available}); add `route {name} closed x1 y1 x2 y2 ...`")]
+    #[error(
+        "map has no route `{name}` (routes: {available}); add `route {name} closed x1 y1 x2 y2 ...`"
+    )]
     NoRoute {
         /// Route asked for.
         name: String,
@@ -191,10 +193,17 @@ fn seed_of(config: &Config, driver: usize) -> u64 {
 
 /// The circuit and start pose for `config.route`.
 fn circuit_of(map: &Map, config: &Config) -> Result<(Circuit, Isometry2<f64>), ExperimentError> {
-    let route = map.route(&config.route).ok_or_else(|| ExperimentError::NoRoute {
-        name: config.route.clone(),
-        available: map.routes.iter().map(|r| r.name.as_str()).collect::<Vec<_>>().join(", "),
-    })?;
+    let route = map
+        .route(&config.route)
+        .ok_or_else(|| ExperimentError::NoRoute {
+            name: config.route.clone(),
+            available: map
+                .routes
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        })?;
     let circuit = Circuit::new(route.points.clone())?;
     // Start where the map says for this route, else on the first waypoint facing the second.
     let start = map.start(&config.route).unwrap_or_else(|| {
@@ -214,13 +223,22 @@ fn laser_points(spec: &ChairSpec, ranges: &[f64], out: &mut Vec<Point2<f64>>) {
         if !(r.is_finite() && r < laser.max_range_m - 1e-6) {
             continue;
         }
-        let a = if n > 1 { -fov / 2.0 + fov * i as f64 / (n - 1) as f64 } else { 0.0 };
+        let a = if n > 1 {
+            -fov / 2.0 + fov * i as f64 / (n - 1) as f64
+        } else {
+            0.0
+        };
         out.push(laser.t_body_laser * Point2::new(r * a.cos(), r * a.sin()));
     }
 }
 
 /// Runs driver `driver` for `config.laps` laps in `mode`.
-pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Result<Trial, ExperimentError> {
+pub fn run_trial(
+    map: &Map,
+    config: &Config,
+    driver: usize,
+    mode: Mode,
+) -> Result<Trial, ExperimentError> {
     let (circuit, start) = circuit_of(map, config)?;
     let seed = seed_of(config, driver);
     let spec = ChairSpec::default();
@@ -229,17 +247,27 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
     let mounts: Vec<_> = spec.sonars.iter().map(|m| m.t_body_sonar).collect();
     let mut controller: Box<dyn SharedController> = match mode {
         Mode::Manual => Box::new(Manual),
-        Mode::Shared => Box::new(PotentialField::new(PotentialFieldParams::default(), mounts)?),
+        Mode::Shared => Box::new(PotentialField::new(
+            PotentialFieldParams::default(),
+            mounts,
+        )?),
         Mode::Guarded => Box::new(Guarded {
             inner: PotentialField::new(PotentialFieldParams::default(), mounts.clone())?,
             guard: ArcGuard::new(ArcGuardParams::default(), spec.body_footprint(), mounts)?,
         }),
         Mode::Vfh => Box::new(Vfh::new(
-            VfhParams { robot_radius_m: spec.half_width_m, ..VfhParams::default() },
+            VfhParams {
+                robot_radius_m: spec.half_width_m,
+                ..VfhParams::default()
+            },
             mounts,
         )?),
     };
-    let drive = DiffDrive::new(spec.geometry.track_m, spec.max_wheel_mps, spec.max_wheel_accel_mps2)?;
+    let drive = DiffDrive::new(
+        spec.geometry.track_m,
+        spec.max_wheel_mps,
+        spec.max_wheel_accel_mps2,
+    )?;
     let mut basic = BasicControl::new(drive, config.watchdog_ns);
     let mut person = HeadGestureDriver::new(DriverProfile::from_seed(seed), circuit, seed);
     let obstacles = clearance::Obstacles::from_map(map);
@@ -273,7 +301,9 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
         let pose = world.pose(id)?;
         let out = person.step(now_ns, pose)?;
         if out.laps > trial.laps_completed {
-            trial.lap_times_s.push((now_ns - lap_start_ns) as f64 * 1e-9);
+            trial
+                .lap_times_s
+                .push((now_ns - lap_start_ns) as f64 * 1e-9);
             trial.laps_completed = out.laps;
             lap_start_ns = now_ns;
             continue;
@@ -289,7 +319,14 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
         })?;
         basic.command(shared.command, now_ns)?;
         world.command(id, basic.output(now_ns))?;
-        account(&mut trial, &obstacles, &spec, pose, &shared.intervention, config);
+        account(
+            &mut trial,
+            &obstacles,
+            &spec,
+            pose,
+            &shared.intervention,
+            config,
+        );
         if trial.periods.is_multiple_of(record_every) {
             trial.path.push((pose.translation.x, pose.translation.y));
         }
@@ -297,7 +334,9 @@ pub fn run_trial(map: &Map, config: &Config, driver: usize, mode: Mode) -> Resul
         world.step(period_ns as f64 * 1e-9);
         if world.collisions(id)? > before {
             let p = world.pose(id)?;
-            trial.collision_points.push((p.translation.x, p.translation.y));
+            trial
+                .collision_points
+                .push((p.translation.x, p.translation.y));
         }
     }
     trial.collisions = world.collisions(id)?;
@@ -331,19 +370,34 @@ fn account(
 }
 
 /// Runs every driver in every mode (in parallel), calling `on_trial` as each trial finishes.
-pub fn run(map: &Map, config: &Config, on_trial: impl Fn(&Trial) + Sync) -> Result<Report, ExperimentError> {
+pub fn run(
+    map: &Map,
+    config: &Config,
+    on_trial: impl Fn(&Trial) + Sync,
+) -> Result<Report, ExperimentError> {
     circuit_of(map, config)?;
-    let jobs: Vec<(usize, Mode)> = (0..config.drivers).flat_map(|d| Mode::ALL.map(|m| (d, m))).collect();
+    let jobs: Vec<(usize, Mode)> = (0..config.drivers)
+        .flat_map(|d| Mode::ALL.map(|m| (d, m)))
+        .collect();
     let trials = jobs
         .par_iter()
         .map(|&(driver, mode)| {
             let trial = run_trial(map, config, driver, mode)?;
-            tracing::debug!(driver, mode = mode.key(), collisions = trial.collisions, "trial done");
+            tracing::debug!(
+                driver,
+                mode = mode.key(),
+                collisions = trial.collisions,
+                "trial done"
+            );
             on_trial(&trial);
             Ok(trial)
         })
         .collect::<Result<Vec<_>, ExperimentError>>()?;
-    Ok(Report { config: config.clone(), map_name: map.name.clone(), trials })
+    Ok(Report {
+        config: config.clone(),
+        map_name: map.name.clone(),
+        trials,
+    })
 }
 
 /// The default map, parsed.

@@ -4,8 +4,8 @@ use std::path::Path;
 
 use iw_plot::paths::{Outline, PathFigure, PathSeries, plot_paths};
 use iw_plot::plotters::prelude::*;
-use iw_stats::{Alternative, Wilcoxon, wilcoxon_signed_rank};
 use iw_sim::Map;
+use iw_stats::{Alternative, Wilcoxon, wilcoxon_signed_rank};
 
 use crate::{Config, ExperimentError, Mode, Report, Trial};
 
@@ -93,7 +93,10 @@ fn mode_summary(trials: &[&Trial], laps_per_trial: usize) -> ModeSummary {
     let ratio = |a: u64, b: u64| if b == 0 { 0.0 } else { a as f64 / b as f64 };
     let collisions = sum(&|t| t.collisions);
     let laps_completed: usize = trials.iter().map(|t| t.laps_completed).sum();
-    let lap_times: Vec<f64> = trials.iter().flat_map(|t| t.lap_times_s.iter().copied()).collect();
+    let lap_times: Vec<f64> = trials
+        .iter()
+        .flat_map(|t| t.lap_times_s.iter().copied())
+        .collect();
     let periods = sum(&|t| t.periods);
     let near = sum(&|t| t.periods_near);
     let changed_near = sum(&|t| t.changed_near);
@@ -103,12 +106,16 @@ fn mode_summary(trials: &[&Trial], laps_per_trial: usize) -> ModeSummary {
         collisions,
         collisions_per_lap: (laps_completed > 0).then(|| collisions as f64 / laps_completed as f64),
         collisions_per_driver: trials.iter().map(|t| t.collisions).collect(),
-        collisions_per_100m_per_driver: trials.iter().map(|t| per_100m(t.collisions, t.distance_m)).collect(),
+        collisions_per_100m_per_driver: trials
+            .iter()
+            .map(|t| per_100m(t.collisions, t.distance_m))
+            .collect(),
         collisions_per_100m: per_100m(collisions, trials.iter().map(|t| t.distance_m).sum()),
         laps_completed,
         laps_attempted: trials.len() * laps_per_trial,
         trials_timed_out: trials.iter().filter(|t| t.timed_out).count(),
-        mean_lap_time_s: (!lap_times.is_empty()).then(|| lap_times.iter().sum::<f64>() / lap_times.len() as f64),
+        mean_lap_time_s: (!lap_times.is_empty())
+            .then(|| lap_times.iter().sum::<f64>() / lap_times.len() as f64),
         intervention_rate: ratio(changed, periods),
         intervention_rate_near: ratio(changed_near, near),
         intervention_rate_free: ratio(changed_free, periods - near),
@@ -119,19 +126,31 @@ fn mode_summary(trials: &[&Trial], laps_per_trial: usize) -> ModeSummary {
             trials.iter().map(|t| t.change_sum_mps).sum::<f64>() / changed as f64
         },
         near_fraction: ratio(near, periods),
-        min_clearance_m: trials.iter().map(|t| t.min_clearance_m).fold(f64::INFINITY, f64::min),
+        min_clearance_m: trials
+            .iter()
+            .map(|t| t.min_clearance_m)
+            .fold(f64::INFINITY, f64::min),
         distance_m: trials.iter().map(|t| t.distance_m).sum(),
     }
 }
 
 fn per_100m(collisions: u64, distance_m: f64) -> f64 {
-    if distance_m > 0.0 { 100.0 * collisions as f64 / distance_m } else { 0.0 }
+    if distance_m > 0.0 {
+        100.0 * collisions as f64 / distance_m
+    } else {
+        0.0
+    }
 }
 
 fn compare(a: &ModeSummary, b: &ModeSummary) -> Result<Comparison, ExperimentError> {
     Ok(Comparison {
-        collision_reduction: (a.collisions_per_100m > 0.0).then(|| 1.0 - b.collisions_per_100m / a.collisions_per_100m),
-        wilcoxon: wilcoxon_signed_rank(&a.collisions_per_100m_per_driver, &b.collisions_per_100m_per_driver, Alternative::Greater)?,
+        collision_reduction: (a.collisions_per_100m > 0.0)
+            .then(|| 1.0 - b.collisions_per_100m / a.collisions_per_100m),
+        wilcoxon: wilcoxon_signed_rank(
+            &a.collisions_per_100m_per_driver,
+            &b.collisions_per_100m_per_driver,
+            Alternative::Greater,
+        )?,
     })
 }
 
@@ -152,7 +171,12 @@ impl Summary {
             let trials: Vec<&Trial> = report.trials.iter().filter(|t| t.mode == mode).collect();
             mode_summary(&trials, report.config.laps)
         };
-        let (manual, shared, vfh, guarded) = (of(Mode::Manual), of(Mode::Shared), of(Mode::Vfh), of(Mode::Guarded));
+        let (manual, shared, vfh, guarded) = (
+            of(Mode::Manual),
+            of(Mode::Shared),
+            of(Mode::Vfh),
+            of(Mode::Guarded),
+        );
         let manual_vs_shared = compare(&manual, &shared)?;
         Ok(Summary {
             wilcoxon_p: manual_vs_shared.wilcoxon.p(),
@@ -173,25 +197,52 @@ impl Summary {
 
 fn map_outlines(map: &Map) -> Vec<Outline> {
     let xy = |p: &nalgebra::Point2<f64>| (p.x, p.y);
-    let mut outlines: Vec<Outline> =
-        map.furniture.iter().map(|f| Outline { points: f.polygon.iter().map(xy).collect(), filled: true }).collect();
-    outlines.extend(map.walls.iter().map(|w| Outline { points: w.iter().map(xy).collect(), filled: false }));
-    outlines.extend(map.doors.iter().map(|d| Outline { points: vec![xy(&d.a), xy(&d.b)], filled: false }));
+    let mut outlines: Vec<Outline> = map
+        .furniture
+        .iter()
+        .map(|f| Outline {
+            points: f.polygon.iter().map(xy).collect(),
+            filled: true,
+        })
+        .collect();
+    outlines.extend(map.walls.iter().map(|w| Outline {
+        points: w.iter().map(xy).collect(),
+        filled: false,
+    }));
+    outlines.extend(map.doors.iter().map(|d| Outline {
+        points: vec![xy(&d.a), xy(&d.b)],
+        filled: false,
+    }));
     outlines
 }
 
 fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
-    std::fs::write(path, bytes).map_err(|source| ExperimentError::Io { path: path.display().to_string(), source })
+    std::fs::write(path, bytes).map_err(|source| ExperimentError::Io {
+        path: path.display().to_string(),
+        source,
+    })
 }
 
 /// Writes `summary.json`, `trials.json`, `paths-{manual,shared,vfh,guarded}.png` and `collisions.png`
 /// into `out_dir` (created if needed); returns the summary.
-pub fn write_outputs(report: &Report, map: &Map, out_dir: &Path) -> Result<Summary, ExperimentError> {
-    std::fs::create_dir_all(out_dir)
-        .map_err(|source| ExperimentError::Io { path: out_dir.display().to_string(), source })?;
+pub fn write_outputs(
+    report: &Report,
+    map: &Map,
+    out_dir: &Path,
+) -> Result<Summary, ExperimentError> {
+    std::fs::create_dir_all(out_dir).map_err(|source| ExperimentError::Io {
+        path: out_dir.display().to_string(),
+        source,
+    })?;
     let summary = Summary::from_report(report)?;
-    write_file(&out_dir.join("summary.json"), serde_json::to_string_pretty(&summary)?.as_bytes())?;
-    write_file(&out_dir.join("trials.json"), serde_json::to_string_pretty(&report.trials)?.as_bytes())?;
+    write_file(
+        &out_dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
+    )?;
+    write_file(
+        &out_dir.join("trials.json"),
+        serde_json::to_string_pretty(&report.trials)?.as_bytes(),
+    )?;
     let route = map.route(&report.config.route);
     for mode in Mode::ALL {
         let trials: Vec<&Trial> = report.trials.iter().filter(|t| t.mode == mode).collect();
@@ -205,13 +256,21 @@ pub fn write_outputs(report: &Report, map: &Map, out_dir: &Path) -> Result<Summa
                 s.collisions
             ),
             map: map_outlines(map),
-            route: route.map(|r| r.points.iter().map(|p| (p.x, p.y)).collect()).unwrap_or_default(),
+            route: route
+                .map(|r| r.points.iter().map(|p| (p.x, p.y)).collect())
+                .unwrap_or_default(),
             route_closed: route.is_some_and(|r| r.closed),
             paths: trials
                 .iter()
-                .map(|t| PathSeries { label: format!("driver {}", t.driver + 1), points: t.path.clone() })
+                .map(|t| PathSeries {
+                    label: format!("driver {}", t.driver + 1),
+                    points: t.path.clone(),
+                })
                 .collect(),
-            markers: trials.iter().flat_map(|t| t.collision_points.iter().copied()).collect(),
+            markers: trials
+                .iter()
+                .flat_map(|t| t.collision_points.iter().copied())
+                .collect(),
             marker_label: "collision".into(),
         };
         plot_paths(&out_dir.join(format!("paths-{}.png", mode.key())), &figure)?;
@@ -225,9 +284,19 @@ fn plot_collisions(path: &Path, summary: &Summary) -> Result<(), ExperimentError
     iw_plot::register_fonts();
     let err = |e: &dyn std::fmt::Display| iw_plot::PlotError::draw(path, e);
     let colours = [RED, BLUE, RGBColor(0, 150, 0), RGBColor(230, 140, 0)];
-    let modes: Vec<_> = Mode::ALL.iter().zip(colours).map(|(&m, colour)| (m.key(), summary.mode(m), colour)).collect();
+    let modes: Vec<_> = Mode::ALL
+        .iter()
+        .zip(colours)
+        .map(|(&m, colour)| (m.key(), summary.mode(m), colour))
+        .collect();
     let drivers = summary.manual.collisions_per_driver.len();
-    let top = modes.iter().flat_map(|m| m.1.collisions_per_driver.iter()).copied().max().unwrap_or(0).max(1) as f64;
+    let top = modes
+        .iter()
+        .flat_map(|m| m.1.collisions_per_driver.iter())
+        .copied()
+        .max()
+        .unwrap_or(0)
+        .max(1) as f64;
     let root = BitMapBackend::new(path, (1000, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut chart = ChartBuilder::on(&root)

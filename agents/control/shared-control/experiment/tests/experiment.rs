@@ -5,7 +5,11 @@ use iw_shared_control_experiment::{Config, Mode, office_circuit, run, run_trial,
 #[test]
 fn small_run_writes_the_contract_summary_and_plots() {
     let map = office_circuit().unwrap();
-    let config = Config { drivers: 2, laps: 1, ..Config::default() };
+    let config = Config {
+        drivers: 2,
+        laps: 1,
+        ..Config::default()
+    };
     let done = std::sync::atomic::AtomicUsize::new(0);
     let report = run(&map, &config, |_| {
         done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -31,7 +35,12 @@ fn small_run_writes_the_contract_summary_and_plots() {
 #[test]
 fn a_trial_is_deterministic() {
     let map = office_circuit().unwrap();
-    let config = Config { drivers: 1, laps: 1, lap_timeout_s: 30.0, ..Config::default() };
+    let config = Config {
+        drivers: 1,
+        laps: 1,
+        lap_timeout_s: 30.0,
+        ..Config::default()
+    };
     let a = run_trial(&map, &config, 0, Mode::Shared).unwrap();
     let b = run_trial(&map, &config, 0, Mode::Shared).unwrap();
     assert_eq!(a, b);
@@ -40,7 +49,12 @@ fn a_trial_is_deterministic() {
 #[test]
 fn unknown_route_is_a_clear_error() {
     let map = office_circuit().unwrap();
-    let config = Config { route: "nope".into(), ..Config::default() };
-    let err = run_trial(&map, &config, 0, Mode::Manual).unwrap_err().to_string();
+    let config = Config {
+        route: "nope".into(),
+        ..Config::default()
+    };
+    let err = run_trial(&map, &config, 0, Mode::Manual)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("nope") && err.contains("lap"), "{err}");
 }

@@ -36,7 +36,13 @@ impl Exchange {
         let na = platform.node(&["a"]).expect("identity");
         let nb = platform.node(&["b"]).expect("identity");
         let cfg = StackConfig::with_layers(set.parse().expect("layer set"));
-        Exchange { a: platform.stack(&na, &cfg), b: platform.stack(&nb, &cfg), payload: message(), id: 0, wire: Vec::new() }
+        Exchange {
+            a: platform.stack(&na, &cfg),
+            b: platform.stack(&nb, &cfg),
+            payload: message(),
+            id: 0,
+            wire: Vec::new(),
+        }
     }
 
     /// One message from A to B and whatever the layers send back and forth for it; returns the
