@@ -32,7 +32,7 @@ use nalgebra::{Isometry2, Point2};
 use rayon::prelude::*;
 
 /// The default circuit: a closed office corridor loop with furniture narrowing it (figure 3.9).
-pub const OFFICE_CIRCUIT: &str = include_str!("../../../../../scenarios/maps/office-circuit.map");
+pub const OFFICE_CIRCUIT: &str = include_str!("../../../maps/office-circuit.map");
 
 /// Why the experiment could not run.
 #[derive(Debug, thiserror::Error)]
