@@ -29,8 +29,8 @@
 
 use nalgebra::{Point2, Vector2};
 
-use crate::error::{check_positive, check_range};
-use crate::potential::{Repulsion, sum_repulsion};
+use crate::error::check_positive;
+use crate::potential::field_repulsion;
 use crate::{
     ControlError, Intervention, PotentialFieldParams, SensorMount, SharedController, SharedInput,
     SharedOutput, VelocityCommand,
@@ -202,30 +202,21 @@ impl ThesisField {
     pub fn params(&self) -> &ThesisFieldParams {
         &self.params
     }
-
-    /// Equations 3.1-3.3 for an attractive force of magnitude `fa` (input units).
-    pub fn repulsion(
-        &self,
-        sonar_m: &[Option<f64>],
-        speed_mps: f64,
-        fa: f64,
-    ) -> Result<Repulsion, ControlError> {
-        let speed_mps = check_range("speed", 0, speed_mps.abs())?;
-        sum_repulsion(
-            &self.mounts,
-            sonar_m,
-            self.centre_chair,
-            self.params.safety_range_m(speed_mps),
-            |d| self.params.force_ratio(d, speed_mps) * fa,
-        )
-    }
 }
 
 impl SharedController for ThesisField {
     fn step(&mut self, input: &SharedInput<'_>) -> Result<SharedOutput, ControlError> {
         let user = input.user.validate()?;
         let fa_input = self.params.mapping.to_input(user);
-        let repulsion = self.repulsion(input.sonar_m, input.speed_mps, fa_input.norm())?;
+        // Equations 3.1-3.3 about C, `|F_a|` in input units.
+        let repulsion = field_repulsion(
+            &self.mounts,
+            input.sonar_m,
+            self.centre_chair,
+            input.speed_mps,
+            |speed| self.params.safety_range_m(speed),
+            |d, speed| self.params.force_ratio(d, speed) * fa_input.norm(),
+        )?;
         if repulsion.active_readings == 0 || fa_input.norm() == 0.0 {
             // Outside the safety range (or no input, |F_a| = 0): the user's command, bit for bit.
             return Ok(SharedOutput {

@@ -132,15 +132,31 @@ impl PotentialField {
         speed_mps: f64,
         fa: f64,
     ) -> Result<Repulsion, ControlError> {
-        let speed_mps = check_range("speed", 0, speed_mps.abs())?;
-        sum_repulsion(
+        field_repulsion(
             &self.mounts,
             sonar_m,
             Point2::origin(),
-            self.params.safety_range_m(speed_mps),
-            |d| self.params.force_ratio(d, speed_mps) * fa,
+            speed_mps,
+            |speed| self.params.safety_range_m(speed),
+            |d, speed| self.params.force_ratio(d, speed) * fa,
         )
     }
+}
+
+/// [`sum_repulsion`] at the measured speed `speed_mps` (its sign ignored): `safety_m(speed)` is the
+/// activation range, `magnitude(D, speed)` the force of one echo.
+pub(crate) fn field_repulsion(
+    mounts: &[SensorMount],
+    sonar_m: &[Option<f64>],
+    centre_chair: Point2<f64>,
+    speed_mps: f64,
+    safety_m: impl Fn(f64) -> f64,
+    magnitude: impl Fn(f64, f64) -> f64,
+) -> Result<Repulsion, ControlError> {
+    let speed_mps = check_range("speed", 0, speed_mps.abs())?;
+    sum_repulsion(mounts, sonar_m, centre_chair, safety_m(speed_mps), |d| {
+        magnitude(d, speed_mps)
+    })
 }
 
 /// Equations 3.1 and 3.3: each echo within `safety_m` on its sonar's axis pushes along
