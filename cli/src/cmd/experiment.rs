@@ -5,9 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use iw_features::{DetectorConfig, DetectorKind};
-use iw_shared_control::driver::InputDevice;
 use iw_shared_control_experiment::{
-    Config, Mode, Sensors, Summary, office_circuit, sweep, sweep_trials, write_outputs, write_sweep,
+    Config, InputDevice, Mode, Sensors, Summary, office_circuit, sweep, sweep_trials,
+    write_outputs, write_sweep,
 };
 use iw_sim::vo::{TrialConfig, TrialPoint, run_trial, sim_vo_config, waypoints_ahead};
 use iw_sim::{ChairKind, ChairSpec, Map, TextureSet, World};

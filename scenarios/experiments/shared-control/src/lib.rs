@@ -27,11 +27,12 @@ mod clearance;
 mod output;
 mod sweep;
 
+pub use iw_shared_control::driver::InputDevice;
 pub use output::{ModeSummary, Summary, write_outputs};
 pub use sweep::{SweepRow, Variant, sweep, sweep_trials, variants, write_sweep};
 
 use iw_shared_control::basic::{BasicControl, DiffDrive};
-use iw_shared_control::driver::{Circuit, DriverProfile, InputDevice, Perception, SeeingDriver};
+use iw_shared_control::driver::{Circuit, DriverProfile, Perception, SeeingDriver};
 use iw_shared_control::{
     ArcGuard, ArcGuardParams, ControlError, Guarded, Intervention, Manual, PotentialField,
     PotentialFieldParams, SharedController, SharedInput, ThesisField, ThesisFieldParams, Vfh,
