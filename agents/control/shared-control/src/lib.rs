@@ -1,7 +1,7 @@
 //! Shared-control obstacle avoidance for a powered wheelchair (thesis 3.6), a VFH+ shared controller
-//! as a baseline, the tactical and basic control layers of the control agent (thesis 3.3), a
-//! head-gesture driver model for simulated experiments (thesis 3.7.1), and the Wilcoxon
-//! signed-rank test the thesis evaluates with.
+//! as a baseline, the tactical and basic control layers of the control agent (thesis 3.3), and a
+//! driver model for simulated experiments (thesis 3.7.1). The Wilcoxon signed-rank test the thesis
+//! evaluates with lives in `iw-stats`.
 //!
 //! Pure library: no bus, no simulator. Every function takes its inputs (sensor ranges, pose, time in
 //! ns) explicitly, so the same code runs on the real chair, in the simulator and in tests.
