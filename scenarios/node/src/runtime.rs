@@ -198,6 +198,16 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
                 ChairKind::Tracked
             };
             let id = world.add_chair(ChairSpec::default(), t_world_body, kind);
+            if let Some(what) = world.obstruction(id).map_err(|e| body_err(e.to_string()))? {
+                return Err(NodeError::Config {
+                    file: "body.start".into(),
+                    reason: format!(
+                        "{:?} puts the chair's footprint on {} of the map",
+                        config.body.start,
+                        world.describe(what)
+                    ),
+                });
+            }
             let world = iw_sim::shared(world);
             let body = if config.body.kind == BodyKind::Virtual {
                 SharedBody::new(VirtualBody::new(world.clone(), id))
@@ -551,6 +561,23 @@ impl Runtime {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_start_pose_on_a_wall_is_refused_with_the_key() {
+        let mut config = SpawnConfig::default();
+        // On the sample building's wall from (0, 7) to (1.4, 7).
+        config.body.start = [0.7, 7.0, 0.0];
+        let err = chair_parts("chair-a", &config)
+            .err()
+            .expect("a start pose on a wall is refused")
+            .to_string();
+        assert!(
+            err.contains("body.start") && err.contains("a wall"),
+            "{err}"
+        );
+        config.body.start = SpawnConfig::default().body.start;
+        assert!(chair_parts("chair-a", &config).is_ok());
+    }
 
     #[test]
     fn control_key_file_is_64_hex_digits() {
