@@ -39,7 +39,7 @@ pub enum Command {
         #[arg(long = "layers", default_values_t = ["raw", "none", "comm", "security", "temporal", "parser", "all"].map(String::from))]
         layer_sets: Vec<String>,
         /// Messages in flight during the throughput half.
-        #[arg(long, default_value_t = 32)]
+        #[arg(long, default_value_t = 32, value_parser = super::flags::count(4096))]
         window: usize,
     },
 }
@@ -53,9 +53,6 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             layer_sets,
             window,
         } => {
-            if window == 0 {
-                bail!("--window must be at least 1");
-            }
             let transports: Vec<Kind> = transports
                 .split(',')
                 .map(Kind::parse)

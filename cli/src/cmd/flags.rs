@@ -61,6 +61,12 @@ pub fn threads(text: &str) -> Result<usize, String> {
     }
 }
 
+/// A count from 1 to `max` (`--drivers`, `--window`, ...): a count too large for the work it
+/// sizes overflows arithmetic or never ends; clap names the flag and the range.
+pub fn count(max: u64) -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=max)
+}
+
 /// Most worker threads a flag accepts: more only thrashes two to a few dozen cores and can
 /// exhaust the process's thread limit.
 pub const MAX_THREADS: usize = 64;
@@ -90,6 +96,17 @@ mod tests {
         // The slowest speed keeps the longest gap within Duration's range.
         let longest_s = u64::MAX as f64 * 1e-9 / REPLAY_SPEED_RANGE.start();
         assert!(Duration::try_from_secs_f64(longest_s).is_ok());
+    }
+
+    #[test]
+    fn count_names_its_range() {
+        use clap::builder::TypedValueParser;
+        let cmd = clap::Command::new("t");
+        let parse = |text: &str| count(1000).parse_ref(&cmd, None, std::ffi::OsStr::new(text));
+        assert_eq!(parse("8").unwrap(), 8);
+        for bad in ["0", "1001", "18446744073709551615", "-1"] {
+            assert!(parse(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]
