@@ -26,34 +26,33 @@ struct Recorder {
     refused_commands: Arc<Mutex<u32>>,
 }
 
+/// A silent serial link's timeout when `failing` still counts failures (one used up).
+fn fails(failing: &Mutex<u32>) -> Result<(), BodyError> {
+    let mut failing = failing.lock().unwrap();
+    if *failing == 0 {
+        return Ok(());
+    }
+    *failing -= 1;
+    Err(BodyError::Timeout {
+        port: "/dev/test".into(),
+        timeout_ms: 200,
+        received: 0,
+        skipped: 0,
+    })
+}
+
 impl Body for Recorder {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
-        let mut failing = self.failing_reads.lock().unwrap();
-        if *failing > 0 {
-            *failing -= 1;
-            return Err(BodyError::Timeout {
-                port: "/dev/test".into(),
-                timeout_ms: 200,
-                received: 0,
-                skipped: 0,
-            });
-        }
+        fails(&self.failing_reads)?;
         Ok(SensorFrame {
             sonar_m: *self.sonar_m.lock().unwrap(),
             ..SensorFrame::empty(0)
         })
     }
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
-        let mut failing = self.failing_commands.lock().unwrap();
-        if *failing > 0 {
-            *failing -= 1;
+        if let Err(err) = fails(&self.failing_commands) {
             *self.refused_commands.lock().unwrap() += 1;
-            return Err(BodyError::Timeout {
-                port: "/dev/test".into(),
-                timeout_ms: 200,
-                received: 0,
-                skipped: 0,
-            });
+            return Err(err);
         }
         self.commands.lock().unwrap().push(speeds);
         Ok(())

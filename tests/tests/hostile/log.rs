@@ -86,6 +86,12 @@ fn a_flipped_byte_in_record_1001_hides_nothing_after_it() {
     }
 }
 
+/// `intellwheels log query --log path`, bounded in time.
+fn query(bin: &PathBuf, path: &Path) -> (std::process::Output, bool) {
+    let args = ["log", "query", "--log", path.to_str().unwrap()];
+    crate::run(bin, &args, b"", Duration::from_secs(30))
+}
+
 #[test]
 fn a_torn_tail_is_reported_with_its_offset() {
     let dir = tempfile::tempdir().unwrap();
@@ -101,12 +107,7 @@ fn a_torn_tail_is_reported_with_its_offset() {
     let Some(bin) = crate::intellwheels() else {
         return;
     };
-    let result = crate::run(
-        &bin,
-        &["log", "query", "--log", path.to_str().unwrap()],
-        b"",
-        Duration::from_secs(30),
-    );
+    let result = query(&bin, &path);
     crate::assert_refused(
         "log query (torn tail)",
         &result,
@@ -123,12 +124,7 @@ fn a_file_that_is_no_log_exits_1_and_prints_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("notes.iwl");
     std::fs::write(&path, b"shopping list").unwrap();
-    let result = crate::run(
-        &bin,
-        &["log", "query", "--log", path.to_str().unwrap()],
-        b"",
-        Duration::from_secs(30),
-    );
+    let result = query(&bin, &path);
     crate::assert_refused(
         "log query (not a log)",
         &result,
