@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use iw_acl::AgentId;
 use iw_agent::AgentHost;
-use iw_body::{Body, MixedBody, Odometry, SerialBody, WheelGeometry};
+use iw_body::{Body, BodyWorker, MixedBody, Odometry, SerialBody, WheelGeometry};
 use iw_bus::transport::{FrameTransport, PeerAddr};
 use iw_bus::{Bus, BusConfig, Clock, LayerSet};
 use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode};
@@ -176,6 +176,17 @@ struct ChairParts {
     body: SharedBody,
 }
 
+/// The serial body on its own I/O thread: a read blocks up to the board timeout (200 ms), four
+/// control periods; the control agent takes the newest frame and refuses one older than this.
+fn off_the_control_path(serial: SerialBody) -> Result<BodyWorker, NodeError> {
+    BodyWorker::start(serial, Duration::from_millis(STALE_FRAME_MS)).map_err(|e| NodeError::Body {
+        reason: e.to_string(),
+    })
+}
+
+/// Age past which a serial sensor frame is refused, ms (the board answers every 50 ms period).
+const STALE_FRAME_MS: u64 = 300;
+
 fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError> {
     let body_err = |reason: String| NodeError::Body { reason };
     let [x, y, heading_deg] = config.body.start;
@@ -189,7 +200,7 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
         .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
     };
     let (body, world) = match config.body.kind {
-        BodyKind::Serial => (SharedBody::new(serial()?), None),
+        BodyKind::Serial => (SharedBody::new(off_the_control_path(serial()?)?), None),
         BodyKind::Virtual | BodyKind::Mixed => {
             let mut world = World::new(load_map(&config.world.map)?, config.world.seed);
             let kind = if config.body.kind == BodyKind::Virtual {
@@ -214,7 +225,7 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
             } else {
                 let ghost = GhostSensors::new(world.clone(), id);
                 SharedBody::new(MixedBody::new(
-                    serial()?,
+                    off_the_control_path(serial()?)?,
                     ghost,
                     Odometry::new(WheelGeometry::default(), t_world_body),
                 ))
