@@ -18,5 +18,5 @@ pub mod store;
 pub use entry::{EntryError, LoggedMessage, Query, QueryError};
 pub use store::{
     DEFAULT_MAX_RECORD_LEN, Damage, LogError, LogRead, LogStore, Record, Recovery, SyncPolicy,
-    read_log, read_records,
+    parse_log, read_log, read_records,
 };

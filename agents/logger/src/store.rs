@@ -362,7 +362,12 @@ pub fn read_log(path: &Path, max_record_len: u32) -> Result<LogRead, LogError> {
         context: "reading the log",
         source,
     })?;
-    let format = check_magic(&mut bytes.as_slice(), path)?;
+    parse_log(&bytes, path, max_record_len)
+}
+
+/// [`read_log`] on a log's bytes already in memory; `path` only names it in errors.
+pub fn parse_log(bytes: &[u8], path: &Path, max_record_len: u32) -> Result<LogRead, LogError> {
+    let format = check_magic(&mut &bytes[..], path)?;
     let mut read = LogRead::default();
     let mut pos = FILE_HEADER_LEN as usize;
     let mut expected_seq = 1u64;
@@ -927,6 +932,24 @@ mod tests {
     }
 
     proptest! {
+        /// Any bytes after a valid header: no panic, records in increasing order, damaged regions
+        /// in file order, inside the file and not overlapping.
+        #[test]
+        fn arbitrary_bytes_read_without_panic_and_damage_is_consistent(
+            body in prop::collection::vec(any::<u8>(), 0..600),
+        ) {
+            let mut bytes = MAGIC.to_vec();
+            bytes.extend_from_slice(&[0; 8]);
+            bytes.extend_from_slice(&body);
+            let read = parse_log(&bytes, Path::new("fuzz.iwl"), 64).unwrap();
+            prop_assert!(read.records.windows(2).all(|w| w[0].seq < w[1].seq));
+            let mut end = FILE_HEADER_LEN;
+            for d in &read.damage {
+                prop_assert!(d.offset >= end && d.offset + d.len <= bytes.len() as u64);
+                end = d.offset + d.len;
+            }
+        }
+
         /// Any one flipped byte loses at most the record that holds it; the damage is reported.
         #[test]
         fn one_flipped_byte_loses_only_its_record(
