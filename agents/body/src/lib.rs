@@ -12,6 +12,8 @@
 //! - [`layout`]: the chair's [`layout::Footprint`] and its sonar poses (figure 3.4), shared by the
 //!   simulator and the control agent.
 //! - [`WheelGeometry`] and [`Odometry`]: ticks to metres, dead reckoning of `t_world_body`.
+//! - [`BodyWorker`]: any body's blocking I/O on its own thread, so a control period never waits
+//!   for the serial link.
 //!
 //! # Guarantees
 //! - No input from the serial line panics: corrupt, truncated or oversized frames are rejected
@@ -25,11 +27,13 @@ mod mixed;
 mod odometry;
 pub mod protocol;
 mod serial;
+mod worker;
 
 pub use emulator::{BoardEmulator, BoardHandle, BoardState};
 pub use mixed::{MixedBody, VirtualSensors, merge_nearest};
 pub use odometry::{Odometry, WheelGeometry, WheelTravel};
 pub use serial::SerialBody;
+pub use worker::BodyWorker;
 
 /// Number of sonars on the IntellWheels prototype (thesis figure 3.4).
 pub const SONAR_COUNT: usize = 16;
@@ -145,6 +149,12 @@ pub enum BodyError {
         value_mps: f64,
         /// The wire limit.
         limit_mps: f64,
+    },
+    /// The I/O thread of a [`BodyWorker`] reported a failure, or its frame is stale.
+    #[error("body i/o: {reason}")]
+    Worker {
+        /// What went wrong.
+        reason: String,
     },
     /// The virtual side (simulator) failed; the message says why.
     #[error("virtual body: {reason}")]

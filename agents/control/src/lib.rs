@@ -41,7 +41,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_body::layout::Footprint;
-use iw_body::{Body, SensorFrame};
+use iw_body::{Body, BodyError, SensorFrame};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
@@ -298,6 +298,25 @@ impl ControlAgent {
         }
     }
 
+    /// Stops the wheels, retrying once at once; the second error when both attempts fail.
+    fn stop_wheels(&mut self) -> Result<(), BodyError> {
+        self.body.stop().or_else(|first| {
+            tracing::warn!(error = %first, "wheel stop failed; retrying");
+            self.body.stop()
+        })
+    }
+
+    /// The wheels did not take a stop: nothing this agent commands can be trusted to happen, so
+    /// the task (or manual driving) ends at once with both reasons; the stop is retried every
+    /// period while the fault lasts.
+    fn stop_failed(&mut self, ctx: &mut Context<'_>, why: &str, stop: &BodyError) {
+        tracing::error!(%why, error = %stop, "the wheels did not take a stop; task failed");
+        self.preempt(ctx, &format!("{why}; the wheel stop failed too: {stop}"));
+        if let Mode::Manual { .. } = self.mode {
+            self.mode = Mode::Idle;
+        }
+    }
+
     /// Wall clearances from the chair's centre line, from the side sonars (those facing 45..135
     /// degrees left or right): the lateral offset of each echo in the body frame.
     fn walls(&self, frame: &SensorFrame) -> (Option<f64>, Option<f64>) {
@@ -455,8 +474,11 @@ impl Agent for ControlAgent {
                 frame
             }
             Err(err) => {
-                let _ = self.body.stop();
                 self.basic.halt(now_ns);
+                if let Err(stop) = self.stop_wheels() {
+                    self.stop_failed(ctx, &format!("body: {err}"), &stop);
+                    return;
+                }
                 let since = *self.body_fault_since_ns.get_or_insert(now_ns);
                 if now_ns.saturating_sub(since)
                     < self.config.body_fault_ms.saturating_mul(1_000_000)
@@ -508,13 +530,19 @@ impl Agent for ControlAgent {
         }
         let wheels = self.basic.output(now_ns);
         if let Err(err) = self.body.command(wheels) {
-            tracing::warn!(error = %err, "body command failed");
+            tracing::warn!(error = %err, "body command failed; stopping the wheels");
+            self.basic.halt(now_ns);
+            if let Err(stop) = self.stop_wheels() {
+                self.stop_failed(ctx, &format!("wheel command failed: {err}"), &stop);
+            }
         }
     }
 
     fn take_down(&mut self, ctx: &mut Context<'_>) {
         self.preempt(ctx, "control agent stopped");
-        let _ = self.body.stop();
+        if let Err(err) = self.stop_wheels() {
+            tracing::error!(error = %err, "control agent stopping: the wheels did not take the stop");
+        }
     }
 }
 

@@ -20,26 +20,40 @@ struct Recorder {
     sonar_m: Arc<Mutex<[Option<f64>; iw_body::SONAR_COUNT]>>,
     /// How many of the next reads time out, as a silent serial link does.
     failing_reads: Arc<Mutex<u32>>,
+    /// How many of the next wheel commands (stops included) fail.
+    failing_commands: Arc<Mutex<u32>>,
+    /// Wheel commands refused so far.
+    refused_commands: Arc<Mutex<u32>>,
+}
+
+/// A silent serial link's timeout when `failing` still counts failures (one used up).
+fn fails(failing: &Mutex<u32>) -> Result<(), BodyError> {
+    let mut failing = failing.lock().unwrap();
+    if *failing == 0 {
+        return Ok(());
+    }
+    *failing -= 1;
+    Err(BodyError::Timeout {
+        port: "/dev/test".into(),
+        timeout_ms: 200,
+        received: 0,
+        skipped: 0,
+    })
 }
 
 impl Body for Recorder {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
-        let mut failing = self.failing_reads.lock().unwrap();
-        if *failing > 0 {
-            *failing -= 1;
-            return Err(BodyError::Timeout {
-                port: "/dev/test".into(),
-                timeout_ms: 200,
-                received: 0,
-                skipped: 0,
-            });
-        }
+        fails(&self.failing_reads)?;
         Ok(SensorFrame {
             sonar_m: *self.sonar_m.lock().unwrap(),
             ..SensorFrame::empty(0)
         })
     }
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
+        if let Err(err) = fails(&self.failing_commands) {
+            *self.refused_commands.lock().unwrap() += 1;
+            return Err(err);
+        }
         self.commands.lock().unwrap().push(speeds);
         Ok(())
     }
@@ -274,6 +288,35 @@ fn a_body_unreadable_beyond_the_fault_window_fails_the_task() {
         WheelSpeeds::STOP,
         "no task, no motion after the link returns"
     );
+}
+
+#[test]
+fn a_wheel_stop_that_fails_fails_the_task_at_once_and_is_retried() {
+    let mut rig = rig();
+    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send(goto_far("g6"));
+    rig.run(1000);
+    assert!(rig.last_wheels().left_mps > 0.0);
+    // The link drops: reads fail and the board takes no command, not even a stop.
+    *rig.body.failing_reads.lock().unwrap() = 1_000;
+    *rig.body.failing_commands.lock().unwrap() = 1_000;
+    rig.run(100);
+    let failure = rig
+        .received
+        .iter()
+        .find(|m| m.performative == Performative::Failure)
+        .expect("the task fails at once, not after the fault window");
+    assert_eq!(failure.conversation_id.as_deref(), Some("g6"));
+    let reason = failure.content_text().unwrap_or_default();
+    assert!(reason.contains("wheel stop failed"), "{reason}");
+    let refused = *rig.body.refused_commands.lock().unwrap();
+    assert!(refused >= 2, "the stop is retried ({refused} attempts)");
+    // The stop keeps being retried every period until the board takes it.
+    rig.run(200);
+    assert!(*rig.body.refused_commands.lock().unwrap() > refused);
+    *rig.body.failing_commands.lock().unwrap() = 0;
+    rig.run(100);
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
 }
 
 /// Sends the pose every 100 ms for `ms` while the chair turns through `headings` (cycled).

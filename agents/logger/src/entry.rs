@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::store::{LogError, Record};
+use crate::store::{Damage, LogError, Record};
 
 /// One message as the logger agent saw it on the bus.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -100,11 +100,26 @@ impl Query {
                 .is_none_or(|s| m.acl.contains(s.as_str()))
     }
 
-    /// The matching messages of the log at `path`, in log order.
+    /// The matching messages of the log at `path`, in log order; fails on any damage (the
+    /// logger agent answers from its own, open log, where damage means something went wrong).
     pub fn run(&self, path: &std::path::Path) -> Result<Vec<LoggedMessage>, QueryError> {
         let records = crate::store::read_records(path, crate::store::DEFAULT_MAX_RECORD_LEN)?;
+        self.select(&records)
+    }
+
+    /// The matching messages of every intact record of the log at `path`, and each damaged
+    /// region read past (see [`crate::read_log`]): for tools that must show what survived.
+    pub fn run_past_damage(
+        &self,
+        path: &std::path::Path,
+    ) -> Result<(Vec<LoggedMessage>, Vec<Damage>), QueryError> {
+        let read = crate::store::read_log(path, crate::store::DEFAULT_MAX_RECORD_LEN)?;
+        Ok((self.select(&read.records)?, read.damage))
+    }
+
+    fn select(&self, records: &[Record]) -> Result<Vec<LoggedMessage>, QueryError> {
         let mut out = Vec::new();
-        for record in &records {
+        for record in records {
             let message = LoggedMessage::from_record(record)?;
             if self.matches(&message) {
                 out.push(message);

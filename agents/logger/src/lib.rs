@@ -8,7 +8,7 @@
 //! Guarantees: a record acknowledged by [`LogStore::append`] under [`SyncPolicy::Always`] (or
 //! covered by a later [`LogStore::sync`]) survives a crash; recovery truncates a torn tail and
 //! refuses, with the offset, to open a log damaged anywhere else, so no acknowledged record is lost
-//! silently.
+//! silently; readers report each damaged region and read on past it.
 #![warn(missing_docs)]
 
 pub mod agent;
@@ -17,5 +17,6 @@ pub mod store;
 
 pub use entry::{EntryError, LoggedMessage, Query, QueryError};
 pub use store::{
-    DEFAULT_MAX_RECORD_LEN, LogError, LogStore, Record, Recovery, SyncPolicy, read_records,
+    DEFAULT_MAX_RECORD_LEN, Damage, LogError, LogRead, LogStore, Record, Recovery, SyncPolicy,
+    parse_log, read_log, read_records,
 };

@@ -5,14 +5,17 @@
 //! ```text
 //! file header, 16 bytes
 //! +---------------------------+---------------------------+
-//! | magic "IWLOG\0v1" (8 B)   | reserved, zero (8 B)      |
+//! | magic "IWLOG\0v2" (8 B)   | reserved, zero (8 B)      |
 //! +---------------------------+---------------------------+
 //! record, 16 + len bytes
 //! +------------+------------+------------------------+-----------------+
 //! | len: u32   | crc: u32   | seq: u64               | payload (len B) |
 //! +------------+------------+------------------------+-----------------+
-//! crc = CRC-32C of (seq bytes ++ payload); seq starts at 1 and grows by one per record
+//! crc = CRC-32C (Castagnoli) of (seq bytes ++ payload); seq starts at 1 and grows by one per record
 //! ```
+//!
+//! Logs written before the checksum was CRC-32C carry the magic `IWLOG\0v1` and a CRC-32 (IEEE);
+//! they are still read and appended to with that checksum, so no existing log becomes unreadable.
 //!
 //! A record is valid when its header and payload are complete, `len` is within the configured
 //! limit, the checksum matches and `seq` follows its predecessor. Recovery reads records until the
@@ -20,12 +23,17 @@
 //! crash, never acknowledged) and the file is truncated there; if a valid record follows, the log
 //! was damaged in the middle and [`LogStore::open`] refuses with the offset instead of dropping
 //! acknowledged records.
+//!
+//! Readers ([`read_log`]) never stop at damage: they report each damaged region (its offset, length
+//! and what is wrong) and resynchronise on the next complete, checksummed record whose sequence
+//! number is not behind, so the intact records after a flipped byte are still read.
 
 use std::fs::{File, OpenOptions};
 use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-const MAGIC: &[u8; 8] = b"IWLOG\0v1";
+const MAGIC_V1_IEEE: &[u8; 8] = b"IWLOG\0v1";
+const MAGIC: &[u8; 8] = b"IWLOG\0v2";
 const FILE_HEADER_LEN: u64 = 16;
 const RECORD_HEADER_LEN: usize = 16;
 /// Default largest payload, bytes: far above any ACL message the platform lets through.
@@ -78,6 +86,14 @@ pub enum LogError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A reader met damage (the strict readers [`read_records`] and [`crate::Query::run`]).
+    #[error("{path}: {damage}")]
+    Damaged {
+        /// The file.
+        path: PathBuf,
+        /// The first damaged region.
+        damage: Damage,
+    },
     /// A payload larger than the configured limit.
     #[error("record of {len} bytes exceeds the log's limit of {max} bytes")]
     RecordTooLarge {
@@ -97,6 +113,50 @@ pub struct Record {
     pub payload: Vec<u8>,
 }
 
+/// A stretch of a log that holds no valid record, as [`read_log`] found it.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Damage {
+    /// Byte offset where the damage starts (where a record was expected).
+    pub offset: u64,
+    /// Bytes skipped before the next valid record (or the end of the file).
+    pub len: u64,
+    /// What is wrong with the record expected at `offset`.
+    pub reason: String,
+    /// No valid record follows: a write cut short (a crash, or an append still in progress).
+    pub torn_tail: bool,
+    /// Sequence numbers missing between the record before and the one after (0 for a torn tail).
+    pub missing_records: u64,
+}
+
+impl std::fmt::Display for Damage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let end = self.offset + self.len;
+        if self.torn_tail {
+            write!(
+                f,
+                "torn tail at byte {}: {} bytes to the end of the file hold no complete record ({})",
+                self.offset, self.len, self.reason
+            )
+        } else {
+            write!(
+                f,
+                "damaged region at bytes {}..{end} ({} bytes, {} records lost): {}; \
+                 reading resumed at byte {end}",
+                self.offset, self.len, self.missing_records, self.reason
+            )
+        }
+    }
+}
+
+/// Every intact record of a log and every damaged region between them, in file order.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct LogRead {
+    /// The valid records.
+    pub records: Vec<Record>,
+    /// The damaged regions, in file order; empty for an intact log.
+    pub damage: Vec<Damage>,
+}
+
 /// What [`LogStore::open`] found and repaired.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Recovery {
@@ -111,6 +171,7 @@ pub struct Recovery {
 pub struct LogStore {
     path: PathBuf,
     file: File,
+    format: Format,
     policy: SyncPolicy,
     max_record_len: u32,
     next_seq: u64,
@@ -160,13 +221,21 @@ impl LogStore {
             }
         }
         let scan = scan(&path, &mut file, max_record_len)?;
+        let format = scan.format;
         let recovery = match scan.first_bad {
             None => Recovery {
                 records: scan.records,
                 truncated_bytes: 0,
             },
             Some((offset, reason)) => {
-                if valid_record_after(&mut file, offset, max_record_len, &path)? {
+                if valid_record_after(
+                    &mut file,
+                    offset,
+                    scan.records + 1,
+                    format,
+                    max_record_len,
+                    &path,
+                )? {
                     return Err(LogError::Corrupt {
                         path,
                         offset,
@@ -186,6 +255,7 @@ impl LogStore {
         Ok(LogStore {
             path,
             file,
+            format,
             policy,
             max_record_len,
             next_seq: scan.records + 1,
@@ -227,7 +297,7 @@ impl LogStore {
         let seq = self.next_seq;
         let mut frame = Vec::with_capacity(RECORD_HEADER_LEN + payload.len());
         frame.extend_from_slice(&(payload.len() as u32).to_le_bytes());
-        frame.extend_from_slice(&checksum(seq, payload).to_le_bytes());
+        frame.extend_from_slice(&self.format.checksum(seq, payload).to_le_bytes());
         frame.extend_from_slice(&seq.to_le_bytes());
         frame.extend_from_slice(payload);
         self.file.write_all(&frame).map_err(|source| LogError::Io {
@@ -269,28 +339,124 @@ impl LogStore {
     }
 }
 
-/// Reads every valid record of the log at `path` without opening it for writing (for queries
-/// and replay while the logger agent runs). Stops quietly at a torn tail.
+/// Reads every record of the log at `path` without opening it for writing, and fails with the
+/// first damaged region if there is any (a torn tail included): for callers that must not work
+/// on a partial log. [`read_log`] reads past damage instead.
 pub fn read_records(path: &Path, max_record_len: u32) -> Result<Vec<Record>, LogError> {
-    let io = |context: &'static str| {
-        move |source| LogError::Io {
+    let read = read_log(path, max_record_len)?;
+    match read.damage.into_iter().next() {
+        None => Ok(read.records),
+        Some(damage) => Err(LogError::Damaged {
             path: path.to_path_buf(),
-            context,
-            source,
-        }
-    };
-    let file = File::open(path).map_err(io("opening the log for reading"))?;
-    let mut reader = BufReader::new(file);
-    check_magic(&mut reader, path)?;
-    let mut records = Vec::new();
-    while let Ok(Some(record)) = read_record(&mut reader, records.len() as u64 + 1, max_record_len)
-    {
-        records.push(record);
+            damage,
+        }),
     }
-    Ok(records)
+}
+
+/// Reads the log at `path` without opening it for writing (for queries and replay while the
+/// logger agent runs), skipping and reporting each damaged region: after an invalid record it
+/// resynchronises on the next complete, checksummed record whose sequence number is not behind.
+pub fn read_log(path: &Path, max_record_len: u32) -> Result<LogRead, LogError> {
+    let bytes = std::fs::read(path).map_err(|source| LogError::Io {
+        path: path.to_path_buf(),
+        context: "reading the log",
+        source,
+    })?;
+    parse_log(&bytes, path, max_record_len)
+}
+
+/// [`read_log`] on a log's bytes already in memory; `path` only names it in errors.
+pub fn parse_log(bytes: &[u8], path: &Path, max_record_len: u32) -> Result<LogRead, LogError> {
+    let format = check_magic(&mut &bytes[..], path)?;
+    let mut read = LogRead::default();
+    let mut pos = FILE_HEADER_LEN as usize;
+    let mut expected_seq = 1u64;
+    while pos < bytes.len() {
+        let reason = match read_record(&mut &bytes[pos..], format, max_record_len) {
+            Ok(Some(record)) if record.seq == expected_seq => {
+                pos += RECORD_HEADER_LEN + record.payload.len();
+                expected_seq += 1;
+                read.records.push(record);
+                continue;
+            }
+            Ok(Some(record)) if record.seq > expected_seq => {
+                // Intact, but records are missing before it.
+                read.damage.push(Damage {
+                    offset: pos as u64,
+                    len: 0,
+                    reason: format!(
+                        "sequence number {} where {expected_seq} was expected",
+                        record.seq
+                    ),
+                    torn_tail: false,
+                    missing_records: record.seq - expected_seq,
+                });
+                expected_seq = record.seq;
+                continue;
+            }
+            Ok(Some(record)) => format!(
+                "sequence number {} repeats (expected {expected_seq})",
+                record.seq
+            ),
+            Ok(None) => break,
+            Err(reason) => reason,
+        };
+        let next = next_valid_record(&bytes[pos + 1..], expected_seq, format, max_record_len);
+        let offset = pos as u64;
+        match next {
+            Some((skip, seq)) => {
+                read.damage.push(Damage {
+                    offset,
+                    len: skip as u64 + 1,
+                    reason,
+                    torn_tail: false,
+                    missing_records: seq - expected_seq,
+                });
+                pos += skip + 1;
+                expected_seq = seq;
+            }
+            None => {
+                read.damage.push(Damage {
+                    offset,
+                    len: (bytes.len() - pos) as u64,
+                    reason,
+                    torn_tail: true,
+                    missing_records: 0,
+                });
+                break;
+            }
+        }
+    }
+    Ok(read)
+}
+
+/// The start, within `rest`, of the first complete record with a matching checksum and a
+/// sequence number of at least `min_seq`, and that number.
+fn next_valid_record(
+    rest: &[u8],
+    min_seq: u64,
+    format: Format,
+    max_record_len: u32,
+) -> Option<(usize, u64)> {
+    (0..rest.len()).find_map(|start| {
+        let header: &[u8; RECORD_HEADER_LEN] = rest
+            .get(start..start + RECORD_HEADER_LEN)?
+            .try_into()
+            .ok()?;
+        let (len, _, seq) = split_header(header);
+        // Cheap tests first: most offsets fail them without a checksum.
+        if len > max_record_len || seq < min_seq {
+            return None;
+        }
+        match read_record(&mut &rest[start..], format, max_record_len) {
+            Ok(Some(record)) => Some((start, record.seq)),
+            _ => None,
+        }
+    })
 }
 
 struct Scan {
+    format: Format,
     records: u64,
     first_bad: Option<(u64, String)>,
 }
@@ -303,45 +469,50 @@ fn scan(path: &Path, file: &mut File, max_record_len: u32) -> Result<Scan, LogEr
             source,
         })?;
     let mut reader = BufReader::new(&mut *file);
-    check_magic(&mut reader, path)?;
+    let format = check_magic(&mut reader, path)?;
     let mut offset = FILE_HEADER_LEN;
     let mut records = 0u64;
-    loop {
-        match read_record(&mut reader, records + 1, max_record_len) {
-            Ok(None) => {
-                return Ok(Scan {
-                    records,
-                    first_bad: None,
-                });
-            }
-            Ok(Some(record)) => {
+    let first_bad = loop {
+        match read_record(&mut reader, format, max_record_len) {
+            Ok(None) => break None,
+            Ok(Some(record)) if record.seq == records + 1 => {
                 records += 1;
                 offset += (RECORD_HEADER_LEN + record.payload.len()) as u64;
             }
-            Err(reason) => {
-                return Ok(Scan {
-                    records,
-                    first_bad: Some((offset, reason)),
-                });
+            Ok(Some(record)) => {
+                let reason = format!(
+                    "sequence number {} where {} was expected",
+                    record.seq,
+                    records + 1
+                );
+                break Some((offset, reason));
             }
+            Err(reason) => break Some((offset, reason)),
         }
-    }
+    };
+    Ok(Scan {
+        format,
+        records,
+        first_bad,
+    })
 }
 
-fn check_magic(reader: &mut impl Read, path: &Path) -> Result<(), LogError> {
+fn check_magic(reader: &mut impl Read, path: &Path) -> Result<Format, LogError> {
     let mut header = [0u8; FILE_HEADER_LEN as usize];
     match reader.read_exact(&mut header) {
-        Ok(()) if &header[..8] == MAGIC => Ok(()),
+        Ok(()) if &header[..8] == MAGIC => Ok(Format::Castagnoli),
+        Ok(()) if &header[..8] == MAGIC_V1_IEEE => Ok(Format::V1Ieee),
         _ => Err(LogError::NotALog {
             path: path.to_path_buf(),
         }),
     }
 }
 
-/// `Ok(None)` at a clean end of file, `Err(reason)` for an invalid or incomplete record.
+/// `Ok(None)` at a clean end of file, `Err(reason)` for an invalid or incomplete record; the
+/// caller checks the sequence number.
 fn read_record(
     reader: &mut impl Read,
-    expected_seq: u64,
+    format: Format,
     max_record_len: u32,
 ) -> Result<Option<Record>, String> {
     let mut header = [0u8; RECORD_HEADER_LEN];
@@ -365,21 +536,19 @@ fn read_record(
     if got < payload.len() {
         return Err(format!("payload cut short after {got} of {len} bytes"));
     }
-    if checksum(seq, &payload) != crc {
+    if format.checksum(seq, &payload) != crc {
         return Err("checksum mismatch".to_string());
-    }
-    if seq != expected_seq {
-        return Err(format!(
-            "sequence number {seq} where {expected_seq} was expected"
-        ));
     }
     Ok(Some(Record { seq, payload }))
 }
 
-/// Whether any complete, checksummed record starts after `offset` (damage, not a torn tail).
+/// Whether a complete, checksummed record not behind `min_seq` starts after `offset` (damage,
+/// not a torn tail).
 fn valid_record_after(
     file: &mut File,
     offset: u64,
+    min_seq: u64,
+    format: Format,
     max_record_len: u32,
     path: &Path,
 ) -> Result<bool, LogError> {
@@ -391,23 +560,8 @@ fn valid_record_after(
             context: "reading past a damaged record",
             source,
         })?;
-    for start in 1..rest.len() {
-        let Some(header) = rest.get(start..start + RECORD_HEADER_LEN) else {
-            break;
-        };
-        let header: &[u8; RECORD_HEADER_LEN] = header.try_into().expect("slice of header length");
-        let (len, crc, seq) = split_header(header);
-        if len > max_record_len || seq == 0 {
-            continue;
-        }
-        let body = start + RECORD_HEADER_LEN;
-        if let Some(payload) = rest.get(body..body + len as usize)
-            && checksum(seq, payload) == crc
-        {
-            return Ok(true);
-        }
-    }
-    Ok(false)
+    // From `offset` itself: a checksummed record there whose number jumps ahead is not torn.
+    Ok(next_valid_record(&rest, min_seq, format, max_record_len).is_some())
 }
 
 fn split_header(header: &[u8; RECORD_HEADER_LEN]) -> (u32, u32, u64) {
@@ -432,11 +586,57 @@ fn read_up_to(reader: &mut impl Read, buf: &mut [u8]) -> usize {
     filled
 }
 
-fn checksum(seq: u64, payload: &[u8]) -> u32 {
-    let mut hasher = crc32fast::Hasher::new();
-    hasher.update(&seq.to_le_bytes());
-    hasher.update(payload);
-    hasher.finalize()
+/// Which checksum a log's records carry, from its magic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Format {
+    /// `IWLOG\0v1`: CRC-32 (IEEE), as logs were written before the format doc was followed.
+    V1Ieee,
+    /// `IWLOG\0v2`: CRC-32C, as the format doc says.
+    Castagnoli,
+}
+
+impl Format {
+    fn checksum(self, seq: u64, payload: &[u8]) -> u32 {
+        match self {
+            Format::V1Ieee => {
+                let mut hasher = crc32fast::Hasher::new();
+                hasher.update(&seq.to_le_bytes());
+                hasher.update(payload);
+                hasher.finalize()
+            }
+            Format::Castagnoli => crc32c(crc32c(0, &seq.to_le_bytes()), payload),
+        }
+    }
+}
+
+/// CRC-32C (Castagnoli, reflected polynomial 0x82F63B78) lookup table.
+const CRC32C_TABLE: [u32; 256] = {
+    let mut table = [0u32; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u32;
+        let mut bit = 0;
+        while bit < 8 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0x82F6_3B78
+            } else {
+                c >> 1
+            };
+            bit += 1;
+        }
+        table[i] = c;
+        i += 1;
+    }
+    table
+};
+
+/// Continues the CRC-32C `crc` (0 to start) over `bytes`.
+fn crc32c(crc: u32, bytes: &[u8]) -> u32 {
+    let mut c = !crc;
+    for &b in bytes {
+        c = CRC32C_TABLE[((c ^ u32::from(b)) & 0xff) as usize] ^ (c >> 8);
+    }
+    !c
 }
 
 fn sync_parent_dir(path: &Path) -> std::io::Result<()> {
@@ -489,7 +689,7 @@ mod tests {
         // A crash in the middle of a third append: header and half the payload reach the disk.
         let mut torn = Vec::new();
         torn.extend_from_slice(&20u32.to_le_bytes());
-        torn.extend_from_slice(&checksum(3, &[7; 20]).to_le_bytes());
+        torn.extend_from_slice(&Format::Castagnoli.checksum(3, &[7; 20]).to_le_bytes());
         torn.extend_from_slice(&3u64.to_le_bytes());
         torn.extend_from_slice(&[7; 10]);
         OpenOptions::new()
@@ -578,7 +778,201 @@ mod tests {
         assert_eq!(std::fs::metadata(&path).unwrap().len(), FILE_HEADER_LEN);
     }
 
+    #[test]
+    fn crc32c_matches_the_published_check_values() {
+        // The catalogue's check value and RFC 3720 (iSCSI) B.4 vectors.
+        assert_eq!(crc32c(0, b"123456789"), 0xE306_9283);
+        assert_eq!(crc32c(0, &[0; 32]), 0x8A91_36AA);
+        assert_eq!(crc32c(0, &[0xFF; 32]), 0x62A8_AB43);
+        let ascending: Vec<u8> = (0..32).collect();
+        assert_eq!(crc32c(0, &ascending), 0x46DD_794E);
+        assert_eq!(crc32c(crc32c(0, b"1234"), b"56789"), 0xE306_9283);
+    }
+
+    #[test]
+    fn new_logs_carry_crc32c_and_old_crc32_logs_still_read_and_append() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = log_with(dir.path(), &[b"payload"]);
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[..8], MAGIC);
+        let stored_crc = u32::from_le_bytes(bytes[20..24].try_into().unwrap());
+        let mut covered = 1u64.to_le_bytes().to_vec();
+        covered.extend_from_slice(b"payload");
+        assert_eq!(stored_crc, crc32c(0, &covered));
+
+        // A v1 log as the earlier writer left it: CRC-32 (IEEE).
+        let old = dir.path().join("old.iwl");
+        let mut v1 = MAGIC_V1_IEEE.to_vec();
+        v1.extend_from_slice(&[0; 8]);
+        v1.extend_from_slice(&7u32.to_le_bytes());
+        v1.extend_from_slice(&crc32fast::hash(&covered).to_le_bytes());
+        v1.extend_from_slice(&1u64.to_le_bytes());
+        v1.extend_from_slice(b"payload");
+        std::fs::write(&old, &v1).unwrap();
+        let mut log = LogStore::open(&old, SyncPolicy::Always).unwrap();
+        assert_eq!(log.len(), 1);
+        log.append(b"more", 0).unwrap();
+        let read = read_log(&old, DEFAULT_MAX_RECORD_LEN).unwrap();
+        assert!(read.damage.is_empty(), "{:?}", read.damage);
+        assert_eq!(read.records.len(), 2);
+    }
+
+    /// Byte offsets of every record of a log written by [`log_with`].
+    fn record_offsets(payloads: &[Vec<u8>]) -> Vec<usize> {
+        let mut at = FILE_HEADER_LEN as usize;
+        payloads
+            .iter()
+            .map(|p| {
+                let start = at;
+                at += RECORD_HEADER_LEN + p.len();
+                start
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_flipped_byte_is_reported_and_the_records_after_it_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let payloads: Vec<Vec<u8>> = (0..2119)
+            .map(|i| format!("message {i}").into_bytes())
+            .collect();
+        let refs: Vec<&[u8]> = payloads.iter().map(Vec::as_slice).collect();
+        let path = dir.path().join("messages.iwl");
+        let mut log = LogStore::open(&path, SyncPolicy::EveryN(1000)).unwrap();
+        for p in &refs {
+            log.append(p, 0).unwrap();
+        }
+        log.sync().unwrap();
+        let damaged_at = record_offsets(&payloads)[1000];
+        let mut bytes = std::fs::read(&path).unwrap();
+        bytes[damaged_at + RECORD_HEADER_LEN + 3] ^= 0x01;
+        std::fs::write(&path, &bytes).unwrap();
+
+        let read = read_log(&path, DEFAULT_MAX_RECORD_LEN).unwrap();
+        assert_eq!(
+            read.records.len(),
+            2118,
+            "every intact record, after the damage too"
+        );
+        assert_eq!(read.records[1000].seq, 1002);
+        assert_eq!(read.records.last().unwrap().payload, b"message 2118");
+        assert_eq!(
+            read.damage,
+            [Damage {
+                offset: damaged_at as u64,
+                len: (RECORD_HEADER_LEN + payloads[1000].len()) as u64,
+                reason: "checksum mismatch".into(),
+                torn_tail: false,
+                missing_records: 1,
+            }]
+        );
+        let strict = read_records(&path, DEFAULT_MAX_RECORD_LEN).unwrap_err();
+        assert!(
+            strict
+                .to_string()
+                .contains(&format!("bytes {damaged_at}..")),
+            "{strict}"
+        );
+    }
+
+    #[test]
+    fn a_torn_tail_is_reported_by_readers() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = log_with(dir.path(), &[b"kept", b"cut"]);
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 2]).unwrap();
+        let read = read_log(&path, DEFAULT_MAX_RECORD_LEN).unwrap();
+        assert_eq!(read.records.len(), 1);
+        let tail_at = (FILE_HEADER_LEN as usize + RECORD_HEADER_LEN + 4) as u64;
+        assert_eq!(read.damage.len(), 1);
+        assert!(read.damage[0].torn_tail);
+        assert_eq!(read.damage[0].offset, tail_at);
+        assert!(
+            read.damage[0].reason.contains("cut short"),
+            "{:?}",
+            read.damage
+        );
+    }
+
+    #[test]
+    fn a_sequence_gap_and_a_repeated_record_are_reported() {
+        let dir = tempfile::tempdir().unwrap();
+        let payloads: Vec<Vec<u8>> = [b"a", b"b", b"c"].map(|p| p.to_vec()).to_vec();
+        let refs: Vec<&[u8]> = payloads.iter().map(Vec::as_slice).collect();
+        let path = log_with(dir.path(), &refs);
+        let offsets = record_offsets(&payloads);
+        let bytes = std::fs::read(&path).unwrap();
+        // Record 2 cut out: 1 then 3.
+        let mut gap = bytes[..offsets[1]].to_vec();
+        gap.extend_from_slice(&bytes[offsets[2]..]);
+        std::fs::write(&path, &gap).unwrap();
+        let read = read_log(&path, DEFAULT_MAX_RECORD_LEN).unwrap();
+        assert_eq!(
+            read.records.iter().map(|r| r.seq).collect::<Vec<_>>(),
+            [1, 3]
+        );
+        assert_eq!(read.damage.len(), 1);
+        assert_eq!(read.damage[0].missing_records, 1);
+        // Record 1 replayed after record 2: skipped, reported, record 3 still read.
+        let mut replayed = bytes[..offsets[2]].to_vec();
+        replayed.extend_from_slice(&bytes[offsets[0]..offsets[1]]);
+        replayed.extend_from_slice(&bytes[offsets[2]..]);
+        std::fs::write(&path, &replayed).unwrap();
+        let read = read_log(&path, DEFAULT_MAX_RECORD_LEN).unwrap();
+        assert_eq!(
+            read.records.iter().map(|r| r.seq).collect::<Vec<_>>(),
+            [1, 2, 3]
+        );
+        assert_eq!(read.damage.len(), 1);
+        assert!(
+            read.damage[0].reason.contains("repeats"),
+            "{:?}",
+            read.damage
+        );
+    }
+
     proptest! {
+        /// Any bytes after a valid header: no panic, records in increasing order, damaged regions
+        /// in file order, inside the file and not overlapping.
+        #[test]
+        fn arbitrary_bytes_read_without_panic_and_damage_is_consistent(
+            body in prop::collection::vec(any::<u8>(), 0..600),
+        ) {
+            let mut bytes = MAGIC.to_vec();
+            bytes.extend_from_slice(&[0; 8]);
+            bytes.extend_from_slice(&body);
+            let read = parse_log(&bytes, Path::new("fuzz.iwl"), 64).unwrap();
+            prop_assert!(read.records.windows(2).all(|w| w[0].seq < w[1].seq));
+            let mut end = FILE_HEADER_LEN;
+            for d in &read.damage {
+                prop_assert!(d.offset >= end && d.offset + d.len <= bytes.len() as u64);
+                end = d.offset + d.len;
+            }
+        }
+
+        /// Any one flipped byte loses at most the record that holds it; the damage is reported.
+        #[test]
+        fn one_flipped_byte_loses_only_its_record(
+            payloads in prop::collection::vec(prop::collection::vec(any::<u8>(), 0..40), 1..12),
+            at in any::<prop::sample::Index>(),
+            bit in 0u8..8,
+        ) {
+            let dir = tempfile::tempdir().unwrap();
+            let refs: Vec<&[u8]> = payloads.iter().map(Vec::as_slice).collect();
+            let path = log_with(dir.path(), &refs);
+            let mut bytes = std::fs::read(&path).unwrap();
+            let flip = FILE_HEADER_LEN as usize + at.index(bytes.len() - FILE_HEADER_LEN as usize);
+            bytes[flip] ^= 1 << bit;
+            std::fs::write(&path, &bytes).unwrap();
+            let hit = record_offsets(&payloads).iter().rposition(|&o| o <= flip).unwrap();
+            let read = read_log(&path, DEFAULT_MAX_RECORD_LEN).unwrap();
+            let kept: Vec<u64> = read.records.iter().map(|r| r.seq).collect();
+            let want: Vec<u64> = (1..=payloads.len() as u64).filter(|&s| s != hit as u64 + 1).collect();
+            prop_assert_eq!(kept, want);
+            prop_assert_eq!(read.damage.len(), 1);
+        }
+
+
         /// Cutting a log anywhere (a crash at any byte) keeps exactly the records wholly before
         /// the cut, and the log accepts appends afterwards.
         #[test]

@@ -29,8 +29,8 @@ pub enum Command {
         #[arg(long)]
         json: bool,
         /// Seconds per row (half for round trips, half for throughput).
-        #[arg(long, default_value_t = 0.6)]
-        seconds: f64,
+        #[arg(long, default_value = "0.6", value_parser = super::flags::seconds)]
+        seconds: Duration,
         /// Transports, comma-separated: inproc, iceoryx2, udp, tcp.
         #[arg(long, default_value = "inproc,iceoryx2,udp,tcp")]
         transports: String,
@@ -39,7 +39,7 @@ pub enum Command {
         #[arg(long = "layers", default_values_t = ["raw", "none", "comm", "security", "temporal", "parser", "all"].map(String::from))]
         layer_sets: Vec<String>,
         /// Messages in flight during the throughput half.
-        #[arg(long, default_value_t = 32)]
+        #[arg(long, default_value_t = 32, value_parser = super::flags::count(4096))]
         window: usize,
     },
 }
@@ -53,12 +53,6 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             layer_sets,
             window,
         } => {
-            if !(seconds.is_finite() && seconds > 0.0) {
-                bail!("--seconds must be a positive number, got {seconds}");
-            }
-            if window == 0 {
-                bail!("--window must be at least 1");
-            }
             let transports: Vec<Kind> = transports
                 .split(',')
                 .map(Kind::parse)
@@ -67,13 +61,7 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
                 .iter()
                 .map(|s| Layers::parse(s))
                 .collect::<anyhow::Result<_>>()?;
-            bench_bus(
-                &transports,
-                &layer_sets,
-                Duration::from_secs_f64(seconds / 2.0),
-                window,
-                json,
-            )?;
+            bench_bus(&transports, &layer_sets, seconds / 2, window, json)?;
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -46,8 +46,8 @@ pub struct Args {
     #[arg(long, default_value_t = 7)]
     seed: u64,
     /// Longest simulated time before the demo ends, s.
-    #[arg(long, default_value_t = 90.0)]
-    max_time_s: f64,
+    #[arg(long, default_value = "90", value_parser = super::flags::seconds)]
+    max_time_s: std::time::Duration,
     /// Simulation step, ms.
     #[arg(long, default_value_t = 50)]
     step_ms: u64,
@@ -136,11 +136,6 @@ struct ChairReport {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(
-        args.max_time_s > 0.0 && args.max_time_s.is_finite(),
-        "--max-time-s must be positive, got {}",
-        args.max_time_s
-    );
-    anyhow::ensure!(
         args.step_ms > 0 && args.step_ms <= 1000,
         "--step-ms must be in 1..=1000, got {}",
         args.step_ms
@@ -207,7 +202,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut goal_places: BTreeMap<String, String> = BTreeMap::new();
 
     let step = Duration::from_millis(args.step_ms);
-    let total_steps = (args.max_time_s * 1000.0 / args.step_ms as f64).ceil() as u64;
+    let total_steps = (args.max_time_s.as_secs_f64() * 1000.0 / args.step_ms as f64).ceil() as u64;
     let bar = ProgressBar::new(total_steps);
     bar.set_style(
         ProgressStyle::with_template("{spinner} sim {msg} [{bar:30}] {percent}% ({elapsed})")

@@ -31,7 +31,7 @@ pub enum Command {
 #[derive(clap::Args)]
 pub struct OdometryArgs {
     /// Camera frames (10 per simulated second at the default step).
-    #[arg(long, default_value_t = 80)]
+    #[arg(long, default_value_t = 80, value_parser = super::flags::count(100_000))]
     frames: usize,
     /// Cruise speed, m/s.
     #[arg(long, default_value_t = 0.4)]
@@ -72,10 +72,10 @@ pub struct OdometryArgs {
 #[derive(clap::Args)]
 pub struct SharedControlArgs {
     /// Simulated volunteers (the thesis had 8).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = super::flags::count(1000))]
     drivers: usize,
     /// Laps per driver and paradigm (1: the thesis's protocol; more: the multi-lap mode).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::flags::count(1000))]
     laps: usize,
     /// Output directory (summary.json, trials.json, paths-*.png, collisions.png; sweep.json and
     /// sweep.png with --sweep).
@@ -92,8 +92,8 @@ pub struct SharedControlArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// A lap not finished within this many simulated seconds ends the driver's trial.
-    #[arg(long, default_value_t = 240.0)]
-    lap_timeout_s: f64,
+    #[arg(long, default_value = "240", value_parser = super::flags::seconds)]
+    lap_timeout_s: std::time::Duration,
     /// The drivers' input device.
     #[arg(long, default_value = "head-cap", value_parser = ["head-cap", "joystick"])]
     device: String,
@@ -207,14 +207,6 @@ fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(
-        args.drivers > 0 && args.laps > 0,
-        "--drivers and --laps must be at least 1"
-    );
-    anyhow::ensure!(
-        args.lap_timeout_s.is_finite() && args.lap_timeout_s > 0.0,
-        "--lap-timeout-s must be positive"
-    );
     let map = match &args.map {
         Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
         None => office_circuit()?,
@@ -224,7 +216,7 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
         laps: args.laps,
         seed: args.seed,
         route: args.route.clone(),
-        lap_timeout_s: args.lap_timeout_s,
+        lap_timeout_s: args.lap_timeout_s.as_secs_f64(),
         device: match args.device.as_str() {
             "joystick" => InputDevice::Joystick,
             _ => InputDevice::HeadCap,

@@ -1,12 +1,12 @@
 //! `intellwheels log ...`: query and replay the logger agent's message log.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context;
-use iw_logger::{LoggedMessage, Query};
+use iw_logger::{Damage, LoggedMessage, Query};
 
 /// The `log` subcommands.
 #[derive(clap::Subcommand)]
@@ -15,8 +15,11 @@ pub enum Command {
     ///
     /// Output: one line per message, `time_ns sender -> receivers performative [conversation]`,
     /// then the ACL text indented; with `--json`, one JSON object per line (`time_ns`, `sender`,
-    /// `receivers`, `performative`, `conversation_id`, `acl`). Exit status 0 even when nothing
-    /// matches; 1 when the log cannot be read (the error names the file and offset).
+    /// `receivers`, `performative`, `conversation_id`, `acl`). Exit status 0 when the whole log
+    /// was read, even when nothing matches; 1 when any of it could not be read: each damaged
+    /// region (a flipped byte, a torn tail left by a crash or a write in progress) is reported on
+    /// stderr with the file, its byte offset and what is wrong, and the intact records after it
+    /// are still printed; a file that is not a log at all prints nothing.
     Query {
         /// The log file.
         #[arg(long)]
@@ -51,12 +54,17 @@ pub enum Command {
     },
     /// Print every logged message in order, spaced as they were logged divided by `--speed`
     /// (`--speed 0`: as fast as possible).
+    ///
+    /// Damage is handled as by `log query`: each damaged region is reported on stderr (file, byte
+    /// offset, what) before the replay starts, every intact record is replayed, and the exit
+    /// status is 1.
     Replay {
         /// The log file.
         #[arg(long)]
         log: PathBuf,
-        /// Replay speed: 1 = real time, 10 = ten times faster, 0 = no waiting.
-        #[arg(long, default_value_t = 1.0)]
+        /// Replay speed: 1 = real time, 10 = ten times faster, 0 = no waiting; otherwise between
+        /// 0.001 and 1e9.
+        #[arg(long, default_value = "1", value_parser = super::flags::replay_speed)]
         speed: f64,
     },
 }
@@ -79,8 +87,34 @@ fn print_line(out: &mut impl Write, m: &LoggedMessage) -> std::io::Result<()> {
     writeln!(out, "    {}", m.acl)
 }
 
-/// Runs a `log` subcommand.
+/// Reports each damaged region on stderr; true when there was any.
+fn report_damage(log: &Path, damage: &[Damage]) -> bool {
+    for d in damage {
+        eprintln!("warning: {}: {d}", log.display());
+    }
+    if !damage.is_empty() {
+        eprintln!(
+            "error: {}: {} damaged region(s) skipped; every intact record was read",
+            log.display(),
+            damage.len()
+        );
+    }
+    !damage.is_empty()
+}
+
+/// Runs a `log` subcommand: exit 1 for a log that could not be read wholly (see `--help`).
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
+    match run_inner(command) {
+        Ok(code) => Ok(code),
+        Err(err) if super::is_broken_pipe(&err) => Err(err),
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
+fn run_inner(command: Command) -> anyhow::Result<ExitCode> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match command {
@@ -106,8 +140,8 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
                 until_ns,
                 contains,
             };
-            let found = query
-                .run(&log)
+            let (found, damage) = query
+                .run_past_damage(&log)
                 .with_context(|| format!("querying {}", log.display()))?;
             for m in &found {
                 if json {
@@ -116,23 +150,29 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
                     print_line(&mut out, m)?;
                 }
             }
+            out.flush()?;
+            if report_damage(&log, &damage) {
+                return Ok(ExitCode::FAILURE);
+            }
         }
         Command::Replay { log, speed } => {
-            if !(speed.is_finite() && speed >= 0.0) {
-                anyhow::bail!("--speed must be a finite number >= 0, got {speed}");
-            }
-            let all = Query::default()
-                .run(&log)
+            let (all, damage) = Query::default()
+                .run_past_damage(&log)
                 .with_context(|| format!("reading {}", log.display()))?;
+            let damaged = report_damage(&log, &damage);
             let mut previous_ns = None;
             for m in &all {
                 if let (Some(previous), true) = (previous_ns, speed > 0.0) {
                     let gap_ns = m.time_ns.saturating_sub(previous) as f64 / speed;
                     out.flush()?;
+                    // The speed's range keeps this within Duration's (see flags::replay_speed).
                     std::thread::sleep(Duration::from_secs_f64(gap_ns * 1e-9));
                 }
                 previous_ns = Some(m.time_ns);
                 print_line(&mut out, m)?;
+            }
+            if damaged {
+                return Ok(ExitCode::FAILURE);
             }
         }
     }

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod demo;
 pub mod experiment;
 pub mod features;
+pub mod flags;
 pub mod impair;
 pub mod log;
 pub mod repeatability;

@@ -28,10 +28,17 @@ fn parse_level(s: &str) -> Result<Level, String> {
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
         Command::Parse { level } => {
+            // One byte past the parser's limit is enough to refuse; the rest is never read.
             let mut input = String::new();
             std::io::stdin()
+                .take(iw_sl::MAX_INPUT_BYTES as u64 + 1)
                 .read_to_string(&mut input)
                 .context("reading SL content from stdin")?;
+            anyhow::ensure!(
+                input.len() <= iw_sl::MAX_INPUT_BYTES,
+                "SL content on stdin is longer than the limit of {} bytes; refused unread",
+                iw_sl::MAX_INPUT_BYTES
+            );
             let content = iw_sl::parse(&input, level)
                 .with_context(|| format!("SL content refused at level {level}"))?;
             let out = serde_json::json!({

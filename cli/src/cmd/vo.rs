@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// PNG loader threads decoding ahead of tracking.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = super::flags::threads)]
     loader_threads: usize,
     /// Process only the first N frames.
     #[arg(long)]
@@ -121,7 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let intrinsics = intrinsics(&args)?;
     let total = sequence.frames.len();
-    let mut source = TumReplay::new(sequence.frames.clone(), intrinsics, args.loader_threads, 8);
+    let mut source = TumReplay::new(sequence.frames.clone(), intrinsics, args.loader_threads, 8)?;
     let mut config = VoConfig::new(args.detector, args.pipeline);
     config.seed = args.seed;
     config.refine.focal_px = 0.5 * (intrinsics.fx + intrinsics.fy);

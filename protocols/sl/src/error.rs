@@ -56,6 +56,24 @@ pub enum SlError {
         /// The bound ([`crate::MAX_DEPTH`]).
         limit: usize,
     },
+    /// Content longer than the parser's bound, refused before reading it.
+    #[error("content of {bytes} bytes is longer than the limit of {limit} bytes")]
+    TooLarge {
+        /// Length of the input.
+        bytes: usize,
+        /// The bound ([`crate::MAX_INPUT_BYTES`]).
+        limit: usize,
+    },
+    /// Content of more tokens than the parser's bound.
+    #[error("line {line}, column {column}: more than {limit} tokens in one content")]
+    TooManyTokens {
+        /// Line of the first token past the bound.
+        line: usize,
+        /// Its column.
+        column: usize,
+        /// The bound ([`crate::MAX_TOKENS`]).
+        limit: usize,
+    },
     /// A level name that is none of `sl0`, `sl1`, `sl2`, `full` (or `fipa-sl*`).
     #[error("unknown SL level {name:?} (use sl0, sl1, sl2 or full)")]
     UnknownLevel {

@@ -13,6 +13,7 @@
 //! - Levels accept and refuse what JADE 4.6.5's `SLCodec` does for each (see [`Level`]), checked
 //!   against every row of JADE's answers in `shared/fipa/vectors/sl-decode.jsonl`.
 //! - No input panics: nesting is bounded by [`MAX_DEPTH`]; lexing never indexes past the input.
+//! - Memory is bounded: input by [`MAX_INPUT_BYTES`], the tree by [`MAX_TOKENS`].
 //! - `parse(&content.to_string(), level) == Ok(content)` for parsed content (property-tested),
 //!   except the two values SL cannot spell that the printer documents.
 #![warn(missing_docs)]
@@ -33,4 +34,4 @@ pub use ast::{
 pub use error::SlError;
 pub use jade::jade_tree;
 pub use level::Level;
-pub use parser::{MAX_DEPTH, parse};
+pub use parser::{MAX_DEPTH, MAX_INPUT_BYTES, MAX_TOKENS, parse};

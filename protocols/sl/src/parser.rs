@@ -11,17 +11,34 @@ use crate::lexer::{Keyword, Lexer, Tok, Token, line_column, unescape};
 /// Deepest parenthesis nesting accepted; deeper input is refused instead of exhausting the stack.
 pub const MAX_DEPTH: usize = 128;
 
+/// Longest content accepted, bytes: the size of the largest record the logger stores (1 MiB),
+/// far above any content the platform's agents exchange. Larger input is refused before
+/// lexing: a tree of 10 MB of SL took gigabytes.
+pub const MAX_INPUT_BYTES: usize = 1 << 20;
+
+/// Most tokens (words, numbers, strings, parentheses) accepted in one content: bounds the tree
+/// built, whatever the input's shape.
+pub const MAX_TOKENS: usize = 100_000;
+
 /// Parses SL content (the `(expr+)` tuple an ACL `:content` carries) at `level`.
 ///
 /// Refuses what JADE's codec for that level refuses ([`Level`] lists it). Like JADE, reading
 /// stops at the parenthesis closing the content: text after it is not examined (JADE's own test
 /// content has a stray `)` there).
+/// Input longer than [`MAX_INPUT_BYTES`] or of more than [`MAX_TOKENS`] tokens is refused.
 pub fn parse(input: &str, level: Level) -> Result<Content, SlError> {
+    if input.len() > MAX_INPUT_BYTES {
+        return Err(SlError::TooLarge {
+            bytes: input.len(),
+            limit: MAX_INPUT_BYTES,
+        });
+    }
     Parser {
         lexer: Lexer::new(input),
         peeked: None,
         level,
         depth: 0,
+        tokens: 0,
     }
     .content()
 }
@@ -31,6 +48,7 @@ struct Parser<'a> {
     peeked: Option<Token<'a>>,
     level: Level,
     depth: usize,
+    tokens: usize,
 }
 
 const TERM: &str = "a term: word, string, number, date, byte string, ?variable or \"(\"";
@@ -42,6 +60,15 @@ impl<'a> Parser<'a> {
             Some(t) => Ok(t),
             None => {
                 let t = self.lexer.next_token()?;
+                self.tokens += 1;
+                if self.tokens > MAX_TOKENS {
+                    let (line, column) = line_column(self.lexer.src(), t.offset);
+                    return Err(SlError::TooManyTokens {
+                        line,
+                        column,
+                        limit: MAX_TOKENS,
+                    });
+                }
                 self.peeked = Some(t);
                 Ok(t)
             }
@@ -423,4 +450,44 @@ fn parse_datetime(s: &str) -> Option<DateTime> {
         num(13..15)?,
         num(15..18)?,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oversize_input_is_refused_before_lexing() {
+        let word = "(a)";
+        let input = format!("({})", word.repeat(MAX_INPUT_BYTES / word.len() + 1));
+        assert!(matches!(
+            parse(&input, Level::Full),
+            Err(SlError::TooLarge {
+                limit: MAX_INPUT_BYTES,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn too_many_tokens_are_refused_with_a_position() {
+        // Well under the byte limit, but a tree of more tokens than the bound.
+        let input = format!("((f {}))", "1 ".repeat(MAX_TOKENS));
+        assert!(input.len() < MAX_INPUT_BYTES);
+        let err = parse(&input, Level::Full).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                SlError::TooManyTokens {
+                    line: 1,
+                    limit: MAX_TOKENS,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        // Just under the bound still parses.
+        let fits = format!("((f {}))", "1 ".repeat(MAX_TOKENS - 10));
+        assert!(parse(&fits, Level::Full).is_ok());
+    }
 }

@@ -37,6 +37,42 @@ fn waypoints(path: &[Point2<f64>], spacing_m: f64) -> Vec<Point2<f64>> {
     kept
 }
 
+/// Why a chair refused or failed a goal: the text of an `((error-message "..."))` content as
+/// the chair's agents send it, else the content as received; `None` for other answers.
+fn answer_reason(message: &AclMessage) -> Option<String> {
+    if !matches!(
+        message.performative,
+        Performative::Failure | Performative::Refuse | Performative::NotUnderstood
+    ) {
+        return None;
+    }
+    let text = message.content_text().unwrap_or_default().trim();
+    let said = iw_sl::parse(text, iw_sl::Level::Full)
+        .ok()
+        .and_then(|content| match content.expressions.as_slice() {
+            [iw_sl::ContentExpression::Formula(iw_sl::Formula::Atomic { predicate, args })]
+                if predicate == "error-message" =>
+            {
+                match args.as_slice() {
+                    [
+                        iw_sl::Term::Constant {
+                            value: iw_sl::Constant::String(why),
+                        },
+                    ] => Some(why.clone()),
+                    _ => None,
+                }
+            }
+            _ => None,
+        });
+    Some(said.unwrap_or_else(|| {
+        if text.is_empty() {
+            "(no reason given)".to_string()
+        } else {
+            text.to_string()
+        }
+    }))
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum GoalState {
     /// Waiting for the chair's first pose.
@@ -174,7 +210,7 @@ impl Dispatcher {
                 place: goal.place.clone(),
                 conversation: conversation.into(),
                 performative: message.performative.to_string(),
-                reason: None,
+                reason: answer_reason(message),
             });
         }
     }
@@ -239,5 +275,32 @@ impl Agent for Dispatcher {
 
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_millis(100))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn answer(performative: Performative, content: &str) -> AclMessage {
+        AclMessage::new(performative).with_content(content.to_string())
+    }
+
+    #[test]
+    fn a_chairs_reason_reaches_the_goal_event() {
+        let failure = answer(
+            Performative::Failure,
+            "((error-message \"blocked for 5.0 s at (2.1, 3.0)\"))",
+        );
+        assert_eq!(
+            answer_reason(&failure).as_deref(),
+            Some("blocked for 5.0 s at (2.1, 3.0)")
+        );
+        // A reason in another form is kept as sent, never dropped.
+        let refuse = answer(Performative::Refuse, "((unauthorised))");
+        assert_eq!(answer_reason(&refuse).as_deref(), Some("((unauthorised))"));
+        let bare = answer(Performative::NotUnderstood, "");
+        assert_eq!(answer_reason(&bare).as_deref(), Some("(no reason given)"));
+        assert_eq!(answer_reason(&answer(Performative::Agree, "((x))")), None);
     }
 }

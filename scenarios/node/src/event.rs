@@ -42,7 +42,8 @@ pub enum Event {
         conversation: String,
         /// AGREE, INFORM (done), FAILURE, REFUSE or NOT-UNDERSTOOD; FAILURE also when no path.
         performative: String,
-        /// Why, for failures the services detected themselves.
+        /// Why, for a FAILURE, REFUSE or NOT-UNDERSTOOD: the chair's `error-message` text (its
+        /// content verbatim when it is not one), or what the services detected themselves.
         reason: Option<String>,
     },
     /// A chair's pose as its perception agent published it (services only, rate-limited).

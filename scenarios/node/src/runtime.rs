@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use iw_acl::AgentId;
 use iw_agent::AgentHost;
-use iw_body::{Body, MixedBody, Odometry, SerialBody, WheelGeometry};
+use iw_body::{Body, BodyWorker, MixedBody, Odometry, SerialBody, WheelGeometry};
 use iw_bus::transport::{FrameTransport, PeerAddr};
 use iw_bus::{Bus, BusConfig, Clock, LayerSet};
 use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode};
@@ -176,6 +176,17 @@ struct ChairParts {
     body: SharedBody,
 }
 
+/// The serial body on its own I/O thread: a read blocks up to the board timeout (200 ms), four
+/// control periods; the control agent takes the newest frame and refuses one older than this.
+fn off_the_control_path(serial: SerialBody) -> Result<BodyWorker, NodeError> {
+    BodyWorker::start(serial, Duration::from_millis(STALE_FRAME_MS)).map_err(|e| NodeError::Body {
+        reason: e.to_string(),
+    })
+}
+
+/// Age past which a serial sensor frame is refused, ms (the board answers every 50 ms period).
+const STALE_FRAME_MS: u64 = 300;
+
 fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError> {
     let body_err = |reason: String| NodeError::Body { reason };
     let [x, y, heading_deg] = config.body.start;
@@ -189,7 +200,7 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
         .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
     };
     let (body, world) = match config.body.kind {
-        BodyKind::Serial => (SharedBody::new(serial()?), None),
+        BodyKind::Serial => (SharedBody::new(off_the_control_path(serial()?)?), None),
         BodyKind::Virtual | BodyKind::Mixed => {
             let mut world = World::new(load_map(&config.world.map)?, config.world.seed);
             let kind = if config.body.kind == BodyKind::Virtual {
@@ -198,13 +209,23 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
                 ChairKind::Tracked
             };
             let id = world.add_chair(ChairSpec::default(), t_world_body, kind);
+            if let Some(what) = world.obstruction(id).map_err(|e| body_err(e.to_string()))? {
+                return Err(NodeError::Config {
+                    file: "body.start".into(),
+                    reason: format!(
+                        "{:?} puts the chair's footprint on {} of the map",
+                        config.body.start,
+                        world.describe(what)
+                    ),
+                });
+            }
             let world = iw_sim::shared(world);
             let body = if config.body.kind == BodyKind::Virtual {
                 SharedBody::new(VirtualBody::new(world.clone(), id))
             } else {
                 let ghost = GhostSensors::new(world.clone(), id);
                 SharedBody::new(MixedBody::new(
-                    serial()?,
+                    off_the_control_path(serial()?)?,
                     ghost,
                     Odometry::new(WheelGeometry::default(), t_world_body),
                 ))
@@ -551,6 +572,23 @@ impl Runtime {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_start_pose_on_a_wall_is_refused_with_the_key() {
+        let mut config = SpawnConfig::default();
+        // On the sample building's wall from (0, 7) to (1.4, 7).
+        config.body.start = [0.7, 7.0, 0.0];
+        let err = chair_parts("chair-a", &config)
+            .err()
+            .expect("a start pose on a wall is refused")
+            .to_string();
+        assert!(
+            err.contains("body.start") && err.contains("a wall"),
+            "{err}"
+        );
+        config.body.start = SpawnConfig::default().body.start;
+        assert!(chair_parts("chair-a", &config).is_ok());
+    }
 
     #[test]
     fn control_key_file_is_64_hex_digits() {

@@ -134,3 +134,61 @@ proptest! {
         let _ = Scenario::parse(&text, Path::new("prop.toml")).unwrap().validate(&Map::parse(SAMPLE, "s.map").unwrap());
     }
 }
+
+/// The two-chair scenario with `chairs` and `goal_at_s` put in; validated against the sample map.
+fn check(chairs: &str, goal_at_s: &str) -> Result<(), String> {
+    let text = format!(
+        "name = \"hostile\"\nmap = \"maps/sample-building.map\"\nduration_s = 20\n{chairs}\n\
+         [[goal]]\nat_s = {goal_at_s}\nchair = \"a\"\nxy = [5.5, 6.0]\n"
+    );
+    let scenario = Scenario::parse(&text, Path::new("hostile.toml")).map_err(|e| e.to_string())?;
+    let map = Map::parse(SAMPLE, "sample-building.map").unwrap();
+    scenario.validate(&map).map_err(|e| e.to_string())
+}
+
+#[test]
+fn bad_start_poses_and_times_are_refused_naming_the_entry() {
+    let chair = |name: &str, pose: &str| format!("[[chair]]\nname = \"{name}\"\npose = {pose}\n");
+    let fine = chair("a", "[1.0, 6.0, 0.0]");
+    assert_eq!(check(&fine, "0.5"), Ok(()));
+    // On the closed door `bedroom1` (1.4, 7)-(2.6, 7).
+    let on_door = check(&chair("a", "[2.0, 7.0, 90.0]"), "0.5").unwrap_err();
+    assert!(
+        on_door.contains("chair[0]") && on_door.contains("the closed door `bedroom1`"),
+        "{on_door}"
+    );
+    // In a wall.
+    let in_wall = check(&chair("a", "[0.7, 7.0, 0.0]"), "0.5").unwrap_err();
+    assert!(
+        in_wall.contains("chair[0]") && in_wall.contains("a wall"),
+        "{in_wall}"
+    );
+    // Two chairs on one pose.
+    let twice = format!("{fine}{}", chair("b", "[1.0, 6.0, 0.0]"));
+    let twice = check(&twice, "0.5").unwrap_err();
+    assert!(
+        twice.contains("chair[1]") && twice.contains("chair[0] `a`"),
+        "{twice}"
+    );
+    // A goal that would never come.
+    let never = check(&fine, "1e308").unwrap_err();
+    assert!(
+        never.contains("goal[0]") && never.contains("within the run"),
+        "{never}"
+    );
+}
+
+#[test]
+fn a_route_through_a_wall_is_refused_with_its_line() {
+    let map = "wall 0 0 10 0\nwall 5 -5 5 5\nroute across 1 1 9 1\n";
+    let err = Map::parse(map, "walls.map").unwrap_err().to_string();
+    assert!(
+        err.contains("walls.map:3") && err.contains("route `across`") && err.contains("wall"),
+        "{err}"
+    );
+    let around = "wall 0 0 10 0\nwall 5 -5 5 5\nroute around 1 1 4 1 4 6 6 6 6 1\n";
+    assert!(Map::parse(around, "walls.map").is_ok());
+    let table = "wall 0 -1 10 -1\nbox 5 1 1 1 name=table\nroute lap closed 1 1 9 1 9 3\n";
+    let err = Map::parse(table, "table.map").unwrap_err().to_string();
+    assert!(err.contains("furniture `table`"), "{err}");
+}

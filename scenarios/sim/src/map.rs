@@ -140,6 +140,8 @@ impl Map {
             wall_height_m: DEFAULT_WALL_HEIGHT_M,
             ..Map::default()
         };
+        // The line of each route, to name it when a later check refuses it.
+        let mut route_lines = Vec::new();
         for (index, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
@@ -151,6 +153,7 @@ impl Map {
                 reason,
             };
             parse_line(&mut map, line).map_err(err)?;
+            route_lines.resize(map.routes.len(), index + 1);
         }
         check_unique(map.doors.iter().map(|d| &d.id), "door").map_err(|reason| {
             SimError::Parse {
@@ -166,7 +169,66 @@ impl Map {
                 reason: "map has no walls, furniture or doors".into(),
             });
         }
+        for (route, line) in map.routes.iter().zip(route_lines) {
+            map.check_route(route).map_err(|reason| SimError::Parse {
+                file: file.to_string(),
+                line,
+                reason,
+            })?;
+        }
         Ok(map)
+    }
+
+    /// Refuses a route with a leg through a wall or furniture: a chair could never follow it,
+    /// and an experiment on it would measure nothing but the obstacle. Doors are not checked
+    /// (a route may pass a door that is opened for it).
+    fn check_route(&self, route: &Route) -> Result<(), String> {
+        let n = route.points.len();
+        let legs = if route.closed { n } else { n.saturating_sub(1) };
+        for k in 0..legs {
+            let (a, b) = (&route.points[k], &route.points[(k + 1) % n]);
+            let leg = || {
+                format!(
+                    "route `{}`: leg {} from ({}, {}) to ({}, {})",
+                    route.name,
+                    k + 1,
+                    a.x,
+                    a.y,
+                    b.x,
+                    b.y
+                )
+            };
+            for wall in &self.walls {
+                if let Some(w) = wall
+                    .windows(2)
+                    .find(|w| crate::geom::segments_intersect(a, b, &w[0], &w[1]))
+                {
+                    return Err(format!(
+                        "{} crosses the wall segment ({}, {})-({}, {})",
+                        leg(),
+                        w[0].x,
+                        w[0].y,
+                        w[1].x,
+                        w[1].y
+                    ));
+                }
+            }
+            if let Some(f) = self
+                .furniture
+                .iter()
+                .find(|f| crate::geom::segment_hits_polygon(a, b, &f.polygon))
+            {
+                return Err(format!(
+                    "{} goes through furniture{}",
+                    leg(),
+                    f.name
+                        .as_deref()
+                        .map(|n| format!(" `{n}`"))
+                        .unwrap_or_default()
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Imports an occupancy image: dark pixels (luma < 128) are solid, `resolution_m` metres per
@@ -585,7 +647,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    const SAMPLE: &str = "name test room\nwall closed 0 0 10 0 10 8 0 8 # outer\nbox 5 4 1 2 angle=90 name=table\npolygon 1 1 2 1 1.5 2 height=1.8\ndoor d1 3 0 4 0 open\nrestricted stairs 8 6 10 6 10 8 8 8\npassage hall 1 4 9 4 width=2\nplace kitchen 2 6\nstart s0 1 1 90\nroute lap closed 1 1 9 1 9 7 1 7\n";
+    const SAMPLE: &str = "name test room\nwall closed 0 0 10 0 10 8 0 8 # outer\nbox 5 4 1 2 angle=90 name=table\npolygon 1 1 2 1 1.5 2 height=1.8\ndoor d1 3 0 4 0 open\nrestricted stairs 8 6 10 6 10 8 8 8\npassage hall 1 4 9 4 width=2\nplace kitchen 2 6\nstart s0 1 1 90\nroute lap closed 0.5 0.5 9 0.5 9 7 0.5 7\n";
 
     #[test]
     fn sample_parses() {

@@ -512,6 +512,35 @@ impl World {
 
     /// [`Self::footprint_collides`] for the footprint grown by `margin_m` on every side.
     fn footprint_collides_within(&self, i: usize, pose: &Isometry2<f64>, margin_m: f64) -> bool {
+        self.footprint_hit_within(i, pose, margin_m).is_some()
+    }
+
+    /// What chair `id`'s footprint overlaps at its pose now, if anything: a wall, furniture, a
+    /// closed door or another chair (the first found). For refusing a start pose.
+    pub fn obstruction(&self, id: ChairId) -> Result<Option<Owner>, SimError> {
+        let pose = self.chair(id)?.t_world_body;
+        Ok(self.footprint_hit_within(id.0, &pose, 0.0))
+    }
+
+    /// Names what an [`Owner`] is in this world, for messages (`the closed door `d1``).
+    pub fn describe(&self, owner: Owner) -> String {
+        match owner {
+            Owner::Wall => "a wall".into(),
+            Owner::Furniture => "furniture".into(),
+            Owner::Door(d) => match self.map.doors.get(d) {
+                Some(door) => format!("the closed door `{}`", door.id),
+                None => format!("closed door {d}"),
+            },
+            Owner::Chair(j) => format!("chair {j}"),
+        }
+    }
+
+    fn footprint_hit_within(
+        &self,
+        i: usize,
+        pose: &Isometry2<f64>,
+        margin_m: f64,
+    ) -> Option<Owner> {
         let spec = &self.chairs[i].spec;
         let grown = ChairSpec {
             front_m: spec.front_m + margin_m,
@@ -523,17 +552,18 @@ impl World {
         let (min, max) = poly
             .iter()
             .fold((poly[0], poly[0]), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
-        let mut hit = false;
+        let mut hit = None;
         self.static_grid.query_box(&min, &max, |s| {
-            if !hit
+            if hit.is_none()
                 && let Some(seg) = self.statics.get(s as usize)
                 && self.solid(seg)
+                && segment_hits_polygon(&seg.a, &seg.b, &poly)
             {
-                hit = segment_hits_polygon(&seg.a, &seg.b, &poly);
+                hit = Some(seg.owner);
             }
         });
-        if hit {
-            return true;
+        if hit.is_some() {
+            return hit;
         }
         // other chairs at their current poses; the chair grid (built before this step's moves)
         // proposes candidates within one cell of margin, more than any chair moves per tick
@@ -551,13 +581,16 @@ impl World {
                     candidates.push(*j);
                 }
             });
-        candidates.into_iter().any(|j| {
+        candidates.sort_unstable();
+        candidates.into_iter().find_map(|j| {
             let other = &self.chairs[j];
             let theirs = other.spec.footprint_at(&other.t_world_body);
-            (0..4).any(|k| segment_hits_polygon(&theirs[k], &theirs[(k + 1) % 4], &poly))
+            let overlaps = (0..4)
+                .any(|k| segment_hits_polygon(&theirs[k], &theirs[(k + 1) % 4], &poly))
                 || (0..4).any(|k| {
                     segments_intersect(&poly[k], &poly[(k + 1) % 4], &theirs[0], &theirs[2])
-                })
+                });
+            overlaps.then_some(Owner::Chair(j))
         })
     }
 

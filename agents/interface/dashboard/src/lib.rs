@@ -5,7 +5,9 @@
 //! Organization:
 //! - [`Dashboard`]: the HTTP + websocket server (its own thread and tokio runtime);
 //!   [`Dashboard::publish`] hands it the state, [`Dashboard::try_action`] takes the page's asks.
-//! - [`DashboardConfig`]: where it binds and its access token.
+//! - [`DashboardConfig`]: where it binds and its access token; [`ConnectionLimits`]: what a
+//!   client may hold before it is authenticated (connection cap, header and HTTP timeouts, a
+//!   per-source connection rate).
 //! - [`MapView`], [`State`], [`ChairView`], [`ChairDisplay`], [`MessageView`], [`ContainerView`],
 //!   [`FeatureView`]: what the page is sent (the map once, the state at each publish).
 //! - [`Action`]: what the page may ask.
@@ -17,7 +19,7 @@
 mod server;
 mod state;
 
-pub use server::{Dashboard, DashboardConfig, DashboardError};
+pub use server::{ConnectionLimits, Dashboard, DashboardConfig, DashboardError};
 pub use state::{
     Action, ChairDisplay, ChairView, ContainerView, DoorView, FeatureView, MapView, MessageView,
     PassageView, PlaceView, State, round_cm,

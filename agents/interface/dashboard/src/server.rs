@@ -1,8 +1,10 @@
 //! The HTTP + websocket server.
 
+use std::collections::HashMap;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::{Arc, Mutex, PoisonError, mpsc};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
@@ -11,7 +13,7 @@ use axum::http::{StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
-use tokio::sync::{oneshot, watch};
+use tokio::sync::{Semaphore, oneshot, watch};
 
 use crate::state::{Action, MapView, State};
 
@@ -58,6 +60,36 @@ impl Default for DashboardConfig {
     }
 }
 
+/// What one client may hold before it is authenticated (the token is checked only once a
+/// request's headers are in): a flood of half-open connections or a slowloris otherwise holds
+/// file descriptors and memory without bound.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConnectionLimits {
+    /// Connections served at once before they upgrade to a websocket; more are closed at accept.
+    pub max_connections: usize,
+    /// Time a client has to send a request's headers, from when the server waits for them.
+    pub header_timeout: Duration,
+    /// Longest a connection stays in plain HTTP (headers, a body, keep-alive) before it is
+    /// closed; a websocket that upgraded in time is not bound by it.
+    pub http_timeout: Duration,
+    /// Connections one source address may open at once after a quiet spell.
+    pub per_source_burst: u32,
+    /// Connections one source address may open per second, sustained.
+    pub per_source_per_s: f64,
+}
+
+impl Default for ConnectionLimits {
+    fn default() -> Self {
+        Self {
+            max_connections: 256,
+            header_timeout: Duration::from_secs(5),
+            http_timeout: Duration::from_secs(30),
+            per_source_burst: 64,
+            per_source_per_s: 16.0,
+        }
+    }
+}
+
 #[derive(Clone)]
 struct Shared {
     map: Arc<str>,
@@ -77,8 +109,18 @@ pub struct Dashboard {
 }
 
 impl Dashboard {
-    /// Binds and starts serving `map` and the frames [`Dashboard::publish`]ed.
+    /// Binds and starts serving `map` and the frames [`Dashboard::publish`]ed, with the default
+    /// [`ConnectionLimits`].
     pub fn start(config: DashboardConfig, map: &MapView) -> Result<Self, DashboardError> {
+        Self::start_with_limits(config, map, ConnectionLimits::default())
+    }
+
+    /// [`Dashboard::start`] with explicit bounds on unauthenticated clients.
+    pub fn start_with_limits(
+        config: DashboardConfig,
+        map: &MapView,
+        limits: ConnectionLimits,
+    ) -> Result<Self, DashboardError> {
         let addr = config.bind;
         let token = config.token.filter(|t| !t.is_empty());
         if !addr.ip().is_loopback() && token.is_none() {
@@ -113,13 +155,7 @@ impl Dashboard {
                         Ok(l) => l,
                         Err(e) => return tracing::error!("dashboard listener: {e}"),
                     };
-                    let app = router(shared);
-                    let serve = axum::serve(listener, app).with_graceful_shutdown(async {
-                        let _ = stopped.await;
-                    });
-                    if let Err(e) = serve.await {
-                        tracing::error!("dashboard server: {e}");
-                    }
+                    serve(listener, router(shared), limits, stopped).await;
                 })
             })
             .map_err(|source| DashboardError::Bind { addr, source })?;
@@ -167,6 +203,119 @@ impl Drop for Dashboard {
         }
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
+        }
+    }
+}
+
+/// Accepts connections under `limits` until `stopped`: each source's rate first, then the cap,
+/// then hyper with a header timeout, the whole plain-HTTP phase under `http_timeout`.
+async fn serve(
+    listener: tokio::net::TcpListener,
+    app: Router,
+    limits: ConnectionLimits,
+    mut stopped: oneshot::Receiver<()>,
+) {
+    let slots = Arc::new(Semaphore::new(limits.max_connections.max(1)));
+    let mut sources = SourceLimiter::new(limits);
+    let mut refused = Refusals::default();
+    loop {
+        let (stream, peer) = tokio::select! {
+            _ = &mut stopped => break,
+            accepted = listener.accept() => match accepted {
+                Ok(accepted) => accepted,
+                Err(e) => {
+                    // Out of descriptors (EMFILE) or a connection reset before accept: back off
+                    // instead of spinning; the timeouts free descriptors.
+                    refused.note(&format!("accept failed: {e}"));
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                }
+            },
+        };
+        if !sources.allow(peer.ip(), Instant::now()) {
+            refused.note("source over its connection rate");
+            continue;
+        }
+        let Ok(slot) = slots.clone().try_acquire_owned() else {
+            refused.note("connection cap reached");
+            continue;
+        };
+        let service = hyper_util::service::TowerToHyperService::new(app.clone());
+        tokio::spawn(async move {
+            let mut http = hyper::server::conn::http1::Builder::new();
+            http.timer(hyper_util::rt::TokioTimer::new())
+                .header_read_timeout(limits.header_timeout);
+            let connection = http
+                .serve_connection(hyper_util::rt::TokioIo::new(stream), service)
+                .with_upgrades();
+            // Dropping the connection at the deadline closes it; an upgrade ends this future.
+            let _ = tokio::time::timeout(limits.http_timeout, connection).await;
+            drop(slot);
+        });
+    }
+}
+
+/// Per-source token buckets: `per_source_burst` connections, refilled at `per_source_per_s`.
+struct SourceLimiter {
+    limits: ConnectionLimits,
+    buckets: HashMap<IpAddr, (f64, Instant)>,
+}
+
+/// Sources remembered at most; past it, the full buckets (quiet sources) are forgotten.
+const MAX_TRACKED_SOURCES: usize = 4096;
+
+impl SourceLimiter {
+    fn new(limits: ConnectionLimits) -> Self {
+        Self {
+            limits,
+            buckets: HashMap::new(),
+        }
+    }
+
+    fn allow(&mut self, source: IpAddr, now: Instant) -> bool {
+        let burst = f64::from(self.limits.per_source_burst.max(1));
+        let rate = self.limits.per_source_per_s.max(0.0);
+        let refill = |(tokens, at): (f64, Instant)| {
+            (
+                burst.min(tokens + now.duration_since(at).as_secs_f64() * rate),
+                now,
+            )
+        };
+        if self.buckets.len() >= MAX_TRACKED_SOURCES && !self.buckets.contains_key(&source) {
+            self.buckets.retain(|_, bucket| refill(*bucket).0 < burst);
+        }
+        let bucket = self.buckets.entry(source).or_insert((burst, now));
+        *bucket = refill(*bucket);
+        if bucket.0 >= 1.0 {
+            bucket.0 -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// Connections refused, reported as one WARN per kind at most every [`REFUSAL_REPORT`].
+#[derive(Default)]
+struct Refusals {
+    counts: HashMap<String, u64>,
+    last_report: Option<Instant>,
+}
+
+const REFUSAL_REPORT: Duration = Duration::from_secs(10);
+
+impl Refusals {
+    fn note(&mut self, why: &str) {
+        *self.counts.entry(why.to_string()).or_default() += 1;
+        let now = Instant::now();
+        if self
+            .last_report
+            .is_none_or(|at| now.duration_since(at) >= REFUSAL_REPORT)
+        {
+            for (why, n) in self.counts.drain() {
+                tracing::warn!("dashboard: {n} connection(s) refused: {why}");
+            }
+            self.last_report = Some(now);
         }
     }
 }

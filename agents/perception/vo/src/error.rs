@@ -24,6 +24,17 @@ pub enum VoError {
         /// The operating system's reason.
         source: std::io::Error,
     },
+    /// The system refused a loader thread.
+    #[error("could start only {started} of {requested} loader threads: {source}")]
+    Threads {
+        /// Threads asked for.
+        requested: usize,
+        /// Threads running when the system refused one (stopped again).
+        started: usize,
+        /// The operating system's reason.
+        #[source]
+        source: std::io::Error,
+    },
     /// An image could not be decoded or has the wrong pixel format or size.
     #[error("image {path}: {reason}")]
     Image {

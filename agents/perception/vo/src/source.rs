@@ -45,10 +45,15 @@ pub trait CameraSource {
 pub fn load_pair(pair: &FramePair) -> Result<RgbdFrame, VoError> {
     let started = std::time::Instant::now();
     let open = |path: &Path| {
-        image::open(path).map_err(|e| VoError::Image {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        })
+        let file = crate::tum::open_regular(path).map_err(|e| VoError::io(path, e))?;
+        image::ImageReader::new(std::io::BufReader::new(file))
+            .with_guessed_format()
+            .map_err(|e| VoError::io(path, e))?
+            .decode()
+            .map_err(|e| VoError::Image {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })
     };
     let rgb = open(&pair.rgb)?.into_rgb8();
     let depth = match open(&pair.depth)? {
@@ -90,23 +95,38 @@ pub struct TumReplay {
 }
 
 impl TumReplay {
-    /// Starts the loaders on `frames` (at least one thread, at least one frame of lookahead).
+    /// Starts the loaders on `frames` (at least one thread, at least one frame of lookahead);
+    /// fails, stopping the loaders already started, when the system refuses a thread.
     pub fn new(
         frames: Vec<FramePair>,
         intrinsics: Intrinsics,
         threads: usize,
         lookahead: usize,
-    ) -> Self {
+    ) -> Result<Self, VoError> {
         let total = frames.len();
         let frames = Arc::new(frames);
         let cursor = Arc::new(AtomicUsize::new(0));
         let stop = Arc::new(AtomicBool::new(false));
         let (sender, receiver) = mpsc::sync_channel(lookahead.max(1));
-        let workers = (0..threads.max(1))
-            .map(|_| {
-                let (frames, cursor, stop, sender) =
-                    (frames.clone(), cursor.clone(), stop.clone(), sender.clone());
-                std::thread::spawn(move || {
+        let mut replay = TumReplay {
+            intrinsics,
+            total,
+            next: 0,
+            receiver: Some(receiver),
+            pending: BTreeMap::new(),
+            stop,
+            workers: Vec::new(),
+        };
+        for n in 0..threads.max(1) {
+            let (frames, cursor, stop, sender) = (
+                frames.clone(),
+                cursor.clone(),
+                replay.stop.clone(),
+                sender.clone(),
+            );
+            let worker = std::thread::Builder::new()
+                .name(format!("vo-loader-{n}"))
+                .spawn(move || {
                     while !stop.load(Ordering::Relaxed) {
                         let i = cursor.fetch_add(1, Ordering::Relaxed);
                         let Some(pair) = frames.get(i) else { break };
@@ -115,17 +135,14 @@ impl TumReplay {
                         }
                     }
                 })
-            })
-            .collect();
-        TumReplay {
-            intrinsics,
-            total,
-            next: 0,
-            receiver: Some(receiver),
-            pending: BTreeMap::new(),
-            stop,
-            workers,
+                .map_err(|source| VoError::Threads {
+                    requested: threads,
+                    started: n,
+                    source,
+                })?;
+            replay.workers.push(worker);
         }
+        Ok(replay)
     }
 }
 

@@ -109,7 +109,32 @@ impl TumSequence {
 
 /// Reads a whole text file with its path in the error.
 pub fn read(path: &Path) -> Result<String, VoError> {
-    std::fs::read_to_string(path).map_err(|e| VoError::io(path, e))
+    let mut text = String::new();
+    open_regular(path)
+        .and_then(|mut file| std::io::Read::read_to_string(&mut file, &mut text))
+        .map_err(|e| VoError::io(path, e))?;
+    Ok(text)
+}
+
+/// Opens `path` for reading only if it is a regular file: a FIFO named in a sequence's lists
+/// would block the open forever, a device would never end.
+pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    let not_regular = || {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a FIFO, device or folder is refused: reading it could block \
+             or never end)",
+        )
+    };
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(not_regular());
+    }
+    let file = std::fs::File::open(path)?;
+    // Checked again on the open file: the path may have been swapped in between.
+    if !file.metadata()?.is_file() {
+        return Err(not_regular());
+    }
+    Ok(file)
 }
 
 /// Lines that carry data: 1-based number and fields, skipping blanks and `#` comments.
@@ -281,6 +306,39 @@ pub fn write_trajectory(mut out: impl Write, poses: &[StampedPose]) -> std::io::
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Runs `f` on a thread and fails (instead of hanging the suite) if it blocks.
+    fn within_seconds<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || tx.send(f()));
+        rx.recv_timeout(std::time::Duration::from_secs(10))
+            .expect("blocked: a FIFO was opened")
+    }
+
+    #[test]
+    fn a_fifo_in_a_sequence_is_refused_not_waited_on() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("rgb.txt");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("SKIP: mkfifo is not available");
+            return;
+        }
+        std::fs::write(dir.path().join("depth.txt"), "1.0 depth/1.png\n").unwrap();
+        let seq_dir = dir.path().to_path_buf();
+        let err = within_seconds(move || TumSequence::open(&seq_dir, 0.02).err()).unwrap();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+
+        // Named as an image in a frame pair: the loader refuses it too.
+        let pair = FramePair {
+            timestamp_s: 1.0,
+            rgb: fifo,
+            depth_timestamp_s: 1.0,
+            depth: dir.path().join("depth.txt"),
+        };
+        let err = within_seconds(move || crate::source::load_pair(&pair).err()).unwrap();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+    }
 
     fn p() -> &'static Path {
         Path::new("x.txt")

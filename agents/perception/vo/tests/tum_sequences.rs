@@ -70,7 +70,7 @@ fn unreadable_image_is_an_error_not_a_panic() {
     .expect("write");
     std::fs::write(tmp.path().join("rgb.png"), b"not a png").expect("write");
     let seq = TumSequence::open(tmp.path(), 0.02).expect("lists parse");
-    let mut replay = TumReplay::new(seq.frames, Intrinsics::tum_freiburg1(), 2, 2);
+    let mut replay = TumReplay::new(seq.frames, Intrinsics::tum_freiburg1(), 2, 2).unwrap();
     let err = replay
         .next_frame()
         .expect("one frame")
@@ -81,7 +81,7 @@ fn unreadable_image_is_an_error_not_a_panic() {
 
 fn run(dir: &Path, pipeline: Pipeline) -> Vec<iw_vo::StampedPose> {
     let seq = TumSequence::open(dir, tum::DEFAULT_MAX_DT_S).expect("opens");
-    let mut replay = TumReplay::new(seq.frames.clone(), Intrinsics::tum_freiburg1(), 2, 4);
+    let mut replay = TumReplay::new(seq.frames.clone(), Intrinsics::tum_freiburg1(), 2, 4).unwrap();
     let mut vo = VisualOdometry::new(
         VoConfig::new(DetectorKind::LsacSurf, pipeline),
         Intrinsics::tum_freiburg1(),

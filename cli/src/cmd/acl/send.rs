@@ -45,8 +45,8 @@ pub struct SendArgs {
     #[arg(long)]
     ontology: Option<String>,
     /// Seconds to wait for the conversation to end.
-    #[arg(long, default_value_t = 10.0)]
-    timeout: f64,
+    #[arg(long, default_value = "10", value_parser = crate::cmd::flags::seconds)]
+    timeout: Duration,
     /// Where the reply endpoint listens (loopback unless the other platform is on another host).
     #[arg(long, default_value = "127.0.0.1:0")]
     bind: SocketAddr,
@@ -83,10 +83,6 @@ pub fn run(args: &SendArgs) -> anyhow::Result<ExitCode> {
         args.to.contains('@'),
         "--to {:?} must be a full agent name, NAME@PLATFORM",
         args.to
-    );
-    anyhow::ensure!(
-        args.timeout.is_finite() && args.timeout > 0.0,
-        "--timeout must be a positive number of seconds"
     );
     iw_mtp_http::wire::Url::parse(&args.address)
         .with_context(|| format!("--address {:?}", args.address))?;
@@ -139,7 +135,7 @@ async fn converse(args: &SendArgs, performative: Performative) -> anyhow::Result
     )?;
 
     let own_ams = format!("ams@{PLATFORM}");
-    let deadline = tokio::time::Instant::now() + Duration::from_secs_f64(args.timeout);
+    let deadline = tokio::time::Instant::now() + args.timeout;
     let mut replies = 0usize;
     loop {
         let Ok(next) = tokio::time::timeout_at(deadline, inbox.recv()).await else {
@@ -152,7 +148,7 @@ async fn converse(args: &SendArgs, performative: Performative) -> anyhow::Result
             }
             eprintln!(
                 "no end of the conversation within {} s ({replies} replies)",
-                args.timeout
+                args.timeout.as_secs_f64()
             );
             return Ok(ExitCode::from(1));
         };

@@ -1,0 +1,95 @@
+//! Extreme flags and hostile inputs on the real binary: each is refused by the argument parser
+//! or with a clear error, never a panic, an abort or a hang.
+
+use std::time::Duration;
+
+const LIMIT: Duration = Duration::from_secs(20);
+
+#[test]
+fn numbers_too_big_for_their_use_are_refused_by_the_argument_parser() {
+    let Some(bin) = crate::intellwheels() else {
+        return;
+    };
+    let huge = u64::MAX.to_string();
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["log", "replay", "--log", "x.iwl", "--speed", "1e-300"],
+            "--speed",
+        ),
+        (&["bench", "bus", "--seconds", "1e300"], "--seconds"),
+        (
+            &[
+                "acl",
+                "send",
+                "--to",
+                "a@b",
+                "--address",
+                "http://127.0.0.1:9/acc",
+                "--performative",
+                "inform",
+                "--timeout",
+                "1e300",
+            ],
+            "--timeout",
+        ),
+        (
+            &["vo", "--loader-threads", "100000", "-o", "t.txt", "seq"],
+            "--loader-threads",
+        ),
+        // Counts that overflowed arithmetic or never ended.
+        (
+            &["experiment", "shared-control", "--drivers", huge.as_str()],
+            "--drivers",
+        ),
+        (&["bench", "bus", "--window", huge.as_str()], "--window"),
+    ];
+    for (args, flag) in cases {
+        let result = crate::run(&bin, args, b"", LIMIT);
+        crate::assert_refused(&args.join(" "), &result, 2, flag);
+    }
+}
+
+/// Makes a FIFO at `path`; false (SKIP printed) when `mkfifo` is missing.
+fn mkfifo(path: &std::path::Path) -> bool {
+    let made = std::process::Command::new("mkfifo").arg(path).status();
+    let ok = made.is_ok_and(|s| s.success());
+    if !ok {
+        println!("SKIP: mkfifo is not available");
+    }
+    ok
+}
+
+#[test]
+fn a_fifo_in_a_sequence_is_refused_not_waited_on() {
+    let Some(bin) = crate::intellwheels() else {
+        return;
+    };
+    // As a list file, then as an image a list names.
+    for fifo in ["rgb.txt", "rgb/1.png"] {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("rgb")).unwrap();
+        std::fs::create_dir(dir.path().join("depth")).unwrap();
+        if fifo != "rgb.txt" {
+            std::fs::write(dir.path().join("rgb.txt"), "1.0 rgb/1.png\n").unwrap();
+        }
+        std::fs::write(dir.path().join("depth.txt"), "1.0 depth/1.png\n").unwrap();
+        std::fs::write(dir.path().join("depth/1.png"), b"").unwrap();
+        if !mkfifo(&dir.path().join(fifo)) {
+            return;
+        }
+        let out = dir.path().join("trajectory.txt");
+        let args = [
+            "vo",
+            dir.path().to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        let result = crate::run(&bin, &args, b"", LIMIT);
+        crate::assert_refused(
+            &format!("vo ({fifo} is a FIFO)"),
+            &result,
+            2,
+            "not a regular file",
+        );
+    }
+}
