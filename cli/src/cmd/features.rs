@@ -1,4 +1,4 @@
-//! `intellwheels features IMG [IMG2] --detector surf|ln-surf|lsac-surf (-o OUT.png | --json)`:
+//! `intellwheels features IMG [IMG2] --detector surf|ln-surf|lsac-surf|lsac-surf-nt (-o OUT.png | --json)`:
 //! visual debugging of the detectors. The PNG shows hard features red, soft green, the circle's
 //! diameter the keypoint size and a line its orientation; with two images, side by side with
 //! their matches as yellow lines. `--json` prints one keypoint per line for other tools.
@@ -18,7 +18,7 @@ pub struct Args {
     image: PathBuf,
     /// Second image: its features are matched against the first one's.
     image2: Option<PathBuf>,
-    /// Detector: surf, ln-surf or lsac-surf.
+    /// Detector: surf, ln-surf, lsac-surf or lsac-surf-nt.
     #[arg(long, default_value = "lsac-surf")]
     detector: DetectorKind,
     /// Output PNG with the features (and matches) drawn.
@@ -36,6 +36,12 @@ pub struct Args {
     /// Override the detector's response threshold (see `DetectorConfig::threshold`).
     #[arg(long)]
     threshold: Option<f32>,
+    /// Override the noise-aware threshold's factor (see `DetectorConfig::noise_factor`; 0: off).
+    #[arg(long)]
+    noise_factor: Option<f32>,
+    /// Keep at most this many keypoints, strongest first (see `DetectorConfig::max_keypoints`).
+    #[arg(long)]
+    max_keypoints: Option<usize>,
     /// Skip orientation (U-SURF).
     #[arg(long)]
     upright: bool,
@@ -63,6 +69,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut config = DetectorConfig::for_kind(args.detector);
     if let Some(t) = args.threshold {
         config.threshold = t;
+    }
+    if let Some(k) = args.noise_factor {
+        config.noise_factor = k;
+    }
+    if args.max_keypoints.is_some() {
+        config.max_keypoints = args.max_keypoints;
     }
     config.upright = args.upright;
     config.validate()?;

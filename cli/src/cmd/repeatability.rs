@@ -11,6 +11,8 @@
 //! `--pair A B --out OUT`: two photographs of one scene from a fixed camera under different real
 //! light; `OUT/summary.json` is `{"pair": {detector: {"repeatability": %, "features": N}}}`
 //! where N counts the keypoints of B (the denominator).
+//!
+//! `--sequence DIR --out OUT`: a real sequence with ground-truth homographies (see [`sequence`]).
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -29,15 +31,25 @@ use serde_json::{Value, json};
 
 use super::features::load_rgb;
 
+mod sequence;
+
 /// Flags of `intellwheels repeatability`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Folder of photographs (PNG/JPEG) to relight with LIC, LIS and LCC.
-    #[arg(long, required_unless_present = "pair", conflicts_with = "pair")]
+    #[arg(
+        long,
+        required_unless_present_any = ["pair", "sequence"],
+        conflicts_with_all = ["pair", "sequence"]
+    )]
     images: Option<PathBuf>,
     /// Two photographs of one scene under different real light (reference first).
-    #[arg(long, num_args = 2, value_names = ["A", "B"])]
+    #[arg(long, num_args = 2, value_names = ["A", "B"], conflicts_with = "sequence")]
     pair: Option<Vec<PathBuf>>,
+    /// A real sequence: `img1..imgN` (PNG/JPEG/PPM) and `H1toKp`, the homography from img1 to
+    /// imgK, 9 numbers row by row.
+    #[arg(long)]
+    sequence: Option<PathBuf>,
     /// Output folder (created if missing).
     #[arg(long)]
     out: PathBuf,
@@ -46,13 +58,14 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    match (&args.images, &args.pair) {
-        (Some(dir), _) => run_collections(dir, &args.out),
-        (None, Some(pair)) => match pair.as_slice() {
+    match (&args.images, &args.pair, &args.sequence) {
+        (Some(dir), _, _) => run_collections(dir, &args.out),
+        (None, Some(pair), _) => match pair.as_slice() {
             [a, b] => run_pair(a, b, &args.out),
             _ => anyhow::bail!("--pair takes exactly two images"),
         },
-        (None, None) => anyhow::bail!("give --images DIR or --pair A B"),
+        (None, None, Some(dir)) => sequence::run_sequence(dir, &args.out),
+        (None, None, None) => anyhow::bail!("give --images DIR, --pair A B or --sequence DIR"),
     }
 }
 
@@ -233,7 +246,7 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
         "| collection | {} |",
         DetectorKind::ALL.map(|k| k.name()).join(" | ")
     );
-    println!("|---|---|---|---|");
+    println!("|---|{}", "---|".repeat(DetectorKind::ALL.len()));
     for collection in Collection::ALL {
         let mut per_kind = serde_json::Map::new();
         let mut stats = serde_json::Map::new();
@@ -280,6 +293,7 @@ fn write_outputs(out: &Path, files: &[PathBuf], rows: &[Row]) -> anyhow::Result<
             (DetectorKind::Surf, DetectorKind::LnSurf),
             (DetectorKind::Surf, DetectorKind::LsacSurf),
             (DetectorKind::LnSurf, DetectorKind::LsacSurf),
+            (DetectorKind::LsacSurf, DetectorKind::LsacSurfNt),
         ] {
             let w = wilcoxon(
                 &values(rows, collection, a, |r| r.repeatability),

@@ -105,8 +105,17 @@ impl Relight {
 
 /// Repeatability (percent) of `relit` keypoints against `reference` ones (thesis eq. 4.66).
 pub fn repeatability(relit: &[Keypoint], reference: &[Keypoint]) -> f64 {
-    if relit.is_empty() || reference.is_empty() {
+    if relit.is_empty() {
         return 0.0;
+    }
+    100.0 * correspondences(relit, reference) as f64 / relit.len() as f64
+}
+
+/// The number of one-to-one correspondences `C` between two keypoint sets in the same frame:
+/// pairs within [`DIST_TOL_PX`] and a size ratio within [`SIZE_TOL`], nearest pairs first.
+pub fn correspondences(relit: &[Keypoint], reference: &[Keypoint]) -> usize {
+    if relit.is_empty() || reference.is_empty() {
+        return 0;
     }
     // Candidate pairs within tolerance, via a grid of DIST_TOL_PX cells over the reference.
     let cell = DIST_TOL_PX;
@@ -146,7 +155,7 @@ pub fn repeatability(relit: &[Keypoint], reference: &[Keypoint]) -> f64 {
             n += 1;
         }
     }
-    100.0 * n as f64 / relit.len() as f64
+    n
 }
 
 /// Median, mean and interquartile range (linear interpolation between order statistics, as
@@ -192,11 +201,12 @@ impl Summary {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::FeatureClass;
 
-    fn kp(x: f32, y: f32, size: f32) -> Keypoint {
+    /// A hard keypoint at `(x, y)` of diameter `size` px (shared with `sequence`'s tests).
+    pub(crate) fn kp(x: f32, y: f32, size: f32) -> Keypoint {
         Keypoint {
             x,
             y,

@@ -12,6 +12,8 @@
 //!   features matched against all, opposite Laplacian signs skipped.
 //! - [`experiment`]: the thesis's illumination collections (LIC, LIS, LCC), the repeatability
 //!   protocol (eq. 4.66); detectors are compared with `iw_stats`' Wilcoxon signed-rank test.
+//! - [`sequence`] with [`homography`]: the same protocol on real sequences with ground-truth
+//!   homographies (real light, moving camera).
 //! - [`GrayImage32`], [`IntegralImage`]: typed buffers the pipeline works on.
 //!
 //! # Guarantees
@@ -32,9 +34,12 @@ mod describe;
 pub mod experiment;
 mod extrema;
 mod hessian;
+pub mod homography;
 mod image32;
 mod integral;
 mod matching;
+mod noise;
+pub mod sequence;
 mod simd;
 mod working;
 
@@ -55,23 +60,36 @@ pub enum DetectorKind {
     LnSurf,
     /// SURF on the local space average colour image (thesis Algorithm 2).
     LsacSurf,
+    /// LSAC-SURF with a noise-aware threshold (not in the thesis): the local average division
+    /// amplifies sensor noise where the image is dark, so a keypoint must also stand above the
+    /// noise measured in its own region of the image (see [`DetectorConfig::noise_factor`]);
+    /// of those, the strongest [`DetectorConfig::max_keypoints`] are kept, so the count does not
+    /// follow the light.
+    LsacSurfNt,
 }
 
 impl DetectorKind {
     /// All detectors, in the order the thesis compares them.
-    pub const ALL: [DetectorKind; 3] = [
+    pub const ALL: [DetectorKind; 4] = [
         DetectorKind::Surf,
         DetectorKind::LnSurf,
         DetectorKind::LsacSurf,
+        DetectorKind::LsacSurfNt,
     ];
 
-    /// The command-line and JSON name: `surf`, `ln-surf`, `lsac-surf`.
+    /// The command-line and JSON name: `surf`, `ln-surf`, `lsac-surf`, `lsac-surf-nt`.
     pub fn name(self) -> &'static str {
         match self {
             DetectorKind::Surf => "surf",
             DetectorKind::LnSurf => "ln-surf",
             DetectorKind::LsacSurf => "lsac-surf",
+            DetectorKind::LsacSurfNt => "lsac-surf-nt",
         }
+    }
+
+    /// Whether the detector runs on the local space average colour image.
+    pub fn is_lsac(self) -> bool {
+        matches!(self, DetectorKind::LsacSurf | DetectorKind::LsacSurfNt)
     }
 }
 
@@ -159,8 +177,8 @@ pub enum FeatureError {
         /// The accepted range.
         reason: &'static str,
     },
-    /// A detector name that is none of `surf`, `ln-surf`, `lsac-surf`.
-    #[error("unknown detector `{name}` (expected surf, ln-surf or lsac-surf)")]
+    /// A detector name that is none of `surf`, `ln-surf`, `lsac-surf`, `lsac-surf-nt`.
+    #[error("unknown detector `{name}` (expected surf, ln-surf, lsac-surf or lsac-surf-nt)")]
     UnknownDetector {
         /// The name given.
         name: String,
@@ -197,10 +215,13 @@ impl Detector {
         let normalise = (kind == DetectorKind::LnSurf).then_some(&self.scratch.gray_integral);
         self.layers
             .compute(self.scratch.working(kind), normalise, config);
-        let candidates = extrema::find(&self.layers, config);
+        let mut keypoints = extrema::find(&self.layers, config);
+        if config.noise_factor > 0.0 {
+            let floor = noise::NoiseFloor::measure(&self.layers, config);
+            keypoints.retain(|kp| kp.response > floor.threshold(kp));
+        }
         // LN-SURF describes on the intensity image (Algorithm 1), LSAC-SURF on its working space.
         let describe_on = self.scratch.working(kind);
-        let mut keypoints = candidates;
         if let Some(max) = config.max_keypoints {
             keypoints.sort_by(|a, b| b.response.total_cmp(&a.response));
             keypoints.truncate(max);

@@ -222,7 +222,7 @@ mod properties {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]
         #[test]
-        fn any_small_image_detects_without_panic(w in 0u32..48, h in 0u32..48, seed in any::<u64>(), kind in 0usize..3) {
+        fn any_small_image_detects_without_panic(w in 0u32..48, h in 0u32..48, seed in any::<u64>(), kind in 0usize..DetectorKind::ALL.len()) {
             let mut state = seed;
             let img = RgbImage::from_fn(w, h, |_, _| {
                 state = state.wrapping_mul(6364136223846793005).wrapping_add(1);

@@ -29,7 +29,7 @@ impl Scratch {
         config: &DetectorConfig,
     ) {
         self.gray.luma_into(image);
-        if kind != DetectorKind::LsacSurf {
+        if !kind.is_lsac() {
             self.gray_integral
                 .compute(&self.gray, kind == DetectorKind::LnSurf);
             return;
@@ -94,7 +94,7 @@ impl Scratch {
     /// The integral image the Hessian runs on for `kind`.
     pub(crate) fn working(&self, kind: DetectorKind) -> &IntegralImage {
         match kind {
-            DetectorKind::LsacSurf => &self.lsac_integral,
+            DetectorKind::LsacSurf | DetectorKind::LsacSurfNt => &self.lsac_integral,
             DetectorKind::Surf | DetectorKind::LnSurf => &self.gray_integral,
         }
     }
