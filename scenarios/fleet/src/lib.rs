@@ -61,6 +61,8 @@ use nalgebra::{Isometry2, Point2};
 
 use compose::{Building, ServiceConfig, SharedBody, agent_id};
 pub use console::{Console, Desk, GoalEvent, SharedDesk};
+/// The interface agent's raw device readings, for [`Fleet::inputs`].
+pub use iw_interface::RawInput;
 use iw_perception_agent::VisualConfig;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
 
