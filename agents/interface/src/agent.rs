@@ -279,8 +279,8 @@ impl Agent for InterfaceAgent {
             .drain(..)
             .collect();
         for (raw, t_ms) in pending {
-            if let Some(reading) = raw.proportional() {
-                let command = match self.config.mapping.command(reading) {
+            if let Some(mapped) = self.config.mapping.command(&raw) {
+                let command = match mapped {
                     Ok(command) => Some(command),
                     Err(err) => {
                         tracing::warn!("drive input refused, chair stopped: {err}");

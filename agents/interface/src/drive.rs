@@ -17,7 +17,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::InterfaceError;
-use crate::input::Device;
+use crate::input::{Device, RawInput};
 
 /// A normalised 2-D input: `x` right, `y` forward, each in [-1, 1].
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -95,45 +95,50 @@ impl Default for DriveMapping {
     }
 }
 
-/// A proportional reading, before the mapping.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Proportional {
-    /// A joystick or gamepad stick: `x` right, `y` forward, each in [-1, 1].
-    Stick {
-        /// Which device.
-        device: Device,
-        /// The deflection.
-        axes: Axes,
-    },
-    /// The head cap's inclinometer: pitch forward and roll right, rad.
-    HeadCap {
-        /// Forward tilt, rad.
-        pitch_rad: f64,
-        /// Rightward tilt, rad.
-        roll_rad: f64,
-    },
-    /// The arrow keys held.
-    Arrows {
-        /// Up held.
-        up: bool,
-        /// Down held.
-        down: bool,
-        /// Left held.
-        left: bool,
-        /// Right held.
-        right: bool,
-    },
+/// The numbers of a proportional [`RawInput`]: a stick's device and (x, y), the head cap's
+/// (pitch, roll), the arrows (up, down, left, right).
+#[derive(Debug, Clone, Copy)]
+enum Proportional {
+    Stick(Device, f64, f64),
+    HeadCap(f64, f64),
+    Arrows(bool, bool, bool, bool),
+}
+
+impl Proportional {
+    fn of(reading: &RawInput) -> Option<Self> {
+        Some(match *reading {
+            RawInput::Joystick { x, y } => Proportional::Stick(Device::Joystick, x, y),
+            RawInput::GamepadStick { x, y } => Proportional::Stick(Device::Gamepad, x, y),
+            RawInput::HeadCap {
+                pitch_rad,
+                roll_rad,
+            } => Proportional::HeadCap(pitch_rad, roll_rad),
+            RawInput::Arrows {
+                up,
+                down,
+                left,
+                right,
+            } => Proportional::Arrows(up, down, left, right),
+            _ => return None,
+        })
+    }
 }
 
 /// Slack on the [-1, 1] stick range for rounding in a device driver or a browser.
 const STICK_SLACK: f64 = 1e-6;
 
 impl DriveMapping {
-    /// The command `reading` stands for. A non-finite axis, a stick beyond [-1, 1] or a head
-    /// tilted past 90 degrees is refused: the caller stops the chair.
-    pub fn command(&self, reading: Proportional) -> Result<DriveCommand, InterfaceError> {
+    /// The command a proportional `reading` (stick, head cap, arrow keys) stands for; `None`
+    /// for a symbolic one. A non-finite axis, a stick beyond [-1, 1] or a head tilted past 90
+    /// degrees is refused: the caller stops the chair.
+    pub fn command(&self, reading: &RawInput) -> Option<Result<DriveCommand, InterfaceError>> {
+        Some(self.proportional(Proportional::of(reading)?))
+    }
+
+    fn proportional(&self, reading: Proportional) -> Result<DriveCommand, InterfaceError> {
         let (device, axes) = match reading {
-            Proportional::Stick { device, axes } => {
+            Proportional::Stick(device, x, y) => {
+                let axes = Axes { x, y };
                 let ok = |a: f64| a.is_finite() && a.abs() <= 1.0 + STICK_SLACK;
                 if !(ok(axes.x) && ok(axes.y)) {
                     return Err(InterfaceError::BadAxes {
@@ -145,10 +150,7 @@ impl DriveMapping {
                 }
                 (device, axes.past_dead_zone(self.stick_dead_zone))
             }
-            Proportional::HeadCap {
-                pitch_rad,
-                roll_rad,
-            } => {
+            Proportional::HeadCap(pitch_rad, roll_rad) => {
                 let ok = |a: f64| a.is_finite() && a.abs() <= std::f64::consts::FRAC_PI_2;
                 if !(ok(pitch_rad) && ok(roll_rad)) {
                     return Err(InterfaceError::BadAxes {
@@ -168,12 +170,7 @@ impl DriveMapping {
                     axes.past_dead_zone(self.head_dead_zone_rad / full),
                 )
             }
-            Proportional::Arrows {
-                up,
-                down,
-                left,
-                right,
-            } => {
+            Proportional::Arrows(up, down, left, right) => {
                 let axis = |plus: bool, minus: bool| {
                     self.arrow_deflection * (f64::from(u8::from(plus)) - f64::from(u8::from(minus)))
                 };
@@ -200,49 +197,56 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn stick(x: f64, y: f64) -> Proportional {
-        Proportional::Stick {
-            device: Device::Joystick,
-            axes: Axes { x, y },
-        }
+    fn stick(x: f64, y: f64) -> RawInput {
+        RawInput::Joystick { x, y }
+    }
+
+    fn command(m: &DriveMapping, r: RawInput) -> Result<DriveCommand, InterfaceError> {
+        m.command(&r).expect("a proportional reading")
     }
 
     #[test]
     fn deflection_maps_proportionally_past_the_dead_zone() {
         let m = DriveMapping::default();
-        let full = m.command(stick(0.0, 1.0)).unwrap();
+        let full = command(&m, stick(0.0, 1.0)).unwrap();
         assert_eq!((full.linear_mps, full.angular_radps), (0.6, 0.0));
-        assert!(m.command(stick(0.05, -0.08)).unwrap().is_stop());
-        let half = m.command(stick(0.0, 0.55)).unwrap();
+        assert!(command(&m, stick(0.05, -0.08)).unwrap().is_stop());
+        let half = command(&m, stick(0.0, 0.55)).unwrap();
         assert!((half.linear_mps - 0.3).abs() < 1e-12, "{half:?}");
-        let right = m.command(stick(1.0, 0.0)).unwrap();
+        let right = command(&m, stick(1.0, 0.0)).unwrap();
         assert!(
             (right.angular_radps + 0.8).abs() < 1e-12,
             "right turns clockwise"
         );
-        let head = m
-            .command(Proportional::HeadCap {
+        let head = command(
+            &m,
+            RawInput::HeadCap {
                 pitch_rad: 15f64.to_radians(),
                 roll_rad: 3f64.to_radians(),
-            })
-            .unwrap();
+            },
+        )
+        .unwrap();
         assert_eq!(head.device, Device::HeadGesture);
         assert!(head.linear_mps > 0.25 && head.linear_mps < 0.35, "{head:?}");
-        let still = m
-            .command(Proportional::HeadCap {
+        let still = command(
+            &m,
+            RawInput::HeadCap {
                 pitch_rad: 0.05,
                 roll_rad: -0.05,
-            })
-            .unwrap();
+            },
+        )
+        .unwrap();
         assert!(still.is_stop(), "a head within 5 degrees drives nothing");
-        let keys = m
-            .command(Proportional::Arrows {
+        let keys = command(
+            &m,
+            RawInput::Arrows {
                 up: true,
                 down: false,
                 left: true,
                 right: false,
-            })
-            .unwrap();
+            },
+        )
+        .unwrap();
         assert_eq!((keys.linear_mps, keys.angular_radps), (0.3, 0.4));
     }
 
@@ -253,13 +257,16 @@ mod tests {
             stick(f64::NAN, 0.0),
             stick(0.0, f64::INFINITY),
             stick(1.5, 0.0),
-            Proportional::HeadCap {
+            RawInput::HeadCap {
                 pitch_rad: 2.0,
                 roll_rad: 0.0,
             },
         ] {
             assert!(
-                matches!(m.command(bad), Err(InterfaceError::BadAxes { .. })),
+                matches!(
+                    command(&m, bad.clone()),
+                    Err(InterfaceError::BadAxes { .. })
+                ),
                 "{bad:?}"
             );
         }
@@ -270,8 +277,8 @@ mod tests {
         #[test]
         fn commands_stay_within_the_gains(x in -1.0..=1.0f64, y in -1.0..=1.0f64, p in -1.5..1.5f64, r in -1.5..1.5f64) {
             let m = DriveMapping::default();
-            for reading in [stick(x, y), Proportional::HeadCap { pitch_rad: p, roll_rad: r }] {
-                let c = m.command(reading).unwrap();
+            for reading in [stick(x, y), RawInput::HeadCap { pitch_rad: p, roll_rad: r }] {
+                let c = command(&m, reading).unwrap();
                 prop_assert!(c.linear_mps.abs() <= m.max_linear_mps + 1e-12);
                 prop_assert!(c.angular_radps.abs() <= m.max_angular_radps + 1e-12);
             }

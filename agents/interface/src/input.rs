@@ -5,7 +5,6 @@
 use serde::{Deserialize, Serialize};
 
 use crate::InterfaceError;
-use crate::drive::{Axes, Proportional};
 
 /// The input devices of the multimodal interface (thesis 3.3.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -135,37 +134,6 @@ fn direction(x: f64, y: f64, threshold: f64) -> Option<&'static str> {
 }
 
 impl RawInput {
-    /// The proportional reading this is, for driving; `None` for symbolic inputs.
-    pub fn proportional(&self) -> Option<Proportional> {
-        let stick = |device, x: &f64, y: &f64| Proportional::Stick {
-            device,
-            axes: Axes { x: *x, y: *y },
-        };
-        match self {
-            RawInput::Joystick { x, y } => Some(stick(Device::Joystick, x, y)),
-            RawInput::GamepadStick { x, y } => Some(stick(Device::Gamepad, x, y)),
-            RawInput::HeadCap {
-                pitch_rad,
-                roll_rad,
-            } => Some(Proportional::HeadCap {
-                pitch_rad: *pitch_rad,
-                roll_rad: *roll_rad,
-            }),
-            RawInput::Arrows {
-                up,
-                down,
-                left,
-                right,
-            } => Some(Proportional::Arrows {
-                up: *up,
-                down: *down,
-                left: *left,
-                right: *right,
-            }),
-            _ => None,
-        }
-    }
-
     /// The events this reading stands for at `t_ms`: none for a proportional reading or a still
     /// head, one per word for speech. Names with characters other than letters, digits, `-` and
     /// `_` are refused.
@@ -214,20 +182,12 @@ mod tests {
             j.normalise(5).unwrap().is_empty(),
             "a stick drives, it is no symbol"
         );
-        assert_eq!(
-            j.proportional(),
-            Some(Proportional::Stick {
-                device: Device::Joystick,
-                axes: Axes { x: 0.1, y: 0.9 }
-            })
-        );
-        assert_eq!(
-            RawInput::Face {
-                label: "smile".into()
-            }
-            .proportional(),
-            None
-        );
+        let mapping = crate::DriveMapping::default();
+        assert!(mapping.command(&j).is_some());
+        let face = RawInput::Face {
+            label: "smile".into(),
+        };
+        assert!(mapping.command(&face).is_none(), "a symbol does not drive");
         let h = RawInput::HeadGesture {
             ax_mps2: -3.0,
             ay_mps2: 1.0,

@@ -32,7 +32,7 @@ pub mod input;
 pub mod sequence;
 
 pub use agent::{Command, Display, InputQueue, InterfaceAgent, InterfaceConfig};
-pub use drive::{Axes, DriveCommand, DriveMapping, Proportional};
+pub use drive::{Axes, DriveCommand, DriveMapping};
 pub use input::{Device, InputEvent, RawInput};
 pub use sequence::{InputSequence, Recognizer, ReliabilityTest, Verdict};
 

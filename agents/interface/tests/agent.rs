@@ -53,8 +53,8 @@ fn trained(steps: &[(Device, &str)]) -> ReliabilityTest {
     test
 }
 
-#[test]
-fn sequences_become_acl_requests() {
+/// A host on an in-process bus with a mock clock at 0.
+fn host() -> (AgentHost, iw_bus::MockController) {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(0));
     let bus = Bus::start(
@@ -64,7 +64,12 @@ fn sequences_become_acl_requests() {
         BusConfig::default(),
     )
     .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    (AgentHost::new(Arc::new(bus)), controller)
+}
+
+#[test]
+fn sequences_become_acl_requests() {
+    let (mut host, controller) = host();
     let cognitive = Arc::new(Mutex::new(Vec::new()));
     let control = Arc::new(Mutex::new(Vec::new()));
     host.add(
@@ -210,16 +215,7 @@ fn drives(sink: &Arc<Mutex<Vec<(Time, AclMessage)>>>) -> Vec<(u64, String, f64, 
 
 #[test]
 fn a_held_input_streams_drive_and_release_silence_or_nan_stop_it() {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(0));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    let (mut host, controller) = host();
     let sink = Arc::new(Mutex::new(Vec::new()));
     host.add(AgentId::new("control@c1"), Box::new(Sink(sink.clone())))
         .unwrap();
