@@ -53,6 +53,21 @@ fn trained(steps: &[(Device, &str)]) -> ReliabilityTest {
     test
 }
 
+/// Adds `interface@c1` (cognitive and control `@c1`) with `recognizer`; its input queue and
+/// display.
+fn add_interface(
+    host: &mut AgentHost,
+    recognizer: Recognizer<Command>,
+) -> (iw_interface::InputQueue, Arc<Mutex<iw_interface::Display>>) {
+    let inputs = iw_interface::InputQueue::default();
+    let display = Arc::new(Mutex::new(iw_interface::Display::default()));
+    let config = InterfaceConfig::new(AgentId::new("cognitive@c1"), AgentId::new("control@c1"));
+    let agent = InterfaceAgent::new(config, recognizer, inputs.clone(), display.clone());
+    host.add(AgentId::new("interface@c1"), Box::new(agent))
+        .unwrap();
+    (inputs, display)
+}
+
 /// A host on an in-process bus with a mock clock at 0.
 fn host() -> (AgentHost, iw_bus::MockController) {
     let network = InProcNetwork::new();
@@ -98,19 +113,7 @@ fn sequences_become_acl_requests() {
             Command::Stop,
         )
         .unwrap();
-    let inputs = iw_interface::InputQueue::default();
-    let display = Arc::new(Mutex::new(iw_interface::Display::default()));
-    let config = InterfaceConfig::new(AgentId::new("cognitive@c1"), AgentId::new("control@c1"));
-    host.add(
-        AgentId::new("interface@c1"),
-        Box::new(InterfaceAgent::new(
-            config,
-            recognizer,
-            inputs.clone(),
-            display.clone(),
-        )),
-    )
-    .unwrap();
+    let (inputs, display) = add_interface(&mut host, recognizer);
 
     let push = |raw: RawInput, t_ms: u64| inputs.lock().unwrap().push_back((raw, t_ms));
     push(
@@ -219,19 +222,7 @@ fn a_held_input_streams_drive_and_release_silence_or_nan_stop_it() {
     let sink = Arc::new(Mutex::new(Vec::new()));
     host.add(AgentId::new("control@c1"), Box::new(Sink(sink.clone())))
         .unwrap();
-    let inputs = iw_interface::InputQueue::default();
-    let display = Arc::new(Mutex::new(iw_interface::Display::default()));
-    let config = InterfaceConfig::new(AgentId::new("cognitive@c1"), AgentId::new("control@c1"));
-    host.add(
-        AgentId::new("interface@c1"),
-        Box::new(InterfaceAgent::new(
-            config,
-            Recognizer::new(DEFAULT_MAX_GAP_MS),
-            inputs.clone(),
-            display.clone(),
-        )),
-    )
-    .unwrap();
+    let (inputs, display) = add_interface(&mut host, Recognizer::new(DEFAULT_MAX_GAP_MS));
     let mut run = |ms: u64, reading: Option<RawInput>| {
         for _ in 0..ms / 10 {
             if let Some(r) = &reading
