@@ -51,6 +51,8 @@ enum Command {
     Experiment(cmd::experiment::Command),
     /// Run one container process (a chair's agents or the services) over UDP or shared memory.
     Spawn(cmd::spawn::Args),
+    /// Relay UDP datagrams between two loopback endpoints, injecting seeded faults.
+    Impair(cmd::impair::Args),
 }
 
 fn main() -> ExitCode {
@@ -75,6 +77,7 @@ fn main() -> ExitCode {
         Some(Command::Experiment(c)) => cmd::experiment::run(c),
         Some(Command::Log(c)) => cmd::log::run(c),
         Some(Command::Spawn(a)) => cmd::spawn::run(a),
+        Some(Command::Impair(a)) => cmd::impair::run(a),
     };
     match result {
         Ok(code) => code,

@@ -1,9 +1,6 @@
 //! The wheelchair body: one trait with real (serial interface board), virtual (simulator) and
 //! mixed implementations, so no agent knows which one it drives.
 //!
-//! API CONTRACT (shared by the simulator, the control and perception agents): the body work fills
-//! in the serial driver and board emulator and may extend, but keeps these names.
-//!
 //! # Organization
 //! - [`Body`]: read a [`SensorFrame`], command [`WheelSpeeds`], stop. Implemented by
 //!   [`SerialBody`] (the interface board of thesis figure 3.3 on a serial port), by the

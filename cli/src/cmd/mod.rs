@@ -6,6 +6,7 @@ mod bench_drive;
 pub mod demo;
 pub mod experiment;
 pub mod features;
+pub mod impair;
 pub mod log;
 pub mod repeatability;
 pub mod scenario;

@@ -25,9 +25,6 @@
 //!   communication (repetition, deletion, resequencing by retransmission), security (corruption,
 //!   masquerade, insertion), temporal (delay, repetition, resequencing), parser (insertion,
 //!   masquerade).
-//!
-//! API CONTRACT (shared by the layer crates and the transport crates): [`transport::FrameTransport`]
-//! keeps its name and methods.
 #![warn(missing_docs)]
 
 pub mod codec;

@@ -191,7 +191,7 @@ fn write_aid(out: &mut String, aid: &AgentId) {
     out.push_str("</agent-identifier>");
 }
 
-fn aids_in(node: &Node) -> Result<Vec<AgentId>, Error> {
+fn aids_in(node: &Element) -> Result<Vec<AgentId>, Error> {
     node.children
         .iter()
         .filter(|c| c.name == "agent-identifier")
@@ -199,7 +199,7 @@ fn aids_in(node: &Node) -> Result<Vec<AgentId>, Error> {
         .collect()
 }
 
-fn aid_from(node: &Node) -> Result<AgentId, Error> {
+fn aid_from(node: &Element) -> Result<AgentId, Error> {
     let name = node
         .children
         .iter()
@@ -239,9 +239,9 @@ fn escape(text: &str) -> String {
 
 /// An XML element: name, child elements, and its own text (entities resolved).
 #[derive(Debug, Default)]
-struct Node {
+struct Element {
     name: String,
-    children: Vec<Node>,
+    children: Vec<Element>,
     text: String,
 }
 
@@ -285,7 +285,7 @@ impl XmlParser<'_> {
         }
     }
 
-    fn document(mut self) -> Result<Node, Error> {
+    fn document(mut self) -> Result<Element, Error> {
         self.skip_misc()?;
         let root = self.element(0)?;
         self.skip_misc()?;
@@ -295,7 +295,7 @@ impl XmlParser<'_> {
         Ok(root)
     }
 
-    fn element(&mut self, depth: usize) -> Result<Node, Error> {
+    fn element(&mut self, depth: usize) -> Result<Element, Error> {
         if depth > MAX_DEPTH {
             return Err(self.err("elements nested too deep"));
         }
@@ -335,9 +335,9 @@ impl XmlParser<'_> {
                 _ => {}
             }
         }
-        let mut node = Node {
+        let mut node = Element {
             name,
-            ..Node::default()
+            ..Element::default()
         };
         if self_closing {
             return Ok(node);

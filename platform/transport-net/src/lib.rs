@@ -6,8 +6,8 @@
 //! - [`TcpTransport`]: length-prefixed frames ([`frame`] draws the header) over a cache of
 //!   outbound connections with reconnect; inbound connections each get a reader thread.
 //! - [`ImpairProxy`] / [`Impairer`]: a UDP relay between two loopback endpoints that drops,
-//!   duplicates, reorders, corrupts, delays and injects datagrams by seeded probabilities; the
-//!   `iw-impair` binary runs it standalone.
+//!   duplicates, reorders, corrupts, delays and injects datagrams by seeded probabilities
+//!   (`intellwheels impair` runs it as a process of its own).
 //! - [`NetError`]: this crate's own errors (codec, proxy configuration, I/O).
 //!
 //! Guarantees: no input from a socket can panic these types; a frame longer than the configured

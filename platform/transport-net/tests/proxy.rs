@@ -1,7 +1,6 @@
-//! The impairment proxy on real loopback sockets, in-process and as the `iw-impair` process.
+//! The impairment proxy on real loopback sockets (as a process: `cli/tests/impair.rs`).
 
 use std::collections::HashSet;
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use iw_bus::transport::FrameTransport;
@@ -111,61 +110,4 @@ fn delayed_datagrams_arrive_late_but_arrive() {
         b"late"
     );
     assert_eq!(proxy.stop().delayed, 1);
-}
-
-#[test]
-fn the_iw_impair_process_relays_and_reports_its_counters() {
-    let a = UdpTransport::bind("127.0.0.1:0").unwrap();
-    let b = UdpTransport::bind("127.0.0.1:0").unwrap();
-    let port = std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let listen = format!("127.0.0.1:{port}");
-    let child = Command::new(env!("CARGO_BIN_EXE_iw-impair"))
-        .args([
-            "--listen",
-            &listen,
-            "--seed",
-            "5",
-            "--drop",
-            "0.5",
-            "--duration-ms",
-            "1500",
-            "--report-ms",
-            "10000",
-        ])
-        .args(["--a", &a.local_addr().0, "--b", &b.local_addr().0])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(300));
-    let proxy = iw_bus::transport::PeerAddr(listen);
-    for i in 0..100u32 {
-        a.send(&proxy, &i.to_be_bytes()).unwrap();
-    }
-    let got = drain(&b, Duration::from_millis(300));
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success());
-    let last = String::from_utf8(out.stdout).unwrap();
-    let stats: serde_json::Value = serde_json::from_str(last.lines().last().unwrap()).unwrap();
-    assert_eq!(stats["received"], 100);
-    assert_eq!(stats["forwarded"].as_u64().unwrap(), got.len() as u64);
-    assert!(
-        (20..80).contains(&got.len()),
-        "about half dropped, got {}",
-        got.len()
-    );
-}
-
-#[test]
-fn the_iw_impair_process_refuses_bad_settings() {
-    let out = Command::new(env!("CARGO_BIN_EXE_iw-impair"))
-        .args(["--a", "127.0.0.1:1", "--b", "127.0.0.1:2", "--drop", "2"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("`drop` = 2"));
 }

@@ -1,4 +1,4 @@
-//! `iw-impair`: the seeded UDP impairment proxy as a standalone process.
+//! `intellwheels impair`: the seeded UDP impairment proxy as a process of its own.
 //!
 //! Relays datagrams between loopback endpoints `--a` and `--b` (both send to `--listen`), applying
 //! the faults given as probabilities, and prints its counters as one JSON object per line every
@@ -14,8 +14,7 @@ use iw_transport_net::{ImpairConfig, ImpairProxy};
 
 /// Relay UDP datagrams between two loopback endpoints, injecting seeded faults.
 #[derive(Parser, Debug)]
-#[command(name = "iw-impair")]
-struct Args {
+pub struct Args {
     /// Address the proxy listens on (loopback).
     #[arg(long, default_value = "127.0.0.1:0")]
     listen: SocketAddr,
@@ -63,21 +62,8 @@ struct Args {
     report_ms: u64,
 }
 
-fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .init();
-    match try_main() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("iw-impair: {e:#}");
-            ExitCode::from(2)
-        }
-    }
-}
-
-fn try_main() -> anyhow::Result<()> {
-    let args = Args::parse();
+/// Runs the proxy until `--duration-ms` passes (or until killed), printing its counters.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = ImpairConfig {
         seed: args.seed,
         drop: args.drop,
@@ -93,7 +79,7 @@ fn try_main() -> anyhow::Result<()> {
     };
     let proxy =
         ImpairProxy::start_on(args.listen, args.a, args.b, config).context("starting the proxy")?;
-    eprintln!("iw-impair: listening on {}", proxy.addr());
+    eprintln!("intellwheels impair: listening on {}", proxy.addr());
     let started = Instant::now();
     let report = Duration::from_millis(args.report_ms.max(10));
     let mut last_report = Instant::now();
@@ -108,5 +94,5 @@ fn try_main() -> anyhow::Result<()> {
         }
     }
     println!("{}", serde_json::to_string(&proxy.stop())?);
-    Ok(())
+    Ok(ExitCode::SUCCESS)
 }
