@@ -5,7 +5,10 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use iw_features::{DetectorConfig, DetectorKind};
-use iw_shared_control_experiment::{Config, Mode, Summary, office_circuit, write_outputs};
+use iw_shared_control_experiment::{
+    Config, InputDevice, Mode, Sensors, Summary, office_circuit, sweep, sweep_trials,
+    write_outputs, write_sweep,
+};
 use iw_sim::vo::{TrialConfig, TrialPoint, run_trial, sim_vo_config, waypoints_ahead};
 use iw_sim::{ChairKind, ChairSpec, Map, TextureSet, World};
 use iw_vo::Pipeline;
@@ -13,9 +16,10 @@ use iw_vo::Pipeline;
 /// The `experiment` subcommands.
 #[derive(clap::Subcommand)]
 pub enum Command {
-    /// Thesis 3.7.1: simulated head-gesture drivers on a cluttered office circuit, manual vs the
-    /// thesis's potential-field shared control vs VFH+ vs the control agent's guarded field;
-    /// writes OUT/summary.json and path plots.
+    /// Thesis 3.7.1: simulated drivers who see, one lap per paradigm each (manual first), on a
+    /// map's closed route: manual vs the thesis's potential field (`shared`) vs its arc-chord
+    /// variant vs VFH+ vs the control agent's guarded policy; writes OUT/summary.json and plots.
+    /// `--sweep` varies the assumptions thesis 3.6 leaves open instead.
     SharedControl(SharedControlArgs),
     /// Thesis 3.3.2 and chapter 5: a chair drives a textured map with encoder errors; wheel
     /// odometry, RGB-D visual odometry on the rendered frames and their EKF against the
@@ -70,17 +74,18 @@ pub struct SharedControlArgs {
     /// Simulated volunteers (the thesis had 8).
     #[arg(long, default_value_t = 8)]
     drivers: usize,
-    /// Laps per driver and paradigm.
-    #[arg(long, default_value_t = 3)]
+    /// Laps per driver and paradigm (1: the thesis's protocol; more: the multi-lap mode).
+    #[arg(long, default_value_t = 1)]
     laps: usize,
-    /// Output directory (summary.json, trials.json, paths-*.png, collisions.png).
+    /// Output directory (summary.json, trials.json, paths-*.png, collisions.png; sweep.json and
+    /// sweep.png with --sweep).
     #[arg(long, default_value = "shared-control-out")]
     out: PathBuf,
     /// Map file (docs/map-format.md) with a closed route to drive; default: the embedded office
     /// circuit.
     #[arg(long)]
     map: Option<PathBuf>,
-    /// Name of the map's route to drive.
+    /// Name of the map's route to drive (must be `closed`).
     #[arg(long, default_value = "lap")]
     route: String,
     /// Base seed; driver i uses seed + i.
@@ -89,6 +94,15 @@ pub struct SharedControlArgs {
     /// A lap not finished within this many simulated seconds ends the driver's trial.
     #[arg(long, default_value_t = 240.0)]
     lap_timeout_s: f64,
+    /// The drivers' input device.
+    #[arg(long, default_value = "head-cap", value_parser = ["head-cap", "joystick"])]
+    device: String,
+    /// What VFH+ and the guarded policy see (the thesis's field always uses the sonars).
+    #[arg(long, default_value = "sonars-laser", value_parser = ["sonars", "sonars-laser"])]
+    sensors: String,
+    /// Run the sensitivity sweep of the `shared` field over the thesis's open assumptions instead.
+    #[arg(long)]
+    sweep: bool,
 }
 
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
@@ -197,7 +211,10 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
         args.drivers > 0 && args.laps > 0,
         "--drivers and --laps must be at least 1"
     );
-    anyhow::ensure!(args.lap_timeout_s > 0.0, "--lap-timeout-s must be positive");
+    anyhow::ensure!(
+        args.lap_timeout_s.is_finite() && args.lap_timeout_s > 0.0,
+        "--lap-timeout-s must be positive"
+    );
     let map = match &args.map {
         Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
         None => office_circuit()?,
@@ -208,16 +225,29 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
         seed: args.seed,
         route: args.route.clone(),
         lap_timeout_s: args.lap_timeout_s,
+        device: match args.device.as_str() {
+            "joystick" => InputDevice::Joystick,
+            _ => InputDevice::HeadCap,
+        },
+        sensors: match args.sensors.as_str() {
+            "sonars" => Sensors::Sonars,
+            _ => Sensors::SonarsLaser,
+        },
         ..Config::default()
     };
-    let bar = indicatif::ProgressBar::new((args.drivers * Mode::ALL.len()) as u64);
+    let total = if args.sweep {
+        sweep_trials(args.drivers)
+    } else {
+        args.drivers * Mode::ALL.len()
+    };
+    let bar = indicatif::ProgressBar::new(total as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
             "{bar:40} {pos}/{len} trials ({elapsed}, eta {eta}) {msg}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let report = iw_shared_control_experiment::run(&map, &config, |trial| {
+    let on_trial = |trial: &iw_shared_control_experiment::Trial| {
         bar.set_message(format!(
             "driver {} {}: {} collisions",
             trial.driver + 1,
@@ -225,7 +255,32 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
             trial.collisions
         ));
         bar.inc(1);
-    })?;
+    };
+    if args.sweep {
+        let rows = sweep(&map, &config, on_trial)?;
+        bar.finish_and_clear();
+        write_sweep(&rows, &map.name, &args.out)?;
+        println!(
+            "{:<12} {:>10} {:>8} {:>9} {:>10} {:>6} {:>8}",
+            "reading", "coll/lap", "laps", "lap time", "reduction", "T", "p exact"
+        );
+        for r in &rows {
+            println!(
+                "{:<12} {:>10.2} {:>8} {:>9} {:>10} {:>6} {:>8}",
+                r.name,
+                r.collisions_per_lap,
+                format!("{}/{}", r.laps_completed, r.laps_attempted),
+                r.mean_lap_time_s
+                    .map_or("-".into(), |t| format!("{t:.0} s")),
+                pct(r.collision_reduction),
+                r.wilcoxon.t,
+                r.wilcoxon.p_exact.map_or("-".into(), |p| format!("{p:.4}")),
+            );
+        }
+        println!("wrote {}", args.out.join("sweep.json").display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let report = iw_shared_control_experiment::run(&map, &config, on_trial)?;
     bar.finish_and_clear();
     let summary = write_outputs(&report, &map, &args.out)?;
     print_table(&summary);
@@ -233,40 +288,55 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn pct(v: Option<f64>) -> String {
+    v.map_or("-".to_string(), |v| format!("{:.1}%", 100.0 * v))
+}
+
 fn print_table(s: &Summary) {
     println!(
-        "{:<8} {:>10} {:>10} {:>6} {:>10} {:>12} {:>12} {:>12}",
+        "{:<13} {:>10} {:>9} {:>7} {:>9} {:>9} {:>10} {:>6} {:>9} {:>9}",
         "mode",
         "collisions",
-        "per lap",
+        "coll/lap",
         "laps",
         "lap time",
-        "interv.rate",
-        "rate near",
-        "rate free"
+        "speed",
+        "reduction",
+        "T",
+        "p exact",
+        "p normal"
     );
-    for mode in Mode::ALL {
-        let (name, m) = (mode.key(), s.mode(mode));
-        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    let comparisons = [
+        None,
+        Some(&s.manual_vs_shared),
+        Some(&s.manual_vs_shared_chord),
+        Some(&s.manual_vs_vfh),
+        Some(&s.manual_vs_guarded),
+    ];
+    for (mode, c) in Mode::ALL.into_iter().zip(comparisons) {
+        let m = s.mode(mode);
         println!(
-            "{:<8} {:>10} {:>10} {:>6} {:>10} {:>12.3} {:>12.3} {:>12.3}",
-            name,
+            "{:<13} {:>10} {:>9.2} {:>7} {:>9} {:>9} {:>10} {:>6} {:>9} {:>9}",
+            mode.key(),
             m.collisions,
-            opt(m.collisions_per_lap),
+            m.collisions_per_lap,
             format!("{}/{}", m.laps_completed, m.laps_attempted),
-            opt(m.mean_lap_time_s),
-            m.intervention_rate,
-            m.intervention_rate_near,
-            m.intervention_rate_free
+            m.mean_lap_time_s
+                .map_or("-".into(), |t| format!("{t:.0} s")),
+            format!("{:.2} m/s", m.mean_speed_mps),
+            pct(c.and_then(|c| c.collision_reduction)),
+            c.map_or("-".into(), |c| c.wilcoxon.t.to_string()),
+            c.and_then(|c| c.wilcoxon.p_exact)
+                .map_or("-".into(), |p| format!("{p:.4}")),
+            c.map_or("-".into(), |c| format!("{:.4}", c.wilcoxon.p_normal)),
         );
     }
-    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}%", 100.0 * v));
+    let g = &s.guarded_task;
     println!(
-        "collision reduction vs manual: shared {}, vfh {}, guarded {}; Wilcoxon manual > shared (one-tailed, exact) p = {:.4}, manual > guarded p = {:.4}",
-        pct(s.manual_vs_shared.collision_reduction),
-        pct(s.manual_vs_vfh.collision_reduction),
-        pct(s.manual_vs_guarded.collision_reduction),
-        s.wilcoxon_p,
-        s.manual_vs_guarded.wilcoxon.p()
+        "guarded task target (>= 95 % laps, <= 0.05 collisions/lap, <= 1.5x manual lap time): {} (completes {}, safe {}, timely {})",
+        if g.met { "met" } else { "NOT met" },
+        g.completes,
+        g.safe,
+        g.timely
     );
 }

@@ -1,24 +1,40 @@
-//! A simulated person driving with the IntellWheels head cap (thesis 3.3.1, 3.7.1): the
-//! accelerometer's head tilt becomes linear and angular speed. The model follows a closed circuit
-//! by pure pursuit, then degrades the intended command the way a head-gesture input does:
-//! - reaction delay: the cap outputs what the person intended `reaction_delay_s` ago;
-//! - tremor: correlated (first-order autoregressive) noise on both speeds;
-//! - attention lapses: now and then the head stays put and the last command is held;
-//! - coarse steering: speeds snap to a few levels (stop/half/full, five turn rates).
+//! A simulated person who sees (thesis 3.7.1's volunteers, modelled): they follow a closed
+//! circuit, perceive the clearance around the chair, slow down and steer around obstacles
+//! imperfectly, and react when the chair does not do what they asked.
 //!
-//! When the chair makes no progress for a while (stuck against something) the person backs off and
-//! tries again. Every person is a [`DriverProfile`] drawn from a seed; the same seed gives the same
-//! person, and the same inputs give the same commands.
-
+//! Model, per control period:
+//! - **route**: pure pursuit of a point `lookahead_m` ahead on the circuit;
+//! - **perception**: the true clearance between the chair's footprint and the nearest solid thing
+//!   along a fan of bearings (given by the caller), each reading scaled by `1 + noise`, noise
+//!   normal with the driver's `perception_noise` (people misjudge depth; the thesis's volunteers
+//!   said so of its simulator, section 3.8);
+//! - **avoidance**: the person never steers towards a side (bearings 0-110 degrees left or
+//!   right) whose nearest clearance is under `comfort_m`, and steers away from it the harder the
+//!   closer it is (`avoid_gain`); with both sides close they balance; the speed falls with the
+//!   clearance ahead, down to a stop at `stop_m`, and in narrow places;
+//! - **reacting when slowed**: when the chair moves at under 40 % of the commanded speed for
+//!   0.8 s, the person backs off for a second if something is right ahead, else edges towards
+//!   the most open bearing for a second; when there is no progress for 5 s they back off;
+//! - **reaction delay**: the device outputs what the person intended `reaction_delay_s` ago;
+//! - **device**: a joystick (proportional, with tremor) or the head cap (tremor, lapses, the
+//!   forward axis on three speed levels (a third, two thirds and full tilt) besides stop, and one
+//!   reverse level; the
+//!   lateral axis proportional with a dead zone). The thesis's text calls the cap a proportional
+//!   controller (3.3.1); the three levels are the project's reading, not the text's.
+//!
+//! Every person is a [`DriverProfile`] drawn from a seed around a personal `skill` in [0, 1]:
+//! skill shortens the delay and lowers perception noise and tremor. Inputs and outputs are 2-D
+//! input vectors (x forward, y left, each in [-1, 1]); [`crate::JoystickMapping`] turns them
+//! into speeds. The same seed and inputs give the same outputs.
 use std::collections::VecDeque;
 use std::f64::consts::FRAC_PI_2;
 
-use nalgebra::{Isometry2, Point2};
+use nalgebra::{Isometry2, Point2, Vector2};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::ControlError;
 use crate::tactical::wrap_angle;
-use crate::{ControlError, VelocityCommand};
 
 /// A closed loop of waypoints in the world frame, driven in order, back to the first.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,46 +120,68 @@ impl Circuit {
     }
 }
 
-/// One simulated person: how they drive with the head cap.
+/// The input device the person drives with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InputDevice {
+    /// The IntellWheels head cap (thesis 3.3.1), as the volunteers drove in 3.7.1.
+    HeadCap,
+    /// A proportional joystick.
+    Joystick,
+}
+
+/// One simulated person: how they perceive and drive.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DriverProfile {
-    /// Speed they aim for on straights, m/s.
-    pub preferred_speed_mps: f64,
-    /// Delay between intending and the cap's output, s.
+    /// Overall skill, 0 (poor) to 1 (good); the traits below are drawn around it.
+    pub skill: f64,
+    /// Forward deflection aimed for on straights, 0-1.
+    pub preferred_input: f64,
+    /// Delay between intending and the device's output, s.
     pub reaction_delay_s: f64,
-    /// Standard deviation of the turn-rate tremor, rad/s.
-    pub tremor_radps: f64,
-    /// Standard deviation of the speed tremor, m/s.
-    pub tremor_mps: f64,
+    /// Relative standard deviation of a perceived clearance.
+    pub perception_noise: f64,
+    /// Clearance the person tries to keep from obstacles, m.
+    pub comfort_m: f64,
+    /// Clearance ahead at which the person stops, m.
+    pub stop_m: f64,
+    /// Clearance ahead from which the person starts slowing, m.
+    pub slow_m: f64,
+    /// Standard deviation of the input tremor, deflection units.
+    pub tremor: f64,
     /// Correlation time of the tremor, s.
     pub tremor_time_s: f64,
-    /// Mean attention lapses per second.
+    /// Mean attention lapses per second (head cap only).
     pub lapse_rate_hz: f64,
     /// Length of a lapse, s.
     pub lapse_s: f64,
     /// Pure-pursuit lookahead, m.
     pub lookahead_m: f64,
-    /// Fastest turn the cap commands, rad/s (full tilt).
-    pub max_angular_radps: f64,
-    /// Turn levels each side of straight (2 = half and full tilt).
-    pub turn_levels: u32,
+    /// How strongly perceived obstacles turn the person, deflection per unit weight.
+    pub avoid_gain: f64,
 }
 
 impl DriverProfile {
     /// A person drawn from `seed`: 8 seeds give 8 different volunteers.
     pub fn from_seed(seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ PROFILE_SEED_MIX);
+        let skill: f64 = rng.random_range(0.0..1.0);
+        let mut around =
+            |centre: f64, spread: f64| centre * rng.random_range(1.0 - spread..1.0 + spread);
         DriverProfile {
-            preferred_speed_mps: rng.random_range(0.55..0.85),
-            reaction_delay_s: rng.random_range(0.3..0.7),
-            tremor_radps: rng.random_range(0.15..0.4),
-            tremor_mps: rng.random_range(0.03..0.08),
-            tremor_time_s: rng.random_range(0.3..0.8),
-            lapse_rate_hz: rng.random_range(0.02..0.08),
-            lapse_s: rng.random_range(0.5..1.2),
-            lookahead_m: rng.random_range(0.8..1.3),
-            max_angular_radps: 1.0,
-            turn_levels: 2,
+            skill,
+            preferred_input: around(0.75, 0.15).min(1.0),
+            reaction_delay_s: around(0.6 - 0.3 * skill, 0.2),
+            perception_noise: around(0.5 - 0.3 * skill, 0.2),
+            comfort_m: around(0.15, 0.3),
+            stop_m: around(0.08, 0.3),
+            slow_m: around(0.5, 0.2),
+            tremor: around(0.12 - 0.06 * skill, 0.2),
+            tremor_time_s: around(0.5, 0.4),
+            lapse_rate_hz: around(0.1 - 0.06 * skill, 0.3),
+            lapse_s: around(0.8, 0.3),
+            lookahead_m: around(1.0, 0.2),
+            avoid_gain: around(0.6, 0.3),
         }
     }
 }
@@ -151,11 +189,21 @@ impl DriverProfile {
 /// Mixed into profile seeds so a person's traits and their drive noise are independent streams.
 const PROFILE_SEED_MIX: u64 = 0x9e37_79b9_7f4a_7c15;
 
+/// What the person sees in one period: the clearance from the chair's footprint to the nearest
+/// solid thing along each bearing (chair frame, rad, 0 = ahead, positive = left), m.
+#[derive(Debug, Clone, Copy)]
+pub struct Perception<'a> {
+    /// Bearings, rad.
+    pub bearings_rad: &'a [f64],
+    /// Clearance along each bearing, m (`f64::INFINITY` for nothing in sight).
+    pub clearance_m: &'a [f64],
+}
+
 /// What the driver does in one period.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DriverOutput {
-    /// The head cap's command.
-    pub command: VelocityCommand,
+    /// The device's input vector (x forward, y left, each in [-1, 1]).
+    pub input: Vector2<f64>,
     /// Laps completed so far.
     pub laps: usize,
     /// Distance along the circuit since the first period (all laps), m.
@@ -164,42 +212,58 @@ pub struct DriverOutput {
 
 /// The driver's state between periods.
 #[derive(Debug, Clone)]
-pub struct HeadGestureDriver {
+pub struct SeeingDriver {
     profile: DriverProfile,
+    device: InputDevice,
     circuit: Circuit,
     rng: ChaCha8Rng,
     progress_m: f64,
     start_m: Option<f64>,
-    intended: VecDeque<(u64, VelocityCommand)>,
-    tremor: VelocityCommand,
-    held: VelocityCommand,
+    intended: VecDeque<(u64, Vector2<f64>)>,
+    tremor: Vector2<f64>,
+    held: Vector2<f64>,
     lapse_until_ns: u64,
     reverse_until_ns: u64,
-    reverse_turn_radps: f64,
+    reverse_turn: f64,
+    detour_until_ns: u64,
+    detour_turn: f64,
+    slowed_since_ns: Option<u64>,
     checkpoint: (u64, f64),
     last_ns: Option<u64>,
 }
 
 /// Seconds without 20 cm of progress after which the person backs off.
-const STUCK_S: f64 = 4.0;
-/// How long they back off, s.
-const REVERSE_S: f64 = 1.5;
+const STUCK_S: f64 = 5.0;
+/// How long they back off or detour, s.
+const REACT_S: f64 = 1.0;
+/// Seconds at under [`SLOWED_RATIO`] of the commanded speed after which the person reacts.
+const SLOWED_S: f64 = 0.8;
+/// Measured / commanded speed under which the person feels slowed.
+const SLOWED_RATIO: f64 = 0.4;
+/// Bearings within this of straight ahead make up the clearance ahead, rad (35 degrees).
+const AHEAD_RAD: f64 = 0.61;
+/// Lateral head tilt below this is read as straight (head cap dead zone), deflection units.
+const DEAD_ZONE: f64 = 0.1;
 
-impl HeadGestureDriver {
-    /// A person with `profile` starting a lap of `circuit`, drive noise drawn from `seed`.
-    pub fn new(profile: DriverProfile, circuit: Circuit, seed: u64) -> Self {
-        HeadGestureDriver {
+impl SeeingDriver {
+    /// A person with `profile` on `device` starting a lap of `circuit`, drive noise from `seed`.
+    pub fn new(profile: DriverProfile, device: InputDevice, circuit: Circuit, seed: u64) -> Self {
+        SeeingDriver {
             profile,
+            device,
             circuit,
             rng: ChaCha8Rng::seed_from_u64(seed),
             progress_m: 0.0,
             start_m: None,
             intended: VecDeque::new(),
-            tremor: VelocityCommand::STOP,
-            held: VelocityCommand::STOP,
+            tremor: Vector2::zeros(),
+            held: Vector2::zeros(),
             lapse_until_ns: 0,
             reverse_until_ns: 0,
-            reverse_turn_radps: 0.0,
+            reverse_turn: 0.0,
+            detour_until_ns: 0,
+            detour_turn: 0.0,
+            slowed_since_ns: None,
             checkpoint: (0, 0.0),
             last_ns: None,
         }
@@ -215,11 +279,14 @@ impl HeadGestureDriver {
         &self.circuit
     }
 
-    /// One period at `time_ns` with the chair at `t_world_chair` (the person sees the real pose).
+    /// One period at `time_ns` with the chair at `t_world_chair` moving at `speed_mps` (the
+    /// person sees the real pose and feels the real speed) and seeing `perception`.
     pub fn step(
         &mut self,
         time_ns: u64,
         t_world_chair: Isometry2<f64>,
+        speed_mps: f64,
+        perception: &Perception<'_>,
     ) -> Result<DriverOutput, ControlError> {
         let position = Point2::from(t_world_chair.translation.vector);
         let heading = t_world_chair.rotation.angle();
@@ -229,6 +296,12 @@ impl HeadGestureDriver {
                 x: position.x,
                 y: position.y,
                 theta: heading,
+            });
+        }
+        if perception.bearings_rad.len() != perception.clearance_m.len() {
+            return Err(ControlError::UnpairedSamples {
+                left: perception.bearings_rad.len(),
+                right: perception.clearance_m.len(),
             });
         }
         let dt_s = self
@@ -251,83 +324,175 @@ impl HeadGestureDriver {
             .circuit
             .project_near(position, self.progress_m, 0.5, 1.5)
             .max(self.progress_m - 0.5);
-        let intended = self.intend(time_ns, position, heading);
+        self.react(time_ns, speed_mps, perception);
+        let intended = self.intend(time_ns, position, heading, perception);
         self.intended.push_back((time_ns, intended));
         let delay_ns = (self.profile.reaction_delay_s * 1e9) as u64;
-        // The cap lags: use the newest intention at least `delay` old.
+        // The device lags: use the newest intention at least `delay` old.
         while self.intended.len() > 1 && self.intended[1].0 + delay_ns <= time_ns {
             self.intended.pop_front();
         }
         let delayed = match self.intended.front() {
             Some(&(t, c)) if t + delay_ns <= time_ns => c,
-            _ => VelocityCommand::STOP,
+            _ => Vector2::zeros(),
         };
-        let command = self.head_cap(time_ns, dt_s, delayed);
+        let input = self.device_output(time_ns, dt_s, delayed);
         let driven_m = self.progress_m - start_m;
         let laps = (driven_m / self.circuit.length_m()).floor().max(0.0) as usize;
         Ok(DriverOutput {
-            command,
+            input,
             laps,
             progress_m: driven_m,
         })
     }
 
-    /// What the person wants now: pure pursuit along the circuit, or backing off when stuck.
-    fn intend(&mut self, time_ns: u64, position: Point2<f64>, heading: f64) -> VelocityCommand {
+    /// Notices being slowed or stuck and plans a detour or a back-off.
+    fn react(&mut self, time_ns: u64, speed_mps: f64, perception: &Perception<'_>) {
+        if time_ns < self.reverse_until_ns || time_ns < self.detour_until_ns {
+            return;
+        }
+        let asked = self.held.x.max(0.0);
+        // The device's forward deflection is compared with the speed it should give at 0.8 m/s
+        // full scale; only the ratio matters, so the scale is the mapping's default.
+        if asked > 0.2 && speed_mps.abs() < SLOWED_RATIO * asked * 0.8 {
+            let since = *self.slowed_since_ns.get_or_insert(time_ns);
+            if time_ns.saturating_sub(since) as f64 * 1e-9 > SLOWED_S {
+                self.slowed_since_ns = None;
+                let ahead = perception
+                    .bearings_rad
+                    .iter()
+                    .zip(perception.clearance_m)
+                    .filter(|(b, _)| b.abs() <= AHEAD_RAD)
+                    .map(|(_, c)| *c)
+                    .fold(f64::INFINITY, f64::min);
+                if ahead < self.profile.stop_m {
+                    // Up against something: back off, turning away from the nearer side.
+                    self.back_off(time_ns, perception);
+                } else {
+                    // Held back: edge towards the most open bearing within 60 degrees.
+                    let open = perception
+                        .bearings_rad
+                        .iter()
+                        .zip(perception.clearance_m)
+                        .filter(|(b, _)| b.abs() <= 1.05)
+                        .max_by(|a, b| a.1.total_cmp(b.1))
+                        .map_or(0.0, |(b, _)| *b);
+                    self.detour_turn = 0.4 * open.signum();
+                    self.detour_until_ns = time_ns + (REACT_S * 1e9) as u64;
+                }
+            }
+        } else {
+            self.slowed_since_ns = None;
+        }
+        if self.progress_m > self.checkpoint.1 + 0.2 {
+            self.checkpoint = (time_ns, self.progress_m);
+        } else if time_ns.saturating_sub(self.checkpoint.0) as f64 * 1e-9 > STUCK_S {
+            self.back_off(time_ns, perception);
+        }
+    }
+
+    /// Reverses for [`REACT_S`], the rear swinging towards the more open side.
+    fn back_off(&mut self, time_ns: u64, perception: &Perception<'_>) {
+        let (left, right) = side_clearance(perception);
+        self.reverse_turn = if left < right { -0.4 } else { 0.4 };
+        self.reverse_until_ns = time_ns + (REACT_S * 1e9) as u64;
+        self.checkpoint = (self.reverse_until_ns, self.progress_m);
+    }
+
+    /// What the person wants now, as an input vector.
+    fn intend(
+        &mut self,
+        time_ns: u64,
+        position: Point2<f64>,
+        heading: f64,
+        perception: &Perception<'_>,
+    ) -> Vector2<f64> {
         let p = self.profile;
         if time_ns < self.reverse_until_ns {
-            return VelocityCommand::new(-0.25, self.reverse_turn_radps);
+            // Backing off: the chair's rear swings the other way, so turn the other way.
+            return Vector2::new(-0.5, self.reverse_turn);
         }
         let target = self.circuit.point_at(self.progress_m + p.lookahead_m);
         let to_target = target - position;
         let alpha = wrap_angle(to_target.y.atan2(to_target.x) - heading);
-        if self.progress_m > self.checkpoint.1 + 0.2 {
-            self.checkpoint = (time_ns, self.progress_m);
-        } else if time_ns.saturating_sub(self.checkpoint.0) as f64 * 1e-9 > STUCK_S {
-            self.reverse_until_ns = time_ns + (REVERSE_S * 1e9) as u64;
-            self.reverse_turn_radps = if alpha > 0.0 { -0.5 } else { 0.5 };
-            self.checkpoint = (self.reverse_until_ns, self.progress_m);
-            return VelocityCommand::new(-0.25, self.reverse_turn_radps);
+        // Perceived clearances, each misjudged by its own factor.
+        let mut ahead = f64::INFINITY;
+        let (mut left, mut right) = (f64::INFINITY, f64::INFINITY);
+        for (&bearing, &clearance) in perception.bearings_rad.iter().zip(perception.clearance_m) {
+            let seen = (clearance * (1.0 + p.perception_noise * self.gaussian())).max(0.0);
+            if bearing.abs() <= AHEAD_RAD {
+                ahead = ahead.min(seen);
+            }
+            if bearing > 0.0 && bearing <= 1.9 {
+                left = left.min(seen);
+            } else if (-1.9..0.0).contains(&bearing) {
+                right = right.min(seen);
+            }
         }
-        // Slow down for sharp turns, turn in place when facing away.
-        let speed = p.preferred_speed_mps * (1.0 - (alpha.abs() / FRAC_PI_2).min(1.0)).max(0.0);
-        let angular = 2.0 * p.preferred_speed_mps.max(0.3) * alpha.sin() / p.lookahead_m;
-        VelocityCommand::new(speed, angular)
+        let narrowest = left.min(right);
+        // Pure pursuit at the speed they mean to go (full deflection taken as about 1 rad/s).
+        let pursuit = 2.0 * (0.8 * p.preferred_input).max(0.3) * alpha.sin() / p.lookahead_m;
+        let mut turn = pursuit.clamp(-1.0, 1.0);
+        // Never towards a side closer than comfort; away from it the closer it is.
+        let urge = |c: f64| p.avoid_gain * (1.0 - c / p.comfort_m).max(0.0);
+        let (away_from_left, away_from_right) = (urge(left), urge(right));
+        if away_from_left > 0.0 && away_from_right > 0.0 {
+            turn = away_from_right - away_from_left;
+        } else if away_from_left > 0.0 {
+            turn = turn.min(-away_from_left);
+        } else if away_from_right > 0.0 {
+            turn = turn.max(away_from_right);
+        }
+        if time_ns < self.detour_until_ns {
+            turn = self.detour_turn;
+        }
+        // Slow down for obstacles ahead, in narrow places, and for sharp turns.
+        let room = ((ahead - p.stop_m) / (p.slow_m - p.stop_m)).clamp(0.0, 1.0);
+        let narrow = 0.5 + 0.5 * (narrowest / p.comfort_m).clamp(0.0, 1.0);
+        let facing = (1.0 - alpha.abs() / FRAC_PI_2).clamp(0.0, 1.0);
+        let forward = p.preferred_input * room.min(facing) * narrow;
+        Vector2::new(forward, turn.clamp(-1.0, 1.0))
     }
 
-    /// The head cap: tremor, lapses and coarse levels on top of the delayed intention.
-    fn head_cap(&mut self, time_ns: u64, dt_s: f64, delayed: VelocityCommand) -> VelocityCommand {
+    /// The device: tremor, and for the head cap lapses and levels, on the delayed intention.
+    fn device_output(&mut self, time_ns: u64, dt_s: f64, delayed: Vector2<f64>) -> Vector2<f64> {
         let p = self.profile;
-        if time_ns < self.lapse_until_ns {
-            return self.held;
+        if self.device == InputDevice::HeadCap {
+            if time_ns < self.lapse_until_ns {
+                return self.held;
+            }
+            if self
+                .rng
+                .random_bool((p.lapse_rate_hz * dt_s).clamp(0.0, 1.0))
+            {
+                self.lapse_until_ns = time_ns + (p.lapse_s * 1e9) as u64;
+                return self.held;
+            }
         }
-        if self
-            .rng
-            .random_bool((p.lapse_rate_hz * dt_s).clamp(0.0, 1.0))
-        {
-            self.lapse_until_ns = time_ns + (p.lapse_s * 1e9) as u64;
-            return self.held;
-        }
-        // First-order autoregressive tremor with stationary deviation tremor_*.
+        // First-order autoregressive tremor with stationary deviation `tremor`.
         let keep = (-dt_s / p.tremor_time_s).exp();
         let fresh = (1.0 - keep * keep).sqrt();
-        self.tremor.linear_mps =
-            keep * self.tremor.linear_mps + fresh * p.tremor_mps * self.gaussian();
-        self.tremor.angular_radps =
-            keep * self.tremor.angular_radps + fresh * p.tremor_radps * self.gaussian();
-        let linear = delayed.linear_mps + self.tremor.linear_mps;
-        let angular = delayed.angular_radps + self.tremor.angular_radps;
-        // Coarse levels: stop / half / full tilt forward, one reverse level; n turn levels a side.
-        let full = p.preferred_speed_mps;
-        let linear = if linear < -0.1 {
-            -0.25
-        } else {
-            (linear / (full / 2.0)).round().clamp(0.0, 2.0) * full / 2.0
+        let noise = Vector2::new(self.gaussian(), self.gaussian());
+        self.tremor = keep * self.tremor + fresh * p.tremor * noise;
+        let raw = delayed + self.tremor;
+        self.held = match self.device {
+            InputDevice::Joystick => Vector2::new(raw.x.clamp(-1.0, 1.0), raw.y.clamp(-1.0, 1.0)),
+            InputDevice::HeadCap => {
+                // Forward: stop or one of three speed levels (a third, two thirds, full tilt);
+                // tilting back is the one reverse level.
+                let x = if raw.x < -0.25 {
+                    -0.5
+                } else {
+                    (raw.x * 3.0).round().clamp(0.0, 3.0) / 3.0
+                };
+                let y = if raw.y.abs() < DEAD_ZONE {
+                    0.0
+                } else {
+                    raw.y.clamp(-1.0, 1.0)
+                };
+                Vector2::new(x, y)
+            }
         };
-        let levels = f64::from(p.turn_levels.max(1));
-        let step = p.max_angular_radps / levels;
-        let angular = (angular / step).round().clamp(-levels, levels) * step;
-        self.held = VelocityCommand::new(linear, angular);
         self.held
     }
 
@@ -339,10 +504,23 @@ impl HeadGestureDriver {
     }
 }
 
+/// The smallest clearance on the left (bearings 30-150 degrees) and on the right, m.
+fn side_clearance(perception: &Perception<'_>) -> (f64, f64) {
+    let mut left = f64::INFINITY;
+    let mut right = f64::INFINITY;
+    for (&b, &c) in perception.bearings_rad.iter().zip(perception.clearance_m) {
+        if (0.52..=2.62).contains(&b) {
+            left = left.min(c);
+        } else if (-2.62..=-0.52).contains(&b) {
+            right = right.min(c);
+        }
+    }
+    (left, right)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector2;
 
     fn square() -> Circuit {
         Circuit::new(vec![
@@ -354,21 +532,34 @@ mod tests {
         .unwrap()
     }
 
-    /// Drives a unicycle in free space with the driver; returns laps done and the worst distance
-    /// from the circuit.
-    fn drive(seed: u64, seconds: f64) -> (usize, f64) {
+    const BEARINGS: [f64; 4] = [0.0, FRAC_PI_2, -FRAC_PI_2, std::f64::consts::PI];
+    const OPEN: [f64; 4] = [f64::INFINITY; 4];
+
+    /// Drives a unicycle in free space (0.8 m/s, 1 rad/s full scale); returns laps done and the
+    /// worst distance from the circuit.
+    fn drive(seed: u64, device: InputDevice, seconds: f64) -> (usize, f64) {
         let circuit = square();
-        let mut driver =
-            HeadGestureDriver::new(DriverProfile::from_seed(seed), circuit.clone(), seed);
+        let mut driver = SeeingDriver::new(
+            DriverProfile::from_seed(seed),
+            device,
+            circuit.clone(),
+            seed,
+        );
         let mut pose = Isometry2::new(Vector2::zeros(), 0.0);
         let mut worst: f64 = 0.0;
         let mut laps = 0;
+        let mut v = 0.0;
         let dt = 0.05;
+        let seen = Perception {
+            bearings_rad: &BEARINGS,
+            clearance_m: &OPEN,
+        };
         for k in 0..(seconds / dt) as u64 {
-            let out = driver.step(k * 50_000_000, pose).unwrap();
+            let out = driver.step(k * 50_000_000, pose, v, &seen).unwrap();
             laps = out.laps;
             let h = pose.rotation.angle();
-            let (v, w) = (out.command.linear_mps, out.command.angular_radps);
+            v = out.input.x * 0.8;
+            let w = out.input.y;
             pose = Isometry2::new(
                 pose.translation.vector + Vector2::new(v * h.cos(), v * h.sin()) * dt,
                 h + w * dt,
@@ -381,44 +572,75 @@ mod tests {
     }
 
     #[test]
-    fn drivers_complete_laps_near_the_circuit() {
+    fn drivers_complete_laps_near_the_circuit_with_either_device() {
         for seed in 0..4 {
-            let (laps, worst) = drive(seed, 120.0);
-            assert!(laps >= 2, "seed {seed}: {laps} laps");
-            assert!(worst < 1.0, "seed {seed}: strayed {worst} m");
+            for device in [InputDevice::HeadCap, InputDevice::Joystick] {
+                let (laps, worst) = drive(seed, device, 120.0);
+                assert!(laps >= 2, "seed {seed} {device:?}: {laps} laps");
+                assert!(worst < 1.0, "seed {seed} {device:?}: strayed {worst} m");
+            }
         }
     }
 
-    #[test]
-    fn same_seed_same_commands_and_levels_are_coarse() {
-        let run = |seed| {
-            let mut d = HeadGestureDriver::new(DriverProfile::from_seed(seed), square(), seed);
-            (0..200u64)
-                .map(|k| {
-                    d.step(
-                        k * 50_000_000,
-                        Isometry2::new(Vector2::new(0.01 * k as f64, 0.0), 0.0),
-                    )
-                    .unwrap()
-                    .command
-                })
-                .collect::<Vec<_>>()
+    fn first_outputs(seed: u64, device: InputDevice, clearance: &[f64; 4]) -> Vec<Vector2<f64>> {
+        let mut d = SeeingDriver::new(DriverProfile::from_seed(seed), device, square(), seed);
+        let seen = Perception {
+            bearings_rad: &BEARINGS,
+            clearance_m: clearance,
         };
-        let a = run(7);
-        assert_eq!(a, run(7));
-        assert_ne!(a, run(8));
-        let levels: std::collections::BTreeSet<i64> = a
-            .iter()
-            .map(|c| (c.angular_radps * 1000.0).round() as i64)
-            .collect();
-        assert!(levels.len() <= 5, "{levels:?}");
+        (0..100u64)
+            .map(|k| {
+                let pose = Isometry2::new(Vector2::new(0.01 * k as f64, 0.0), 0.0);
+                d.step(k * 50_000_000, pose, 0.3, &seen).unwrap().input
+            })
+            .collect()
+    }
+
+    #[test]
+    fn same_seed_same_inputs_and_the_cap_has_three_forward_levels() {
+        let a = first_outputs(7, InputDevice::HeadCap, &OPEN);
+        assert_eq!(a, first_outputs(7, InputDevice::HeadCap, &OPEN));
+        assert_ne!(a, first_outputs(8, InputDevice::HeadCap, &OPEN));
+        assert!(
+            a.iter()
+                .all(|u| [0.0, 1.0, 2.0, 3.0].contains(&(u.x * 3.0).round()) && u.x >= 0.0),
+            "{a:?}"
+        );
+    }
+
+    #[test]
+    fn an_obstacle_close_on_the_left_turns_the_person_right_and_one_ahead_stops_them() {
+        let mean_turn = |c: &[f64; 4]| {
+            let out = first_outputs(3, InputDevice::Joystick, c);
+            out[40..].iter().map(|u| u.y).sum::<f64>() / 60.0
+        };
+        let free = mean_turn(&OPEN);
+        let left = mean_turn(&[f64::INFINITY, 0.05, f64::INFINITY, f64::INFINITY]);
+        assert!(left < free - 0.2, "free {free}, wall on the left {left}");
+        let ahead = first_outputs(3, InputDevice::Joystick, &[0.05, 2.0, 2.0, 2.0]);
+        let forward = ahead[40..].iter().map(|u| u.x).sum::<f64>() / 60.0;
+        assert!(forward < 0.15, "{forward}");
     }
 
     #[test]
     fn reaction_delay_holds_the_start() {
-        let mut d = HeadGestureDriver::new(DriverProfile::from_seed(1), square(), 1);
-        let first = d.step(0, Isometry2::identity()).unwrap();
-        assert_eq!(first.command, VelocityCommand::STOP);
+        let mut d = SeeingDriver::new(
+            DriverProfile::from_seed(1),
+            InputDevice::Joystick,
+            square(),
+            1,
+        );
+        let seen = Perception {
+            bearings_rad: &BEARINGS,
+            clearance_m: &OPEN,
+        };
+        let first = d.step(0, Isometry2::identity(), 0.0, &seen).unwrap();
+        assert_eq!(first.input, Vector2::zeros());
+        let short = Perception {
+            bearings_rad: &BEARINGS,
+            clearance_m: &OPEN[..2],
+        };
+        assert!(d.step(1, Isometry2::identity(), 0.0, &short).is_err());
     }
 
     #[test]

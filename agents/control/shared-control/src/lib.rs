@@ -1,7 +1,7 @@
 //! Shared-control obstacle avoidance for a powered wheelchair (thesis 3.6), a VFH+ shared controller
-//! as a baseline, the tactical and basic control layers of the control agent (thesis 3.3), a
-//! head-gesture driver model for simulated experiments (thesis 3.7.1), and the Wilcoxon
-//! signed-rank test the thesis evaluates with.
+//! as a baseline, the tactical and basic control layers of the control agent (thesis 3.3), and a
+//! driver model for simulated experiments (thesis 3.7.1). The Wilcoxon signed-rank test the thesis
+//! evaluates with lives in `iw-stats`.
 //!
 //! Pure library: no bus, no simulator. Every function takes its inputs (sensor ranges, pose, time in
 //! ns) explicitly, so the same code runs on the real chair, in the simulator and in tests.
@@ -10,19 +10,23 @@
 //! - [`VelocityCommand`]: linear and angular speed, the currency of all layers; [`MotionIntent`] maps
 //!   it to the direction the chair is about to travel and back.
 //! - [`SharedController`]: one trait, `step(&SharedInput) -> SharedOutput`, with
-//!   [`PotentialField`] (thesis equations 3.1-3.4), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint
+//!   [`ThesisField`] (thesis equations 3.1-3.4 as a filter on the joystick's input vector, through
+//!   [`JoystickMapping`]), [`PotentialField`] (the same equations with an arc-chord mapping of
+//!   our own), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint
 //!   swept along the commanded arc, turning in place included), [`Guarded`] (a controller, then the guard) and [`Manual`] (pass-through).
 //! - [`tactical`]: basic actions (follow line, spin, turn to angle, go to XY, follow left/right wall,
 //!   wait, stop) and [`tactical::ActionSequence`], each next action starting when the current is done.
 //! - [`basic`]: differential-drive kinematics with limits and a [`basic::Watchdog`] that stops the
 //!   chair when commands stop arriving.
-//! - [`driver`]: [`driver::HeadGestureDriver`], a seeded model of a person steering with a head cap
-//!   (delay, tremor noise, coarse quantised steering) along a circuit.
+//! - [`driver`]: [`driver::SeeingDriver`], a seeded model of a person who sees the obstacles
+//!   around the chair and steers along a circuit with a head cap or a joystick.
 //!
 //! Guarantees:
 //! - With no obstacle inside the safety range the user's command comes out unchanged, bit for bit
 //!   (the round trip through [`MotionIntent`] is exact); [`Intervention::changed`] is then false.
-//! - Shared controllers never drive faster than the user asked, nor in the opposite direction.
+//! - [`PotentialField`], [`Vfh`] and [`ArcGuard`] never drive faster than the user asked, nor in
+//!   the opposite direction; [`ThesisField`] may (the thesis's `F_t` can point backwards), within
+//!   the joystick's full deflection.
 //! - Nothing here reads a clock: time is an explicit `u64` ns input, so runs are reproducible.
 //! - Bad configuration or sensor input (NaN, negative ranges, wrong array sizes) is a
 //!   [`ControlError`], never a panic.
@@ -33,6 +37,7 @@ mod command;
 pub mod driver;
 mod error;
 mod guard;
+mod joystick;
 mod manual;
 mod potential;
 pub mod tactical;
@@ -41,8 +46,9 @@ mod vfh;
 pub use command::{MotionIntent, VelocityCommand};
 pub use error::ControlError;
 pub use guard::{ArcGuard, ArcGuardParams, Guarded};
+pub use joystick::{FieldCentre, JoystickMapping, ThesisField, ThesisFieldParams};
 pub use manual::Manual;
-pub use potential::{PotentialField, PotentialFieldParams};
+pub use potential::{PotentialField, PotentialFieldParams, Repulsion};
 pub use vfh::{Vfh, VfhParams};
 
 use nalgebra::{Isometry2, Point2};

@@ -1,17 +1,20 @@
-//! The thesis's shared-control potential field (section 3.6, equations 3.1-3.4).
+//! Equations 3.1-3.4 of thesis 3.6 with an arc-chord mapping of our own (the `shared-chord`
+//! variant; the thesis's reading as a joystick filter is [`crate::ThesisField`]).
 //!
 //! Each sonar echo `D_i` places an obstacle `O_i` on the sensor's acoustic axis; it pushes the chair
-//! along `O_i -> C` (C = centre of rotation, equation 3.1) with
+//! along `O_i -> C` (C here = centre of the drive axle, equation 3.1) with
 //! `|F_i| = alpha exp(-beta D_i + omega Sp) |F_a|` (3.2). The repulsions add up to `F_r` (3.3) and
-//! `F_t = F_a + F_r` (3.4) steers the chair.
+//! `F_t = F_a + F_r` (3.4). Our invention, not the thesis's: `F_a` is the chord of the arc the
+//! command drives in `lookahead_s` (length |v|), and `F_t` goes back to a command by the inverse,
+//! its direction clamped to +-90 degrees, never reversing, never faster than the user.
 //!
-//! Units (our reading, checked against figure 3.4 and 3.8): `D` in **centimetres**, `Sp` in
-//! **m/s**. With alpha 0.51, beta 0.271, omega 14.8 the repulsion equals the user's pull at
-//! `D = (omega Sp + ln alpha) / beta`: 25 cm at 0.5 m/s, 52 cm at 1.0 m/s, 79 cm at 1.5 m/s, which
-//! spans the 27-80 cm sensing perimeter of figure 3.4 over a powered chair's speed range; `D` in
+//! Units (an assumption; the text does not give them): `D` in **centimetres**, `Sp` in **m/s**.
+//! With alpha 0.51, beta 0.271, omega 14.8 the repulsion equals the user's pull at
+//! `D = (omega Sp + ln alpha) / beta`: 25 cm at 0.5 m/s, 52 cm at 1.0 m/s, 79 cm at 1.5 m/s, inside
+//! the 27-80 cm sensing perimeter of section 3.4 over a powered chair's speed range; `D` in
 //! metres would make the force vanish nowhere inside a room, `Sp` in cm/s would saturate it.
 //!
-//! Safety range (figure 3.8): a reading acts only when `D` is within
+//! Safety range (an assumption; figure 3.8 is not in the text): a reading acts only when `D` is within
 //! `d_safe(Sp) = clamp((omega Sp - ln(epsilon / alpha)) / beta, 27 cm, 80 cm)`, the distance where the
 //! repulsion falls to `epsilon |F_a|` (default 5 %), bounded by the perimeter the sonars cover. Beyond
 //! it the user's command passes through untouched.
@@ -35,9 +38,9 @@ pub struct PotentialFieldParams {
     pub omega_s_per_m: f64,
     /// Relative force below which a reading is outside the safety range (0.05).
     pub epsilon: f64,
-    /// Inner bound of the safety range, m (0.27, figure 3.4).
+    /// Inner bound of the safety range, m (0.27, the perimeter of section 3.4).
     pub min_safety_range_m: f64,
-    /// Outer bound of the safety range, m (0.80, figure 3.4).
+    /// Outer bound of the safety range, m (0.80, the perimeter of section 3.4).
     pub max_safety_range_m: f64,
     /// Horizon over which a command is turned into a direction of travel, s (1.0).
     pub lookahead_s: f64,
@@ -129,35 +132,67 @@ impl PotentialField {
         speed_mps: f64,
         fa: f64,
     ) -> Result<Repulsion, ControlError> {
-        if sonar_m.len() != self.mounts.len() {
-            return Err(ControlError::SonarCount {
-                expected: self.mounts.len(),
-                got: sonar_m.len(),
-            });
-        }
-        let speed_mps = check_range("speed", 0, speed_mps.abs())?;
-        let safety_m = self.params.safety_range_m(speed_mps);
-        let mut force_chair = Vector2::zeros();
-        let mut active_readings = 0;
-        for (index, (mount, reading)) in self.mounts.iter().zip(sonar_m).enumerate() {
-            let Some(distance_m) = *reading else { continue };
-            let distance_m = check_range("sonar", index, distance_m)?;
-            if distance_m > safety_m {
-                continue;
-            }
-            // Equation 3.1: the obstacle sits on the acoustic axis; it pushes along O_i -> C.
-            let o_chair = mount * Point2::new(distance_m, 0.0);
-            let Some(away) = (-o_chair.coords).try_normalize(1e-9) else {
-                continue;
-            };
-            force_chair += away * (self.params.force_ratio(distance_m, speed_mps) * fa);
-            active_readings += 1;
-        }
-        Ok(Repulsion {
-            force_chair,
-            active_readings,
-        })
+        field_repulsion(
+            &self.mounts,
+            sonar_m,
+            Point2::origin(),
+            speed_mps,
+            |speed| self.params.safety_range_m(speed),
+            |d, speed| self.params.force_ratio(d, speed) * fa,
+        )
     }
+}
+
+/// [`sum_repulsion`] at the measured speed `speed_mps` (its sign ignored): `safety_m(speed)` is the
+/// activation range, `magnitude(D, speed)` the force of one echo.
+pub(crate) fn field_repulsion(
+    mounts: &[SensorMount],
+    sonar_m: &[Option<f64>],
+    centre_chair: Point2<f64>,
+    speed_mps: f64,
+    safety_m: impl Fn(f64) -> f64,
+    magnitude: impl Fn(f64, f64) -> f64,
+) -> Result<Repulsion, ControlError> {
+    let speed_mps = check_range("speed", 0, speed_mps.abs())?;
+    sum_repulsion(mounts, sonar_m, centre_chair, safety_m(speed_mps), |d| {
+        magnitude(d, speed_mps)
+    })
+}
+
+/// Equations 3.1 and 3.3: each echo within `safety_m` on its sonar's axis pushes along
+/// `O_i -> centre_chair` with magnitude `magnitude(D_i)`; the pushes add up.
+pub(crate) fn sum_repulsion(
+    mounts: &[SensorMount],
+    sonar_m: &[Option<f64>],
+    centre_chair: Point2<f64>,
+    safety_m: f64,
+    magnitude: impl Fn(f64) -> f64,
+) -> Result<Repulsion, ControlError> {
+    if sonar_m.len() != mounts.len() {
+        return Err(ControlError::SonarCount {
+            expected: mounts.len(),
+            got: sonar_m.len(),
+        });
+    }
+    let mut force_chair = Vector2::zeros();
+    let mut active_readings = 0;
+    for (index, (mount, reading)) in mounts.iter().zip(sonar_m).enumerate() {
+        let Some(distance_m) = *reading else { continue };
+        let distance_m = check_range("sonar", index, distance_m)?;
+        if distance_m > safety_m {
+            continue;
+        }
+        let o_chair = mount * Point2::new(distance_m, 0.0);
+        let Some(away) = (centre_chair - o_chair).try_normalize(1e-9) else {
+            continue;
+        };
+        force_chair += away * magnitude(distance_m);
+        active_readings += 1;
+    }
+    Ok(Repulsion {
+        force_chair,
+        active_readings,
+    })
 }
 
 impl SharedController for PotentialField {

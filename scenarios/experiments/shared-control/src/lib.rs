@@ -1,16 +1,23 @@
-//! The obstacle-avoidance experiment of thesis 3.7.1, run with simulated volunteers: each
-//! [`iw_shared_control::driver::HeadGestureDriver`] drives laps of a cluttered office circuit in
-//! the [`iw_sim`] world four times with the same seeds: manually, with the thesis's
-//! potential-field shared control, with the VFH+ baseline, and with the control agent's policy
-//! (the potential field, then the arc guard's footprint sweep). Collisions come from the
-//! simulator's contact counter; interventions from comparing the user's command with the one sent
-//! to the wheels; "near obstacles" from the true clearance between the chair's footprint and the
-//! map.
+//! The obstacle-avoidance experiment of thesis 3.7.1, run with simulated volunteers who see:
+//! each [`iw_shared_control::driver::SeeingDriver`] drives the circuit of a map in the [`iw_sim`]
+//! world once per paradigm, in the thesis's order (manual first): manually, with the thesis's
+//! potential field as a joystick filter ([`Mode::Shared`]), with the same equations through our
+//! older arc-chord mapping ([`Mode::SharedChord`]), with VFH+, and with the control agent's
+//! policy (the arc-chord field, then the arc guard's footprint sweep). Collisions come from the
+//! simulator's contact counter (one per new contact); interventions from comparing the user's
+//! command with the one sent to the wheels; "near obstacles" from the true clearance between the
+//! chair's footprint and the map.
+//!
+//! Protocol (thesis 3.7.1): one lap per paradigm per driver (`laps = 1`), collisions per lap
+//! paired per driver, one-tailed Wilcoxon signed-rank (T, exact and normal-approximation p).
+//! `laps > 1` keeps the older multi-lap mode. Simulated drivers do not learn, so the order is
+//! recorded but changes nothing.
 //!
 //! Organization:
-//! - [`Config`], [`Mode`]: what to run; [`OFFICE_CIRCUIT`]: the default map, embedded.
+//! - [`Config`], [`Mode`], [`Sensors`]: what to run; [`OFFICE_CIRCUIT`]: the default map.
 //! - [`run_trial`]: one driver, one mode; [`run`]: all of them (in parallel), then [`Report`].
-//! - [`Summary`]: the JSON written as `summary.json`; [`write_outputs`] adds path plots.
+//! - [`Summary`]: the JSON written as `summary.json`; [`write_outputs`] adds plots;
+//!   [`sweep`]: the sensitivity of the `shared` result to the assumptions the thesis leaves open.
 //!
 //! Guarantees: deterministic (a trial depends only on the map, the config and its driver index),
 //! whatever the thread count; every failure is an [`ExperimentError`] naming its cause.
@@ -18,17 +25,21 @@
 
 mod clearance;
 mod output;
+mod sweep;
 
-pub use output::{Summary, write_outputs};
+pub use iw_shared_control::driver::InputDevice;
+pub use output::{ModeSummary, Summary, write_outputs};
+pub use sweep::{SweepRow, Variant, sweep, sweep_trials, variants, write_sweep};
 
 use iw_shared_control::basic::{BasicControl, DiffDrive};
-use iw_shared_control::driver::{Circuit, DriverProfile, HeadGestureDriver};
+use iw_shared_control::driver::{Circuit, DriverProfile, Perception, SeeingDriver};
 use iw_shared_control::{
     ArcGuard, ArcGuardParams, ControlError, Guarded, Intervention, Manual, PotentialField,
-    PotentialFieldParams, SharedController, SharedInput, Vfh, VfhParams,
+    PotentialFieldParams, SharedController, SharedInput, ThesisField, ThesisFieldParams, Vfh,
+    VfhParams,
 };
-use iw_sim::{ChairKind, ChairSpec, Map, SimError, World};
-use nalgebra::{Isometry2, Point2};
+use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SimError, World};
+use nalgebra::{Isometry2, Point2, Vector2};
 use rayon::prelude::*;
 
 /// The default circuit: a closed office corridor loop with furniture narrowing it (figure 3.9).
@@ -47,6 +58,18 @@ pub enum ExperimentError {
     /// The paired samples could not be tested.
     #[error("statistics: {0}")]
     Stats(#[from] iw_stats::StatsError),
+    /// The route is open: a lap needs a closed one.
+    #[error("route `{name}` is not closed; a lap needs `route {name} closed x1 y1 ...`")]
+    OpenRoute {
+        /// Route asked for.
+        name: String,
+    },
+    /// A summary needs every paradigm's trials.
+    #[error("the report has no `{mode}` trials; a summary needs every paradigm")]
+    MissingMode {
+        /// The paradigm missing.
+        mode: &'static str,
+    },
     /// The map has no route to drive.
     #[error(
         "map has no route `{name}` (routes: {available}); add `route {name} closed x1 y1 x2 y2 ...`"
@@ -73,34 +96,55 @@ pub enum ExperimentError {
     },
 }
 
-/// The three control paradigms compared.
+/// The control paradigms compared.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Mode {
     /// The user's command goes straight to the wheels.
     Manual,
-    /// Thesis 3.6 potential field on the 16 sonars.
+    /// Thesis 3.6 on the 16 sonars, read as a filter on the joystick's input vector
+    /// ([`ThesisField`]).
     Shared,
-    /// VFH+ on the sonars and the laser scanner.
+    /// The same equations through our arc-chord mapping ([`PotentialField`]), the reading this
+    /// experiment used before; kept as a variant.
+    SharedChord,
+    /// VFH+ on the configured [`Sensors`].
     Vfh,
-    /// The control agent's policy: the potential field, then the arc guard's footprint sweep on
-    /// the same sonars and laser points.
+    /// The control agent's policy: the arc-chord field, then the arc guard's footprint sweep, on
+    /// the configured [`Sensors`].
     Guarded,
 }
 
 impl Mode {
-    /// All modes, in report order.
-    pub const ALL: [Mode; 4] = [Mode::Manual, Mode::Shared, Mode::Vfh, Mode::Guarded];
+    /// All modes, in the order each driver drives them (the thesis's: manual first).
+    pub const ALL: [Mode; 5] = [
+        Mode::Manual,
+        Mode::Shared,
+        Mode::SharedChord,
+        Mode::Vfh,
+        Mode::Guarded,
+    ];
 
     /// The key used in `summary.json` and file names.
     pub fn key(self) -> &'static str {
         match self {
             Mode::Manual => "manual",
             Mode::Shared => "shared",
+            Mode::SharedChord => "shared_chord",
             Mode::Vfh => "vfh",
             Mode::Guarded => "guarded",
         }
     }
+}
+
+/// Which sensors VFH+ and the guarded policy see (the thesis's field always uses the sonars).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sensors {
+    /// The 16 sonars only (what the thesis's field sees).
+    Sonars,
+    /// The sonars and the 270-degree laser scanner.
+    SonarsLaser,
 }
 
 /// What to run.
@@ -108,7 +152,7 @@ impl Mode {
 pub struct Config {
     /// Simulated volunteers (8 in the thesis).
     pub drivers: usize,
-    /// Laps each driver drives per mode.
+    /// Laps each driver drives per mode (1: the thesis's protocol).
     pub laps: usize,
     /// Base seed: driver `i` uses `seed + i` for their traits, drive noise and sensor noise.
     pub seed: u64,
@@ -122,19 +166,28 @@ pub struct Config {
     pub near_m: f64,
     /// Basic-control watchdog timeout, ns.
     pub watchdog_ns: u64,
+    /// The drivers' input device (the thesis's volunteers used the head cap).
+    pub device: InputDevice,
+    /// What VFH+ and the guarded policy see.
+    pub sensors: Sensors,
+    /// The `shared` paradigm's constants and open assumptions.
+    pub field: ThesisFieldParams,
 }
 
 impl Default for Config {
     fn default() -> Self {
         Config {
             drivers: 8,
-            laps: 3,
+            laps: 1,
             seed: 1,
             route: "lap".into(),
             period_s: 0.05,
             lap_timeout_s: 240.0,
             near_m: 0.8,
             watchdog_ns: 300_000_000,
+            device: InputDevice::HeadCap,
+            sensors: Sensors::SonarsLaser,
+            field: ThesisFieldParams::default(),
         }
     }
 }
@@ -146,7 +199,7 @@ pub struct Trial {
     pub driver: usize,
     /// Paradigm.
     pub mode: Mode,
-    /// Collision events counted by the simulator.
+    /// Collision events counted by the simulator (one per new contact).
     pub collisions: u64,
     /// Laps finished.
     pub laps_completed: usize,
@@ -168,6 +221,8 @@ pub struct Trial {
     pub min_clearance_m: f64,
     /// Ground distance driven, m.
     pub distance_m: f64,
+    /// Simulated time driven, s.
+    pub duration_s: f64,
     /// Positions every 0.25 s, m (for the plots).
     #[serde(skip)]
     pub path: Vec<(f64, f64)>,
@@ -183,8 +238,15 @@ pub struct Report {
     pub config: Config,
     /// Map name.
     pub map_name: String,
-    /// Trials ordered by driver, then [`Mode::ALL`] order.
+    /// Trials ordered by driver, then in the order driven.
     pub trials: Vec<Trial>,
+}
+
+impl Report {
+    /// The trials of one paradigm, in driver order.
+    pub fn trials_of(&self, mode: Mode) -> Vec<&Trial> {
+        self.trials.iter().filter(|t| t.mode == mode).collect()
+    }
 }
 
 fn seed_of(config: &Config, driver: usize) -> u64 {
@@ -204,6 +266,11 @@ fn circuit_of(map: &Map, config: &Config) -> Result<(Circuit, Isometry2<f64>), E
                 .collect::<Vec<_>>()
                 .join(", "),
         })?;
+    if !route.closed {
+        return Err(ExperimentError::OpenRoute {
+            name: config.route.clone(),
+        });
+    }
     let circuit = Circuit::new(route.points.clone())?;
     // Start where the map says for this route, else on the first waypoint facing the second.
     let start = map.start(&config.route).unwrap_or_else(|| {
@@ -232,22 +299,54 @@ fn laser_points(spec: &ChairSpec, ranges: &[f64], out: &mut Vec<Point2<f64>>) {
     }
 }
 
-/// Runs driver `driver` for `config.laps` laps in `mode`.
-pub fn run_trial(
-    map: &Map,
-    config: &Config,
-    driver: usize,
+/// Bearings the simulated person looks along, chair frame, rad: every 15 degrees.
+fn bearings() -> Vec<f64> {
+    (0..24)
+        .map(|k| iw_shared_control::tactical::wrap_angle(k as f64 * 15f64.to_radians()))
+        .collect()
+}
+
+/// What a person sees: the clearance from the footprint to the nearest solid along each bearing,
+/// cast from the footprint's centre (what the person judges, not what the sensors report).
+fn perceive(
+    world: &World,
+    id: ChairId,
+    spec: &ChairSpec,
+    pose: &Isometry2<f64>,
+    bearings: &[f64],
+    out: &mut Vec<f64>,
+) {
+    const SIGHT_M: f64 = 5.0;
+    let half_length = (spec.front_m + spec.rear_m) / 2.0;
+    let origin = pose * Point2::new((spec.front_m - spec.rear_m) / 2.0, 0.0);
+    out.clear();
+    out.extend(bearings.iter().map(|&b| {
+        let (sin, cos) = b.sin_cos();
+        // Distance from the centre to the rectangle's edge along this bearing.
+        let edge = (half_length / cos.abs()).min(spec.half_width_m / sin.abs());
+        let dir = pose.rotation * Vector2::new(cos, sin);
+        world
+            .cast(&origin, &dir, SIGHT_M, Some(id.0))
+            .map_or(f64::INFINITY, |hit| (hit.range_m - edge).max(0.0))
+    }));
+}
+
+/// The controller a mode drives through.
+fn controller(
     mode: Mode,
-) -> Result<Trial, ExperimentError> {
-    let (circuit, start) = circuit_of(map, config)?;
-    let seed = seed_of(config, driver);
-    let spec = ChairSpec::default();
-    let mut world = World::new(map.clone(), seed);
-    let id = world.add_chair(spec.clone(), start, ChairKind::Simulated);
+    config: &Config,
+    spec: &ChairSpec,
+) -> Result<Box<dyn SharedController>, ExperimentError> {
     let mounts: Vec<_> = spec.sonars.iter().map(|m| m.t_body_sonar).collect();
-    let mut controller: Box<dyn SharedController> = match mode {
+    Ok(match mode {
         Mode::Manual => Box::new(Manual),
-        Mode::Shared => Box::new(PotentialField::new(
+        Mode::Shared => Box::new(ThesisField::new(
+            config.field,
+            mounts,
+            spec.front_m,
+            spec.rear_m,
+        )?),
+        Mode::SharedChord => Box::new(PotentialField::new(
             PotentialFieldParams::default(),
             mounts,
         )?),
@@ -262,14 +361,31 @@ pub fn run_trial(
             },
             mounts,
         )?),
-    };
+    })
+}
+
+/// Runs driver `driver` for `config.laps` laps in `mode`.
+pub fn run_trial(
+    map: &Map,
+    config: &Config,
+    driver: usize,
+    mode: Mode,
+) -> Result<Trial, ExperimentError> {
+    let (circuit, start) = circuit_of(map, config)?;
+    let seed = seed_of(config, driver);
+    let spec = ChairSpec::default();
+    let mut world = World::new(map.clone(), seed);
+    let id = world.add_chair(spec.clone(), start, ChairKind::Simulated);
+    let mut controller = controller(mode, config, &spec)?;
     let drive = DiffDrive::new(
         spec.geometry.track_m,
         spec.max_wheel_mps,
         spec.max_wheel_accel_mps2,
     )?;
     let mut basic = BasicControl::new(drive, config.watchdog_ns);
-    let mut person = HeadGestureDriver::new(DriverProfile::from_seed(seed), circuit, seed);
+    let mapping = config.field.mapping;
+    let mut person =
+        SeeingDriver::new(DriverProfile::from_seed(seed), config.device, circuit, seed);
     let obstacles = clearance::Obstacles::from_map(map);
     let period_ns = (config.period_s * 1e9).round() as u64;
     let record_every = ((0.25 / config.period_s).round() as u64).max(1);
@@ -287,11 +403,15 @@ pub fn run_trial(
         change_sum_mps: 0.0,
         min_clearance_m: f64::INFINITY,
         distance_m: 0.0,
+        duration_s: 0.0,
         path: Vec::new(),
         collision_points: Vec::new(),
     };
     let mut points = Vec::new();
-    let mut lap_start_ns = world.time_ns();
+    let bearings = bearings();
+    let mut seen = Vec::with_capacity(bearings.len());
+    let start_ns = world.time_ns();
+    let mut lap_start_ns = start_ns;
     while trial.laps_completed < config.laps {
         let now_ns = world.time_ns();
         if (now_ns - lap_start_ns) as f64 * 1e-9 > config.lap_timeout_s {
@@ -299,7 +419,17 @@ pub fn run_trial(
             break;
         }
         let pose = world.pose(id)?;
-        let out = person.step(now_ns, pose)?;
+        let (speed_mps, _) = world.twist(id)?;
+        perceive(&world, id, &spec, &pose, &bearings, &mut seen);
+        let out = person.step(
+            now_ns,
+            pose,
+            speed_mps,
+            &Perception {
+                bearings_rad: &bearings,
+                clearance_m: &seen,
+            },
+        )?;
         if out.laps > trial.laps_completed {
             trial
                 .lap_times_s
@@ -309,10 +439,14 @@ pub fn run_trial(
             continue;
         }
         let frame = world.sensors(id)?;
-        laser_points(&spec, &frame.laser_m, &mut points);
-        let (speed_mps, _) = world.twist(id)?;
+        match (mode, config.sensors) {
+            (Mode::Vfh | Mode::Guarded, Sensors::SonarsLaser) => {
+                laser_points(&spec, &frame.laser_m, &mut points)
+            }
+            _ => points.clear(),
+        }
         let shared = controller.step(&SharedInput {
-            user: out.command,
+            user: mapping.to_command(out.input),
             speed_mps,
             sonar_m: &frame.sonar_m,
             points_chair: &points,
@@ -341,6 +475,7 @@ pub fn run_trial(
     }
     trial.collisions = world.collisions(id)?;
     trial.distance_m = world.distance_m(id)?;
+    trial.duration_s = (world.time_ns() - start_ns) as f64 * 1e-9;
     Ok(trial)
 }
 
@@ -369,15 +504,17 @@ fn account(
     }
 }
 
-/// Runs every driver in every mode (in parallel), calling `on_trial` as each trial finishes.
-pub fn run(
+/// Runs every driver in every mode of `modes` (in parallel), calling `on_trial` as each trial
+/// finishes.
+pub fn run_modes(
     map: &Map,
     config: &Config,
+    modes: &[Mode],
     on_trial: impl Fn(&Trial) + Sync,
 ) -> Result<Report, ExperimentError> {
     circuit_of(map, config)?;
     let jobs: Vec<(usize, Mode)> = (0..config.drivers)
-        .flat_map(|d| Mode::ALL.map(|m| (d, m)))
+        .flat_map(|d| modes.iter().map(move |&m| (d, m)))
         .collect();
     let trials = jobs
         .par_iter()
@@ -398,6 +535,15 @@ pub fn run(
         map_name: map.name.clone(),
         trials,
     })
+}
+
+/// Runs every driver in every mode of [`Mode::ALL`].
+pub fn run(
+    map: &Map,
+    config: &Config,
+    on_trial: impl Fn(&Trial) + Sync,
+) -> Result<Report, ExperimentError> {
+    run_modes(map, config, &Mode::ALL, on_trial)
 }
 
 /// The default map, parsed.

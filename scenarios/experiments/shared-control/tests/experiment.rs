@@ -23,8 +23,12 @@ fn small_run_writes_the_contract_summary_and_plots() {
     for mode in ["manual", "shared", "vfh", "guarded"] {
         assert!(json[mode]["collisions"].is_u64(), "{mode}: {text}");
         assert!(json[mode]["intervention_rate"].is_f64());
+        assert!(json[mode]["collisions_per_lap"].is_f64());
+        assert_eq!(json[mode]["laps_attempted"].as_u64(), Some(2));
+        assert!(json[mode]["laps_completed"].as_u64().unwrap() <= 2);
         assert!(dir.path().join(format!("paths-{mode}.png")).exists());
     }
+    assert!(json["wilcoxon_t"].is_f64() && json["wilcoxon_p_normal"].is_f64());
     let p = json["wilcoxon_p"].as_f64().unwrap();
     assert!((0.0..=1.0).contains(&p));
     // Manual driving never changes the user's command.
@@ -57,4 +61,28 @@ fn unknown_route_is_a_clear_error() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("nope") && err.contains("lap"), "{err}");
+}
+
+#[test]
+fn an_open_route_is_a_clear_error() {
+    let map = iw_sim::Map::parse(
+        "wall closed 0 0 10 0 10 10 0 10\nroute lap 1 1 5 1 5 5\n",
+        "open.map",
+    )
+    .unwrap();
+    let err = run_trial(&map, &Config::default(), 0, Mode::Manual)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("not closed"), "{err}");
+}
+
+#[test]
+fn every_map_in_scenarios_maps_with_a_lap_loads_as_a_circuit() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../maps");
+    for name in ["office-circuit.map", "two-rooms.map", "ward-corridor.map"] {
+        let map = iw_sim::Map::load(dir.join(name)).unwrap();
+        let route = map.route("lap").unwrap();
+        assert!(route.closed, "{name}");
+        assert!(map.start("lap").is_some(), "{name}");
+    }
 }
