@@ -1,8 +1,12 @@
 //! The dashboard in a real browser: `intellwheels --serve` on an ephemeral loopback port, driven
-//! by Debian's headless chromium through playwright-core (cli/tests/browser/dashboard.mjs). The
-//! page loads, chairs move between two frames, a click on the map sends the selected chair a goal
-//! and it turns; the screenshot's path is printed. Prints SKIP when chromium, node or
-//! playwright-core is missing (`.ci/run` installs them).
+//! by Debian's headless chromium through playwright-core (cli/tests/browser/*.mjs).
+//! - dashboard.mjs: the page loads, chairs move between two frames, a click on the map sends the
+//!   selected chair a goal and it turns.
+//! - drive.mjs: a chair's on-board view, driven with the on-screen joystick: released while
+//!   moving it stops; through a doorway and straight at a wall it touches nothing.
+//!
+//! The screenshots' paths are printed. Prints SKIP when chromium, node or playwright-core is
+//! missing (`.ci/run` installs them).
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -29,28 +33,32 @@ impl Drop for Demo {
     }
 }
 
-const TEST: &str = "the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click";
-
-#[test]
-fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
+/// Runs `script` (in cli/tests/browser) against a fresh `intellwheels demo --serve`; `None`
+/// (after printing SKIP for `test`) when the browser tools are missing.
+fn in_browser(test: &str, script: &str) -> Option<()> {
+    // One demo and one chromium at a time: two of each would starve a 2-core runner.
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let browser_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
     let Some(chromium) = chromium() else {
         iw_testdata::skip(
-            TEST,
+            test,
             "no chromium (apt-get install chromium; .ci/run does it)",
         );
-        return;
+        return None;
     };
     if !browser_dir.join("node_modules/playwright-core").exists() {
         iw_testdata::skip(
-            TEST,
+            test,
             "playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)",
         );
-        return;
+        return None;
     }
     if Command::new("node").arg("--version").output().is_err() {
-        iw_testdata::skip(TEST, "no node");
-        return;
+        iw_testdata::skip(test, "no node");
+        return None;
     }
     let log_dir = tempfile::tempdir().unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
@@ -71,11 +79,14 @@ fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
     std::thread::spawn(move || lines.for_each(drop));
     println!("dashboard at {url}");
 
-    let screenshot =
-        std::env::temp_dir().join(format!("intellwheels-dashboard-{}.png", std::process::id()));
+    let screenshot = std::env::temp_dir().join(format!(
+        "intellwheels-{}-{}.png",
+        script.trim_end_matches(".mjs"),
+        std::process::id()
+    ));
     let out = Command::new("node")
         .current_dir(&browser_dir)
-        .arg("dashboard.mjs")
+        .arg(script)
         .arg(&url)
         .arg(&chromium)
         .arg(&screenshot)
@@ -111,4 +122,21 @@ fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
     };
     assert!(status.success(), "demo exit status {status}");
     assert!(log_dir.path().join("summary.json").exists());
+    Some(())
+}
+
+#[test]
+fn the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click() {
+    in_browser(
+        "the_dashboard_shows_moving_chairs_and_sends_a_goal_from_a_click",
+        "dashboard.mjs",
+    );
+}
+
+#[test]
+fn a_person_drives_a_chair_with_the_on_screen_joystick() {
+    in_browser(
+        "a_person_drives_a_chair_with_the_on_screen_joystick",
+        "drive.mjs",
+    );
 }

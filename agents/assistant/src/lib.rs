@@ -38,10 +38,6 @@ pub struct AssistantAgent {
     conversations: u64,
 }
 
-fn error_content(why: &str) -> String {
-    format!("((error-message \"{}\"))", why.replace('"', "'"))
-}
-
 impl AssistantAgent {
     /// An assistant for `config.chairs`.
     pub fn new(config: AssistantConfig) -> Self {
@@ -54,12 +50,7 @@ impl AssistantAgent {
 
     fn on_staff_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let _ = ctx.send(
-                message
-                    .create_reply()
-                    .with_performative(Performative::Refuse)
-                    .with_content(error_content(why)),
-            );
+            let _ = ctx.refuse(&message, why);
         };
         let sender = message
             .sender

@@ -615,9 +615,7 @@ impl CognitiveAgent {
             }
             Err(why) => {
                 tracing::warn!(chair = %self.config.chair, reason = %why, "goal failed");
-                reply
-                    .with_performative(Performative::Failure)
-                    .with_content(error_content(&why))
+                WheelchairContent::error(why).fill(reply.with_performative(Performative::Failure))
             }
         };
         let _ = ctx.send(message);
@@ -631,11 +629,7 @@ impl CognitiveAgent {
         place: String,
     ) {
         if !self.config.map.places.contains_key(&place) {
-            let reply = message
-                .create_reply()
-                .with_performative(Performative::Refuse);
-            let _ =
-                ctx.send(reply.with_content(error_content(&format!("unknown place `{place}`"))));
+            let _ = ctx.refuse(&message, &format!("unknown place `{place}`"));
             return;
         }
         self.finish(ctx, Err("replaced by a newer goal".into()));
@@ -759,10 +753,6 @@ impl CognitiveAgent {
     }
 }
 
-fn error_content(why: &str) -> String {
-    format!("((error-message \"{}\"))", why.replace('"', "'"))
-}
-
 impl Agent for CognitiveAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
         if let Some(perception) = self.config.perception.clone() {
@@ -816,12 +806,7 @@ impl Agent for CognitiveAgent {
                     action: WheelchairAction::GoTo { place },
                 }) => self.on_goal(ctx, message, actor, place),
                 Ok(_) => {
-                    let reply = message
-                        .create_reply()
-                        .with_performative(Performative::Refuse);
-                    let _ = ctx.send(
-                        reply.with_content(error_content("the cognitive agent takes go-to goals")),
-                    );
+                    let _ = ctx.refuse(&message, "the cognitive agent takes go-to goals");
                 }
                 Err(err) => {
                     let _ = ctx.not_understood(&message, &err.to_string());

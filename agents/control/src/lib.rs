@@ -6,8 +6,8 @@
 //! - [`ControlConfig`]: who it talks to and its limits; [`ControlAgent::new`] takes it and the
 //!   body to drive (a `Box<dyn iw_body::Body>`: real, virtual or mixed, it cannot tell).
 //! - [`ControlError`]: a configuration the control layers refuse.
-//! - [`drive_content`] / [`parse_drive`]: the manual `drive` action, which the wheelchair
-//!   ontology does not carry.
+//! - [`DriveStatus`]: what the user asked and what shared control applied, shared with whoever
+//!   shows it (the on-chair display, the dashboard).
 //!
 //! # Messages
 //! Understood (all `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`):
@@ -20,9 +20,16 @@
 //!   newer request or manual drive preempts it. Other actions (go-to, doors, follow-line) get
 //!   REFUSE; content that is not the ontology gets NOT-UNDERSTOOD.
 //! - REQUEST `((action (agent-identifier :name control) (drive :linear V :angular W)))` (m/s,
-//!   rad/s): manual driving, no answer (it is a stream); corrected by the potential field with
-//!   the sonars, fed to the watchdog. The interface must repeat it faster than
-//!   [`ControlConfig::watchdog_ms`] or the chair stops.
+//!   rad/s): manual driving as a stream, one conversation per stream (held input). The first
+//!   command of a stream gets AGREE; the following ones no answer. Every command goes through
+//!   the potential field and the arc guard with the sonars, and feeds the watchdog: when the
+//!   stream falls silent for [`ControlConfig::watchdog_ms`] the chair stops and the stream ends
+//!   with INFORM `((done ...))` if the last command was a stop (the user let go), FAILURE
+//!   otherwise. Refused (REFUSE with a reason): a command out of the drive's range or not
+//!   finite (mid-stream: FAILURE, and the chair stops); a driver that is not of this chair
+//!   ([`ControlConfig::drivers`]); a second driver while another's stream is live, unless it is
+//!   staff ([`ControlConfig::staff`]): then the first stream ends with FAILURE and the override
+//!   is logged.
 //! - INFORM `((at-pose agent (pose ...)))`: the pose the tactical layer steers with, from the
 //!   perception agent. At setup the agent SUBSCRIBEs (`fipa-subscribe`) to
 //!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`.
@@ -36,6 +43,7 @@
 //! message content can panic the agent.
 #![warn(missing_docs)]
 
+use std::sync::PoisonError;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
@@ -52,7 +60,7 @@ use iw_shared_control::{
     ArcGuard, ArcGuardParams, Guarded, PotentialField, PotentialFieldParams, SensorMount,
     SharedController, SharedInput, VelocityCommand,
 };
-use iw_sl::{ActionExpression, ContentExpression, Level, Term};
+use iw_sl::Level;
 use nalgebra::Isometry2;
 
 /// A configuration the control layers refuse.
@@ -107,6 +115,11 @@ pub struct ControlConfig {
     /// at the first failed read; a task survives a shorter fault (one corrupted serial frame)
     /// and resumes from rest.
     pub body_fault_ms: u64,
+    /// Agents that may drive this chair by hand. Empty: the agents of this chair's own
+    /// container, the part of their name after `@` being the control agent's.
+    pub drivers: Vec<String>,
+    /// Staff agents: they may drive any chair, and take it over from its driver (logged).
+    pub staff: Vec<String>,
 }
 
 impl ControlConfig {
@@ -129,6 +142,8 @@ impl ControlConfig {
             blocked_after_ms: 8000,
             wall_length_m: 3.0,
             body_fault_ms: 500,
+            drivers: Vec::new(),
+            staff: Vec::new(),
         })
     }
 }
@@ -148,9 +163,41 @@ fn progressed(anchor: &Isometry2<f64>, now: &Isometry2<f64>) -> bool {
 /// What the agent is doing.
 enum Mode {
     Idle,
-    Manual { user: VelocityCommand },
+    Manual(Box<Stream>),
     Task(Box<Task>),
 }
+
+/// A live manual drive stream: who drives, in which conversation, and the last command.
+struct Stream {
+    /// The stream's first request (its conversation, for the final answer).
+    request: AclMessage,
+    driver: String,
+    user: VelocityCommand,
+}
+
+impl Stream {
+    fn is(&self, message: &AclMessage) -> bool {
+        sender_name(message) == self.driver
+            && message.conversation_id == self.request.conversation_id
+    }
+}
+
+fn sender_name(message: &AclMessage) -> &str {
+    message.sender.as_ref().map_or("", |s| s.name.as_str())
+}
+
+/// What the user asked for and what shared control sent to the basic layer, at the last tick
+/// of manual driving (`None` while no one drives).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct DriveStatus {
+    /// The user's last command.
+    pub user: Option<VelocityCommand>,
+    /// What the potential field and the arc guard made of it.
+    pub applied: Option<VelocityCommand>,
+}
+
+/// A [`DriveStatus`] shared with a display (cloning shares).
+pub type SharedDriveStatus = std::sync::Arc<std::sync::Mutex<DriveStatus>>;
 
 struct Task {
     request: AclMessage,
@@ -173,6 +220,7 @@ pub struct ControlAgent {
     manual_watchdog: Watchdog,
     /// When the body's reads started failing, while they fail, ns.
     body_fault_since_ns: Option<u64>,
+    status: SharedDriveStatus,
 }
 
 impl ControlAgent {
@@ -198,24 +246,143 @@ impl ControlAgent {
             t_map_base: None,
             manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)),
             body_fault_since_ns: None,
+            status: SharedDriveStatus::default(),
             config,
         })
     }
 
-    fn handle_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        if let Some(user) = parse_drive(&message) {
-            match user.validate() {
-                Ok(user) => {
-                    self.preempt(ctx, "preempted by manual driving");
-                    self.mode = Mode::Manual { user };
-                    self.manual_watchdog.feed(ctx.now().0);
-                }
-                Err(err) => {
-                    let _ = ctx.not_understood(&message, &format!("bad drive command: {err}"));
-                }
+    /// Where the agent tells what the user asked and what shared control applied.
+    pub fn drive_status(&self) -> SharedDriveStatus {
+        self.status.clone()
+    }
+
+    /// Whether `name` may drive this chair by hand (staff always may).
+    fn may_drive(&self, own: &AgentId, name: &str) -> bool {
+        let platform = |n: &str| n.split_once('@').map(|(_, p)| p.to_string());
+        self.config.staff.iter().any(|s| s == name)
+            || if self.config.drivers.is_empty() {
+                platform(name) == platform(&own.name)
+            } else {
+                self.config.drivers.iter().any(|d| d == name)
             }
+    }
+
+    /// One manual `drive` command: starts, continues, or (refused) leaves alone a stream.
+    fn on_drive(&mut self, ctx: &mut Context<'_>, message: AclMessage, user: VelocityCommand) {
+        let driver = sender_name(&message).to_string();
+        if let Mode::Manual(_) = self.mode
+            && self.manual_watchdog.expired(ctx.now().0)
+        {
+            self.end_stream(ctx, None);
+        }
+        let current = match &self.mode {
+            Mode::Manual(stream) => Some(stream.is(&message)),
+            _ => None,
+        };
+        let limit = self.range_error(user);
+        if current == Some(true) {
+            if let Some(why) = limit {
+                // A broken device mid-stream: end the stream, stop the chair.
+                self.end_stream(ctx, Some(&why));
+                return;
+            }
+            if let Mode::Manual(stream) = &mut self.mode {
+                stream.user = user;
+            }
+            self.manual_watchdog.feed(ctx.now().0);
             return;
         }
+        if let Some(why) = limit {
+            let _ = ctx.refuse(&message, &why);
+            return;
+        }
+        if !self.may_drive(ctx.aid(), &driver) {
+            let _ = ctx.refuse(
+                &message,
+                &format!("`{driver}` is not a driver of this chair (nor staff)"),
+            );
+            return;
+        }
+        let why = match &self.mode {
+            Mode::Manual(stream) if stream.driver != driver => {
+                if !self.config.staff.contains(&driver) {
+                    let why = format!("the chair is driven by `{}`", stream.driver);
+                    let _ = ctx.refuse(&message, &why);
+                    return;
+                }
+                tracing::warn!(staff = %driver, driver = %stream.driver, "staff override: taking the chair over");
+                format!("overridden by staff `{driver}`")
+            }
+            Mode::Manual(_) => "replaced by a newer drive stream".to_string(),
+            _ => "preempted by manual driving".to_string(),
+        };
+        self.preempt(ctx, &why);
+        reply(ctx, &message, Performative::Agree, "");
+        self.mode = Mode::Manual(Box::new(Stream {
+            request: message,
+            driver,
+            user,
+        }));
+        self.manual_watchdog.feed(ctx.now().0);
+    }
+
+    /// Why `user` cannot be driven: not finite, or beyond what the wheels can do.
+    fn range_error(&self, user: VelocityCommand) -> Option<String> {
+        if user.validate().is_err() {
+            return Some(format!(
+                "drive command not finite: linear {} m/s, angular {} rad/s",
+                user.linear_mps, user.angular_radps
+            ));
+        }
+        let drive = &self.config.drive;
+        let max_angular_radps = 2.0 * drive.max_wheel_mps / drive.track_width_m;
+        (user.linear_mps.abs() > drive.max_wheel_mps
+            || user.angular_radps.abs() > max_angular_radps)
+            .then(|| {
+                format!(
+                    "drive command out of range: linear {} m/s (|v| <= {}), angular {} rad/s \
+                     (|w| <= {max_angular_radps:.2})",
+                    user.linear_mps, drive.max_wheel_mps, user.angular_radps
+                )
+            })
+    }
+
+    /// Ends the live drive stream: FAILURE with `why`, or (none) INFORM done when the user had
+    /// let go (last command a stop), FAILURE for silence otherwise. The chair stops.
+    fn end_stream(&mut self, ctx: &mut Context<'_>, why: Option<&str>) {
+        let Mode::Manual(stream) = std::mem::replace(&mut self.mode, Mode::Idle) else {
+            return;
+        };
+        let released = stream.user == VelocityCommand::STOP;
+        match why {
+            None if released => {
+                let done = WheelchairContent::Done {
+                    actor: ctx.aid().clone(),
+                    action: WheelchairAction::Drive {
+                        linear_mps: 0.0,
+                        angular_radps: 0.0,
+                    },
+                };
+                let inform = stream
+                    .request
+                    .create_reply()
+                    .with_performative(Performative::Inform);
+                let _ = ctx.send(done.fill(inform));
+            }
+            None => {
+                let why = format!(
+                    "watchdog: no drive command for {} ms; chair stopped",
+                    self.config.watchdog_ms
+                );
+                let _ = ctx.failure(&stream.request, &why);
+            }
+            Some(why) => {
+                let _ = ctx.failure(&stream.request, why);
+            }
+        }
+    }
+
+    fn handle_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let Some((actor, action)) =
             ctx.understand(&message, "expected ((action actor act))", |c| match c {
                 WheelchairContent::Request { actor, action } => Some((actor, action)),
@@ -224,6 +391,18 @@ impl ControlAgent {
         else {
             return;
         };
+        if let WheelchairAction::Drive {
+            linear_mps,
+            angular_radps,
+        } = action
+        {
+            self.on_drive(
+                ctx,
+                message,
+                VelocityCommand::new(linear_mps, angular_radps),
+            );
+            return;
+        }
         let mut steps = Vec::new();
         if let Err(refused) = self.tactical_actions(&action, &mut steps) {
             reply(
@@ -291,10 +470,17 @@ impl ControlAgent {
         Ok(())
     }
 
-    /// Ends a running task with FAILURE.
+    /// Ends a running task or drive stream with FAILURE.
     fn preempt(&mut self, ctx: &mut Context<'_>, why: &str) {
-        if let Mode::Task(task) = std::mem::replace(&mut self.mode, Mode::Idle) {
-            reply(ctx, &task.request, Performative::Failure, why);
+        match std::mem::replace(&mut self.mode, Mode::Idle) {
+            Mode::Task(task) => {
+                let _ = ctx.failure(&task.request, why);
+            }
+            manual @ Mode::Manual(_) => {
+                self.mode = manual;
+                self.end_stream(ctx, Some(why));
+            }
+            Mode::Idle => {}
         }
     }
 
@@ -399,18 +585,18 @@ impl Task {
     }
 }
 
-/// Reply helper: `performative` with an `error-message` reason (none for an empty one).
+/// Reply helper: `performative` with an `error-message` reason; AGREE (no reason) repeats the
+/// request's content.
 fn reply(ctx: &mut Context<'_>, to: &AclMessage, performative: Performative, reason: &str) {
-    let mut message = to.create_reply().with_performative(performative);
-    if !reason.is_empty() {
-        message = message.with_content(format!(
-            "((error-message \"{}\"))",
-            reason.replace('"', "'")
-        ));
-    } else if performative == Performative::Agree {
-        message = message.with_content(to.content_text().unwrap_or_default().to_string());
-    }
-    let _ = ctx.send(message);
+    let _ = match performative {
+        Performative::Agree => ctx.send(
+            to.create_reply()
+                .with_performative(performative)
+                .with_content(to.content_text().unwrap_or_default().to_string()),
+        ),
+        Performative::Refuse => ctx.refuse(to, reason),
+        _ => ctx.failure(to, reason),
+    };
 }
 
 trait TermString {
@@ -488,22 +674,19 @@ impl Agent for ControlAgent {
                 }
                 tracing::warn!(error = %err, fault_ms = self.config.body_fault_ms, "body unreadable past the fault window; chair stopped, task failed");
                 self.preempt(ctx, &format!("body: {err}"));
-                if let Mode::Manual { .. } = self.mode {
-                    self.mode = Mode::Idle;
-                }
                 return;
             }
         };
-        if let Mode::Manual { .. } = self.mode
+        if let Mode::Manual(_) = self.mode
             && self.manual_watchdog.expired(now_ns)
         {
             tracing::info!("watchdog: manual commands stopped arriving; stopping");
-            self.mode = Mode::Idle;
+            self.end_stream(ctx, None);
         }
         // The user's commands go through the potential field (thesis 3.6); the tactical layer's
         // own commands do not (its path is planned clear), only through the arc guard.
         let (user, shared) = match &self.mode {
-            Mode::Manual { user } => (Some(*user), true),
+            Mode::Manual(stream) => (Some(stream.user), true),
             Mode::Task(_) => (self.run_task(ctx, &frame), false),
             Mode::Idle => (None, false),
         };
@@ -523,6 +706,10 @@ impl Agent for ControlAgent {
                 out.map_or(VelocityCommand::STOP, |out| out.command)
             }
             None => VelocityCommand::STOP,
+        };
+        *self.status.lock().unwrap_or_else(PoisonError::into_inner) = DriveStatus {
+            user: user.filter(|_| shared),
+            applied: shared.then_some(command),
         };
         if let Err(err) = self.basic.command(command, now_ns) {
             tracing::warn!(error = %err, "command refused; stopping");
@@ -544,35 +731,4 @@ impl Agent for ControlAgent {
             tracing::error!(error = %err, "control agent stopping: the wheels did not take the stop");
         }
     }
-}
-
-/// The content of a manual drive request to `control` (its agent name): linear speed m/s,
-/// angular speed rad/s (counter-clockwise positive).
-pub fn drive_content(control: &str, linear_mps: f64, angular_radps: f64) -> String {
-    format!(
-        "((action (agent-identifier :name {}) (drive :linear {linear_mps:?} :angular {angular_radps:?})))",
-        iw_sl::Term::string(control)
-    )
-}
-
-/// The user's command in a manual `drive` request, or `None` when the content is something else.
-pub fn parse_drive(message: &AclMessage) -> Option<VelocityCommand> {
-    let content = iw_sl::parse(message.content_text()?, Level::Sl0).ok()?;
-    let [ContentExpression::Action(ActionExpression::Action { act, .. })] =
-        content.expressions.as_slice()
-    else {
-        return None;
-    };
-    let Term::Functional { symbol, args } = act else {
-        return None;
-    };
-    if !symbol.eq_ignore_ascii_case("drive") {
-        return None;
-    }
-    let number = |name: &str| match args.get(name)?.as_constant()? {
-        iw_sl::Constant::Float(x) => Some(*x),
-        iw_sl::Constant::Integer(i) => Some(*i as f64),
-        _ => None,
-    };
-    Some(VelocityCommand::new(number("linear")?, number("angular")?))
 }

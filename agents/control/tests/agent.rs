@@ -8,7 +8,7 @@ use iw_agent::AgentHost;
 use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
-use iw_control_agent::{ControlAgent, ControlConfig, drive_content};
+use iw_control_agent::{ControlAgent, ControlConfig};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
 
@@ -65,6 +65,21 @@ struct Rig {
     probe: GatewayHandle,
     received: Vec<AclMessage>,
     body: Recorder,
+    /// Other drivers, by name: `other` (of this chair), `staff` (staff), `stranger@far`.
+    others: Vec<(String, GatewayHandle)>,
+    others_received: Vec<(String, AclMessage)>,
+}
+
+/// A manual drive command (m/s, rad/s) to the control agent, as the interface sends it.
+fn drive(linear_mps: f64, angular_radps: f64) -> AclMessage {
+    WheelchairContent::Request {
+        actor: AgentId::new("control"),
+        action: WheelchairAction::Drive {
+            linear_mps,
+            angular_radps,
+        },
+    }
+    .fill(AclMessage::new(Performative::Request).with_protocol("fipa-request"))
 }
 
 fn rig() -> Rig {
@@ -79,7 +94,8 @@ fn rig() -> Rig {
     .unwrap();
     let mut host = AgentHost::new(Arc::new(bus));
     let body = Recorder::default();
-    let config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
+    let mut config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
+    config.staff = vec!["staff".into()];
     host.add(
         AgentId::new("control"),
         Box::new(ControlAgent::new(config, Box::new(body.clone())).unwrap()),
@@ -87,12 +103,22 @@ fn rig() -> Rig {
     .unwrap();
     let (agent, probe) = gateway(Duration::from_millis(1));
     host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    let others = ["other", "staff", "stranger@far"]
+        .into_iter()
+        .map(|name| {
+            let (agent, handle) = gateway(Duration::from_millis(1));
+            host.add(AgentId::new(name), Box::new(agent)).unwrap();
+            (name.to_string(), handle)
+        })
+        .collect();
     Rig {
         host,
         clock: controller,
         probe,
         received: Vec::new(),
         body,
+        others,
+        others_received: Vec::new(),
     }
 }
 
@@ -104,6 +130,24 @@ impl Rig {
         }
         self.received.extend(self.probe.take_received());
         assert!(self.probe.take_send_errors().is_empty());
+        for (name, handle) in &self.others {
+            let got = handle.take_received();
+            self.others_received
+                .extend(got.into_iter().map(|m| (name.clone(), m)));
+        }
+    }
+    /// Sends `m` to the control agent as `from` (one of [`Rig::others`]).
+    fn send_as(&self, from: &str, m: AclMessage) {
+        let (_, handle) = self.others.iter().find(|(n, _)| n == from).unwrap();
+        handle.send(m.with_receiver(AgentId::new("control")));
+    }
+    /// What `name` received: performative and error reason (empty when none).
+    fn answers_to(&self, name: &str) -> Vec<(Performative, String)> {
+        self.others_received
+            .iter()
+            .filter(|(n, _)| n == name)
+            .map(|(_, m)| (m.performative, reason(m)))
+            .collect()
     }
     fn send(&self, m: AclMessage) {
         self.probe.send(m.with_receiver(AgentId::new("control")));
@@ -113,6 +157,14 @@ impl Rig {
     }
     fn performatives(&self) -> Vec<Performative> {
         self.received.iter().map(|m| m.performative).collect()
+    }
+}
+
+/// The `error-message` of a reply, empty when it has none.
+fn reason(m: &AclMessage) -> String {
+    match WheelchairContent::from_message(m) {
+        Ok(WheelchairContent::Inform(Fact::ErrorMessage { reason })) => reason,
+        _ => String::new(),
     }
 }
 
@@ -142,9 +194,7 @@ fn subscribes_to_perception_at_setup() {
 fn manual_driving_moves_the_chair_and_the_watchdog_stops_it() {
     let mut rig = rig();
     for _ in 0..20 {
-        rig.send(
-            AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)),
-        );
+        rig.send(drive(0.4, 0.0));
         rig.run(100);
     }
     let moving = rig.last_wheels();
@@ -353,9 +403,7 @@ fn a_wall_on_the_right_steers_the_chair_left_not_into_it() {
         }
     }
     for _ in 0..10 {
-        rig.send(
-            AclMessage::new(Performative::Request).with_content(drive_content("control", 0.4, 0.0)),
-        );
+        rig.send(drive(0.4, 0.0));
         rig.run(100);
     }
     let wheels = rig.last_wheels();
@@ -399,10 +447,7 @@ fn spinning_towards_a_wall_beside_the_chair_is_held_back() {
         }
     }
     for _ in 0..10 {
-        rig.send(
-            AclMessage::new(Performative::Request)
-                .with_content(drive_content("control", 0.0, -0.8)),
-        );
+        rig.send(drive(0.0, -0.8));
         rig.run(100);
     }
     let wheels = rig.last_wheels();
@@ -411,4 +456,148 @@ fn spinning_towards_a_wall_beside_the_chair_is_held_back() {
         clockwise_radps <= 0.4,
         "the chair still spins clockwise into the wall: {wheels:?}"
     );
+}
+
+/// Streams `drive(v, w)` in conversation `id` every 100 ms for `ms`.
+fn stream(rig: &mut Rig, id: &str, v: f64, w: f64, ms: u64) {
+    for _ in 0..ms / 100 {
+        rig.send(drive(v, w).with_conversation_id(id));
+        rig.run(100);
+    }
+}
+
+fn answers(rig: &Rig, id: &str) -> Vec<(Performative, String)> {
+    rig.received
+        .iter()
+        .filter(|m| m.conversation_id.as_deref() == Some(id))
+        .map(|m| (m.performative, reason(m)))
+        .collect()
+}
+
+#[test]
+fn a_drive_stream_is_agreed_once_and_ends_done_when_released() {
+    let mut rig = rig();
+    stream(&mut rig, "s1", 0.5, 0.0, 2000);
+    assert!(rig.last_wheels().left_mps > 0.4, "{:?}", rig.last_wheels());
+    // The user lets go: a zero command, then the interface falls silent.
+    stream(&mut rig, "s1", 0.0, 0.0, 100);
+    rig.run(1500);
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
+    let got: Vec<Performative> = answers(&rig, "s1").into_iter().map(|a| a.0).collect();
+    assert_eq!(
+        got,
+        [Performative::Agree, Performative::Inform],
+        "one AGREE per stream"
+    );
+}
+
+#[test]
+fn a_stream_that_falls_silent_mid_drive_fails_and_the_chair_stops_within_the_watchdog() {
+    let mut rig = rig();
+    stream(&mut rig, "s2", 0.6, 0.0, 2000);
+    let before = rig.body.commands.lock().unwrap().len();
+    // 0.5 s watchdog, then the 1.5 m/s^2 ramp from 0.6 m/s: 0.4 s.
+    rig.run(1000);
+    assert_eq!(rig.last_wheels(), WheelSpeeds::STOP);
+    let after = rig.body.commands.lock().unwrap()[before..].to_vec();
+    let first_stop = after.iter().position(|w| *w == WheelSpeeds::STOP).unwrap();
+    assert!(
+        first_stop * 50 <= 1000,
+        "stopped {} ms after silence",
+        first_stop * 50
+    );
+    let got = answers(&rig, "s2");
+    assert_eq!(got[0].0, Performative::Agree);
+    assert_eq!(got[1].0, Performative::Failure);
+    assert!(got[1].1.contains("watchdog"), "{got:?}");
+}
+
+#[test]
+fn bad_drive_commands_are_refused_with_a_reason() {
+    let mut rig = rig();
+    rig.send(drive(3.0, 0.0).with_conversation_id("fast"));
+    rig.send(
+        AclMessage::new(Performative::Request)
+            .with_conversation_id("word")
+            .with_ontology("IntellWheels-Wheelchair")
+            .with_language("fipa-sl0")
+            .with_content(
+                "((action (agent-identifier :name control) (drive :linear fast :angular 0)))",
+            ),
+    );
+    rig.run(200);
+    let fast = answers(&rig, "fast");
+    assert_eq!(fast[0].0, Performative::Refuse, "{fast:?}");
+    assert!(fast[0].1.contains("out of range"), "{fast:?}");
+    let word = answers(&rig, "word");
+    assert_eq!(word[0].0, Performative::NotUnderstood, "{word:?}");
+    assert!(word[0].1.contains("linear"), "{word:?}");
+    assert!(rig.last_wheels().left_mps.abs() < 1e-9, "nothing drove");
+}
+
+#[test]
+fn a_broken_command_mid_stream_stops_the_chair() {
+    let mut rig = rig();
+    stream(&mut rig, "s3", 0.5, 0.0, 1500);
+    assert!(rig.last_wheels().left_mps > 0.4);
+    // SL has no infinity: `1e999` is a word, not a number, so it is not understood.
+    rig.send(
+        AclMessage::new(Performative::Request)
+            .with_conversation_id("s3")
+            .with_ontology("IntellWheels-Wheelchair")
+            .with_language("fipa-sl0")
+            .with_content(
+                "((action (agent-identifier :name control) (drive :linear 1e999 :angular 0)))",
+            ),
+    );
+    rig.run(100);
+    let got = answers(&rig, "s3");
+    assert_eq!(
+        got.last().unwrap().0,
+        Performative::NotUnderstood,
+        "{got:?}"
+    );
+    // Out of range in the stream: the stream fails and the chair stops at once.
+    rig.send(drive(4.0, 0.0).with_conversation_id("s3"));
+    rig.run(100);
+    let got = answers(&rig, "s3");
+    assert_eq!(got.last().unwrap().0, Performative::Failure, "{got:?}");
+    assert!(got.last().unwrap().1.contains("out of range"), "{got:?}");
+    rig.run(400);
+    assert_eq!(
+        rig.last_wheels(),
+        WheelSpeeds::STOP,
+        "stopped by the ramp, not after the watchdog"
+    );
+}
+
+#[test]
+fn a_second_driver_is_refused_strangers_too_and_staff_take_over_with_a_log() {
+    let mut rig = rig();
+    stream(&mut rig, "mine", 0.4, 0.0, 500);
+    rig.send_as("other", drive(0.0, 0.5).with_conversation_id("theirs"));
+    rig.send_as("stranger@far", drive(0.2, 0.0).with_conversation_id("far"));
+    stream(&mut rig, "mine", 0.4, 0.0, 300);
+    let other = rig.answers_to("other");
+    assert_eq!(other[0].0, Performative::Refuse, "{other:?}");
+    assert!(other[0].1.contains("driven by `probe`"), "{other:?}");
+    let stranger = rig.answers_to("stranger@far");
+    assert_eq!(stranger[0].0, Performative::Refuse, "{stranger:?}");
+    assert!(stranger[0].1.contains("not a driver"), "{stranger:?}");
+    // Staff take over: the user's stream fails, staff's is agreed and drives.
+    for _ in 0..10 {
+        rig.send_as("staff", drive(0.0, 0.6).with_conversation_id("staff-1"));
+        rig.run(100);
+    }
+    let staff = rig.answers_to("staff");
+    assert_eq!(staff.len(), 1, "{staff:?}");
+    assert_eq!(staff[0].0, Performative::Agree);
+    let mine = answers(&rig, "mine");
+    assert_eq!(mine.last().unwrap().0, Performative::Failure, "{mine:?}");
+    assert!(
+        mine.last().unwrap().1.contains("overridden by staff"),
+        "{mine:?}"
+    );
+    let w = rig.last_wheels();
+    assert!(w.right_mps > w.left_mps + 0.1, "staff's turn drives: {w:?}");
 }

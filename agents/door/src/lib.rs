@@ -111,12 +111,7 @@ impl DoorAgent {
                 reason: reason.clone(),
             });
         }
-        let _ = ctx.send(
-            message
-                .create_reply()
-                .with_performative(Performative::Refuse)
-                .with_content(error_content(&reason)),
-        );
+        let _ = ctx.refuse(message, &reason);
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
@@ -134,12 +129,7 @@ impl DoorAgent {
             WheelchairAction::OpenDoor { door } => (door.clone(), true),
             WheelchairAction::CloseDoor { door } => (door.clone(), false),
             _ => {
-                let reply = message
-                    .create_reply()
-                    .with_performative(Performative::Refuse);
-                let _ = ctx.send(
-                    reply.with_content(error_content("the door agent only opens and closes doors")),
-                );
+                let _ = ctx.refuse(&message, "the door agent only opens and closes doors");
                 return;
             }
         };
@@ -181,10 +171,7 @@ impl DoorAgent {
             }
             Err(fault) => {
                 tracing::warn!(error = %fault, "door actuator fault");
-                let reply = message
-                    .create_reply()
-                    .with_performative(Performative::Failure);
-                let _ = ctx.send(reply.with_content(error_content(&fault.to_string())));
+                let _ = ctx.failure(&message, &fault.to_string());
             }
         }
     }
@@ -216,10 +203,6 @@ impl DoorAgent {
             ),
         );
     }
-}
-
-fn error_content(why: &str) -> String {
-    format!("((error-message \"{}\"))", why.replace('"', "'"))
 }
 
 impl Agent for DoorAgent {

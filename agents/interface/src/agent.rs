@@ -7,25 +7,20 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 
+use crate::drive::{DriveCommand, DriveMapping};
 use crate::input::RawInput;
 use crate::sequence::Recognizer;
 
-/// What a recognised sequence asks for.
+/// What a recognised sequence asks for: a high-level action (driving by hand is proportional,
+/// see [`crate::drive`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub enum Command {
     /// A goal for the cognitive agent: go to a named place.
     Goal {
         /// A place of the building map.
         place: String,
-    },
-    /// A manual command for the control agent, m/s and rad/s.
-    Drive {
-        /// Linear speed.
-        linear_mps: f64,
-        /// Angular speed.
-        angular_radps: f64,
     },
     /// Stop now (control agent).
     Stop,
@@ -37,8 +32,10 @@ pub type InputQueue = Arc<Mutex<VecDeque<(RawInput, u64)>>>;
 /// What the on-chair display shows.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Display {
-    /// The last command sent.
+    /// The last command a sequence sent.
     pub last_command: Option<Command>,
+    /// The user's proportional command being streamed to the control agent, if any.
+    pub drive: Option<DriveCommand>,
     /// Steps entered / steps of the sequence being recognised.
     pub progress: Option<(usize, usize)>,
     /// The last answer of the cognitive or control agent (performative and sender).
@@ -54,8 +51,40 @@ pub struct InterfaceConfig {
     pub cognitive: AgentId,
     /// The control agent (manual commands).
     pub control: AgentId,
-    /// How often queued inputs are processed.
+    /// How often queued inputs are processed, and drive commands streamed while an input is
+    /// held (at most 100 ms: the stream must beat the control agent's watchdog several times).
     pub tick: Duration,
+    /// Device readings to velocity commands.
+    pub mapping: DriveMapping,
+    /// A held input whose device has sent nothing for this long counts as released, ms (a
+    /// browser tab closed, a cable pulled).
+    pub hold_ms: u64,
+}
+
+impl InterfaceConfig {
+    /// Talks to `cognitive` and `control`; 50 ms tick (20 Hz stream), default mapping, 300 ms
+    /// hold.
+    pub fn new(cognitive: AgentId, control: AgentId) -> Self {
+        InterfaceConfig {
+            cognitive,
+            control,
+            tick: Duration::from_millis(50),
+            mapping: DriveMapping::default(),
+            hold_ms: 300,
+        }
+    }
+}
+
+/// The drive stream to the control agent while an input is held.
+#[derive(Debug)]
+struct Held {
+    command: DriveCommand,
+    /// When the device last reported, ns of the bus clock.
+    seen_ns: u64,
+    /// The stream's conversation, from its first command on.
+    conversation: Option<String>,
+    /// The control agent refused or ended the stream: nothing is sent until the user lets go.
+    stopped: bool,
 }
 
 /// The interface agent: inputs in, ACL requests out.
@@ -65,6 +94,7 @@ pub struct InterfaceAgent {
     inputs: InputQueue,
     display: Arc<Mutex<Display>>,
     conversations: u64,
+    held: Option<Held>,
 }
 
 impl InterfaceAgent {
@@ -82,49 +112,115 @@ impl InterfaceAgent {
             inputs,
             display,
             conversations: 0,
+            held: None,
         }
     }
 
-    fn request(&mut self, ctx: &Context<'_>, command: &Command) -> AclMessage {
+    fn conversation(&mut self, ctx: &Context<'_>) -> String {
         self.conversations += 1;
-        let conversation = format!("{}-{}", ctx.name(), self.conversations);
-        let base = |to: &AgentId| {
-            AclMessage::new(Performative::Request)
-                .with_receiver(to.clone())
-                .with_protocol("fipa-request")
-                .with_conversation_id(conversation.clone())
-        };
-        match command {
-            Command::Goal { place } => {
-                let actor = self.config.cognitive.clone();
-                WheelchairContent::Request {
-                    actor: actor.clone(),
-                    action: WheelchairAction::GoTo {
-                        place: place.clone(),
-                    },
-                }
-                .fill(base(&actor))
-            }
-            Command::Stop => {
-                let actor = self.config.control.clone();
-                WheelchairContent::Request {
-                    actor: actor.clone(),
-                    action: WheelchairAction::Stop,
-                }
-                .fill(base(&actor))
-            }
-            Command::Drive {
-                linear_mps,
-                angular_radps,
-            } => base(&self.config.control)
-                .with_content(iw_control_agent::drive_content(
-                    &self.config.control.name,
-                    *linear_mps,
-                    *angular_radps,
-                ))
-                .with_language("fipa-sl0")
-                .with_ontology(iw_ontology::wheelchair::ONTOLOGY),
+        format!("{}-{}", ctx.name(), self.conversations)
+    }
+
+    /// `action` asked of `actor` in `conversation`.
+    fn request(actor: &AgentId, action: WheelchairAction, conversation: String) -> AclMessage {
+        WheelchairContent::Request {
+            actor: actor.clone(),
+            action,
         }
+        .fill(
+            AclMessage::new(Performative::Request)
+                .with_receiver(actor.clone())
+                .with_protocol("fipa-request")
+                .with_conversation_id(conversation),
+        )
+    }
+
+    fn command_request(&mut self, ctx: &Context<'_>, command: &Command) -> AclMessage {
+        let conversation = self.conversation(ctx);
+        match command {
+            Command::Goal { place } => Self::request(
+                &self.config.cognitive,
+                WheelchairAction::GoTo {
+                    place: place.clone(),
+                },
+                conversation,
+            ),
+            Command::Stop => {
+                Self::request(&self.config.control, WheelchairAction::Stop, conversation)
+            }
+        }
+    }
+
+    /// A proportional reading arrived (`None`: a broken one, which counts as letting go).
+    fn on_drive_input(&mut self, ctx: &mut Context<'_>, command: Option<DriveCommand>) {
+        let now_ns = ctx.now().0;
+        match command {
+            Some(command) if !command.is_stop() => {
+                let held = self.held.get_or_insert(Held {
+                    command,
+                    seen_ns: now_ns,
+                    conversation: None,
+                    stopped: false,
+                });
+                held.command = command;
+                held.seen_ns = now_ns;
+            }
+            _ => self.release(ctx),
+        }
+    }
+
+    /// The user let go (or the device went silent or broke): one stop in the stream, which
+    /// ends it; the control agent answers INFORM done once its watchdog sees the silence.
+    fn release(&mut self, ctx: &mut Context<'_>) {
+        let Some(held) = self.held.take() else { return };
+        self.display().drive = None;
+        if let (Some(conversation), false) = (held.conversation, held.stopped) {
+            self.send_drive(ctx, 0.0, 0.0, conversation);
+        }
+    }
+
+    fn send_drive(
+        &mut self,
+        ctx: &mut Context<'_>,
+        linear_mps: f64,
+        angular_radps: f64,
+        conversation: String,
+    ) {
+        let drive = WheelchairAction::Drive {
+            linear_mps,
+            angular_radps,
+        };
+        if let Err(err) = ctx.send(Self::request(&self.config.control, drive, conversation)) {
+            tracing::warn!("could not send a drive command: {err}");
+        }
+    }
+
+    /// Streams the held command, one per tick; a device silent past the hold counts as
+    /// released.
+    fn stream(&mut self, ctx: &mut Context<'_>) {
+        let now_ns = ctx.now().0;
+        let Some(held) = &self.held else { return };
+        if now_ns.saturating_sub(held.seen_ns) > self.config.hold_ms.saturating_mul(1_000_000) {
+            tracing::info!("drive input silent past the hold; releasing");
+            self.release(ctx);
+            return;
+        }
+        if held.stopped {
+            return;
+        }
+        let command = held.command;
+        let conversation = match &held.conversation {
+            Some(c) => c.clone(),
+            None => {
+                let c = self.conversation(ctx);
+                if let Some(held) = &mut self.held {
+                    held.conversation = Some(c.clone());
+                }
+                c
+            }
+        };
+        self.display().drive = Some(command);
+        self.send_drive(ctx, command.linear_mps, command.angular_radps, conversation);
     }
 
     fn display(&self) -> std::sync::MutexGuard<'_, Display> {
@@ -145,7 +241,26 @@ impl Agent for InterfaceAgent {
             | Performative::Failure
             | Performative::Refuse
             | Performative::NotUnderstood => {
-                self.display().last_answer = Some(format!("{} from {from}", message.performative));
+                let why = match WheelchairContent::from_message(&message) {
+                    Ok(WheelchairContent::Inform(Fact::ErrorMessage { reason })) => {
+                        format!(": {reason}")
+                    }
+                    _ => String::new(),
+                };
+                let ends_stream = matches!(
+                    message.performative,
+                    Performative::Failure | Performative::Refuse | Performative::NotUnderstood
+                );
+                if let Some(held) = &mut self.held
+                    && ends_stream
+                    && held.conversation.is_some()
+                    && held.conversation == message.conversation_id
+                {
+                    // Refused or ended by the control agent: quiet until the user lets go.
+                    held.stopped = true;
+                }
+                self.display().last_answer =
+                    Some(format!("{} from {from}{why}", message.performative));
             }
             _ => {
                 let _ = ctx.not_understood(
@@ -164,6 +279,18 @@ impl Agent for InterfaceAgent {
             .drain(..)
             .collect();
         for (raw, t_ms) in pending {
+            if let Some(mapped) = self.config.mapping.command(&raw) {
+                let command = match mapped {
+                    Ok(command) => Some(command),
+                    Err(err) => {
+                        tracing::warn!("drive input refused, chair stopped: {err}");
+                        self.display().refused_inputs += 1;
+                        None
+                    }
+                };
+                self.on_drive_input(ctx, command);
+                continue;
+            }
             let events = match raw.normalise(t_ms) {
                 Ok(events) => events,
                 Err(err) => {
@@ -174,7 +301,7 @@ impl Agent for InterfaceAgent {
             };
             for event in events {
                 if let Some(command) = self.recognizer.feed(event) {
-                    let message = self.request(ctx, &command);
+                    let message = self.command_request(ctx, &command);
                     if let Err(err) = ctx.send(message) {
                         tracing::warn!("could not send {command:?}: {err}");
                     }
@@ -182,6 +309,7 @@ impl Agent for InterfaceAgent {
                 }
             }
         }
+        self.stream(ctx);
         let progress = self.recognizer.progress();
         self.display().progress = progress;
     }

@@ -1,4 +1,6 @@
-//! Raw device readings normalised to [`InputEvent`]s: one symbol from one device at one time.
+//! Raw device readings: symbols normalised to [`InputEvent`]s (one symbol from one device at one
+//! time) for the sequence recognizer, and proportional readings (sticks, head cap, arrow keys)
+//! for driving.
 
 use serde::{Deserialize, Serialize};
 
@@ -37,12 +39,38 @@ pub struct InputEvent {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "device", rename_all = "kebab-case")]
 pub enum RawInput {
-    /// Joystick deflection, each axis in [-1, 1] (x right, y forward).
+    /// Joystick deflection, each axis in [-1, 1] (x right, y forward): proportional driving.
     Joystick {
         /// Right deflection.
         x: f64,
         /// Forward deflection.
         y: f64,
+    },
+    /// A gamepad's left stick, as the joystick: proportional driving.
+    GamepadStick {
+        /// Right deflection.
+        x: f64,
+        /// Forward deflection.
+        y: f64,
+    },
+    /// The head cap's inclinometer (thesis 3.3.1) used as a proportional controller: forward
+    /// and rightward head tilt, rad.
+    HeadCap {
+        /// Forward tilt, rad.
+        pitch_rad: f64,
+        /// Rightward tilt, rad.
+        roll_rad: f64,
+    },
+    /// Which arrow keys are held: proportional driving at a fixed deflection.
+    Arrows {
+        /// Up held.
+        up: bool,
+        /// Down held.
+        down: bool,
+        /// Left held.
+        left: bool,
+        /// Right held.
+        right: bool,
     },
     /// A gamepad button name.
     Gamepad {
@@ -73,8 +101,6 @@ pub enum RawInput {
     },
 }
 
-/// Joystick deflection under which the stick counts as centred.
-pub const JOYSTICK_DEAD_ZONE: f64 = 0.5;
 /// Head acceleration under which no gesture is recognised, m/s^2.
 pub const HEAD_THRESHOLD_MPS2: f64 = 2.0;
 
@@ -108,9 +134,9 @@ fn direction(x: f64, y: f64, threshold: f64) -> Option<&'static str> {
 }
 
 impl RawInput {
-    /// The events this reading stands for at `t_ms`: none for a centred stick or a still head,
-    /// one per word for speech. Names with characters other than letters, digits, `-` and `_`
-    /// are refused.
+    /// The events this reading stands for at `t_ms`: none for a proportional reading or a still
+    /// head, one per word for speech. Names with characters other than letters, digits, `-` and
+    /// `_` are refused.
     pub fn normalise(&self, t_ms: u64) -> Result<Vec<InputEvent>, InterfaceError> {
         let event = |device, symbol: String| InputEvent {
             device,
@@ -118,10 +144,10 @@ impl RawInput {
             t_ms,
         };
         Ok(match self {
-            RawInput::Joystick { x, y } => direction(*x, *y, JOYSTICK_DEAD_ZONE)
-                .map(|d| event(Device::Joystick, d.to_string()))
-                .into_iter()
-                .collect(),
+            RawInput::Joystick { .. }
+            | RawInput::GamepadStick { .. }
+            | RawInput::HeadCap { .. }
+            | RawInput::Arrows { .. } => Vec::new(),
             RawInput::HeadGesture { ax_mps2, ay_mps2 } => {
                 direction(*ax_mps2, *ay_mps2, HEAD_THRESHOLD_MPS2)
                     .map(|d| event(Device::HeadGesture, format!("head-{d}")))
@@ -150,31 +176,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn readings_become_symbols() {
-        let j = RawInput::Joystick { x: 0.1, y: 0.9 }.normalise(5).unwrap();
-        assert_eq!(
-            j,
-            vec![InputEvent {
-                device: Device::Joystick,
-                symbol: "up".into(),
-                t_ms: 5
-            }]
-        );
+    fn readings_become_symbols_and_sticks_drive() {
+        let j = RawInput::Joystick { x: 0.1, y: 0.9 };
         assert!(
-            RawInput::Joystick { x: 0.2, y: -0.3 }
-                .normalise(5)
-                .unwrap()
-                .is_empty()
+            j.normalise(5).unwrap().is_empty(),
+            "a stick drives, it is no symbol"
         );
-        assert!(
-            RawInput::Joystick {
-                x: f64::NAN,
-                y: 1.0
-            }
-            .normalise(5)
-            .unwrap()
-            .is_empty()
-        );
+        let mapping = crate::DriveMapping::default();
+        assert!(mapping.command(&j).is_some());
+        let face = RawInput::Face {
+            label: "smile".into(),
+        };
+        assert!(mapping.command(&face).is_none(), "a symbol does not drive");
         let h = RawInput::HeadGesture {
             ax_mps2: -3.0,
             ay_mps2: 1.0,

@@ -1,9 +1,13 @@
-//! The interface agent (thesis 3.3.4): the user's side of the wheelchair. Readings of several
-//! input devices are normalised to input events; user-defined input sequences, accepted after a
-//! reliability test, are recognised in that stream and turned into FIPA-ACL requests: goals to
-//! the cognitive agent, manual commands to the control agent.
+//! The interface agent (thesis 3.3.1, 3.3.4): the user's side of the wheelchair. Proportional
+//! devices (joystick, gamepad stick, head cap, arrow keys) drive the chair: while one is held the
+//! agent streams `drive` requests (the wheelchair ontology's `WheelchairAction::Drive`) to the
+//! control agent, one per tick, in one conversation per hold; on release it sends a stop and
+//! falls silent. Symbolic inputs are normalised to input events; user-defined input sequences,
+//! accepted after a reliability test, are recognised in that stream and turned into FIPA-ACL
+//! requests: goals to the cognitive agent, a stop to the control agent.
 //!
 //! # Organization
+//! - [`drive`]: dead zones and gains from proportional readings to the user's velocity command.
 //! - [`input`]: [`RawInput`] readings (joystick, gamepad, keyboard, head accelerometer, voice
 //!   text, facial-expression labels) normalised to [`InputEvent`]s.
 //! - [`sequence`]: [`InputSequence`] (homogeneous or mixed devices), the [`ReliabilityTest`]
@@ -14,15 +18,21 @@
 //! # Guarantees
 //! - A sequence is bound only after it passed its reliability test, and never when it occurs
 //!   inside another bound sequence (or one inside it), so entering one cannot fire the other.
-//! - No input can panic the agent: bad symbols are refused with [`InterfaceError`] and dropped.
+//! - No input can panic the agent: bad symbols are refused with [`InterfaceError`] and dropped;
+//!   a broken proportional reading (NaN, infinite, out of range) is dropped and stops the chair.
+//! - A held input streams at the tick rate (20 Hz by default); a device silent for
+//!   [`InterfaceConfig::hold_ms`] counts as released. After the control agent refuses or ends a
+//!   stream, nothing is sent until the user lets go.
 //! - Everything leaves as ordinary ACL messages through the bus; the agent holds no other agent.
 #![warn(missing_docs)]
 
 mod agent;
+pub mod drive;
 pub mod input;
 pub mod sequence;
 
 pub use agent::{Command, Display, InputQueue, InterfaceAgent, InterfaceConfig};
+pub use drive::{Axes, DriveCommand, DriveMapping};
 pub use input::{Device, InputEvent, RawInput};
 pub use sequence::{InputSequence, Recognizer, ReliabilityTest, Verdict};
 
@@ -37,6 +47,18 @@ pub enum InterfaceError {
         device: Device,
         /// The symbol as read.
         symbol: String,
+    },
+    /// A proportional reading that is not finite or out of its range.
+    #[error("{device:?}: reading ({x}, {y}) refused: {range}")]
+    BadAxes {
+        /// The device.
+        device: Device,
+        /// Sideways reading.
+        x: f64,
+        /// Forward reading.
+        y: f64,
+        /// The range accepted.
+        range: &'static str,
     },
     /// A reliability test that cannot be run.
     #[error(

@@ -1,5 +1,7 @@
 //! The interface agent on an in-process bus: a mixed sequence sends a goal to the cognitive
-//! agent, a homogeneous one a manual command to the control agent, bad input is refused.
+//! agent, a homogeneous one a stop to the control agent, bad input is refused; a held stick
+//! streams `drive` and a release, a broken reading or a silent device stops it. (The stream
+//! against the real control agent and the simulator is in the fleet's tests.)
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -12,6 +14,8 @@ use iw_interface::{
     Command, Device, InputSequence, InterfaceAgent, InterfaceConfig, RawInput, Recognizer,
     ReliabilityTest,
 };
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
 /// Records what it receives and agrees to requests.
 struct Recorder(Arc<Mutex<Vec<AclMessage>>>);
@@ -49,8 +53,23 @@ fn trained(steps: &[(Device, &str)]) -> ReliabilityTest {
     test
 }
 
-#[test]
-fn sequences_become_acl_requests() {
+/// Adds `interface@c1` (cognitive and control `@c1`) with `recognizer`; its input queue and
+/// display.
+fn add_interface(
+    host: &mut AgentHost,
+    recognizer: Recognizer<Command>,
+) -> (iw_interface::InputQueue, Arc<Mutex<iw_interface::Display>>) {
+    let inputs = iw_interface::InputQueue::default();
+    let display = Arc::new(Mutex::new(iw_interface::Display::default()));
+    let config = InterfaceConfig::new(AgentId::new("cognitive@c1"), AgentId::new("control@c1"));
+    let agent = InterfaceAgent::new(config, recognizer, inputs.clone(), display.clone());
+    host.add(AgentId::new("interface@c1"), Box::new(agent))
+        .unwrap();
+    (inputs, display)
+}
+
+/// A host on an in-process bus with a mock clock at 0.
+fn host() -> (AgentHost, iw_bus::MockController) {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(0));
     let bus = Bus::start(
@@ -60,7 +79,12 @@ fn sequences_become_acl_requests() {
         BusConfig::default(),
     )
     .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    (AgentHost::new(Arc::new(bus)), controller)
+}
+
+#[test]
+fn sequences_become_acl_requests() {
+    let (mut host, controller) = host();
     let cognitive = Arc::new(Mutex::new(Vec::new()));
     let control = Arc::new(Mutex::new(Vec::new()));
     host.add(
@@ -86,29 +110,10 @@ fn sequences_become_acl_requests() {
     recognizer
         .bind(
             &trained(&[(Device::Gamepad, "a"), (Device::Gamepad, "a")]),
-            Command::Drive {
-                linear_mps: 0.3,
-                angular_radps: 0.0,
-            },
+            Command::Stop,
         )
         .unwrap();
-    let inputs = iw_interface::InputQueue::default();
-    let display = Arc::new(Mutex::new(iw_interface::Display::default()));
-    let config = InterfaceConfig {
-        cognitive: AgentId::new("cognitive@c1"),
-        control: AgentId::new("control@c1"),
-        tick: Duration::from_millis(100),
-    };
-    host.add(
-        AgentId::new("interface@c1"),
-        Box::new(InterfaceAgent::new(
-            config,
-            recognizer,
-            inputs.clone(),
-            display.clone(),
-        )),
-    )
-    .unwrap();
+    let (inputs, display) = add_interface(&mut host, recognizer);
 
     let push = |raw: RawInput, t_ms: u64| inputs.lock().unwrap().push_back((raw, t_ms));
     push(
@@ -154,22 +159,18 @@ fn sequences_become_acl_requests() {
         content.contains("go-to") && content.contains("kitchen"),
         "{content}"
     );
-    let drives = control.lock().unwrap();
-    assert_eq!(drives.len(), 1);
-    assert!(
-        drives[0].content_text().unwrap().contains("drive"),
-        "{:?}",
-        drives[0].content_text()
+    let stops = control.lock().unwrap();
+    assert_eq!(stops.len(), 1);
+    assert_eq!(
+        WheelchairContent::from_message(&stops[0]).unwrap(),
+        WheelchairContent::Request {
+            actor: AgentId::new("control@c1"),
+            action: WheelchairAction::Stop
+        }
     );
     let display = display.lock().unwrap();
     assert_eq!(display.refused_inputs, 1);
-    assert_eq!(
-        display.last_command,
-        Some(Command::Drive {
-            linear_mps: 0.3,
-            angular_radps: 0.0
-        })
-    );
+    assert_eq!(display.last_command, Some(Command::Stop));
     assert!(
         display
             .last_answer
@@ -179,5 +180,138 @@ fn sequences_become_acl_requests() {
             .starts_with("agree"),
         "{:?}",
         display.last_answer
+    );
+}
+
+/// Records what it receives and answers nothing (the stream's answers are the control agent's
+/// business; the fleet's tests run the real one).
+struct Sink(Arc<Mutex<Vec<(Time, AclMessage)>>>);
+impl Agent for Sink {
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        self.0.lock().unwrap().push((ctx.now(), message));
+    }
+}
+
+/// (time ms, conversation, linear, angular) of every drive the control side received.
+fn drives(sink: &Arc<Mutex<Vec<(Time, AclMessage)>>>) -> Vec<(u64, String, f64, f64)> {
+    sink.lock()
+        .unwrap()
+        .iter()
+        .filter_map(|(t, m)| match WheelchairContent::from_message(m) {
+            Ok(WheelchairContent::Request {
+                action:
+                    WheelchairAction::Drive {
+                        linear_mps,
+                        angular_radps,
+                    },
+                ..
+            }) => Some((
+                t.0 / 1_000_000,
+                m.conversation_id.clone().unwrap_or_default(),
+                linear_mps,
+                angular_radps,
+            )),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_held_input_streams_drive_and_release_silence_or_nan_stop_it() {
+    let (mut host, controller) = host();
+    let sink = Arc::new(Mutex::new(Vec::new()));
+    host.add(AgentId::new("control@c1"), Box::new(Sink(sink.clone())))
+        .unwrap();
+    let (inputs, display) = add_interface(&mut host, Recognizer::new(DEFAULT_MAX_GAP_MS));
+    let mut run = |ms: u64, reading: Option<RawInput>| {
+        for _ in 0..ms / 10 {
+            if let Some(r) = &reading
+                && controller.now().0 / 1_000_000 % 100 == 0
+            {
+                // the device reports every 100 ms while held
+                inputs.lock().unwrap().push_back((r.clone(), 0));
+            }
+            host.step(controller.now());
+            controller.advance(Duration::from_millis(10));
+        }
+    };
+    // Held for 1 s: full forward on the stick.
+    run(1000, Some(RawInput::Joystick { x: 0.0, y: 1.0 }));
+    let held = drives(&sink);
+    assert!(held.len() >= 10, "at least 10 Hz: {} in 1 s", held.len());
+    assert!(
+        held.iter().all(|d| d.1 == held[0].1),
+        "one conversation per hold"
+    );
+    assert!(
+        held.iter().all(|d| (d.2 - 0.6).abs() < 1e-12 && d.3 == 0.0),
+        "{held:?}"
+    );
+    assert_eq!(
+        display.lock().unwrap().drive.map(|d| d.linear_mps),
+        Some(0.6)
+    );
+    // Released: one stop in the same stream, then nothing.
+    run(500, Some(RawInput::Joystick { x: 0.0, y: 0.0 }));
+    let after = drives(&sink)[held.len()..].to_vec();
+    assert_eq!(after.len(), 1, "{after:?}");
+    assert_eq!(
+        (after[0].1.as_str(), after[0].2, after[0].3),
+        (held[0].1.as_str(), 0.0, 0.0)
+    );
+    assert_eq!(display.lock().unwrap().drive, None);
+
+    // Head cap tilted forward, then a NaN reading: dropped, counted, and the chair stopped.
+    let before = drives(&sink).len();
+    run(
+        300,
+        Some(RawInput::HeadCap {
+            pitch_rad: 0.3,
+            roll_rad: 0.2,
+        }),
+    );
+    run(
+        200,
+        Some(RawInput::HeadCap {
+            pitch_rad: f64::NAN,
+            roll_rad: 0.0,
+        }),
+    );
+    let head = drives(&sink)[before..].to_vec();
+    let (last, moving) = head.split_last().unwrap();
+    assert!(
+        moving.iter().all(|d| d.2 > 0.0 && d.3 < 0.0),
+        "forward, right: {moving:?}"
+    );
+    assert_eq!((last.2, last.3), (0.0, 0.0), "{head:?}");
+    assert_ne!(head[0].1, held[0].1, "a new hold, a new conversation");
+    assert_eq!(
+        display.lock().unwrap().refused_inputs,
+        2,
+        "both NaN readings"
+    );
+
+    // Arrow keys held, then the page goes silent: released after the 300 ms hold.
+    let before = drives(&sink).len();
+    inputs.lock().unwrap().push_back((
+        RawInput::Arrows {
+            up: true,
+            down: false,
+            left: false,
+            right: false,
+        },
+        0,
+    ));
+    run(1000, None);
+    let keys = drives(&sink)[before..].to_vec();
+    let (last, moving) = keys.split_last().unwrap();
+    assert!(
+        !moving.is_empty() && moving.iter().all(|d| (d.2 - 0.3).abs() < 1e-12),
+        "{keys:?}"
+    );
+    assert_eq!((last.2, last.3), (0.0, 0.0));
+    assert!(
+        last.0 - moving[0].0 <= 400,
+        "released within the hold: {keys:?}"
     );
 }

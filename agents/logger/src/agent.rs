@@ -108,20 +108,15 @@ impl LoggerAgent {
             .sync()
             .map_err(crate::QueryError::from)
             .and_then(|_| query.run(self.store.path()));
-        let reply = match result {
-            Ok(found) => message
-                .create_reply()
-                .with_performative(Performative::Inform)
-                .with_content(serde_json::to_string(&found).unwrap_or_default()),
-            Err(err) => message
-                .create_reply()
-                .with_performative(Performative::Failure)
-                .with_content(format!(
-                    "((error-message \"{}\"))",
-                    err.to_string().replace('"', "'")
-                )),
+        let _ = match result {
+            Ok(found) => ctx.send(
+                message
+                    .create_reply()
+                    .with_performative(Performative::Inform)
+                    .with_content(serde_json::to_string(&found).unwrap_or_default()),
+            ),
+            Err(err) => ctx.failure(message, &err.to_string()),
         };
-        let _ = ctx.send(reply);
     }
 }
 

@@ -165,11 +165,7 @@ impl WatcherAgent {
             direction,
         };
         let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let reply = ask
-                .request
-                .create_reply()
-                .with_performative(Performative::Refuse);
-            let _ = ctx.send(reply.with_content(format!("((error-message \"{why}\"))")));
+            let _ = ctx.refuse(&ask.request, why);
         };
         let Some(passage) = self.passages.get_mut(&ask.passage) else {
             refuse(ctx, "unknown passage");
@@ -226,12 +222,7 @@ impl Agent for WatcherAgent {
             passage.holders = live;
             for grant in expired {
                 tracing::warn!(passage = %name, "lease expired; the queue moves on");
-                let reply = grant
-                    .ask
-                    .request
-                    .create_reply()
-                    .with_performative(Performative::Failure);
-                let _ = ctx.send(reply.with_content("((error-message \"lease expired\"))"));
+                let _ = ctx.failure(&grant.ask.request, "lease expired");
             }
         }
         self.grant(ctx);

@@ -42,6 +42,15 @@ pub enum Command {
         #[arg(long, default_value_t = 32, value_parser = super::flags::count(4096))]
         window: usize,
     },
+    /// Drive panel input to wheel command, in process (websocket and device queue paths).
+    Drive {
+        /// Print one JSON object per line instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Inputs timed per path (each takes about 1.2 s).
+        #[arg(long, default_value_t = 40)]
+        trials: usize,
+    },
 }
 
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
@@ -62,6 +71,10 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
                 .map(|s| Layers::parse(s))
                 .collect::<anyhow::Result<_>>()?;
             bench_bus(&transports, &layer_sets, seconds / 2, window, json)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Drive { json, trials } => {
+            super::bench_drive::run(trials, json)?;
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -24,15 +24,16 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
 use iw_dashboard::{
-    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView, MapView,
-    MessageView, PassageView, PlaceView, State, round_cm,
+    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView,
+    DriveInput, MapView, MessageView, PassageView, PlaceView, State, round_cm,
 };
-use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
+use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions, RawInput};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 /// The sample care building shipped with the sources (`scenarios/maps/sample-building.map`).
-const SAMPLE_BUILDING: &str = include_str!("../../../scenarios/maps/sample-building.map");
+pub(crate) const SAMPLE_BUILDING: &str =
+    include_str!("../../../scenarios/maps/sample-building.map");
 
 /// The restricted door: only [`AUTHORISED`] may have it opened.
 const RESTRICTED_DOOR: &str = "office";
@@ -439,12 +440,47 @@ fn apply(
                 if *failed { "failed" } else { "restored" }
             )))
         }
+        Action::Drive { chair, input } => {
+            push_drive(fleet, chair, *input)?;
+            Ok(None)
+        }
         Action::Pause { .. } | Action::Step => Ok(None),
     }
 }
 
+/// Hands a drive panel input to `chair`'s interface agent, where a device driver's readings go;
+/// the agent streams it as `drive` to its control agent.
+pub(crate) fn push_drive(fleet: &Fleet, chair: &str, input: DriveInput) -> anyhow::Result<()> {
+    let raw = match input {
+        DriveInput::Stick { x, y } => RawInput::Joystick { x, y },
+        DriveInput::Gamepad { x, y } => RawInput::GamepadStick { x, y },
+        DriveInput::Keys {
+            up,
+            down,
+            left,
+            right,
+        } => RawInput::Arrows {
+            up,
+            down,
+            left,
+            right,
+        },
+        DriveInput::Head { pitch, roll } => RawInput::HeadCap {
+            pitch_rad: pitch,
+            roll_rad: roll,
+        },
+    };
+    let t_ms = (fleet.time_s() * 1000.0) as u64;
+    fleet
+        .inputs(chair)?
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .push_back((raw, t_ms));
+    Ok(())
+}
+
 /// The building as the page draws it.
-fn map_view(map: &Map) -> MapView {
+pub(crate) fn map_view(map: &Map) -> MapView {
     let pt = |p: &Point2<f64>| [round_cm(p.x), round_cm(p.y)];
     MapView {
         name: map.name.clone(),
@@ -512,6 +548,7 @@ fn dashboard_state(
         .map(|c| {
             let kind = fleet.body_kind(&c.name).unwrap_or_default();
             let display = fleet.display(&c.name).ok();
+            let drive = fleet.drive_status(&c.name).unwrap_or_default();
             let pt = |p: &[f64; 2]| [round_cm(p[0]), round_cm(p[1])];
             ChairView {
                 n: c.name.clone(),
@@ -551,7 +588,14 @@ fn dashboard_state(
                     warn: c.twist[0].abs() > 0.01
                         && c.sonar_m.iter().flatten().any(|r| *r < WARN_RANGE_M),
                     seq: display.as_ref().and_then(|d| d.progress),
+                    user: display
+                        .as_ref()
+                        .and_then(|d| d.drive)
+                        .map(|d| [round_cm(d.linear_mps), round_cm(d.angular_radps)]),
                     answer: display.and_then(|d| d.last_answer),
+                    applied: drive
+                        .applied
+                        .map(|v| [round_cm(v.linear_mps), round_cm(v.angular_radps)]),
                 },
             }
         })

@@ -2,6 +2,7 @@
 
 pub mod acl;
 pub mod bench;
+mod bench_drive;
 pub mod demo;
 pub mod experiment;
 pub mod features;

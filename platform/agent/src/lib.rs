@@ -4,7 +4,9 @@
 //! Organization:
 //! - [`Agent`]: the trait every agent implements (JADE's `setup` / message handling / `takeDown`,
 //!   plus a periodic `tick` for control loops). Handlers are short and never block.
-//! - [`Context`]: an agent's view of the platform: its [`AgentId`], the time, and `send`.
+//! - [`Context`]: an agent's view of the platform: its [`AgentId`], the time, `send`, and the
+//!   replies that carry a reason ([`Context::refuse`], [`Context::failure`],
+//!   [`Context::not_understood`]).
 //! - [`AgentHost`]: owns the agents of a container; [`AgentHost::step`] runs them once at a
 //!   given time (simulated time: scenarios run faster than real time and deterministically), and
 //!   [`AgentHost::run_until`] paces steps with the bus clock (real time).
@@ -28,6 +30,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_bus::{Bus, BusError, Mailbox, Time};
 use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::WheelchairContent;
 
 pub mod gateway;
 pub use gateway::{GatewayAgent, GatewayHandle};
@@ -136,17 +139,32 @@ impl Context<'_> {
         Ok(())
     }
 
-    /// Replies `not-understood` to `message` with a reason, as FIPA asks of an agent that cannot
+    /// Replies NOT-UNDERSTOOD to `message` with a reason, as FIPA asks of an agent that cannot
     /// process what it received.
     pub fn not_understood(&mut self, message: &AclMessage, reason: &str) -> Result<(), AgentError> {
-        let mut reply = message
-            .create_reply()
-            .with_performative(Performative::NotUnderstood);
-        reply.content = None;
-        let reply = reply.with_content(format!(
-            "((error-message \"{}\"))",
-            reason.replace('"', "'")
-        ));
+        self.explain(message, Performative::NotUnderstood, reason)
+    }
+
+    /// Replies REFUSE to `message` with a reason: understood, but this agent will not do it.
+    pub fn refuse(&mut self, message: &AclMessage, reason: &str) -> Result<(), AgentError> {
+        self.explain(message, Performative::Refuse, reason)
+    }
+
+    /// Replies FAILURE to `message` with a reason: agreed to, but it could not be done.
+    pub fn failure(&mut self, message: &AclMessage, reason: &str) -> Result<(), AgentError> {
+        self.explain(message, Performative::Failure, reason)
+    }
+
+    /// The reply to `message` with `performative` and `((error-message "reason"))` content (in
+    /// the wheelchair ontology, which defines the fact).
+    fn explain(
+        &mut self,
+        message: &AclMessage,
+        performative: Performative,
+        reason: &str,
+    ) -> Result<(), AgentError> {
+        let reply = WheelchairContent::error(reason)
+            .fill(message.create_reply().with_performative(performative));
         self.send(reply)
     }
 

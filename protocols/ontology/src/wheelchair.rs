@@ -192,6 +192,16 @@ pub enum WheelchairAction {
     },
     /// `(stop)`: stop now.
     Stop,
+    /// `(drive :linear 0.4 :angular -0.2)`: one command of a manual drive stream, the user's
+    /// wish before shared control: linear speed along the chair's heading, m/s (forward
+    /// positive), and turn rate, rad/s (counter-clockwise positive). A stream is one
+    /// conversation; the control agent stops the chair when the stream falls silent.
+    Drive {
+        /// Linear speed, m/s.
+        linear_mps: f64,
+        /// Angular speed, rad/s.
+        angular_radps: f64,
+    },
     /// `(open-door :door d1)`: asked of a door agent.
     OpenDoor {
         /// The door.
@@ -241,6 +251,13 @@ impl Concept for WheelchairAction {
                 .term("duration-ms", Term::integer(*duration_ms))
                 .build(),
             Self::Stop => FrameBuilder::new("stop").build(),
+            Self::Drive {
+                linear_mps,
+                angular_radps,
+            } => FrameBuilder::new("drive")
+                .float("linear", *linear_mps)
+                .float("angular", *angular_radps)
+                .build(),
             Self::OpenDoor { door } => FrameBuilder::new("open-door")
                 .text("door", Some(door))
                 .build(),
@@ -262,7 +279,7 @@ impl Concept for WheelchairAction {
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         const EXPECTED: &str = "a wheelchair action (goto-xy, go-to, follow-line, follow-left-wall, \
-                                follow-right-wall, spin, wait, stop, open-door, close-door, pass, action-sequence)";
+                                follow-right-wall, spin, wait, stop, drive, open-door, close-door, pass, action-sequence)";
         let Term::Functional { symbol, .. } = term else {
             return Err(OntologyError::UnexpectedTerm {
                 expected: EXPECTED,
@@ -296,6 +313,13 @@ impl Concept for WheelchairAction {
                 duration_ms: frame("wait")?.required_integer("duration-ms")?,
             },
             "stop" => Self::Stop,
+            "drive" => {
+                let f = frame("drive")?;
+                Self::Drive {
+                    linear_mps: f.required_number("linear")?,
+                    angular_radps: f.required_number("angular")?,
+                }
+            }
             "open-door" => Self::OpenDoor {
                 door: frame("open-door")?.required_text("door")?,
             },
@@ -361,11 +385,17 @@ pub enum Fact {
         /// Its state.
         state: DoorState,
     },
+    /// `(error-message "why")`: the reason a REFUSE, FAILURE or NOT-UNDERSTOOD carries.
+    ErrorMessage {
+        /// The reason, for a person to read.
+        reason: String,
+    },
 }
 
 impl Fact {
     fn to_formula(&self) -> Formula {
         let (predicate, args) = match self {
+            Self::ErrorMessage { reason } => ("error-message", vec![Term::string(reason.as_str())]),
             Self::AtPose { agent, pose } => ("at-pose", vec![agent.to_term(), pose.to_term()]),
             Self::Reading { agent, reading } => {
                 ("sensor-reading", vec![agent.to_term(), reading.to_term()])
@@ -383,12 +413,21 @@ impl Fact {
 
     fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
         let bad = || OntologyError::UnexpectedTerm {
-            expected: "(at-pose agent pose), (sensor-reading agent reading) or (door-state door state)",
+            expected: "(at-pose agent pose), (sensor-reading agent reading), (door-state door state) \
+                       or (error-message reason)",
             found: formula.to_string(),
         };
         let Formula::Atomic { predicate, args } = formula else {
             return Err(bad());
         };
+        if predicate.eq_ignore_ascii_case("error-message") {
+            let [reason] = args.as_slice() else {
+                return Err(bad());
+            };
+            return Ok(Self::ErrorMessage {
+                reason: text_of(reason).ok_or_else(bad)?,
+            });
+        }
         let [first, second] = args.as_slice() else {
             return Err(bad());
         };
@@ -441,6 +480,13 @@ pub enum WheelchairContent {
 impl WheelchairContent {
     /// The SL level needed: everything here is SL0.
     pub const LEVEL: Level = Level::Sl0;
+
+    /// `((error-message "reason"))`: what a REFUSE, FAILURE or NOT-UNDERSTOOD says.
+    pub fn error(reason: impl Into<String>) -> Self {
+        Self::Inform(Fact::ErrorMessage {
+            reason: reason.into(),
+        })
+    }
 
     /// As SL content.
     pub fn to_content(&self) -> Content {

@@ -57,6 +57,10 @@ fn action() -> impl Strategy<Value = WheelchairAction> {
         finite().prop_map(|angle_rad| WheelchairAction::Spin { angle_rad }),
         any::<i64>().prop_map(|duration_ms| WheelchairAction::Wait { duration_ms }),
         Just(WheelchairAction::Stop),
+        (finite(), finite()).prop_map(|(linear_mps, angular_radps)| WheelchairAction::Drive {
+            linear_mps,
+            angular_radps
+        }),
         name().prop_map(|door| WheelchairAction::OpenDoor { door }),
         name().prop_map(|door| WheelchairAction::CloseDoor { door }),
         (name(), name())
@@ -95,6 +99,7 @@ fn fact() -> impl Strategy<Value = Fact> {
             ]
         )
             .prop_map(|(door, state)| Fact::Door { door, state }),
+        "[ -~]{0,40}".prop_map(|reason| Fact::ErrorMessage { reason }),
     ]
 }
 
@@ -156,6 +161,40 @@ fn requests_read_as_documented() {
             }
         }
     );
+}
+
+#[test]
+fn drive_and_error_messages_read_as_documented() {
+    let drive = WheelchairContent::Request {
+        actor: AgentId::new("control@chair-0"),
+        action: WheelchairAction::Drive {
+            linear_mps: 0.4,
+            angular_radps: -0.25,
+        },
+    };
+    let text = drive.to_content().to_string();
+    assert_eq!(
+        text,
+        "((action (agent-identifier :name control@chair-0) (drive :linear 0.4 :angular -0.25)))"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(drive));
+    let error = WheelchairContent::error("lease \"A\" expired");
+    let text = error.to_content().to_string();
+    assert_eq!(text, r#"((error-message "lease \"A\" expired"))"#);
+    assert_eq!(WheelchairContent::parse(&text), Ok(error));
+    let e = WheelchairContent::parse("((action (agent-identifier :name c@P) (drive :linear 1)))")
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            OntologyError::MissingSlot {
+                concept: "drive",
+                slot: "angular"
+            }
+        ),
+        "{e}"
+    );
+    assert!(WheelchairContent::parse("((error-message a b))").is_err());
 }
 
 #[test]

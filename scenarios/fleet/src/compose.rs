@@ -21,7 +21,7 @@ use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
-use iw_control_agent::{ControlAgent, ControlConfig};
+use iw_control_agent::{ControlAgent, ControlConfig, SharedDriveStatus};
 use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_logger::SyncPolicy;
@@ -413,6 +413,8 @@ pub struct ChairAgents {
     pub inputs: InputQueue,
     /// What the interface agent shows.
     pub display: Arc<Mutex<Display>>,
+    /// What the user asked by hand and what shared control applied, from the control agent.
+    pub drive_status: SharedDriveStatus,
 }
 
 /// Composes chair `name`'s perception, control, cognitive and interface agents over `body`,
@@ -471,12 +473,9 @@ pub fn chair_agents(
     .map_err(|e| setup(e.to_string()))?;
     let inputs = InputQueue::default();
     let display = Arc::new(Mutex::new(Display::default()));
+    let drive_status = control.drive_status();
     let interface = InterfaceAgent::new(
-        InterfaceConfig {
-            cognitive: cognitive_id.clone(),
-            control: control_id.clone(),
-            tick: Duration::from_millis(50),
-        },
+        InterfaceConfig::new(cognitive_id.clone(), control_id.clone()),
         recognizer,
         inputs.clone(),
         display.clone(),
@@ -491,6 +490,7 @@ pub fn chair_agents(
         agents,
         inputs,
         display,
+        drive_status,
     })
 }
 

@@ -51,6 +51,7 @@ use iw_body::{
     WheelGeometry, WheelSpeeds,
 };
 use iw_bus::{Bus, BusConfig, Clock, MockController, Stack, Time};
+use iw_control_agent::{DriveStatus, SharedDriveStatus};
 use iw_door::{ActuatorFault, DoorActuator, Refusal, RefusalLog};
 use iw_interface::{Display, InputQueue, Recognizer};
 use iw_ontology::OntologyContent;
@@ -60,6 +61,8 @@ use nalgebra::{Isometry2, Point2};
 
 use compose::{Building, ServiceConfig, SharedBody, agent_id};
 pub use console::{Console, Desk, GoalEvent, SharedDesk};
+/// The interface agent's raw device readings, for [`Fleet::inputs`].
+pub use iw_interface::RawInput;
 use iw_perception_agent::VisualConfig;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
 
@@ -345,6 +348,7 @@ pub struct ChairContainer {
     host: AgentHost,
     sensor_failed: Arc<AtomicBool>,
     inputs: InputQueue,
+    drive_status: SharedDriveStatus,
     display: Arc<Mutex<Display>>,
     // dropped after the host (fields drop in order), so the driver never outlives its board
     _board: Option<BoardEmulator>,
@@ -624,6 +628,7 @@ impl Fleet {
                 sensor_failed,
                 inputs: agents.inputs,
                 display: agents.display,
+                drive_status: agents.drive_status,
                 _board: board,
             });
         }
@@ -824,6 +829,15 @@ impl Fleet {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .clone())
+    }
+
+    /// What `chair`'s user asks by hand and what shared control applies, at the last control
+    /// tick.
+    pub fn drive_status(&self, chair: &str) -> Result<DriveStatus, FleetError> {
+        Ok(*self.chairs[self.index(chair)?]
+            .drive_status
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner))
     }
 
     /// `chair`'s body kind.

@@ -37,6 +37,8 @@ fn state(chairs: usize) -> State {
                         warn: i % 7 == 0,
                         seq: None,
                         answer: Some("agree".into()),
+                        user: None,
+                        applied: None,
                     },
                 }
             })

@@ -10,7 +10,8 @@
 //!   per-source connection rate).
 //! - [`MapView`], [`State`], [`ChairView`], [`ChairDisplay`], [`MessageView`], [`ContainerView`],
 //!   [`FeatureView`]: what the page is sent (the map once, the state at each publish).
-//! - [`Action`]: what the page may ask.
+//! - [`Action`]: what the page may ask; [`DriveInput`]: the drive panel's inputs (on-screen
+//!   joystick, gamepad, arrow keys, head-cap emulation), for the chair's interface agent.
 //!
 //! Routes: `/` (staff view; `/?chair=NAME` is that chair's on-board display), `/map.json`, `/ws`.
 //! It binds 127.0.0.1 by default; any other address needs a token, which every request must then
@@ -21,6 +22,6 @@ mod state;
 
 pub use server::{ConnectionLimits, Dashboard, DashboardConfig, DashboardError};
 pub use state::{
-    Action, ChairDisplay, ChairView, ContainerView, DoorView, FeatureView, MapView, MessageView,
-    PassageView, PlaceView, State, round_cm,
+    Action, ChairDisplay, ChairView, ContainerView, DoorView, DriveInput, FeatureView, MapView,
+    MessageView, PassageView, PlaceView, State, round_cm,
 };

@@ -117,6 +117,12 @@ pub struct ChairDisplay {
     pub seq: Option<(usize, usize)>,
     /// The last answer the chair got.
     pub answer: Option<String>,
+    /// The user's hand command being streamed: linear (m/s), angular (rad/s).
+    #[serde(default)]
+    pub user: Option<[f32; 2]>,
+    /// What shared control made of it at the last control tick: linear (m/s), angular (rad/s).
+    #[serde(default)]
+    pub applied: Option<[f32; 2]>,
 }
 
 /// A container and its agents.
@@ -166,6 +172,32 @@ pub enum Action {
     Step,
     /// Fail (or restore) every sensor of `chair`.
     Fault { chair: String, failed: bool },
+    /// A drive input for `chair`'s interface agent, sent while held (and once, centred, on
+    /// release).
+    Drive {
+        chair: String,
+        #[serde(flatten)]
+        input: DriveInput,
+    },
+}
+
+/// A proportional input of the drive panel (`"dev"` names the device).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+#[serde(tag = "dev", rename_all = "kebab-case")]
+pub enum DriveInput {
+    /// The on-screen joystick: `x` right, `y` forward, each in [-1, 1].
+    Stick { x: f64, y: f64 },
+    /// The browser Gamepad API's left stick, forward positive.
+    Gamepad { x: f64, y: f64 },
+    /// Arrow keys held.
+    Keys {
+        up: bool,
+        down: bool,
+        left: bool,
+        right: bool,
+    },
+    /// Head-cap emulation (sliders or the phone's orientation): forward and rightward tilt, rad.
+    Head { pitch: f64, roll: f64 },
 }
 
 #[cfg(test)]
@@ -183,6 +215,23 @@ mod tests {
                 x: 3.5,
                 y: 2.0
             }
+        );
+        let drive: Action =
+            serde_json::from_str(r#"{"do":"drive","chair":"chair-0","dev":"stick","x":0.5,"y":1}"#)
+                .unwrap();
+        assert_eq!(
+            drive,
+            Action::Drive {
+                chair: "chair-0".into(),
+                input: DriveInput::Stick { x: 0.5, y: 1.0 }
+            }
+        );
+        assert!(
+            serde_json::from_str::<Action>(
+                r#"{"do":"drive","chair":"c","dev":"stick","x":null,"y":1}"#
+            )
+            .is_err(),
+            "NaN arrives as null and is refused"
         );
         let step: Action = serde_json::from_str(r#"{"do":"step"}"#).unwrap();
         assert_eq!(step, Action::Step);

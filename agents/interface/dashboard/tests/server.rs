@@ -158,6 +158,8 @@ fn chair(i: usize) -> ChairView {
             warn: true,
             seq: Some((1, 3)),
             answer: Some("agree".into()),
+            user: Some([0.6, 0.0]),
+            applied: Some([0.2, 0.3]),
         },
     }
 }
