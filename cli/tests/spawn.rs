@@ -139,6 +139,26 @@ fn keygen(dir: &Path, name: &str) -> String {
     path.display().to_string()
 }
 
+/// Writes the deployment's control group key with `spawn --keygen-control`, which refuses to
+/// overwrite it.
+fn keygen_control(dir: &Path) -> String {
+    let path = dir.join("control.key");
+    for (attempt, ok) in [(1, true), (2, false)] {
+        let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+            .args(["spawn", "--keygen-control"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(
+            out.status.success(),
+            ok,
+            "keygen-control attempt {attempt}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    path.display().to_string()
+}
+
 /// Polls the board until `f` holds; panics after LIMIT with the board state and what the
 /// services saw (a goal failure there names the reason).
 fn board_until(
@@ -168,6 +188,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         .iter()
         .map(|n| keygen(dir.path(), n))
         .collect();
+    let control = keygen_control(dir.path());
     let board = BoardEmulator::spawn_with_watchdog(
         WheelGeometry::default(),
         50_000_000,
@@ -182,6 +203,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[0],
+        "--control-key",
+        &control,
         "--goal",
         "chair-a:dining-hall",
         "--goal",
@@ -205,6 +228,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[1],
+        "--control-key",
+        &control,
     ]);
     chair_a.wait_for("chair-a ready", |e| e["event"] == "ready");
     let b_addr = format!("127.0.0.1:{}", free_port_pair());
@@ -221,6 +246,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[2],
+        "--control-key",
+        &control,
     ]);
     chair_b.wait_for("chair-b ready", |e| e["event"] == "ready");
 
@@ -270,6 +297,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[3],
+        "--control-key",
+        &control,
     ]);
     chair_c.wait_for("chair-c ready", |e| e["event"] == "ready");
     for chair in ["chair-b", "chair-c"] {
@@ -313,7 +342,14 @@ fn bad_flags_and_files_are_clear_errors() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let out = run(&["--chair", "c", "--listen", "127.0.0.1:0"]);
+    let out = run(&["--chair", "c", "--listen", "127.0.0.1:7"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("security.control_key"),
+        "no control key and no --insecure-dev: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = run(&["--chair", "c", "--listen", "127.0.0.1:0", "--insecure-dev"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("port 0"),
@@ -336,6 +372,7 @@ fn bad_flags_and_files_are_clear_errors() {
         "--services",
         "--listen",
         "127.0.0.1:7",
+        "--insecure-dev",
         "--key",
         key.to_str().unwrap(),
     ]);
@@ -359,6 +396,7 @@ fn containers_over_iceoryx2_join_and_a_goal_is_done() {
         &services_inbox,
         "--goal",
         "chair-s:3.0,6.0",
+        "--insecure-dev",
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
     let mut chair = Proc::spawn(&[
@@ -370,6 +408,7 @@ fn containers_over_iceoryx2_join_and_a_goal_is_done() {
         &chair_inbox,
         "--peer",
         &services_inbox,
+        "--insecure-dev",
     ]);
     services.wait_for("chair-s's goal done", |e| {
         is(e, "goal", "chair", "chair-s") && e["performative"] == "INFORM"

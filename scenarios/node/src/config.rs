@@ -116,9 +116,11 @@ pub struct SecuritySection {
     /// writes one). Empty: a fresh key each start (development only).
     pub identity_key: String,
     /// The deployment's group key for container control traffic (join, heartbeat, election,
-    /// GAL): a file of 64 hex digits that every container shares. Empty: control traffic is not
-    /// authenticated (development only).
+    /// GAL): a file of 64 hex digits that every container shares (`intellwheels spawn
+    /// --keygen-control FILE` writes one). Required unless `insecure_dev`.
     pub control_key: String,
+    /// Run without a control key: control traffic is not authenticated (development only).
+    pub insecure_dev: bool,
     /// Bus layers: `all`, `none`, or a comma list of `comm`, `security`, `temporal`, `parser`.
     pub layers: String,
 }
@@ -128,6 +130,7 @@ impl Default for SecuritySection {
         SecuritySection {
             identity_key: String::new(),
             control_key: String::new(),
+            insecure_dev: false,
             layers: "all".into(),
         }
     }
@@ -269,6 +272,15 @@ impl SpawnConfig {
         if self.transport.listen.is_empty() {
             return bad("transport.listen", "empty".into());
         }
+        if self.security.control_key.is_empty() && !self.security.insecure_dev {
+            return bad(
+                "security.control_key",
+                "empty: container control traffic would not be authenticated; give the \
+                 deployment's group key file (--control-key FILE; `intellwheels spawn \
+                 --keygen-control FILE` writes one) or, for development only, --insecure-dev"
+                    .into(),
+            );
+        }
         self.security
             .layers
             .parse::<iw_bus::LayerSet>()
@@ -317,7 +329,16 @@ mod tests {
 
     #[test]
     fn validation_names_the_key() {
+        let err = SpawnConfig::default()
+            .validate(&crate::Role::Services)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("security.control_key") && err.contains("--insecure-dev"),
+            "{err}"
+        );
         let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
         config.container.lease_ms = 10;
         let err = config
             .validate(&crate::Role::Services)
@@ -325,6 +346,7 @@ mod tests {
             .to_string();
         assert!(err.contains("container.lease_ms"), "{err}");
         let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
         config.body.kind = BodyKind::Serial;
         let err = config
             .validate(&crate::Role::Chair { name: "c".into() })

@@ -113,29 +113,18 @@ fn load_identity(path: &str) -> Result<Identity, NodeError> {
 }
 
 /// The group key that guards container control traffic, read from `path` (64 hex digits);
-/// `None` when no file is configured.
+/// `None` when no file is configured (only allowed with `security.insecure_dev`).
 fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
     if path.is_empty() {
-        tracing::warn!("no security.control_key: container control traffic is not authenticated");
+        tracing::warn!("insecure_dev: container control traffic is not authenticated");
         return Ok(None);
     }
-    let bad = |reason: String| NodeError::ControlKey {
-        path: path.into(),
-        reason,
-    };
-    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-    let hex = text.trim();
-    if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(bad(format!(
-            "expected 64 hex digits, found {} characters",
-            hex.chars().count()
-        )));
-    }
-    let mut key = [0u8; 32];
-    for (i, byte) in key.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|e| bad(e.to_string()))?;
-    }
-    Ok(Some(key))
+    iw_stack::read_group_key(Path::new(path))
+        .map(Some)
+        .map_err(|e| NodeError::ControlKey {
+            path: e.path,
+            reason: e.reason,
+        })
 }
 
 fn load_map(path: &str) -> Result<Map, NodeError> {
@@ -443,12 +432,22 @@ impl Runtime {
     }
 
     /// Steps the agents (and a virtual body's world) every `container.step_ms` of real time until
-    /// `stop` is set, then shuts down cleanly.
-    pub fn run(mut self, stop: &AtomicBool) {
+    /// `stop` is set, then shuts down cleanly. Fails, after shutting down, if another live
+    /// container holds this one's id.
+    pub fn run(mut self, stop: &AtomicBool) -> Result<(), NodeError> {
         let period = Duration::from_millis(self.config.container.step_ms);
         let clock = self.host.bus().clock().clone();
         let mut last = clock.now();
         while !stop.load(Ordering::Acquire) {
+            let refused = self
+                .container
+                .as_ref()
+                .and_then(|c| c.with(|c| c.refusal().map(str::to_owned)));
+            if let Some(reason) = refused {
+                let container = self.name.clone();
+                self.shutdown();
+                return Err(NodeError::Setup { container, reason });
+            }
             let now = clock.now();
             self.sync_agent_lists();
             self.host.step(now);
@@ -463,6 +462,7 @@ impl Runtime {
             std::thread::sleep(period.saturating_sub(clock.now().since(now)));
         }
         self.shutdown();
+        Ok(())
     }
 
     /// Routes and trusts exactly the other containers' agents the GAL lists under a live
