@@ -384,16 +384,15 @@ fn bad_flags_and_files_are_clear_errors() {
     );
 }
 
-#[test]
-fn containers_over_iceoryx2_join_and_a_goal_is_done() {
-    let tag = format!("iwt-{}", std::process::id());
-    let (services_inbox, chair_inbox) = (format!("{tag}-services"), format!("{tag}-chair"));
+/// Services and one virtual chair over `transport`, listening at the given addresses: the chair
+/// joins, its goal is done, and it leaves cleanly.
+fn goal_done_over(transport: &str, services_addr: &str, chair_addr: &str) {
     let mut services = Proc::spawn(&[
         "--services",
         "--transport",
-        "iceoryx2",
+        transport,
         "--listen",
-        &services_inbox,
+        services_addr,
         "--goal",
         "chair-s:3.0,6.0",
         "--insecure-dev",
@@ -403,11 +402,11 @@ fn containers_over_iceoryx2_join_and_a_goal_is_done() {
         "--chair",
         "chair-s",
         "--transport",
-        "iceoryx2",
+        transport,
         "--listen",
-        &chair_inbox,
+        chair_addr,
         "--peer",
-        &services_inbox,
+        services_addr,
         "--insecure-dev",
     ]);
     services.wait_for("chair-s's goal done", |e| {
@@ -418,4 +417,34 @@ fn containers_over_iceoryx2_join_and_a_goal_is_done() {
         is(e, "left", "agent", "control@chair-s")
     });
     assert!(services.terminate().success());
+}
+
+#[test]
+fn containers_over_iceoryx2_join_and_a_goal_is_done() {
+    let tag = format!("iwt-{}", std::process::id());
+    goal_done_over(
+        "iceoryx2",
+        &format!("{tag}-services"),
+        &format!("{tag}-chair"),
+    );
+}
+
+/// Two consecutive free TCP ports on loopback (bus and control channel).
+fn free_tcp_port_pair() -> u16 {
+    loop {
+        let a = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = a.local_addr().unwrap().port();
+        if port < u16::MAX && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
+            return port;
+        }
+    }
+}
+
+#[test]
+fn containers_over_tcp_join_and_a_goal_is_done() {
+    goal_done_over(
+        "tcp",
+        &format!("127.0.0.1:{}", free_tcp_port_pair()),
+        &format!("127.0.0.1:{}", free_tcp_port_pair()),
+    );
 }

@@ -33,7 +33,7 @@ pub struct Args {
     /// The body: `virtual`, `serial:PATH` or `mixed:PATH` (body.kind, body.port).
     #[arg(long, value_name = "BODY")]
     body: Option<String>,
-    /// `udp` or `iceoryx2` (transport.kind).
+    /// `udp`, `tcp` or `iceoryx2` (transport.kind).
     #[arg(long, value_name = "KIND")]
     transport: Option<String>,
     /// Bus address: `host:port` or an iceoryx2 inbox name (transport.listen).

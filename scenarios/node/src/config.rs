@@ -62,6 +62,8 @@ pub enum TransportKind {
     /// UDP datagrams between hosts (or on loopback).
     #[default]
     Udp,
+    /// Length-prefixed frames over TCP connections (where UDP is filtered).
+    Tcp,
     /// iceoryx2 shared memory between processes of one host.
     Iceoryx2,
 }
@@ -71,11 +73,12 @@ impl std::str::FromStr for TransportKind {
     fn from_str(s: &str) -> Result<Self, NodeError> {
         match s {
             "udp" => Ok(TransportKind::Udp),
+            "tcp" => Ok(TransportKind::Tcp),
             "iceoryx2" => Ok(TransportKind::Iceoryx2),
             other => Err(NodeError::Flag {
                 flag: "--transport",
                 value: other.into(),
-                reason: "expected `udp` or `iceoryx2`".into(),
+                reason: "expected `udp`, `tcp` or `iceoryx2`".into(),
             }),
         }
     }
@@ -85,10 +88,11 @@ impl std::str::FromStr for TransportKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TransportSection {
-    /// `udp` or `iceoryx2`.
+    /// `udp`, `tcp` or `iceoryx2`.
     pub kind: TransportKind,
-    /// Where the agent bus listens: `host:port` (udp) or an inbox name (iceoryx2). The
-    /// container control channel uses the next port (udp) or the name with `-ctl` (iceoryx2).
+    /// Where the agent bus listens: `host:port` (udp, tcp) or an inbox name (iceoryx2). The
+    /// container control channel uses the next port (udp, tcp) or the name with `-ctl`
+    /// (iceoryx2).
     pub listen: String,
     /// The address the others reach this bus at (empty: `listen`); set it when listening on
     /// `0.0.0.0`.

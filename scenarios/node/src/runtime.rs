@@ -18,7 +18,7 @@ use iw_fleet::compose::SharedBody;
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
 use iw_sim::{ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
 use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
-use iw_transport_net::UdpTransport;
+use iw_transport_net::{TcpTransport, UdpTransport};
 use iw_transport_shm::ShmTransport;
 use iw_vo::Pose2;
 use nalgebra::{Isometry2, Vector2};
@@ -42,7 +42,7 @@ const MAX_SIM_STEP_S: f64 = 0.2;
 pub fn control_addr(kind: TransportKind, addr: &str) -> Result<String, NodeError> {
     match kind {
         TransportKind::Iceoryx2 => Ok(format!("{addr}-ctl")),
-        TransportKind::Udp => {
+        TransportKind::Udp | TransportKind::Tcp => {
             let bad = |reason: &str| NodeError::Transport {
                 addr: addr.into(),
                 reason: reason.into(),
@@ -73,6 +73,7 @@ fn open_transport(kind: TransportKind, addr: &str) -> Result<Arc<dyn FrameTransp
     };
     Ok(match kind {
         TransportKind::Udp => Arc::new(UdpTransport::bind(addr).map_err(bad)?),
+        TransportKind::Tcp => Arc::new(TcpTransport::bind(addr).map_err(bad)?),
         TransportKind::Iceoryx2 => Arc::new(ShmTransport::open(addr).map_err(bad)?),
     })
 }
