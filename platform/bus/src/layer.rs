@@ -23,6 +23,7 @@ use std::str::FromStr;
 use crate::BusError;
 use crate::envelope::{Envelope, MsgId};
 use crate::time::Time;
+use crate::warn::WarnEvery;
 
 /// What a layer decided about the envelope it was lent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -292,13 +293,30 @@ impl Layer for PassThrough {
 }
 
 /// Layers in order, top (agent side) first; itself a [`Layer`]. Counts every rejection.
-#[derive(Default)]
 pub struct Stack {
     layers: Vec<Box<dyn Layer>>,
     /// Indexes of the layers that may originate frames or rejections ([`Layer::originates`]).
     originating: Vec<usize>,
     counters: Counters,
     outbox: std::collections::VecDeque<Envelope>,
+    /// One WARN per rejection reason per [`WARN_PERIOD`]: an attack shows at the default log
+    /// level without one line per frame.
+    warn: WarnEvery<Reason>,
+}
+
+/// Shortest interval between two warnings about inbound rejections of one reason.
+pub const WARN_PERIOD: std::time::Duration = std::time::Duration::from_secs(10);
+
+impl Default for Stack {
+    fn default() -> Self {
+        Stack {
+            layers: Vec::new(),
+            originating: Vec::new(),
+            counters: Counters::default(),
+            outbox: std::collections::VecDeque::new(),
+            warn: WarnEvery::new(WARN_PERIOD),
+        }
+    }
 }
 
 impl std::fmt::Debug for Stack {
@@ -364,9 +382,15 @@ impl Stack {
     /// tell the layers below.
     #[cold]
     #[inline(never)]
-    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: &str, r: Reason) {
+    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: &str, r: Reason, now: Time) {
         tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
         self.counters.record(r);
+        // Repeats are the communication layer's everyday work (a lost acknowledgement).
+        if r != Reason::Duplicate
+            && let Some(held_back) = self.warn.admit(r, now)
+        {
+            tracing::warn!(layer = self.layers[i].name(), reason = %r, %sender, held_back, total = self.counters.get(r), "inbound frame rejected (one warning per reason per 10 s)");
+        }
         for below in &mut self.layers[i + 1..] {
             below.rejected_above(id, sender, r);
         }
@@ -429,7 +453,7 @@ impl Layer for Stack {
                 Verdict::Drop(r) => {
                     // The layers leave the id and the sender as they arrived (see `Layer`):
                     // these are what the layers below saw.
-                    self.inbound_dropped(i, env.header.id, &env.header.sender, r);
+                    self.inbound_dropped(i, env.header.id, &env.header.sender, r, now);
                     return Verdict::Drop(r);
                 }
                 Verdict::Consumed => return Verdict::Consumed,

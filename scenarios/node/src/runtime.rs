@@ -34,6 +34,8 @@ const CONTROL_TICK: Duration = Duration::from_millis(10);
 /// Clearance the services' planner keeps from walls, furniture and closed doors, m (the chair's
 /// half width plus a margin).
 const CLEARANCE_M: f64 = 0.4;
+/// Shortest interval between two `security` events.
+const SECURITY_REPORT: Duration = Duration::from_secs(5);
 /// Longest simulated step after a stall, s (the simulator never leaps).
 const MAX_SIM_STEP_S: f64 = 0.2;
 
@@ -299,6 +301,7 @@ pub struct Runtime {
     host: AgentHost,
     platform: Platform,
     container: Option<ContainerNode>,
+    control_guard: Option<Arc<GuardedTransport>>,
     installed: BTreeMap<String, Installed>,
     roster: Roster,
     world: Option<SharedWorld>,
@@ -397,16 +400,20 @@ impl Runtime {
                 addr: PeerAddr(advertise.clone()),
             });
         }
-        let control_transport: Arc<dyn FrameTransport> = match control_key {
-            Some(key) => Arc::new(
+        let control_guard = match control_key {
+            Some(key) => Some(Arc::new(
                 GuardedTransport::new(
-                    control_transport,
+                    control_transport.clone(),
                     &format!("container-{id}.{incarnation}"),
                     key,
                     clock.clone(),
                 )
                 .map_err(|e| setup(e.to_string()))?,
-            ),
+            )),
+            None => None,
+        };
+        let control_transport: Arc<dyn FrameTransport> = match &control_guard {
+            Some(guard) => guard.clone(),
             None => control_transport,
         };
         let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK)
@@ -424,6 +431,7 @@ impl Runtime {
             host,
             platform,
             container: Some(container),
+            control_guard,
             installed: BTreeMap::new(),
             roster,
             world,
@@ -439,6 +447,8 @@ impl Runtime {
         let period = Duration::from_millis(self.config.container.step_ms);
         let clock = self.host.bus().clock().clone();
         let mut last = clock.now();
+        let mut reported = (iw_bus::Counters::default(), iw_bus::Counters::default());
+        let mut next_report = clock.now();
         while !stop.load(Ordering::Acquire) {
             let refused = self
                 .container
@@ -450,6 +460,10 @@ impl Runtime {
                 return Err(NodeError::Setup { container, reason });
             }
             let now = clock.now();
+            if now >= next_report {
+                next_report = now.plus(SECURITY_REPORT);
+                self.report_security(&mut reported);
+            }
             self.sync_agent_lists();
             self.host.step(now);
             if let Some(world) = &self.world {
@@ -520,6 +534,30 @@ impl Runtime {
         }
         *self.roster.lock().unwrap_or_else(PoisonError::into_inner) =
             self.installed.keys().cloned().collect();
+    }
+
+    /// Sends a `security` event if the rejection counts changed since `reported`.
+    fn report_security(&self, reported: &mut (iw_bus::Counters, iw_bus::Counters)) {
+        let bus = self.host.bus().counters();
+        let control = self
+            .control_guard
+            .as_ref()
+            .map(|g| g.counters())
+            .unwrap_or_default();
+        if (&bus, &control) == (&reported.0, &reported.1) {
+            return;
+        }
+        let named = |c: &iw_bus::Counters| {
+            c.nonzero()
+                .map(|(r, n)| (r.name().to_string(), n))
+                .collect()
+        };
+        let _ = self.events.send(Event::Security {
+            container: self.name.clone(),
+            bus: named(&bus),
+            control: named(&control),
+        });
+        *reported = (bus, control);
     }
 
     fn shutdown(mut self) {
