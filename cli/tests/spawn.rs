@@ -448,3 +448,56 @@ fn containers_over_tcp_join_and_a_goal_is_done() {
         &format!("127.0.0.1:{}", free_tcp_port_pair()),
     );
 }
+
+/// Issue 20 item 3: a chair killed with SIGKILL and started again (same identity key, same
+/// address) gets its goal again. The lost session is now re-keyed and the frames in flight
+/// re-sealed (the services log it, and `hostile` tests it on the bus), and the services see the
+/// chair's agents join again; but no pose and no goal follow within the limit, for a cause not
+/// found yet, so this end-to-end check is kept, ignored, as the open part of the item.
+#[test]
+#[ignore = "open: after the restart the chair rejoins but its poses never reach the services"]
+fn a_chair_restarted_after_sigkill_gets_its_goal_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let services_key = keygen(dir.path(), "services");
+    let chair_key = keygen(dir.path(), "chair-r");
+    let control = keygen_control(dir.path());
+    let services_addr = format!("127.0.0.1:{}", free_port_pair());
+    let mut services = Proc::spawn(&[
+        "--services",
+        "--listen",
+        &services_addr,
+        "--key",
+        &services_key,
+        "--control-key",
+        &control,
+        "--goal",
+        "chair-r:3.0,6.0",
+    ]);
+    services.wait_for("services ready", |e| e["event"] == "ready");
+    let chair_addr = format!("127.0.0.1:{}", free_port_pair());
+    let chair_args = [
+        "--chair",
+        "chair-r",
+        "--start",
+        "1.0,6.0,0",
+        "--listen",
+        &chair_addr,
+        "--peer",
+        &services_addr,
+        "--key",
+        &chair_key,
+        "--control-key",
+        &control,
+    ];
+    let agreed = |e: &Value| is(e, "goal", "chair", "chair-r") && e["performative"] == "AGREE";
+    let mut chair = Proc::spawn(&chair_args);
+    services.wait_for("the first goal agreed", agreed);
+    chair.child.kill().unwrap(); // SIGKILL: no deregistration, sessions lost
+    chair.child.wait().unwrap();
+    services.wait_new("the chair leaving", |e| {
+        is(e, "left", "agent", "control@chair-r")
+    });
+    let _chair = Proc::spawn(&chair_args);
+    services.wait_new("the goal agreed again after the restart", agreed);
+    assert!(services.terminate().success());
+}
