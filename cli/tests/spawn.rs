@@ -115,48 +115,32 @@ fn is(event: &Value, kind: &str, field: &str, value: &str) -> bool {
     event["event"] == kind && event[field] == value
 }
 
-fn keygen(dir: &Path, name: &str) -> String {
-    let path = dir.join(format!("{name}.pk8"));
-    let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-        .args(["spawn", "--keygen"])
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "keygen: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let again = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-        .args(["spawn", "--keygen"])
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        !again.status.success(),
-        "keygen must refuse to overwrite a key"
-    );
-    path.display().to_string()
-}
-
-/// Writes the deployment's control group key with `spawn --keygen-control`, which refuses to
+/// Writes a key file with `spawn FLAG PATH`, which must succeed once and then refuse to
 /// overwrite it.
-fn keygen_control(dir: &Path) -> String {
-    let path = dir.join("control.key");
+fn write_key_with(flag: &str, path: &Path) -> String {
     for (attempt, ok) in [(1, true), (2, false)] {
         let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-            .args(["spawn", "--keygen-control"])
-            .arg(&path)
+            .args(["spawn", flag])
+            .arg(path)
             .output()
             .unwrap();
         assert_eq!(
             out.status.success(),
             ok,
-            "keygen-control attempt {attempt}: {}",
+            "{flag} attempt {attempt} (the second must refuse to overwrite): {}",
             String::from_utf8_lossy(&out.stderr)
         );
     }
     path.display().to_string()
+}
+
+fn keygen(dir: &Path, name: &str) -> String {
+    write_key_with("--keygen", &dir.join(format!("{name}.pk8")))
+}
+
+/// The deployment's control group key.
+fn keygen_control(dir: &Path) -> String {
+    write_key_with("--keygen-control", &dir.join("control.key"))
 }
 
 /// Polls the board until `f` holds; panics after LIMIT with the board state and what the
