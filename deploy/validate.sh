@@ -39,11 +39,24 @@ if "services" not in services or len(chairs) < 3:
     fail(f"expected the services and 3 chairs, found {sorted(services)}")
 declared = set((doc.get("secrets") or {}).keys())
 networks = set((doc.get("networks") or {}).keys())
+volumes = set((doc.get("volumes") or {}).keys())
+init = [n for n, svc in services.items()
+        if isinstance(svc, dict) and "--keygen-control" in " ".join(svc.get("entrypoint") or [])]
+if len(init) != 1:
+    fail(f"expected one init service writing the control key (--keygen-control), found {init}")
 for name, svc in services.items():
     if not isinstance(svc, dict):
         fail(f"service {name} is not a mapping")
     if "image" not in svc and "build" not in svc:
         fail(f"service {name} has neither image nor build")
+    for v in svc.get("volumes", []):
+        if v.split(":")[0] not in volumes:
+            fail(f"service {name} uses undeclared volume {v}")
+    if name in init:
+        continue
+    deps = svc.get("depends_on") or {}
+    if not isinstance(deps, dict) or deps.get(init[0], {}).get("condition") != "service_completed_successfully":
+        fail(f"service {name}: must depend on {init[0]} completing (the control key)")
     cmd = svc.get("command")
     if not (isinstance(cmd, list) and cmd and cmd[0] == "spawn" and all(isinstance(c, str) for c in cmd)):
         fail(f"service {name}: command must be a list of strings starting with `spawn`")
@@ -52,6 +65,8 @@ for name, svc in services.items():
         fail(f"service {name}: command lacks {role}")
     if name != "services" and cmd[cmd.index("--chair") + 1] != name:
         fail(f"service {name}: --chair must name the service")
+    if "--control-key" not in cmd or "--insecure-dev" in cmd:
+        fail(f"service {name}: the control channel must be keyed (--control-key, no --insecure-dev)")
     for s in svc.get("secrets", []):
         if s not in declared:
             fail(f"service {name} uses undeclared secret {s}")

@@ -115,28 +115,32 @@ fn is(event: &Value, kind: &str, field: &str, value: &str) -> bool {
     event["event"] == kind && event[field] == value
 }
 
-fn keygen(dir: &Path, name: &str) -> String {
-    let path = dir.join(format!("{name}.pk8"));
-    let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-        .args(["spawn", "--keygen"])
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "keygen: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let again = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-        .args(["spawn", "--keygen"])
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        !again.status.success(),
-        "keygen must refuse to overwrite a key"
-    );
+/// Writes a key file with `spawn FLAG PATH`, which must succeed once and then refuse to
+/// overwrite it.
+fn write_key_with(flag: &str, path: &Path) -> String {
+    for (attempt, ok) in [(1, true), (2, false)] {
+        let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+            .args(["spawn", flag])
+            .arg(path)
+            .output()
+            .unwrap();
+        assert_eq!(
+            out.status.success(),
+            ok,
+            "{flag} attempt {attempt} (the second must refuse to overwrite): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
     path.display().to_string()
+}
+
+fn keygen(dir: &Path, name: &str) -> String {
+    write_key_with("--keygen", &dir.join(format!("{name}.pk8")))
+}
+
+/// The deployment's control group key.
+fn keygen_control(dir: &Path) -> String {
+    write_key_with("--keygen-control", &dir.join("control.key"))
 }
 
 /// Polls the board until `f` holds; panics after LIMIT with the board state and what the
@@ -168,6 +172,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         .iter()
         .map(|n| keygen(dir.path(), n))
         .collect();
+    let control = keygen_control(dir.path());
     let board = BoardEmulator::spawn_with_watchdog(
         WheelGeometry::default(),
         50_000_000,
@@ -182,6 +187,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[0],
+        "--control-key",
+        &control,
         "--goal",
         "chair-a:dining-hall",
         "--goal",
@@ -205,6 +212,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[1],
+        "--control-key",
+        &control,
     ]);
     chair_a.wait_for("chair-a ready", |e| e["event"] == "ready");
     let b_addr = format!("127.0.0.1:{}", free_port_pair());
@@ -221,6 +230,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[2],
+        "--control-key",
+        &control,
     ]);
     chair_b.wait_for("chair-b ready", |e| e["event"] == "ready");
 
@@ -270,6 +281,8 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         &services_addr,
         "--key",
         &keys[3],
+        "--control-key",
+        &control,
     ]);
     chair_c.wait_for("chair-c ready", |e| e["event"] == "ready");
     for chair in ["chair-b", "chair-c"] {
@@ -313,7 +326,14 @@ fn bad_flags_and_files_are_clear_errors() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let out = run(&["--chair", "c", "--listen", "127.0.0.1:0"]);
+    let out = run(&["--chair", "c", "--listen", "127.0.0.1:7"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("security.control_key"),
+        "no control key and no --insecure-dev: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = run(&["--chair", "c", "--listen", "127.0.0.1:0", "--insecure-dev"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("port 0"),
@@ -336,6 +356,7 @@ fn bad_flags_and_files_are_clear_errors() {
         "--services",
         "--listen",
         "127.0.0.1:7",
+        "--insecure-dev",
         "--key",
         key.to_str().unwrap(),
     ]);
@@ -347,29 +368,30 @@ fn bad_flags_and_files_are_clear_errors() {
     );
 }
 
-#[test]
-fn containers_over_iceoryx2_join_and_a_goal_is_done() {
-    let tag = format!("iwt-{}", std::process::id());
-    let (services_inbox, chair_inbox) = (format!("{tag}-services"), format!("{tag}-chair"));
+/// Services and one virtual chair over `transport`, listening at the given addresses: the chair
+/// joins, its goal is done, and it leaves cleanly.
+fn goal_done_over(transport: &str, services_addr: &str, chair_addr: &str) {
     let mut services = Proc::spawn(&[
         "--services",
         "--transport",
-        "iceoryx2",
+        transport,
         "--listen",
-        &services_inbox,
+        services_addr,
         "--goal",
         "chair-s:3.0,6.0",
+        "--insecure-dev",
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
     let mut chair = Proc::spawn(&[
         "--chair",
         "chair-s",
         "--transport",
-        "iceoryx2",
+        transport,
         "--listen",
-        &chair_inbox,
+        chair_addr,
         "--peer",
-        &services_inbox,
+        services_addr,
+        "--insecure-dev",
     ]);
     services.wait_for("chair-s's goal done", |e| {
         is(e, "goal", "chair", "chair-s") && e["performative"] == "INFORM"
@@ -378,5 +400,88 @@ fn containers_over_iceoryx2_join_and_a_goal_is_done() {
     services.wait_for("chair-s's control agent leaving", |e| {
         is(e, "left", "agent", "control@chair-s")
     });
+    assert!(services.terminate().success());
+}
+
+#[test]
+fn containers_over_iceoryx2_join_and_a_goal_is_done() {
+    let tag = format!("iwt-{}", std::process::id());
+    goal_done_over(
+        "iceoryx2",
+        &format!("{tag}-services"),
+        &format!("{tag}-chair"),
+    );
+}
+
+/// Two consecutive free TCP ports on loopback (bus and control channel).
+fn free_tcp_port_pair() -> u16 {
+    loop {
+        let a = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = a.local_addr().unwrap().port();
+        if port < u16::MAX && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
+            return port;
+        }
+    }
+}
+
+#[test]
+fn containers_over_tcp_join_and_a_goal_is_done() {
+    goal_done_over(
+        "tcp",
+        &format!("127.0.0.1:{}", free_tcp_port_pair()),
+        &format!("127.0.0.1:{}", free_tcp_port_pair()),
+    );
+}
+
+/// Issue 20 item 3: a chair killed with SIGKILL and started again (same identity key, same
+/// address) gets its goal again. The lost session is now re-keyed and the frames in flight
+/// re-sealed (the services log it, and `hostile` tests it on the bus), and the services see the
+/// chair's agents join again; but no pose and no goal follow within the limit, for a cause not
+/// found yet, so this end-to-end check is kept, ignored, as the open part of the item.
+#[test]
+#[ignore = "open: after the restart the chair rejoins but its poses never reach the services"]
+fn a_chair_restarted_after_sigkill_gets_its_goal_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let services_key = keygen(dir.path(), "services");
+    let chair_key = keygen(dir.path(), "chair-r");
+    let control = keygen_control(dir.path());
+    let services_addr = format!("127.0.0.1:{}", free_port_pair());
+    let mut services = Proc::spawn(&[
+        "--services",
+        "--listen",
+        &services_addr,
+        "--key",
+        &services_key,
+        "--control-key",
+        &control,
+        "--goal",
+        "chair-r:3.0,6.0",
+    ]);
+    services.wait_for("services ready", |e| e["event"] == "ready");
+    let chair_addr = format!("127.0.0.1:{}", free_port_pair());
+    let chair_args = [
+        "--chair",
+        "chair-r",
+        "--start",
+        "1.0,6.0,0",
+        "--listen",
+        &chair_addr,
+        "--peer",
+        &services_addr,
+        "--key",
+        &chair_key,
+        "--control-key",
+        &control,
+    ];
+    let agreed = |e: &Value| is(e, "goal", "chair", "chair-r") && e["performative"] == "AGREE";
+    let mut chair = Proc::spawn(&chair_args);
+    services.wait_for("the first goal agreed", agreed);
+    chair.child.kill().unwrap(); // SIGKILL: no deregistration, sessions lost
+    chair.child.wait().unwrap();
+    services.wait_new("the chair leaving", |e| {
+        is(e, "left", "agent", "control@chair-r")
+    });
+    let _chair = Proc::spawn(&chair_args);
+    services.wait_new("the goal agreed again after the restart", agreed);
     assert!(services.terminate().success());
 }

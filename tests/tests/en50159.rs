@@ -490,6 +490,7 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
         },
         ContainerMsg::Heartbeat {
             id: ContainerId(0),
+            incarnation: 0,
             leader: ContainerId(0),
             lal_generation: 99,
             gal_versions: Default::default(),

@@ -12,7 +12,7 @@ use iw_node::{BodyKind, GoalSpec, NodeError, Role, Runtime, SpawnConfig, Transpo
 
 /// Flags; each overrides the configuration file's key of the same meaning.
 #[derive(clap::Args)]
-#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "keygen"]))]
+#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "keygen", "keygen_control"]))]
 pub struct Args {
     /// Run chair NAME's perception and control agents.
     #[arg(long, value_name = "NAME")]
@@ -23,13 +23,17 @@ pub struct Args {
     /// Write a new identity key (PKCS#8, mode 0600) to FILE and exit.
     #[arg(long, value_name = "FILE")]
     keygen: Option<PathBuf>,
+    /// Write a new control group key (64 hex digits, mode 0600) to FILE and exit; every
+    /// container of a deployment is given the same file (--control-key).
+    #[arg(long, value_name = "FILE")]
+    keygen_control: Option<PathBuf>,
     /// The configuration file (keys documented in deploy/default.toml).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// The body: `virtual`, `serial:PATH` or `mixed:PATH` (body.kind, body.port).
     #[arg(long, value_name = "BODY")]
     body: Option<String>,
-    /// `udp` or `iceoryx2` (transport.kind).
+    /// `udp`, `tcp` or `iceoryx2` (transport.kind).
     #[arg(long, value_name = "KIND")]
     transport: Option<String>,
     /// Bus address: `host:port` or an iceoryx2 inbox name (transport.listen).
@@ -44,6 +48,13 @@ pub struct Args {
     /// The identity key file (security.identity_key).
     #[arg(long, value_name = "FILE")]
     key: Option<String>,
+    /// The control group key file (security.control_key); required unless --insecure-dev.
+    #[arg(long, value_name = "FILE")]
+    control_key: Option<String>,
+    /// Run without a control key: control traffic unauthenticated, for development only
+    /// (security.insecure_dev).
+    #[arg(long)]
+    insecure_dev: bool,
     /// Start pose `X,Y,HEADING_DEG` in the map frame (body.start).
     #[arg(long, value_name = "X,Y,DEG")]
     start: Option<String>,
@@ -93,6 +104,12 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
     if let Some(key) = &args.key {
         config.security.identity_key = key.clone();
     }
+    if let Some(key) = &args.control_key {
+        config.security.control_key = key.clone();
+    }
+    if args.insecure_dev {
+        config.security.insecure_dev = true;
+    }
     if let Some(start) = &args.start {
         let values: Vec<f64> = start
             .split(',')
@@ -122,6 +139,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         println!(
             "{}",
             serde_json::json!({ "event": "key", "path": path.display().to_string(), "public_key": hex })
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if let Some(path) = &args.keygen_control {
+        iw_stack::write_group_key(path)?;
+        println!(
+            "{}",
+            serde_json::json!({ "event": "control-key", "path": path.display().to_string() })
         );
         return Ok(ExitCode::SUCCESS);
     }
@@ -167,6 +192,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     worker
         .join()
-        .map_err(|_| anyhow::anyhow!("the container thread panicked"))?;
+        .map_err(|_| anyhow::anyhow!("the container thread panicked"))??;
     Ok(ExitCode::SUCCESS)
 }

@@ -23,6 +23,7 @@ use std::str::FromStr;
 use crate::BusError;
 use crate::envelope::{Envelope, MsgId};
 use crate::time::Time;
+use crate::warn::WarnEvery;
 
 /// What a layer decided about the envelope it was lent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -244,6 +245,26 @@ pub trait Layer: Send {
     /// Moves rejections the layer decided on its own (not as a verdict, e.g. a message given up
     /// after its last retransmission) into `into`.
     fn drain_rejections(&mut self, _into: &mut Counters) {}
+    /// A peer this layer found to have lost the state its frames depend on (the security layer:
+    /// a receiver that restarted and asked for a new key). A [`Stack`] then takes back the
+    /// frames the layers below still hold for that peer ([`Layer::withdraw`]) and hands each to
+    /// this layer again ([`Layer::reclaim`]), so none is retransmitted in a form the peer can no
+    /// longer accept.
+    fn poll_lost_peer(&mut self) -> Option<String> {
+        None
+    }
+    /// Gives up the frames held for `peer` (copies kept for retransmission), for a layer above
+    /// to send again.
+    fn withdraw(&mut self, _peer: &str) -> Vec<Envelope> {
+        Vec::new()
+    }
+    /// A frame this layer passed down earlier, withdrawn from below because its peer lost
+    /// state: [`Verdict::Pass`] sends it down again as it is, [`Verdict::Consumed`] means the
+    /// layer took it back (to send it again later through [`Layer::poll_transmit`]),
+    /// [`Verdict::Drop`] counts and discards it.
+    fn reclaim(&mut self, _env: &mut Envelope, _now: Time) -> Verdict {
+        Verdict::Pass
+    }
     /// False if the layer never originates frames (`poll_transmit` is always `None`) nor decides
     /// rejections on its own (`drain_rejections` adds nothing): a [`Stack`] then does not ask
     /// it for either. Default true.
@@ -272,13 +293,30 @@ impl Layer for PassThrough {
 }
 
 /// Layers in order, top (agent side) first; itself a [`Layer`]. Counts every rejection.
-#[derive(Default)]
 pub struct Stack {
     layers: Vec<Box<dyn Layer>>,
     /// Indexes of the layers that may originate frames or rejections ([`Layer::originates`]).
     originating: Vec<usize>,
     counters: Counters,
     outbox: std::collections::VecDeque<Envelope>,
+    /// One WARN per rejection reason per [`WARN_PERIOD`]: an attack shows at the default log
+    /// level without one line per frame.
+    warn: WarnEvery<Reason>,
+}
+
+/// Shortest interval between two warnings about inbound rejections of one reason.
+pub const WARN_PERIOD: std::time::Duration = std::time::Duration::from_secs(10);
+
+impl Default for Stack {
+    fn default() -> Self {
+        Stack {
+            layers: Vec::new(),
+            originating: Vec::new(),
+            counters: Counters::default(),
+            outbox: std::collections::VecDeque::new(),
+            warn: WarnEvery::new(WARN_PERIOD),
+        }
+    }
 }
 
 impl std::fmt::Debug for Stack {
@@ -344,17 +382,48 @@ impl Stack {
     /// tell the layers below.
     #[cold]
     #[inline(never)]
-    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: &str, r: Reason) {
+    fn inbound_dropped(&mut self, i: usize, id: MsgId, sender: &str, r: Reason, now: Time) {
         tracing::debug!(layer = self.layers[i].name(), reason = %r, "inbound drop");
         self.counters.record(r);
+        // Repeats are the communication layer's everyday work (a lost acknowledgement).
+        if r != Reason::Duplicate
+            && let Some(held_back) = self.warn.admit(r, now)
+        {
+            tracing::warn!(layer = self.layers[i].name(), reason = %r, %sender, held_back, total = self.counters.get(r), "inbound frame rejected (one warning per reason per 10 s)");
+        }
         for below in &mut self.layers[i + 1..] {
             below.rejected_above(id, sender, r);
+        }
+    }
+
+    /// Layer `i` found `peer` lost its state: the frames the layers below hold for it go back
+    /// to layer `i`, and down again as it decides.
+    #[cold]
+    fn reclaim_for(&mut self, i: usize, peer: &str, now: Time) {
+        let withdrawn: Vec<Envelope> = self.layers[i + 1..]
+            .iter_mut()
+            .flat_map(|below| below.withdraw(peer))
+            .collect();
+        tracing::debug!(layer = self.layers[i].name(), %peer, frames = withdrawn.len(), "peer lost its state; frames reclaimed");
+        for mut env in withdrawn {
+            match self.layers[i].reclaim(&mut env, now) {
+                Verdict::Pass => {
+                    if self.down_from(i + 1, &mut env, now) {
+                        self.outbox.push_back(env);
+                    }
+                }
+                Verdict::Drop(r) => self.counters.record(r),
+                Verdict::Consumed => {}
+            }
         }
     }
 
     fn collect_transmits(&mut self, now: Time) {
         for k in 0..self.originating.len() {
             let i = self.originating[k];
+            while let Some(peer) = self.layers[i].poll_lost_peer() {
+                self.reclaim_for(i, &peer, now);
+            }
             while let Some(mut env) = self.layers[i].poll_transmit(now) {
                 if self.down_from(i + 1, &mut env, now) {
                     self.outbox.push_back(env);
@@ -384,7 +453,7 @@ impl Layer for Stack {
                 Verdict::Drop(r) => {
                     // The layers leave the id and the sender as they arrived (see `Layer`):
                     // these are what the layers below saw.
-                    self.inbound_dropped(i, env.header.id, &env.header.sender, r);
+                    self.inbound_dropped(i, env.header.id, &env.header.sender, r, now);
                     return Verdict::Drop(r);
                 }
                 Verdict::Consumed => return Verdict::Consumed,

@@ -35,14 +35,18 @@ mod layer;
 mod router;
 mod time;
 pub mod transport;
+mod warn;
 
 pub use codec::{FrameCodec, write_aad};
 pub use envelope::{Envelope, Flags, Header, IdGen, MsgId, SIGNATURE_LEN};
 pub use fault::{FaultStats, FaultyTransport, Impairments};
 pub use inproc::{InProcNetwork, InProcTransport};
-pub use layer::{Counters, Layer, LayerKind, LayerSet, PassThrough, Reason, Stack, Verdict};
+pub use layer::{
+    Counters, Layer, LayerKind, LayerSet, PassThrough, Reason, Stack, Verdict, WARN_PERIOD,
+};
 pub use router::{Bus, BusConfig, Mailbox};
 pub use time::{Clock, MockController, Time, duration_ns};
+pub use warn::WarnEvery;
 
 /// Errors of the bus: frames that do not decode or encode, routing and transport failures.
 #[derive(Debug, thiserror::Error)]

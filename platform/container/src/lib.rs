@@ -17,6 +17,12 @@
 //!   lowest id within one lease plus one heartbeat, and their GALs become equal within a few
 //!   heartbeats after the last change; after a partition heals they converge the same way.
 //! - A malformed control frame is refused with its length and reason, never a panic.
+//! - A live container is bound to the address its heartbeats come from: agent lists are taken
+//!   only from the elected leader's address, a container's part only from that container, and
+//!   a follower mirrors its leader, so no generation (even `u64::MAX`) pins a route. A second
+//!   container claiming a live id is told so ([`ContainerMsg::Duplicate`]) and refuses to run
+//!   ([`Container::refusal`]); the running one is not disturbed. These rules hold beneath the
+//!   control channel's group key, which keeps out whoever lacks it.
 //!
 //! Known limits: a dead container's agents stay in the GAL (marked by their container id; check
 //! [`Container::live_peers`]) until that container comes back with a higher incarnation.

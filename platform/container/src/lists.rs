@@ -106,6 +106,32 @@ impl GlobalAgentList {
         }
     }
 
+    /// Sets container `id`'s part to `part` whatever generation was held: the container itself
+    /// (heard at its own address) is the authority on its list, so a part injected with a
+    /// higher generation (up to `u64::MAX`) cannot pin it. Returns whether it changed.
+    pub fn set_part(&mut self, id: ContainerId, part: Part) -> bool {
+        if self.parts.get(&id) == Some(&part) {
+            return false;
+        }
+        self.parts.insert(id, part);
+        true
+    }
+
+    /// Takes the leader's list as it is, except for container `own`'s part (kept from `self`):
+    /// a follower mirrors its leader instead of merging by generation, so a bogus generation
+    /// another container once held is gone as soon as the leader sends its list. Returns whether
+    /// anything changed.
+    pub fn adopt(&mut self, leader: &GlobalAgentList, own: ContainerId) -> bool {
+        let mut parts = leader.parts.clone();
+        match self.parts.get(&own) {
+            Some(mine) => parts.insert(own, mine.clone()),
+            None => parts.remove(&own),
+        };
+        let changed = parts != self.parts;
+        self.parts = parts;
+        changed
+    }
+
     /// Merges every part of `other`; returns whether anything changed. Commutative, idempotent.
     pub fn merge(&mut self, other: &GlobalAgentList) -> bool {
         let mut changed = false;
@@ -145,10 +171,6 @@ impl GlobalAgentList {
     /// Whether no container has contributed agents.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    pub(crate) fn parts(&self) -> &BTreeMap<ContainerId, Part> {
-        &self.parts
     }
 }
 
@@ -203,5 +225,30 @@ mod tests {
         assert!(!xy.clone().merge(&yx));
         assert_eq!(xy.len(), 3);
         assert!(xy.lookup("old").is_none());
+    }
+
+    #[test]
+    fn a_pinned_generation_is_replaced_by_its_owner_and_by_the_leader() {
+        let part = |g: u64, names: &[&str]| Part {
+            generation: g,
+            agents: names.iter().map(|n| entry(n)).collect(),
+        };
+        let mut gal = GlobalAgentList::default();
+        gal.merge_part(ContainerId(1), part(u64::MAX, &["evil"]));
+        assert!(
+            !gal.merge_part(ContainerId(1), part(5, &["real"])),
+            "merge is pinned"
+        );
+        assert!(gal.set_part(ContainerId(1), part(5, &["real"])));
+        assert_eq!(gal.lookup("real").map(|(id, _)| id), Some(ContainerId(1)));
+        let mut follower = GlobalAgentList::default();
+        follower.merge_part(ContainerId(1), part(u64::MAX, &["evil"]));
+        follower.merge_part(ContainerId(9), part(2, &["mine"]));
+        let mut leader = gal.clone();
+        leader.merge_part(ContainerId(9), part(1, &["stale-view-of-mine"]));
+        assert!(follower.adopt(&leader, ContainerId(9)));
+        assert!(follower.lookup("evil").is_none());
+        assert!(follower.lookup("mine").is_some(), "own part kept");
+        assert!(follower.lookup("stale-view-of-mine").is_none());
     }
 }

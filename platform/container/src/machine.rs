@@ -18,6 +18,8 @@ pub enum ContainerMsg {
     Heartbeat {
         /// Sender.
         id: ContainerId,
+        /// The sender's incarnation: a higher one from the same address is a restart.
+        incarnation: u32,
         /// Whom the sender takes for leader.
         leader: ContainerId,
         /// The sender's LAL generation.
@@ -32,12 +34,23 @@ pub enum ContainerMsg {
         /// Its list.
         part: Part,
     },
-    /// The leader's GAL, sent to a follower whose GAL is behind.
+    /// The leader's GAL, sent to a follower whose GAL differs from it.
     Gal {
         /// The leader.
         leader: ContainerId,
         /// The list.
         gal: GlobalAgentList,
+    },
+    /// "Container `id` is already live at `holder`": sent to a container whose heartbeat claims
+    /// an id another live container holds. The newcomer refuses to run (see
+    /// [`Container::refusal`]); the holder is not disturbed.
+    Duplicate {
+        /// The contested id.
+        id: ContainerId,
+        /// Where the live holder of `id` is heard.
+        holder: PeerAddr,
+        /// The holder's incarnation.
+        holder_incarnation: u32,
     },
 }
 
@@ -102,6 +115,7 @@ impl ContainerConfig {
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Peer {
     addr: PeerAddr,
+    incarnation: u32,
     last_heard: Time,
     leader: ContainerId,
     gal_versions: VersionVector,
@@ -111,10 +125,19 @@ struct Peer {
 ///
 /// Election: every container takes the lowest id among itself and the peers whose lease holds
 /// (bully order, decided locally from heartbeats, so no extra round trips). The leader merges
-/// the LALs into the GAL and sends the GAL to any follower whose heartbeat shows it behind; a
+/// the LALs into the GAL and sends the GAL to any follower whose heartbeat shows it differs; a
 /// follower sends its LAL when the leader's heartbeat lacks its generation. Losing the leader or
 /// the network never touches the LAL: local agents keep resolving; a partition elects its own
-/// leader and the lists converge again (newest generation per container) when it heals.
+/// leader and the lists converge again when it heals.
+///
+/// Who may say what (the control channel's own rules, beneath its group key):
+/// - a live peer is bound to the address its heartbeats come from: a heartbeat claiming a live
+///   id from another address is answered with [`ContainerMsg::Duplicate`] and otherwise ignored;
+///   one claiming our own id likewise. A higher incarnation from the same address is a restart;
+/// - a LAL is taken only by the leader, only from its container's bound address and current
+///   incarnation, and replaces that container's part (the container is the authority on it);
+/// - a GAL is taken only from the bound address of the container we elected, and a follower
+///   mirrors it (keeping its own part), so no generation, however high, pins a route.
 #[derive(Debug)]
 pub struct Container {
     config: ContainerConfig,
@@ -124,6 +147,9 @@ pub struct Container {
     leader: ContainerId,
     elections: u64,
     next_heartbeat: Time,
+    refusal: Option<String>,
+    /// When a duplicate id was last reported per contested id (one WARN per lease, not per frame).
+    duplicate_warned: BTreeMap<ContainerId, Time>,
 }
 
 impl Container {
@@ -140,7 +166,15 @@ impl Container {
             peers: BTreeMap::new(),
             elections: 0,
             next_heartbeat: Time::ZERO,
+            refusal: None,
+            duplicate_warned: BTreeMap::new(),
         }
+    }
+
+    /// Why this container must not run: another live container holds its id. Once set, the
+    /// container says nothing more (no heartbeats, no lists).
+    pub fn refusal(&self) -> Option<&str> {
+        self.refusal.as_deref()
     }
 
     /// This container's id.
@@ -196,20 +230,39 @@ impl Container {
     /// Handles one frame from `from`.
     pub fn on_message(&mut self, from: &PeerAddr, msg: ContainerMsg, now: Time) -> Vec<Outgoing> {
         let mut out = Vec::new();
+        if self.refusal.is_some() {
+            return out;
+        }
         match msg {
             ContainerMsg::Heartbeat {
                 id,
+                incarnation,
                 leader,
                 lal_generation: _,
                 gal_versions,
             } => {
                 if id == self.config.id {
-                    return out; // our own heartbeat, looped back by a seed list naming us
+                    if *from != self.config.addr || incarnation != self.config.incarnation {
+                        // Someone else claims our id: we hold it, we stay; tell the newcomer.
+                        self.report_duplicate(id, from, now, &mut out);
+                    }
+                    return out; // else our own heartbeat, looped back by a seed list naming us
+                }
+                if let Some(held) = self.peers.get(&id) {
+                    if held.addr != *from {
+                        self.report_duplicate(id, from, now, &mut out);
+                        return out;
+                    }
+                    if incarnation < held.incarnation {
+                        tracing::debug!(container = %id, incarnation, held = held.incarnation, "heartbeat of an older life ignored");
+                        return out;
+                    }
                 }
                 self.peers.insert(
                     id,
                     Peer {
                         addr: from.clone(),
+                        incarnation,
                         last_heard: now,
                         leader,
                         gal_versions,
@@ -219,17 +272,77 @@ impl Container {
                 self.sync_with(id, &mut out);
             }
             ContainerMsg::Lal { id, part } => {
-                if self.leader == self.config.id && id != self.config.id {
-                    self.gal.merge_part(id, part);
+                let from_owner = self.peers.get(&id).is_some_and(|p| {
+                    p.addr == *from && part.generation >> 32 == u64::from(p.incarnation)
+                });
+                if self.leader == self.config.id && id != self.config.id && from_owner {
+                    self.gal.set_part(id, part);
+                } else if !from_owner {
+                    tracing::debug!(container = %id, %from, "agent list not from its container, ignored");
                 }
             }
             ContainerMsg::Gal { leader, gal } => {
-                if leader == self.leader && leader != self.config.id {
-                    self.gal.merge(&gal);
+                let from_leader = self.peers.get(&leader).is_some_and(|p| p.addr == *from);
+                if leader == self.leader && leader != self.config.id && from_leader {
+                    self.gal.adopt(&gal, self.config.id);
+                } else {
+                    tracing::debug!(claimed = %leader, elected = %self.leader, %from, "global agent list not from the elected leader, ignored");
+                }
+            }
+            ContainerMsg::Duplicate {
+                id,
+                holder,
+                holder_incarnation,
+            } => {
+                if id != self.config.id || holder == self.config.addr {
+                    return out;
+                }
+                // Told by a third party: it knew the holder first. Told by the holder itself:
+                // the elder (lower incarnation, then lower address) keeps the id.
+                let elder =
+                    (holder_incarnation, &holder) < (self.config.incarnation, &self.config.addr);
+                if *from != holder || elder {
+                    let reason = format!(
+                        "container id {} is already held by a live container at {holder} (incarnation {holder_incarnation}), as {from} reports; this one ({}, incarnation {}) refuses to run",
+                        id.0, self.config.addr, self.config.incarnation
+                    );
+                    tracing::error!("{reason}");
+                    self.refusal = Some(reason);
                 }
             }
         }
         out
+    }
+
+    /// Tells `newcomer`, which claims `id`, who holds it; warns once per lease per id.
+    fn report_duplicate(
+        &mut self,
+        id: ContainerId,
+        newcomer: &PeerAddr,
+        now: Time,
+        out: &mut Vec<Outgoing>,
+    ) {
+        let (holder, holder_incarnation) = match self.peers.get(&id) {
+            Some(p) if id != self.config.id => (p.addr.clone(), p.incarnation),
+            _ => (self.config.addr.clone(), self.config.incarnation),
+        };
+        let lease = Duration::from_millis(self.config.lease_ms);
+        let due = self
+            .duplicate_warned
+            .get(&id)
+            .is_none_or(|t| now.since(*t) >= lease);
+        if due {
+            tracing::warn!(container = %id, %newcomer, %holder, "a second container claims a live id: refused");
+            self.duplicate_warned.insert(id, now);
+        }
+        out.push(Outgoing {
+            to: newcomer.clone(),
+            msg: ContainerMsg::Duplicate {
+                id,
+                holder,
+                holder_incarnation,
+            },
+        });
     }
 
     /// Expires leases, re-elects, and sends heartbeats when due.
@@ -247,10 +360,14 @@ impl Container {
             self.elect();
         }
         let mut out = Vec::new();
+        if self.refusal.is_some() {
+            return out;
+        }
         if now >= self.next_heartbeat {
             self.next_heartbeat = now.plus(Duration::from_millis(self.config.heartbeat_ms));
             let heartbeat = ContainerMsg::Heartbeat {
                 id: self.config.id,
+                incarnation: self.config.incarnation,
                 leader: self.leader,
                 lal_generation: self.lal.generation(),
                 gal_versions: self.gal.versions(),
@@ -290,10 +407,7 @@ impl Container {
         let Some(peer) = self.peers.get(&id) else {
             return;
         };
-        if self.leader == self.config.id
-            && peer.gal_versions != self.gal.versions()
-            && self.is_newer_than(&peer.gal_versions)
-        {
+        if self.leader == self.config.id && peer.gal_versions != self.gal.versions() {
             out.push(Outgoing {
                 to: peer.addr.clone(),
                 msg: ContainerMsg::Gal {
@@ -313,13 +427,5 @@ impl Container {
                 },
             });
         }
-    }
-
-    /// Whether our GAL holds some part newer than `versions` does.
-    fn is_newer_than(&self, versions: &VersionVector) -> bool {
-        self.gal
-            .parts()
-            .iter()
-            .any(|(id, p)| versions.get(id).is_none_or(|g| *g < p.generation))
     }
 }

@@ -5,8 +5,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use iw_bus::Clock;
 use iw_bus::transport::FrameTransport;
+use iw_bus::{Clock, WarnEvery};
 
 use crate::ContainerError;
 use crate::machine::{Container, ContainerMsg, Outgoing};
@@ -80,12 +80,19 @@ fn run(
     stop: &AtomicBool,
 ) {
     let lock = || state.lock().unwrap_or_else(PoisonError::into_inner);
+    // Garbage on the control port is one WARN per period, not one per datagram.
+    let mut warn = WarnEvery::new(iw_bus::WARN_PERIOD);
     while !stop.load(Ordering::Relaxed) {
         let out = match transport.recv_timeout(tick) {
             Ok(Some((from, frame))) => match ContainerMsg::decode(&frame) {
                 Ok(msg) => lock().on_message(&from, msg, clock.now()),
                 Err(e) => {
-                    tracing::warn!(%from, error = %e, "ignoring a control frame");
+                    match warn.admit((), clock.now()) {
+                        Some(held_back) => {
+                            tracing::warn!(%from, error = %e, held_back, "ignoring a control frame (one warning per 10 s)")
+                        }
+                        None => tracing::debug!(%from, error = %e, "ignoring a control frame"),
+                    }
                     Vec::new()
                 }
             },

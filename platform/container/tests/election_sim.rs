@@ -225,3 +225,122 @@ fn malformed_control_frames_are_refused() {
     };
     assert_eq!(ContainerMsg::decode(&msg.encode().unwrap()).unwrap(), msg);
 }
+
+/// Issue 20 items 1 and 2 at the state machine: agent lists are taken only from the elected
+/// leader's own address, a part for a container only from that container, no generation pins a
+/// route, and a second container claiming a live id is told so and refuses to run.
+#[test]
+fn forged_lists_are_ignored_and_no_generation_pins_a_route() {
+    let mut net = SimNet::new(2);
+    net.node(1).register(agent("dispatcher", 1));
+    net.node(2).register(agent("control", 2));
+    net.run(Duration::from_millis(500));
+    let now = net.now;
+    let attacker = PeerAddr("evil".into());
+    let pinned = |leader: u64| {
+        let mut gal = iw_container::GlobalAgentList::default();
+        gal.merge_part(
+            ContainerId(leader),
+            iw_container::Part {
+                generation: u64::MAX,
+                agents: vec![AgentEntry {
+                    name: "dispatcher".into(),
+                    public_key: b"evil".to_vec(),
+                    addr: attacker.clone(),
+                }],
+            },
+        );
+        gal.merge_part(
+            ContainerId(66),
+            iw_container::Part {
+                generation: u64::MAX,
+                agents: vec![agent("evil@x", 66)],
+            },
+        );
+        ContainerMsg::Gal {
+            leader: ContainerId(leader),
+            gal,
+        }
+    };
+    // From the attacker's own address: ignored outright.
+    assert!(net.node(2).on_message(&attacker, pinned(1), now).is_empty());
+    assert_eq!(net.node(2).resolve("dispatcher").unwrap().addr, addr(1));
+    assert!(net.node(2).resolve("evil@x").is_none());
+    // A LAL for container 2 sent to the leader from elsewhere: ignored.
+    let lal = ContainerMsg::Lal {
+        id: ContainerId(2),
+        part: iw_container::Part {
+            generation: u64::MAX,
+            agents: vec![agent("evil@x", 2)],
+        },
+    };
+    net.node(1).on_message(&attacker, lal, now);
+    assert!(net.node(1).resolve("evil@x").is_none());
+    // Spoofed from the leader's address (possible without a control key): taken, but the
+    // leader's next list replaces it, however high its generation.
+    net.node(2).on_message(&addr(1), pinned(1), now);
+    assert_eq!(net.node(2).resolve("dispatcher").unwrap().addr, attacker);
+    net.run(Duration::from_millis(300));
+    assert_eq!(net.node(2).resolve("dispatcher").unwrap().addr, addr(1));
+    assert!(net.node(2).resolve("evil@x").is_none());
+    assert_eq!(net.gal_names(2), names(&["dispatcher", "control"]));
+}
+
+#[test]
+fn a_second_container_with_a_live_id_is_refused_and_the_first_is_undisturbed() {
+    let mut net = SimNet::new(2);
+    net.node(1).register(agent("dispatcher", 1));
+    net.run(Duration::from_millis(500));
+    let now = net.now;
+    let mut impostor = Container::new(ContainerConfig::new(
+        ContainerId(1),
+        PeerAddr("impostor".into()),
+        vec![addr(2)],
+    ));
+    impostor.register(agent("dispatcher", 1));
+    let heartbeats = impostor.on_tick(now);
+    assert_eq!(heartbeats.len(), 1);
+    let answers =
+        net.node(2)
+            .on_message(&PeerAddr("impostor".into()), heartbeats[0].msg.clone(), now);
+    assert!(
+        matches!(&answers[..], [iw_container::Outgoing { to, msg: ContainerMsg::Duplicate { id: ContainerId(1), holder, .. } }] if to.0 == "impostor" && *holder == addr(1)),
+        "{answers:?}"
+    );
+    for a in answers {
+        impostor.on_message(&addr(2), a.msg, now);
+    }
+    let refusal = impostor.refusal().expect("the impostor refuses to run");
+    assert!(
+        refusal.contains("already held") && refusal.contains("c1"),
+        "{refusal}"
+    );
+    assert!(
+        impostor
+            .on_tick(now.plus(Duration::from_secs(1)))
+            .is_empty(),
+        "silent once refused"
+    );
+    net.run(Duration::from_millis(300));
+    assert_eq!(net.leaders(), [(1, 1), (2, 1)].into());
+    assert_eq!(net.node(2).resolve("dispatcher").unwrap().addr, addr(1));
+    // The holder itself, told of the impostor, keeps running.
+    let claim = ContainerMsg::Heartbeat {
+        id: ContainerId(1),
+        incarnation: 7,
+        leader: ContainerId(1),
+        lal_generation: 7 << 32,
+        gal_versions: Default::default(),
+    };
+    let answers = net
+        .node(1)
+        .on_message(&PeerAddr("impostor".into()), claim, now);
+    assert!(matches!(
+        &answers[..],
+        [iw_container::Outgoing {
+            msg: ContainerMsg::Duplicate { .. },
+            ..
+        }]
+    ));
+    assert!(net.node(1).refusal().is_none());
+}

@@ -376,6 +376,19 @@ impl Layer for CommLayer {
         self.in_flight.values().map(|p| p.next_at).min()
     }
 
+    fn withdraw(&mut self, peer: &str) -> Vec<Envelope> {
+        let ids: Vec<MsgId> = self
+            .in_flight
+            .iter()
+            .filter(|(_, p)| p.env.header.receiver == peer)
+            .map(|(id, _)| *id)
+            .collect();
+        ids.into_iter()
+            .filter_map(|id| self.in_flight.remove(&id))
+            .map(|p| p.env)
+            .collect()
+    }
+
     fn rejected_above(&mut self, id: MsgId, sender: &str, reason: Reason) {
         if !reason.is_authenticity_failure() {
             return;

@@ -26,6 +26,9 @@ const HELLO: u8 = 1;
 const REPLY: u8 = 2;
 const REKEY: u8 = 3;
 const HANDSHAKE_LEN: usize = 1 + SID_LEN + 32 + SIGNATURE_LEN;
+/// Send sessions kept after their receiver asked for a new key, to take back the frames still
+/// in flight under them (see `Layer::reclaim`).
+const RETIRED_KEPT: usize = 64;
 
 /// A 256-bit pre-shared key.
 pub type PreSharedKey = [u8; 32];
@@ -305,6 +308,11 @@ pub struct SecurityLayer {
     /// No pending key agreement times out before this (a lower bound, exact after each scan);
     /// `None`: none pending.
     restart_due: Option<Time>,
+    /// Send sessions whose receiver lost them (re-key request), newest last: frames sealed
+    /// under them and still held below are opened again and re-sealed under a new session.
+    retired: VecDeque<([u8; SID_LEN], LessSafeKey)>,
+    /// Receivers that asked for a new key, not yet reported to the stack.
+    lost: VecDeque<String>,
 }
 
 impl SecurityLayer {
@@ -328,6 +336,8 @@ impl SecurityLayer {
             outbox: VecDeque::new(),
             aad: Vec::with_capacity(64),
             restart_due: None,
+            retired: VecDeque::new(),
+            lost: VecDeque::new(),
         }
     }
 
@@ -581,19 +591,83 @@ impl SecurityLayer {
     }
 
     fn on_rekey(&mut self, env: &Envelope) -> Verdict {
-        // Sent by a receiver that lost the session (restart): start over on the next message.
-        // Unauthenticated by necessity; the worst a forger achieves is an extra agreement.
+        // Sent by a receiver that lost the session (restart). Unauthenticated by necessity, but
+        // it must name a session we hold, which only someone who saw our frames knows; the
+        // worst a forger achieves then is an extra agreement.
         let (b, a) = (env.header.sender.as_str(), env.header.receiver.as_str());
-        let id = env.payload.get(1..1 + SID_LEN);
         if env.payload.len() != 1 + SID_LEN {
             return Verdict::Drop(Reason::BadHandshake);
         }
-        if let Some(slot) = self.send.get_mut(a).and_then(|m| m.get_mut(b))
-            && slot.as_ref().is_some_and(|s| Some(&s.id[..]) == id)
-        {
-            *slot = None;
+        let id = &env.payload[1..];
+        let current = nested_get(&self.send, a, b)
+            .and_then(Option::as_ref)
+            .is_some_and(|s| s.id[..] == *id);
+        if !current {
+            return Verdict::Consumed; // a repeat for a session already retired
+        }
+        // A restart loses every session: retire those of all our agents towards `b`.
+        for sessions in self.send.values_mut() {
+            if let Some(slot) = sessions.get_mut(b)
+                && let Some(old) = slot.take()
+            {
+                self.retired.push_back((old.id, old.key));
+            }
+        }
+        while self.retired.len() > RETIRED_KEPT {
+            self.retired.pop_front();
+        }
+        tracing::info!(receiver = %b, "peer lost its session (restarted?): agreeing a new key and re-sealing frames in flight");
+        if !self.lost.iter().any(|p| p == b) {
+            self.lost.push_back(b.to_string());
         }
         Verdict::Consumed
+    }
+
+    /// Takes back a frame we sealed under a retired session: opens it, and queues it for a new
+    /// key agreement (or seals it at once if one was agreed meanwhile).
+    fn reclaim_sealed(&mut self, env: &mut Envelope, now: Time) -> Result<Verdict, SecurityError> {
+        let f = env.header.flags;
+        if !f.contains(Flags::SEALED) || f.contains(Flags::PRE_SHARED) {
+            return Ok(Verdict::Pass); // handshakes, acknowledgements, pre-shared sessions
+        }
+        let Some(sid) = env.payload.get(..SID_LEN) else {
+            return Ok(Verdict::Drop(Reason::BadTag));
+        };
+        let current = nested_get(&self.send, &env.header.sender, &env.header.receiver)
+            .and_then(Option::as_ref)
+            .is_some_and(|s| s.id[..] == *sid);
+        if current {
+            return Ok(Verdict::Pass);
+        }
+        let Some((_, key)) = self.retired.iter().find(|(id, _)| id[..] == *sid) else {
+            return Ok(Verdict::Drop(Reason::UnknownSession));
+        };
+        write_aad_into(&env.header, &mut self.aad);
+        let body = SID_LEN + NONCE_LEN;
+        if env.payload.len() < body + TAG_LEN {
+            return Ok(Verdict::Drop(Reason::BadTag));
+        }
+        let nonce: [u8; NONCE_LEN] = env.payload[SID_LEN..body]
+            .try_into()
+            .map_err(|_| SecurityError::KeyDerivation)?;
+        let plain_len = match key.open_within(
+            Nonce::assume_unique_for_key(nonce),
+            Aad::from(&self.aad[..]),
+            &mut env.payload,
+            body..,
+        ) {
+            Ok(p) => p.len(),
+            Err(_) => return Ok(Verdict::Drop(Reason::BadTag)),
+        };
+        // A signature is made again when the frame is sealed again.
+        let sig_len = if f.contains(Flags::SIGNED) {
+            SIGNATURE_LEN
+        } else {
+            0
+        };
+        env.payload.truncate(plain_len.saturating_sub(sig_len));
+        env.header.flags = f.without(Flags::SEALED).without(Flags::SIGNED);
+        self.outbound_pk(env, now)
     }
 
     /// Opens `env` in place (plaintext payload, flags cleared, signature restored).
@@ -734,6 +808,14 @@ impl Layer for SecurityLayer {
             return Verdict::Drop(Reason::NotSealed);
         }
         or_log(self.open(env, now))
+    }
+
+    fn poll_lost_peer(&mut self) -> Option<String> {
+        self.lost.pop_front()
+    }
+
+    fn reclaim(&mut self, env: &mut Envelope, now: Time) -> Verdict {
+        or_log(self.reclaim_sealed(env, now))
     }
 
     fn poll_transmit(&mut self, now: Time) -> Option<Envelope> {

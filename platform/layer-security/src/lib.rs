@@ -35,9 +35,16 @@
 //!   (a random 32-bit nonce prefix would collide after ~2^16 restarts; new keys do not).
 //!
 //! Not covered here: replay of a whole valid frame (communication and temporal layers), delay
-//! (temporal layer). Known limits: a receiver that restarts loses its sessions; it answers the
-//! next sealed frame with an unauthenticated re-key request, the sender agrees a new key, and the
-//! frame that triggered it is lost unless the communication layer retransmits it.
+//! (temporal layer).
+//!
+//! A receiver that restarts loses its sessions; it answers the next sealed frame with an
+//! unauthenticated re-key request naming the session. The sender retires every session towards
+//! that receiver, takes back the frames still held for it below (the communication layer's
+//! retransmission copies, see `iw_bus::Layer::reclaim`), opens them with the retired key and
+//! queues them for a new key agreement: they are delivered under the new session, not
+//! retransmitted forever under one the receiver no longer holds. Known limit: a frame keeps its
+//! original timestamp, so one older than the temporal layer's age limit by then is refused as
+//! stale by the receiver.
 #![warn(missing_docs)]
 
 mod identity;

@@ -1,9 +1,11 @@
 //! UDP frame transport: one datagram per frame, std blocking sockets.
 
+use std::collections::HashMap;
 use std::io::ErrorKind;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Duration;
+use std::sync::{Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
 
@@ -26,6 +28,65 @@ pub struct UdpTransport {
     max_frame_len: usize,
     /// Read timeout currently set on the socket, ns (0 = none yet): saves a syscall per receive.
     read_timeout_ns: AtomicU64,
+    resolved: Resolved,
+}
+
+/// Peer addresses already resolved, so a host name costs one lookup, not one per datagram. An
+/// entry is looked up again after a send to it fails, or after [`RESOLVE_TTL`] (a peer
+/// restarted elsewhere, e.g. a pod with a new address, is found again without any failure a
+/// datagram socket would report).
+#[derive(Debug, Default)]
+struct Resolved {
+    cache: Mutex<HashMap<PeerAddr, (SocketAddr, Instant)>>,
+    lookups: AtomicU64,
+}
+
+/// How long a resolved host name is used before it is looked up again.
+pub const RESOLVE_TTL: Duration = Duration::from_secs(30);
+/// Most addresses cached; beyond it the cache starts again (addresses come from the network).
+const RESOLVE_CACHE_MAX: usize = 4096;
+
+impl Resolved {
+    /// `to`'s address, preferring the family of the local socket (`ipv4`): `localhost` may
+    /// list `::1` first, which an IPv4 socket cannot reach.
+    fn get(&self, to: &PeerAddr, ipv4: bool) -> Result<SocketAddr, TransportError> {
+        if let Ok(addr) = to.0.parse::<SocketAddr>() {
+            return Ok(addr); // a literal address needs no lookup
+        }
+        let mut cache = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((addr, at)) = cache.get(to)
+            && at.elapsed() < RESOLVE_TTL
+        {
+            return Ok(*addr);
+        }
+        self.lookups.fetch_add(1, Ordering::Relaxed);
+        let bad = |reason: String| TransportError::BadAddress {
+            addr: to.0.clone(),
+            reason,
+        };
+        let all: Vec<SocketAddr> =
+            to.0.to_socket_addrs()
+                .map_err(|e| bad(format!("expected `host:port`: {e}")))?
+                .collect();
+        let addr = all
+            .iter()
+            .find(|a| a.is_ipv4() == ipv4)
+            .or(all.first())
+            .copied()
+            .ok_or_else(|| bad("the host name resolves to no address".into()))?;
+        if cache.len() >= RESOLVE_CACHE_MAX {
+            cache.clear();
+        }
+        cache.insert(to.clone(), (addr, Instant::now()));
+        Ok(addr)
+    }
+
+    fn forget(&self, to: &PeerAddr) {
+        self.cache
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(to);
+    }
 }
 
 impl UdpTransport {
@@ -50,6 +111,7 @@ impl UdpTransport {
             local: PeerAddr(bound.to_string()),
             max_frame_len: max_frame_len.min(UDP_MAX_PAYLOAD),
             read_timeout_ns: AtomicU64::new(0),
+            resolved: Resolved::default(),
         })
     }
 
@@ -64,6 +126,11 @@ impl UdpTransport {
     }
 
     /// Whether a datagram (or a pending socket error) is waiting, without blocking.
+    /// Host-name lookups made so far (literal addresses need none).
+    pub fn lookups(&self) -> u64 {
+        self.resolved.lookups.load(Ordering::Relaxed)
+    }
+
     fn readable_now(&self) -> Result<bool, TransportError> {
         use std::os::fd::AsRawFd;
         let mut fd = libc::pollfd {
@@ -137,13 +204,15 @@ impl FrameTransport for UdpTransport {
                 max: self.max_frame_len,
             });
         }
-        let dest = resolve(to)?;
-        self.socket
-            .send_to(frame, dest)
-            .map_err(|source| TransportError::Io {
-                context: format!("sending a {}-byte UDP frame to {to}", frame.len()),
+        let ipv4 = self.socket.local_addr().is_ok_and(|a| a.is_ipv4());
+        let dest = self.resolved.get(to, ipv4)?;
+        self.socket.send_to(frame, dest).map_err(|source| {
+            self.resolved.forget(to);
+            TransportError::Io {
+                context: format!("sending a {}-byte UDP frame to {to} ({dest})", frame.len()),
                 source,
-            })?;
+            }
+        })?;
         Ok(())
     }
 
@@ -228,6 +297,39 @@ mod tests {
         big.send(small.local_addr(), &[2u8; 8]).unwrap();
         let (_, frame) = small.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
         assert_eq!(frame, [2u8; 8]);
+    }
+
+    /// Issue 16 item 5: a host name is looked up once, not per datagram; again after a failed
+    /// send (or the TTL).
+    #[test]
+    fn a_host_name_is_resolved_once_and_again_after_a_failed_send() {
+        let a = UdpTransport::bind("127.0.0.1:0").unwrap();
+        let b = UdpTransport::bind("127.0.0.1:0").unwrap();
+        let port = b.socket_addr().unwrap().port();
+        let by_name = PeerAddr(format!("localhost:{port}"));
+        for n in 0..50u8 {
+            a.send(&by_name, &[n]).unwrap();
+        }
+        for n in 0..50u8 {
+            let (_, frame) = b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+            assert_eq!(frame, [n]);
+        }
+        assert_eq!(a.lookups(), 1);
+        a.send(b.local_addr(), b"literal").unwrap();
+        assert_eq!(a.lookups(), 1, "a literal address needs no lookup");
+        let (_, frame) = b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        assert_eq!(frame, b"literal");
+        // A send that fails (here: to the broadcast address, not allowed on this socket)
+        // forgets the name, so the next send looks it up again.
+        a.resolved.cache.lock().unwrap().insert(
+            by_name.clone(),
+            ("255.255.255.255:9".parse().unwrap(), Instant::now()),
+        );
+        assert!(a.send(&by_name, b"x").is_err());
+        a.send(&by_name, b"again").unwrap();
+        assert_eq!(a.lookups(), 2);
+        let (_, frame) = b.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        assert_eq!(frame, b"again");
     }
 
     #[test]

@@ -62,6 +62,8 @@ pub enum TransportKind {
     /// UDP datagrams between hosts (or on loopback).
     #[default]
     Udp,
+    /// Length-prefixed frames over TCP connections (where UDP is filtered).
+    Tcp,
     /// iceoryx2 shared memory between processes of one host.
     Iceoryx2,
 }
@@ -71,11 +73,12 @@ impl std::str::FromStr for TransportKind {
     fn from_str(s: &str) -> Result<Self, NodeError> {
         match s {
             "udp" => Ok(TransportKind::Udp),
+            "tcp" => Ok(TransportKind::Tcp),
             "iceoryx2" => Ok(TransportKind::Iceoryx2),
             other => Err(NodeError::Flag {
                 flag: "--transport",
                 value: other.into(),
-                reason: "expected `udp` or `iceoryx2`".into(),
+                reason: "expected `udp`, `tcp` or `iceoryx2`".into(),
             }),
         }
     }
@@ -85,10 +88,11 @@ impl std::str::FromStr for TransportKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TransportSection {
-    /// `udp` or `iceoryx2`.
+    /// `udp`, `tcp` or `iceoryx2`.
     pub kind: TransportKind,
-    /// Where the agent bus listens: `host:port` (udp) or an inbox name (iceoryx2). The
-    /// container control channel uses the next port (udp) or the name with `-ctl` (iceoryx2).
+    /// Where the agent bus listens: `host:port` (udp, tcp) or an inbox name (iceoryx2). The
+    /// container control channel uses the next port (udp, tcp) or the name with `-ctl`
+    /// (iceoryx2).
     pub listen: String,
     /// The address the others reach this bus at (empty: `listen`); set it when listening on
     /// `0.0.0.0`.
@@ -116,9 +120,11 @@ pub struct SecuritySection {
     /// writes one). Empty: a fresh key each start (development only).
     pub identity_key: String,
     /// The deployment's group key for container control traffic (join, heartbeat, election,
-    /// GAL): a file of 64 hex digits that every container shares. Empty: control traffic is not
-    /// authenticated (development only).
+    /// GAL): a file of 64 hex digits that every container shares (`intellwheels spawn
+    /// --keygen-control FILE` writes one). Required unless `insecure_dev`.
     pub control_key: String,
+    /// Run without a control key: control traffic is not authenticated (development only).
+    pub insecure_dev: bool,
     /// Bus layers: `all`, `none`, or a comma list of `comm`, `security`, `temporal`, `parser`.
     pub layers: String,
 }
@@ -128,6 +134,7 @@ impl Default for SecuritySection {
         SecuritySection {
             identity_key: String::new(),
             control_key: String::new(),
+            insecure_dev: false,
             layers: "all".into(),
         }
     }
@@ -269,6 +276,15 @@ impl SpawnConfig {
         if self.transport.listen.is_empty() {
             return bad("transport.listen", "empty".into());
         }
+        if self.security.control_key.is_empty() && !self.security.insecure_dev {
+            return bad(
+                "security.control_key",
+                "empty: container control traffic would not be authenticated; give the \
+                 deployment's group key file (--control-key FILE; `intellwheels spawn \
+                 --keygen-control FILE` writes one) or, for development only, --insecure-dev"
+                    .into(),
+            );
+        }
         self.security
             .layers
             .parse::<iw_bus::LayerSet>()
@@ -317,7 +333,16 @@ mod tests {
 
     #[test]
     fn validation_names_the_key() {
+        let err = SpawnConfig::default()
+            .validate(&crate::Role::Services)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("security.control_key") && err.contains("--insecure-dev"),
+            "{err}"
+        );
         let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
         config.container.lease_ms = 10;
         let err = config
             .validate(&crate::Role::Services)
@@ -325,6 +350,7 @@ mod tests {
             .to_string();
         assert!(err.contains("container.lease_ms"), "{err}");
         let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
         config.body.kind = BodyKind::Serial;
         let err = config
             .validate(&crate::Role::Chair { name: "c".into() })

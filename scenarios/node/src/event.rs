@@ -57,6 +57,17 @@ pub enum Event {
         /// Heading, rad.
         theta_rad: f64,
     },
+    /// Frames refused so far, per reason, when the counts changed (at most every 5 s): what an
+    /// attack (or a broken peer) shows at the default level.
+    Security {
+        /// The container's name.
+        container: String,
+        /// Rejections on the agent bus (all layers), by reason (`bad_tag`, `unknown_session`,
+        /// `duplicate`, `stale`, ...); reasons never seen are left out.
+        bus: std::collections::BTreeMap<String, u64>,
+        /// Rejections on the control channel (frames that do not decode or fail its group key).
+        control: std::collections::BTreeMap<String, u64>,
+    },
     /// The container has shut down cleanly.
     Stopped {
         /// The container's name.

@@ -18,7 +18,7 @@ use iw_fleet::compose::SharedBody;
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
 use iw_sim::{ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
 use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
-use iw_transport_net::UdpTransport;
+use iw_transport_net::{TcpTransport, UdpTransport};
 use iw_transport_shm::ShmTransport;
 use iw_vo::Pose2;
 use nalgebra::{Isometry2, Vector2};
@@ -34,6 +34,8 @@ const CONTROL_TICK: Duration = Duration::from_millis(10);
 /// Clearance the services' planner keeps from walls, furniture and closed doors, m (the chair's
 /// half width plus a margin).
 const CLEARANCE_M: f64 = 0.4;
+/// Shortest interval between two `security` events.
+const SECURITY_REPORT: Duration = Duration::from_secs(5);
 /// Longest simulated step after a stall, s (the simulator never leaps).
 const MAX_SIM_STEP_S: f64 = 0.2;
 
@@ -42,7 +44,7 @@ const MAX_SIM_STEP_S: f64 = 0.2;
 pub fn control_addr(kind: TransportKind, addr: &str) -> Result<String, NodeError> {
     match kind {
         TransportKind::Iceoryx2 => Ok(format!("{addr}-ctl")),
-        TransportKind::Udp => {
+        TransportKind::Udp | TransportKind::Tcp => {
             let bad = |reason: &str| NodeError::Transport {
                 addr: addr.into(),
                 reason: reason.into(),
@@ -73,6 +75,7 @@ fn open_transport(kind: TransportKind, addr: &str) -> Result<Arc<dyn FrameTransp
     };
     Ok(match kind {
         TransportKind::Udp => Arc::new(UdpTransport::bind(addr).map_err(bad)?),
+        TransportKind::Tcp => Arc::new(TcpTransport::bind(addr).map_err(bad)?),
         TransportKind::Iceoryx2 => Arc::new(ShmTransport::open(addr).map_err(bad)?),
     })
 }
@@ -113,29 +116,18 @@ fn load_identity(path: &str) -> Result<Identity, NodeError> {
 }
 
 /// The group key that guards container control traffic, read from `path` (64 hex digits);
-/// `None` when no file is configured.
+/// `None` when no file is configured (only allowed with `security.insecure_dev`).
 fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
     if path.is_empty() {
-        tracing::warn!("no security.control_key: container control traffic is not authenticated");
+        tracing::warn!("insecure_dev: container control traffic is not authenticated");
         return Ok(None);
     }
-    let bad = |reason: String| NodeError::ControlKey {
-        path: path.into(),
-        reason,
-    };
-    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-    let hex = text.trim();
-    if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(bad(format!(
-            "expected 64 hex digits, found {} characters",
-            hex.chars().count()
-        )));
-    }
-    let mut key = [0u8; 32];
-    for (i, byte) in key.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|e| bad(e.to_string()))?;
-    }
-    Ok(Some(key))
+    iw_stack::read_group_key(Path::new(path))
+        .map(Some)
+        .map_err(|e| NodeError::ControlKey {
+            path: e.path,
+            reason: e.reason,
+        })
 }
 
 fn load_map(path: &str) -> Result<Map, NodeError> {
@@ -330,6 +322,7 @@ pub struct Runtime {
     host: AgentHost,
     platform: Platform,
     container: Option<ContainerNode>,
+    control_guard: Option<Arc<GuardedTransport>>,
     installed: BTreeMap<String, Installed>,
     roster: Roster,
     world: Option<SharedWorld>,
@@ -428,16 +421,20 @@ impl Runtime {
                 addr: PeerAddr(advertise.clone()),
             });
         }
-        let control_transport: Arc<dyn FrameTransport> = match control_key {
-            Some(key) => Arc::new(
+        let control_guard = match control_key {
+            Some(key) => Some(Arc::new(
                 GuardedTransport::new(
-                    control_transport,
+                    control_transport.clone(),
                     &format!("container-{id}.{incarnation}"),
                     key,
                     clock.clone(),
                 )
                 .map_err(|e| setup(e.to_string()))?,
-            ),
+            )),
+            None => None,
+        };
+        let control_transport: Arc<dyn FrameTransport> = match &control_guard {
+            Some(guard) => guard.clone(),
             None => control_transport,
         };
         let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK)
@@ -455,6 +452,7 @@ impl Runtime {
             host,
             platform,
             container: Some(container),
+            control_guard,
             installed: BTreeMap::new(),
             roster,
             world,
@@ -464,13 +462,29 @@ impl Runtime {
     }
 
     /// Steps the agents (and a virtual body's world) every `container.step_ms` of real time until
-    /// `stop` is set, then shuts down cleanly.
-    pub fn run(mut self, stop: &AtomicBool) {
+    /// `stop` is set, then shuts down cleanly. Fails, after shutting down, if another live
+    /// container holds this one's id.
+    pub fn run(mut self, stop: &AtomicBool) -> Result<(), NodeError> {
         let period = Duration::from_millis(self.config.container.step_ms);
         let clock = self.host.bus().clock().clone();
         let mut last = clock.now();
+        let mut reported = (iw_bus::Counters::default(), iw_bus::Counters::default());
+        let mut next_report = clock.now();
         while !stop.load(Ordering::Acquire) {
+            let refused = self
+                .container
+                .as_ref()
+                .and_then(|c| c.with(|c| c.refusal().map(str::to_owned)));
+            if let Some(reason) = refused {
+                let container = self.name.clone();
+                self.shutdown();
+                return Err(NodeError::Setup { container, reason });
+            }
             let now = clock.now();
+            if now >= next_report {
+                next_report = now.plus(SECURITY_REPORT);
+                self.report_security(&mut reported);
+            }
             self.sync_agent_lists();
             self.host.step(now);
             if let Some(world) = &self.world {
@@ -484,6 +498,7 @@ impl Runtime {
             std::thread::sleep(period.saturating_sub(clock.now().since(now)));
         }
         self.shutdown();
+        Ok(())
     }
 
     /// Routes and trusts exactly the other containers' agents the GAL lists under a live
@@ -540,6 +555,30 @@ impl Runtime {
         }
         *self.roster.lock().unwrap_or_else(PoisonError::into_inner) =
             self.installed.keys().cloned().collect();
+    }
+
+    /// Sends a `security` event if the rejection counts changed since `reported`.
+    fn report_security(&self, reported: &mut (iw_bus::Counters, iw_bus::Counters)) {
+        let bus = self.host.bus().counters();
+        let control = self
+            .control_guard
+            .as_ref()
+            .map(|g| g.counters())
+            .unwrap_or_default();
+        if (&bus, &control) == (&reported.0, &reported.1) {
+            return;
+        }
+        let named = |c: &iw_bus::Counters| {
+            c.nonzero()
+                .map(|(r, n)| (r.name().to_string(), n))
+                .collect()
+        };
+        let _ = self.events.send(Event::Security {
+            container: self.name.clone(),
+            bus: named(&bus),
+            control: named(&control),
+        });
+        *reported = (bus, control);
     }
 
     fn shutdown(mut self) {

@@ -3,6 +3,8 @@
 //!
 //! | attack                                     | module       |
 //! |--------------------------------------------|--------------|
+//! | forged control frames, impostor services,  | [`control`]  |
+//! | a restart after `kill -9`                  |              |
 //! | flipped bytes, torn tails, spliced records | [`log`]      |
 //! | connection flood, slowloris on dashboard   | [`dashboard`]|
 //! | extreme flags, a FIFO as input             | [`flags`]    |
@@ -11,6 +13,7 @@
 //! Tests that run the `intellwheels` binary find it beside this test's target directory (`cargo
 //! test --workspace` builds it); without it they print SKIP and check the libraries only.
 
+mod control;
 mod dashboard;
 mod flags;
 mod log;

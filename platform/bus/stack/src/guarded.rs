@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
 use iw_bus::{
     Clock, Counters, Envelope, FrameCodec, IdGen, Layer, LayerKind, LayerSet, Stack, Verdict,
+    WarnEvery,
 };
 
 use crate::{
@@ -28,7 +29,7 @@ pub struct GuardedTransport {
     name: String,
     clock: Clock,
     codec: FrameCodec,
-    state: Mutex<(Stack, IdGen)>,
+    state: Mutex<(Stack, IdGen, WarnEvery<()>)>,
 }
 
 impl GuardedTransport {
@@ -59,7 +60,7 @@ impl GuardedTransport {
             name: name.to_string(),
             clock,
             codec,
-            state: Mutex::new((stack, IdGen::new())),
+            state: Mutex::new((stack, IdGen::new(), WarnEvery::new(iw_bus::WARN_PERIOD))),
         })
     }
 
@@ -68,7 +69,7 @@ impl GuardedTransport {
         self.lock().0.counters().clone()
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, (Stack, IdGen)> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, (Stack, IdGen, WarnEvery<()>)> {
         self.state.lock().unwrap_or_else(PoisonError::into_inner)
     }
 }
@@ -93,7 +94,7 @@ impl FrameTransport for GuardedTransport {
     fn send(&self, to: &PeerAddr, frame: &[u8]) -> Result<(), TransportError> {
         let sealed = {
             let mut state = self.lock();
-            let (stack, ids) = &mut *state;
+            let (stack, ids, _) = &mut *state;
             let mut env = Envelope::new(ids.next_id(), self.name.as_str(), GROUP, frame.to_vec());
             match stack.outbound(&mut env, self.clock.now()) {
                 Verdict::Pass => env,
@@ -137,7 +138,12 @@ impl FrameTransport for GuardedTransport {
                 },
                 Err(e) => {
                     state.0.record(iw_bus::Reason::BadFrame);
-                    tracing::debug!(%from, error = %e, "control frame does not decode");
+                    match state.2.admit((), self.clock.now()) {
+                        Some(held_back) => {
+                            tracing::warn!(%from, error = %e, held_back, "control frame does not decode (one warning per 10 s)")
+                        }
+                        None => tracing::debug!(%from, error = %e, "control frame does not decode"),
+                    }
                 }
             }
             if left.is_zero() {

@@ -8,7 +8,7 @@
 //!   [`Node`]: one container's identity and agents.
 //! - [`GuardedTransport`]: a frame transport through the temporal and security layers under a
 //!   group key, for traffic between containers rather than agents (join, heartbeat, election,
-//!   GAL).
+//!   GAL); [`write_group_key`] / [`read_group_key`]: the group key file it is keyed with.
 //! - Re-exports of the layer crates' main types, so users need only this crate.
 //!
 //! # Guarantees
@@ -20,8 +20,10 @@
 
 use std::sync::Arc;
 
+mod group_key;
 mod guarded;
 
+pub use group_key::{GroupKeyError, read_group_key, write_group_key};
 pub use guarded::{GROUP, GuardedTransport};
 
 pub use iw_bus::{LayerKind, LayerSet, Stack};
@@ -220,6 +222,37 @@ mod tests {
             assert_eq!(got.len(), 5, "layers {set}: {:?}", b.counters());
             assert_eq!(got[4].payload, acl(4));
             assert_eq!(b.layer_names().len(), cfg.layers.kinds().len());
+        }
+    }
+
+    /// Issue 20 item 3: a receiver restarted (its sessions lost) still gets the next message,
+    /// whose frame was sealed under the old session: the re-key request makes the sender take
+    /// the frame back from the communication layer and seal it again under a new key.
+    #[test]
+    fn a_restarted_receiver_gets_the_frame_sealed_under_its_lost_session() {
+        for signed in [false, true] {
+            let platform = Platform::new();
+            let na = platform.node(&["a"]).unwrap();
+            let nb = platform.node(&["b"]).unwrap();
+            let mut cfg = StackConfig::default();
+            cfg.security.sign_all = signed;
+            let (mut a, mut b) = (platform.stack(&na, &cfg), platform.stack(&nb, &cfg));
+            let now = Time::from_ns(1_000_000_000);
+            let send = |a: &mut Stack, n: u64| {
+                let mut e = Envelope::new(MsgId(n), "a", "b", acl(n));
+                match a.outbound(&mut e, now) {
+                    Verdict::Pass => vec![e],
+                    _ => Vec::new(),
+                }
+            };
+            let out = send(&mut a, 1);
+            assert_eq!(run(&mut a, &mut b, out, now).len(), 1);
+            let mut reborn = platform.stack(&nb, &cfg); // b restarts: same key, no sessions
+            let out = send(&mut a, 2);
+            let got = run(&mut a, &mut reborn, out, now);
+            assert_eq!(got.len(), 1, "signed {signed}: {:?}", reborn.counters());
+            assert_eq!(got[0].payload, acl(2));
+            assert_eq!(reborn.counters().get(iw_bus::Reason::UnknownSession), 1);
         }
     }
 }

@@ -1,0 +1,339 @@
+//! Attacks on the container control channel (issue 20 items 1-3), on real UDP sockets with the
+//! containers `intellwheels spawn` runs ([`iw_node::Runtime`], in this process):
+//! - a container refuses to start without a control key unless told it is a development run;
+//! - forged heartbeats and agent lists from a socket, even with no control key, re-route
+//!   nothing: lists are taken only from the elected leader's address, and no generation, even
+//!   `u64::MAX`, pins a route;
+//! - a second services container with the id of a live one is refused, the first undisturbed;
+//! - a receiver restarted with its sessions lost gets the message sealed under the old session.
+
+use std::net::UdpSocket;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, channel};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use iw_bus::transport::PeerAddr;
+use iw_bus::{Bus, BusConfig, Clock};
+use iw_container::{AgentEntry, ContainerId, ContainerMsg, GlobalAgentList, Part};
+use iw_node::{Event, NodeError, Role, Runtime, SpawnConfig};
+use iw_stack::{Platform, StackConfig};
+use iw_transport_net::UdpTransport;
+
+/// Upper bound of every wait: generous for a loaded 2-core machine, never the expected time.
+const LIMIT: Duration = Duration::from_secs(60);
+
+/// Two consecutive free UDP ports on loopback (bus and control channel).
+fn free_port_pair() -> u16 {
+    loop {
+        let a = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let port = a.local_addr().unwrap().port();
+        if port < u16::MAX && UdpSocket::bind(("127.0.0.1", port + 1)).is_ok() {
+            return port;
+        }
+    }
+}
+
+/// A container running on its own thread, with its events.
+struct Running {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<(), NodeError>>>,
+    events: Receiver<Event>,
+    seen: Vec<Event>,
+    port: u16,
+}
+
+impl Running {
+    fn start(role: Role, mut config: SpawnConfig) -> Running {
+        let port = free_port_pair();
+        config.transport.listen = format!("127.0.0.1:{port}");
+        let (tx, events) = channel();
+        let runtime = Runtime::start(&role, config, tx).expect("container starts");
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let stop = stop.clone();
+            std::thread::spawn(move || runtime.run(&stop))
+        };
+        Running {
+            stop,
+            thread: Some(thread),
+            events,
+            seen: Vec::new(),
+            port,
+        }
+    }
+
+    fn bus(&self) -> String {
+        format!("127.0.0.1:{}", self.port)
+    }
+
+    fn control(&self) -> String {
+        format!("127.0.0.1:{}", self.port + 1)
+    }
+
+    /// Waits for an event matching `want` (also among those seen); panics after LIMIT.
+    fn wait_for(&mut self, what: &str, want: impl Fn(&Event) -> bool) {
+        let deadline = Instant::now() + LIMIT;
+        while !self.seen.iter().any(&want) {
+            match self
+                .events
+                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+            {
+                Ok(e) => self.seen.push(e),
+                Err(_) => panic!("no {what} within {LIMIT:?}; saw {:#?}", self.seen),
+            }
+        }
+    }
+
+    /// Collects events for `d`.
+    fn drain_for(&mut self, d: Duration) {
+        let end = Instant::now() + d;
+        while let Ok(e) = self
+            .events
+            .recv_timeout(end.saturating_duration_since(Instant::now()))
+        {
+            self.seen.push(e);
+        }
+    }
+
+    fn stop(mut self) -> Result<(), NodeError> {
+        self.stop.store(true, Ordering::Release);
+        self.thread
+            .take()
+            .expect("running")
+            .join()
+            .expect("no panic")
+    }
+}
+
+fn joined(agent: &str) -> impl Fn(&Event) -> bool + '_ {
+    move |e| matches!(e, Event::Joined { agent: a, .. } if a == agent)
+}
+
+fn config(control_key: Option<&str>, peers: &[String]) -> SpawnConfig {
+    let mut c = SpawnConfig::default();
+    match control_key {
+        Some(path) => c.security.control_key = path.into(),
+        None => c.security.insecure_dev = true,
+    }
+    c.transport.peers = peers.to_vec();
+    // A lease no scheduling stall on a loaded machine outlasts: a `left` here is an attack's.
+    c.container.lease_ms = 3000;
+    c
+}
+
+#[test]
+fn a_container_without_a_control_key_refuses_to_start() {
+    let mut c = SpawnConfig::default();
+    c.transport.listen = format!("127.0.0.1:{}", free_port_pair());
+    let (tx, _rx) = channel();
+    let err = Runtime::start(&Role::Services, c, tx)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        err.contains("security.control_key") && err.contains("--insecure-dev"),
+        "{err}"
+    );
+}
+
+/// Even in a development run with no control key, forged lists from a socket re-route nothing.
+#[test]
+fn forged_heartbeats_and_agent_lists_reroute_nothing() {
+    let mut services = Running::start(Role::Services, config(None, &[]));
+    let peers = [services.bus()];
+    let chair = Role::Chair {
+        name: "chair-f".into(),
+    };
+    let mut chair = Running::start(chair, config(None, &peers));
+    chair.wait_for("the services joined", joined("dispatcher@services"));
+    services.wait_for("the chair joined", joined("control@chair-f"));
+
+    let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
+    attacker
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let evil = |name: &str| AgentEntry {
+        name: name.into(),
+        public_key: vec![0xee; 32],
+        addr: PeerAddr(attacker.local_addr().unwrap().to_string()),
+    };
+    let mut pinned = GlobalAgentList::default();
+    pinned.merge_part(
+        ContainerId(1),
+        Part {
+            generation: u64::MAX,
+            agents: vec![evil("dispatcher@services"), evil("evil@x")],
+        },
+    );
+    let forged = [
+        // Claims the services' id from the attacker's address.
+        ContainerMsg::Heartbeat {
+            id: ContainerId(1),
+            incarnation: u32::MAX,
+            leader: ContainerId(1),
+            lal_generation: u64::MAX,
+            gal_versions: Default::default(),
+        },
+        // The services' list with a generation that would pin it forever.
+        ContainerMsg::Gal {
+            leader: ContainerId(1),
+            gal: pinned,
+        },
+    ];
+    let mut duplicate_told = false;
+    let deadline = Instant::now() + Duration::from_secs(2);
+    while Instant::now() < deadline {
+        for msg in &forged {
+            let frame = msg.encode().unwrap();
+            attacker.send_to(&frame, chair.control()).unwrap();
+        }
+        let mut buf = [0u8; 65536];
+        if let Ok((n, _)) = attacker.recv_from(&mut buf) {
+            duplicate_told |= matches!(
+                ContainerMsg::decode(&buf[..n]),
+                Ok(ContainerMsg::Duplicate { id: ContainerId(1), ref holder, .. }) if holder.0 == services.control()
+            );
+        }
+    }
+    chair.drain_for(Duration::from_millis(500));
+    assert!(duplicate_told, "the claim on a live id was answered");
+    assert!(
+        !chair
+            .seen
+            .iter()
+            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "dispatcher@services")),
+        "the services' route never changed: {:#?}",
+        chair.seen
+    );
+    assert!(
+        !chair.seen.iter().any(joined("evil@x")),
+        "{:#?}",
+        chair.seen
+    );
+    chair.stop().unwrap();
+    services.stop().unwrap();
+}
+
+/// Issue 20 item 2: a second services container, holding the group key, with the id of the
+/// live one and the chair as its peer, is refused; the chair keeps its services.
+#[test]
+fn a_second_services_container_with_a_live_id_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let key = dir.path().join("control.key");
+    iw_stack::write_group_key(&key).unwrap();
+    let key = key.to_str().unwrap();
+    let mut services = Running::start(Role::Services, config(Some(key), &[]));
+    let chair = Role::Chair {
+        name: "chair-i".into(),
+    };
+    let mut chair = Running::start(chair, config(Some(key), &[services.bus()]));
+    chair.wait_for("the services joined", joined("dispatcher@services"));
+    services.wait_for("the chair joined", joined("control@chair-i"));
+
+    let mut impostor_config = config(Some(key), &[chair.bus()]);
+    impostor_config.services.goals.push(iw_node::GoalSpec {
+        chair: "chair-i".into(),
+        place: "3.0,6.0".into(),
+    });
+    let mut impostor = Running::start(Role::Services, impostor_config);
+    let deadline = Instant::now() + LIMIT;
+    while !impostor.thread.as_ref().unwrap().is_finished() {
+        assert!(Instant::now() < deadline, "the impostor kept running");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    impostor.drain_for(Duration::ZERO);
+    let said = std::mem::take(&mut impostor.seen);
+    let err = impostor.stop().expect_err("refused").to_string();
+    assert!(err.contains("already held"), "{err}");
+    assert!(
+        !said.iter().any(|e| matches!(e, Event::Goal { .. })),
+        "{said:#?}"
+    );
+    chair.drain_for(Duration::from_millis(500));
+    assert!(
+        !chair.seen.iter().any(|e| matches!(e, Event::Left { .. })),
+        "the chair kept its services: {:#?}",
+        chair.seen
+    );
+    chair.stop().unwrap();
+    services.stop().unwrap();
+}
+
+/// Issue 20 item 3: a receiver killed and restarted (same key, same address, no sessions) gets
+/// the next message, which its sender sealed under the session the receiver lost.
+#[test]
+fn a_restarted_receiver_gets_the_message_sealed_under_its_lost_session() {
+    let platform = Platform::new();
+    let na = platform.node(&["a"]).unwrap();
+    let nb = platform.node(&["b"]).unwrap();
+    let config = StackConfig::default();
+    let bus = |node: &iw_stack::Node, addr: &str| {
+        let transport = UdpTransport::bind(addr).unwrap();
+        Bus::start(
+            platform.stack(node, &config),
+            Arc::new(transport),
+            Clock::system(),
+            BusConfig::default(),
+        )
+        .unwrap()
+    };
+    let a = bus(&na, "127.0.0.1:0");
+    let b = bus(&nb, "127.0.0.1:0");
+    let b_addr = b.local_addr().clone();
+    a.add_route("b", b_addr.clone());
+    b.add_route("a", a.local_addr().clone());
+    let mut inbox = b.register("b").unwrap();
+    let msg = |n: u64| iw_tests::acl("a", "b", n);
+    a.send("a", "b", msg(1)).unwrap();
+    let got = inbox.recv_timeout(LIMIT).expect("first message");
+    assert_eq!(got.payload, msg(1));
+
+    drop(inbox);
+    b.shutdown(); // killed: its sessions are gone
+    let b = bus(&nb, &b_addr.0);
+    b.add_route("a", a.local_addr().clone());
+    let mut inbox = b.register("b").unwrap();
+    a.send("a", "b", msg(2)).unwrap();
+    // Message 1 may come again first: if its acknowledgement was lost with the old life, it was
+    // still in flight, and is re-sealed like message 2 (the restarted receiver cannot know it
+    // had it).
+    loop {
+        let got = inbox
+            .recv_timeout(LIMIT)
+            .unwrap_or_else(|| panic!("lost: a {} b {}", a.counters(), b.counters()));
+        if got.payload == msg(2) {
+            break;
+        }
+        assert_eq!(got.payload, msg(1));
+    }
+    assert!(b.counters().get(iw_bus::Reason::UnknownSession) >= 1);
+}
+
+/// Issue 20 item 7: garbage on the bus and control ports is counted per reason and reported in
+/// a `security` event (the warnings about it are rate-limited, see `iw_bus::WarnEvery`).
+#[test]
+fn rejections_are_counted_and_reported_in_a_security_event() {
+    let dir = tempfile::tempdir().unwrap();
+    let key = dir.path().join("control.key");
+    iw_stack::write_group_key(&key).unwrap();
+    let mut services = Running::start(Role::Services, config(key.to_str(), &[]));
+    let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
+    for n in 0..200u32 {
+        let garbage = n.to_be_bytes();
+        attacker.send_to(&garbage, services.control()).unwrap();
+        attacker.send_to(&garbage, services.bus()).unwrap();
+    }
+    let count = |e: &Event, channel: &str| match e {
+        Event::Security { bus, control, .. } => {
+            let of = if channel == "bus" { bus } else { control };
+            of.get("bad_frame").copied().unwrap_or(0)
+        }
+        _ => 0,
+    };
+    services.wait_for("a security event counting both ports", |e| {
+        count(e, "bus") > 0 && count(e, "control") > 0
+    });
+    services.stop().unwrap();
+}
