@@ -394,10 +394,7 @@ impl DoorActuator for WorldDoors {
             door: door.to_string(),
             reason,
         };
-        let id = self
-            .ids
-            .get(door)
-            .ok_or_else(|| fault("not a door of the map".into()))?;
+        let id = compose::map_door(&self.ids, door)?;
         if self
             .jammed
             .lock()
@@ -559,12 +556,7 @@ impl Fleet {
             restricted: options.restricted,
             ..ServiceConfig::new(names.clone(), log.path.clone())
         };
-        let ids_by_name = building
-            .map
-            .doors
-            .iter()
-            .map(|d| (compose::door_name(&d.id), d.id.clone()))
-            .collect();
+        let ids_by_name = compose::door_ids(&building.map);
         let doors = WorldDoors {
             world: world.clone(),
             ids: ids_by_name,

@@ -336,12 +336,7 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
             .collect(),
         ..ServiceConfig::new(chairs.into_iter().collect(), log_path)
     };
-    let door_ids = building
-        .map
-        .doors
-        .iter()
-        .map(|d| (iw_wiring::door_name(&d.id), d.id.clone()))
-        .collect();
+    let door_ids = iw_wiring::door_ids(&building.map);
     let doors = WorldDoors::new(bus.clone(), iw_wiring::agent_id("door", SERVICES), door_ids);
     let parts =
         iw_wiring::service_agents(&service_config, &building, Box::new(doors)).map_err(|e| {

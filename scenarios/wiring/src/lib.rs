@@ -29,7 +29,7 @@ use iw_cognitive::agent::{
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_control_agent::{ControlAgent, ControlConfig};
-use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
+use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_logger::SyncPolicy;
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
@@ -121,6 +121,26 @@ pub const SERVICE_ROLES: [&str; 7] = [
 /// names (`office`), and the planner keeps one namespace.
 pub fn door_name(map_door: &str) -> String {
     format!("{map_door}-door")
+}
+
+/// The door agent's door names ([`door_name`]) to the map's door ids.
+pub fn door_ids(map: &Map) -> BTreeMap<String, String> {
+    map.doors
+        .iter()
+        .map(|d| (door_name(&d.id), d.id.clone()))
+        .collect()
+}
+
+/// The map door id of the door agent's door `door` in `ids` (from [`door_ids`]), or the
+/// actuator fault saying it is not a door of the map.
+pub fn map_door<'a>(
+    ids: &'a BTreeMap<String, String>,
+    door: &str,
+) -> Result<&'a String, ActuatorFault> {
+    ids.get(door).ok_or_else(|| ActuatorFault {
+        door: door.to_string(),
+        reason: "not a door of the map".into(),
+    })
 }
 
 /// Which agents of other containers `container` must route to, as (agent, its container):

@@ -319,14 +319,7 @@ impl WorldDoors {
 
 impl DoorActuator for WorldDoors {
     fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
-        let fault = |reason: String| ActuatorFault {
-            door: door.to_string(),
-            reason,
-        };
-        let id = self
-            .ids
-            .get(door)
-            .ok_or_else(|| fault("not a door of the map".into()))?;
+        let id = crate::map_door(&self.ids, door)?;
         let world = world_agent();
         let message = WorldContent::Door {
             door: id.clone(),
@@ -344,7 +337,10 @@ impl DoorActuator for WorldDoors {
                 iw_acl::codec::print(&message).into_bytes(),
             )
             .map(drop)
-            .map_err(|e| fault(format!("world unreachable: {e}")))
+            .map_err(|e| ActuatorFault {
+                door: door.to_string(),
+                reason: format!("world unreachable: {e}"),
+            })
     }
 }
 
