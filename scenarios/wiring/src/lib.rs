@@ -714,7 +714,9 @@ pub fn log_tap(
             return;
         }
         also(message);
-        let copy = copy_for_logger(message, &logger, now.0);
+        let mut copy = copy_for_logger(message, &logger, now.0);
+        // the parser layer checks that `:sender` names the envelope's sender
+        copy.sender = message.sender.clone();
         let sender = message
             .sender
             .as_ref()
