@@ -1,147 +1,17 @@
-//! `intellwheels spawn` as real processes on loopback UDP: the services and two chairs (one on a
-//! serial board emulated on a pty, one virtual). Killing the serial chair with SIGKILL leaves the
+//! `intellwheels spawn` as real processes on loopback UDP: the world, the services and two chairs
+//! (one on a serial board emulated on a pty, one virtual in the world). Killing the serial chair with SIGKILL leaves the
 //! others working, the board's watchdog stops its wheels, and the services see its agents leave;
 //! SIGTERM shuts a container down cleanly and deregisters it.
 
-use std::io::{BufRead, BufReader};
-use std::net::UdpSocket;
+mod common;
+
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
+use common::{LIMIT, Proc, free_port_pair, is, keygen, keygen_control};
+
 use iw_body::{BoardEmulator, WheelGeometry, WheelSpeeds};
-use serde_json::Value;
-
-/// Upper bound of every wait: generous for a loaded 2-core machine, never the expected time.
-const LIMIT: Duration = Duration::from_secs(120);
-
-/// Two consecutive free UDP ports on loopback (bus and control channel).
-fn free_port_pair() -> u16 {
-    loop {
-        let a = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let port = a.local_addr().unwrap().port();
-        if port < u16::MAX && UdpSocket::bind(("127.0.0.1", port + 1)).is_ok() {
-            return port;
-        }
-    }
-}
-
-/// A running container and its stdout events.
-struct Proc {
-    child: Child,
-    events: Receiver<Value>,
-    seen: Vec<Value>,
-}
-
-impl Proc {
-    fn spawn(args: &[&str]) -> Proc {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-            .arg("spawn")
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start intellwheels spawn");
-        let stdout = child.stdout.take().unwrap();
-        let (tx, events) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                let value: Value = serde_json::from_str(&line)
-                    .unwrap_or_else(|e| panic!("not a JSON event: {line}: {e}"));
-                if tx.send(value).is_err() {
-                    return;
-                }
-            }
-        });
-        Proc {
-            child,
-            events,
-            seen: Vec::new(),
-        }
-    }
-
-    /// Waits for an event matching `want` (also among those already seen); panics after LIMIT.
-    fn wait_for(&mut self, what: &str, want: impl Fn(&Value) -> bool) -> Value {
-        if let Some(v) = self.seen.iter().find(|v| want(v)) {
-            return v.clone();
-        }
-        self.wait_new(what, want)
-    }
-
-    /// Waits for a new event matching `want`; panics after LIMIT.
-    fn wait_new(&mut self, what: &str, want: impl Fn(&Value) -> bool) -> Value {
-        let deadline = Instant::now() + LIMIT;
-        loop {
-            match self
-                .events
-                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
-            {
-                Ok(v) => {
-                    self.seen.push(v.clone());
-                    if want(&v) {
-                        return v;
-                    }
-                }
-                Err(RecvTimeoutError::Timeout) => {
-                    panic!("no {what} within {LIMIT:?}; saw {:#?}", self.seen)
-                }
-                Err(RecvTimeoutError::Disconnected) => {
-                    panic!("stdout closed before {what}; saw {:#?}", self.seen)
-                }
-            }
-        }
-    }
-
-    /// Sends SIGTERM and waits for the exit status.
-    fn terminate(&mut self) -> std::process::ExitStatus {
-        let status = Command::new("kill")
-            .args(["-TERM", &self.child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(status.success(), "kill -TERM");
-        self.child.wait().unwrap()
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn is(event: &Value, kind: &str, field: &str, value: &str) -> bool {
-    event["event"] == kind && event[field] == value
-}
-
-/// Writes a key file with `spawn FLAG PATH`, which must succeed once and then refuse to
-/// overwrite it.
-fn write_key_with(flag: &str, path: &Path) -> String {
-    for (attempt, ok) in [(1, true), (2, false)] {
-        let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-            .args(["spawn", flag])
-            .arg(path)
-            .output()
-            .unwrap();
-        assert_eq!(
-            out.status.success(),
-            ok,
-            "{flag} attempt {attempt} (the second must refuse to overwrite): {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    path.display().to_string()
-}
-
-fn keygen(dir: &Path, name: &str) -> String {
-    write_key_with("--keygen", &dir.join(format!("{name}.pk8")))
-}
-
-/// The deployment's control group key.
-fn keygen_control(dir: &Path) -> String {
-    write_key_with("--keygen-control", &dir.join("control.key"))
-}
 
 /// Polls the board until `f` holds; panics after LIMIT with the board state and what the
 /// services saw (a goal failure there names the reason).
@@ -180,6 +50,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     )
     .expect("pty");
     let services_addr = format!("127.0.0.1:{}", free_port_pair());
+    let world_addr = format!("127.0.0.1:{}", free_port_pair());
 
     let mut services = Proc::spawn(&[
         "--services",
@@ -190,13 +61,23 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         "--control-key",
         &control,
         "--goal",
-        "chair-a:dining-hall",
+        "chair-a:office",
         "--goal",
-        "chair-b:3.0,6.0",
+        "chair-b:bathroom",
         "--goal",
-        "chair-c:3.0,6.0",
+        "chair-c:therapy",
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
+    let mut world = Proc::spawn(&[
+        "--world",
+        "--listen",
+        &world_addr,
+        "--peer",
+        &services_addr,
+        "--control-key",
+        &control,
+    ]);
+    world.wait_for("world ready", |e| e["event"] == "ready");
     let a_addr = format!("127.0.0.1:{}", free_port_pair());
     let serial = format!("serial:{}", board.port_name());
     let mut chair_a = Proc::spawn(&[
@@ -223,7 +104,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         "--body",
         "virtual",
         "--start",
-        "1.0,6.0,0",
+        "7.5,8.5,-90",
         "--listen",
         &b_addr,
         "--peer",
@@ -246,7 +127,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         });
     }
     chair_a.wait_for("the services seen by chair-a", |e| {
-        is(e, "joined", "agent", "dispatcher@services")
+        is(e, "joined", "agent", "assistant@services")
     });
     services.wait_for("chair-a's goal agreed", |e| {
         is(e, "goal", "chair", "chair-a") && e["performative"] == "AGREE"
@@ -274,7 +155,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         "--chair",
         "chair-c",
         "--start",
-        "1.0,6.0,0",
+        "15.0,8.2,180",
         "--listen",
         &c_addr,
         "--peer",
@@ -308,6 +189,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     let status = services.terminate();
     assert!(status.success(), "services exit status {status}");
     services.wait_for("services stopped", |e| e["event"] == "stopped");
+    assert!(world.terminate().success());
 }
 
 #[test]
@@ -368,9 +250,9 @@ fn bad_flags_and_files_are_clear_errors() {
     );
 }
 
-/// Services and one virtual chair over `transport`, listening at the given addresses: the chair
-/// joins, its goal is done, and it leaves cleanly.
-fn goal_done_over(transport: &str, services_addr: &str, chair_addr: &str) {
+/// Services, the world and one virtual chair over `transport`, listening at the given addresses:
+/// the chair joins, its goal is done, and it leaves cleanly.
+fn goal_done_over(transport: &str, services_addr: &str, world_addr: &str, chair_addr: &str) {
     let mut services = Proc::spawn(&[
         "--services",
         "--transport",
@@ -378,13 +260,26 @@ fn goal_done_over(transport: &str, services_addr: &str, chair_addr: &str) {
         "--listen",
         services_addr,
         "--goal",
-        "chair-s:3.0,6.0",
+        "chair-s:therapy",
         "--insecure-dev",
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
+    let mut world = Proc::spawn(&[
+        "--world",
+        "--transport",
+        transport,
+        "--listen",
+        world_addr,
+        "--peer",
+        services_addr,
+        "--insecure-dev",
+    ]);
+    world.wait_for("world ready", |e| e["event"] == "ready");
     let mut chair = Proc::spawn(&[
         "--chair",
         "chair-s",
+        "--start",
+        "15.0,8.2,180",
         "--transport",
         transport,
         "--listen",
@@ -401,6 +296,7 @@ fn goal_done_over(transport: &str, services_addr: &str, chair_addr: &str) {
         is(e, "left", "agent", "control@chair-s")
     });
     assert!(services.terminate().success());
+    assert!(world.terminate().success());
 }
 
 #[test]
@@ -409,6 +305,7 @@ fn containers_over_iceoryx2_join_and_a_goal_is_done() {
     goal_done_over(
         "iceoryx2",
         &format!("{tag}-services"),
+        &format!("{tag}-world"),
         &format!("{tag}-chair"),
     );
 }
@@ -428,6 +325,7 @@ fn free_tcp_port_pair() -> u16 {
 fn containers_over_tcp_join_and_a_goal_is_done() {
     goal_done_over(
         "tcp",
+        &format!("127.0.0.1:{}", free_tcp_port_pair()),
         &format!("127.0.0.1:{}", free_tcp_port_pair()),
         &format!("127.0.0.1:{}", free_tcp_port_pair()),
     );

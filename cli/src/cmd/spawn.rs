@@ -12,14 +12,17 @@ use iw_node::{BodyKind, GoalSpec, NodeError, Role, Runtime, SpawnConfig, Transpo
 
 /// Flags; each overrides the configuration file's key of the same meaning.
 #[derive(clap::Args)]
-#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "keygen", "keygen_control"]))]
+#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "world", "keygen", "keygen_control"]))]
 pub struct Args {
-    /// Run chair NAME's perception and control agents.
+    /// Run chair NAME's perception, control, cognitive and interface agents.
     #[arg(long, value_name = "NAME")]
     chair: Option<String>,
-    /// Run the service agents (the dispatcher giving goals).
+    /// Run the service agents (AMS, DF, door, logger, watcher, assistant, staff console).
     #[arg(long)]
     services: bool,
+    /// Run the world: the simulator owning the deployment's shared world (virtual bodies, doors).
+    #[arg(long)]
+    world: bool,
     /// Write a new identity key (PKCS#8, mode 0600) to FILE and exit.
     #[arg(long, value_name = "FILE")]
     keygen: Option<PathBuf>,
@@ -160,6 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .into());
         }
         Some(name) => Role::Chair { name: name.clone() },
+        None if args.world => Role::World,
         None => Role::Services,
     };
     let mut config = match &args.config {

@@ -11,6 +11,8 @@
 //!   [`fipa::ManagementContent`].
 //! - [`wheelchair`]: poses, sensor readings, driving actions, goals and doors, in
 //!   [`wheelchair::WheelchairContent`].
+//! - [`world`]: a chair's body and the shared world of a deployment (attach, wheel speeds, poses,
+//!   sensor frames, doors), in [`world::WorldContent`].
 //! - [`OntologyContent`]: puts a value into an [`iw_acl::AclMessage`] (content, language,
 //!   ontology) and reads it back at the SL level the message's `:language` names.
 //! - [`OntologyError`]: what in the content did not fit, and where.
@@ -27,6 +29,7 @@ mod error;
 pub mod fipa;
 mod message;
 pub mod wheelchair;
+pub mod world;
 
 pub use concept::Concept;
 pub use error::OntologyError;

@@ -84,3 +84,19 @@ impl OntologyContent for WheelchairContent {
         WheelchairContent::from_content(content)
     }
 }
+
+impl OntologyContent for crate::world::WorldContent {
+    const ONTOLOGY: &'static str = crate::world::ONTOLOGY;
+
+    fn level(&self) -> Level {
+        Self::LEVEL
+    }
+
+    fn to_content(&self) -> Content {
+        crate::world::WorldContent::to_content(self)
+    }
+
+    fn from_content(content: &Content) -> Result<Self, OntologyError> {
+        crate::world::WorldContent::from_content(content)
+    }
+}

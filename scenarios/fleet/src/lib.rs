@@ -33,10 +33,11 @@
 //!   counted against the traffic.
 #![warn(missing_docs)]
 
-pub mod compose;
-mod console;
 mod network;
-pub mod plan;
+
+/// The wiring of the containers, shared with `intellwheels spawn` (crate `iw-wiring`).
+pub use iw_wiring as compose;
+pub use iw_wiring::{Console, Desk, GoalEvent, SERVICES, SharedDesk, plan};
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -59,15 +60,11 @@ use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 use iw_sim::{ChairId, ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
 use nalgebra::{Isometry2, Point2};
 
-use compose::{Building, ServiceConfig, SharedBody, agent_id};
-pub use console::{Console, Desk, GoalEvent, SharedDesk};
+use compose::{Building, ServiceConfig, SharedBody, WiringError, agent_id, desk};
 /// The interface agent's raw device readings, for [`Fleet::inputs`].
 pub use iw_interface::RawInput;
 use iw_perception_agent::VisualConfig;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
-
-/// The service container's endpoint name.
-pub const SERVICES: &str = "services";
 
 /// What went wrong composing or driving a fleet.
 #[derive(Debug, thiserror::Error)]
@@ -114,6 +111,18 @@ pub enum FleetError {
         /// Why.
         reason: String,
     },
+}
+
+impl From<WiringError> for FleetError {
+    fn from(e: WiringError) -> Self {
+        match e {
+            WiringError::Setup { container, reason } => FleetError::Setup { container, reason },
+            WiringError::Plan { reason } => FleetError::Plan { reason },
+            other => FleetError::Plan {
+                reason: other.to_string(),
+            },
+        }
+    }
 }
 
 /// A [`Body`] whose sensors can be failed on purpose: while failed, every read is an error
@@ -279,9 +288,11 @@ impl Traffic {
 
 fn tap_into(host: &mut AgentHost, traffic: &Arc<Traffic>) {
     let traffic = traffic.clone();
-    let tap = compose::log_tap(host.bus().clone(), agent_id("logger", SERVICES), move |m| {
-        traffic.saw(m)
-    });
+    let tap = compose::log_tap(
+        host.bus().clone(),
+        compose::agent_id("logger", SERVICES),
+        move |m| traffic.saw(m),
+    );
     host.set_tap(tap);
 }
 
@@ -387,10 +398,7 @@ impl DoorActuator for WorldDoors {
             door: door.to_string(),
             reason,
         };
-        let id = self
-            .ids
-            .get(door)
-            .ok_or_else(|| fault("not a door of the map".into()))?;
+        let id = compose::map_door(&self.ids, door)?;
         if self
             .jammed
             .lock()
@@ -552,12 +560,7 @@ impl Fleet {
             restricted: options.restricted,
             ..ServiceConfig::new(names.clone(), log.path.clone())
         };
-        let ids_by_name = building
-            .map
-            .doors
-            .iter()
-            .map(|d| (compose::door_name(&d.id), d.id.clone()))
-            .collect();
+        let ids_by_name = compose::door_ids(&building.map);
         let doors = WorldDoors {
             world: world.clone(),
             ids: ids_by_name,
@@ -574,12 +577,7 @@ impl Fleet {
         for (aid, agent) in service_agents.agents {
             host.add(aid, agent).map_err(add_err(SERVICES))?;
         }
-        let desk = SharedDesk::default();
-        host.add(
-            agent_id("staff", SERVICES),
-            Box::new(Console::new(desk.clone(), agent_id("assistant", SERVICES))),
-        )
-        .map_err(add_err(SERVICES))?;
+        let desk = service_agents.desk;
         route(&host, SERVICES, &names);
         tap_into(&mut host, &traffic);
         let services = ServiceContainer {
@@ -612,7 +610,7 @@ impl Fleet {
                 &building,
                 body,
                 visual,
-                Recognizer::new(1500),
+                Recognizer::new(compose::INPUT_MAX_GAP_MS),
             )?;
             let mut host = AgentHost::new(bus_for(&network, &clock, name)?);
             for (aid, agent) in agents.agents {
@@ -698,7 +696,7 @@ impl Fleet {
             })?;
         self.conversations += 1;
         let conversation = format!("goal-{}-{}", chair, self.conversations);
-        console::desk(&self.services.desk).outbox.push_back((
+        desk(&self.services.desk).outbox.push_back((
             conversation.clone(),
             chair.to_string(),
             place.to_string(),
@@ -805,7 +803,7 @@ impl Fleet {
 
     /// The answers the staff console got, in order.
     pub fn goal_events(&self) -> Vec<GoalEvent> {
-        console::desk(&self.services.desk).events.clone()
+        desk(&self.services.desk).events.clone()
     }
 
     /// The door agent's refusals so far.

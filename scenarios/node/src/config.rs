@@ -163,12 +163,12 @@ impl Default for WorldSection {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BodyKind {
-    /// The simulator, run inside the chair's own process on the shared map.
+    /// A body in the world container, driven over the platform.
     #[default]
     Virtual,
-    /// The interface board on a serial port.
+    /// The interface board on a serial port; the chair's pose is reported to the world.
     Serial,
-    /// The board, with virtual sonars from the map merged in (nearest wins).
+    /// The board, with the world's virtual sonars merged in (nearest wins).
     Mixed,
 }
 
@@ -214,8 +214,16 @@ pub struct GoalSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ServicesSection {
+    /// The deployment's chairs, which the assistant may direct (besides those named in goals
+    /// and restricted doors).
+    pub chairs: Vec<String>,
     /// Goals to give chairs when they join.
     pub goals: Vec<GoalSpec>,
+    /// Restricted doors (map door id) and the chairs allowed through each; other doors open
+    /// for anyone.
+    pub restricted: std::collections::BTreeMap<String, Vec<String>>,
+    /// The logger agent's log file; empty: a fresh file in the temporary directory.
+    pub log: String,
     /// How often a chair's pose is reported on stdout, ms.
     pub pose_report_ms: u64,
 }
@@ -223,7 +231,10 @@ pub struct ServicesSection {
 impl Default for ServicesSection {
     fn default() -> Self {
         ServicesSection {
+            chairs: Vec::new(),
             goals: Vec::new(),
+            restricted: std::collections::BTreeMap::new(),
+            log: String::new(),
             pose_report_ms: 1000,
         }
     }

@@ -68,9 +68,27 @@ pub enum Event {
         /// Rejections on the control channel (frames that do not decode or fail its group key).
         control: std::collections::BTreeMap<String, u64>,
     },
+    /// A body in the shared world as the world sees it (world only, every
+    /// `services.pose_report_ms`).
+    Body {
+        /// The chair.
+        chair: String,
+        /// True x, m (map frame).
+        x_m: f64,
+        /// True y, m.
+        y_m: f64,
+        /// True heading, rad.
+        theta_rad: f64,
+        /// Distance driven, m.
+        distance_m: f64,
+        /// Contacts with walls, furniture or other chairs so far.
+        collisions: u64,
+    },
     /// The container has shut down cleanly.
     Stopped {
         /// The container's name.
         container: String,
+        /// Messages its agents sent while it ran (each is copied to the logger).
+        messages_sent: u64,
     },
 }

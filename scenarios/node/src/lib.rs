@@ -1,4 +1,4 @@
-//! One container per process (thesis 3.3.3): a chair's micro agents, or the service agents, on
+//! One container per process (thesis 3.3.3): a chair's agents, or the service agents, on
 //! an agent bus over a real transport (UDP or iceoryx2 shared memory) with the platform's four
 //! layers, joined to the other containers through the Global Agent List. This is what
 //! `intellwheels spawn` runs and what `deploy/` packages.
@@ -6,9 +6,11 @@
 //! # Organization
 //! - [`SpawnConfig`] and its sections: the TOML configuration (`deploy/default.toml` documents
 //!   every key), overridden by flags.
-//! - [`Role`]: a chair (`--chair NAME`) or the services (`--services`).
+//! - [`Role`]: a chair (`--chair NAME`), the services (`--services`) or the world (`--world`).
 //! - [`Runtime`]: binds the transports, loads the identity key, builds the stack, hosts the
-//!   agents, runs the container (heartbeats, election, list sync) and steps the agents in real
+//!   agents the wiring (`iw-wiring`) composes for the role, exactly those of the in-process fleet
+//!   (a chair: perception, control, cognitive, interface; the services: AMS, DF, door, logger,
+//!   watcher, assistant and the staff console, which gives the configured goals), runs the container (heartbeats, election, list sync) and steps the agents in real
 //!   time until asked to stop; then shuts down cleanly.
 //! - [`Event`]: what a running container reports, one JSON line each.
 //! - [`write_identity`]: a new identity key file.
@@ -16,13 +18,18 @@
 //! # Design
 //! - Two endpoints per container: the agent bus at `transport.listen` and the container
 //!   control channel next to it (UDP: the next port; iceoryx2: the name with `-ctl`).
-//! - A virtual chair runs its own simulator on the shared map, in its own process: its sonars
-//!   see walls, furniture and doors, not the other chairs (those live in other processes).
-//!   Killing the process kills its body with it.
+//! - One world container owns the simulator: virtual chairs' bodies live in it and are driven
+//!   over the platform (`body@CHAIR` to `world@world`, same bus and layers as any traffic); real
+//!   and mixed chairs report their pose there, and a mixed chair senses the other chairs and the
+//!   virtual obstacles. The door agent moves the world's doors. See `iw_wiring::world_link`.
+//! - A body without its world stops: the world stops a simulated body it hears no wheel command
+//!   from, and a body that hears no frame fails its reads (the control agent stops the chair)
+//!   while it asks to attach again; a restarted world takes the chairs back where they were.
 //! - Agents of another container are routed, and their keys trusted, only while the GAL lists
 //!   them and their container is live in this container's view; the service container (id 1)
-//!   leads, so it sees every chair come and go. A chair routes to the services, not to other
-//!   chairs (it never hears them).
+//!   leads, so it sees every chair come and go.
+//! - Every message an agent sends is copied to `logger@services` (a host tap), from every
+//!   container.
 //!
 //! # Guarantees
 //! - No input from a configuration file, a flag or a socket panics: errors name the key, the
@@ -35,7 +42,6 @@
 #![warn(missing_docs)]
 
 mod config;
-mod dispatcher;
 mod event;
 mod runtime;
 
@@ -43,23 +49,26 @@ pub use config::{
     BodyKind, BodySection, ContainerSection, GoalSpec, SecuritySection, ServicesSection,
     SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
-pub use dispatcher::{Dispatcher, Roster};
 pub use event::Event;
 pub use runtime::{Runtime, control_addr, write_identity};
 
 /// The service container's name.
-pub const SERVICES: &str = "services";
+pub use iw_wiring::SERVICES;
 
 /// What a container process hosts.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Role {
-    /// Chair `name`'s perception and control agents over its body.
+    /// Chair `name`'s agents over its body (`iw_wiring::chair_agents`).
     Chair {
-        /// The chair's name (its agents are `perception@NAME` and `control@NAME`).
+        /// The chair's name (its agents are `perception@NAME`, `control@NAME`,
+        /// `cognitive@NAME` and `interface@NAME`).
         name: String,
     },
-    /// The service agents (the dispatcher).
+    /// The service agents (`iw_wiring::service_agents`).
     Services,
+    /// The world: the simulator that owns the deployment's one shared world
+    /// (`iw_wiring::world_link::WorldAgent`).
+    World,
 }
 
 impl Role {
@@ -68,6 +77,7 @@ impl Role {
         match self {
             Role::Chair { name } => name,
             Role::Services => SERVICES,
+            Role::World => iw_wiring::world_link::WORLD,
         }
     }
 }

@@ -1,43 +1,41 @@
 //! [`Runtime`]: one container process, from its configuration to a clean shutdown.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::Sender;
-use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use iw_acl::AgentId;
 use iw_agent::AgentHost;
 use iw_body::{Body, BodyWorker, MixedBody, Odometry, SerialBody, WheelGeometry};
 use iw_bus::transport::{FrameTransport, PeerAddr};
-use iw_bus::{Bus, BusConfig, Clock, LayerSet};
+use iw_bus::{Bus, BusConfig, Clock, LayerSet, Time};
 use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode};
-use iw_control_agent::{ControlAgent, ControlConfig};
-use iw_fleet::compose::SharedBody;
-use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
-use iw_sim::{ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
+use iw_interface::Recognizer;
+use iw_sim::{ChairKind, ChairSpec, Map, World};
 use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
 use iw_transport_net::{TcpTransport, UdpTransport};
 use iw_transport_shm::ShmTransport;
-use iw_vo::Pose2;
+use iw_wiring::world_link::{
+    BodyRoster, WorldAgent, WorldBody, WorldDoors, WorldGhost, body_endpoint, world_agent,
+};
+use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk};
 use nalgebra::{Isometry2, Vector2};
 
 use crate::config::{BodyKind, SpawnConfig, TransportKind};
-use crate::dispatcher::{Dispatcher, Roster};
 use crate::{Event, NodeError, Role, SERVICES};
 
+/// How long the services wait for a world before giving a present chair its goal anyway (a
+/// deployment of real chairs only).
+const WORLD_GRACE: Duration = Duration::from_secs(3);
 /// The sample care building shipped with the sources, used when no map is configured.
 const SAMPLE_BUILDING: &str = include_str!("../../maps/sample-building.map");
 /// How long the container thread waits for a control frame before it ticks.
 const CONTROL_TICK: Duration = Duration::from_millis(10);
-/// Clearance the services' planner keeps from walls, furniture and closed doors, m (the chair's
-/// half width plus a margin).
-const CLEARANCE_M: f64 = 0.4;
 /// Shortest interval between two `security` events.
 const SECURITY_REPORT: Duration = Duration::from_secs(5);
-/// Longest simulated step after a stall, s (the simulator never leaps).
-const MAX_SIM_STEP_S: f64 = 0.2;
 
 /// The control channel address next to bus address `addr`: the next UDP port, or the shared
 /// memory inbox `addr-ctl`.
@@ -148,6 +146,7 @@ fn load_map(path: &str) -> Result<Map, NodeError> {
 fn derived_id(role: &Role) -> u64 {
     match role {
         Role::Services => 1,
+        Role::World => 2,
         Role::Chair { name } => {
             // FNV-1a: stable across builds and platforms, unlike the std hasher
             let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
@@ -158,13 +157,42 @@ fn derived_id(role: &Role) -> u64 {
     }
 }
 
+/// The names a container registers on its bus and in the agent lists: its agents, and a chair's
+/// body endpoint (the world link).
+fn endpoints(role: &Role) -> Vec<String> {
+    match role {
+        Role::Chair { name } => iw_wiring::CHAIR_ROLES
+            .iter()
+            .map(|r| iw_wiring::agent_id(r, name).name)
+            .chain([body_endpoint(name).name])
+            .collect(),
+        Role::Services => iw_wiring::SERVICE_ROLES
+            .iter()
+            .map(|r| iw_wiring::agent_id(r, SERVICES).name)
+            .collect(),
+        Role::World => vec![world_agent().name],
+    }
+}
+
 /// Agents to host, with their names.
 type Agents = Vec<(AgentId, Box<dyn iw_agent::Agent>)>;
+
+/// The building of `config`'s map, as the wiring derives it.
+fn building(config: &SpawnConfig) -> Result<Building, NodeError> {
+    let map_name = if config.world.map.is_empty() {
+        "embedded sample building"
+    } else {
+        &config.world.map
+    };
+    Building::from_map(load_map(&config.world.map)?).map_err(|e| NodeError::Map {
+        map: map_name.into(),
+        reason: e.to_string(),
+    })
+}
 
 /// A chair's agents and what the runtime must keep of its body.
 struct ChairParts {
     agents: Agents,
-    world: Option<SharedWorld>,
     body: SharedBody,
 }
 
@@ -179,8 +207,38 @@ fn off_the_control_path(serial: SerialBody) -> Result<BodyWorker, NodeError> {
 /// Age past which a serial sensor frame is refused, ms (the board answers every 50 ms period).
 const STALE_FRAME_MS: u64 = 300;
 
-fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError> {
+/// Refuses a start pose whose footprint overlaps a wall, furniture or a closed door of the map
+/// (checked on a scratch copy of the world: the shared one lives in the world container).
+fn refuse_an_obstructed_start(
+    config: &SpawnConfig,
+    t_world_body: &Isometry2<f64>,
+) -> Result<(), NodeError> {
+    let mut scratch = World::new(load_map(&config.world.map)?, config.world.seed);
+    let id = scratch.add_chair(ChairSpec::default(), *t_world_body, ChairKind::Simulated);
+    let obstruction = scratch.obstruction(id).map_err(|e| NodeError::Body {
+        reason: e.to_string(),
+    })?;
+    match obstruction {
+        Some(what) => Err(NodeError::Config {
+            file: "body.start".into(),
+            reason: format!(
+                "{:?} puts the chair's footprint on {} of the map",
+                config.body.start,
+                scratch.describe(what)
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Chair `name`'s agents over its body: a virtual body lives in the world container; a real
+/// (serial) or mixed one reports its pose there, and a mixed one senses the world's obstacles.
+fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<ChairParts, NodeError> {
     let body_err = |reason: String| NodeError::Body { reason };
+    let link_err = |e: iw_wiring::WiringError| NodeError::Setup {
+        container: name.into(),
+        reason: e.to_string(),
+    };
     let [x, y, heading_deg] = config.body.start;
     let t_world_body = Isometry2::new(Vector2::new(x, y), heading_deg.to_radians());
     let serial = || {
@@ -191,113 +249,142 @@ fn chair_parts(name: &str, config: &SpawnConfig) -> Result<ChairParts, NodeError
         )
         .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
     };
-    let (body, world) = match config.body.kind {
-        BodyKind::Serial => (SharedBody::new(off_the_control_path(serial()?)?), None),
-        BodyKind::Virtual | BodyKind::Mixed => {
-            let mut world = World::new(load_map(&config.world.map)?, config.world.seed);
-            let kind = if config.body.kind == BodyKind::Virtual {
-                ChairKind::Simulated
-            } else {
-                ChairKind::Tracked
-            };
-            let id = world.add_chair(ChairSpec::default(), t_world_body, kind);
-            if let Some(what) = world.obstruction(id).map_err(|e| body_err(e.to_string()))? {
-                return Err(NodeError::Config {
-                    file: "body.start".into(),
-                    reason: format!(
-                        "{:?} puts the chair's footprint on {} of the map",
-                        config.body.start,
-                        world.describe(what)
-                    ),
-                });
-            }
-            let world = iw_sim::shared(world);
-            let body = if config.body.kind == BodyKind::Virtual {
-                SharedBody::new(VirtualBody::new(world.clone(), id))
-            } else {
-                let ghost = GhostSensors::new(world.clone(), id);
-                SharedBody::new(MixedBody::new(
-                    off_the_control_path(serial()?)?,
-                    ghost,
-                    Odometry::new(WheelGeometry::default(), t_world_body),
-                ))
-            };
-            (body, Some(world))
+    refuse_an_obstructed_start(config, &t_world_body)?;
+    let building = building(config)?;
+    let body = match config.body.kind {
+        BodyKind::Virtual => {
+            SharedBody::new(WorldBody::open(bus.clone(), name, t_world_body).map_err(link_err)?)
+        }
+        BodyKind::Serial | BodyKind::Mixed => {
+            let senses = config.body.kind == BodyKind::Mixed;
+            let ghost =
+                WorldGhost::open(bus.clone(), name, t_world_body, senses).map_err(link_err)?;
+            SharedBody::new(MixedBody::new(
+                off_the_control_path(serial()?)?,
+                ghost,
+                Odometry::new(WheelGeometry::default(), t_world_body),
+            ))
         }
     };
-    let setup = |reason: String| NodeError::Setup {
-        container: name.into(),
-        reason,
-    };
-    let start = Pose2 {
-        x,
-        y,
-        theta: heading_deg.to_radians(),
-    };
-    let perception_id = AgentId::new(format!("perception@{name}"));
-    let perception = PerceptionAgent::new(
-        PerceptionConfig::prototype(AgentId::new(name), start),
-        Box::new(body.clone()),
+    let parts = iw_wiring::chair_agents(
+        name,
+        &t_world_body,
+        &building,
+        body.clone(),
         None,
+        Recognizer::new(iw_wiring::INPUT_MAX_GAP_MS),
     )
-    .map_err(|e| setup(e.to_string()))?;
-    let control_config =
-        ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
-    let control = ControlAgent::new(control_config, Box::new(body.clone()))
-        .map_err(|e| setup(e.to_string()))?;
+    .map_err(|e| NodeError::Setup {
+        container: name.into(),
+        reason: e.to_string(),
+    })?;
     Ok(ChairParts {
-        agents: vec![
-            (perception_id, Box::new(perception)),
-            (AgentId::new(format!("control@{name}")), Box::new(control)),
-        ],
-        world,
+        agents: parts.agents,
         body,
     })
 }
 
-fn service_agents(
-    config: &SpawnConfig,
-    roster: Roster,
-    events: Sender<Event>,
-) -> Result<Agents, NodeError> {
+/// The world container's agent over `config`'s map.
+fn world_parts(config: &SpawnConfig) -> Result<(Agents, WorldReports), NodeError> {
+    let world = World::new(load_map(&config.world.map)?, config.world.seed);
+    let agent = WorldAgent::new(iw_sim::shared(world), iw_wiring::agent_id("door", SERVICES));
+    let (world, roster) = agent.reports();
+    let reports = WorldReports {
+        world,
+        roster,
+        last: None,
+    };
+    Ok((vec![(world_agent(), Box::new(agent))], reports))
+}
+
+/// What the world runtime reports from: the world, its bodies, the last report.
+struct WorldReports {
+    world: iw_sim::SharedWorld,
+    roster: BodyRoster,
+    last: Option<Time>,
+}
+
+/// What the services runtime keeps: the console's desk, the goals to give and what became of
+/// them.
+struct ServiceDesk {
+    desk: SharedDesk,
+    /// Goals not yet given: chair, place.
+    waiting: Vec<(String, String)>,
+    /// Given goals by conversation: chair, place.
+    given: BTreeMap<String, (String, String)>,
+    /// Console answers already reported.
+    reported: usize,
+    conversations: u64,
+    last_pose_report: BTreeMap<String, Time>,
+    /// When each present chair's cognitive agent was first seen.
+    seen_at: BTreeMap<String, Time>,
+}
+
+fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, ServiceDesk), NodeError> {
+    let building = building(config)?;
     let map_name = if config.world.map.is_empty() {
         "embedded sample building"
     } else {
         &config.world.map
     };
-    let map = load_map(&config.world.map)?;
-    let grid = iw_fleet::plan::raster(&map, |door| {
-        map.doors.iter().any(|d| d.id == door && !d.open)
-    })
-    .map_err(|e| NodeError::Map {
-        map: map_name.into(),
-        reason: e.to_string(),
-    })?
-    .inflated(CLEARANCE_M);
-    let goals = config
-        .services
-        .goals
-        .iter()
-        .map(|g| {
-            let target = map
-                .place(&g.place)
-                .or_else(|| parse_point(&g.place))
-                .ok_or_else(|| NodeError::Map {
-                    map: map_name.into(),
-                    reason: format!(
-                        "goal of {}: `{}` is neither a place of the map nor `x,y` in metres",
-                        g.chair, g.place
-                    ),
-                })?;
-            Ok((g.chair.clone(), g.place.clone(), target))
-        })
-        .collect::<Result<Vec<_>, NodeError>>()?;
-    let report_every = Duration::from_millis(config.services.pose_report_ms);
-    let dispatcher = Dispatcher::new(grid, goals, roster, report_every, events);
-    Ok(vec![(
-        AgentId::new(format!("dispatcher@{SERVICES}")),
-        Box::new(dispatcher),
-    )])
+    let mut waiting = Vec::new();
+    for g in &config.services.goals {
+        let place = if building.destinations().any(|(n, _)| *n == g.place) {
+            g.place.clone()
+        } else {
+            let point = parse_point(&g.place).ok_or_else(|| NodeError::Map {
+                map: map_name.into(),
+                reason: format!(
+                    "goal of {}: `{}` is neither a place of the map nor `x,y` in metres",
+                    g.chair, g.place
+                ),
+            })?;
+            building.place_at(point).map_err(|e| NodeError::Map {
+                map: map_name.into(),
+                reason: format!("goal of {}: {e}", g.chair),
+            })?
+        };
+        waiting.push((g.chair.clone(), place));
+    }
+    let mut chairs: BTreeSet<String> = config.services.chairs.iter().cloned().collect();
+    chairs.extend(waiting.iter().map(|(c, _)| c.clone()));
+    chairs.extend(config.services.restricted.values().flatten().cloned());
+    let log_path = if config.services.log.is_empty() {
+        std::env::temp_dir().join(format!("intellwheels-agents-{}.log", std::process::id()))
+    } else {
+        PathBuf::from(&config.services.log)
+    };
+    tracing::info!(log = %log_path.display(), "the logger agent writes every message here");
+    let service_config = ServiceConfig {
+        restricted: config
+            .services
+            .restricted
+            .iter()
+            .map(|(door, chairs)| (door.clone(), chairs.iter().cloned().collect()))
+            .collect(),
+        ..ServiceConfig::new(chairs.into_iter().collect(), log_path)
+    };
+    let door_ids = iw_wiring::door_ids(&building.map);
+    let doors = WorldDoors::new(bus.clone(), iw_wiring::agent_id("door", SERVICES), door_ids);
+    let parts =
+        iw_wiring::service_agents(&service_config, &building, Box::new(doors)).map_err(|e| {
+            NodeError::Setup {
+                container: SERVICES.into(),
+                reason: e.to_string(),
+            }
+        })?;
+    Ok((
+        parts.agents,
+        ServiceDesk {
+            desk: parts.desk,
+            waiting,
+            given: BTreeMap::new(),
+            reported: 0,
+            conversations: 0,
+            last_pose_report: BTreeMap::new(),
+            seen_at: BTreeMap::new(),
+        },
+    ))
 }
 
 /// `x,y` in metres, both finite.
@@ -324,8 +411,9 @@ pub struct Runtime {
     container: Option<ContainerNode>,
     control_guard: Option<Arc<GuardedTransport>>,
     installed: BTreeMap<String, Installed>,
-    roster: Roster,
-    world: Option<SharedWorld>,
+    services: Option<ServiceDesk>,
+    messages_sent: Arc<AtomicU64>,
+    world: Option<WorldReports>,
     body: Option<SharedBody>,
     events: Sender<Event>,
 }
@@ -353,19 +441,6 @@ impl Runtime {
             })?;
         let identity = Arc::new(load_identity(&config.security.identity_key)?);
         let control_key = load_control_key(&config.security.control_key)?;
-        let roster: Roster = Arc::new(Mutex::new(BTreeSet::new()));
-        let (agents, world, body) = match role {
-            Role::Chair { name } => {
-                let parts = chair_parts(name, &config)?;
-                (parts.agents, parts.world, Some(parts.body))
-            }
-            Role::Services => (
-                service_agents(&config, roster.clone(), events.clone())?,
-                None,
-                None,
-            ),
-        };
-
         let t = &config.transport;
         let advertise = if t.advertise.is_empty() {
             t.listen.clone()
@@ -382,20 +457,48 @@ impl Runtime {
             .collect::<Result<Vec<_>, _>>()?;
 
         let platform = Platform::new();
-        let names: Vec<&str> = agents.iter().map(|(aid, _)| aid.name.as_str()).collect();
+        let names = endpoints(role);
         for agent in &names {
             platform.register(agent, identity.public_key());
         }
         let node = iw_stack::Node {
             identity: identity.clone(),
-            agents: names.iter().map(|a| a.to_string()).collect(),
+            agents: names.clone(),
         };
         let stack = platform.stack(&node, &StackConfig::with_layers(layers));
         let clock = Clock::system();
         let bus = Bus::start(stack, bus_transport, clock.clone(), BusConfig::default())
             .map_err(|e| setup(e.to_string()))?;
-        let mut host = AgentHost::new(Arc::new(bus));
-        let agent_names: Vec<String> = names.iter().map(|a| a.to_string()).collect();
+        let bus = Arc::new(bus);
+        let (agents, body, services, world) = match role {
+            Role::Chair { name } => {
+                let parts = chair_parts(name, &config, &bus)?;
+                (parts.agents, Some(parts.body), None, None)
+            }
+            Role::Services => {
+                let (agents, desk) = service_parts(&config, &bus)?;
+                (agents, None, Some(desk), None)
+            }
+            Role::World => {
+                let (agents, reports) = world_parts(&config)?;
+                (agents, None, None, Some(reports))
+            }
+        };
+        let mut host = AgentHost::new(bus.clone());
+        let messages_sent = Arc::new(AtomicU64::new(0));
+        if *role != Role::World {
+            // every message sent here is copied to the logger, as in the in-process fleet
+            // (the world's sensor frames are not conversation)
+            let sent = messages_sent.clone();
+            host.set_tap(iw_wiring::log_tap(
+                bus,
+                iw_wiring::agent_id("logger", SERVICES),
+                move |_| {
+                    sent.fetch_add(1, Ordering::AcqRel);
+                },
+            ));
+        }
+        let agent_names: Vec<String> = agents.iter().map(|(aid, _)| aid.name.clone()).collect();
         for (aid, agent) in agents {
             host.add(aid, agent).map_err(|e| setup(e.to_string()))?;
         }
@@ -414,7 +517,7 @@ impl Runtime {
             ..ContainerConfig::new(ContainerId(id), PeerAddr(control_listen), seeds)
         };
         let mut container = Container::new(container_config);
-        for agent in &agent_names {
+        for agent in &names {
             container.register(AgentEntry {
                 name: agent.clone(),
                 public_key: identity.public_key().to_vec(),
@@ -454,20 +557,19 @@ impl Runtime {
             container: Some(container),
             control_guard,
             installed: BTreeMap::new(),
-            roster,
+            messages_sent,
+            services,
             world,
             body,
             events,
         })
     }
 
-    /// Steps the agents (and a virtual body's world) every `container.step_ms` of real time until
-    /// `stop` is set, then shuts down cleanly. Fails, after shutting down, if another live
-    /// container holds this one's id.
+    /// Steps the agents every `container.step_ms` of real time until `stop` is set, then shuts
+    /// down cleanly. Fails, after shutting down, if another live container holds this one's id.
     pub fn run(mut self, stop: &AtomicBool) -> Result<(), NodeError> {
         let period = Duration::from_millis(self.config.container.step_ms);
         let clock = self.host.bus().clock().clone();
-        let mut last = clock.now();
         let mut reported = (iw_bus::Counters::default(), iw_bus::Counters::default());
         let mut next_report = clock.now();
         while !stop.load(Ordering::Acquire) {
@@ -486,15 +588,9 @@ impl Runtime {
                 self.report_security(&mut reported);
             }
             self.sync_agent_lists();
+            self.serve(now);
+            self.report_bodies(now);
             self.host.step(now);
-            if let Some(world) = &self.world {
-                let dt_s = now.since(last).as_secs_f64().min(MAX_SIM_STEP_S);
-                iw_sim::step(
-                    &mut world.lock().unwrap_or_else(PoisonError::into_inner),
-                    dt_s,
-                );
-            }
-            last = now;
             std::thread::sleep(period.saturating_sub(clock.now().since(now)));
         }
         self.shutdown();
@@ -508,10 +604,15 @@ impl Runtime {
             return;
         };
         let present: BTreeMap<String, Installed> = container.with(|c| {
+            // A container hears only the leader and its seeds; the leader's list keeps only
+            // live containers, so while the leader is live its list is trusted as it stands
+            // (chairs reach the world through it).
             let live = c.live_peers();
+            let leader_live = live.contains(&c.leader());
+            let me = c.id();
             c.gal()
                 .entries()
-                .filter(|(id, _)| live.contains(id))
+                .filter(|(id, _)| *id != me && (live.contains(id) || leader_live))
                 .filter_map(|(id, e)| {
                     let key = <PublicKey>::try_from(e.public_key.as_slice()).ok()?;
                     Some((
@@ -553,8 +654,113 @@ impl Runtime {
             });
             self.installed.insert(agent, entry);
         }
-        *self.roster.lock().unwrap_or_else(PoisonError::into_inner) =
-            self.installed.keys().cloned().collect();
+    }
+
+    /// World only: reports every body every `services.pose_report_ms`.
+    fn report_bodies(&mut self, now: Time) {
+        let Some(reports) = &mut self.world else {
+            return;
+        };
+        let every = Duration::from_millis(self.config.services.pose_report_ms);
+        if reports.last.is_some_and(|last| now < last.plus(every)) {
+            return;
+        }
+        reports.last = Some(now);
+        let bodies = reports
+            .roster
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone();
+        let world = reports
+            .world
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        for (chair, id) in bodies {
+            let (Ok(pose), Ok(distance_m), Ok(collisions)) =
+                (world.pose(id), world.distance_m(id), world.collisions(id))
+            else {
+                continue;
+            };
+            let _ = self.events.send(Event::Body {
+                chair,
+                x_m: pose.translation.x,
+                y_m: pose.translation.y,
+                theta_rad: pose.rotation.angle(),
+                distance_m,
+                collisions,
+            });
+        }
+    }
+
+    /// Services only: watches the chairs present, gives each configured goal once its chair's
+    /// cognitive agent is present and its pose known, and reports the console's answers and the chairs' poses.
+    fn serve(&mut self, now: Time) {
+        let Some(services) = &mut self.services else {
+            return;
+        };
+        let installed = &self.installed;
+        let world_present = installed.contains_key(&world_agent().name);
+        let chairs: BTreeSet<String> = installed
+            .keys()
+            .filter_map(|a| a.strip_prefix("cognitive@"))
+            .map(str::to_string)
+            .collect();
+        services.seen_at.retain(|c, _| chairs.contains(c));
+        for chair in chairs {
+            services.seen_at.entry(chair).or_insert(now);
+        }
+        let mut desk = iw_wiring::desk(&services.desk);
+        desk.watch = installed
+            .keys()
+            .filter_map(|a| a.strip_prefix("perception@"))
+            .map(str::to_string)
+            .collect();
+        let (ready, waiting): (Vec<_>, Vec<_>) = std::mem::take(&mut services.waiting)
+            .into_iter()
+            // a chair takes goals once its perception agent publishes and the world is there for
+            // its body (a deployment without a world: after WORLD_GRACE)
+            .partition(|(chair, _)| {
+                let since = services.seen_at.get(chair);
+                desk.poses.contains_key(chair)
+                    && since.is_some_and(|at| world_present || now >= at.plus(WORLD_GRACE))
+            });
+        services.waiting = waiting;
+        for (chair, place) in ready {
+            services.conversations += 1;
+            let conversation = format!("goal-{chair}-{}", services.conversations);
+            desk.outbox
+                .push_back((conversation.clone(), chair.clone(), place.clone()));
+            services.given.insert(conversation, (chair, place));
+        }
+        for answer in &desk.events[services.reported..] {
+            let Some((chair, place)) = services.given.get(&answer.conversation) else {
+                continue;
+            };
+            let _ = self.events.send(Event::Goal {
+                chair: chair.clone(),
+                place: place.clone(),
+                conversation: answer.conversation.clone(),
+                performative: answer.performative.clone(),
+                reason: answer.reason.clone(),
+            });
+        }
+        services.reported = desk.events.len();
+        let every = Duration::from_millis(self.config.services.pose_report_ms);
+        for (chair, [x_m, y_m, theta_rad]) in &desk.poses {
+            let due = services
+                .last_pose_report
+                .get(chair)
+                .is_none_or(|last| now >= last.plus(every));
+            if due {
+                services.last_pose_report.insert(chair.clone(), now);
+                let _ = self.events.send(Event::Pose {
+                    chair: chair.clone(),
+                    x_m: *x_m,
+                    y_m: *y_m,
+                    theta_rad: *theta_rad,
+                });
+            }
+        }
     }
 
     /// Sends a `security` event if the rejection counts changed since `reported`.
@@ -604,6 +810,7 @@ impl Runtime {
         }
         let _ = self.events.send(Event::Stopped {
             container: self.name.clone(),
+            messages_sent: self.messages_sent.load(Ordering::Acquire),
         });
     }
 }

@@ -4,13 +4,13 @@ use iw_cognitive::OccupancyGrid;
 use iw_sim::Map;
 use nalgebra::Point2;
 
-use crate::FleetError;
+use crate::WiringError;
 
 /// Grid resolution, m.
 pub const RESOLUTION_M: f64 = 0.1;
 
 /// Rasterises walls, furniture and the doors that are closed (`closed(door id)`), not inflated.
-pub fn raster(map: &Map, closed: impl Fn(&str) -> bool) -> Result<OccupancyGrid, FleetError> {
+pub fn raster(map: &Map, closed: impl Fn(&str) -> bool) -> Result<OccupancyGrid, WiringError> {
     let (lo, hi) = map.bounds();
     let origin = Point2::new(lo.x - RESOLUTION_M, lo.y - RESOLUTION_M);
     let width = ((hi.x - origin.x) / RESOLUTION_M).ceil() as usize + 2;
@@ -44,7 +44,7 @@ pub fn raster(map: &Map, closed: impl Fn(&str) -> bool) -> Result<OccupancyGrid,
         segment(door.a, door.b);
     }
     OccupancyGrid::new(width, height, RESOLUTION_M, origin, occupied).map_err(|source| {
-        FleetError::Plan {
+        WiringError::Plan {
             reason: source.to_string(),
         }
     })

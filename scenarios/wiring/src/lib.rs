@@ -1,12 +1,18 @@
-//! The composition of a chair's agents and of the service agents from a configuration, free of
-//! any network: the in-process [`crate::Fleet`] and the multi-process containers of
-//! `intellwheels spawn` host the same agents, each on its own bus and transport.
+//! One wiring: what a chair container and the services container host, with each agent's
+//! configuration, free of any network. The in-process fleet (`iw-fleet`: demo and scenario
+//! runner) and the container processes of `intellwheels spawn` (`iw-node`) host exactly these
+//! agents, each container on its own bus and transport.
 //!
-//! Agent names: `cognitive@CHAIR`, `control@CHAIR`, `perception@CHAIR`, `interface@CHAIR` in a
-//! chair's container; `door@services`, `logger@services`, `watcher@services`,
-//! `assistant@services` in the service container. [`remote_agents`] says which agents a
-//! container must route to which other container.
-
+//! # Organization
+//! - [`chair_agents`]: `perception@CHAIR`, `control@CHAIR`, `cognitive@CHAIR`,
+//!   `interface@CHAIR` over one [`SharedBody`] ([`CHAIR_ROLES`]).
+//! - [`service_agents`]: `ams@services`, `df@services`, `door@services` (every door of the map),
+//!   `logger@services`, `watcher@services`, `assistant@services` and the staff console
+//!   `staff@services` ([`SERVICE_ROLES`], [`Console`]).
+//! - [`Building`]: the map as the cognitive agents plan on it; [`plan`]: the map as a grid.
+//! - [`log_tap`]: a host tap copying every message to the logger.
+//! - [`remote_agents`]: which agents a container routes to which other container.
+//! - [`world_link`]: the world container's agent and a chair's body in it, over the platform.
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -14,6 +20,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId};
 use iw_agent::{Agent, Tap};
+use iw_ams_df::{Ams, Df, WhitePages};
 use iw_assistant::{AssistantAgent, AssistantConfig};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::Bus;
@@ -22,17 +29,45 @@ use iw_cognitive::agent::{
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_control_agent::{ControlAgent, ControlConfig, SharedDriveStatus};
-use iw_door::{DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
+use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_logger::SyncPolicy;
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
+use iw_ontology::fipa::{AgentState, AmsAgentDescription};
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig, VisualConfig};
 use iw_sim::Map;
 use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
 use nalgebra::{Isometry2, Point2, Vector2};
 
-use crate::{FleetError, SERVICES, plan};
+mod console;
+pub mod plan;
+pub mod world_link;
+
+pub use console::{Console, Desk, GoalEvent, SharedDesk, desk};
+
+/// The service container's name.
+pub const SERVICES: &str = "services";
+
+/// What went wrong composing a container's agents.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WiringError {
+    /// An agent could not be set up.
+    #[error("container `{container}`: {reason}")]
+    Setup {
+        /// The container.
+        container: String,
+        /// Why.
+        reason: String,
+    },
+    /// The building cannot be planned on, or a place is unknown.
+    #[error("cannot plan: {reason}")]
+    Plan {
+        /// Why.
+        reason: String,
+    },
+}
 
 /// The clearance a doorway must leave the chair's centre, m: the chair's half width less a few
 /// centimetres (the grid rounds it up a cell), so a 1 m doorway stays passable.
@@ -60,6 +95,9 @@ pub const TURN_IN_PLACE_RAD: f64 = 0.3;
 /// The control and sensing period of a chair's agents (a real board advances this per read).
 pub const CONTROL_PERIOD: Duration = Duration::from_millis(50);
 
+/// The longest pause inside one input sequence of the interface agent, ms.
+pub const INPUT_MAX_GAP_MS: u64 = 1500;
+
 /// An agent's name in a container: `ROLE@CONTAINER`.
 pub fn agent_id(role: &str, container: &str) -> AgentId {
     AgentId::new(format!("{role}@{container}"))
@@ -68,13 +106,41 @@ pub fn agent_id(role: &str, container: &str) -> AgentId {
 /// The roles of a chair's container, in the order they are hosted.
 pub const CHAIR_ROLES: [&str; 4] = ["perception", "control", "cognitive", "interface"];
 
-/// The roles of the service container, in the order they are hosted.
-pub const SERVICE_ROLES: [&str; 4] = ["door", "logger", "watcher", "assistant"];
+/// The roles of the service container, in the order they are hosted (the staff console last).
+pub const SERVICE_ROLES: [&str; 7] = [
+    "ams",
+    "df",
+    "door",
+    "logger",
+    "watcher",
+    "assistant",
+    "staff",
+];
 
 /// The name the door agent and the planner give a map door: the map's door ids may equal place
 /// names (`office`), and the planner keeps one namespace.
 pub fn door_name(map_door: &str) -> String {
     format!("{map_door}-door")
+}
+
+/// The door agent's door names ([`door_name`]) to the map's door ids.
+pub fn door_ids(map: &Map) -> BTreeMap<String, String> {
+    map.doors
+        .iter()
+        .map(|d| (door_name(&d.id), d.id.clone()))
+        .collect()
+}
+
+/// The map door id of the door agent's door `door` in `ids` (from [`door_ids`]), or the
+/// actuator fault saying it is not a door of the map.
+pub fn map_door<'a>(
+    ids: &'a BTreeMap<String, String>,
+    door: &str,
+) -> Result<&'a String, ActuatorFault> {
+    ids.get(door).ok_or_else(|| ActuatorFault {
+        door: door.to_string(),
+        reason: "not a door of the map".into(),
+    })
 }
 
 /// Which agents of other containers `container` must route to, as (agent, its container):
@@ -120,8 +186,8 @@ impl Building {
     /// Derives the building from `map`: two places are connected when one can drive between them
     /// with every door closed; a door joins two places of its own in front of it, one on each
     /// side. Places named `landmark...` are landmarks (relocalisation points), not destinations.
-    pub fn from_map(map: Map) -> Result<Self, FleetError> {
-        let plan_err = |reason: String| FleetError::Plan { reason };
+    pub fn from_map(map: Map) -> Result<Self, WiringError> {
+        let plan_err = |reason: String| WiringError::Plan { reason };
         let domain = Domain::parse(BUILDING_DOMAIN)
             .map_err(|e| plan_err(format!("building domain: {e}")))?;
         let grid = plan::raster(&map, |_| false)?;
@@ -222,11 +288,11 @@ impl Building {
         &self,
         chair: &str,
         t_world_body: &Isometry2<f64>,
-    ) -> Result<(BuildingMap, String), FleetError> {
+    ) -> Result<(BuildingMap, String), WiringError> {
         let p = Point2::from(t_world_body.translation.vector);
         let start = format!("{chair}-start");
         if self.plan.places.contains_key(&start) {
-            return Err(FleetError::Plan {
+            return Err(WiringError::Plan {
                 reason: format!("place `{start}` clashes with the start place of chair `{chair}`"),
             });
         }
@@ -263,12 +329,12 @@ impl Building {
     }
 
     /// The place at `target` (within 0.5 m), for goals given as points.
-    pub fn place_at(&self, target: Point2<f64>) -> Result<String, FleetError> {
+    pub fn place_at(&self, target: Point2<f64>) -> Result<String, WiringError> {
         self.destinations()
             .filter(|(_, p)| (**p - target).norm() <= 0.5)
             .min_by(|a, b| (a.1 - target).norm().total_cmp(&(b.1 - target).norm()))
             .map(|(n, _)| n.clone())
-            .ok_or_else(|| FleetError::Plan {
+            .ok_or_else(|| WiringError::Plan {
                 reason: format!(
                     "({:.2}, {:.2}) is not a place of the map (places: {})",
                     target.x,
@@ -286,7 +352,7 @@ impl Building {
 fn carve_lanes(
     grid: &OccupancyGrid,
     lanes: &[(Point2<f64>, Point2<f64>)],
-) -> Result<OccupancyGrid, FleetError> {
+) -> Result<OccupancyGrid, WiringError> {
     let (width, height) = grid.size();
     let mut occupied: Vec<bool> = (0..width * height)
         .map(|i| grid.is_occupied((i % width) as i64, (i / width) as i64))
@@ -304,7 +370,7 @@ fn carve_lanes(
     }
     let origin = grid.centre(0, 0) - Vector2::repeat(plan::RESOLUTION_M / 2.0);
     OccupancyGrid::new(width, height, plan::RESOLUTION_M, origin, occupied).map_err(|e| {
-        FleetError::Plan {
+        WiringError::Plan {
             reason: e.to_string(),
         }
     })
@@ -330,7 +396,7 @@ struct Rooms {
 }
 
 impl Rooms {
-    fn of(map: &Map) -> Result<Rooms, FleetError> {
+    fn of(map: &Map) -> Result<Rooms, WiringError> {
         let grid = plan::raster(map, |_| true)?.inflated(plan::RESOLUTION_M * 1.5);
         let (width, height) = grid.size();
         let mut label = vec![None; width * height];
@@ -427,8 +493,8 @@ pub fn chair_agents(
     body: SharedBody,
     visual: Option<VisualConfig>,
     recognizer: Recognizer<iw_interface::Command>,
-) -> Result<ChairAgents, FleetError> {
-    let setup = |reason: String| FleetError::Setup {
+) -> Result<ChairAgents, WiringError> {
+    let setup = |reason: String| WiringError::Setup {
         container: name.to_string(),
         reason,
     };
@@ -530,16 +596,20 @@ pub struct ServiceAgents {
     pub agents: Vec<(AgentId, Box<dyn Agent>)>,
     /// The door agent's refusals.
     pub refusals: RefusalLog,
+    /// The staff console's desk: goals to send, answers received, chairs' poses.
+    pub desk: SharedDesk,
+    /// The AMS's white pages, listing the service agents (a container adds others it hosts).
+    pub pages: WhitePages,
 }
 
-/// Composes the door, logger, watcher and assistant agents of `building`; `doors` moves the
-/// doors (the simulator's world or door controllers).
+/// Composes the AMS, DF, door, logger, watcher, assistant and staff console agents of
+/// `building`; `doors` moves the doors (the simulator's world or door controllers).
 pub fn service_agents(
     config: &ServiceConfig,
     building: &Building,
     doors: Box<dyn DoorActuator>,
-) -> Result<ServiceAgents, FleetError> {
-    let setup = |reason: String| FleetError::Setup {
+) -> Result<ServiceAgents, WiringError> {
+    let setup = |reason: String| WiringError::Setup {
         container: SERVICES.to_string(),
         reason,
     };
@@ -594,13 +664,36 @@ pub fn service_agents(
             .collect(),
         staff: BTreeSet::new(),
     });
+    let pages = WhitePages::new();
+    let desk = SharedDesk::default();
+    let console = Console::new(desk.clone(), agent_id("assistant", SERVICES));
     let agents: Vec<(AgentId, Box<dyn Agent>)> = vec![
+        (agent_id("ams", SERVICES), Box::new(Ams::new(pages.clone()))),
+        (agent_id("df", SERVICES), Box::new(Df::new())),
         (agent_id("door", SERVICES), Box::new(door)),
         (agent_id("logger", SERVICES), Box::new(logger)),
         (agent_id("watcher", SERVICES), Box::new(watcher)),
         (agent_id("assistant", SERVICES), Box::new(assistant)),
+        (agent_id("staff", SERVICES), Box::new(console)),
     ];
-    Ok(ServiceAgents { agents, refusals })
+    for (aid, _) in &agents {
+        list(&pages, aid);
+    }
+    Ok(ServiceAgents {
+        agents,
+        refusals,
+        desk,
+        pages,
+    })
+}
+
+/// Lists `aid` as an active agent in `pages` (already listed: nothing to do).
+pub fn list(pages: &WhitePages, aid: &AgentId) {
+    let _already_listed = pages.register(AmsAgentDescription {
+        name: Some(aid.clone()),
+        ownership: None,
+        state: Some(AgentState::Active),
+    });
 }
 
 /// A tap for a container's host that sends the logger a copy of every message its agents send
@@ -611,6 +704,7 @@ pub fn log_tap(
     logger: AgentId,
     mut also: impl FnMut(&AclMessage) + Send + 'static,
 ) -> Tap {
+    let mut failing = false;
     Box::new(move |message: &AclMessage, now| {
         if message
             .ontology
@@ -620,17 +714,25 @@ pub fn log_tap(
             return;
         }
         also(message);
-        let copy = copy_for_logger(message, &logger, now.0);
+        let mut copy = copy_for_logger(message, &logger, now.0);
+        // the parser layer checks that `:sender` names the envelope's sender
+        copy.sender = message.sender.clone();
         let sender = message
             .sender
             .as_ref()
             .map_or("unknown", |s| s.name.as_str());
-        if let Err(err) = bus.send(
+        match bus.send(
             sender,
             &logger.name,
             iw_acl::codec::print(&copy).into_bytes(),
         ) {
-            tracing::warn!(error = %err, "copy for the logger not sent");
+            Ok(_) => failing = false,
+            // once per outage (a container starting before the services would warn per message)
+            Err(err) if !failing => {
+                failing = true;
+                tracing::warn!(error = %err, "copies for the logger not sent until it is reachable");
+            }
+            Err(_) => {}
         }
     })
 }

@@ -1,15 +1,17 @@
 //! The staff console of the service container (`staff@services`): what staff type at the desk
 //! becomes a `fipa-request` to the assistant agent (`go-to` a place for a chair), and the
-//! answers relayed back are recorded. It plans nothing: the chair's cognitive agent does.
+//! answers relayed back are recorded. It plans nothing: the chair's cognitive agent does. It also
+//! subscribes to the pose of the chairs the container puts on its watch list (a live deployment
+//! has no simulator to read them from).
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 
 /// An answer the console received about one goal.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -51,12 +53,17 @@ pub struct Desk {
     pub outbox: VecDeque<(String, String, String)>,
     /// Answers, in arrival order.
     pub events: Vec<GoalEvent>,
+    /// Chairs whose pose the console subscribes to (their perception agent must be reachable).
+    pub watch: BTreeSet<String>,
+    /// The last pose each watched chair published: x (m), y (m), heading (rad), map frame.
+    pub poses: BTreeMap<String, [f64; 3]>,
 }
 
 /// The shared desk handle.
 pub type SharedDesk = Arc<Mutex<Desk>>;
 
-pub(crate) fn desk(shared: &SharedDesk) -> std::sync::MutexGuard<'_, Desk> {
+/// Locks the desk (a panicked holder leaves it usable).
+pub fn desk(shared: &SharedDesk) -> std::sync::MutexGuard<'_, Desk> {
     shared.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
@@ -64,12 +71,18 @@ pub(crate) fn desk(shared: &SharedDesk) -> std::sync::MutexGuard<'_, Desk> {
 pub struct Console {
     desk: SharedDesk,
     assistant: AgentId,
+    /// Chairs whose pose subscription was sent.
+    subscribed: BTreeSet<String>,
 }
 
 impl Console {
     /// A console working from `desk`, talking to `assistant`.
     pub fn new(desk: SharedDesk, assistant: AgentId) -> Self {
-        Console { desk, assistant }
+        Console {
+            desk,
+            assistant,
+            subscribed: BTreeSet::new(),
+        }
     }
 
     fn record(
@@ -93,6 +106,14 @@ impl Console {
 
 impl Agent for Console {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        if message.performative == Performative::Inform
+            && let Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) =
+                WheelchairContent::from_message(&message)
+        {
+            let pose = [pose.x_m, pose.y_m, pose.theta_rad];
+            desk(&self.desk).poses.insert(agent.name, pose);
+            return;
+        }
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let from = message
             .sender
@@ -109,7 +130,24 @@ impl Agent for Console {
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let pending: Vec<(String, String, String)> = desk(&self.desk).outbox.drain(..).collect();
+        let (pending, watch): (Vec<(String, String, String)>, BTreeSet<String>) = {
+            let mut desk = desk(&self.desk);
+            (desk.outbox.drain(..).collect(), desk.watch.clone())
+        };
+        // A chair that left is subscribed to again when it is back.
+        self.subscribed.retain(|c| watch.contains(c));
+        for chair in watch.difference(&self.subscribed.clone()) {
+            let subscribe = AclMessage::new(Performative::Subscribe)
+                .with_receiver(AgentId::new(format!("perception@{chair}")))
+                .with_protocol("fipa-subscribe")
+                .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
+                .with_language("fipa-sl0")
+                .with_conversation_id(format!("pose-{chair}-{}", ctx.name()))
+                .with_content("((at-pose ?agent ?pose))");
+            if ctx.send(subscribe).is_ok() {
+                self.subscribed.insert(chair.clone());
+            }
+        }
         for (conversation, chair, place) in pending {
             let request = WheelchairContent::Request {
                 actor: AgentId::new(chair),

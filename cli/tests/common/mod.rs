@@ -1,0 +1,142 @@
+//! What the process tests of `intellwheels spawn` share: free loopback ports and a container
+//! process whose JSON events are followed.
+#![allow(dead_code)] // each test binary uses part of it
+
+use std::io::{BufRead, BufReader};
+use std::net::UdpSocket;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// Upper bound of every wait: generous for a loaded 2-core machine, never the expected time.
+pub const LIMIT: Duration = Duration::from_secs(120);
+
+/// Two consecutive free UDP ports on loopback (bus and control channel).
+pub fn free_port_pair() -> u16 {
+    loop {
+        let a = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let port = a.local_addr().unwrap().port();
+        if port < u16::MAX && UdpSocket::bind(("127.0.0.1", port + 1)).is_ok() {
+            return port;
+        }
+    }
+}
+
+/// A running container and its stdout events.
+pub struct Proc {
+    pub child: Child,
+    pub events: Receiver<Value>,
+    pub seen: Vec<Value>,
+}
+
+impl Proc {
+    pub fn spawn(args: &[&str]) -> Proc {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+            .arg("spawn")
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start intellwheels spawn");
+        let stdout = child.stdout.take().unwrap();
+        let (tx, events) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                let value: Value = serde_json::from_str(&line)
+                    .unwrap_or_else(|e| panic!("not a JSON event: {line}: {e}"));
+                if tx.send(value).is_err() {
+                    return;
+                }
+            }
+        });
+        Proc {
+            child,
+            events,
+            seen: Vec::new(),
+        }
+    }
+
+    /// Waits for an event matching `want` (also among those already seen); panics after LIMIT.
+    pub fn wait_for(&mut self, what: &str, want: impl Fn(&Value) -> bool) -> Value {
+        if let Some(v) = self.seen.iter().find(|v| want(v)) {
+            return v.clone();
+        }
+        self.wait_new(what, want)
+    }
+
+    /// Waits for a new event matching `want`; panics after LIMIT.
+    pub fn wait_new(&mut self, what: &str, want: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + LIMIT;
+        loop {
+            match self
+                .events
+                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+            {
+                Ok(v) => {
+                    self.seen.push(v.clone());
+                    if want(&v) {
+                        return v;
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    panic!("no {what} within {LIMIT:?}; saw {:#?}", self.seen)
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    panic!("stdout closed before {what}; saw {:#?}", self.seen)
+                }
+            }
+        }
+    }
+
+    /// Sends SIGTERM and waits for the exit status.
+    pub fn terminate(&mut self) -> std::process::ExitStatus {
+        let status = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success(), "kill -TERM");
+        self.child.wait().unwrap()
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+pub fn is(event: &Value, kind: &str, field: &str, value: &str) -> bool {
+    event["event"] == kind && event[field] == value
+}
+
+/// Writes a key file with `spawn FLAG PATH`, which must succeed once and then refuse to
+/// overwrite it.
+pub fn write_key_with(flag: &str, path: &Path) -> String {
+    for (attempt, ok) in [(1, true), (2, false)] {
+        let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+            .args(["spawn", flag])
+            .arg(path)
+            .output()
+            .unwrap();
+        assert_eq!(
+            out.status.success(),
+            ok,
+            "{flag} attempt {attempt} (the second must refuse to overwrite): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    path.display().to_string()
+}
+
+pub fn keygen(dir: &Path, name: &str) -> String {
+    write_key_with("--keygen", &dir.join(format!("{name}.pk8")))
+}
+
+/// The deployment's control group key.
+pub fn keygen_control(dir: &Path) -> String {
+    write_key_with("--keygen-control", &dir.join("control.key"))
+}

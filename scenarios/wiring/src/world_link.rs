@@ -1,0 +1,631 @@
+//! The shared world of a deployment as a server (thesis 3.3, 3.5): the world container's
+//! [`WorldAgent`] owns the one simulator; a chair's container reaches it over the platform,
+//! with the same bus, layers and keys as any other traffic, through the endpoint `body@CHAIR`.
+//!
+//! - A virtual chair's [`WorldBody`] sends wheel speeds and reads back the sensor frames the
+//!   world sends every period.
+//! - A mixed chair's [`WorldGhost`] reports the real chair's pose and returns the virtual sonar
+//!   readings there (other chairs, virtual obstacles, doors); a real chair's ghost only reports.
+//! - The door agent moves the world's doors through [`WorldDoors`].
+//!
+//! Faults: a simulated body the world hears no wheel command from for [`WORLD_WATCHDOG`] is
+//! stopped there; a body that hears no frame for [`LINK_TIMEOUT`] fails its reads (the control
+//! agent stops the chair) and asks to attach again every [`ATTACH_EVERY`], where it last was, so
+//! chairs re-attach to a restarted world; encoder ticks continue across the restart.
+//! Body-world traffic is sensor data, not agent conversation: it is not copied to the logger.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Duration;
+
+use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::{Agent, Context};
+use iw_body::{BodyError, SONAR_COUNT, SensorFrame, VirtualSensors, WheelSpeeds};
+use iw_bus::{Bus, Mailbox, Time};
+use iw_door::{ActuatorFault, DoorActuator};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::Pose;
+use iw_ontology::world::{BodyFrame, BodyLink, WorldContent};
+use iw_sim::{ChairId, ChairKind, ChairSpec, SharedWorld};
+use nalgebra::{Isometry2, Matrix3, Vector2};
+
+use crate::{WiringError, agent_id};
+
+/// The world container's name.
+pub const WORLD: &str = "world";
+
+/// A simulated body with no wheel command for this long is stopped by the world.
+pub const WORLD_WATCHDOG: Duration = Duration::from_millis(300);
+
+/// A body with no frame from the world for this long fails its reads.
+pub const LINK_TIMEOUT: Duration = Duration::from_millis(500);
+
+/// How often a body without a world asks to attach (while the world is routed).
+pub const ATTACH_EVERY: Duration = Duration::from_millis(500);
+
+/// The world's period: it steps and sends every body its frame this often.
+pub const WORLD_PERIOD: Duration = Duration::from_millis(50);
+
+/// Longest simulated step after a stall, s (the simulator never leaps).
+const MAX_STEP_S: f64 = 0.2;
+
+/// The world agent's name.
+pub fn world_agent() -> AgentId {
+    agent_id("world", WORLD)
+}
+
+/// The endpoint of chair `chair`'s body on its container's bus.
+pub fn body_endpoint(chair: &str) -> AgentId {
+    agent_id("body", chair)
+}
+
+fn pose_of(t_world_body: &Isometry2<f64>) -> Pose {
+    Pose {
+        x_m: t_world_body.translation.x,
+        y_m: t_world_body.translation.y,
+        theta_rad: t_world_body.rotation.angle(),
+        covariance: Matrix3::zeros(),
+    }
+}
+
+fn link_err(reason: String) -> BodyError {
+    BodyError::Virtual { reason }
+}
+
+/// One chair's end of the world link: its mailbox, the last frame and the attach state.
+pub struct WorldLink {
+    bus: Arc<Bus>,
+    mailbox: Mailbox,
+    chair: String,
+    link: BodyLink,
+    /// Where the body was last (start, then the world's frames or the real chair's reports).
+    t_world_body: Isometry2<f64>,
+    /// The last frame, ticks already continued, and when it arrived.
+    latest: Option<(BodyFrame, Time)>,
+    /// Added to the world's ticks so they continue across a world restart.
+    tick_offset: (i64, i64),
+    last_attach: Option<Time>,
+    /// Whether the last send failed (one warning per outage).
+    failing: bool,
+}
+
+impl WorldLink {
+    /// Opens `body@CHAIR` on `bus` for chair `chair` starting at `t_world_body`.
+    pub fn open(
+        bus: Arc<Bus>,
+        chair: &str,
+        link: BodyLink,
+        t_world_body: Isometry2<f64>,
+    ) -> Result<WorldLink, WiringError> {
+        let mailbox = bus
+            .register(&body_endpoint(chair).name)
+            .map_err(|e| WiringError::Setup {
+                container: chair.into(),
+                reason: format!("world link endpoint: {e}"),
+            })?;
+        Ok(WorldLink {
+            bus,
+            mailbox,
+            chair: chair.into(),
+            link,
+            t_world_body,
+            latest: None,
+            tick_offset: (0, 0),
+            last_attach: None,
+            failing: false,
+        })
+    }
+
+    fn send(&mut self, content: &WorldContent) -> Result<(), String> {
+        let world = world_agent();
+        let message = content.fill(
+            AclMessage::new(Performative::Inform)
+                .with_sender(body_endpoint(&self.chair))
+                .with_receiver(world.clone()),
+        );
+        let sent = self.bus.send(
+            &body_endpoint(&self.chair).name,
+            &world.name,
+            iw_acl::codec::print(&message).into_bytes(),
+        );
+        match sent {
+            Ok(_) => {
+                self.failing = false;
+                Ok(())
+            }
+            Err(e) => {
+                if !self.failing {
+                    tracing::warn!(chair = %self.chair, error = %e, "world unreachable");
+                }
+                self.failing = true;
+                Err(format!("world unreachable: {e}"))
+            }
+        }
+    }
+
+    /// Takes what the world sent; asks to attach when the link is down and it is time.
+    fn poll(&mut self) {
+        let now = self.bus.clock().now();
+        while let Some(envelope) = self.mailbox.try_recv() {
+            let Some(Ok(message)) = envelope.payload_str().map(iw_acl::codec::parse) else {
+                continue;
+            };
+            if envelope.header.sender != world_agent().name {
+                continue;
+            }
+            let Ok(WorldContent::SensorFrame { chair, mut frame }) =
+                WorldContent::from_message(&message)
+            else {
+                continue;
+            };
+            if chair != self.chair {
+                continue;
+            }
+            if !self.fresh(now) {
+                // a new attachment: continue the ticks from where they were
+                if let Some((last, _)) = &self.latest {
+                    self.tick_offset = (
+                        last.left_ticks - frame.left_ticks,
+                        last.right_ticks - frame.right_ticks,
+                    );
+                }
+            }
+            frame.left_ticks += self.tick_offset.0;
+            frame.right_ticks += self.tick_offset.1;
+            if self.link == BodyLink::Simulated {
+                self.t_world_body = frame.pose.t_map_base();
+            }
+            self.latest = Some((frame, now));
+        }
+        let due = self
+            .last_attach
+            .is_none_or(|last| now >= last.plus(ATTACH_EVERY));
+        if !self.fresh(now) && due {
+            let attach = WorldContent::Attach {
+                chair: self.chair.clone(),
+                link: self.link,
+                pose: pose_of(&self.t_world_body),
+            };
+            // not sent (no route to the world yet): try again at the next read
+            if self.send(&attach).is_ok() {
+                self.last_attach = Some(now);
+            }
+        }
+    }
+
+    fn fresh(&self, now: Time) -> bool {
+        self.latest
+            .as_ref()
+            .is_some_and(|(_, at)| now.since(*at) <= LINK_TIMEOUT)
+    }
+
+    /// The last frame as the body's sensor frame, if the link is up.
+    fn frame(&mut self) -> Result<SensorFrame, BodyError> {
+        self.poll();
+        let now = self.bus.clock().now();
+        if !self.fresh(now) {
+            return Err(link_err(format!(
+                "no sensor frame from the world for {} ms: link down, attaching again",
+                LINK_TIMEOUT.as_millis()
+            )));
+        }
+        let (frame, at) = self.latest.as_ref().expect("fresh implies a frame");
+        let mut sonar_m = [None; SONAR_COUNT];
+        for (out, r) in sonar_m.iter_mut().zip(&frame.sonar_m) {
+            *out = *r;
+        }
+        Ok(SensorFrame {
+            // local time of arrival: the world's clock restarts with the world
+            time_ns: at.0,
+            left_ticks: frame.left_ticks,
+            right_ticks: frame.right_ticks,
+            sonar_m,
+            laser_m: Vec::new(),
+        })
+    }
+}
+
+/// A virtual chair's body in the world container.
+pub struct WorldBody(WorldLink);
+
+impl WorldBody {
+    /// The body of virtual chair `chair` on `bus`, starting at `t_world_body`.
+    pub fn open(
+        bus: Arc<Bus>,
+        chair: &str,
+        t_world_body: Isometry2<f64>,
+    ) -> Result<WorldBody, WiringError> {
+        WorldLink::open(bus, chair, BodyLink::Simulated, t_world_body).map(WorldBody)
+    }
+}
+
+impl iw_body::Body for WorldBody {
+    fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        self.0.frame()
+    }
+
+    fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
+        let content = WorldContent::WheelSpeeds {
+            chair: self.0.chair.clone(),
+            left_mps: speeds.left_mps,
+            right_mps: speeds.right_mps,
+        };
+        self.0.send(&content).map_err(link_err)
+    }
+}
+
+/// A real chair's ghost in the world: reports the chair's pose; `senses` (mixed reality) also
+/// returns the virtual readings there, and fails while the world is unreachable.
+pub struct WorldGhost {
+    link: WorldLink,
+    senses: bool,
+}
+
+impl WorldGhost {
+    /// The ghost of real chair `chair` on `bus`; `senses`: a mixed chair.
+    pub fn open(
+        bus: Arc<Bus>,
+        chair: &str,
+        t_world_body: Isometry2<f64>,
+        senses: bool,
+    ) -> Result<WorldGhost, WiringError> {
+        let link = WorldLink::open(bus, chair, BodyLink::Tracked, t_world_body)?;
+        Ok(WorldGhost { link, senses })
+    }
+}
+
+impl VirtualSensors for WorldGhost {
+    fn sense_at(
+        &mut self,
+        t_world_body: Isometry2<f64>,
+        time_ns: u64,
+    ) -> Result<SensorFrame, BodyError> {
+        self.link.t_world_body = t_world_body;
+        let report = WorldContent::BodyPose {
+            chair: self.link.chair.clone(),
+            pose: pose_of(&t_world_body),
+        };
+        let sent = self.link.send(&report);
+        if !self.senses {
+            // a real chair drives on its own sensors, world or not
+            self.link.poll();
+            return Ok(SensorFrame::empty(time_ns));
+        }
+        sent.map_err(link_err)?;
+        self.link.frame()
+    }
+}
+
+/// The door agent's actuator when the doors are the world's: each move is sent to the world
+/// (a world that is unreachable faults the move).
+pub struct WorldDoors {
+    bus: Arc<Bus>,
+    /// The door agent's name (the sender).
+    door_agent: AgentId,
+    /// The door agent's door names to map door ids.
+    ids: BTreeMap<String, String>,
+}
+
+impl WorldDoors {
+    /// Moves the doors of `ids` (door agent name to map door id) for `door_agent` over `bus`.
+    pub fn new(bus: Arc<Bus>, door_agent: AgentId, ids: BTreeMap<String, String>) -> Self {
+        WorldDoors {
+            bus,
+            door_agent,
+            ids,
+        }
+    }
+}
+
+impl DoorActuator for WorldDoors {
+    fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
+        let id = crate::map_door(&self.ids, door)?;
+        let world = world_agent();
+        let message = WorldContent::Door {
+            door: id.clone(),
+            open,
+        }
+        .fill(
+            AclMessage::new(Performative::Request)
+                .with_sender(self.door_agent.clone())
+                .with_receiver(world.clone()),
+        );
+        self.bus
+            .send(
+                &self.door_agent.name,
+                &world.name,
+                iw_acl::codec::print(&message).into_bytes(),
+            )
+            .map(drop)
+            .map_err(|e| ActuatorFault {
+                door: door.to_string(),
+                reason: format!("world unreachable: {e}"),
+            })
+    }
+}
+
+/// The bodies in the world by chair name, shared with whoever reports on the world.
+pub type BodyRoster = Arc<std::sync::Mutex<BTreeMap<String, ChairId>>>;
+
+/// One body in the world.
+struct Attached {
+    id: ChairId,
+    link: BodyLink,
+    /// When its chair last sent anything (attach, wheel speeds, pose).
+    last_heard: Time,
+}
+
+/// The world container's agent: the simulator, stepped in real time, its bodies driven and
+/// placed by their chairs' links, its doors moved by the door agent.
+pub struct WorldAgent {
+    world: SharedWorld,
+    bodies: BTreeMap<String, Attached>,
+    roster: BodyRoster,
+    last_step: Option<Time>,
+    door_agent: AgentId,
+}
+
+impl WorldAgent {
+    /// Serves `world`; doors move only at the request of `door_agent`.
+    pub fn new(world: SharedWorld, door_agent: AgentId) -> Self {
+        WorldAgent {
+            world,
+            bodies: BTreeMap::new(),
+            roster: BodyRoster::default(),
+            last_step: None,
+            door_agent,
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, iw_sim::World> {
+        self.world
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    fn on_body(&mut self, now: Time, content: WorldContent) -> Result<(), String> {
+        match content {
+            WorldContent::Attach { chair, link, pose } => {
+                if let Some(body) = self.bodies.get_mut(&chair) {
+                    if body.link != link {
+                        return Err(format!("chair `{chair}` is attached with another link"));
+                    }
+                    body.last_heard = now;
+                    return Ok(());
+                }
+                let kind = match link {
+                    BodyLink::Simulated => ChairKind::Simulated,
+                    BodyLink::Tracked => ChairKind::Tracked,
+                };
+                let t_world_body = Isometry2::new(Vector2::new(pose.x_m, pose.y_m), pose.theta_rad);
+                let id = self
+                    .lock()
+                    .add_chair(ChairSpec::default(), t_world_body, kind);
+                tracing::info!(%chair, ?link, x = pose.x_m, y = pose.y_m, "body attached");
+                self.roster
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .insert(chair.clone(), id);
+                self.bodies.insert(
+                    chair,
+                    Attached {
+                        id,
+                        link,
+                        last_heard: now,
+                    },
+                );
+                Ok(())
+            }
+            WorldContent::WheelSpeeds {
+                chair,
+                left_mps,
+                right_mps,
+            } => {
+                let body = self.bodies.get_mut(&chair).ok_or("not attached")?;
+                if body.link != BodyLink::Simulated {
+                    return Err("a tracked body is placed, not driven".into());
+                }
+                body.last_heard = now;
+                let id = body.id;
+                self.lock()
+                    .command(
+                        id,
+                        WheelSpeeds {
+                            left_mps,
+                            right_mps,
+                        },
+                    )
+                    .map_err(|e| e.to_string())
+            }
+            WorldContent::BodyPose { chair, pose } => {
+                let body = self.bodies.get_mut(&chair).ok_or("not attached")?;
+                if body.link != BodyLink::Tracked {
+                    return Err("a simulated body is driven, not placed".into());
+                }
+                body.last_heard = now;
+                let id = body.id;
+                self.lock()
+                    .place(id, pose.t_map_base())
+                    .map_err(|e| e.to_string())
+            }
+            _ => Err("not something a body sends".into()),
+        }
+    }
+
+    /// Stops simulated bodies whose chairs went quiet, steps the world by the real time since
+    /// the last step, and sends every body its frame.
+    fn step(&mut self, ctx: &mut Context<'_>) {
+        let now = ctx.now();
+        let dt_s = self
+            .last_step
+            .map_or(0.0, |last| now.since(last).as_secs_f64().min(MAX_STEP_S));
+        self.last_step = Some(now);
+        let frames: Vec<(String, BodyFrame)> = {
+            let mut world = self.lock();
+            for body in self.bodies.values() {
+                if body.link == BodyLink::Simulated && now.since(body.last_heard) > WORLD_WATCHDOG {
+                    let _ = world.command(body.id, WheelSpeeds::STOP);
+                }
+            }
+            if dt_s > 0.0 {
+                iw_sim::step(&mut world, dt_s);
+            }
+            self.bodies
+                .iter()
+                // a chair gone quiet (its process killed) gets no frames until it attaches again
+                .filter(|(_, body)| now.since(body.last_heard) <= LINK_TIMEOUT)
+                .filter_map(|(chair, body)| {
+                    let sensed = world.sensors(body.id).ok()?;
+                    let pose = world.pose(body.id).ok()?;
+                    Some((
+                        chair.clone(),
+                        BodyFrame {
+                            time_ns: sensed.time_ns,
+                            left_ticks: sensed.left_ticks,
+                            right_ticks: sensed.right_ticks,
+                            sonar_m: sensed.sonar_m.to_vec(),
+                            pose: pose_of(&pose),
+                        },
+                    ))
+                })
+                .collect()
+        };
+        for (chair, frame) in frames {
+            let to = body_endpoint(&chair);
+            let message = WorldContent::SensorFrame { chair, frame }
+                .fill(AclMessage::new(Performative::Inform).with_receiver(to));
+            // a chair that is gone stays in the world where it stopped
+            let _ = ctx.send(message);
+        }
+    }
+
+    /// The world and its bodies by chair, for reports.
+    pub fn reports(&self) -> (SharedWorld, BodyRoster) {
+        (self.world.clone(), self.roster.clone())
+    }
+}
+
+impl Agent for WorldAgent {
+    fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        let sender = message
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
+        let content = match WorldContent::from_message(&message) {
+            Ok(content) => content,
+            Err(e) => {
+                let _ = ctx.not_understood(&message, &e.to_string());
+                return;
+            }
+        };
+        if let WorldContent::Door { door, open } = &content {
+            let answer = if sender != self.door_agent.name {
+                Err(format!("only {} moves doors", self.door_agent.name))
+            } else {
+                self.lock().set_door(door, *open).map_err(|e| e.to_string())
+            };
+            if let Err(reason) = answer {
+                tracing::warn!(%door, %reason, "door not moved");
+            }
+            return;
+        }
+        let chair = match &content {
+            WorldContent::Attach { chair, .. }
+            | WorldContent::WheelSpeeds { chair, .. }
+            | WorldContent::BodyPose { chair, .. }
+            | WorldContent::SensorFrame { chair, .. } => chair.clone(),
+            _ => return,
+        };
+        // a chair drives and places only its own body
+        if sender != body_endpoint(&chair).name {
+            tracing::warn!(%sender, %chair, "refused: not that chair's body");
+            return;
+        }
+        let now = ctx.now();
+        if let Err(reason) = self.on_body(now, content) {
+            tracing::debug!(%chair, %reason, "body message refused");
+        }
+    }
+
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        self.step(ctx);
+    }
+
+    fn tick_period(&self) -> Option<Duration> {
+        Some(WORLD_PERIOD)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use iw_agent::AgentHost;
+    use iw_body::Body;
+    use iw_bus::InProcNetwork;
+    use iw_bus::transport::PeerAddr;
+    use iw_bus::{BusConfig, Clock, Stack};
+
+    /// A virtual chair drives its body in a world on another bus, over real frames: it attaches,
+    /// moves, and stops when its commands stop coming.
+    #[test]
+    fn a_body_drives_in_a_world_on_another_bus() {
+        let network = InProcNetwork::new();
+        let clock = Clock::system();
+        let bus = |name: &str| {
+            let transport = network.endpoint(name).unwrap();
+            Arc::new(
+                Bus::start(
+                    Stack::new(),
+                    Arc::new(transport),
+                    clock.clone(),
+                    BusConfig::default(),
+                )
+                .unwrap(),
+            )
+        };
+        let (world_bus, chair_bus) = (bus(WORLD), bus("c1"));
+        world_bus.add_route(&body_endpoint("c1").name, PeerAddr("c1".into()));
+        chair_bus.add_route(&world_agent().name, PeerAddr(WORLD.into()));
+        let map = iw_sim::Map::parse(
+            include_str!("../../maps/sample-building.map"),
+            "sample-building.map",
+        )
+        .unwrap();
+        let world = iw_sim::shared(iw_sim::World::new(map, 1));
+        let mut host = AgentHost::new(world_bus);
+        let agent = WorldAgent::new(world.clone(), agent_id("door", "services"));
+        let (_, roster) = agent.reports();
+        host.add(world_agent(), Box::new(agent)).unwrap();
+        let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
+        let mut body = WorldBody::open(chair_bus, "c1", start).unwrap();
+        let deadline = std::time::Instant::now() + Duration::from_secs(20);
+        let mut read = None;
+        while read.is_none() {
+            assert!(std::time::Instant::now() < deadline, "never attached");
+            host.step(clock.now());
+            read = body.read().ok();
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let id = roster.lock().unwrap()["c1"];
+        for _ in 0..100 {
+            body.command(WheelSpeeds {
+                left_mps: 0.3,
+                right_mps: 0.3,
+            })
+            .unwrap();
+            host.step(clock.now());
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let moved = world.lock().unwrap().pose(id).unwrap();
+        assert!(moved.translation.x > 7.6, "{moved}");
+        assert!(body.read().unwrap().left_ticks > 0);
+        // no more commands: the world's watchdog stops the body
+        for _ in 0..60 {
+            host.step(clock.now());
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let twist = world.lock().unwrap().twist(id).unwrap();
+        assert!(twist.0.abs() < 0.05, "{twist:?}");
+    }
+}
