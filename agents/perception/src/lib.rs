@@ -52,8 +52,8 @@ use iw_vo::{
 use nalgebra::{Isometry3, Matrix3};
 
 /// Position variance (m², in x and in y) published while the localizer searches for the pose:
-/// far above any tracked estimate's, so subscribers can tell the chair does not know where it is.
-pub const LOST_VARIANCE_M2: f64 = 100.0;
+/// the ontology's mark of a chair that does not know where it is.
+pub use iw_ontology::wheelchair::NOT_LOCALIZED_VARIANCE_M2 as LOST_VARIANCE_M2;
 
 /// A configuration that cannot work.
 #[derive(Debug, thiserror::Error)]

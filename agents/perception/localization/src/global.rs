@@ -79,6 +79,44 @@ fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
+/// Scores every free pose of the search grid (tempered log-likelihood of `sample`).
+fn score_grid(map: &LocalizationMap, sample: &[ScanPoint], config: &GlobalConfig) -> Vec<Particle> {
+    let (lo, hi) = map.bounds();
+    let step = config.grid_step_m.max(0.02);
+    let headings = config.headings.max(1);
+    let mut positions = Vec::new();
+    let mut y = lo.y + step / 2.0;
+    while y < hi.y {
+        let mut x = lo.x + step / 2.0;
+        while x < hi.x {
+            if map.field_distance(x, y) >= config.clearance_m {
+                positions.push(Point2::new(x, y));
+            }
+            x += step;
+        }
+        y += step;
+    }
+    let mut scored: Vec<Particle> = Vec::with_capacity(positions.len() * headings);
+    for h in 0..headings {
+        let theta = wrap_angle(std::f64::consts::TAU * h as f64 / headings as f64);
+        let rotated: Vec<Point2<f64>> = sample
+            .iter()
+            .map(|p| to_map(&Pose2::new(0.0, 0.0, theta), &p.p_base))
+            .collect();
+        for c in &positions {
+            let log_w = rotated
+                .iter()
+                .map(|q| GlobalLocalizer::log_likelihood(map, c.x + q.x, c.y + q.y, config))
+                .sum::<f64>();
+            scored.push(Particle {
+                pose: Pose2::new(c.x, c.y, theta),
+                log_w,
+            });
+        }
+    }
+    scored
+}
+
 impl GlobalLocalizer {
     /// Starts a search with the first scan: scores every free pose on the grid and keeps the
     /// best [`GlobalConfig::particles`]. `alpha` is the odometry motion model.
@@ -91,39 +129,9 @@ impl GlobalLocalizer {
     ) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let sample = subsample(points, config.points);
-        let (lo, hi) = map.bounds();
         let step = config.grid_step_m.max(0.02);
         let headings = config.headings.max(1);
-        let mut positions = Vec::new();
-        let mut y = lo.y + step / 2.0;
-        while y < hi.y {
-            let mut x = lo.x + step / 2.0;
-            while x < hi.x {
-                if map.field_distance(x, y) >= config.clearance_m {
-                    positions.push(Point2::new(x, y));
-                }
-                x += step;
-            }
-            y += step;
-        }
-        let mut scored: Vec<Particle> = Vec::with_capacity(positions.len() * headings);
-        for h in 0..headings {
-            let theta = wrap_angle(std::f64::consts::TAU * h as f64 / headings as f64);
-            let rotated: Vec<Point2<f64>> = sample
-                .iter()
-                .map(|p| to_map(&Pose2::new(0.0, 0.0, theta), &p.p_base))
-                .collect();
-            for c in &positions {
-                let log_w = rotated
-                    .iter()
-                    .map(|q| Self::log_likelihood(map, c.x + q.x, c.y + q.y, &config))
-                    .sum::<f64>();
-                scored.push(Particle {
-                    pose: Pose2::new(c.x, c.y, theta),
-                    log_w,
-                });
-            }
-        }
+        let mut scored = score_grid(map, &sample, &config);
         let keep = config.particles.max(1).min(scored.len());
         if keep < scored.len() {
             scored.select_nth_unstable_by(keep, |a, b| b.log_w.total_cmp(&a.log_w));
@@ -151,6 +159,37 @@ impl GlobalLocalizer {
         };
         filter.weigh(map, &sample);
         filter
+    }
+
+    /// The `k` best grid poses for `points` that lie at least `away_m` from `pose` and from each
+    /// other: where else the chair could be, by this scan alone.
+    pub fn alternatives(
+        map: &LocalizationMap,
+        points: &[ScanPoint],
+        config: &GlobalConfig,
+        pose: &Pose2,
+        away_m: f64,
+        k: usize,
+    ) -> Vec<Pose2> {
+        let sample = subsample(points, config.points);
+        // twice the headings of the search: a twin 5 degrees off its grid heading still scores
+        let fine = GlobalConfig {
+            headings: config.headings * 2,
+            ..*config
+        };
+        let mut scored = score_grid(map, &sample, &fine);
+        scored.sort_unstable_by(|a, b| b.log_w.total_cmp(&a.log_w));
+        let far = |a: &Pose2, b: &Pose2| (a.x - b.x).hypot(a.y - b.y) >= away_m;
+        let mut chosen: Vec<Pose2> = Vec::with_capacity(k);
+        for p in scored {
+            if chosen.len() >= k {
+                break;
+            }
+            if far(&p.pose, pose) && chosen.iter().all(|c| far(&p.pose, c)) {
+                chosen.push(p.pose);
+            }
+        }
+        chosen
     }
 
     fn log_likelihood(map: &LocalizationMap, x: f64, y: f64, config: &GlobalConfig) -> f64 {

@@ -23,6 +23,9 @@ pub struct Confidence {
     pub min_updates: usize,
     /// The refined match's inlier fraction at least.
     pub min_inliers: f64,
+    /// A pose at least 1 m away whose match has an inlier fraction within this margin of the
+    /// found one's makes the scan ambiguous.
+    pub twin_margin: f64,
 }
 
 /// How the localizer fuses and when it gives up.
@@ -71,8 +74,9 @@ impl LocalizerConfig {
             confidence: Confidence {
                 std_m: 0.05,
                 std_rad: 2f64.to_radians(),
-                min_updates: 10,
+                min_updates: 20,
                 min_inliers: 0.8,
+                twin_margin: 0.1,
             },
             gate_chi2: 16.27,
             min_inliers: 0.5,
