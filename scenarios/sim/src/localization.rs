@@ -17,7 +17,10 @@ fn pose2(t: &Isometry2<f64>) -> Pose2 {
     Pose2::new(t.translation.x, t.translation.y, t.rotation.angle())
 }
 
-/// The map's walls and furniture (doors left out: they open and close) and its landmarks.
+/// The map's walls, furniture and the doors it draws closed, and its landmarks. A door that is
+/// opened later reads as unmapped space and one closed later as an unmapped obstacle: the
+/// matcher's kernel discounts both, and without the closed doors a corridor of doorways looks
+/// the same every few metres.
 pub fn localization_map(map: &Map) -> Result<LocalizationMap, LocalizationError> {
     let landmarks = map
         .landmarks
@@ -27,7 +30,9 @@ pub fn localization_map(map: &Map) -> Result<LocalizationMap, LocalizationError>
             pose: Pose2::new(m.position.x, m.position.y, m.facing_rad),
         })
         .collect();
-    LocalizationMap::new(map.solid_segments(), landmarks, REACH_M)
+    let mut segments = map.solid_segments();
+    segments.extend(map.doors.iter().filter(|d| !d.open).map(|d| (d.a, d.b)));
+    LocalizationMap::new(segments, landmarks, REACH_M)
 }
 
 /// The drive parameters of `spec` with the default motion model.

@@ -695,6 +695,38 @@ mod tests {
     }
 
     #[test]
+    fn landmarks_parse_with_defaults_and_ids_are_checked() {
+        let map = Map::parse(
+            "wall 0 0 5 0\nlandmark 7 2 0.01 90\nlandmark 8 4 0.01 90 size=0.5 height=1.2\n",
+            "m",
+        )
+        .unwrap();
+        assert_eq!(map.landmarks.len(), 2);
+        assert_eq!(map.landmarks[0].id, 7);
+        assert!((map.landmarks[0].facing_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert_eq!(map.landmarks[0].size_m, DEFAULT_MARKER_SIZE_M);
+        assert_eq!(map.landmarks[1].height_m, 1.2);
+        for (text, why) in [
+            ("wall 0 0 5 0\nlandmark 256 1 1 0\n", "0..=255"),
+            ("wall 0 0 5 0\nlandmark -1 1 1 0\n", "whole number"),
+            ("wall 0 0 5 0\nlandmark 1 1 1\n", "expected `landmark"),
+            (
+                "wall 0 0 5 0\nlandmark 1 1 1 0 colour=red\n",
+                "unknown option",
+            ),
+            (
+                "wall 0 0 5 0\nlandmark 1 1 1 0\nlandmark 1 2 2 0\n",
+                "defined twice",
+            ),
+        ] {
+            let err = Map::parse(text, "m").unwrap_err().to_string();
+            assert!(err.contains(why), "{text:?}: {err}");
+        }
+        let segments = map.solid_segments();
+        assert_eq!(segments.len(), 1);
+    }
+
+    #[test]
     fn errors_point_at_file_line_and_reason() {
         let text = "wall 0 0 1 0\n\nbox 1 2 3\n";
         let e = Map::parse(text, "bad.map").unwrap_err().to_string();

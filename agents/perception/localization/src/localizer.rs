@@ -400,6 +400,23 @@ impl Localizer {
         {
             return ScanOutcome::Searched;
         }
+        // A twin place explains the scan as well: the particles may have settled in the wrong
+        // one. Search afresh from here, so that both stay candidates until a scan tells them
+        // apart.
+        let twin =
+            GlobalLocalizer::alternatives(&self.map, points, &self.config.global, &m.pose, 1.0, 8)
+                .into_iter()
+                .filter_map(|alt| match_scan(&self.map, points, &alt, &self.config.matcher))
+                .any(|alt| {
+                    // refining may slide back to the found pose: that is no twin
+                    (alt.pose.x - m.pose.x).hypot(alt.pose.y - m.pose.y) >= 0.5
+                        && alt.inlier_fraction >= m.inlier_fraction - confidence.twin_margin
+                });
+        if twin {
+            tracing::debug!("the scan fits elsewhere on the map as well: searching on");
+            self.start_search(points);
+            return ScanOutcome::Searched;
+        }
         tracing::info!(
             x = m.pose.x,
             y = m.pose.y,
