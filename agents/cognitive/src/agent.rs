@@ -187,6 +187,8 @@ pub struct CognitiveAgent {
     t_map_base: Option<Point2<f64>>,
     uncertainty_m2: f64,
     uncertainty_at_landmark_m2: f64,
+    /// Whether the last pose said the chair knows where it is (true until a pose says not).
+    localized: bool,
     open_doors: BTreeSet<String>,
     locked_doors: BTreeSet<String>,
     blocked: BTreeSet<(String, String)>,
@@ -241,6 +243,7 @@ impl CognitiveAgent {
             config,
             t_map_base: None,
             uncertainty_m2: 0.0,
+            localized: true,
             uncertainty_at_landmark_m2: 0.0,
             open_doors: BTreeSet::new(),
             locked_doors: BTreeSet::new(),
@@ -628,6 +631,15 @@ impl CognitiveAgent {
         actor: AgentId,
         place: String,
     ) {
+        if !self.localized {
+            let reply = message
+                .create_reply()
+                .with_performative(Performative::Refuse);
+            let _ = ctx.send(reply.with_content(error_content(
+                "not localized: the chair does not know where it is on the map yet; drive it by hand under shared control until it finds itself",
+            )));
+            return;
+        }
         if !self.config.map.places.contains_key(&place) {
             let _ = ctx.refuse(&message, &format!("unknown place `{place}`"));
             return;
@@ -814,6 +826,14 @@ impl Agent for CognitiveAgent {
             },
             Performative::Inform => match WheelchairContent::from_message(&message) {
                 Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
+                    let was_localized = std::mem::replace(&mut self.localized, pose.localized());
+                    if !self.localized {
+                        if was_localized {
+                            tracing::warn!(chair = %self.config.chair, "the chair lost its pose: goals are refused until it finds itself");
+                            self.finish(ctx, Err("the chair lost its pose on the map".into()));
+                        }
+                        return;
+                    }
                     let trace = pose.covariance[(0, 0)] + pose.covariance[(1, 1)];
                     self.on_pose(ctx, pose.x_m, pose.y_m, trace)
                 }

@@ -13,8 +13,15 @@
 //! Estimation: each tick the encoder ticks give a wheel odometry step (probabilistic motion
 //! model) that predicts an EKF ([`OdometryFusion`]); with a camera, each tick also takes one
 //! frame through [`VisualOdometry`] and its planar motion since the previous frame updates the
-//! EKF. Without a camera the covariance only grows, which is what the cognitive agent watches
+//! EKF. Without a map the covariance only grows, which is what the cognitive agent watches
 //! to route the chair past a landmark (thesis 3.8).
+//!
+//! With a map ([`PerceptionAgent::with_localizer`]) the estimate is an
+//! [`iw_localization::Localizer`]'s instead: the same odometry and visual updates, plus the
+//! laser and sonars matched to the map every tick, so the error stays bounded. A localizer
+//! started without a pose searches while the chair is driven by hand; until it has found the
+//! pose the published covariance is at least [`LOST_VARIANCE_M2`] in x and y, which the
+//! cognitive agent reads as "not localized" and refuses goals.
 //!
 //! # Messages
 //! - SUBSCRIBE (`fipa-subscribe`, ontology `IntellWheels-Wheelchair`), content
@@ -35,6 +42,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_body::Body;
+use iw_localization::{Localizer, Status};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, SensorReading, WheelchairContent};
 use iw_vo::{
@@ -42,6 +50,10 @@ use iw_vo::{
     planar_motion,
 };
 use nalgebra::{Isometry3, Matrix3};
+
+/// Position variance (m², in x and in y) published while the localizer searches for the pose:
+/// the ontology's mark of a chair that does not know where it is.
+pub use iw_ontology::wheelchair::NOT_LOCALIZED_VARIANCE_M2 as LOST_VARIANCE_M2;
 
 /// A configuration that cannot work.
 #[derive(Debug, thiserror::Error)]
@@ -126,6 +138,7 @@ pub struct PerceptionAgent {
     subscribers: Vec<Subscription>,
     ticks: u64,
     last_sonar_m: Vec<f64>,
+    localizer: Option<Localizer>,
 }
 
 impl PerceptionAgent {
@@ -161,13 +174,36 @@ impl PerceptionAgent {
             subscribers: Vec::new(),
             ticks: 0,
             last_sonar_m: Vec::new(),
+            localizer: None,
         })
+    }
+
+    /// Estimates with `localizer` (which holds the map and the chair's range sensors) instead
+    /// of odometry alone; its start pose, or its search when it has none, replaces
+    /// [`PerceptionConfig::start`].
+    pub fn with_localizer(mut self, localizer: Localizer) -> Self {
+        self.localizer = Some(localizer);
+        self
+    }
+
+    /// Whether the chair knows where it is: always with odometry alone (it trusts its start),
+    /// with a localizer only while it tracks.
+    pub fn localized(&self) -> bool {
+        self.localizer
+            .as_ref()
+            .is_none_or(|l| l.status() == Status::Tracking)
     }
 
     /// The current estimate as the ontology's pose.
     pub fn pose(&self) -> Pose {
-        let p = self.fusion.pose();
-        let c = self.fusion.covariance();
+        let (p, mut c) = match &self.localizer {
+            Some(l) => (l.pose(), l.covariance()),
+            None => (self.fusion.pose(), self.fusion.covariance()),
+        };
+        if !self.localized() {
+            c[(0, 0)] = c[(0, 0)].max(LOST_VARIANCE_M2);
+            c[(1, 1)] = c[(1, 1)].max(LOST_VARIANCE_M2);
+        }
         Pose {
             x_m: p.x,
             y_m: p.y,
@@ -181,6 +217,16 @@ impl PerceptionAgent {
             Ok(frame) => {
                 if let Some(step) = self.wheels.update(frame.left_ticks, frame.right_ticks) {
                     self.fusion.predict(&step);
+                    if let Some(l) = self.localizer.as_mut() {
+                        l.predict(&step);
+                    }
+                }
+                if let Some(l) = self.localizer.as_mut() {
+                    let before = l.status();
+                    l.update_ranges(&frame.laser_m, &frame.sonar_m);
+                    if l.status() != before {
+                        tracing::info!(chair = %self.config.chair.name, status = ?l.status(), "localization status changed");
+                    }
                 }
                 self.last_sonar_m = frame
                     .sonar_m
@@ -203,6 +249,9 @@ impl PerceptionAgent {
                         let motion = planar_motion(&visual.t_base_camera, &t_previous_current);
                         if !self.fusion.update_visual(&motion, &visual.motion_noise) {
                             tracing::debug!(chair = %self.config.chair.name, "visual motion outside the gate: not fused");
+                        }
+                        if let Some(l) = self.localizer.as_mut() {
+                            l.update_visual(&motion, &visual.motion_noise);
                         }
                     }
                     visual.last_t_world_camera = Some(stamped.t_world_camera);

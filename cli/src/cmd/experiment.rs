@@ -25,6 +25,40 @@ pub enum Command {
     /// odometry, RGB-D visual odometry on the rendered frames and their EKF against the
     /// simulator's exact pose. Prints the position RMSEs; `--plot` draws the four paths.
     Odometry(OdometryArgs),
+    /// Thesis 3.8 and 6.4: chairs drive a map's closed route with encoder bias, slip and sensor
+    /// noise; wheel odometry, visual odometry, their EKF and the map-based localizer against the
+    /// exact pose, and global localization from unknown starts. Writes OUT/summary.json,
+    /// OUT/paths.png and OUT/error.png.
+    Localization(LocalizationArgs),
+}
+
+/// Flags of `experiment localization`.
+#[derive(clap::Args)]
+pub struct LocalizationArgs {
+    /// Output directory (summary.json, paths.png, error.png).
+    #[arg(long)]
+    out: PathBuf,
+    /// Map file with a closed route (docs/map-format.md); default: the sample building.
+    #[arg(long)]
+    map: Option<PathBuf>,
+    /// Simulated minutes per tracking drive.
+    #[arg(long, default_value_t = 30.0)]
+    minutes: f64,
+    /// Tracking drives (one seed each).
+    #[arg(long, default_value_t = 1)]
+    seeds: usize,
+    /// Global localization runs (unknown start).
+    #[arg(long, default_value_t = 50)]
+    global_runs: usize,
+    /// Visual odometry on every this many 50 ms periods (0: none).
+    #[arg(long, default_value_t = 2)]
+    vo_every: usize,
+    /// First seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// No chairs on the map's `mover...` routes (moving obstacles that are not on the map).
+    #[arg(long)]
+    no_movers: bool,
 }
 
 /// Flags of `experiment odometry`.
@@ -109,7 +143,73 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
         Command::SharedControl(args) => shared_control(args),
         Command::Odometry(args) => odometry(args),
+        Command::Localization(args) => localization(args),
     }
+}
+
+fn localization(args: LocalizationArgs) -> anyhow::Result<ExitCode> {
+    use iw_localization_experiment as exp;
+    anyhow::ensure!(
+        args.minutes.is_finite() && args.minutes > 0.0 && args.minutes <= 24.0 * 60.0,
+        "--minutes must lie in (0, 1440], got {}",
+        args.minutes
+    );
+    anyhow::ensure!(
+        args.seeds > 0 || args.global_runs > 0,
+        "--seeds and --global-runs are both 0: nothing to run"
+    );
+    let map = match &args.map {
+        Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
+        None => exp::sample_building()?,
+    };
+    exp::tour(&map)?;
+    let config = exp::Config {
+        minutes: args.minutes,
+        seeds: args.seeds,
+        global_runs: args.global_runs,
+        vo_every: args.vo_every,
+        seed: args.seed,
+        movers: !args.no_movers,
+        ..exp::Config::default()
+    };
+    let total = (args.minutes.ceil() as u64) * args.seeds as u64 + args.global_runs as u64;
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} (simulated minutes + global runs) ({elapsed}, eta {eta})",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let report = exp::run(&map, &config, &|_| bar.inc(1))?;
+    bar.finish_and_clear();
+    let s = exp::write_outputs(&report, &map, &args.out)?;
+    let row = |name: &str, e: Option<&exp::ErrorStats>| match e {
+        Some(e) => println!(
+            "{name:<10} RMSE {:>7.1} cm  max {:>7.1} cm",
+            e.rmse_m * 100.0,
+            e.max_m * 100.0
+        ),
+        None => println!("{name:<10} (not run)"),
+    };
+    row("wheel", Some(&s.wheel));
+    row("vo", s.vo.as_ref());
+    row("fused", Some(&s.fused));
+    row("localized", Some(&s.localized));
+    println!(
+        "NEES: pass rate {:.3} (0.95 if consistent), mean {:.2} (3), above {:.3}; localizer {:.0} us median, {:.0} us p99 per period",
+        s.nees_pass_rate, s.nees_mean, s.nees_above_rate, s.localizer_us.0, s.localizer_us.1
+    );
+    println!(
+        "global: {}/{} converged, median {} m, {} falsely confident",
+        s.global.converged,
+        s.global.runs,
+        s.global
+            .median_distance_m
+            .map_or("-".into(), |d| format!("{d:.2}")),
+        s.global.falsely_confident
+    );
+    println!("wrote {}", args.out.join("summary.json").display());
+    Ok(ExitCode::SUCCESS)
 }
 
 fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {

@@ -37,7 +37,17 @@ pub struct Pose {
     pub covariance: Matrix3<f64>,
 }
 
+/// A pose whose x or y variance is at least this says the chair does not know where it is on
+/// the map (it is searching for its pose): agents must not plan from it.
+pub const NOT_LOCALIZED_VARIANCE_M2: f64 = 100.0;
+
 impl Pose {
+    /// Whether the pose says the chair knows where it is ([`NOT_LOCALIZED_VARIANCE_M2`]).
+    pub fn localized(&self) -> bool {
+        self.covariance[(0, 0)] < NOT_LOCALIZED_VARIANCE_M2
+            && self.covariance[(1, 1)] < NOT_LOCALIZED_VARIANCE_M2
+    }
+
     /// `t_map_base`: maps base coordinates into the map frame.
     pub fn t_map_base(&self) -> Isometry2<f64> {
         Isometry2::new(Vector2::new(self.x_m, self.y_m), self.theta_rad)

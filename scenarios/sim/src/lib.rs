@@ -13,6 +13,8 @@
 //! - [`TextureSet`], [`RgbdFrame`]: the RGB-D camera's photographs and output.
 //! - [`vo`] (feature `vo`): the RGB-D camera as an `iw_vo::CameraSource` ([`vo::SimCamera`])
 //!   and the odometry trial: wheel odometry, visual odometry and their EKF against ground truth.
+//! - [`localization`] (feature `localization`): the map's solid geometry and landmarks, and a
+//!   chair's laser and sonars, as `iw_localization` takes them.
 //! - [`VirtualBody`] (an [`iw_body::Body`] driving a simulated chair) and [`GhostSensors`] (an
 //!   [`iw_body::VirtualSensors`] placing a real chair's virtual body, for mixed reality).
 //!
@@ -37,6 +39,8 @@
 mod body;
 mod chair;
 mod geom;
+#[cfg(feature = "localization")]
+pub mod localization;
 mod map;
 mod render;
 #[cfg(feature = "vo")]
@@ -48,7 +52,7 @@ pub use chair::{
     CameraModel, ChairSpec, EncoderModel, LaserModel, SonarModel, SonarMount, sonar_layout,
 };
 pub use geom::Owner;
-pub use map::{Area, Door, Furniture, Map, NarrowPassage, Place, Route, Start};
+pub use map::{Area, Door, Furniture, Map, Marker, NarrowPassage, Place, Route, Start};
 pub use render::{RgbdFrame, TUM_DEPTH_PER_M, TextureSet, optical_pose};
 pub use world::{ChairId, ChairKind, Hit, World, step};
 

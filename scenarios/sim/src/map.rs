@@ -10,6 +10,12 @@ use crate::SimError;
 pub const DEFAULT_WALL_HEIGHT_M: f64 = 2.5;
 /// Default furniture height, m.
 pub const DEFAULT_FURNITURE_HEIGHT_M: f64 = 0.75;
+/// Largest landmark id (the marker encodes 8 bits).
+pub const MAX_MARKER_ID: u32 = 255;
+/// Default landmark side, m.
+pub const DEFAULT_MARKER_SIZE_M: f64 = 0.3;
+/// Default height of a landmark's centre, m (the camera's lens is at 0.9 m).
+pub const DEFAULT_MARKER_HEIGHT_M: f64 = 1.0;
 /// Coordinates beyond this magnitude are rejected (a map is a building, not a continent).
 const MAX_COORD_M: f64 = 10_000.0;
 
@@ -70,6 +76,22 @@ pub struct Place {
     pub position: Point2<f64>,
 }
 
+/// An artificial landmark (thesis 3.8): a square marker on a wall or post with a known pose,
+/// which the RGB-D camera sees and the perception agent recognises by its id.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Marker {
+    /// Identifier encoded on the marker (0..=255).
+    pub id: u32,
+    /// Centre of the marker's face, m.
+    pub position: Point2<f64>,
+    /// Direction the face looks (its outward normal), rad.
+    pub facing_rad: f64,
+    /// Side of the square, m.
+    pub size_m: f64,
+    /// Height of the marker's centre above the floor, m.
+    pub height_m: f64,
+}
+
 /// A named start pose for a chair.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Start {
@@ -114,6 +136,8 @@ pub struct Map {
     pub starts: Vec<Start>,
     /// Named routes.
     pub routes: Vec<Route>,
+    /// Landmarks (markers with known poses).
+    pub landmarks: Vec<Marker>,
 }
 
 impl Map {
@@ -155,6 +179,12 @@ impl Map {
             parse_line(&mut map, line).map_err(err)?;
             route_lines.resize(map.routes.len(), index + 1);
         }
+        let ids: Vec<String> = map.landmarks.iter().map(|l| l.id.to_string()).collect();
+        check_unique(ids.iter(), "landmark").map_err(|reason| SimError::Parse {
+            file: file.to_string(),
+            line: 0,
+            reason,
+        })?;
         check_unique(map.doors.iter().map(|d| &d.id), "door").map_err(|reason| {
             SimError::Parse {
                 file: file.to_string(),
@@ -304,6 +334,25 @@ impl Map {
     /// The route called `name`.
     pub fn route(&self, name: &str) -> Option<&Route> {
         self.routes.iter().find(|r| r.name == name)
+    }
+
+    /// Every solid segment that stays put: walls and furniture outlines (doors open and close,
+    /// so they are left out). What a localizer matches range readings against.
+    pub fn solid_segments(&self) -> Vec<(Point2<f64>, Point2<f64>)> {
+        let walls = self
+            .walls
+            .iter()
+            .flat_map(|w| w.windows(2).map(|p| (p[0], p[1])));
+        let furniture = self.furniture.iter().flat_map(|f| {
+            let n = f.polygon.len();
+            (0..n).map(move |i| (f.polygon[i], f.polygon[(i + 1) % n]))
+        });
+        walls.chain(furniture).collect()
+    }
+
+    /// The first closed route, if any (a lap to drive round).
+    pub fn closed_route(&self) -> Option<&Route> {
+        self.routes.iter().find(|r| r.closed)
     }
 
     /// Axis-aligned bounds of everything in the map, m.
@@ -583,6 +632,42 @@ fn parse_line(map: &mut Map, line: &str) -> Result<(), String> {
                 width_m,
             });
         }
+        "landmark" => {
+            args.check_options(&["size", "height"])?;
+            if pos.len() != 4 {
+                return Err(format!(
+                    "landmark: expected `landmark ID x y facing_deg [size=m] [height=m]`, got {} tokens",
+                    pos.len()
+                ));
+            }
+            let id: u32 = pos[0]
+                .parse()
+                .ok()
+                .filter(|id| *id <= MAX_MARKER_ID)
+                .ok_or_else(|| {
+                    format!(
+                        "landmark: id `{}` is not a whole number in 0..={MAX_MARKER_ID}",
+                        pos[0]
+                    )
+                })?;
+            let size_m = args
+                .option("size")
+                .map(|v| positive(v, "landmark size"))
+                .transpose()?
+                .unwrap_or(DEFAULT_MARKER_SIZE_M);
+            let height_m = args
+                .option("height")
+                .map(|v| positive(v, "landmark height"))
+                .transpose()?
+                .unwrap_or(DEFAULT_MARKER_HEIGHT_M);
+            map.landmarks.push(Marker {
+                id,
+                position: Point2::new(number(pos[1], "landmark x")?, number(pos[2], "landmark y")?),
+                facing_rad: number(pos[3], "landmark facing")?.to_radians(),
+                size_m,
+                height_m,
+            });
+        }
         "place" => {
             args.check_options(&[])?;
             let place = name(pos, "place")?;
@@ -669,6 +754,38 @@ mod tests {
         // rotated box: width 1 along y now
         let ys: Vec<f64> = m.furniture[0].polygon.iter().map(|p| p.y).collect();
         assert!(ys.iter().all(|y| (y - 4.0).abs() <= 0.5 + 1e-9));
+    }
+
+    #[test]
+    fn landmarks_parse_with_defaults_and_ids_are_checked() {
+        let map = Map::parse(
+            "wall 0 0 5 0\nlandmark 7 2 0.01 90\nlandmark 8 4 0.01 90 size=0.5 height=1.2\n",
+            "m",
+        )
+        .unwrap();
+        assert_eq!(map.landmarks.len(), 2);
+        assert_eq!(map.landmarks[0].id, 7);
+        assert!((map.landmarks[0].facing_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert_eq!(map.landmarks[0].size_m, DEFAULT_MARKER_SIZE_M);
+        assert_eq!(map.landmarks[1].height_m, 1.2);
+        for (text, why) in [
+            ("wall 0 0 5 0\nlandmark 256 1 1 0\n", "0..=255"),
+            ("wall 0 0 5 0\nlandmark -1 1 1 0\n", "whole number"),
+            ("wall 0 0 5 0\nlandmark 1 1 1\n", "expected `landmark"),
+            (
+                "wall 0 0 5 0\nlandmark 1 1 1 0 colour=red\n",
+                "unknown option",
+            ),
+            (
+                "wall 0 0 5 0\nlandmark 1 1 1 0\nlandmark 1 2 2 0\n",
+                "defined twice",
+            ),
+        ] {
+            let err = Map::parse(text, "m").unwrap_err().to_string();
+            assert!(err.contains(why), "{text:?}: {err}");
+        }
+        let segments = map.solid_segments();
+        assert_eq!(segments.len(), 1);
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! correlates both; then the clone is replaced by the current pose. Feeding a drifting visual pose
 //! as an absolute measurement would count the same information twice; this does not.
 
-use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SMatrix, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
 use crate::wheel::{OdometryStep, Pose2, wrap_angle};
 
@@ -127,6 +127,43 @@ impl OdometryFusion {
         let current_cov = self.covariance();
         *self = OdometryFusion::new(self.current, current_cov, self.alpha);
         fused
+    }
+}
+
+impl OdometryFusion {
+    /// Update with a measurement of the *current* pose alone (a scan matched to the map, a
+    /// landmark's range and bearing): `innovation` is measured minus predicted, `h` its Jacobian
+    /// with respect to the current (x, y, theta), `noise` its covariance. The measurement is not
+    /// fused when its normalised innovation squared exceeds `gate_chi2`; returns that value and
+    /// whether it was fused (`None` when the innovation covariance is singular).
+    pub fn update_current<const M: usize>(
+        &mut self,
+        innovation: &SVector<f64, M>,
+        h: &SMatrix<f64, M, 3>,
+        noise: &SMatrix<f64, M, M>,
+        gate_chi2: f64,
+    ) -> Option<(f64, bool)> {
+        let mut h6 = SMatrix::<f64, M, 6>::zeros();
+        h6.fixed_view_mut::<M, 3>(0, 3).copy_from(h);
+        let s_inv = (h6 * self.covariance * h6.transpose() + noise).try_inverse()?;
+        let nis = (innovation.transpose() * s_inv * innovation)[0];
+        if !(nis.is_finite() && nis <= gate_chi2) {
+            return Some((nis, false));
+        }
+        let k: SMatrix<f64, 6, M> = self.covariance * h6.transpose() * s_inv;
+        let x = to_vec(&self.clone, &self.current) + k * innovation;
+        self.clone = Pose2::new(x[0], x[1], x[2]);
+        self.current = Pose2::new(x[3], x[4], x[5]);
+        let i_kh = Matrix6::identity() - k * h6;
+        self.covariance = i_kh * self.covariance * i_kh.transpose() + k * noise * k.transpose();
+        self.covariance = (self.covariance + self.covariance.transpose()) * 0.5;
+        Some((nis, true))
+    }
+
+    /// Restarts the filter at `pose` with `covariance` (a relocalisation), keeping the motion
+    /// model.
+    pub fn reset(&mut self, pose: Pose2, covariance: Matrix3<f64>) {
+        *self = OdometryFusion::new(pose, covariance, self.alpha);
     }
 }
 

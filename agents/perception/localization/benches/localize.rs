@@ -1,0 +1,71 @@
+//! Cost of the localizer per 50 ms control period in a synthetic 10 x 8 m L-shaped room:
+//! tracking (wheel step, 271 laser beams and 16 sonars matched to the map, EKF update) beside
+//! its peer, the odometry EKF's wheel step alone; and the global search's start and one
+//! particle update. `cargo bench -p iw-localization --bench localize`.
+
+use std::sync::Arc;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use iw_localization::{
+    GlobalConfig, GlobalLocalizer, LocalizationMap, Localizer, LocalizerConfig, SonarGeometry,
+};
+use iw_vo::{OdometryFusion, OdometryStep, Pose2};
+use nalgebra::Matrix3;
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+fn bench(c: &mut Criterion) {
+    let map = Arc::new(LocalizationMap::new(common::room(), vec![], 1.0).expect("room"));
+    let truth = Pose2::new(2.0, 2.0, 0.3);
+    let ranges = common::scan(&common::room(), &truth, 0.01, 1);
+    let sonar = SonarGeometry {
+        t_base_sonar: (0..16)
+            .map(|k| Pose2::new(0.3, 0.0, std::f64::consts::TAU * k as f64 / 16.0))
+            .collect(),
+        max_range_m: 3.0,
+        sigma_m: 0.15,
+    };
+    let sonar_m: Vec<Option<f64>> = (0..16).map(|k| Some(1.0 + 0.1 * k as f64)).collect();
+    let config = LocalizerConfig::new(
+        Some(common::laser()),
+        Some(sonar),
+        [0.01, 0.002, 0.01, 0.002],
+    );
+    let step = OdometryStep::from_wheels(0.0, 0.0, 0.56);
+    let mut group = c.benchmark_group("localize");
+    group
+        .sample_size(20)
+        .measurement_time(std::time::Duration::from_secs(3));
+    group.bench_function("odometry EKF wheel step (peer)", |b| {
+        let mut f = OdometryFusion::new(truth, Matrix3::identity() * 1e-4, config.alpha);
+        b.iter(|| f.predict(&step))
+    });
+    group.bench_function("tracking period (wheel step + laser + sonar)", |b| {
+        let mut l = Localizer::new(
+            map.clone(),
+            config.clone(),
+            Some((truth, Matrix3::identity() * 1e-4)),
+        );
+        b.iter(|| {
+            l.predict(&step);
+            l.update_ranges(&ranges, &sonar_m)
+        })
+    });
+    let points = common::points(&ranges);
+    group.bench_function("global search start (grid 0.2 m x 10 deg)", |b| {
+        b.iter(|| GlobalLocalizer::start(&map, &points, GlobalConfig::default(), config.alpha, 1))
+    });
+    group.bench_function("global particle update (3000 particles)", |b| {
+        let mut g = GlobalLocalizer::start(&map, &points, GlobalConfig::default(), config.alpha, 1);
+        let moving = OdometryStep::from_wheels(0.06, 0.06, 0.56);
+        b.iter(|| {
+            g.predict(&moving);
+            g.update(&map, &points)
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,461 @@
+//! The localizer: an EKF over the base pose (iw-vo's [`OdometryFusion`]) predicted by wheel
+//! odometry, updated by visual odometry, by scans matched to the map and by landmark sightings;
+//! a particle filter takes over while the pose is unknown (no start, or carried elsewhere).
+
+use std::sync::Arc;
+
+use nalgebra::{Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
+
+use crate::global::{GlobalConfig, GlobalLocalizer};
+use crate::map::LocalizationMap;
+use crate::matcher::{MatcherConfig, inlier_fraction, match_scan};
+use crate::scan::{LaserGeometry, ReadingCount, ScanPoint, SonarGeometry};
+use iw_vo::{OdometryFusion, OdometryStep, Pose2, wrap_angle};
+
+/// When a search may say it has found the pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Confidence {
+    /// Particle spread (position standard deviation) at most, m.
+    pub std_m: f64,
+    /// Particle heading standard deviation at most, rad.
+    pub std_rad: f64,
+    /// Scans weighed at least.
+    pub min_updates: usize,
+    /// The refined match's inlier fraction at least.
+    pub min_inliers: f64,
+    /// A pose at least 1 m away whose match has an inlier fraction within this margin of the
+    /// found one's makes the scan ambiguous.
+    pub twin_margin: f64,
+}
+
+/// How the localizer fuses and when it gives up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocalizerConfig {
+    /// The laser, if the chair has one.
+    pub laser: Option<LaserGeometry>,
+    /// The sonar ring, if any.
+    pub sonar: Option<SonarGeometry>,
+    /// Scan matching.
+    pub matcher: MatcherConfig,
+    /// Global search.
+    pub global: GlobalConfig,
+    /// When the search is done.
+    pub confidence: Confidence,
+    /// A matched scan whose normalised innovation exceeds this is not fused (chi-square, 3
+    /// degrees of freedom).
+    pub gate_chi2: f64,
+    /// A match with fewer inliers than this fraction is not fused.
+    pub min_inliers: f64,
+    /// After this many scans in a row that could not be fused the chair is lost, and searches.
+    pub lost_after: u32,
+    /// A sensor silent, garbled or contradicting the other this many scans in a row is
+    /// dropped; it is taken back after as many good scans.
+    pub drop_after: u32,
+    /// Landmark sightings: range and bearing standard deviations (m, rad).
+    pub landmark_sigma: (f64, f64),
+    /// Motion model of the odometry (Thrun's alphas), as in [`iw_vo::DiffDriveParams`].
+    pub alpha: [f64; 4],
+    /// Seed of the particle filter.
+    pub seed: u64,
+}
+
+impl LocalizerConfig {
+    /// Defaults for a chair with these sensors and motion model.
+    pub fn new(
+        laser: Option<LaserGeometry>,
+        sonar: Option<SonarGeometry>,
+        alpha: [f64; 4],
+    ) -> Self {
+        LocalizerConfig {
+            laser,
+            sonar,
+            matcher: MatcherConfig::default(),
+            global: GlobalConfig::default(),
+            confidence: Confidence {
+                std_m: 0.05,
+                std_rad: 2f64.to_radians(),
+                min_updates: 20,
+                min_inliers: 0.8,
+                twin_margin: 0.1,
+            },
+            gate_chi2: 16.27,
+            min_inliers: 0.5,
+            lost_after: 40,
+            drop_after: 10,
+            landmark_sigma: (0.05, 1f64.to_radians()),
+            alpha,
+            seed: 1,
+        }
+    }
+}
+
+/// Whether the localizer knows where the chair is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// The pose is tracked on the map.
+    Tracking,
+    /// The pose is unknown (no start, or the scans stopped fitting): a search runs.
+    Searching,
+}
+
+/// What one scan did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ScanOutcome {
+    /// Matched and fused; the match's normalised innovation squared.
+    Fused {
+        /// Normalised innovation squared.
+        nis: f64,
+    },
+    /// Not fused (too few points, too few inliers, or outside the gate).
+    Rejected,
+    /// Weighed by the search (or skipped because the chair had not moved enough).
+    Searched,
+    /// The search found the pose: tracking again.
+    Localized,
+}
+
+/// Health of one range sensor.
+#[derive(Debug, Clone, Default)]
+struct Health {
+    bad_in_row: u32,
+    good_in_row: u32,
+    dropped: bool,
+}
+
+impl Health {
+    /// Records one scan; returns whether the sensor may be used for it.
+    fn observe(&mut self, name: &str, problem: Option<&str>, drop_after: u32) -> bool {
+        match problem {
+            Some(why) => {
+                self.good_in_row = 0;
+                self.bad_in_row = self.bad_in_row.saturating_add(1);
+                if !self.dropped && self.bad_in_row >= drop_after {
+                    self.dropped = true;
+                    tracing::warn!(
+                        sensor = name,
+                        reason = why,
+                        "range sensor dropped from localization"
+                    );
+                }
+                false
+            }
+            None => {
+                self.bad_in_row = 0;
+                self.good_in_row = self.good_in_row.saturating_add(1);
+                if self.dropped && self.good_in_row >= drop_after {
+                    self.dropped = false;
+                    tracing::warn!(sensor = name, "range sensor back in localization");
+                }
+                !self.dropped
+            }
+        }
+    }
+}
+
+/// Whether readings are unusable as such: silent, or half garbage.
+fn reading_problem(count: &ReadingCount) -> Option<&'static str> {
+    if count.total == 0 {
+        Some("silent: no readings")
+    } else if count.invalid * 2 > count.total {
+        Some("garbage: most readings are not ranges")
+    } else {
+        None
+    }
+}
+
+/// The localizer of one chair.
+#[derive(Debug, Clone)]
+pub struct Localizer {
+    map: Arc<LocalizationMap>,
+    config: LocalizerConfig,
+    fusion: OdometryFusion,
+    status: Status,
+    search: Option<GlobalLocalizer>,
+    searches: u64,
+    rejected_in_row: u32,
+    laser: Health,
+    sonar: Health,
+    laser_points: Vec<ScanPoint>,
+    sonar_points: Vec<ScanPoint>,
+}
+
+/// Below this inlier fraction at the predicted pose a sensor contradicts the map.
+const DISAGREE_INLIERS: f64 = 0.2;
+/// Pose reported while searching before the search has a scan.
+const UNKNOWN_VAR: f64 = 1e6;
+
+impl Localizer {
+    /// A localizer at `start` (pose and covariance), or searching when `None`.
+    pub fn new(
+        map: Arc<LocalizationMap>,
+        config: LocalizerConfig,
+        start: Option<(Pose2, Matrix3<f64>)>,
+    ) -> Self {
+        let (pose, covariance) =
+            start.unwrap_or((Pose2::default(), Matrix3::identity() * UNKNOWN_VAR));
+        Localizer {
+            map,
+            fusion: OdometryFusion::new(pose, covariance, config.alpha),
+            status: if start.is_some() {
+                Status::Tracking
+            } else {
+                Status::Searching
+            },
+            config,
+            search: None,
+            searches: 0,
+            rejected_in_row: 0,
+            laser: Health::default(),
+            sonar: Health::default(),
+            laser_points: Vec::new(),
+            sonar_points: Vec::new(),
+        }
+    }
+
+    /// Whether the pose is tracked.
+    pub fn status(&self) -> Status {
+        self.status
+    }
+
+    /// The pose estimate: the EKF's while tracking, the particles' while searching.
+    pub fn pose(&self) -> Pose2 {
+        self.estimate().0
+    }
+
+    /// Covariance of [`Self::pose`] (x, y, theta), symmetric.
+    pub fn covariance(&self) -> Matrix3<f64> {
+        self.estimate().1
+    }
+
+    fn estimate(&self) -> (Pose2, Matrix3<f64>) {
+        match (&self.status, &self.search) {
+            (Status::Tracking, _) => {
+                let c = self.fusion.covariance();
+                (self.fusion.pose(), (c + c.transpose()) * 0.5)
+            }
+            (Status::Searching, Some(search)) => {
+                let (pose, c) = search.estimate();
+                // never less certain than dead reckoning would say, never overconfident
+                (
+                    pose,
+                    c + Matrix3::from_diagonal(&Vector3::new(0.01, 0.01, 0.003)),
+                )
+            }
+            (Status::Searching, None) => (self.fusion.pose(), Matrix3::identity() * UNKNOWN_VAR),
+        }
+    }
+
+    /// Searches started so far (a start without a pose counts, and every time the chair got lost).
+    pub fn searches(&self) -> u64 {
+        self.searches
+    }
+
+    /// Whether the laser and the sonars are currently dropped.
+    pub fn dropped(&self) -> (bool, bool) {
+        (self.laser.dropped, self.sonar.dropped)
+    }
+
+    /// Predicts with one wheel odometry step.
+    pub fn predict(&mut self, step: &OdometryStep) {
+        self.fusion.predict(step);
+        if let Some(search) = self.search.as_mut() {
+            search.predict(step);
+        }
+    }
+
+    /// Updates with visual odometry's motion since its previous frame (see
+    /// [`OdometryFusion::update_visual`]).
+    pub fn update_visual(&mut self, motion: &Pose2, noise: &Matrix3<f64>) -> bool {
+        self.fusion.update_visual(motion, noise)
+    }
+
+    /// Updates with the latest laser ranges (empty: no laser reading this period) and sonar
+    /// ranges (`None`: no echo).
+    pub fn update_ranges(&mut self, laser_m: &[f64], sonar_m: &[Option<f64>]) -> ScanOutcome {
+        self.laser_points.clear();
+        self.sonar_points.clear();
+        let laser_count = self
+            .config
+            .laser
+            .as_ref()
+            .map(|g| g.points(laser_m, &mut self.laser_points));
+        let sonar_count = self
+            .config
+            .sonar
+            .as_ref()
+            .map(|g| g.points(sonar_m, &mut self.sonar_points));
+        let mut laser_problem = laser_count.as_ref().and_then(reading_problem);
+        let mut sonar_problem = sonar_count.as_ref().and_then(reading_problem);
+        if self.status == Status::Tracking {
+            // a sensor that contradicts the map while the other agrees is what is wrong
+            let pose = self.fusion.pose();
+            let fit = |points: &[ScanPoint]| {
+                (points.len() >= 5)
+                    .then(|| inlier_fraction(&self.map, points, &pose, &self.config.matcher))
+            };
+            let (lf, sf) = (fit(&self.laser_points), fit(&self.sonar_points));
+            if let (Some(lf), Some(sf)) = (lf, sf) {
+                if lf < DISAGREE_INLIERS && sf >= 0.5 {
+                    laser_problem = laser_problem.or(Some("contradicts the map and the sonars"));
+                }
+                if sf < DISAGREE_INLIERS && lf >= 0.5 {
+                    sonar_problem = sonar_problem.or(Some("contradicts the map and the laser"));
+                }
+            }
+        }
+        let drop_after = self.config.drop_after;
+        let use_laser =
+            laser_count.is_some() && self.laser.observe("laser", laser_problem, drop_after);
+        let use_sonar =
+            sonar_count.is_some() && self.sonar.observe("sonar", sonar_problem, drop_after);
+        let mut points = Vec::with_capacity(self.laser_points.len() + self.sonar_points.len());
+        if use_laser {
+            points.extend_from_slice(&self.laser_points);
+        }
+        if use_sonar {
+            points.extend_from_slice(&self.sonar_points);
+        }
+        match self.status {
+            Status::Tracking => self.track(&points),
+            Status::Searching => self.search(&points),
+        }
+    }
+
+    fn track(&mut self, points: &[ScanPoint]) -> ScanOutcome {
+        let predicted = self.fusion.pose();
+        let fused = match_scan(&self.map, points, &predicted, &self.config.matcher)
+            .filter(|m| m.inlier_fraction >= self.config.min_inliers)
+            .and_then(|m| {
+                let innovation = Vector3::new(
+                    m.pose.x - predicted.x,
+                    m.pose.y - predicted.y,
+                    wrap_angle(m.pose.theta - predicted.theta),
+                );
+                self.fusion.update_current(
+                    &innovation,
+                    &Matrix3::identity(),
+                    &m.covariance,
+                    self.config.gate_chi2,
+                )
+            });
+        match fused {
+            Some((nis, true)) => {
+                self.rejected_in_row = 0;
+                ScanOutcome::Fused { nis }
+            }
+            _ => {
+                self.rejected_in_row = self.rejected_in_row.saturating_add(1);
+                if self.rejected_in_row >= self.config.lost_after && points.len() >= 12 {
+                    tracing::warn!(
+                        scans = self.rejected_in_row,
+                        "the scans stopped fitting the map around the estimate: searching"
+                    );
+                    self.start_search(points);
+                }
+                ScanOutcome::Rejected
+            }
+        }
+    }
+
+    fn start_search(&mut self, points: &[ScanPoint]) {
+        self.status = Status::Searching;
+        self.rejected_in_row = 0;
+        self.searches += 1;
+        let seed = self.config.seed.wrapping_add(self.searches);
+        self.search = Some(GlobalLocalizer::start(
+            &self.map,
+            points,
+            self.config.global,
+            self.config.alpha,
+            seed,
+        ));
+    }
+
+    fn search(&mut self, points: &[ScanPoint]) -> ScanOutcome {
+        let Some(search) = self.search.as_mut() else {
+            if points.len() >= 12 {
+                self.start_search(points);
+                self.searches = self.searches.max(1);
+            }
+            return ScanOutcome::Searched;
+        };
+        if !search.update(&self.map, points) {
+            return ScanOutcome::Searched;
+        }
+        let confidence = self.config.confidence;
+        let (mean, cov) = search.estimate();
+        if search.updates() < confidence.min_updates
+            || (cov[(0, 0)] + cov[(1, 1)]).sqrt() > confidence.std_m
+            || cov[(2, 2)].sqrt() > confidence.std_rad
+        {
+            return ScanOutcome::Searched;
+        }
+        let Some(m) = match_scan(&self.map, points, &mean, &self.config.matcher) else {
+            return ScanOutcome::Searched;
+        };
+        let moved = ((m.pose.x - mean.x).powi(2) + (m.pose.y - mean.y).powi(2)).sqrt();
+        if m.observed < 3
+            || m.inlier_fraction < confidence.min_inliers
+            || moved > 2.0 * confidence.std_m
+        {
+            return ScanOutcome::Searched;
+        }
+        // A twin place explains the scan as well: the particles may have settled in the wrong
+        // one. Search afresh from here, so that both stay candidates until a scan tells them
+        // apart.
+        let twin =
+            GlobalLocalizer::alternatives(&self.map, points, &self.config.global, &m.pose, 1.0, 8)
+                .into_iter()
+                .filter_map(|alt| match_scan(&self.map, points, &alt, &self.config.matcher))
+                .any(|alt| {
+                    // refining may slide back to the found pose: that is no twin
+                    (alt.pose.x - m.pose.x).hypot(alt.pose.y - m.pose.y) >= 0.5
+                        && alt.inlier_fraction >= m.inlier_fraction - confidence.twin_margin
+                });
+        if twin {
+            tracing::debug!("the scan fits elsewhere on the map as well: searching on");
+            self.start_search(points);
+            return ScanOutcome::Searched;
+        }
+        tracing::info!(
+            x = m.pose.x,
+            y = m.pose.y,
+            theta = m.pose.theta,
+            "pose found on the map"
+        );
+        self.fusion.reset(m.pose, m.covariance + cov);
+        self.search = None;
+        self.status = Status::Tracking;
+        ScanOutcome::Localized
+    }
+
+    /// Updates with a landmark sighting: landmark `id` seen at `range_m` and `bearing_rad` from
+    /// the base origin (base frame). Unknown ids, sightings while searching and sightings
+    /// outside the 99.9 % gate are not fused; returns whether it was.
+    pub fn update_landmark(&mut self, id: u32, range_m: f64, bearing_rad: f64) -> bool {
+        if self.status != Status::Tracking || !(range_m.is_finite() && bearing_rad.is_finite()) {
+            return false;
+        }
+        let Some(landmark) = self.map.landmarks().iter().find(|l| l.id == id) else {
+            return false;
+        };
+        let pose = self.fusion.pose();
+        let d = Vector2::new(landmark.pose.x - pose.x, landmark.pose.y - pose.y);
+        let q = d.norm_squared();
+        if q < 1e-6 {
+            return false;
+        }
+        let r = q.sqrt();
+        let innovation = Vector2::new(
+            range_m - r,
+            wrap_angle(bearing_rad - (d.y.atan2(d.x) - pose.theta)),
+        );
+        let h = Matrix2x3::new(-d.x / r, -d.y / r, 0.0, d.y / q, -d.x / q, -1.0);
+        let (sr, sb) = self.config.landmark_sigma;
+        let noise = Matrix2::new(sr * sr, 0.0, 0.0, sb * sb);
+        matches!(
+            self.fusion.update_current(&innovation, &h, &noise, 13.82),
+            Some((_, true))
+        )
+    }
+}

@@ -1,0 +1,203 @@
+//! The localizer on synthetic rooms: scans ray-cast from the true pose against segments.
+
+use std::sync::Arc;
+
+use iw_localization::{
+    LocalizationMap, Localizer, LocalizerConfig, Status, UNOBSERVED_VAR, match_scan,
+};
+use iw_vo::{OdometryStep, Pose2};
+use nalgebra::Matrix3;
+
+mod common;
+use common::*;
+
+fn map_of(world: Vec<Seg>) -> Arc<LocalizationMap> {
+    Arc::new(LocalizationMap::new(world, vec![], 1.0).unwrap())
+}
+
+#[test]
+fn a_scan_pulls_a_guess_15cm_off_back_to_within_a_centimetre() {
+    let map = map_of(room());
+    let truth = Pose2::new(2.0, 2.0, 0.3);
+    let ranges = scan(&room(), &truth, 0.01, 1);
+    let guess = Pose2::new(2.12, 1.9, 0.35);
+    let m = match_scan(&map, &points(&ranges), &guess, &Default::default()).unwrap();
+    let err = ((m.pose.x - truth.x).powi(2) + (m.pose.y - truth.y).powi(2)).sqrt();
+    assert!(err < 0.01, "error {err} m: {m:?}");
+    assert!((m.pose.theta - truth.theta).abs() < 0.2f64.to_radians());
+    assert_eq!(m.observed, 3);
+    assert!(m.inlier_fraction > 0.95);
+}
+
+#[test]
+fn people_not_on_the_map_do_not_pull_the_match() {
+    let map = map_of(room());
+    let truth = Pose2::new(2.0, 2.0, 0.0);
+    // three people (40 cm squares) around the chair, within the laser's view
+    let mut world = room();
+    for (x, y) in [(3.2, 2.3), (2.6, 1.0), (3.0, 3.2)] {
+        world.extend(polygon(&[
+            (x, y),
+            (x + 0.4, y),
+            (x + 0.4, y + 0.4),
+            (x, y + 0.4),
+        ]));
+    }
+    let ranges = scan(&world, &truth, 0.01, 2);
+    let m = match_scan(
+        &map,
+        &points(&ranges),
+        &Pose2::new(2.05, 2.05, 0.02),
+        &Default::default(),
+    )
+    .unwrap();
+    let err = ((m.pose.x - truth.x).powi(2) + (m.pose.y - truth.y).powi(2)).sqrt();
+    assert!(err < 0.015, "error {err} m with people about: {m:?}");
+}
+
+#[test]
+fn a_blank_corridor_leaves_its_axis_unobserved() {
+    let corridor = vec![(p(-50.0, 0.0), p(50.0, 0.0)), (p(-50.0, 2.0), p(50.0, 2.0))];
+    let map = map_of(corridor.clone());
+    let truth = Pose2::new(0.0, 1.0, 0.0);
+    let ranges = scan(&corridor, &truth, 0.01, 3);
+    let m = match_scan(
+        &map,
+        &points(&ranges),
+        &Pose2::new(0.3, 1.05, 0.01),
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(m.observed, 2, "{m:?}");
+    assert!(
+        m.covariance[(0, 0)] > UNOBSERVED_VAR / 2.0,
+        "{:?}",
+        m.covariance
+    );
+    assert!(m.covariance[(1, 1)] < 1e-3 && (m.pose.y - 1.0).abs() < 0.01);
+    // the guess's position along the axis is kept, not invented
+    assert!((m.pose.x - 0.3).abs() < 1e-6, "{m:?}");
+
+    // driving down it: the covariance along the axis grows, across it stays small
+    let mut loc = Localizer::new(
+        map,
+        LocalizerConfig::new(Some(laser()), None, [0.01, 0.002, 0.01, 0.002]),
+        Some((truth, Matrix3::identity() * 1e-4)),
+    );
+    let mut pose = truth;
+    let mut last_along = 0.0;
+    for k in 0..100 {
+        let step = OdometryStep::from_wheels(0.05, 0.05, 0.56);
+        pose = pose.compose(&step.as_delta());
+        loc.predict(&step);
+        loc.update_ranges(&scan(&corridor, &pose, 0.01, k), &[]);
+        let c = loc.covariance();
+        assert!(
+            c[(0, 0)] >= last_along,
+            "step {k}: along-axis variance shrank"
+        );
+        last_along = c[(0, 0)];
+        assert!(
+            c[(1, 1)].sqrt() < 0.03,
+            "step {k}: across {}",
+            c[(1, 1)].sqrt()
+        );
+    }
+    // 5 m of driving with 10 % translation noise (the motion model's alpha 0.01 per step)
+    assert!(
+        last_along.sqrt() > 0.04,
+        "along-axis std {}",
+        last_along.sqrt()
+    );
+    assert_eq!(loc.status(), Status::Tracking);
+}
+
+/// Drives a loop in the room with biased wheels; returns the largest error and the largest jump
+/// (change of the estimate's error from one period to the next).
+fn drive(loc: &mut Localizer, garbage_from: Option<usize>) -> (f64, f64) {
+    let world = room();
+    let mut truth = Pose2::new(1.5, 1.5, 0.0);
+    let (mut worst, mut jump): (f64, f64) = (0.0, 0.0);
+    let mut last = (0.0, 0.0);
+    for k in 0..400 {
+        let (l, r) = if (k / 50) % 2 == 0 {
+            (0.025, 0.025)
+        } else {
+            (0.02, 0.03)
+        };
+        let true_step = OdometryStep::from_wheels(l, r, 0.56);
+        truth = truth.compose(&true_step.as_delta());
+        loc.predict(&OdometryStep::from_wheels(l * 1.03, r * 0.99, 0.56));
+        let mut ranges = scan(&world, &truth, 0.01, k as u64);
+        if garbage_from.is_some_and(|g| k >= g) {
+            ranges.iter_mut().for_each(|r| *r = f64::NAN);
+        }
+        loc.update_ranges(&ranges, &[]);
+        let e = loc.pose();
+        let error = (e.x - truth.x, e.y - truth.y);
+        worst = worst.max(error.0.hypot(error.1));
+        jump = jump.max((error.0 - last.0).hypot(error.1 - last.1));
+        last = error;
+    }
+    (worst, jump)
+}
+
+fn config() -> LocalizerConfig {
+    LocalizerConfig::new(Some(laser()), None, [0.01, 0.002, 0.01, 0.002])
+}
+
+#[test]
+fn tracking_with_biased_wheels_stays_within_3cm() {
+    let mut loc = Localizer::new(
+        map_of(room()),
+        config(),
+        Some((Pose2::new(1.5, 1.5, 0.0), Matrix3::identity() * 1e-4)),
+    );
+    let (worst, _) = drive(&mut loc, None);
+    assert!(worst < 0.03, "worst error {worst} m");
+}
+
+#[test]
+fn a_garbled_laser_is_dropped_and_the_pose_does_not_jump() {
+    let mut loc = Localizer::new(
+        map_of(room()),
+        config(),
+        Some((Pose2::new(1.5, 1.5, 0.0), Matrix3::identity() * 1e-4)),
+    );
+    let (_, jump) = drive(&mut loc, Some(300));
+    assert!(loc.dropped().0, "the laser should be dropped");
+    assert_eq!(
+        loc.status(),
+        Status::Tracking,
+        "garbage is not a kidnapping"
+    );
+    // the last 100 periods are dead reckoning with biased wheels: the error drifts, smoothly
+    assert!(jump < 0.01, "the estimate jumped by {jump} m");
+}
+
+#[test]
+fn a_chair_with_no_start_finds_itself_while_driving() {
+    let mut loc = Localizer::new(map_of(room()), config(), None);
+    assert_eq!(loc.status(), Status::Searching);
+    let world = room();
+    let mut truth = Pose2::new(2.0, 6.0, -1.2);
+    let mut found_at = None;
+    for k in 0..300 {
+        let (l, r) = if k < 150 {
+            (0.02, 0.02)
+        } else {
+            (0.015, 0.025)
+        };
+        let step = OdometryStep::from_wheels(l, r, 0.56);
+        truth = truth.compose(&step.as_delta());
+        loc.predict(&step);
+        loc.update_ranges(&scan(&world, &truth, 0.01, k), &[]);
+        let e = loc.pose();
+        let err = ((e.x - truth.x).powi(2) + (e.y - truth.y).powi(2)).sqrt();
+        if loc.status() == Status::Tracking {
+            found_at.get_or_insert(k);
+            assert!(err < 0.1, "tracking {err} m off at step {k}");
+        }
+    }
+    assert!(found_at.is_some(), "never found the pose");
+}

@@ -1,0 +1,551 @@
+//! Thesis 3.8 and 6.4 in the simulator: how far off is a chair's pose after a long drive, with
+//! wheel odometry alone, visual odometry alone, their EKF, and the map-based localizer
+//! (iw-localization) that also matches the laser and sonars to the map; and does a chair that
+//! starts with no pose find it while it drives?
+//!
+//! # Protocol
+//! - Tracking drives ([`Config::seeds`] of them, [`Config::minutes`] each): a chair follows the
+//!   map's closed route at [`Config::speed_mps`] from the route's first point, steered on the
+//!   simulator's exact pose (the driver is not under test). Other chairs drive back and forth
+//!   along the map's routes named `mover...`: moving obstacles that are not on the map. The simulator's encoder
+//!   model (per-wheel tyre compression 0.5-3 %, slip) and sensor noise (laser 1 cm, sonar 1 cm)
+//!   are on, seeded per drive. All four estimators start at the true pose and see the same
+//!   readings each 50 ms period; visual odometry runs on the rendered RGB-D frames every
+//!   [`Config::vo_every`] periods.
+//! - Errors: position error against the simulator's pose at every period; RMSE and maximum.
+//! - Consistency: the localizer's NEES (3 degrees of freedom) once per simulated second; the
+//!   pass rate is the fraction of those samples inside the two-sided 95 % chi-square interval
+//!   [0.216, 9.35], which a consistent filter meets 95 % of the time.
+//! - Global localization ([`Config::global_runs`] runs): a chair placed at a random point of the
+//!   route, facing along it, with no pose; it drives the route with wheel odometry, laser and
+//!   sonars. Converged: the localizer first says it tracks within 5 m of driving, and its pose
+//!   is then within 10 cm and 3 degrees. A run that reports tracking while more than 30 cm off,
+//!   at any time of its drive, counts as falsely confident.
+#![warn(missing_docs)]
+
+mod output;
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use iw_body::WheelSpeeds;
+use iw_features::DetectorKind;
+use iw_localization::{LocalizationMap, Localizer, Status};
+use iw_sim::localization::{drive_params, localization_map, localizer_config};
+use iw_sim::vo::{SimCamera, sim_vo_config};
+use iw_sim::{ChairId, ChairKind, ChairSpec, Map, Route, SharedWorld, World};
+use iw_vo::{
+    CameraSource, OdometryFusion, Pipeline, Pose2, VisualOdometry, WheelOdometry, planar_motion,
+    wrap_angle,
+};
+use nalgebra::{Isometry2, Matrix3, Point2, Vector3};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+pub use output::{ErrorStats, GlobalSummary, Summary, write_outputs};
+
+const SAMPLE_BUILDING: &str = include_str!("../../../maps/sample-building.map");
+
+/// The sample care building (`scenarios/maps/sample-building.map`), with its `tour` route.
+pub fn sample_building() -> Result<Map, ExperimentError> {
+    Ok(Map::parse(SAMPLE_BUILDING, "sample-building.map")?)
+}
+
+/// What can stop the experiment.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ExperimentError {
+    /// The map has no closed route, or one too short to drive.
+    #[error("map `{map}`: {reason}")]
+    Route {
+        /// Map name.
+        map: String,
+        /// Why.
+        reason: String,
+    },
+    /// The simulator refused something.
+    #[error(transparent)]
+    Sim(#[from] iw_sim::SimError),
+    /// The map cannot be localized on.
+    #[error(transparent)]
+    Localization(#[from] iw_localization::LocalizationError),
+    /// Writing results failed.
+    #[error("writing {path}: {source}")]
+    Io {
+        /// File.
+        path: String,
+        /// What the OS said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A plot could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] iw_plot::PlotError),
+}
+
+/// How the experiment runs.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Config {
+    /// Simulated minutes per tracking drive.
+    pub minutes: f64,
+    /// Tracking drives (seeds `seed .. seed + seeds`).
+    pub seeds: usize,
+    /// Global localization runs (seeds `seed .. seed + global_runs`).
+    pub global_runs: usize,
+    /// How far each global run drives, m (convergence must come within 5 m; the rest checks
+    /// that it never claims a wrong pose).
+    pub global_drive_m: f64,
+    /// Visual odometry on every this many periods (0: no visual odometry).
+    pub vo_every: usize,
+    /// Cruise speed, m/s.
+    pub speed_mps: f64,
+    /// Control period, s.
+    pub dt_s: f64,
+    /// Chairs drive back and forth along the map's routes named `mover...` (obstacles that are
+    /// not on the map).
+    pub movers: bool,
+    /// First seed.
+    pub seed: u64,
+}
+
+impl Default for Config {
+    /// 30 minutes, 1 drive, 50 global runs of 12 m, VO at 10 Hz, 0.5 m/s, 50 ms, movers.
+    fn default() -> Self {
+        Config {
+            minutes: 30.0,
+            seeds: 1,
+            global_runs: 50,
+            global_drive_m: 12.0,
+            vo_every: 2,
+            speed_mps: 0.5,
+            dt_s: 0.05,
+            movers: true,
+            seed: 1,
+        }
+    }
+}
+
+/// The five poses at one instant of a tracking drive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// Exact pose.
+    pub truth: Pose2,
+    /// Wheel odometry.
+    pub wheel: Pose2,
+    /// Visual odometry chained from the start.
+    pub vo: Pose2,
+    /// EKF of wheel and visual odometry.
+    pub fused: Pose2,
+    /// The map-based localizer.
+    pub localized: Pose2,
+    /// The localizer's NEES (x, y, theta).
+    pub nees: f64,
+}
+
+/// One tracking drive.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Drive {
+    /// Seed.
+    pub seed: u64,
+    /// One sample per simulated second.
+    pub samples: Vec<Sample>,
+    /// Position errors at every period: wheel, vo, fused, localized (sum of squares, max).
+    pub errors: [(f64, f64); 4],
+    /// Periods.
+    pub periods: usize,
+    /// Ground distance driven, m.
+    pub distance_m: f64,
+    /// Visual odometry frames processed.
+    pub vo_frames: usize,
+    /// Localizer time per period (predict and range update), µs, every period.
+    pub localizer_us: Vec<f64>,
+    /// Collisions of the driven chair.
+    pub collisions: u64,
+    /// Times the localizer lost the pose and searched.
+    pub searches: u64,
+}
+
+/// One global localization run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GlobalRun {
+    /// Seed.
+    pub seed: u64,
+    /// Distance driven when the localizer first reported tracking, m.
+    pub distance_m: Option<f64>,
+    /// Position and heading error then, m and deg.
+    pub error_at_fix: Option<(f64, f64)>,
+    /// Converged as the protocol says.
+    pub converged: bool,
+    /// Largest position error while reporting tracking, m.
+    pub max_tracking_error_m: f64,
+    /// Reported tracking while more than 30 cm off.
+    pub falsely_confident: bool,
+}
+
+/// Everything measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// Tracking drives.
+    pub drives: Vec<Drive>,
+    /// Global runs.
+    pub global: Vec<GlobalRun>,
+    /// Map name.
+    pub map: String,
+    /// Route driven.
+    pub route: Vec<Point2<f64>>,
+    /// Configuration.
+    pub config: Config,
+}
+
+/// Progress: simulated seconds of tracking drives done, global runs done.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Progress {
+    /// Simulated seconds of one drive (reported every simulated minute).
+    DriveSeconds(f64),
+    /// One global run finished.
+    GlobalRun,
+}
+
+/// The route to drive: the map's first closed route.
+pub fn tour(map: &Map) -> Result<&Route, ExperimentError> {
+    let route = map.closed_route().ok_or_else(|| ExperimentError::Route {
+        map: map.name.clone(),
+        reason: "no closed route (`route NAME closed ...`) to drive round".into(),
+    })?;
+    if route.points.len() < 2 {
+        return Err(ExperimentError::Route {
+            map: map.name.clone(),
+            reason: format!("route `{}` has fewer than 2 points", route.name),
+        });
+    }
+    Ok(route)
+}
+
+fn pose2(t: &Isometry2<f64>) -> Pose2 {
+    Pose2::new(t.translation.x, t.translation.y, t.rotation.angle())
+}
+
+/// Steers a chair round a closed route on its exact pose: turns in place towards the next
+/// waypoint when it points more than 35 degrees away, else drives at speed with a heading
+/// controller, slowing as it nears the waypoint.
+#[derive(Debug, Clone)]
+struct Driver {
+    points: Vec<Point2<f64>>,
+    next: usize,
+    speed_mps: f64,
+    track_m: f64,
+}
+
+impl Driver {
+    fn speeds(&mut self, pose: &Isometry2<f64>) -> WheelSpeeds {
+        let here = Point2::from(pose.translation.vector);
+        if (self.points[self.next] - here).norm() < 0.15 {
+            self.next = (self.next + 1) % self.points.len();
+        }
+        let to = self.points[self.next] - here;
+        let error = wrap_angle(to.y.atan2(to.x) - pose.rotation.angle());
+        let (v, omega) = if error.abs() > 0.6 {
+            (0.0, 0.5 * error.signum())
+        } else {
+            (
+                self.speed_mps.min(0.8 * to.norm() + 0.1),
+                (2.0 * error).clamp(-0.6, 0.6),
+            )
+        };
+        WheelSpeeds {
+            left_mps: v - omega * self.track_m / 2.0,
+            right_mps: v + omega * self.track_m / 2.0,
+        }
+    }
+}
+
+/// The pose `fraction` (0..1) of the way round the closed route, facing along it, and the index
+/// of the waypoint it drives to next.
+fn along_route(route: &Route, fraction: f64) -> (Isometry2<f64>, usize) {
+    let n = route.points.len();
+    let legs: Vec<f64> = (0..n)
+        .map(|i| (route.points[(i + 1) % n] - route.points[i]).norm())
+        .collect();
+    let mut left = fraction.rem_euclid(1.0) * legs.iter().sum::<f64>();
+    for (i, leg) in legs.iter().enumerate() {
+        if left <= *leg || i + 1 == n {
+            let (a, b) = (route.points[i], route.points[(i + 1) % n]);
+            let dir = (b - a).normalize();
+            let p = a + dir * left.min(*leg);
+            return (Isometry2::new(p.coords, dir.y.atan2(dir.x)), (i + 1) % n);
+        }
+        left -= leg;
+    }
+    (Isometry2::identity(), 0)
+}
+
+struct Setup {
+    world: SharedWorld,
+    id: ChairId,
+    spec: ChairSpec,
+    drivers: Vec<(ChairId, Driver)>,
+}
+
+fn setup(map: &Map, route: &Route, start_fraction: f64, config: &Config, seed: u64) -> Setup {
+    let mut world = World::new(map.clone(), seed);
+    let spec = ChairSpec::default();
+    let mut drivers = Vec::new();
+    let mut add = |world: &mut World, route: &Route, fraction: f64| {
+        let (pose, next) = along_route(route, fraction);
+        let id = world.add_chair(spec.clone(), pose, ChairKind::Simulated);
+        let driver = Driver {
+            points: route.points.clone(),
+            next,
+            speed_mps: config.speed_mps,
+            track_m: spec.geometry.track_m,
+        };
+        drivers.push((id, driver));
+        id
+    };
+    let id = add(&mut world, route, start_fraction);
+    if config.movers {
+        for mover in map.routes.iter().filter(|r| r.name.starts_with("mover")) {
+            // an open route is driven there and back: the driver cycles through its points
+            add(&mut world, mover, 0.0);
+        }
+    }
+    Setup {
+        world: iw_sim::shared(world),
+        id,
+        spec,
+        drivers,
+    }
+}
+
+fn lock(world: &SharedWorld) -> std::sync::MutexGuard<'_, World> {
+    world.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Commands every chair and steps the world one period.
+fn step_world(s: &mut Setup, dt_s: f64) -> Result<(), ExperimentError> {
+    let mut world = lock(&s.world);
+    for (id, driver) in &mut s.drivers {
+        let pose = world.pose(*id)?;
+        world.command(*id, driver.speeds(&pose))?;
+    }
+    iw_sim::step(&mut world, dt_s);
+    Ok(())
+}
+
+/// NEES of `estimate` with `covariance` against `truth`.
+pub fn nees(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> f64 {
+    let e = Vector3::new(
+        estimate.x - truth.x,
+        estimate.y - truth.y,
+        wrap_angle(estimate.theta - truth.theta),
+    );
+    covariance
+        .try_inverse()
+        .map_or(f64::INFINITY, |inv| (e.transpose() * inv * e)[0])
+}
+
+fn position_error(a: &Pose2, b: &Pose2) -> f64 {
+    ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt()
+}
+
+/// One tracking drive.
+pub fn drive(
+    map: &Map,
+    lmap: &Arc<LocalizationMap>,
+    config: &Config,
+    seed: u64,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Drive, ExperimentError> {
+    let route = tour(map)?;
+    let mut s = setup(map, route, 0.0, config, seed);
+    let params = drive_params(&s.spec);
+    let start = pose2(&lock(&s.world).pose(s.id)?);
+    let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
+    let mut wheels = WheelOdometry::new(params, start);
+    let mut fusion = OdometryFusion::new(start, start_cov, params.alpha);
+    let mut localizer_config = localizer_config(&s.spec);
+    localizer_config.seed = seed;
+    let mut localizer = Localizer::new(lmap.clone(), localizer_config, Some((start, start_cov)));
+    let mut camera = if config.vo_every > 0 {
+        Some(SimCamera::new(s.world.clone(), s.id)?)
+    } else {
+        None
+    };
+    let mut vo = camera.as_ref().map(|c| {
+        VisualOdometry::new(
+            sim_vo_config(DetectorKind::LsacSurf, Pipeline::Keyframe),
+            *c.intrinsics(),
+        )
+    });
+    let t_base_camera = camera.as_ref().map(|c| c.t_base_camera());
+    // the per-frame covariance of the odometry trial (iw_sim::vo::TrialConfig)
+    let vo_noise = Matrix3::from_diagonal(&Vector3::new(
+        0.004f64.powi(2),
+        0.004f64.powi(2),
+        0.002f64.powi(2),
+    ));
+    let (mut vo_pose, mut last_camera) = (start, None);
+    let first = lock(&s.world).sensors(s.id)?.clone();
+    wheels.update(first.left_ticks, first.right_ticks);
+    let periods = (config.minutes * 60.0 / config.dt_s).round() as usize;
+    let per_second = (1.0 / config.dt_s).round().max(1.0) as usize;
+    let mut result = Drive {
+        seed,
+        samples: Vec::new(),
+        errors: [(0.0, 0.0); 4],
+        periods,
+        distance_m: 0.0,
+        vo_frames: 0,
+        localizer_us: Vec::with_capacity(periods),
+        collisions: 0,
+        searches: 0,
+    };
+    for k in 1..=periods {
+        step_world(&mut s, config.dt_s)?;
+        let sensed = lock(&s.world).sensors(s.id)?.clone();
+        let timer = Instant::now();
+        if let Some(step) = wheels.update(sensed.left_ticks, sensed.right_ticks) {
+            fusion.predict(&step);
+            localizer.predict(&step);
+        }
+        localizer.update_ranges(&sensed.laser_m, &sensed.sonar_m);
+        result
+            .localizer_us
+            .push(timer.elapsed().as_secs_f64() * 1e6);
+        if let (Some(camera), Some(vo), Some(t_base_camera)) =
+            (camera.as_mut(), vo.as_mut(), t_base_camera.as_ref())
+            && k % config.vo_every == 0
+            && let Some(Ok(frame)) = camera.next_frame()
+            && let Ok((stamped, _)) = vo.process(&frame)
+        {
+            result.vo_frames += 1;
+            if let Some(last) = last_camera {
+                let motion = planar_motion(
+                    t_base_camera,
+                    &(nalgebra::Isometry3::inverse(&last) * stamped.t_world_camera),
+                );
+                vo_pose = vo_pose.compose(&motion);
+                fusion.update_visual(&motion, &vo_noise);
+                localizer.update_visual(&motion, &vo_noise);
+            }
+            last_camera = Some(stamped.t_world_camera);
+        }
+        let truth = pose2(&lock(&s.world).pose(s.id)?);
+        let estimates = [wheels.pose(), vo_pose, fusion.pose(), localizer.pose()];
+        for (acc, e) in result.errors.iter_mut().zip(&estimates) {
+            let err = position_error(e, &truth);
+            acc.0 += err * err;
+            acc.1 = acc.1.max(err);
+        }
+        if k % per_second == 0 {
+            result.samples.push(Sample {
+                time_s: k as f64 * config.dt_s,
+                truth,
+                wheel: estimates[0],
+                vo: estimates[1],
+                fused: estimates[2],
+                localized: estimates[3],
+                nees: nees(&estimates[3], &localizer.covariance(), &truth),
+            });
+        }
+        if k % (60 * per_second) == 0 {
+            progress(Progress::DriveSeconds(60.0));
+        }
+    }
+    let world = lock(&s.world);
+    result.distance_m = world.distance_m(s.id)?;
+    result.collisions = world.collisions(s.id)?;
+    result.searches = localizer.searches();
+    Ok(result)
+}
+
+/// One global localization run: a chair at a random point of the route with no pose.
+pub fn global_run(
+    map: &Map,
+    lmap: &Arc<LocalizationMap>,
+    config: &Config,
+    seed: u64,
+) -> Result<GlobalRun, ExperimentError> {
+    let route = tour(map)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5EED);
+    let fraction: f64 = rng.random();
+    let mut s = setup(map, route, fraction, config, seed);
+    let params = drive_params(&s.spec);
+    let mut wheels = WheelOdometry::new(params, Pose2::default());
+    let mut localizer_config = localizer_config(&s.spec);
+    localizer_config.seed = seed;
+    let mut localizer = Localizer::new(lmap.clone(), localizer_config, None);
+    let first = lock(&s.world).sensors(s.id)?.clone();
+    wheels.update(first.left_ticks, first.right_ticks);
+    let mut run = GlobalRun {
+        seed,
+        distance_m: None,
+        error_at_fix: None,
+        converged: false,
+        max_tracking_error_m: 0.0,
+        falsely_confident: false,
+    };
+    let max_periods = (config.global_drive_m / config.speed_mps * 4.0 / config.dt_s) as usize;
+    for _ in 0..max_periods {
+        step_world(&mut s, config.dt_s)?;
+        let (sensed, truth, distance_m) = {
+            let w = lock(&s.world);
+            (
+                w.sensors(s.id)?.clone(),
+                pose2(&w.pose(s.id)?),
+                w.distance_m(s.id)?,
+            )
+        };
+        if let Some(step) = wheels.update(sensed.left_ticks, sensed.right_ticks) {
+            localizer.predict(&step);
+        }
+        localizer.update_ranges(&sensed.laser_m, &sensed.sonar_m);
+        if localizer.status() == Status::Tracking {
+            let estimate = localizer.pose();
+            let error_m = position_error(&estimate, &truth);
+            if run.distance_m.is_none() {
+                let heading_deg = wrap_angle(estimate.theta - truth.theta).abs().to_degrees();
+                run.distance_m = Some(distance_m);
+                run.error_at_fix = Some((error_m, heading_deg));
+                run.converged = distance_m <= 5.0 && error_m <= 0.10 && heading_deg <= 3.0;
+            }
+            run.max_tracking_error_m = run.max_tracking_error_m.max(error_m);
+            run.falsely_confident |= error_m > 0.30;
+        }
+        if distance_m >= config.global_drive_m {
+            break;
+        }
+    }
+    Ok(run)
+}
+
+/// Runs the tracking drives and the global runs (in parallel, deterministic per seed).
+pub fn run(
+    map: &Map,
+    config: &Config,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Report, ExperimentError> {
+    let route = tour(map)?.points.clone();
+    let lmap = Arc::new(localization_map(map)?);
+    let drives = (0..config.seeds as u64)
+        .into_par_iter()
+        .map(|i| drive(map, &lmap, config, config.seed + i, progress))
+        .collect::<Result<Vec<_>, _>>()?;
+    let global = (0..config.global_runs as u64)
+        .into_par_iter()
+        .map(|i| {
+            let run = global_run(map, &lmap, config, config.seed + i);
+            progress(Progress::GlobalRun);
+            run
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Report {
+        drives,
+        global,
+        map: map.name.clone(),
+        route,
+        config: config.clone(),
+    })
+}

@@ -1,0 +1,62 @@
+//! A short drive and two global runs in the sample building: the summary has the contract keys
+//! and the map-based estimate beats dead reckoning.
+
+use iw_localization_experiment::{Config, run, sample_building, write_outputs};
+
+#[test]
+fn a_short_drive_stays_localized_and_writes_the_summary() {
+    let map = sample_building().unwrap();
+    let config = Config {
+        minutes: 0.75,
+        seeds: 1,
+        global_runs: 2,
+        global_drive_m: 6.0,
+        vo_every: 0,
+        ..Config::default()
+    };
+    let report = run(&map, &config, &|_| {}).unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let summary = write_outputs(&report, &map, out.path()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
+            .unwrap();
+    for key in [
+        "wheel",
+        "vo",
+        "fused",
+        "localized",
+        "global",
+        "nees_pass_rate",
+    ] {
+        assert!(json.get(key).is_some(), "summary.json lacks `{key}`");
+    }
+    for key in ["runs", "converged", "median_distance_m"] {
+        assert!(json["global"].get(key).is_some(), "global lacks `{key}`");
+    }
+    assert!(out.path().join("paths.png").exists() && out.path().join("error.png").exists());
+    eprintln!(
+        "wheel {:.3} m, localized {:.3} m (max {:.3}), NEES pass {:.2}, global {}/{}",
+        summary.wheel.rmse_m,
+        summary.localized.rmse_m,
+        summary.localized.max_m,
+        summary.nees_pass_rate,
+        summary.global.converged,
+        summary.global.runs
+    );
+    assert!(
+        summary.distance_m[0] > 10.0,
+        "drove {:?} m",
+        summary.distance_m
+    );
+    assert!(summary.localized.rmse_m < 0.05 && summary.localized.rmse_m < summary.wheel.rmse_m);
+    assert_eq!(summary.global.falsely_confident, 0);
+}
+
+#[test]
+fn a_map_without_a_closed_route_is_refused() {
+    let map = iw_sim::Map::parse("wall 0 0 5 0 5 5\nroute r 1 1 2 2\n", "m").unwrap();
+    let err = run(&map, &Config::default(), &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("closed route"), "{err}");
+}

@@ -1,0 +1,64 @@
+//! The map and a chair's range sensors as [`iw_localization`] takes them: what the perception
+//! agent's localizer is given when a chair runs on this map.
+
+use iw_localization::{
+    Landmark, LaserGeometry, LocalizationError, LocalizationMap, LocalizerConfig, SonarGeometry,
+};
+use iw_vo::{DiffDriveParams, Pose2};
+use nalgebra::Isometry2;
+
+use crate::{ChairSpec, Map};
+
+/// Nearest-segment queries answer within this distance, m: the matcher's basin of attraction
+/// and the particle filter's distance cap.
+const REACH_M: f64 = 1.0;
+
+fn pose2(t: &Isometry2<f64>) -> Pose2 {
+    Pose2::new(t.translation.x, t.translation.y, t.rotation.angle())
+}
+
+/// The map's walls, furniture and the doors it draws closed, and its landmarks. A door that is
+/// opened later reads as unmapped space and one closed later as an unmapped obstacle: the
+/// matcher's kernel discounts both, and without the closed doors a corridor of doorways looks
+/// the same every few metres.
+pub fn localization_map(map: &Map) -> Result<LocalizationMap, LocalizationError> {
+    let landmarks = map
+        .landmarks
+        .iter()
+        .map(|m| Landmark {
+            id: m.id,
+            pose: Pose2::new(m.position.x, m.position.y, m.facing_rad),
+        })
+        .collect();
+    let mut segments = map.solid_segments();
+    segments.extend(map.doors.iter().filter(|d| !d.open).map(|d| (d.a, d.b)));
+    LocalizationMap::new(segments, landmarks, REACH_M)
+}
+
+/// The drive parameters of `spec` with the default motion model.
+pub fn drive_params(spec: &ChairSpec) -> DiffDriveParams {
+    DiffDriveParams {
+        wheel_radius_m: spec.geometry.wheel_radius_m,
+        track_m: spec.geometry.track_m,
+        ticks_per_rev: spec.geometry.ticks_per_rev,
+        ..DiffDriveParams::default()
+    }
+}
+
+/// The localizer's defaults for a chair built like `spec`: its laser (if fitted) and sonar ring.
+/// The matcher assumes 2 cm per laser beam (1 cm noise and the map's own error) and 15 cm per
+/// sonar echo (the 45 degree cone).
+pub fn localizer_config(spec: &ChairSpec) -> LocalizerConfig {
+    let laser = spec.laser.map(|l| LaserGeometry {
+        t_base_laser: pose2(&l.t_body_laser),
+        fov_rad: l.fov_deg.to_radians(),
+        max_range_m: l.max_range_m,
+        sigma_m: 0.02,
+    });
+    let sonar = SonarGeometry {
+        t_base_sonar: spec.sonars.iter().map(|s| pose2(&s.t_body_sonar)).collect(),
+        max_range_m: spec.sonar.max_range_m,
+        sigma_m: 0.15,
+    };
+    LocalizerConfig::new(laser, Some(sonar), drive_params(spec).alpha)
+}
