@@ -5,7 +5,7 @@
 
 mod common;
 
-use std::path::Path;
+use serde_json::Value;
 use std::process::Command;
 use std::time::{Duration, Instant};
 

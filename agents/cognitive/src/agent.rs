@@ -632,12 +632,10 @@ impl CognitiveAgent {
         place: String,
     ) {
         if !self.localized {
-            let reply = message
-                .create_reply()
-                .with_performative(Performative::Refuse);
-            let _ = ctx.send(reply.with_content(error_content(
+            let _ = ctx.refuse(
+                &message,
                 "not localized: the chair does not know where it is on the map yet; drive it by hand under shared control until it finds itself",
-            )));
+            );
             return;
         }
         if !self.config.map.places.contains_key(&place) {

@@ -60,7 +60,7 @@ use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 use iw_sim::{ChairId, ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
 use nalgebra::{Isometry2, Point2};
 
-use compose::{Building, ServiceConfig, SharedBody, WiringError, agent_id, desk};
+use compose::{Building, ServiceConfig, SharedBody, WiringError, desk};
 /// The interface agent's raw device readings, for [`Fleet::inputs`].
 pub use iw_interface::RawInput;
 use iw_perception_agent::VisualConfig;

@@ -824,16 +824,19 @@ mod tests {
         let mut config = SpawnConfig::default();
         // On the sample building's wall from (0, 7) to (1.4, 7).
         config.body.start = [0.7, 7.0, 0.0];
-        let err = chair_parts("chair-a", &config)
-            .err()
-            .expect("a start pose on a wall is refused")
+        let pose = |c: &SpawnConfig| {
+            let [x, y, deg] = c.body.start;
+            Isometry2::new(Vector2::new(x, y), deg.to_radians())
+        };
+        let err = refuse_an_obstructed_start(&config, &pose(&config))
+            .expect_err("a start pose on a wall is refused")
             .to_string();
         assert!(
             err.contains("body.start") && err.contains("a wall"),
             "{err}"
         );
         config.body.start = SpawnConfig::default().body.start;
-        assert!(chair_parts("chair-a", &config).is_ok());
+        assert!(refuse_an_obstructed_start(&config, &pose(&config)).is_ok());
     }
 
     #[test]
