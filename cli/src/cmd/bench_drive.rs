@@ -5,7 +5,7 @@
 //! of wall time, as `--serve` does) and the dashboard's websocket server. A websocket client
 //! sends the frame the page sends on a pointer event (`{"do":"drive","dev":"stick",...}`) and
 //! notes the instant; the time is read again when the control agent's tick hands a non-zero
-//! command to the wheels (its [`iw_control_agent::DriveStatus`] is set right before the body is
+//! command to the wheels (the control agent's `DriveStatus` is set right before the body is
 //! commanded). In between: the websocket, the demo loop's action queue, the interface agent's
 //! tick, the bus, the control agent's tick with shared control. Trials alternate forward and back
 //! (the chair stays in the corridor), each sent at a different phase of the 50 ms step, then
