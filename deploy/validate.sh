@@ -35,8 +35,8 @@ if not isinstance(doc, dict) or not isinstance(doc.get("services"), dict):
     fail("no `services` mapping")
 services = doc["services"]
 chairs = sorted(n for n in services if n.startswith("chair-"))
-if "services" not in services or len(chairs) < 3:
-    fail(f"expected the services and 3 chairs, found {sorted(services)}")
+if "services" not in services or "world" not in services or len(chairs) < 3:
+    fail(f"expected the services, the world and 3 chairs, found {sorted(services)}")
 declared = set((doc.get("secrets") or {}).keys())
 networks = set((doc.get("networks") or {}).keys())
 volumes = set((doc.get("volumes") or {}).keys())
@@ -60,10 +60,10 @@ for name, svc in services.items():
     cmd = svc.get("command")
     if not (isinstance(cmd, list) and cmd and cmd[0] == "spawn" and all(isinstance(c, str) for c in cmd)):
         fail(f"service {name}: command must be a list of strings starting with `spawn`")
-    role = "--services" if name == "services" else "--chair"
+    role = {"services": "--services", "world": "--world"}.get(name, "--chair")
     if role not in cmd:
         fail(f"service {name}: command lacks {role}")
-    if name != "services" and cmd[cmd.index("--chair") + 1] != name:
+    if role == "--chair" and cmd[cmd.index("--chair") + 1] != name:
         fail(f"service {name}: --chair must name the service")
     if "--control-key" not in cmd or "--insecure-dev" in cmd:
         fail(f"service {name}: the control channel must be keyed (--control-key, no --insecure-dev)")
@@ -76,7 +76,7 @@ for name, svc in services.items():
     for dep in svc.get("depends_on", []):
         if dep not in services:
             fail(f"service {name} depends on unknown service {dep}")
-print(f"{path}: services + {len(chairs)} chairs OK")
+print(f"{path}: services, world and {len(chairs)} chairs OK")
 PY
 
 echo "== systemd unit"
