@@ -353,7 +353,7 @@ fn a_chair_restarted_after_sigkill_gets_its_goal_again() {
         "--control-key",
         &control,
         "--goal",
-        "chair-r:3.0,6.0",
+        "chair-r:dining-hall",
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
     let chair_addr = format!("127.0.0.1:{}", free_port_pair());

@@ -207,6 +207,20 @@ fn off_the_control_path(serial: SerialBody) -> Result<BodyWorker, NodeError> {
 /// Age past which a serial sensor frame is refused, ms (the board answers every 50 ms period).
 const STALE_FRAME_MS: u64 = 300;
 
+/// A log file no other services container uses: named by process, a per-process counter and
+/// the clock, so neither two containers in one process nor a recycled process id share one.
+fn fresh_log_path() -> PathBuf {
+    static STARTED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = STARTED.fetch_add(1, Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    std::env::temp_dir().join(format!(
+        "intellwheels-agents-{}-{n}-{nanos}.log",
+        std::process::id()
+    ))
+}
+
 /// Refuses a start pose whose footprint overlaps a wall, furniture or a closed door of the map
 /// (checked on a scratch copy of the world: the shared one lives in the world container).
 fn refuse_an_obstructed_start(
@@ -350,7 +364,7 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
     chairs.extend(waiting.iter().map(|(c, _)| c.clone()));
     chairs.extend(config.services.restricted.values().flatten().cloned());
     let log_path = if config.services.log.is_empty() {
-        std::env::temp_dir().join(format!("intellwheels-agents-{}.log", std::process::id()))
+        fresh_log_path()
     } else {
         PathBuf::from(&config.services.log)
     };

@@ -147,7 +147,7 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
         name: "chair-f".into(),
     };
     let mut chair = Running::start(chair, config(None, &peers));
-    chair.wait_for("the services joined", joined("dispatcher@services"));
+    chair.wait_for("the services joined", joined("assistant@services"));
     services.wait_for("the chair joined", joined("control@chair-f"));
 
     let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -164,7 +164,7 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
         ContainerId(1),
         Part {
             generation: u64::MAX,
-            agents: vec![evil("dispatcher@services"), evil("evil@x")],
+            agents: vec![evil("assistant@services"), evil("evil@x")],
         },
     );
     let forged = [
@@ -203,7 +203,7 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
         !chair
             .seen
             .iter()
-            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "dispatcher@services")),
+            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "assistant@services")),
         "the services' route never changed: {:#?}",
         chair.seen
     );
@@ -229,13 +229,13 @@ fn a_second_services_container_with_a_live_id_is_refused() {
         name: "chair-i".into(),
     };
     let mut chair = Running::start(chair, config(Some(key), &[services.bus()]));
-    chair.wait_for("the services joined", joined("dispatcher@services"));
+    chair.wait_for("the services joined", joined("assistant@services"));
     services.wait_for("the chair joined", joined("control@chair-i"));
 
     let mut impostor_config = config(Some(key), &[chair.bus()]);
     impostor_config.services.goals.push(iw_node::GoalSpec {
         chair: "chair-i".into(),
-        place: "3.0,6.0".into(),
+        place: "office".into(),
     });
     let mut impostor = Running::start(Role::Services, impostor_config);
     let deadline = Instant::now() + LIMIT;
