@@ -49,7 +49,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_body::layout::Footprint;
-use iw_body::{Body, BodyError, SensorFrame};
+use iw_body::{Body, BodyError, SensorFrame, WheelGeometry};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
@@ -124,8 +124,8 @@ pub struct ControlConfig {
 
 impl ControlConfig {
     /// The prototype's defaults: its footprint and the 16 sonars of thesis figure 3.4 where the
-    /// simulator puts them too ([`Footprint::PROTOTYPE`]), 0.56 m track, 1 m/s wheels, 0.5 s
-    /// watchdog, 20 Hz.
+    /// simulator puts them too ([`Footprint::PROTOTYPE`]), the body's wheel track
+    /// ([`WheelGeometry`]), 1 m/s wheels, 0.5 s watchdog, 20 Hz.
     pub fn prototype(perception: Option<AgentId>) -> Result<Self, ControlError> {
         let footprint = Footprint::PROTOTYPE;
         let sonar_mounts = footprint.sonar_mounts().to_vec();
@@ -133,7 +133,7 @@ impl ControlConfig {
             perception,
             footprint,
             guard: ArcGuardParams::default(),
-            drive: DiffDrive::new(0.56, 1.0, 1.5)?,
+            drive: DiffDrive::new(WheelGeometry::default().track_m, 1.0, 1.5)?,
             tactical: TacticalParams::default(),
             shared: PotentialFieldParams::default(),
             sonar_mounts,
