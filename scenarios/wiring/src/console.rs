@@ -28,22 +28,13 @@ pub struct GoalEvent {
     pub reason: Option<String>,
 }
 
-/// The text of `((error-message "..."))` content, as the platform's agents explain a FAILURE or
-/// REFUSE.
+/// The reason of an `(error-message "...")` fact (the wheelchair ontology's), as the platform's
+/// agents explain a FAILURE or REFUSE.
 fn error_message(message: &AclMessage) -> Option<String> {
-    let content = iw_sl::parse(message.content_text()?, iw_sl::Level::Full).ok()?;
-    content.expressions.into_iter().find_map(|e| match e {
-        iw_sl::ContentExpression::Formula(iw_sl::Formula::Atomic {
-            predicate,
-            mut args,
-        }) if predicate == "error-message" && args.len() == 1 => match args.pop() {
-            Some(iw_sl::Term::Constant {
-                value: iw_sl::Constant::String(text),
-            }) => Some(text),
-            _ => None,
-        },
+    match WheelchairContent::from_message(message) {
+        Ok(WheelchairContent::Inform(Fact::ErrorMessage { reason })) => Some(reason),
         _ => None,
-    })
+    }
 }
 
 /// What the fleet and the console agent share.
