@@ -5,19 +5,21 @@
 //! and [`AssistantAgent::new`].
 //!
 //! # Messages
-//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-request`.
+//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-request`, both
+//! conversations run by the protocol's state machine (`iw-interaction`).
 //! - From staff: REQUEST `((action (agent-identifier :name CHAIR) (go-to :place P)))`, the actor
 //!   being the chair's name. REFUSE `((error-message "..."))` when the chair is unknown or the
 //!   sender is not staff; otherwise AGREE, then the cognitive agent's final INFORM (done) or
 //!   FAILURE relayed in the staff's conversation. Non go-to actions are refused.
 //! - To the cognitive agent: REQUEST `((action COGNITIVE (go-to :place P)))` in a fresh
-//!   conversation `assist-N`; its AGREE is absorbed, its REFUSE relayed.
+//!   conversation; its AGREE is absorbed, and its REFUSE relayed to staff as a FAILURE with the
+//!   same reason (the assistant has already agreed, so fipa-request allows no REFUSE).
 #![warn(missing_docs)]
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
@@ -33,9 +35,8 @@ pub struct AssistantConfig {
 /// The assistant agent.
 pub struct AssistantAgent {
     config: AssistantConfig,
-    /// Forwarded conversation id to the staff request it serves.
-    forwarded: BTreeMap<String, AclMessage>,
-    conversations: u64,
+    /// Goals forwarded to a cognitive agent, each with the staff conversation it serves.
+    forwarded: Initiated<Responder>,
 }
 
 impl AssistantAgent {
@@ -43,14 +44,16 @@ impl AssistantAgent {
     pub fn new(config: AssistantConfig) -> Self {
         AssistantAgent {
             config,
-            forwarded: BTreeMap::new(),
-            conversations: 0,
+            forwarded: Initiated::new(),
         }
     }
 
     fn on_staff_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let _ = ctx.refuse(&message, why);
+        let Some(mut staff) = ctx.accept(&message) else {
+            return;
+        };
+        let mut refuse = |ctx: &mut Context<'_>, why: &str| {
+            let _ = ctx.answer_error(&mut staff, Performative::Refuse, why);
         };
         let sender = message
             .sender
@@ -79,55 +82,71 @@ impl AssistantAgent {
             refuse(ctx, &format!("unknown chair `{chair}`"));
             return;
         };
-        self.conversations += 1;
-        let conversation = format!("assist-{}", self.conversations);
         let goal = WheelchairContent::Request {
             actor: cognitive.clone(),
+            action: WheelchairAction::GoTo {
+                place: place.clone(),
+            },
+        };
+        let forward = goal.fill(AclMessage::new(Performative::Request).with_receiver(cognitive));
+        let agreed = WheelchairContent::Request {
+            actor: AgentId::new(chair),
             action: WheelchairAction::GoTo { place },
         };
-        let forward = goal.fill(
-            AclMessage::new(Performative::Request)
-                .with_receiver(cognitive)
-                .with_protocol("fipa-request")
-                .with_conversation_id(conversation.clone()),
-        );
-        let _ = ctx.send(forward);
-        let agree = message
-            .create_reply()
-            .with_performative(Performative::Agree);
-        let _ =
-            ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
-        self.forwarded.insert(conversation, message);
+        if let Err(err) = ctx.answer(&mut staff, Performative::Agree, &agreed) {
+            tracing::warn!(error = %err, "could not agree to a staff goal");
+            return;
+        }
+        if let Err(err) = self
+            .forwarded
+            .open(ctx, Protocol::Request, forward, staff.clone())
+        {
+            let why = format!("could not forward the goal: {err}");
+            let _ = ctx.answer_error(&mut staff, Performative::Failure, &why);
+        }
     }
 
-    fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
-        let Some(conversation) = message.conversation_id.clone() else {
-            return;
+    /// Relays the cognitive agent's outcome into the staff conversation: its result or failure
+    /// as it came, and a refusal as a FAILURE (the assistant had already agreed).
+    fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) -> bool {
+        let Some(answer) = self.forwarded.handle(ctx, message) else {
+            return false;
         };
-        if message.performative == Performative::Agree {
-            return;
-        }
-        let Some(staff) = self.forwarded.remove(&conversation) else {
-            tracing::debug!(conversation, "answer for no forwarded goal");
-            return;
+        let (kind, mut staff) = match answer {
+            Ok(Progress::Continues(_)) => return true,
+            Ok(Progress::Ended(event, staff)) => (event.kind, staff),
+            Err(err) => {
+                tracing::debug!(error = %err, "out-of-protocol answer to a forwarded goal");
+                return true;
+            }
         };
-        let mut relay = staff.create_reply().with_performative(message.performative);
-        if let Some(text) = message.content_text() {
-            relay = relay.with_content(text.to_string());
+        let relayed = match (kind, WheelchairContent::from_message(message)) {
+            (EventKind::Informed, Ok(content)) => {
+                ctx.answer(&mut staff, Performative::Inform, &content)
+            }
+            (EventKind::Failed | EventKind::Refused, Ok(content)) => {
+                ctx.answer(&mut staff, Performative::Failure, &content)
+            }
+            (_, Ok(_)) | (_, Err(_)) => ctx.answer_error(
+                &mut staff,
+                Performative::Failure,
+                &format!("the chair answered {}", message.performative),
+            ),
+        };
+        if let Err(err) = relayed {
+            tracing::warn!(error = %err, "could not relay a goal's outcome to staff");
         }
-        let _ = ctx.send(relay);
+        true
     }
 }
 
 impl Agent for AssistantAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        if self.on_answer(ctx, &message) {
+            return;
+        }
         match message.performative {
             Performative::Request => self.on_staff_request(ctx, message),
-            Performative::Agree
-            | Performative::Inform
-            | Performative::Failure
-            | Performative::Refuse
-            | Performative::NotUnderstood => self.on_answer(ctx, &message),
             _ => {
                 let _ =
                     ctx.not_understood(&message, "the assistant takes go-to requests from staff");

@@ -12,11 +12,22 @@ use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
 type Mailbag = Arc<Mutex<Vec<AclMessage>>>;
 
-/// Staff sends its queue at setup; the cognitive stand-in agrees and reports done.
+/// How the cognitive stand-in answers a goal.
+#[derive(Clone, Copy, PartialEq)]
+enum Answer {
+    /// Staff: never answers.
+    Silent,
+    /// AGREE, then INFORM done.
+    Done,
+    /// REFUSE with a reason, then (out of protocol) an INFORM done.
+    RefuseThenStray,
+}
+
+/// Staff sends its queue at setup; the cognitive stand-in answers as told.
 struct Peer {
     inbox: Mailbag,
     outbox: Vec<AclMessage>,
-    answer: bool,
+    answer: Answer,
 }
 
 impl Agent for Peer {
@@ -26,13 +37,18 @@ impl Agent for Peer {
         }
     }
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        if self.answer {
+        if self.answer == Answer::RefuseThenStray {
+            ctx.refuse(&message, "no route to the dining hall").unwrap();
+        }
+        if self.answer == Answer::Done {
             ctx.send(
                 message
                     .create_reply()
                     .with_performative(Performative::Agree),
             )
             .unwrap();
+        }
+        if self.answer != Answer::Silent {
             if let Ok(WheelchairContent::Request { actor, action }) =
                 WheelchairContent::from_message(&message)
             {
@@ -64,8 +80,13 @@ fn goal(chair: &str, conversation: &str) -> AclMessage {
     )
 }
 
-#[test]
-fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
+/// A host with the assistant (chair1's cognitive agent answering as `answer`), the nurse
+/// (staff) sending `nurse_goals` and a visitor sending `visitor_goals`, run for two steps.
+fn run(
+    answer: Answer,
+    nurse_goals: Vec<AclMessage>,
+    visitor_goals: Vec<AclMessage>,
+) -> [Mailbag; 3] {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
     let bus = Bus::start(
@@ -91,7 +112,7 @@ fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
         Box::new(Peer {
             inbox: Arc::clone(&cognitive),
             outbox: vec![],
-            answer: true,
+            answer,
         }),
     )
     .unwrap();
@@ -99,8 +120,8 @@ fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
         AgentId::new("nurse"),
         Box::new(Peer {
             inbox: Arc::clone(&nurse),
-            outbox: vec![goal("chair1", "n1"), goal("chair9", "n2")],
-            answer: false,
+            outbox: nurse_goals,
+            answer: Answer::Silent,
         }),
     )
     .unwrap();
@@ -108,15 +129,32 @@ fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
         AgentId::new("visitor"),
         Box::new(Peer {
             inbox: Arc::clone(&visitor),
-            outbox: vec![goal("chair1", "v1")],
-            answer: false,
+            outbox: visitor_goals,
+            answer: Answer::Silent,
         }),
     )
     .unwrap();
     host.step(controller.now());
     controller.advance(Duration::from_millis(10));
     host.step(controller.now());
+    [cognitive, nurse, visitor]
+}
 
+fn seen(bag: &Mailbag) -> Vec<(String, Performative)> {
+    bag.lock()
+        .unwrap()
+        .iter()
+        .map(|m| (m.conversation_id.clone().unwrap(), m.performative))
+        .collect()
+}
+
+#[test]
+fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
+    let [cognitive, nurse, visitor] = run(
+        Answer::Done,
+        vec![goal("chair1", "n1"), goal("chair9", "n2")],
+        vec![goal("chair1", "v1")],
+    );
     let forwarded = cognitive.lock().unwrap();
     assert_eq!(
         forwarded.len(),
@@ -132,13 +170,6 @@ fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
             }
         }
     );
-    let seen = |bag: &Mailbag| -> Vec<(String, Performative)> {
-        bag.lock()
-            .unwrap()
-            .iter()
-            .map(|m| (m.conversation_id.clone().unwrap(), m.performative))
-            .collect()
-    };
     assert_eq!(
         seen(&nurse),
         [
@@ -148,4 +179,23 @@ fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
         ]
     );
     assert_eq!(seen(&visitor), [("v1".into(), Performative::Refuse)]);
+}
+
+/// The assistant has agreed before it forwards, so fipa-request lets it relay a chair's REFUSE
+/// only as a FAILURE (with the chair's reason); an answer after the end is not relayed.
+#[test]
+fn a_chairs_refusal_reaches_staff_as_a_failure_with_its_reason_and_stray_answers_are_dropped() {
+    let [_, nurse, _] = run(Answer::RefuseThenStray, vec![goal("chair1", "n1")], vec![]);
+    assert_eq!(
+        seen(&nurse),
+        [
+            ("n1".into(), Performative::Agree),
+            ("n1".into(), Performative::Failure)
+        ]
+    );
+    let failure = nurse.lock().unwrap()[1].clone();
+    assert_eq!(
+        WheelchairContent::from_message(&failure).unwrap(),
+        WheelchairContent::error("no route to the dining hall")
+    );
 }

@@ -32,7 +32,11 @@
 //!   is logged.
 //! - INFORM `((at-pose agent (pose ...)))`: the pose the tactical layer steers with, from the
 //!   perception agent. At setup the agent SUBSCRIBEs (`fipa-subscribe`) to
-//!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`.
+//!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`; only that
+//!   subscription's notifications move the pose (an INFORM in another conversation does not).
+//!
+//! Requests and the subscription run on the interaction protocols' state machines
+//! (`iw_agent::conversation`), so no answer is sent that fipa-request does not allow.
 //!
 //! Driving: the potential field (thesis 3.6) corrects the user's manual command (not the
 //! tactical layer's, whose path the planner keeps clear); then [`ArcGuard`] scales or steers either so the footprint swept until the chair stops (turning in place too) stays clear of
@@ -47,7 +51,7 @@ use std::sync::PoisonError;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelGeometry};
 use iw_ontology::OntologyContent;
@@ -169,16 +173,17 @@ enum Mode {
 
 /// A live manual drive stream: who drives, in which conversation, and the last command.
 struct Stream {
-    /// The stream's first request (its conversation, for the final answer).
-    request: AclMessage,
+    /// The stream's conversation, answered once at its start and once at its end.
+    responder: Responder,
+    /// The conversation id the driver gave (every command of the stream carries it).
+    conversation: Option<String>,
     driver: String,
     user: VelocityCommand,
 }
 
 impl Stream {
     fn is(&self, message: &AclMessage) -> bool {
-        sender_name(message) == self.driver
-            && message.conversation_id == self.request.conversation_id
+        sender_name(message) == self.driver && message.conversation_id == self.conversation
     }
 }
 
@@ -200,7 +205,7 @@ pub struct DriveStatus {
 pub type SharedDriveStatus = std::sync::Arc<std::sync::Mutex<DriveStatus>>;
 
 struct Task {
-    request: AclMessage,
+    responder: Responder,
     actor: AgentId,
     action: WheelchairAction,
     sequence: ActionSequence,
@@ -216,6 +221,8 @@ pub struct ControlAgent {
     /// The potential field, then the arc guard; tactical commands take only `shared.guard`.
     shared: Guarded<PotentialField>,
     mode: Mode,
+    /// The pose subscription to the perception agent.
+    poses: Initiated<()>,
     t_map_base: Option<Isometry2<f64>>,
     manual_watchdog: Watchdog,
     /// When the body's reads started failing, while they fail, ns.
@@ -243,6 +250,7 @@ impl ControlAgent {
             basic,
             shared,
             mode: Mode::Idle,
+            poses: Initiated::new(),
             t_map_base: None,
             manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)),
             body_fault_since_ns: None,
@@ -268,7 +276,13 @@ impl ControlAgent {
     }
 
     /// One manual `drive` command: starts, continues, or (refused) leaves alone a stream.
-    fn on_drive(&mut self, ctx: &mut Context<'_>, message: AclMessage, user: VelocityCommand) {
+    fn on_drive(
+        &mut self,
+        ctx: &mut Context<'_>,
+        message: AclMessage,
+        request: WheelchairContent,
+        user: VelocityCommand,
+    ) {
         let driver = sender_name(&message).to_string();
         if let Mode::Manual(_) = self.mode
             && self.manual_watchdog.expired(ctx.now().0)
@@ -292,13 +306,19 @@ impl ControlAgent {
             self.manual_watchdog.feed(ctx.now().0);
             return;
         }
+        let Some(mut responder) = ctx.accept(&message) else {
+            return;
+        };
+        let mut refuse = |ctx: &mut Context<'_>, why: &str| {
+            let _ = ctx.answer_error(&mut responder, Performative::Refuse, why);
+        };
         if let Some(why) = limit {
-            let _ = ctx.refuse(&message, &why);
+            refuse(ctx, &why);
             return;
         }
         if !self.may_drive(ctx.aid(), &driver) {
-            let _ = ctx.refuse(
-                &message,
+            refuse(
+                ctx,
                 &format!("`{driver}` is not a driver of this chair (nor staff)"),
             );
             return;
@@ -306,8 +326,7 @@ impl ControlAgent {
         let why = match &self.mode {
             Mode::Manual(stream) if stream.driver != driver => {
                 if !self.config.staff.contains(&driver) {
-                    let why = format!("the chair is driven by `{}`", stream.driver);
-                    let _ = ctx.refuse(&message, &why);
+                    refuse(ctx, &format!("the chair is driven by `{}`", stream.driver));
                     return;
                 }
                 tracing::warn!(staff = %driver, driver = %stream.driver, "staff override: taking the chair over");
@@ -317,9 +336,15 @@ impl ControlAgent {
             _ => "preempted by manual driving".to_string(),
         };
         self.preempt(ctx, &why);
-        reply(ctx, &message, Performative::Agree, "");
+        if ctx
+            .answer(&mut responder, Performative::Agree, &request)
+            .is_err()
+        {
+            return;
+        }
         self.mode = Mode::Manual(Box::new(Stream {
-            request: message,
+            responder,
+            conversation: message.conversation_id,
             driver,
             user,
         }));
@@ -350,7 +375,7 @@ impl ControlAgent {
     /// Ends the live drive stream: FAILURE with `why`, or (none) INFORM done when the user had
     /// let go (last command a stop), FAILURE for silence otherwise. The chair stops.
     fn end_stream(&mut self, ctx: &mut Context<'_>, why: Option<&str>) {
-        let Mode::Manual(stream) = std::mem::replace(&mut self.mode, Mode::Idle) else {
+        let Mode::Manual(mut stream) = std::mem::replace(&mut self.mode, Mode::Idle) else {
             return;
         };
         let released = stream.user == VelocityCommand::STOP;
@@ -363,21 +388,17 @@ impl ControlAgent {
                         angular_radps: 0.0,
                     },
                 };
-                let inform = stream
-                    .request
-                    .create_reply()
-                    .with_performative(Performative::Inform);
-                let _ = ctx.send(done.fill(inform));
+                let _ = ctx.answer(&mut stream.responder, Performative::Inform, &done);
             }
             None => {
                 let why = format!(
                     "watchdog: no drive command for {} ms; chair stopped",
                     self.config.watchdog_ms
                 );
-                let _ = ctx.failure(&stream.request, &why);
+                let _ = ctx.answer_error(&mut stream.responder, Performative::Failure, &why);
             }
             Some(why) => {
-                let _ = ctx.failure(&stream.request, why);
+                let _ = ctx.answer_error(&mut stream.responder, Performative::Failure, why);
             }
         }
     }
@@ -391,39 +412,45 @@ impl ControlAgent {
         else {
             return;
         };
+        let request = WheelchairContent::Request {
+            actor: actor.clone(),
+            action: action.clone(),
+        };
         if let WheelchairAction::Drive {
             linear_mps,
             angular_radps,
         } = action
         {
-            self.on_drive(
-                ctx,
-                message,
-                VelocityCommand::new(linear_mps, angular_radps),
-            );
+            let user = VelocityCommand::new(linear_mps, angular_radps);
+            self.on_drive(ctx, message, request, user);
             return;
         }
+        let Some(mut responder) = ctx.accept(&message) else {
+            return;
+        };
         let mut steps = Vec::new();
-        if let Err(refused) = self.tactical_actions(&action, &mut steps) {
-            reply(
-                ctx,
-                &message,
-                Performative::Refuse,
-                &format!("cannot execute {refused}"),
-            );
-            return;
-        }
-        let sequence = match ActionSequence::new(self.config.tactical, steps) {
+        let sequence = self
+            .tactical_actions(&action, &mut steps)
+            .map_err(|refused| format!("cannot execute {refused}"))
+            .and_then(|()| {
+                ActionSequence::new(self.config.tactical, steps).map_err(|err| err.to_string())
+            });
+        let sequence = match sequence {
             Ok(sequence) => sequence,
-            Err(err) => {
-                reply(ctx, &message, Performative::Refuse, &err.to_string());
+            Err(why) => {
+                let _ = ctx.answer_error(&mut responder, Performative::Refuse, &why);
                 return;
             }
         };
         self.preempt(ctx, "preempted by a newer request");
-        reply(ctx, &message, Performative::Agree, "");
+        if ctx
+            .answer(&mut responder, Performative::Agree, &request)
+            .is_err()
+        {
+            return;
+        }
         self.mode = Mode::Task(Box::new(Task {
-            request: message,
+            responder,
             actor,
             action,
             sequence,
@@ -473,8 +500,8 @@ impl ControlAgent {
     /// Ends a running task or drive stream with FAILURE.
     fn preempt(&mut self, ctx: &mut Context<'_>, why: &str) {
         match std::mem::replace(&mut self.mode, Mode::Idle) {
-            Mode::Task(task) => {
-                let _ = ctx.failure(&task.request, why);
+            Mode::Task(mut task) => {
+                let _ = ctx.answer_error(&mut task.responder, Performative::Failure, why);
             }
             manual @ Mode::Manual(_) => {
                 self.mode = manual;
@@ -556,12 +583,7 @@ impl ControlAgent {
                     actor: task.actor.clone(),
                     action: task.action.clone(),
                 };
-                let inform = done.fill(
-                    task.request
-                        .create_reply()
-                        .with_performative(Performative::Inform),
-                );
-                let _ = ctx.send(inform);
+                let _ = ctx.answer(&mut task.responder, Performative::Inform, &done);
                 self.mode = Mode::Idle;
                 Some(VelocityCommand::STOP)
             }
@@ -585,18 +607,16 @@ impl Task {
     }
 }
 
-/// Reply helper: `performative` with an `error-message` reason; AGREE (no reason) repeats the
-/// request's content.
-fn reply(ctx: &mut Context<'_>, to: &AclMessage, performative: Performative, reason: &str) {
-    let _ = match performative {
-        Performative::Agree => ctx.send(
-            to.create_reply()
-                .with_performative(performative)
-                .with_content(to.content_text().unwrap_or_default().to_string()),
-        ),
-        Performative::Refuse => ctx.refuse(to, reason),
-        _ => ctx.failure(to, reason),
-    };
+/// Whether `act` answers a conversation rather than opening one.
+fn is_answer(act: Performative) -> bool {
+    matches!(
+        act,
+        Performative::Agree
+            | Performative::Refuse
+            | Performative::Inform
+            | Performative::Failure
+            | Performative::NotUnderstood
+    )
 }
 
 trait TermString {
@@ -614,35 +634,44 @@ impl Agent for ControlAgent {
         if let Some(perception) = self.config.perception.clone() {
             let subscribe = AclMessage::new(Performative::Subscribe)
                 .with_receiver(perception)
-                .with_protocol("fipa-subscribe")
                 .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
                 .with_language(Level::Sl0.language())
                 .with_conversation_id(format!("pose-{}", ctx.name()))
                 .with_content("((at-pose ?agent ?pose))");
-            let _ = ctx.send(subscribe);
+            if let Err(err) = self.poses.open(ctx, Protocol::Subscribe, subscribe, ()) {
+                tracing::warn!(error = %err, "could not subscribe to the chair's pose");
+            }
         }
     }
 
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        match message.performative {
-            Performative::Request => self.handle_request(ctx, message),
-            Performative::Inform => match WheelchairContent::from_message(&message) {
-                Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
-                    self.t_map_base = Some(pose.t_map_base())
+        match self.poses.handle(ctx, &message) {
+            Some(Ok(Progress::Continues(event))) if event.kind == EventKind::Notified => {
+                match WheelchairContent::from_message(&message) {
+                    Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
+                        self.t_map_base = Some(pose.t_map_base())
+                    }
+                    Ok(_) => {}
+                    Err(err) => tracing::debug!(error = %err, "ignored a pose notification"),
                 }
-                Ok(_) => {}
-                Err(err) => tracing::debug!(error = %err, "ignored an inform"),
-            },
-            Performative::Agree
-            | Performative::Refuse
-            | Performative::Failure
-            | Performative::NotUnderstood => {
-                tracing::debug!(performative = %message.performative, "answer to our subscription");
             }
-            _ => {
+            Some(Ok(Progress::Continues(_))) => {}
+            Some(Ok(Progress::Ended(event, ()))) => {
+                tracing::warn!(kind = ?event.kind, "the pose subscription ended");
+            }
+            Some(Err(err)) => tracing::debug!(error = %err, "out-of-protocol pose message"),
+            None if message.performative == Performative::Request => {
+                self.handle_request(ctx, message)
+            }
+            // An answer in no conversation of ours is not answered: NOT-UNDERSTOOD back to a
+            // stray NOT-UNDERSTOOD would start an endless exchange.
+            None if is_answer(message.performative) => {
+                tracing::debug!(performative = %message.performative, "answer in no conversation of ours");
+            }
+            None => {
                 let _ = ctx.not_understood(
                     &message,
-                    "the control agent takes requests and pose informs",
+                    "the control agent takes requests and its pose subscription's informs",
                 );
             }
         }

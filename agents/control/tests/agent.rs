@@ -149,6 +149,29 @@ impl Rig {
             .map(|(_, m)| (m.performative, reason(m)))
             .collect()
     }
+    /// Sends a pose notification in the control agent's pose subscription (made at setup: one
+    /// step runs first if it has not happened yet).
+    fn send_pose(&mut self, x: f64, y: f64, theta: f64) {
+        if !self
+            .received
+            .iter()
+            .any(|m| m.performative == Performative::Subscribe)
+        {
+            self.run(10);
+        }
+        let subscription = self
+            .received
+            .iter()
+            .find(|m| m.performative == Performative::Subscribe)
+            .expect("the control agent subscribes at setup")
+            .clone();
+        let mut notification = pose(x, y, theta);
+        notification.receivers = vec![AgentId::new("control")];
+        notification.conversation_id = subscription.conversation_id.clone();
+        notification.in_reply_to = subscription.reply_with.clone();
+        notification.protocol = subscription.protocol.clone();
+        self.probe.send(notification);
+    }
     fn send(&self, m: AclMessage) {
         self.probe.send(m.with_receiver(AgentId::new("control")));
     }
@@ -168,6 +191,8 @@ fn reason(m: &AclMessage) -> String {
     }
 }
 
+/// A pose notification as the perception agent sends it: an INFORM in the control agent's
+/// subscription (see [`Rig::send_pose`]).
 fn pose(x: f64, y: f64, theta: f64) -> AclMessage {
     let fact = Fact::AtPose {
         agent: AgentId::new("probe"),
@@ -225,7 +250,7 @@ fn goto_is_agreed_driven_and_reported_done() {
             .with_protocol("fipa-request")
             .with_conversation_id("g1"),
     );
-    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send_pose(0.0, 0.0, 0.0);
     rig.send(request);
     rig.run(200);
     assert!(
@@ -234,7 +259,7 @@ fn goto_is_agreed_driven_and_reported_done() {
         rig.performatives()
     );
     assert!(rig.last_wheels().left_mps > 0.0, "drives toward the goal");
-    rig.send(pose(0.98, 0.0, 0.0));
+    rig.send_pose(0.98, 0.0, 0.0);
     rig.run(200);
     let inbox = &rig.received;
     let done = inbox
@@ -264,7 +289,7 @@ fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refu
         action: WheelchairAction::OpenDoor { door: "d1".into() },
     }
     .fill(AclMessage::new(Performative::Request).with_conversation_id("g3"));
-    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send_pose(0.0, 0.0, 0.0);
     rig.send(goto);
     rig.send(door);
     rig.send(AclMessage::new(Performative::Request).with_content("((nonsense"));
@@ -283,7 +308,7 @@ fn a_chair_that_cannot_progress_reports_failure_and_non_driving_actions_are_refu
 #[test]
 fn a_short_body_fault_stops_the_wheels_and_the_task_resumes_from_rest() {
     let mut rig = rig();
-    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send_pose(0.0, 0.0, 0.0);
     rig.send(goto_far("g4"));
     rig.run(3000);
     let cruising = rig.last_wheels();
@@ -314,7 +339,7 @@ fn a_short_body_fault_stops_the_wheels_and_the_task_resumes_from_rest() {
 #[test]
 fn a_body_unreadable_beyond_the_fault_window_fails_the_task() {
     let mut rig = rig();
-    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send_pose(0.0, 0.0, 0.0);
     rig.send(goto_far("g5"));
     rig.run(1000);
     *rig.body.failing_reads.lock().unwrap() = 20;
@@ -343,7 +368,7 @@ fn a_body_unreadable_beyond_the_fault_window_fails_the_task() {
 #[test]
 fn a_wheel_stop_that_fails_fails_the_task_at_once_and_is_retried() {
     let mut rig = rig();
-    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send_pose(0.0, 0.0, 0.0);
     rig.send(goto_far("g6"));
     rig.run(1000);
     assert!(rig.last_wheels().left_mps > 0.0);
@@ -372,7 +397,7 @@ fn a_wheel_stop_that_fails_fails_the_task_at_once_and_is_retried() {
 /// Sends the pose every 100 ms for `ms` while the chair turns through `headings` (cycled).
 fn hold_pose(rig: &mut Rig, ms: u64, headings: &[f64]) {
     for k in 0..ms / 100 {
-        rig.send(pose(0.0, 0.0, headings[k as usize % headings.len()]));
+        rig.send_pose(0.0, 0.0, headings[k as usize % headings.len()]);
         rig.run(100);
     }
 }
@@ -417,7 +442,7 @@ fn a_wall_on_the_right_steers_the_chair_left_not_into_it() {
 fn wiggling_in_place_without_travel_is_blocked() {
     // The heading jitters by +-0.2 rad with no travel: no real progress, so the task fails.
     let mut rig = rig();
-    rig.send(pose(0.0, 0.0, 0.0));
+    rig.send_pose(0.0, 0.0, 0.0);
     rig.send(goto_far("jitter"));
     hold_pose(&mut rig, 10_000, &[0.0, 0.2, -0.2]);
     assert!(failed(&rig, "jitter"), "{:?}", rig.performatives());
@@ -427,7 +452,7 @@ fn wiggling_in_place_without_travel_is_blocked() {
 fn turning_in_place_is_progress() {
     // Turning steadily in place (0.2 rad/s, 2 rad in 10 s) is progress: not blocked.
     let mut rig2 = self::rig();
-    rig2.send(pose(0.0, 0.0, 0.0));
+    rig2.send_pose(0.0, 0.0, 0.0);
     rig2.send(goto_far("turn"));
     let headings: Vec<f64> = (0..100).map(|k| -0.02 * k as f64).collect();
     hold_pose(&mut rig2, 10_000, &headings);
@@ -600,4 +625,16 @@ fn a_second_driver_is_refused_strangers_too_and_staff_take_over_with_a_log() {
     );
     let w = rig.last_wheels();
     assert!(w.right_mps > w.left_mps + 0.1, "staff's turn drives: {w:?}");
+}
+
+/// Answers in no conversation of the agent's (a pose INFORM outside the subscription, a stray
+/// NOT-UNDERSTOOD) get no answer: NOT-UNDERSTOOD for NOT-UNDERSTOOD would never end.
+#[test]
+fn answers_in_no_conversation_of_ours_are_not_answered() {
+    let mut rig = rig();
+    rig.run(20);
+    rig.send(pose(1.0, 2.0, 0.0));
+    rig.send(AclMessage::new(Performative::NotUnderstood).with_conversation_id("nobody-knows"));
+    rig.run(50);
+    assert_eq!(rig.performatives(), [Performative::Subscribe]);
 }

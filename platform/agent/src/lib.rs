@@ -10,6 +10,8 @@
 //! - [`AgentHost`]: owns the agents of a container; [`AgentHost::step`] runs them once at a
 //!   given time (simulated time: scenarios run faster than real time and deterministically), and
 //!   [`AgentHost::run_until`] paces steps with the bus clock (real time).
+//! - [`conversation`]: FIPA interaction protocols for agents: [`Initiated`] conversations an
+//!   agent opened, and [`Context::accept`] / [`Context::answer`] for the ones it answers.
 //! - [`gateway`]: a [`GatewayAgent`] that lets code outside the agent world (tests, the CLI, the
 //!   dashboard) speak as an agent through a [`GatewayHandle`].
 //! - [`Tap`]: sees every message the host's agents send (the logger agent's copies are made
@@ -32,8 +34,11 @@ use iw_bus::{Bus, BusError, Mailbox, Time};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::WheelchairContent;
 
+pub mod conversation;
 pub mod gateway;
+pub use conversation::{Initiated, Progress};
 pub use gateway::{GatewayAgent, GatewayHandle};
+pub use iw_interaction::{EventKind, Protocol, Responder};
 
 /// Rounds of local delivery within one [`AgentHost::step`]; a longer chain continues next step.
 pub const MAX_ROUNDS_PER_STEP: usize = 16;
@@ -58,6 +63,16 @@ pub enum AgentError {
         agent: String,
         /// Its performative.
         performative: Performative,
+    },
+    /// The interaction protocol does not allow this act now (or cannot open this
+    /// conversation).
+    #[error("agent `{agent}`: {source}")]
+    Protocol {
+        /// The agent concerned.
+        agent: String,
+        /// What the protocol refused.
+        #[source]
+        source: iw_interaction::Error,
     },
 }
 

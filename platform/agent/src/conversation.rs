@@ -1,0 +1,251 @@
+//! Conversations run by the FIPA interaction protocols (`iw-interaction`), so agents never match
+//! replies or pick the next act by hand.
+//!
+//! - [`Initiated`]: the conversations an agent opened (fipa-request, fipa-query,
+//!   fipa-subscribe, ...), each with the agent's own data `T`. Replies are matched by
+//!   conversation id and `in-reply-to`, checked against the protocol's state table, and come
+//!   back as a typed [`Progress`].
+//! - [`Context::accept`] and [`Context::answer`]: the participant's side. A
+//!   [`Responder`](iw_interaction::Responder) only lets the agent send what its protocol allows
+//!   next (no INFORM before a REQUEST is agreed or refused, nothing after the end).
+//!
+//! Time is the step's time ([`Context::now`]), as Unix milliseconds on the protocol side.
+
+use std::collections::BTreeMap;
+
+use iw_acl::{AclMessage, Performative};
+use iw_bus::Time;
+use iw_interaction::{Event, Initiator, Protocol, Responder};
+use iw_ontology::OntologyContent;
+use iw_ontology::wheelchair::WheelchairContent;
+
+use crate::{AgentError, Context};
+
+/// `time` as the Unix milliseconds the protocol engines take.
+fn unix_ms(time: Time) -> i64 {
+    i64::try_from(time.as_ns() / 1_000_000).unwrap_or(i64::MAX)
+}
+
+/// What an answer did to an initiated conversation.
+#[derive(Debug)]
+pub enum Progress<T> {
+    /// The conversation goes on (an AGREE, a subscription's notification).
+    Continues(Event),
+    /// It ended (result, refusal, failure, not understood, cancel confirmed); the agent's data
+    /// for it comes back.
+    Ended(Event, T),
+}
+
+/// The conversations an agent initiated and has not seen end, keyed by conversation id.
+#[derive(Debug)]
+pub struct Initiated<T> {
+    open: BTreeMap<String, (Initiator, T)>,
+    opened: u64,
+}
+
+impl<T> Default for Initiated<T> {
+    fn default() -> Self {
+        Self {
+            open: BTreeMap::new(),
+            opened: 0,
+        }
+    }
+}
+
+impl<T> Initiated<T> {
+    /// No conversations yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Opens a `protocol` conversation with `opening`'s receivers and sends the opening act,
+    /// one copy per receiver with its own `reply-with`. The conversation id is `opening`'s, or
+    /// a fresh `AGENT-cN`. Returns the id.
+    pub fn open(
+        &mut self,
+        ctx: &mut Context<'_>,
+        protocol: Protocol,
+        mut opening: AclMessage,
+        data: T,
+    ) -> Result<String, AgentError> {
+        self.opened += 1;
+        let id = opening
+            .conversation_id
+            .clone()
+            .unwrap_or_else(|| format!("{}-c{}", ctx.name(), self.opened));
+        opening.protocol = Some(protocol.fipa_name().to_owned());
+        opening.conversation_id = Some(id.clone());
+        opening.sender = Some(ctx.aid().clone());
+        let (initiator, messages) =
+            Initiator::start(opening, unix_ms(ctx.now())).map_err(|source| {
+                AgentError::Protocol {
+                    agent: ctx.name().to_owned(),
+                    source,
+                }
+            })?;
+        // Registered before sending, so a local participant's answer within the same step
+        // finds its conversation.
+        self.open.insert(id.clone(), (initiator, data));
+        for message in messages {
+            ctx.send(message)?;
+        }
+        Ok(id)
+    }
+
+    /// Takes `message` if it belongs to one of these conversations: `None` when it does not
+    /// (another conversation, or none); `Some(Err)` when it does but the protocol does not allow
+    /// it now (the conversation is unchanged).
+    pub fn handle(
+        &mut self,
+        ctx: &Context<'_>,
+        message: &AclMessage,
+    ) -> Option<Result<Progress<T>, AgentError>> {
+        let id = message.conversation_id.as_deref()?;
+        let (initiator, _) = self.open.get_mut(id)?;
+        let event = match initiator.handle(message, unix_ms(ctx.now())) {
+            Ok(event) => event,
+            Err(source) => {
+                return Some(Err(AgentError::Protocol {
+                    agent: ctx.name().to_owned(),
+                    source,
+                }));
+            }
+        };
+        if !initiator.is_done() {
+            return Some(Ok(Progress::Continues(event)));
+        }
+        let (_, data) = self.open.remove(id)?;
+        Some(Ok(Progress::Ended(event, data)))
+    }
+
+    /// Ends the conversations whose participants did not answer by the opening's `reply-by`.
+    pub fn expire(&mut self, now: Time) -> Vec<(Event, T)> {
+        let now_ms = unix_ms(now);
+        let mut ended = Vec::new();
+        let mut timed_out = Vec::new();
+        for (id, (initiator, _)) in &mut self.open {
+            let events = initiator.tick(now_ms);
+            if initiator.is_done() {
+                timed_out.push((id.clone(), events));
+            }
+        }
+        for (id, events) in timed_out {
+            if let Some((_, data)) = self.open.remove(&id)
+                && let Some(event) = events.into_iter().last()
+            {
+                ended.push((event, data));
+            }
+        }
+        ended
+    }
+
+    /// Cancels the subscription `id` with each of its participants (fipa-subscribe's CANCEL);
+    /// the participants' confirmations then end it.
+    pub fn cancel(&mut self, ctx: &mut Context<'_>, id: &str) -> Result<(), AgentError> {
+        let Some((initiator, _)) = self.open.get_mut(id) else {
+            return Ok(());
+        };
+        let participants: Vec<String> = initiator
+            .sessions()
+            .iter()
+            .filter(|s| !s.state().is_done())
+            .map(|s| s.participant().name.clone())
+            .collect();
+        for participant in participants {
+            let cancel = initiator
+                .cancel(&participant)
+                .map_err(|source| AgentError::Protocol {
+                    agent: ctx.name().to_owned(),
+                    source,
+                })?;
+            ctx.send(cancel)?;
+        }
+        Ok(())
+    }
+
+    /// Forgets conversation `id` without a word to its participants (the agent gave up on it;
+    /// late answers are then not ours). Returns its data.
+    pub fn forget(&mut self, id: &str) -> Option<T> {
+        self.open.remove(id).map(|(_, data)| data)
+    }
+
+    /// The data of conversation `id`.
+    pub fn get(&self, id: &str) -> Option<&T> {
+        self.open.get(id).map(|(_, data)| data)
+    }
+
+    /// The open conversations' ids and data.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &T)> {
+        self.open.iter().map(|(id, (_, data))| (id.as_str(), data))
+    }
+
+    /// How many conversations are open.
+    pub fn len(&self) -> usize {
+        self.open.len()
+    }
+
+    /// Whether none is open.
+    pub fn is_empty(&self) -> bool {
+        self.open.is_empty()
+    }
+}
+
+impl Context<'_> {
+    /// Takes up the conversation `opening` opens, as this agent. An opening that names no
+    /// protocol runs the one its act opens (REQUEST: fipa-request, QUERY-IF/REF: fipa-query,
+    /// SUBSCRIBE: fipa-subscribe, ...), and one without a conversation id gets one, since FIPA
+    /// makes neither mandatory. When the act cannot open a conversation, or opens another
+    /// protocol than named, `opening` is answered NOT-UNDERSTOOD with the reason and `None`
+    /// comes back.
+    pub fn accept(&mut self, opening: &AclMessage) -> Option<Responder> {
+        let mut opening = opening.clone();
+        if opening.protocol.is_none() {
+            opening.protocol = Protocol::ALL
+                .into_iter()
+                .find(|p| p.is_initiating(opening.performative))
+                .map(|p| p.fipa_name().to_owned());
+        }
+        if opening.conversation_id.is_none() {
+            let sender = opening
+                .sender
+                .as_ref()
+                .map_or("anonymous", |s| s.name.as_str());
+            opening.conversation_id = Some(format!("{sender}-{}", self.now().as_ns()));
+        }
+        match Responder::accept(&opening, self.aid().clone(), unix_ms(self.now())) {
+            Ok(responder) => Some(responder),
+            Err(err) => {
+                let _ = self.not_understood(&opening, &err.to_string());
+                None
+            }
+        }
+    }
+
+    /// Sends `act` in `responder`'s conversation, with `content` (its ontology and language
+    /// set), if the protocol allows `act` now; otherwise nothing is sent and the error says why.
+    pub fn answer<C: OntologyContent>(
+        &mut self,
+        responder: &mut Responder,
+        act: Performative,
+        content: &C,
+    ) -> Result<(), AgentError> {
+        let reply = responder
+            .reply(act, unix_ms(self.now()))
+            .map_err(|source| AgentError::Protocol {
+                agent: self.name().to_owned(),
+                source,
+            })?;
+        self.send(content.fill(reply))
+    }
+
+    /// [`Context::answer`] with an `error-message` reason: REFUSE or FAILURE in
+    /// `responder`'s conversation.
+    pub fn answer_error(
+        &mut self,
+        responder: &mut Responder,
+        act: Performative,
+        reason: &str,
+    ) -> Result<(), AgentError> {
+        self.answer(responder, act, &WheelchairContent::error(reason))
+    }
+}
