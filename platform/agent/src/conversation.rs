@@ -249,3 +249,133 @@ impl Context<'_> {
         self.answer(responder, act, &WheelchairContent::error(reason))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::{Arc, Mutex};
+    use std::time::Duration;
+
+    use iw_acl::{AgentId, FipaDateTime};
+    use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
+
+    use super::*;
+    use crate::{Agent, AgentHost};
+
+    type Log = Arc<Mutex<Vec<String>>>;
+
+    /// Asks `participant` once at setup (reply by 1 s) and logs what the conversation does.
+    struct Asker {
+        participant: &'static str,
+        asked: Initiated<&'static str>,
+        log: Log,
+    }
+
+    impl Agent for Asker {
+        fn setup(&mut self, ctx: &mut Context<'_>) {
+            let request = WheelchairContent::error("please")
+                .fill(AclMessage::new(Performative::Request))
+                .with_receiver(AgentId::new(self.participant))
+                .with_reply_by(FipaDateTime::from_unix_ms(unix_ms(ctx.now()) + 1_000));
+            self.asked
+                .open(ctx, Protocol::Request, request, "errand")
+                .unwrap();
+        }
+        fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+            let line = match self.asked.handle(ctx, &message) {
+                None => format!("not ours: {}", message.performative),
+                Some(Ok(Progress::Continues(e))) => format!("continues: {:?}", e.kind),
+                Some(Ok(Progress::Ended(e, data))) => format!("ended: {:?} {data}", e.kind),
+                Some(Err(_)) => format!("out of protocol: {}", message.performative),
+            };
+            self.log.lock().unwrap().push(line);
+        }
+        fn tick_period(&self) -> Option<Duration> {
+            Some(Duration::from_millis(100))
+        }
+        fn tick(&mut self, ctx: &mut Context<'_>) {
+            for (event, data) in self.asked.expire(ctx.now()) {
+                let line = format!("ended: {:?} {data}", event.kind);
+                self.log.lock().unwrap().push(line);
+            }
+        }
+    }
+
+    /// Answers every request with `acts` in order (through its responder), logging refusals of
+    /// the protocol.
+    struct Answerer {
+        acts: Vec<Performative>,
+        log: Log,
+    }
+
+    impl Agent for Answerer {
+        fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+            let Some(mut responder) = ctx.accept(&message) else {
+                return;
+            };
+            for act in self.acts.clone() {
+                if let Err(err) = ctx.answer(&mut responder, act, &WheelchairContent::error("x")) {
+                    self.log
+                        .lock()
+                        .unwrap()
+                        .push(format!("refused {act}: {err}"));
+                }
+            }
+        }
+    }
+
+    /// Runs an asker and an answerer answering `acts` for `ms` of simulated time.
+    fn run(acts: Vec<Performative>, ms: u64) -> (Vec<String>, Vec<String>) {
+        let network = InProcNetwork::new();
+        let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
+        let transport = Arc::new(network.endpoint("c1").unwrap());
+        let bus = Bus::start(Stack::new(), transport, clock, BusConfig::default()).unwrap();
+        let mut host = AgentHost::new(Arc::new(bus));
+        let (asker_log, answerer_log) = (Log::default(), Log::default());
+        let asker = Asker {
+            participant: "answerer",
+            asked: Initiated::new(),
+            log: asker_log.clone(),
+        };
+        let answerer = Answerer {
+            acts,
+            log: answerer_log.clone(),
+        };
+        host.add(AgentId::new("asker"), Box::new(asker)).unwrap();
+        host.add(AgentId::new("answerer"), Box::new(answerer))
+            .unwrap();
+        for _ in 0..ms / 50 {
+            host.step(controller.now());
+            controller.advance(Duration::from_millis(50));
+        }
+        let take = |log: Log| std::mem::take(&mut *log.lock().unwrap());
+        (take(asker_log), take(answerer_log))
+    }
+
+    #[test]
+    fn a_request_agreed_then_done_continues_then_ends_with_the_agents_data() {
+        let (asked, answered) = run(vec![Performative::Agree, Performative::Inform], 200);
+        assert_eq!(asked, ["continues: Agreed", "ended: Informed errand"]);
+        assert!(answered.is_empty(), "{answered:?}");
+    }
+
+    #[test]
+    fn a_responder_cannot_answer_twice_or_after_the_end() {
+        let (asked, answered) = run(
+            vec![
+                Performative::Refuse,
+                Performative::Agree,
+                Performative::Inform,
+            ],
+            200,
+        );
+        assert_eq!(asked, ["ended: Refused errand"]);
+        assert_eq!(answered.len(), 2, "{answered:?}");
+        assert!(answered[0].starts_with("refused AGREE"), "{answered:?}");
+    }
+
+    #[test]
+    fn silence_past_reply_by_times_the_conversation_out() {
+        let (asked, _) = run(vec![], 1_500);
+        assert_eq!(asked, ["ended: TimedOut errand"]);
+    }
+}
