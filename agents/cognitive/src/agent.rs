@@ -18,7 +18,8 @@
 //!   (action-sequence :steps (sequence (goto-xy :x :y) ...))))`, one per `move` or `pass-door`
 //!   step; INFORM done = next step; FAILURE = that connection is treated as blocked and the goal
 //!   re-planned. Each step has its own conversation id (`cog-N`); answers to an abandoned step
-//!   are ignored.
+//!   are ignored. Goals, steps and the pose subscription run on the interaction protocols'
+//!   state machines (`iw_agent::conversation`): an answer out of protocol changes nothing.
 //! - Sent to the watcher agent, when [`CognitiveConfig::watcher`] is set and a motion crosses one
 //!   of the map's narrow passages: the chair first drives to [`crate::passage::WAIT_BACK_M`]
 //!   before the passage and stops, REQUESTs `((action W (pass :passage P :direction D)))`, drives
@@ -36,7 +37,8 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::conversation::answers_a_conversation;
+use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
 use nalgebra::Point2;
@@ -138,7 +140,8 @@ pub const PASS_ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
 pub const BUILDING_DOMAIN: &str = include_str!("../domains/building.pddl");
 
 struct Goal {
-    request: AclMessage,
+    /// The goal's conversation with whoever gave it.
+    responder: Responder,
     actor: AgentId,
     place: String,
     plan: Vec<Step>,
@@ -154,23 +157,15 @@ struct Motion {
     via_landmark: bool,
 }
 
-/// What the agent waits for.
+/// The plan step that waits for another agent's answer (one at a time).
 #[derive(Debug, Clone, PartialEq)]
-enum Pending {
-    Nothing,
-    /// A door to open; the conversation id.
-    Door {
-        conversation: String,
-        door: String,
-    },
+enum Waiting {
+    /// A door to open.
+    Door { door: String },
     /// The control agent driving a leg of `motion`.
-    Drive {
-        conversation: String,
-        motion: Motion,
-    },
+    Drive { motion: Motion },
     /// The watcher's grant of `passage` for `motion`, asked at `asked_ns` (bus time).
     Pass {
-        conversation: String,
         motion: Motion,
         passage: String,
         direction: &'static str,
@@ -193,7 +188,10 @@ pub struct CognitiveAgent {
     locked_doors: BTreeSet<String>,
     blocked: BTreeSet<(String, String)>,
     goal: Option<Goal>,
-    pending: Pending,
+    /// The request of the step under way (at most one; a new step abandons the last).
+    pending: Initiated<Waiting>,
+    /// The pose subscription to the perception agent.
+    poses: Initiated<()>,
     /// What is left of the motion step under way.
     legs: VecDeque<Leg>,
     /// Passages granted to this chair: passage -> (conversation, direction).
@@ -249,7 +247,8 @@ impl CognitiveAgent {
             locked_doors: BTreeSet::new(),
             blocked: BTreeSet::new(),
             goal: None,
-            pending: Pending::Nothing,
+            pending: Initiated::new(),
+            poses: Initiated::new(),
             legs: VecDeque::new(),
             held: BTreeMap::new(),
             releases: Vec::new(),
@@ -347,13 +346,9 @@ impl CognitiveAgent {
         goal.next += 1;
         match (step.action.as_str(), step.args.as_slice()) {
             ("open-door", [_, _, _, door]) => {
-                let conversation = self.conversation();
                 let action = WheelchairAction::OpenDoor { door: door.clone() };
-                self.request(ctx, self.config.door.clone(), action, &conversation);
-                self.pending = Pending::Door {
-                    conversation,
-                    door: door.clone(),
-                };
+                let waiting = Waiting::Door { door: door.clone() };
+                self.ask(ctx, self.config.door.clone(), action, waiting);
             }
             ("move", [_, from, to]) => self.motion(ctx, from.clone(), to.clone(), None),
             ("pass-door", [_, from, to, door]) => {
@@ -458,7 +453,7 @@ impl CognitiveAgent {
                         // The door closes behind the chair.
                         self.open_doors.remove(&door);
                     }
-                    self.pending = Pending::Nothing;
+                    self.abandon();
                     self.advance(ctx);
                     return;
                 }
@@ -483,38 +478,27 @@ impl CognitiveAgent {
                         .into_iter()
                         .map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y })
                         .collect();
-                    let conversation = self.conversation();
-                    self.request(
-                        ctx,
-                        self.config.control.clone(),
-                        WheelchairAction::Sequence { steps },
-                        &conversation,
-                    );
-                    self.pending = Pending::Drive {
-                        conversation,
-                        motion,
-                    };
+                    let action = WheelchairAction::Sequence { steps };
+                    self.ask(ctx, self.config.control.clone(), action, Waiting::Drive { motion });
                     return;
                 }
                 Some(Leg::Acquire { passage, direction }) => {
                     let Some(watcher) = self.config.watcher.clone() else {
                         continue;
                     };
-                    let conversation = self.conversation();
                     let action = WheelchairAction::Pass {
                         passage: passage.clone(),
                         direction: direction.to_string(),
                     };
-                    self.request(ctx, watcher, action, &conversation);
                     tracing::info!(chair = %self.config.chair, passage = %passage, direction, "waiting for the passage");
-                    self.pending = Pending::Pass {
-                        conversation,
+                    let waiting = Waiting::Pass {
                         motion,
                         passage,
                         direction,
                         asked_ns: ctx.now().0,
                         agreed: false,
                     };
+                    self.ask(ctx, watcher, action, waiting);
                     return;
                 }
             }
@@ -562,40 +546,51 @@ impl CognitiveAgent {
         };
         let cancel = AclMessage::new(Performative::Cancel)
             .with_receiver(watcher)
-            .with_protocol("fipa-request")
+            .with_protocol(Protocol::Request.fipa_name())
             .with_conversation_id(conversation);
         let _ = ctx.send(content.fill(cancel));
     }
 
-    fn request(
-        &self,
+    /// Asks `to` to do `action` as the plan's step under way, in a fresh conversation; the step
+    /// before it is abandoned (its late answers are then not ours).
+    fn ask(
+        &mut self,
         ctx: &mut Context<'_>,
         to: AgentId,
         action: WheelchairAction,
-        conversation: &str,
+        waiting: Waiting,
     ) {
+        self.abandon();
         let content = WheelchairContent::Request {
             actor: to.clone(),
             action,
         };
+        let conversation = self.conversation();
         let message = content.fill(
             AclMessage::new(Performative::Request)
                 .with_receiver(to)
-                .with_protocol("fipa-request")
-                .with_conversation_id(conversation)
-                .with_reply_with(conversation),
+                .with_conversation_id(conversation),
         );
-        let _ = ctx.send(message);
+        if let Err(err) = self.pending.open(ctx, Protocol::Request, message, waiting) {
+            self.finish(ctx, Err(format!("could not ask for the next step: {err}")));
+        }
+    }
+
+    /// Forgets the step under way, if any; returns its conversation and what it waited for.
+    fn abandon(&mut self) -> Option<(String, Waiting)> {
+        let id = self.pending.iter().next().map(|(id, _)| id.to_string())?;
+        let waiting = self.pending.forget(&id)?;
+        Some((id, waiting))
     }
 
     /// Answers the goal's requester and forgets the goal.
     fn finish(&mut self, ctx: &mut Context<'_>, outcome: Result<(), String>) {
-        if let Pending::Pass {
+        if let Some((
             conversation,
-            passage,
-            direction,
-            ..
-        } = std::mem::replace(&mut self.pending, Pending::Nothing)
+            Waiting::Pass {
+                passage, direction, ..
+            },
+        )) = self.abandon()
             && let Some(watcher) = self.config.watcher.clone()
         {
             self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
@@ -606,22 +601,25 @@ impl CognitiveAgent {
         for passage in held {
             self.release(ctx, &passage);
         }
-        let Some(goal) = self.goal.take() else { return };
-        let reply = goal.request.create_reply();
-        let message = match outcome {
+        let Some(mut goal) = self.goal.take() else {
+            return;
+        };
+        let answered = match outcome {
             Ok(()) => {
                 let done = WheelchairContent::Done {
                     actor: goal.actor,
                     action: WheelchairAction::GoTo { place: goal.place },
                 };
-                done.fill(reply.with_performative(Performative::Inform))
+                ctx.answer(&mut goal.responder, Performative::Inform, &done)
             }
             Err(why) => {
                 tracing::warn!(chair = %self.config.chair, reason = %why, "goal failed");
-                WheelchairContent::error(why).fill(reply.with_performative(Performative::Failure))
+                ctx.answer_error(&mut goal.responder, Performative::Failure, &why)
             }
         };
-        let _ = ctx.send(message);
+        if let Err(err) = answered {
+            tracing::warn!(chair = %self.config.chair, error = %err, "could not answer the goal");
+        }
     }
 
     fn on_goal(
@@ -631,28 +629,40 @@ impl CognitiveAgent {
         actor: AgentId,
         place: String,
     ) {
+        let Some(mut responder) = ctx.accept(&message) else {
+            return;
+        };
         if !self.localized {
-            let _ = ctx.refuse(
-                &message,
+            let _ = ctx.answer_error(
+                &mut responder,
+                Performative::Refuse,
                 "not localized: the chair does not know where it is on the map yet; drive it by hand under shared control until it finds itself",
             );
             return;
         }
         if !self.config.map.places.contains_key(&place) {
-            let _ = ctx.refuse(&message, &format!("unknown place `{place}`"));
+            let why = format!("unknown place `{place}`");
+            let _ = ctx.answer_error(&mut responder, Performative::Refuse, &why);
             return;
         }
         self.finish(ctx, Err("replaced by a newer goal".into()));
-        let agree = message
-            .create_reply()
-            .with_performative(Performative::Agree);
-        let _ =
-            ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        let request = WheelchairContent::Request {
+            actor: actor.clone(),
+            action: WheelchairAction::GoTo {
+                place: place.clone(),
+            },
+        };
+        if ctx
+            .answer(&mut responder, Performative::Agree, &request)
+            .is_err()
+        {
+            return;
+        }
         // A new goal is a fresh chance for doors and passages that failed before.
         self.locked_doors.clear();
         self.blocked.clear();
         self.goal = Some(Goal {
-            request: message,
+            responder,
             actor,
             place,
             plan: Vec::new(),
@@ -662,74 +672,67 @@ impl CognitiveAgent {
     }
 
     fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
-        let conversation = message.conversation_id.as_deref();
+        let conversation = message.conversation_id.clone().unwrap_or_default();
         let performative = message.performative;
-        match self.pending.clone() {
-            Pending::Door {
-                conversation: c,
-                door,
-            } if conversation == Some(c.as_str()) => match performative {
-                Performative::Agree => {}
-                Performative::Inform => {
-                    self.open_doors.insert(door);
-                    self.advance(ctx);
+        let (kind, waiting) = match self.pending.handle(ctx, message) {
+            None if performative == Performative::Failure => {
+                // A grant taken back (its lease ran out) while the chair is still on its way.
+                self.held.retain(|_, (c, _)| *c != conversation);
+                return;
+            }
+            None => {
+                tracing::debug!(%conversation, "answer to an abandoned step");
+                return;
+            }
+            Some(Err(err)) => {
+                tracing::debug!(error = %err, "out-of-protocol answer; ignored");
+                return;
+            }
+            Some(Ok(Progress::Continues(_))) => {
+                if let Some(Waiting::Pass { agreed, .. }) = self.pending.get_mut(&conversation) {
+                    *agreed = true;
                 }
-                _ => {
-                    tracing::info!(door = %door, answer = %performative, "door not opened; re-planning");
-                    self.locked_doors.insert(door);
-                    self.replan(ctx);
-                }
-            },
-            Pending::Drive {
-                conversation: c,
-                motion,
-            } if conversation == Some(c.as_str()) => match performative {
-                Performative::Agree => {}
-                Performative::Inform => {
-                    self.release_reached(ctx, |_| true);
-                    self.next_leg(ctx, motion)
-                }
-                _ => {
-                    let why = message.content_text().unwrap_or_default();
-                    tracing::info!(chair = %self.config.chair, from = %motion.from, to = %motion.to, answer = %performative, why, "motion failed; re-planning");
-                    self.blocked.insert((motion.from, motion.to));
-                    self.replan(ctx);
-                }
-            },
-            Pending::Pass {
-                conversation: c,
+                return;
+            }
+            Some(Ok(Progress::Ended(event, waiting))) => (event.kind, waiting),
+        };
+        let done = kind == EventKind::Informed;
+        match waiting {
+            Waiting::Door { door } if done => {
+                self.open_doors.insert(door);
+                self.advance(ctx);
+            }
+            Waiting::Door { door } => {
+                tracing::info!(door = %door, answer = %performative, "door not opened; re-planning");
+                self.locked_doors.insert(door);
+                self.replan(ctx);
+            }
+            Waiting::Drive { motion } if done => {
+                self.release_reached(ctx, |_| true);
+                self.next_leg(ctx, motion)
+            }
+            Waiting::Drive { motion } => {
+                let why = message.content_text().unwrap_or_default();
+                tracing::info!(chair = %self.config.chair, from = %motion.from, to = %motion.to, answer = %performative, why, "motion failed; re-planning");
+                self.blocked.insert((motion.from, motion.to));
+                self.replan(ctx);
+            }
+            Waiting::Pass {
                 motion,
                 passage,
                 direction,
-                asked_ns,
                 ..
-            } if conversation == Some(c.as_str()) => match performative {
-                Performative::Agree => {
-                    self.pending = Pending::Pass {
-                        conversation: c,
-                        motion,
-                        passage,
-                        direction,
-                        asked_ns,
-                        agreed: true,
-                    };
-                }
-                Performative::Inform => {
-                    tracing::info!(chair = %self.config.chair, passage = %passage, "passage granted");
-                    self.held.insert(passage, (c, direction));
-                    self.next_leg(ctx, motion);
-                }
-                _ => {
-                    tracing::warn!(passage = %passage, answer = %performative, "the watcher does not keep this passage; going on");
-                    self.next_leg(ctx, motion);
-                }
-            },
-            _ if performative == Performative::Failure => {
-                // A grant taken back (its lease ran out) while the chair is still on its way.
-                self.held
-                    .retain(|_, (c, _)| Some(c.as_str()) != conversation);
+            } if done => {
+                tracing::info!(chair = %self.config.chair, passage = %passage, "passage granted");
+                self.held.insert(passage, (conversation, direction));
+                self.next_leg(ctx, motion);
             }
-            _ => tracing::debug!(conversation = ?conversation, "answer to an abandoned step"),
+            Waiting::Pass {
+                motion, passage, ..
+            } => {
+                tracing::warn!(passage = %passage, answer = %performative, "the watcher does not keep this passage; going on");
+                self.next_leg(ctx, motion);
+            }
         }
     }
 
@@ -743,16 +746,11 @@ impl CognitiveAgent {
         self.uncertainty_m2 = uncertainty_m2;
         let now_above =
             self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
-        if let Pending::Drive {
-            motion:
-                Motion {
-                    from,
-                    to,
-                    door,
-                    via_landmark: false,
-                },
-            ..
-        } = self.pending.clone()
+        let driving = self.pending.iter().find_map(|(_, waiting)| match waiting {
+            Waiting::Drive { motion } if !motion.via_landmark => Some(motion.clone()),
+            _ => None,
+        });
+        if let Some(Motion { from, to, door, .. }) = driving
             && was_below
             && now_above
             && !self.config.map.landmarks.is_empty()
@@ -768,12 +766,13 @@ impl Agent for CognitiveAgent {
         if let Some(perception) = self.config.perception.clone() {
             let subscribe = AclMessage::new(Performative::Subscribe)
                 .with_receiver(perception)
-                .with_protocol("fipa-subscribe")
                 .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
                 .with_language("fipa-sl0")
                 .with_conversation_id(format!("pose-{}", ctx.name()))
                 .with_content("((at-pose ?agent ?pose))");
-            let _ = ctx.send(subscribe);
+            if let Err(err) = self.poses.open(ctx, Protocol::Subscribe, subscribe, ()) {
+                tracing::warn!(error = %err, "could not subscribe to the chair's pose");
+            }
         }
     }
 
@@ -786,14 +785,20 @@ impl Agent for CognitiveAgent {
 
     /// Gives up waiting for a watcher that does not answer or does not grant in time.
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let Pending::Pass {
+        let Some((
             conversation,
-            motion,
-            passage,
-            direction,
-            asked_ns,
-            agreed,
-        } = self.pending.clone()
+            Waiting::Pass {
+                motion,
+                passage,
+                direction,
+                asked_ns,
+                agreed,
+            },
+        )) = self
+            .pending
+            .iter()
+            .next()
+            .map(|(id, waiting)| (id.to_string(), waiting.clone()))
         else {
             return;
         };
@@ -802,6 +807,7 @@ impl Agent for CognitiveAgent {
             return;
         }
         tracing::warn!(chair = %self.config.chair, passage = %passage, agreed, waited_s = waited.as_secs_f64(), "no grant from the watcher; going on");
+        self.abandon();
         if let Some(watcher) = self.config.watcher.clone() {
             self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
         }
@@ -809,6 +815,38 @@ impl Agent for CognitiveAgent {
     }
 
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        match self.poses.handle(ctx, &message) {
+            Some(Ok(Progress::Continues(event))) if event.kind == EventKind::Notified => {
+                match WheelchairContent::from_message(&message) {
+                    Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
+                        let was_localized =
+                            std::mem::replace(&mut self.localized, pose.localized());
+                        if !self.localized {
+                            if was_localized {
+                                tracing::warn!(chair = %self.config.chair, "the chair lost its pose: goals are refused until it finds itself");
+                                self.finish(ctx, Err("the chair lost its pose on the map".into()));
+                            }
+                            return;
+                        }
+                        let trace = pose.covariance[(0, 0)] + pose.covariance[(1, 1)];
+                        self.on_pose(ctx, pose.x_m, pose.y_m, trace)
+                    }
+                    Ok(_) => {}
+                    Err(err) => tracing::debug!(error = %err, "ignored a pose notification"),
+                }
+                return;
+            }
+            Some(Ok(Progress::Continues(_))) => return,
+            Some(Ok(Progress::Ended(event, ()))) => {
+                tracing::warn!(chair = %self.config.chair, kind = ?event.kind, "the pose subscription ended");
+                return;
+            }
+            Some(Err(err)) => {
+                tracing::debug!(error = %err, "out-of-protocol pose message");
+                return;
+            }
+            None => {}
+        }
         match message.performative {
             Performative::Request => match WheelchairContent::from_message(&message) {
                 Ok(WheelchairContent::Request {
@@ -822,25 +860,7 @@ impl Agent for CognitiveAgent {
                     let _ = ctx.not_understood(&message, &err.to_string());
                 }
             },
-            Performative::Inform => match WheelchairContent::from_message(&message) {
-                Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => {
-                    let was_localized = std::mem::replace(&mut self.localized, pose.localized());
-                    if !self.localized {
-                        if was_localized {
-                            tracing::warn!(chair = %self.config.chair, "the chair lost its pose: goals are refused until it finds itself");
-                            self.finish(ctx, Err("the chair lost its pose on the map".into()));
-                        }
-                        return;
-                    }
-                    let trace = pose.covariance[(0, 0)] + pose.covariance[(1, 1)];
-                    self.on_pose(ctx, pose.x_m, pose.y_m, trace)
-                }
-                _ => self.on_answer(ctx, &message),
-            },
-            Performative::Agree
-            | Performative::Refuse
-            | Performative::Failure
-            | Performative::NotUnderstood => self.on_answer(ctx, &message),
+            act if answers_a_conversation(act) => self.on_answer(ctx, &message),
             _ => {
                 let _ = ctx.not_understood(
                     &message,

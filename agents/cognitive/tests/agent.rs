@@ -63,6 +63,8 @@ fn agree_then(m: &AclMessage, last: Performative) -> Vec<AclMessage> {
 
 struct Rig {
     host: AgentHost,
+    /// The perception stand-in: it gets the pose subscription and sends poses in it.
+    perception: (Log, Log),
     clock: MockController,
     user: (Log, Log),
     door: Log,
@@ -123,7 +125,7 @@ fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answe
         chair: "chair1".into(),
         control: AgentId::new("control"),
         door: AgentId::new("door"),
-        perception: None,
+        perception: Some(AgentId::new("perception")),
         watcher: Some(AgentId::new("watcher")),
         pass_wait: Duration::from_secs(5),
         domain: Domain::parse(BUILDING_DOMAIN).unwrap(),
@@ -156,7 +158,9 @@ fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answe
     let door = scripted("door", door_answers).0;
     let control = scripted("control", control_answers).0;
     let watcher = scripted("watcher", watcher_answers).0;
+    let perception = scripted("perception", Box::new(|_| Vec::new()));
     Rig {
+        perception,
         host,
         clock: controller,
         user,
@@ -181,6 +185,17 @@ impl Rig {
                 .with_conversation_id("goal-1"),
         );
         self.user.1.lock().unwrap().push(m);
+    }
+    /// Sends `pose` as the perception agent does: a notification in the agent's subscription.
+    fn pose(&self, pose: Fact) {
+        let inbox = self.perception.0.lock().unwrap();
+        let subscription = inbox
+            .iter()
+            .find(|m| m.performative == Performative::Subscribe)
+            .expect("the cognitive agent subscribes to its pose at setup");
+        let notification = WheelchairContent::Inform(pose)
+            .fill(subscription.create_reply().with_performative(Performative::Inform));
+        self.perception.1.lock().unwrap().push(notification);
     }
     fn run(&mut self, steps: usize) {
         for _ in 0..steps {
@@ -281,27 +296,23 @@ fn growing_uncertainty_routes_the_chair_past_the_nearest_landmark() {
     );
     rig.goal("b");
     rig.run(10);
-    let pose = |var: f64| {
-        let fact = Fact::AtPose {
-            agent: AgentId::new("chair1"),
-            pose: Pose {
-                x_m: 2.5,
-                y_m: 4.0,
-                theta_rad: 0.0,
-                covariance: Matrix3::from_diagonal_element(var),
-            },
-        };
-        WheelchairContent::Inform(fact)
-            .fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive")))
+    let pose = |var: f64| Fact::AtPose {
+        agent: AgentId::new("chair1"),
+        pose: Pose {
+            x_m: 2.5,
+            y_m: 4.0,
+            theta_rad: 0.0,
+            covariance: Matrix3::from_diagonal_element(var),
+        },
     };
-    rig.user.1.lock().unwrap().push(pose(0.01));
+    rig.pose(pose(0.01));
     rig.run(10);
     assert_eq!(
         rig.control.lock().unwrap().len(),
         1,
         "small uncertainty: no detour"
     );
-    rig.user.1.lock().unwrap().push(pose(1.0));
+    rig.pose(pose(1.0));
     rig.run(10);
     let control = rig.control.lock().unwrap();
     assert_eq!(control.len(), 2, "re-issued via a landmark");
@@ -382,10 +393,7 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
             covariance: Matrix3::zeros(),
         },
     };
-    rig.user.1.lock().unwrap().push(
-        WheelchairContent::Inform(pose)
-            .fill(AclMessage::new(Performative::Inform).with_receiver(AgentId::new("cognitive"))),
-    );
+    rig.pose(pose);
     rig.run(5);
     assert_eq!(
         asked(&rig),

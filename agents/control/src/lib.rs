@@ -51,6 +51,7 @@ use std::sync::PoisonError;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelGeometry};
@@ -607,18 +608,6 @@ impl Task {
     }
 }
 
-/// Whether `act` answers a conversation rather than opening one.
-fn is_answer(act: Performative) -> bool {
-    matches!(
-        act,
-        Performative::Agree
-            | Performative::Refuse
-            | Performative::Inform
-            | Performative::Failure
-            | Performative::NotUnderstood
-    )
-}
-
 trait TermString {
     fn to_term_string(&self) -> String;
 }
@@ -665,7 +654,7 @@ impl Agent for ControlAgent {
             }
             // An answer in no conversation of ours is not answered: NOT-UNDERSTOOD back to a
             // stray NOT-UNDERSTOOD would start an endless exchange.
-            None if is_answer(message.performative) => {
+            None if answers_a_conversation(message.performative) => {
                 tracing::debug!(performative = %message.performative, "answer in no conversation of ours");
             }
             None => {

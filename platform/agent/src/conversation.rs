@@ -26,6 +26,20 @@ fn unix_ms(time: Time) -> i64 {
     i64::try_from(time.as_ns() / 1_000_000).unwrap_or(i64::MAX)
 }
 
+/// Whether `act` answers a conversation (AGREE, REFUSE, INFORM, FAILURE, NOT-UNDERSTOOD) rather
+/// than opening one. An agent does not answer a stray answer: NOT-UNDERSTOOD back to a stray
+/// NOT-UNDERSTOOD would never end.
+pub fn answers_a_conversation(act: Performative) -> bool {
+    matches!(
+        act,
+        Performative::Agree
+            | Performative::Refuse
+            | Performative::Inform
+            | Performative::Failure
+            | Performative::NotUnderstood
+    )
+}
+
 /// What an answer did to an initiated conversation.
 #[derive(Debug)]
 pub enum Progress<T> {
@@ -172,6 +186,11 @@ impl<T> Initiated<T> {
     /// The data of conversation `id`.
     pub fn get(&self, id: &str) -> Option<&T> {
         self.open.get(id).map(|(_, data)| data)
+    }
+
+    /// The data of conversation `id`, to update.
+    pub fn get_mut(&mut self, id: &str) -> Option<&mut T> {
+        self.open.get_mut(id).map(|(_, data)| data)
     }
 
     /// The open conversations' ids and data.
