@@ -48,19 +48,18 @@ impl Agent for Peer {
             )
             .unwrap();
         }
-        if self.answer != Answer::Silent {
-            if let Ok(WheelchairContent::Request { actor, action }) =
+        if self.answer != Answer::Silent
+            && let Ok(WheelchairContent::Request { actor, action }) =
                 WheelchairContent::from_message(&message)
-            {
-                ctx.send(
-                    WheelchairContent::Done { actor, action }.fill(
-                        message
-                            .create_reply()
-                            .with_performative(Performative::Inform),
-                    ),
-                )
-                .unwrap();
-            }
+        {
+            ctx.send(
+                WheelchairContent::Done { actor, action }.fill(
+                    message
+                        .create_reply()
+                        .with_performative(Performative::Inform),
+                ),
+            )
+            .unwrap();
         }
         self.inbox.lock().unwrap().push(message);
     }

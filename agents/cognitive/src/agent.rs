@@ -479,7 +479,12 @@ impl CognitiveAgent {
                         .map(|p| WheelchairAction::GotoXy { x_m: p.x, y_m: p.y })
                         .collect();
                     let action = WheelchairAction::Sequence { steps };
-                    self.ask(ctx, self.config.control.clone(), action, Waiting::Drive { motion });
+                    self.ask(
+                        ctx,
+                        self.config.control.clone(),
+                        action,
+                        Waiting::Drive { motion },
+                    );
                     return;
                 }
                 Some(Leg::Acquire { passage, direction }) => {

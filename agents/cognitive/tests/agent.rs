@@ -193,8 +193,11 @@ impl Rig {
             .iter()
             .find(|m| m.performative == Performative::Subscribe)
             .expect("the cognitive agent subscribes to its pose at setup");
-        let notification = WheelchairContent::Inform(pose)
-            .fill(subscription.create_reply().with_performative(Performative::Inform));
+        let notification = WheelchairContent::Inform(pose).fill(
+            subscription
+                .create_reply()
+                .with_performative(Performative::Inform),
+        );
         self.perception.1.lock().unwrap().push(notification);
     }
     fn run(&mut self, steps: usize) {
