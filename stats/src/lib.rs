@@ -8,6 +8,17 @@
 //!
 //! One implementation for every experiment: the shared-control study (manual vs shared) and the
 //! detector repeatability comparison (`intellwheels repeatability`).
+//!
+//! Also the one standard normal draw ([`standard_normal`]) that the simulator's sensor noise,
+//! the simulated drivers and the localizer's particles take from their seeded streams.
+
+/// A standard normal draw by Box-Muller (cosine branch), two uniforms from `rng`. Seeded runs
+/// depend on this exact sequence of draws, so every simulation shares this one function.
+pub fn standard_normal<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
+    let u1: f64 = rng.random_range(f64::EPSILON..1.0);
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
 
 /// Why a test could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

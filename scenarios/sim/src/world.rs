@@ -447,8 +447,9 @@ impl World {
         // the ground sees the compressed tyre, less what slips
         let enc = spec.encoder;
         let mut slip = |accel: f64| {
-            (gaussian(&mut chair.rng).abs() * enc.slip_std + enc.slip_per_mps2 * accel.abs())
-                .min(0.5)
+            (iw_stats::standard_normal(&mut chair.rng).abs() * enc.slip_std
+                + enc.slip_per_mps2 * accel.abs())
+            .min(0.5)
         };
         let slip_l = slip((l1 - l0) / dt.max(1e-9));
         let slip_r = slip((r1 - r0) / dt.max(1e-9));
@@ -746,7 +747,7 @@ impl World {
                 })
                 .map(|hit| hit.range_m)
                 .fold(f64::INFINITY, f64::min);
-            let noise = gaussian(&mut rng) * model.noise_std_m;
+            let noise = iw_stats::standard_normal(&mut rng) * model.noise_std_m;
             *reading = nearest
                 .is_finite()
                 .then(|| (nearest + noise).clamp(model.min_range_m, model.max_range_m));
@@ -765,7 +766,8 @@ impl World {
                             laser.max_range_m,
                             Some(i),
                         ) {
-                            Some(hit) => (hit.range_m + gaussian(&mut rng) * laser.noise_std_m)
+                            Some(hit) => (hit.range_m
+                                + iw_stats::standard_normal(&mut rng) * laser.noise_std_m)
                                 .clamp(0.0, laser.max_range_m),
                             None => laser.max_range_m,
                         }
@@ -789,11 +791,4 @@ impl World {
 /// Advances `world` by `dt_s` seconds (the simulator's one entry point for time).
 pub fn step(world: &mut World, dt_s: f64) {
     world.step(dt_s);
-}
-
-/// A standard normal sample (Box-Muller), from the chair's own stream.
-fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.random_range(f64::EPSILON..1.0);
-    let u2: f64 = rng.random();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }

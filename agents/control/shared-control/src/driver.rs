@@ -496,11 +496,9 @@ impl SeeingDriver {
         self.held
     }
 
-    /// A standard normal draw (Box-Muller).
+    /// A standard normal draw from the driver's own stream.
     fn gaussian(&mut self) -> f64 {
-        let u1: f64 = self.rng.random_range(f64::MIN_POSITIVE..1.0);
-        let u2: f64 = self.rng.random();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        iw_stats::standard_normal(&mut self.rng)
     }
 }
 

@@ -73,12 +73,6 @@ fn subsample(points: &[ScanPoint], n: usize) -> Vec<ScanPoint> {
     (0..n).map(|k| points[k * points.len() / n]).collect()
 }
 
-fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.random_range(f64::EPSILON..1.0);
-    let u2: f64 = rng.random();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
-
 /// Scores every free pose of the search grid (tempered log-likelihood of `sample`).
 fn score_grid(map: &LocalizationMap, sample: &[ScanPoint], config: &GlobalConfig) -> Vec<Particle> {
     let (lo, hi) = map.bounds();
@@ -224,9 +218,9 @@ impl GlobalLocalizer {
         let cov = step.covariance(&self.alpha) * self.config.motion_noise_scale.powi(2);
         for p in &mut self.particles {
             let noisy = OdometryStep {
-                rot1: step.rot1 + gaussian(&mut self.rng) * cov[(0, 0)].sqrt(),
-                trans: step.trans + gaussian(&mut self.rng) * cov[(1, 1)].sqrt(),
-                rot2: step.rot2 + gaussian(&mut self.rng) * cov[(2, 2)].sqrt(),
+                rot1: step.rot1 + iw_stats::standard_normal(&mut self.rng) * cov[(0, 0)].sqrt(),
+                trans: step.trans + iw_stats::standard_normal(&mut self.rng) * cov[(1, 1)].sqrt(),
+                rot2: step.rot2 + iw_stats::standard_normal(&mut self.rng) * cov[(2, 2)].sqrt(),
             };
             p.pose = p.pose.compose(&noisy.as_delta());
         }
@@ -272,9 +266,9 @@ impl GlobalLocalizer {
             let pose = self.particles[i].pose;
             next.push(Particle {
                 pose: Pose2::new(
-                    pose.x + gaussian(&mut self.rng) * 0.01,
-                    pose.y + gaussian(&mut self.rng) * 0.01,
-                    pose.theta + gaussian(&mut self.rng) * 0.005,
+                    pose.x + iw_stats::standard_normal(&mut self.rng) * 0.01,
+                    pose.y + iw_stats::standard_normal(&mut self.rng) * 0.01,
+                    pose.theta + iw_stats::standard_normal(&mut self.rng) * 0.005,
                 ),
                 log_w: 0.0,
             });

@@ -176,16 +176,9 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
-    use rand_distr_free::gaussian;
 
-    /// Box-Muller without an extra dependency.
-    mod rand_distr_free {
-        use rand::Rng;
-        pub fn gaussian(rng: &mut impl Rng, sigma: f64) -> f64 {
-            let u1: f64 = rng.random_range(f64::EPSILON..1.0);
-            let u2: f64 = rng.random_range(0.0..1.0);
-            sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        }
+    fn gaussian(rng: &mut ChaCha8Rng, sigma: f64) -> f64 {
+        sigma * iw_stats::standard_normal(rng)
     }
 
     fn rmse(estimate: &[Pose2], truth: &[Pose2]) -> f64 {
