@@ -5,7 +5,7 @@
 //! Organization:
 //! - [`ControlConfig`]: who it talks to and its limits; [`ControlAgent::new`] takes it and the
 //!   body to drive (a `Box<dyn iw_body::Body>`: real, virtual or mixed, it cannot tell).
-//! - [`ControlError`]: a configuration the control layers refuse.
+//! - [`ControlConfigError`]: a configuration the control layers refuse.
 //! - [`DriveStatus`]: what the user asked and what shared control applied, shared with whoever
 //!   shows it (the on-chair display, the dashboard).
 //!
@@ -71,7 +71,7 @@ use nalgebra::Isometry2;
 /// A configuration the control layers refuse.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum ControlError {
+pub enum ControlConfigError {
     /// A parameter of the shared-control library is out of range.
     #[error("control agent configuration: {source}")]
     Config {
@@ -131,7 +131,7 @@ impl ControlConfig {
     /// The prototype's defaults: its footprint and the 16 sonars of thesis figure 3.4 where the
     /// simulator puts them too ([`Footprint::PROTOTYPE`]), the body's wheel track
     /// ([`WheelGeometry`]), 1 m/s wheels, 0.5 s watchdog, 20 Hz.
-    pub fn prototype(perception: Option<AgentId>) -> Result<Self, ControlError> {
+    pub fn prototype(perception: Option<AgentId>) -> Result<Self, ControlConfigError> {
         let footprint = Footprint::PROTOTYPE;
         let sonar_mounts = footprint.sonar_mounts().to_vec();
         Ok(ControlConfig {
@@ -233,9 +233,12 @@ pub struct ControlAgent {
 
 impl ControlAgent {
     /// A control agent driving `body`.
-    pub fn new(config: ControlConfig, body: Box<dyn Body + Send>) -> Result<Self, ControlError> {
+    pub fn new(
+        config: ControlConfig,
+        body: Box<dyn Body + Send>,
+    ) -> Result<Self, ControlConfigError> {
         if config.sonar_mounts.len() != iw_body::SONAR_COUNT {
-            return Err(ControlError::Mounts {
+            return Err(ControlConfigError::Mounts {
                 mounts: config.sonar_mounts.len(),
                 expected: iw_body::SONAR_COUNT,
             });

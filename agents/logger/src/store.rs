@@ -68,7 +68,9 @@ pub enum LogError {
         source: std::io::Error,
     },
     /// The file is not a log of this format.
-    #[error("{path}: not an intellwheels log (bad magic); refusing to touch it")]
+    #[error(
+        "{path}: not an intellwheels log (bad magic; the logger agent's store, `agents.log`, is one); refusing to touch it"
+    )]
     NotALog {
         /// The file.
         path: PathBuf,

@@ -303,8 +303,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     fleet.quiesce(50);
 
     let exchanges = fleet.exchanges();
-    let log_path = log_dir.join("messages.jsonl");
-    write_log(&log_path, &exchanges)?;
+    let traffic_path = log_dir.join("traffic.jsonl");
+    write_log(&traffic_path, &exchanges)?;
     let snapshot = fleet.snapshot();
     let reports: Vec<ChairReport> = MISSIONS
         .iter()
@@ -380,11 +380,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         summary["dropped"]
     );
     println!(
-        "  log:           {} (agents' log: {}; summary: {})",
-        log_path.display(),
-        fleet.log_path().display(),
-        summary_path.display()
+        "  agents' log:   {} (the logger agent's store: `intellwheels log query` / `log replay` read it)",
+        fleet.log_path().display()
     );
+    println!(
+        "  traffic:       {} (frames between containers as JSON lines, a capture for tools)",
+        traffic_path.display()
+    );
+    println!("  summary:       {}", summary_path.display());
     Ok(ExitCode::SUCCESS)
 }
 

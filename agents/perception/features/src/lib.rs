@@ -24,9 +24,8 @@
 //! - `Features::descriptors[i]` belongs to `Features::keypoints[i]`, unit length (or all zero on
 //!   a perfectly flat patch). Output is deterministic: the same image gives the same features.
 //!
-//! API CONTRACT (shared with `iw-vo`): `DetectorKind`, `Keypoint`, `FeatureClass`, `Features`,
-//! `Match` keep their names and fields; the entry points are [`detect`], [`Detector::detect`] and
-//! [`match_features`].
+//! The visual odometry (`iw-vo`) builds on [`DetectorKind`], [`Keypoint`], [`FeatureClass`],
+//! [`Features`] and [`Match`], through [`detect`], [`Detector::detect`] and [`match_features`].
 #![warn(missing_docs)]
 
 mod config;
