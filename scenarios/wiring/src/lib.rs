@@ -31,11 +31,12 @@ use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_control_agent::{ControlAgent, ControlConfig, SharedDriveStatus};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
+use iw_localization::{LocalizationMap, Localizer};
 use iw_logger::SyncPolicy;
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
 use iw_ontology::fipa::{AgentState, AmsAgentDescription};
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig, VisualConfig};
-use iw_sim::Map;
+use iw_sim::{ChairSpec, Map};
 use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -180,6 +181,9 @@ pub struct Building {
     pub grid: OccupancyGrid,
     /// The planning domain.
     pub domain: Domain,
+    /// The map as every chair's localizer matches its laser and sonars against it (walls,
+    /// furniture, the doors drawn closed, landmarks), indexed once and shared.
+    pub localization: Arc<LocalizationMap>,
 }
 
 impl Building {
@@ -191,6 +195,10 @@ impl Building {
         let domain = Domain::parse(BUILDING_DOMAIN)
             .map_err(|e| plan_err(format!("building domain: {e}")))?;
         let grid = plan::raster(&map, |_| false)?;
+        let localization = Arc::new(
+            iw_sim::localization::localization_map(&map)
+                .map_err(|e| plan_err(format!("cannot localize on the map: {e}")))?,
+        );
         let rooms = Rooms::of(&map)?;
         let mut places = BTreeMap::new();
         let mut landmarks = Vec::new();
@@ -278,6 +286,7 @@ impl Building {
             approaches,
             grid,
             domain,
+            localization,
         })
     }
 
@@ -506,12 +515,17 @@ pub fn chair_agents(
     let perception_id = agent_id("perception", name);
     let control_id = agent_id("control", name);
     let cognitive_id = agent_id("cognitive", name);
-    let perception = PerceptionAgent::new(
-        PerceptionConfig::prototype(AgentId::new(name), start),
-        Box::new(body.clone()),
-        visual,
-    )
-    .map_err(|e| setup(e.to_string()))?;
+    let perception_config = PerceptionConfig::prototype(AgentId::new(name), start);
+    // The pose stays bounded by matching the laser and sonars to the map: odometry alone
+    // drifts half a metre in 15 m, enough to touch a wall at a goal.
+    let localizer = Localizer::new(
+        building.localization.clone(),
+        iw_sim::localization::localizer_config(&ChairSpec::default()),
+        Some((start, perception_config.start_covariance)),
+    );
+    let perception = PerceptionAgent::new(perception_config, Box::new(body.clone()), visual)
+        .map_err(|e| setup(e.to_string()))?
+        .with_localizer(localizer);
     let mut control_config =
         ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep
