@@ -7,9 +7,9 @@
 use std::collections::VecDeque;
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
 
-use iw_localization::detect_markers;
-use iw_vo::{CameraSource, Intrinsics, Pose2, RgbdFrame, VisualOdometry, VoConfig};
-use nalgebra::{Isometry3, Point2, Point3};
+use iw_localization::markers_in;
+use iw_vo::{CameraSource, Pose2, VisualOdometry, VoConfig};
+use nalgebra::{Isometry3, Point2};
 
 /// What the worker made of one requested frame.
 #[derive(Debug)]
@@ -27,38 +27,6 @@ pub(crate) enum VisionResult {
     Failed { reason: String },
     /// The source has no more frames (a replay's end): no more requests.
     Ended,
-}
-
-/// The markers in `frame`, as their centres in the base frame.
-fn markers_in(
-    frame: &RgbdFrame,
-    intrinsics: &Intrinsics,
-    t_base_camera: &Isometry3<f64>,
-) -> Vec<(u8, Point2<f64>)> {
-    let (w, h) = (frame.rgb.width() as usize, frame.rgb.height() as usize);
-    let grey: Vec<u8> = frame
-        .rgb
-        .pixels()
-        .map(|p| ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8)
-        .collect();
-    let depth = |x: usize, y: usize| {
-        let raw = frame.depth.get_pixel_checked(x as u32, y as u32)?[0];
-        (raw > 0).then(|| f64::from(raw) / intrinsics.depth_units_per_m)
-    };
-    detect_markers(w, h, &grey, depth)
-        .into_iter()
-        .map(|s| {
-            let z = s.depth_m;
-            let (u, v) = s.centre_px;
-            let optical = Point3::new(
-                (u - intrinsics.cx) / intrinsics.fx * z,
-                (v - intrinsics.cy) / intrinsics.fy * z,
-                z,
-            );
-            let base = t_base_camera * optical;
-            (s.id, Point2::new(base.x, base.y))
-        })
-        .collect()
 }
 
 /// The worker thread and the two channels to it: requests (at most one in flight) and results.

@@ -70,6 +70,10 @@ pub enum WiringError {
     },
 }
 
+/// How far in front of a landmark's marker the chair may stop to read it, in order of
+/// preference, m: the camera sits 0.6 m ahead of the base and measures depth up to 3.5 m.
+const LANDMARK_VIEW_M: [f64; 3] = [1.8, 1.5, 2.2];
+
 /// The clearance a doorway must leave the chair's centre, m: the chair's half width less a few
 /// centimetres (the grid rounds it up a cell), so a 1 m doorway stays passable.
 pub const CHAIR_RADIUS_M: f64 = 0.3;
@@ -170,7 +174,8 @@ pub fn remote_agents(container: &str, chairs: &[String]) -> Vec<(String, String)
 pub struct Building {
     /// The map it was derived from.
     pub map: Map,
-    /// Places, connections (same room, no door between), door passages, landmarks.
+    /// Places, connections (same room, no door between), door passages, landmarks (the places
+    /// named `landmark...`, and a point in front of each marker of the map).
     pub plan: BuildingMap,
     /// The places of `plan` that are not the map's but a door's sides (`DOOR-side-1`,
     /// `DOOR-side-2`), where the chair lines up with the doorway.
@@ -210,6 +215,24 @@ impl Building {
             }
         }
         let passable = grid.inflated(CHAIR_RADIUS_M);
+        // in front of each marker, within the camera's depth range, where the chair may stand
+        for marker in &map.landmarks {
+            let normal = Vector2::new(marker.facing_rad.cos(), marker.facing_rad.sin());
+            let view = LANDMARK_VIEW_M.iter().find_map(|d| {
+                let p = marker.position + normal * *d;
+                let (c, r) = passable.cell_of(&p)?;
+                (!passable.is_occupied(c, r)).then_some(p)
+            });
+            match view {
+                Some(p) => landmarks.push(p),
+                None => {
+                    tracing::warn!(
+                        landmark = marker.id,
+                        "no room in front of the landmark; the cognitive agent will not detour to it"
+                    )
+                }
+            }
+        }
         let mut doors = Vec::new();
         let mut approaches = BTreeSet::new();
         for door in &map.doors {

@@ -8,6 +8,9 @@
 //! markers hang upright): dark connected regions, sampled cell by cell between their top and
 //! bottom edges in each cell column, so a marker seen at an angle (a trapezoid) still reads.
 
+use iw_vo::{Intrinsics, RgbdFrame};
+use nalgebra::{Isometry3, Point2, Point3};
+
 /// Cells along a marker's side, border included.
 pub const MARKER_CELLS: usize = 6;
 
@@ -38,6 +41,49 @@ pub struct MarkerSighting {
     pub depth_m: f64,
     /// Its width in the image, px.
     pub width_px: usize,
+}
+
+impl MarkerSighting {
+    /// The marker's centre in the base frame (x forward, y left; m), for a camera with
+    /// `intrinsics` mounted at `t_base_camera` (optical frame: x right, y down, z forward).
+    pub fn base_point(
+        &self,
+        intrinsics: &Intrinsics,
+        t_base_camera: &Isometry3<f64>,
+    ) -> Point2<f64> {
+        let z = self.depth_m;
+        let (u, v) = self.centre_px;
+        let optical = Point3::new(
+            (u - intrinsics.cx) / intrinsics.fx * z,
+            (v - intrinsics.cy) / intrinsics.fy * z,
+            z,
+        );
+        let base = t_base_camera * optical;
+        Point2::new(base.x, base.y)
+    }
+}
+
+/// The markers in an RGB-D `frame` from a camera with `intrinsics` mounted at `t_base_camera`:
+/// each one's id and its centre in the base frame, m.
+pub fn markers_in(
+    frame: &RgbdFrame,
+    intrinsics: &Intrinsics,
+    t_base_camera: &Isometry3<f64>,
+) -> Vec<(u8, Point2<f64>)> {
+    let (w, h) = (frame.rgb.width() as usize, frame.rgb.height() as usize);
+    let grey: Vec<u8> = frame
+        .rgb
+        .pixels()
+        .map(|p| ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8)
+        .collect();
+    let depth = |x: usize, y: usize| {
+        let raw = frame.depth.get_pixel_checked(x as u32, y as u32)?[0];
+        (raw > 0).then(|| f64::from(raw) / intrinsics.depth_units_per_m)
+    };
+    detect_markers(w, h, &grey, depth)
+        .into_iter()
+        .map(|s| (s.id, s.base_point(intrinsics, t_base_camera)))
+        .collect()
 }
 
 /// Smallest marker side the detector reads, px (two pixels per cell).

@@ -30,7 +30,7 @@ use std::time::Instant;
 
 use iw_body::WheelSpeeds;
 use iw_features::DetectorKind;
-use iw_localization::{LocalizationMap, Localizer, Status};
+use iw_localization::{LocalizationMap, Localizer, Status, markers_in};
 use iw_sim::localization::{drive_params, localization_map, localizer_config};
 use iw_sim::vo::{SimCamera, sim_vo_config};
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, Route, SharedWorld, World};
@@ -159,6 +159,9 @@ pub struct Drive {
     pub distance_m: f64,
     /// Visual odometry frames processed.
     pub vo_frames: usize,
+    /// Landmark sightings fused by the localizer (in the camera's frames, when the map has
+    /// landmarks).
+    pub landmark_sightings: usize,
     /// Localizer time per period (predict and range update), µs, every period.
     pub localizer_us: Vec<f64>,
     /// Collisions of the driven chair.
@@ -398,6 +401,7 @@ pub fn drive(
         periods,
         distance_m: 0.0,
         vo_frames: 0,
+        landmark_sightings: 0,
         localizer_us: Vec::with_capacity(periods),
         collisions: 0,
         searches: 0,
@@ -418,19 +422,28 @@ pub fn drive(
             (camera.as_mut(), vo.as_mut(), t_base_camera.as_ref())
             && k % config.vo_every == 0
             && let Some(Ok(frame)) = camera.next_frame()
-            && let Ok((stamped, _)) = vo.process(&frame)
         {
-            result.vo_frames += 1;
-            if let Some(last) = last_camera {
-                let motion = planar_motion(
-                    t_base_camera,
-                    &(nalgebra::Isometry3::inverse(&last) * stamped.t_world_camera),
-                );
-                vo_pose = vo_pose.compose(&motion);
-                fusion.update_visual(&motion, &vo_noise);
-                localizer.update_visual(&motion, &vo_noise);
+            // the map's landmarks, where it has them, seen in the same frames as VO's
+            if !map.landmarks.is_empty() {
+                for (id, p) in markers_in(&frame, camera.intrinsics(), t_base_camera) {
+                    if localizer.update_landmark(u32::from(id), p.coords.norm(), p.y.atan2(p.x)) {
+                        result.landmark_sightings += 1;
+                    }
+                }
             }
-            last_camera = Some(stamped.t_world_camera);
+            if let Ok((stamped, _)) = vo.process(&frame) {
+                result.vo_frames += 1;
+                if let Some(last) = last_camera {
+                    let motion = planar_motion(
+                        t_base_camera,
+                        &(nalgebra::Isometry3::inverse(&last) * stamped.t_world_camera),
+                    );
+                    vo_pose = vo_pose.compose(&motion);
+                    fusion.update_visual(&motion, &vo_noise);
+                    localizer.update_visual(&motion, &vo_noise);
+                }
+                last_camera = Some(stamped.t_world_camera);
+            }
         }
         let truth = pose2(&lock(&s.world).pose(s.id)?);
         let estimates = [wheels.pose(), vo_pose, fusion.pose(), localizer.pose()];
