@@ -11,9 +11,12 @@
 //! - [`PerceptionError`]: a configuration that cannot work.
 //!
 //! Estimation: each tick the encoder ticks give a wheel odometry step (probabilistic motion
-//! model) that predicts an EKF ([`OdometryFusion`]); with a camera, each tick also takes one
-//! frame through [`VisualOdometry`] and its planar motion since the previous frame updates the
-//! EKF. Without a map the covariance only grows, which is what the cognitive agent watches
+//! model) that predicts an EKF ([`OdometryFusion`]); with a camera, a worker thread takes
+//! frames through [`iw_vo::VisualOdometry`] and the tick fuses each planar motion between two
+//! frames when it arrives, bridged to the filter's poses by the wheel odometry recorded at the
+//! frames' capture times. A tick never waits for the camera or for visual odometry: it asks for
+//! the next frame only when the worker is idle, so vision runs as fast as it can and the
+//! control period stays the body's. Without a map the covariance only grows, which is what the cognitive agent watches
 //! to route the chair past a landmark (thesis 3.8).
 //!
 //! With a map ([`PerceptionAgent::with_localizer`]) the estimate is an
@@ -37,6 +40,8 @@
 //! panics; the published covariance is the EKF's, symmetric.
 #![warn(missing_docs)]
 
+mod vision;
+
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
@@ -46,10 +51,10 @@ use iw_localization::{Localizer, Status};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, SensorReading, WheelchairContent};
 use iw_vo::{
-    CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualOdometry, VoConfig, WheelOdometry,
-    planar_motion,
+    CameraSource, DiffDriveParams, OdometryFusion, Pose2, VoConfig, WheelOdometry, planar_motion,
 };
 use nalgebra::{Isometry3, Matrix3};
+use vision::{VisionResult, VisionWorker, WheelHistory};
 
 /// Position variance (m², in x and in y) published while the localizer searches for the pose:
 /// the ontology's mark of a chair that does not know where it is.
@@ -67,11 +72,19 @@ pub enum PerceptionError {
         /// Its value.
         value: f64,
     },
+    /// The vision worker thread could not be started.
+    #[error("cannot start the vision worker: {reason}")]
+    Vision {
+        /// Why.
+        reason: String,
+    },
 }
 
 /// An RGB-D camera on the chair.
 pub struct VisualConfig {
-    /// Where frames come from (a live camera, the simulator's renderer or a TUM replay).
+    /// Where frames come from (a live camera, the simulator's renderer). Its frames' timestamps
+    /// must be on the body's clock ([`iw_body::SensorFrame::time_ns`]): a visual motion is
+    /// fused only when both its frames' times match a tick's body reading within half a period.
     pub source: Box<dyn CameraSource + Send>,
     /// Visual odometry settings.
     pub vo: VoConfig,
@@ -121,11 +134,16 @@ struct Subscription {
 }
 
 struct Visual {
-    source: Box<dyn CameraSource + Send>,
-    vo: VisualOdometry,
+    worker: VisionWorker,
     t_base_camera: Isometry3<f64>,
     motion_noise: Matrix3<f64>,
-    last_t_world_camera: Option<Isometry3<f64>>,
+    /// Wheel odometry pose when the filters last took a visual motion (their clone).
+    wheel_at_clone: Pose2,
+    /// Results fused and not fused (frames that failed or could not be placed in time).
+    fused: u64,
+    unused: u64,
+    /// Landmark sightings fused.
+    landmarks: u64,
 }
 
 /// The perception agent of one wheelchair.
@@ -139,6 +157,7 @@ pub struct PerceptionAgent {
     ticks: u64,
     last_sonar_m: Vec<f64>,
     localizer: Option<Localizer>,
+    history: WheelHistory,
 }
 
 impl PerceptionAgent {
@@ -158,13 +177,27 @@ impl PerceptionAgent {
                 return Err(PerceptionError::BadParameter { name, value });
             }
         }
-        let visual = visual.map(|v| Visual {
-            vo: VisualOdometry::new(v.vo, *v.source.intrinsics()),
-            source: v.source,
-            t_base_camera: v.t_base_camera,
-            motion_noise: v.motion_noise,
-            last_t_world_camera: None,
-        });
+        let visual = visual
+            .map(|v| {
+                Ok::<_, PerceptionError>(Visual {
+                    worker: VisionWorker::start(
+                        &config.chair.name,
+                        v.source,
+                        v.vo,
+                        v.t_base_camera,
+                    )
+                    .map_err(|e| PerceptionError::Vision {
+                        reason: e.to_string(),
+                    })?,
+                    t_base_camera: v.t_base_camera,
+                    motion_noise: v.motion_noise,
+                    wheel_at_clone: config.start,
+                    fused: 0,
+                    unused: 0,
+                    landmarks: 0,
+                })
+            })
+            .transpose()?;
         Ok(PerceptionAgent {
             wheels: WheelOdometry::new(config.drive, config.start),
             fusion: OdometryFusion::new(config.start, config.start_covariance, config.drive.alpha),
@@ -175,6 +208,7 @@ impl PerceptionAgent {
             ticks: 0,
             last_sonar_m: Vec::new(),
             localizer: None,
+            history: WheelHistory::default(),
         })
     }
 
@@ -192,6 +226,18 @@ impl PerceptionAgent {
         self.localizer
             .as_ref()
             .is_none_or(|l| l.status() == Status::Tracking)
+    }
+
+    /// Visual results that arrived so far: given to the filters (which may still gate a motion
+    /// out), and not (the frame failed, or its capture time fell outside the recorded ticks).
+    /// Both zero without a camera.
+    pub fn visual_results(&self) -> (u64, u64) {
+        self.visual.as_ref().map_or((0, 0), |v| (v.fused, v.unused))
+    }
+
+    /// Landmark sightings fused into the localizer so far (none without a camera or a map).
+    pub fn landmarks_fused(&self) -> u64 {
+        self.visual.as_ref().map_or(0, |v| v.landmarks)
     }
 
     /// The current estimate as the ontology's pose.
@@ -221,6 +267,7 @@ impl PerceptionAgent {
                         l.predict(&step);
                     }
                 }
+                self.history.record(frame.time_ns, self.wheels.pose());
                 if let Some(l) = self.localizer.as_mut() {
                     let before = l.status();
                     l.update_ranges(&frame.laser_m, &frame.sonar_m);
@@ -238,29 +285,80 @@ impl PerceptionAgent {
                 tracing::warn!(chair = %self.config.chair.name, error = %err, "body read failed; pose not updated")
             }
         }
+        self.vision();
+    }
+
+    /// Fuses the visual results that have arrived and asks for the next frame; never waits.
+    fn vision(&mut self) {
         let Some(visual) = self.visual.as_mut() else {
             return;
         };
-        match visual.source.next_frame() {
-            Some(Ok(frame)) => match visual.vo.process(&frame) {
-                Ok((stamped, _)) => {
-                    if let Some(last) = visual.last_t_world_camera {
-                        let t_previous_current = last.inverse() * stamped.t_world_camera;
-                        let motion = planar_motion(&visual.t_base_camera, &t_previous_current);
-                        if !self.fusion.update_visual(&motion, &visual.motion_noise) {
-                            tracing::debug!(chair = %self.config.chair.name, "visual motion outside the gate: not fused");
-                        }
-                        if let Some(l) = self.localizer.as_mut() {
-                            l.update_visual(&motion, &visual.motion_noise);
-                        }
-                    }
-                    visual.last_t_world_camera = Some(stamped.t_world_camera);
+        let tolerance_ns = (self.config.period.as_nanos() / 2) as u64;
+        for result in visual.worker.arrived() {
+            let (time_ns, motion, markers) = match result {
+                VisionResult::Frame {
+                    time_ns,
+                    motion,
+                    markers,
+                } => (time_ns, motion, markers),
+                VisionResult::Failed { reason } => {
+                    visual.unused += 1;
+                    tracing::warn!(chair = %self.config.chair.name, %reason, "no visual update");
+                    continue;
                 }
-                Err(err) => tracing::warn!(error = %err, "visual odometry failed on a frame"),
-            },
-            Some(Err(err)) => tracing::warn!(error = %err, "camera frame unavailable"),
-            None => {}
+                VisionResult::Ended => {
+                    tracing::info!(chair = %self.config.chair.name, "the camera has no more frames");
+                    continue;
+                }
+            };
+            let now = self.wheels.pose();
+            let at_frame = self.history.at(time_ns, tolerance_ns);
+            if let (Some(at_frame), Some(l)) = (at_frame, self.localizer.as_mut()) {
+                // where each marker is from the base now, carried by the wheels since capture
+                let since = at_frame.between(&now);
+                for (id, p) in markers {
+                    let (s, c) = since.theta.sin_cos();
+                    let (dx, dy) = (p.x - since.x, p.y - since.y);
+                    let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
+                    if l.update_landmark(u32::from(id), x.hypot(y), y.atan2(x)) {
+                        visual.landmarks += 1;
+                    }
+                }
+            }
+            let (previous_ns, t_previous_current) = match motion {
+                Ok(Some(m)) => m,
+                Ok(None) => continue,
+                Err(reason) => {
+                    visual.unused += 1;
+                    tracing::warn!(chair = %self.config.chair.name, %reason, "no visual update");
+                    continue;
+                }
+            };
+            let (Some(at_previous), Some(at_current)) =
+                (self.history.at(previous_ns, tolerance_ns), at_frame)
+            else {
+                visual.unused += 1;
+                tracing::debug!(chair = %self.config.chair.name, "frame times not among the recorded ticks: not fused");
+                continue;
+            };
+            let measured = planar_motion(&visual.t_base_camera, &t_previous_current);
+            let motion = vision::bridged(
+                &visual.wheel_at_clone,
+                &at_previous,
+                &measured,
+                &at_current,
+                &now,
+            );
+            if !self.fusion.update_visual(&motion, &visual.motion_noise) {
+                tracing::debug!(chair = %self.config.chair.name, "visual motion outside the gate: not fused");
+            }
+            if let Some(l) = self.localizer.as_mut() {
+                l.update_visual(&motion, &visual.motion_noise);
+            }
+            visual.wheel_at_clone = now;
+            visual.fused += 1;
         }
+        visual.worker.request();
     }
 
     fn publish(&mut self, ctx: &mut Context<'_>) {
@@ -351,3 +449,6 @@ impl Agent for PerceptionAgent {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -815,8 +815,8 @@ mod tests {
 
         #[test]
         fn no_panic_on_keyword_soup(lines in proptest::collection::vec(
-            (prop::sample::select(vec!["wall", "box", "polygon", "door", "restricted", "passage", "place", "start", "route", "wall_height", "name"]),
-             proptest::collection::vec(prop::sample::select(vec!["0", "1", "-2.5", "closed", "open", "x", "angle=30", "height=-1", "width=1.5", "nan", "1e9", "d1"]), 0..9)), 0..8)) {
+            (prop::sample::select(vec!["wall", "box", "polygon", "door", "restricted", "passage", "place", "start", "route", "wall_height", "name", "landmark"]),
+             proptest::collection::vec(prop::sample::select(vec!["0", "1", "-2.5", "closed", "open", "x", "angle=30", "height=-1", "width=1.5", "nan", "1e9", "d1", "255", "256", "size=0.3", "size=0", "height=1.2"]), 0..9)), 0..8)) {
             let text: String = lines.iter().map(|(k, args)| format!("{k} {}\n", args.join(" "))).collect();
             let _ = Map::parse(&text, "soup.map");
         }

@@ -16,6 +16,7 @@ use crate::SimError;
 use crate::chair::CameraModel;
 use crate::geom::Owner;
 use crate::world::{Hit, World};
+use markers::Painted;
 
 /// TUM RGB-D depth scale: raw value per metre.
 pub const TUM_DEPTH_PER_M: f64 = 5000.0;
@@ -176,6 +177,7 @@ pub(crate) fn render(
     let mut rgb = RgbImage::new(w, h);
     let mut depth = ImageBuffer::<Luma<u16>, Vec<u16>>::new(w, h);
     let mut hits: Vec<Hit> = Vec::new();
+    let markers = Painted::facing(world, &origin);
     for u in 0..w {
         let offset = ((cx - u as f64) / fx).atan();
         let (cos_off, dir) = (
@@ -204,7 +206,11 @@ pub(crate) fn render(
                         Owner::Door(_) => [150.0, 100.0, 60.0],
                         Owner::Chair(_) => [40.0, 45.0, 60.0],
                         Owner::Wall | Owner::Furniture => {
-                            textures.sample(hit.texture, hit.along_m, z)
+                            let at = origin + dir * hit.range_m;
+                            markers
+                                .iter()
+                                .find_map(|m| m.colour(&at, z))
+                                .unwrap_or_else(|| textures.sample(hit.texture, hit.along_m, z))
                         }
                     };
                     (hit.range_m, colour)
@@ -245,5 +251,82 @@ pub(crate) fn render(
         depth,
         t_world_camera: optical_pose(&t_world_cam2, hc),
         intrinsics: (fx, fy, cx, cy),
+    }
+}
+
+/// Landmarks as the camera paints them: each marker's cells on the surface it hangs on, seen
+/// from the front only. The printed pattern is iw-localization's (whose detector reads it), so
+/// markers are drawn with the `localization` feature only.
+#[cfg(feature = "localization")]
+mod markers {
+    use nalgebra::{Point2, Vector2};
+
+    use crate::world::World;
+
+    pub(super) struct Painted {
+        marker: crate::Marker,
+        /// Outward normal of the face.
+        normal: Vector2<f64>,
+        /// Along the face, to the right as one faces it.
+        right: Vector2<f64>,
+    }
+
+    impl Painted {
+        /// The map's markers whose face looks towards `origin`.
+        pub(super) fn facing(world: &World, origin: &Point2<f64>) -> Vec<Painted> {
+            world
+                .map()
+                .landmarks
+                .iter()
+                .map(|m| {
+                    let normal = Vector2::new(m.facing_rad.cos(), m.facing_rad.sin());
+                    Painted {
+                        marker: *m,
+                        normal,
+                        right: Vector2::new(-normal.y, normal.x),
+                    }
+                })
+                .filter(|p| (origin - p.marker.position).dot(&p.normal) > 0.0)
+                .collect()
+        }
+
+        /// The colour at surface point `at`, `z_m` above the floor, if it falls on the marker
+        /// or its quiet zone.
+        pub(super) fn colour(&self, at: &Point2<f64>, z_m: f64) -> Option<[f64; 3]> {
+            let d = at - self.marker.position;
+            if d.dot(&self.normal).abs() > 0.05 {
+                return None;
+            }
+            let n = iw_localization::MARKER_CELLS as f64;
+            let cell = self.marker.size_m / n;
+            let half = self.marker.size_m / 2.0;
+            let col = ((d.dot(&self.right) + half) / cell).floor();
+            let row = ((self.marker.height_m + half - z_m) / cell).floor();
+            if !(-1.0..=n).contains(&col) || !(-1.0..=n).contains(&row) {
+                return None;
+            }
+            let id = u8::try_from(self.marker.id).unwrap_or(u8::MAX);
+            let dark = iw_localization::marker_cell_dark(id, col as i32, row as i32);
+            Some(if dark { [0.0; 3] } else { [245.0; 3] })
+        }
+    }
+}
+
+#[cfg(not(feature = "localization"))]
+mod markers {
+    use nalgebra::Point2;
+
+    use crate::world::World;
+
+    pub(super) struct Painted;
+
+    impl Painted {
+        pub(super) fn facing(_: &World, _: &Point2<f64>) -> Vec<Painted> {
+            Vec::new()
+        }
+
+        pub(super) fn colour(&self, _: &Point2<f64>, _: f64) -> Option<[f64; 3]> {
+            None
+        }
     }
 }

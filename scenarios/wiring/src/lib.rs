@@ -31,11 +31,12 @@ use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_control_agent::{ControlAgent, ControlConfig, SharedDriveStatus};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
+use iw_localization::{LocalizationMap, Localizer};
 use iw_logger::SyncPolicy;
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
 use iw_ontology::fipa::{AgentState, AmsAgentDescription};
 use iw_perception_agent::{PerceptionAgent, PerceptionConfig, VisualConfig};
-use iw_sim::Map;
+use iw_sim::{ChairSpec, Map};
 use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -68,6 +69,10 @@ pub enum WiringError {
         reason: String,
     },
 }
+
+/// How far in front of a landmark's marker the chair may stop to read it, in order of
+/// preference, m: the camera sits 0.6 m ahead of the base and measures depth up to 3.5 m.
+const LANDMARK_VIEW_M: [f64; 3] = [1.8, 1.5, 2.2];
 
 /// The clearance a doorway must leave the chair's centre, m: the chair's half width less a few
 /// centimetres (the grid rounds it up a cell), so a 1 m doorway stays passable.
@@ -169,7 +174,8 @@ pub fn remote_agents(container: &str, chairs: &[String]) -> Vec<(String, String)
 pub struct Building {
     /// The map it was derived from.
     pub map: Map,
-    /// Places, connections (same room, no door between), door passages, landmarks.
+    /// Places, connections (same room, no door between), door passages, landmarks (the places
+    /// named `landmark...`, and a point in front of each marker of the map).
     pub plan: BuildingMap,
     /// The places of `plan` that are not the map's but a door's sides (`DOOR-side-1`,
     /// `DOOR-side-2`), where the chair lines up with the doorway.
@@ -180,6 +186,9 @@ pub struct Building {
     pub grid: OccupancyGrid,
     /// The planning domain.
     pub domain: Domain,
+    /// The map as every chair's localizer matches its laser and sonars against it (walls,
+    /// furniture, the doors drawn closed, landmarks), indexed once and shared.
+    pub localization: Arc<LocalizationMap>,
 }
 
 impl Building {
@@ -191,6 +200,10 @@ impl Building {
         let domain = Domain::parse(BUILDING_DOMAIN)
             .map_err(|e| plan_err(format!("building domain: {e}")))?;
         let grid = plan::raster(&map, |_| false)?;
+        let localization = Arc::new(
+            iw_sim::localization::localization_map(&map)
+                .map_err(|e| plan_err(format!("cannot localize on the map: {e}")))?,
+        );
         let rooms = Rooms::of(&map)?;
         let mut places = BTreeMap::new();
         let mut landmarks = Vec::new();
@@ -202,6 +215,24 @@ impl Building {
             }
         }
         let passable = grid.inflated(CHAIR_RADIUS_M);
+        // in front of each marker, within the camera's depth range, where the chair may stand
+        for marker in &map.landmarks {
+            let normal = Vector2::new(marker.facing_rad.cos(), marker.facing_rad.sin());
+            let view = LANDMARK_VIEW_M.iter().find_map(|d| {
+                let p = marker.position + normal * *d;
+                let (c, r) = passable.cell_of(&p)?;
+                (!passable.is_occupied(c, r)).then_some(p)
+            });
+            match view {
+                Some(p) => landmarks.push(p),
+                None => {
+                    tracing::warn!(
+                        landmark = marker.id,
+                        "no room in front of the landmark; the cognitive agent will not detour to it"
+                    )
+                }
+            }
+        }
         let mut doors = Vec::new();
         let mut approaches = BTreeSet::new();
         for door in &map.doors {
@@ -278,6 +309,7 @@ impl Building {
             approaches,
             grid,
             domain,
+            localization,
         })
     }
 
@@ -506,12 +538,17 @@ pub fn chair_agents(
     let perception_id = agent_id("perception", name);
     let control_id = agent_id("control", name);
     let cognitive_id = agent_id("cognitive", name);
-    let perception = PerceptionAgent::new(
-        PerceptionConfig::prototype(AgentId::new(name), start),
-        Box::new(body.clone()),
-        visual,
-    )
-    .map_err(|e| setup(e.to_string()))?;
+    let perception_config = PerceptionConfig::prototype(AgentId::new(name), start);
+    // The pose stays bounded by matching the laser and sonars to the map: odometry alone
+    // drifts half a metre in 15 m, enough to touch a wall at a goal.
+    let localizer = Localizer::new(
+        building.localization.clone(),
+        iw_sim::localization::localizer_config(&ChairSpec::default()),
+        Some((start, perception_config.start_covariance)),
+    );
+    let perception = PerceptionAgent::new(perception_config, Box::new(body.clone()), visual)
+        .map_err(|e| setup(e.to_string()))?
+        .with_localizer(localizer);
     let mut control_config =
         ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep

@@ -8,6 +8,8 @@
 //! - [`LaserGeometry`], [`SonarGeometry`]: readings to base-frame points, garbage told apart.
 //! - [`match_scan`]: Gauss-Newton scan-to-map matching with a Cauchy kernel and an honest,
 //!   degeneracy-aware covariance ([`MatcherConfig`]).
+//! - [`marker_cell_dark`], [`detect_markers`]: the landmarks' printed pattern, and finding it
+//!   in a camera image.
 //! - [`GlobalLocalizer`]: a particle filter seeded by an exhaustive search of the free space.
 //! - [`Localizer`]: the EKF (iw-vo's [`iw_vo::OdometryFusion`]) predicted by wheel odometry,
 //!   updated by visual odometry, matched scans and landmarks; searches while lost; drops a
@@ -28,12 +30,14 @@
 mod global;
 mod localizer;
 mod map;
+mod marker;
 mod matcher;
 mod scan;
 
 pub use global::{GlobalConfig, GlobalLocalizer};
 pub use localizer::{Confidence, Localizer, LocalizerConfig, ScanOutcome, Status};
 pub use map::{Landmark, LocalizationMap, Nearest};
+pub use marker::{MARKER_CELLS, MarkerSighting, detect_markers, marker_cell_dark, markers_in};
 pub use matcher::{MatcherConfig, ScanMatch, UNOBSERVED_VAR, inlier_fraction, match_scan};
 pub use scan::{LaserGeometry, ReadingCount, ScanPoint, SonarGeometry};
 

@@ -112,6 +112,11 @@ pub enum ScanOutcome {
     Searched,
     /// The search found the pose: tracking again.
     Localized,
+    /// No laser points this period (none fitted, silent or dropped): nothing is matched and the
+    /// pose is predicted only. Sonars alone do not localize: their 45 degree cones, matched
+    /// without a laser, left the estimate 6.4 m RMSE off on the sample building's tour (wheels
+    /// alone: 0.5 m); with a laser they add points and vet it.
+    Unused,
 }
 
 /// Health of one range sensor.
@@ -308,10 +313,11 @@ impl Localizer {
             laser_count.is_some() && self.laser.observe("laser", laser_problem, drop_after);
         let use_sonar =
             sonar_count.is_some() && self.sonar.observe("sonar", sonar_problem, drop_after);
-        let mut points = Vec::with_capacity(self.laser_points.len() + self.sonar_points.len());
-        if use_laser {
-            points.extend_from_slice(&self.laser_points);
+        if !use_laser {
+            return ScanOutcome::Unused;
         }
+        let mut points = Vec::with_capacity(self.laser_points.len() + self.sonar_points.len());
+        points.extend_from_slice(&self.laser_points);
         if use_sonar {
             points.extend_from_slice(&self.sonar_points);
         }

@@ -3,7 +3,8 @@
 use std::sync::Arc;
 
 use iw_localization::{
-    LocalizationMap, Localizer, LocalizerConfig, Status, UNOBSERVED_VAR, match_scan,
+    LocalizationMap, Localizer, LocalizerConfig, ScanOutcome, SonarGeometry, Status,
+    UNOBSERVED_VAR, match_scan,
 };
 use iw_vo::{OdometryStep, Pose2};
 use nalgebra::Matrix3;
@@ -200,4 +201,37 @@ fn a_chair_with_no_start_finds_itself_while_driving() {
         }
     }
     assert!(found_at.is_some(), "never found the pose");
+}
+
+#[test]
+fn sonars_alone_are_not_matched_and_the_pose_is_predicted_only() {
+    let sonar = SonarGeometry {
+        t_base_sonar: (0..16)
+            .map(|k| Pose2::new(0.0, 0.0, f64::from(k) * 22.5f64.to_radians()))
+            .collect(),
+        max_range_m: 3.0,
+        sigma_m: 0.15,
+    };
+    let config = LocalizerConfig::new(None, Some(sonar), [0.01, 0.002, 0.01, 0.002]);
+    let start = Pose2::new(1.5, 1.5, 0.0);
+    let mut loc = Localizer::new(
+        map_of(room()),
+        config,
+        Some((start, Matrix3::identity() * 1e-4)),
+    );
+    let mut odometry = start;
+    for k in 0..200usize {
+        let step = OdometryStep::from_wheels(0.02, 0.021, 0.56);
+        odometry = odometry.compose(&step.as_delta());
+        loc.predict(&step);
+        // echoes that fit no pose on the map: matched, they would pull the pose or start a search
+        let sonar: Vec<Option<f64>> = (0..16)
+            .map(|i| Some(0.5 + 0.1 * ((i + k) % 7) as f64))
+            .collect();
+        assert_eq!(loc.update_ranges(&[], &sonar), ScanOutcome::Unused);
+    }
+    assert_eq!(loc.status(), Status::Tracking);
+    assert_eq!(loc.searches(), 0);
+    let e = loc.pose();
+    assert!((e.x - odometry.x).abs() < 1e-9 && (e.y - odometry.y).abs() < 1e-9);
 }

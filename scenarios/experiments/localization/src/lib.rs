@@ -30,7 +30,7 @@ use std::time::Instant;
 
 use iw_body::WheelSpeeds;
 use iw_features::DetectorKind;
-use iw_localization::{LocalizationMap, Localizer, Status};
+use iw_localization::{LocalizationMap, Localizer, Status, markers_in};
 use iw_sim::localization::{drive_params, localization_map, localizer_config};
 use iw_sim::vo::{SimCamera, sim_vo_config};
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, Route, SharedWorld, World};
@@ -159,6 +159,9 @@ pub struct Drive {
     pub distance_m: f64,
     /// Visual odometry frames processed.
     pub vo_frames: usize,
+    /// Landmark sightings fused by the localizer (in the camera's frames, when the map has
+    /// landmarks).
+    pub landmark_sightings: usize,
     /// Localizer time per period (predict and range update), µs, every period.
     pub localizer_us: Vec<f64>,
     /// Collisions of the driven chair.
@@ -398,6 +401,7 @@ pub fn drive(
         periods,
         distance_m: 0.0,
         vo_frames: 0,
+        landmark_sightings: 0,
         localizer_us: Vec::with_capacity(periods),
         collisions: 0,
         searches: 0,
@@ -418,19 +422,28 @@ pub fn drive(
             (camera.as_mut(), vo.as_mut(), t_base_camera.as_ref())
             && k % config.vo_every == 0
             && let Some(Ok(frame)) = camera.next_frame()
-            && let Ok((stamped, _)) = vo.process(&frame)
         {
-            result.vo_frames += 1;
-            if let Some(last) = last_camera {
-                let motion = planar_motion(
-                    t_base_camera,
-                    &(nalgebra::Isometry3::inverse(&last) * stamped.t_world_camera),
-                );
-                vo_pose = vo_pose.compose(&motion);
-                fusion.update_visual(&motion, &vo_noise);
-                localizer.update_visual(&motion, &vo_noise);
+            // the map's landmarks, where it has them, seen in the same frames as VO's
+            if !map.landmarks.is_empty() {
+                for (id, p) in markers_in(&frame, camera.intrinsics(), t_base_camera) {
+                    if localizer.update_landmark(u32::from(id), p.coords.norm(), p.y.atan2(p.x)) {
+                        result.landmark_sightings += 1;
+                    }
+                }
             }
-            last_camera = Some(stamped.t_world_camera);
+            if let Ok((stamped, _)) = vo.process(&frame) {
+                result.vo_frames += 1;
+                if let Some(last) = last_camera {
+                    let motion = planar_motion(
+                        t_base_camera,
+                        &(nalgebra::Isometry3::inverse(&last) * stamped.t_world_camera),
+                    );
+                    vo_pose = vo_pose.compose(&motion);
+                    fusion.update_visual(&motion, &vo_noise);
+                    localizer.update_visual(&motion, &vo_noise);
+                }
+                last_camera = Some(stamped.t_world_camera);
+            }
         }
         let truth = pose2(&lock(&s.world).pose(s.id)?);
         let estimates = [wheels.pose(), vo_pose, fusion.pose(), localizer.pose()];
@@ -515,6 +528,98 @@ pub fn global_run(
             run.falsely_confident |= error_m > 0.30;
         }
         if distance_m >= config.global_drive_m {
+            break;
+        }
+    }
+    Ok(run)
+}
+
+/// One kidnapped-robot run: the chair tracks from its true start, is carried to the opposite
+/// side of the route after [`KIDNAP_AFTER_M`], and drives on up to [`Config::global_drive_m`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct KidnapRun {
+    /// Seed.
+    pub seed: u64,
+    /// How far the chair was carried, m.
+    pub carried_m: f64,
+    /// Distance driven after the kidnap until the localizer gave up its pose and searched, m
+    /// (`None`: it never did).
+    pub noticed_m: Option<f64>,
+    /// Distance driven after the kidnap until it tracked again within 10 cm, m.
+    pub recovered_m: Option<f64>,
+    /// Largest error while it reported tracking after it had searched, m.
+    pub max_error_after_fix_m: f64,
+}
+
+/// Distance driven before the chair is carried away, m.
+pub const KIDNAP_AFTER_M: f64 = 2.0;
+
+/// Runs one kidnapped-robot case (wheels, laser and sonars; no VO).
+pub fn kidnap_run(
+    map: &Map,
+    lmap: &Arc<LocalizationMap>,
+    config: &Config,
+    seed: u64,
+) -> Result<KidnapRun, ExperimentError> {
+    let route = tour(map)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x0C4A1);
+    let fraction: f64 = rng.random();
+    let mut s = setup(map, route, fraction, config, seed);
+    let params = drive_params(&s.spec);
+    let start = pose2(&lock(&s.world).pose(s.id)?);
+    let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
+    let mut wheels = WheelOdometry::new(params, start);
+    let mut localizer_config = localizer_config(&s.spec);
+    localizer_config.seed = seed;
+    let mut localizer = Localizer::new(lmap.clone(), localizer_config, Some((start, start_cov)));
+    let first = lock(&s.world).sensors(s.id)?.clone();
+    wheels.update(first.left_ticks, first.right_ticks);
+    let mut run = KidnapRun {
+        seed,
+        carried_m: 0.0,
+        noticed_m: None,
+        recovered_m: None,
+        max_error_after_fix_m: 0.0,
+    };
+    let mut kidnapped_at: Option<f64> = None;
+    let total_m = KIDNAP_AFTER_M + config.global_drive_m;
+    let max_periods = (total_m / config.speed_mps * 4.0 / config.dt_s) as usize;
+    for _ in 0..max_periods {
+        step_world(&mut s, config.dt_s)?;
+        let mut distance_m = lock(&s.world).distance_m(s.id)?;
+        if kidnapped_at.is_none() && distance_m >= KIDNAP_AFTER_M {
+            let (to, next) = along_route(route, fraction + 0.5);
+            let mut w = lock(&s.world);
+            let from = w.pose(s.id)?;
+            w.place(s.id, to)?;
+            run.carried_m = (to.translation.vector - from.translation.vector).norm();
+            if let Some((_, driver)) = s.drivers.iter_mut().find(|(id, _)| *id == s.id) {
+                driver.next = next;
+            }
+            distance_m = w.distance_m(s.id)?;
+            kidnapped_at = Some(distance_m);
+        }
+        let (sensed, truth) = {
+            let w = lock(&s.world);
+            (w.sensors(s.id)?.clone(), pose2(&w.pose(s.id)?))
+        };
+        if let Some(step) = wheels.update(sensed.left_ticks, sensed.right_ticks) {
+            localizer.predict(&step);
+        }
+        localizer.update_ranges(&sensed.laser_m, &sensed.sonar_m);
+        let Some(at) = kidnapped_at else { continue };
+        let since = distance_m - at;
+        if localizer.status() == Status::Searching && run.noticed_m.is_none() {
+            run.noticed_m = Some(since);
+        }
+        if run.noticed_m.is_some() && localizer.status() == Status::Tracking {
+            let error_m = position_error(&localizer.pose(), &truth);
+            if run.recovered_m.is_none() && error_m <= 0.10 {
+                run.recovered_m = Some(since);
+            }
+            run.max_error_after_fix_m = run.max_error_after_fix_m.max(error_m);
+        }
+        if since >= config.global_drive_m {
             break;
         }
     }

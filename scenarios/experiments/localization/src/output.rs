@@ -62,6 +62,8 @@ pub struct Summary {
     pub localizer_us: (f64, f64),
     /// Visual odometry frames processed, all drives.
     pub vo_frames: usize,
+    /// Landmark sightings fused by the localizer, all drives.
+    pub landmark_sightings: usize,
     /// Collisions of the measured chair, all drives.
     pub collisions: u64,
     /// Times the localizer lost its pose during the tracking drives.
@@ -151,6 +153,7 @@ impl Summary {
             distance_m: report.drives.iter().map(|d| d.distance_m).collect(),
             localizer_us: (percentile(&mut us, 0.5), percentile(&mut us, 0.99)),
             vo_frames,
+            landmark_sightings: report.drives.iter().map(|d| d.landmark_sightings).sum(),
             collisions: report.drives.iter().map(|d| d.collisions).sum(),
             searches: report.drives.iter().map(|d| d.searches).sum(),
             global_runs: report.global.clone(),

@@ -60,3 +60,28 @@ fn a_map_without_a_closed_route_is_refused() {
         .to_string();
     assert!(err.contains("closed route"), "{err}");
 }
+
+#[test]
+fn a_kidnapped_chair_notices_and_finds_itself_again() {
+    let map = sample_building().unwrap();
+    let lmap = std::sync::Arc::new(iw_sim::localization::localization_map(&map).unwrap());
+    let config = iw_localization_experiment::Config {
+        vo_every: 0,
+        ..Config::default()
+    };
+    let mut recovered = 0;
+    for seed in 1..=4 {
+        let run = iw_localization_experiment::kidnap_run(&map, &lmap, &config, seed).unwrap();
+        eprintln!("{run:?}");
+        assert!(run.carried_m > 3.0, "{run:?}");
+        // it gives up the old pose instead of tracking on where it no longer is
+        assert!(run.noticed_m.is_some(), "{run:?}");
+        // once it has found itself again it is never confident while far off
+        assert!(run.max_error_after_fix_m <= 0.30, "{run:?}");
+        recovered += usize::from(run.recovered_m.is_some());
+    }
+    eprintln!(
+        "recovered within {} m: {recovered}/4",
+        config.global_drive_m
+    );
+}
