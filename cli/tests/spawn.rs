@@ -412,3 +412,55 @@ fn a_chair_restarted_after_sigkill_gets_its_goal_again() {
 fn a_chair_restarted_at_once_after_sigkill_gets_its_goal_again() {
     chair_restarted_after_sigkill(false);
 }
+
+/// Issue 20: a services container killed with SIGKILL mid-run and started again gets its chair
+/// back (the chair's agents join the new one) and the goal that was in flight is given again
+/// and agreed: not silently lost.
+#[test]
+fn a_services_container_restarted_after_sigkill_gets_its_chair_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let services_key = keygen(dir.path(), "services");
+    let chair_key = keygen(dir.path(), "chair-q");
+    let control = keygen_control(dir.path());
+    let services_addr = format!("127.0.0.1:{}", free_port_pair());
+    let services_args = [
+        "--services",
+        "--listen",
+        &services_addr,
+        "--key",
+        &services_key,
+        "--control-key",
+        &control,
+        "--goal",
+        "chair-q:dining-hall",
+    ];
+    let mut services = Proc::spawn(&services_args);
+    services.wait_for("services ready", |e| e["event"] == "ready");
+    let chair_addr = format!("127.0.0.1:{}", free_port_pair());
+    let mut chair = Proc::spawn(&[
+        "--chair",
+        "chair-q",
+        "--start",
+        "1.0,6.0,0",
+        "--listen",
+        &chair_addr,
+        "--peer",
+        &services_addr,
+        "--key",
+        &chair_key,
+        "--control-key",
+        &control,
+    ]);
+    let agreed = |e: &Value| is(e, "goal", "chair", "chair-q") && e["performative"] == "AGREE";
+    services.wait_for("the first goal agreed", agreed);
+    services.child.kill().unwrap(); // SIGKILL: sessions, lists and goals in memory lost
+    services.child.wait().unwrap();
+    let mut services = Proc::spawn(&services_args);
+    services.wait_for("the restarted services ready", |e| e["event"] == "ready");
+    services.wait_for("chair-q's cognitive agent back", |e| {
+        is(e, "joined", "agent", "cognitive@chair-q")
+    });
+    services.wait_for("the goal given again and agreed", agreed);
+    assert!(chair.terminate().success());
+    assert!(services.terminate().success());
+}
