@@ -8,24 +8,30 @@ use aes_gcm::aead::AeadInPlace;
 use aes_gcm::{Aes256Gcm, KeyInit};
 use iw_bus::{Envelope, Flags, IdGen, Layer, Reason, SIGNATURE_LEN, Time, Verdict, write_aad};
 use ring::aead::{AES_256_GCM, Aad, LessSafeKey, Nonce, UnboundKey};
-use ring::agreement::{EphemeralPrivateKey, UnparsedPublicKey, X25519, agree_ephemeral};
 use ring::hkdf;
 use ring::rand::{SecureRandom, SystemRandom};
 use rustc_hash::FxHashMap;
+use snow::HandshakeState;
 
 use crate::SecurityError;
 use crate::identity::{Identity, KeyDirectory, signed_bytes, verify};
 
 /// Session id length (public-key mode), bytes.
-const SID_LEN: usize = 8;
+pub(crate) const SID_LEN: usize = 8;
 /// Session salt length (pre-shared mode), bytes.
 const SALT_LEN: usize = 16;
 const NONCE_LEN: usize = 12;
 const TAG_LEN: usize = 16;
-const HELLO: u8 = 1;
-const REPLY: u8 = 2;
+pub(crate) const HELLO: u8 = 1;
+pub(crate) const REPLY: u8 = 2;
 const REKEY: u8 = 3;
-const HANDSHAKE_LEN: usize = 1 + SID_LEN + 32 + SIGNATURE_LEN;
+/// The Noise protocol of the key agreement: IX (both static keys travel, two messages: the
+/// hello and its reply), X25519, AES-256-GCM, SHA-256.
+pub(crate) const NOISE_PARAMS: &str = "Noise_IX_25519_AESGCM_SHA256";
+/// Largest Noise handshake message accepted or written (IX: 2 keys, a signature, 2 tags).
+pub(crate) const NOISE_MAX: usize = 256;
+/// Hellos remembered (sender, session id) to refuse a replayed one.
+const HELLOS_KEPT: usize = 4096;
 /// Send sessions kept after their receiver asked for a new key, to take back the frames still
 /// in flight under them (see `Layer::reclaim`).
 const RETIRED_KEPT: usize = 64;
@@ -53,6 +59,9 @@ pub struct SecurityConfig {
     pub max_queued: usize,
     /// Receive sessions kept per sender and receiver (older ones are forgotten; default 4).
     pub sessions_kept: usize,
+    /// A hello stamped further than this from the receiver's clock, either way, is refused as
+    /// stale (a replay from the past; default 30 s, far above hosts' clock differences).
+    pub handshake_max_age: Duration,
 }
 
 impl Default for SecurityConfig {
@@ -65,6 +74,7 @@ impl Default for SecurityConfig {
             handshake_timeout: Duration::from_secs(1),
             max_queued: 1024,
             sessions_kept: 4,
+            handshake_max_age: Duration::from_secs(30),
         }
     }
 }
@@ -116,8 +126,8 @@ struct PskSend {
 
 struct Pending {
     id: [u8; SID_LEN],
-    eph: Option<EphemeralPrivateKey>,
-    eph_pub: [u8; 32],
+    /// The initiator's Noise state after the hello; `None` once a reply used it up.
+    noise: Option<HandshakeState>,
     queued: VecDeque<Envelope>,
     started: Time,
 }
@@ -243,26 +253,6 @@ fn ring_key(k: &[u8; 32]) -> Result<LessSafeKey, SecurityError> {
         .map_err(|_| SecurityError::KeyDerivation)
 }
 
-fn hello_transcript(id: &[u8], eph_a: &[u8], a: &str, b: &str) -> Vec<u8> {
-    length_prefixed(&[b"iw-hello-v1", id, eph_a, a.as_bytes(), b.as_bytes()])
-}
-
-fn reply_transcript(id: &[u8], eph_a: &[u8], eph_b: &[u8], a: &str, b: &str) -> Vec<u8> {
-    length_prefixed(&[b"iw-reply-v1", id, eph_a, eph_b, a.as_bytes(), b.as_bytes()])
-}
-
-fn session_key(
-    shared: &[u8],
-    eph_a: &[u8],
-    eph_b: &[u8],
-    a: &str,
-    b: &str,
-) -> Result<LessSafeKey, SecurityError> {
-    let salt = [eph_a, eph_b].concat();
-    let info = length_prefixed(&[b"iw-pk-v1", a.as_bytes(), b.as_bytes()]);
-    ring_key(&hkdf32(&salt, shared, &info)?)
-}
-
 fn psk_cipher(
     psk: &PreSharedKey,
     salt: &[u8],
@@ -274,20 +264,83 @@ fn psk_cipher(
     Aes256Gcm::new_from_slice(&key).map_err(|_| SecurityError::KeyDerivation)
 }
 
-/// A handshake payload: kind, session id, ephemeral X25519 key, Ed25519 signature.
-type Handshake = (u8, [u8; SID_LEN], [u8; 32], [u8; SIGNATURE_LEN]);
+/// The Noise prologue both ends mix in: the session id and both names, so a handshake cannot be
+/// moved to another pair of agents or session.
+pub(crate) fn prologue(id: &[u8], a: &str, b: &str) -> Vec<u8> {
+    length_prefixed(&[b"iw-noise-v1", id, a.as_bytes(), b.as_bytes()])
+}
 
-fn split_handshake(payload: &[u8]) -> Option<Handshake> {
-    if payload.len() != HANDSHAKE_LEN {
-        return None;
+/// What the initiator's identity signs in the hello: its Noise static key, bound to the session,
+/// both names and the hello's time (a replay later than `handshake_max_age` is stale).
+pub(crate) fn hello_binding(id: &[u8], a: &str, b: &str, static_a: &[u8], at: u64) -> Vec<u8> {
+    length_prefixed(&[
+        b"iw-noise-hello-v1",
+        id,
+        a.as_bytes(),
+        b.as_bytes(),
+        static_a,
+        &at.to_be_bytes(),
+    ])
+}
+
+/// What the responder's identity signs in the reply: its Noise static key, bound to the
+/// session, both names and the handshake hash after the hello (so to that very hello).
+pub(crate) fn reply_binding(id: &[u8], a: &str, b: &str, static_b: &[u8], hash: &[u8]) -> Vec<u8> {
+    length_prefixed(&[
+        b"iw-noise-reply-v1",
+        id,
+        a.as_bytes(),
+        b.as_bytes(),
+        static_b,
+        hash,
+    ])
+}
+
+fn noise_err(_: snow::Error) -> SecurityError {
+    SecurityError::KeyDerivation
+}
+
+/// A Noise handshake state for `NOISE_PARAMS`, with `ring` for hashing, AES-GCM and randomness and
+/// curve25519-dalek for X25519 (ring offers only ephemeral X25519, and IX needs static keys).
+pub(crate) fn noise(
+    static_private: &[u8],
+    prologue: &[u8],
+    initiator: bool,
+) -> Result<HandshakeState, SecurityError> {
+    let params = NOISE_PARAMS.parse().map_err(noise_err)?;
+    let builder = snow::Builder::new(params)
+        .local_private_key(static_private)
+        .and_then(|b| b.prologue(prologue))
+        .map_err(noise_err)?;
+    if initiator {
+        builder.build_initiator()
+    } else {
+        builder.build_responder()
     }
+    .map_err(noise_err)
+}
+
+/// The AEAD key of the initiator-to-responder direction, the only one a session uses (the
+/// other direction agrees its own session). Raw, because frames carry their header as
+/// associated data, which snow's transport messages do not take.
+fn split_key(hs: &mut HandshakeState) -> Result<LessSafeKey, SecurityError> {
+    let (to_responder, _) = hs.dangerously_get_raw_split();
+    ring_key(&to_responder)
+}
+
+/// A hello's parts: session id, time stamped, Noise message.
+pub(crate) fn split_hello(payload: &[u8]) -> Option<([u8; SID_LEN], u64, &[u8])> {
     let id = payload.get(1..1 + SID_LEN)?.try_into().ok()?;
-    let eph = payload
-        .get(1 + SID_LEN..1 + SID_LEN + 32)?
-        .try_into()
-        .ok()?;
-    let sig = payload.get(1 + SID_LEN + 32..)?.try_into().ok()?;
-    Some((payload[0], id, eph, sig))
+    let at = payload.get(1 + SID_LEN..1 + SID_LEN + 8)?.try_into().ok()?;
+    let noise = payload.get(1 + SID_LEN + 8..)?;
+    (noise.len() <= NOISE_MAX).then_some((id, u64::from_be_bytes(at), noise))
+}
+
+/// A reply's parts: session id, Noise message.
+pub(crate) fn split_reply(payload: &[u8]) -> Option<([u8; SID_LEN], &[u8])> {
+    let id = payload.get(1..1 + SID_LEN)?.try_into().ok()?;
+    let noise = payload.get(1 + SID_LEN..)?;
+    (noise.len() <= NOISE_MAX).then_some((id, noise))
 }
 
 /// The security layer of one node (agent or container identity).
@@ -313,6 +366,13 @@ pub struct SecurityLayer {
     retired: VecDeque<([u8; SID_LEN], LessSafeKey)>,
     /// Receivers that asked for a new key, not yet reported to the stack.
     lost: VecDeque<String>,
+    /// This layer's Noise static X25519 key pair, made at the first key agreement: it lives
+    /// as long as the layer, and every handshake binds it to the Ed25519 identity by a signature.
+    noise_static: Option<snow::Keypair>,
+    /// Hellos accepted (sender, session id), oldest first, at most `HELLOS_KEPT`: a replayed
+    /// one is refused even after its session was forgotten.
+    hellos: VecDeque<(String, [u8; SID_LEN])>,
+    hellos_seen: HashSet<(String, [u8; SID_LEN])>,
 }
 
 impl SecurityLayer {
@@ -338,7 +398,22 @@ impl SecurityLayer {
             restart_due: None,
             retired: VecDeque::new(),
             lost: VecDeque::new(),
+            noise_static: None,
+            hellos: VecDeque::new(),
+            hellos_seen: HashSet::new(),
         }
+    }
+
+    /// The Noise static key pair, made on first use.
+    fn noise_static(&mut self) -> Result<&snow::Keypair, SecurityError> {
+        if self.noise_static.is_none() {
+            let params = NOISE_PARAMS.parse().map_err(noise_err)?;
+            let pair = snow::Builder::new(params)
+                .generate_keypair()
+                .map_err(noise_err)?;
+            self.noise_static = Some(pair);
+        }
+        self.noise_static.as_ref().ok_or(SecurityError::Rng)
     }
 
     fn random<const N: usize>(&self) -> Result<[u8; N], SecurityError> {
@@ -441,27 +516,27 @@ impl SecurityLayer {
         env
     }
 
-    /// Starts (or restarts) key agreement from `a` to `b`, keeping messages already queued.
+    /// Starts (or restarts) key agreement from `a` to `b`, keeping messages already queued: a
+    /// Noise IX hello whose payload is `a`'s identity signature over its static key.
     fn start_handshake(&mut self, a: &str, b: &str, now: Time) -> Result<(), SecurityError> {
         let id = self.random::<SID_LEN>()?;
-        let eph =
-            EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
-        let eph_pub: [u8; 32] = eph
-            .compute_public_key()
-            .map_err(|_| SecurityError::Rng)?
-            .as_ref()
-            .try_into()
-            .map_err(|_| SecurityError::KeyDerivation)?;
-        let sig = self.identity.sign(&hello_transcript(&id, &eph_pub, a, b));
-        let payload = [&[HELLO][..], &id, &eph_pub, &sig].concat();
+        let at = now.0;
+        let pair = self.noise_static()?;
+        let static_pub = pair.public.clone();
+        let mut hs = noise(&pair.private, &prologue(&id, a, b), true)?;
+        let sig = self
+            .identity
+            .sign(&hello_binding(&id, a, b, &static_pub, at));
+        let mut msg = [0u8; NOISE_MAX];
+        let n = hs.write_message(&sig, &mut msg).map_err(noise_err)?;
+        let payload = [&[HELLO][..], &id, &at.to_be_bytes(), &msg[..n]].concat();
         let hello = self.handshake_env(a, b, payload, now);
         self.outbox.push_back(hello);
         let slot = nested(&mut self.pending, a, b);
         let queued = slot.take().map(|p| p.queued).unwrap_or_default();
         *slot = Some(Pending {
             id,
-            eph: Some(eph),
-            eph_pub,
+            noise: Some(hs),
             queued,
             started: now,
         });
@@ -495,90 +570,118 @@ impl SecurityLayer {
         Ok(Verdict::Consumed)
     }
 
+    /// A hello from `a` to our `b`: refused unless fresh, never seen, and signed by the identity
+    /// the directory lists for `a` over the Noise static key it carries; answered with a reply
+    /// signed likewise, and the receive session kept.
     fn on_hello(&mut self, env: &Envelope, now: Time) -> Result<Verdict, SecurityError> {
         let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
-        let Some((_, id, eph_a, sig)) = split_handshake(&env.payload) else {
+        let Some((id, at, msg1)) = split_hello(&env.payload) else {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         };
         let Some(key_a) = self.directory.public_key(a) else {
             return Ok(Verdict::Drop(Reason::UnknownPeer));
         };
-        if !verify(&key_a, &hello_transcript(&id, &eph_a, a, b), &sig) {
-            return Ok(Verdict::Drop(Reason::BadSignature));
+        if Duration::from_nanos(now.0.abs_diff(at)) > self.config.handshake_max_age {
+            return Ok(Verdict::Drop(Reason::Stale));
         }
-        if nested_get(&self.recv, a, b).is_some_and(|q| q.iter().any(|(sid, _)| *sid == id)) {
-            return Ok(Verdict::Consumed);
+        let seen = (a.to_string(), id);
+        if self.hellos_seen.contains(&seen) {
+            return Ok(Verdict::Drop(Reason::Duplicate));
         }
-        let eph =
-            EphemeralPrivateKey::generate(&X25519, &self.rng).map_err(|_| SecurityError::Rng)?;
-        let eph_b: [u8; 32] = eph
-            .compute_public_key()
-            .map_err(|_| SecurityError::Rng)?
-            .as_ref()
-            .try_into()
-            .map_err(|_| SecurityError::KeyDerivation)?;
-        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_a), |shared| {
-            session_key(shared, &eph_a, &eph_b, a, b)
-        });
-        let Ok(key) = key else {
+        let pair = self.noise_static()?;
+        let static_b = pair.public.clone();
+        let mut hs = noise(&pair.private, &prologue(&id, a, b), false)?;
+        let mut payload = [0u8; NOISE_MAX];
+        let Ok(n) = hs.read_message(msg1, &mut payload) else {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         };
-        let key = key?;
+        let Some(static_a) = hs.get_remote_static() else {
+            return Ok(Verdict::Drop(Reason::BadHandshake));
+        };
+        if !verify(
+            &key_a,
+            &hello_binding(&id, a, b, static_a, at),
+            &payload[..n],
+        ) {
+            return Ok(Verdict::Drop(Reason::BadSignature));
+        }
+        self.hellos.push_back(seen.clone());
+        self.hellos_seen.insert(seen);
+        while self.hellos.len() > HELLOS_KEPT {
+            if let Some(old) = self.hellos.pop_front() {
+                self.hellos_seen.remove(&old);
+            }
+        }
+        let sig_b = self.identity.sign(&reply_binding(
+            &id,
+            a,
+            b,
+            &static_b,
+            hs.get_handshake_hash(),
+        ));
+        let mut msg2 = [0u8; NOISE_MAX];
+        let n = hs.write_message(&sig_b, &mut msg2).map_err(noise_err)?;
+        let key = split_key(&mut hs)?;
         let kept = self.config.sessions_kept.max(1);
         let q = nested(&mut self.recv, a, b);
         q.push_back((id, key));
         while q.len() > kept {
             q.pop_front();
         }
-        let sig_b = self
-            .identity
-            .sign(&reply_transcript(&id, &eph_a, &eph_b, a, b));
-        let payload = [&[REPLY][..], &id, &eph_b, &sig_b].concat();
+        let payload = [&[REPLY][..], &id, &msg2[..n]].concat();
         let (a, b) = (a.to_string(), b.to_string());
         let reply = self.handshake_env(&b, &a, payload, now);
         self.outbox.push_back(reply);
         Ok(Verdict::Consumed)
     }
 
-    fn on_reply(&mut self, env: &Envelope) -> Result<Verdict, SecurityError> {
+    /// The reply to our hello: the session is agreed if the Noise handshake completes and the
+    /// responder's identity signed its static key over this very handshake. A reply that fails
+    /// used up the handshake state, so the agreement starts again at once.
+    fn on_reply(&mut self, env: &Envelope, now: Time) -> Result<Verdict, SecurityError> {
         // The reply comes from b (the peer) to a (who started the agreement).
         let (b, a) = (env.header.sender.clone(), env.header.receiver.clone());
-        let Some((_, id, eph_b, sig)) = split_handshake(&env.payload) else {
+        let Some((id, msg2)) = split_reply(&env.payload) else {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         };
         let matches = nested_get(&self.pending, &a, &b)
             .and_then(Option::as_ref)
-            .is_some_and(|p| p.id == id && p.eph.is_some());
+            .is_some_and(|p| p.id == id && p.noise.is_some());
         if !matches {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         }
         let Some(key_b) = self.directory.public_key(&b) else {
             return Ok(Verdict::Drop(Reason::UnknownPeer));
         };
-        let Some(mut p) = nested(&mut self.pending, &a, &b).take() else {
+        let Some(mut hs) = nested(&mut self.pending, &a, &b)
+            .as_mut()
+            .and_then(|p| p.noise.take())
+        else {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         };
-        if !verify(
-            &key_b,
-            &reply_transcript(&id, &p.eph_pub, &eph_b, &a, &b),
-            &sig,
-        ) {
-            *nested(&mut self.pending, &a, &b) = Some(p);
-            return Ok(Verdict::Drop(Reason::BadSignature));
+        let hash = hs.get_handshake_hash().to_vec();
+        let mut payload = [0u8; NOISE_MAX];
+        let verdict = match hs.read_message(msg2, &mut payload) {
+            Err(_) => Some(Reason::BadHandshake),
+            Ok(n) => match hs.get_remote_static() {
+                Some(static_b) if n == SIGNATURE_LEN => {
+                    let binding = reply_binding(&id, &a, &b, static_b, &hash);
+                    (!verify(&key_b, &binding, &payload[..n])).then_some(Reason::BadSignature)
+                }
+                _ => Some(Reason::BadHandshake),
+            },
+        };
+        if let Some(reason) = verdict {
+            self.start_handshake(&a, &b, now)?;
+            return Ok(Verdict::Drop(reason));
         }
-        let Some(eph) = p.eph.take() else {
-            return Ok(Verdict::Drop(Reason::BadHandshake));
-        };
-        let eph_a = p.eph_pub;
-        let key = agree_ephemeral(eph, &UnparsedPublicKey::new(&X25519, &eph_b), |shared| {
-            session_key(shared, &eph_a, &eph_b, &a, &b)
-        });
-        let Ok(key) = key else {
+        let key = split_key(&mut hs)?;
+        let Some(p) = nested(&mut self.pending, &a, &b).take() else {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         };
         *nested(&mut self.send, &a, &b) = Some(SendSession {
             id,
-            key: key?,
+            key,
             counter: 0,
         });
         for mut queued in p.queued {
@@ -799,7 +902,7 @@ impl Layer for SecurityLayer {
         if flags.contains(Flags::HANDSHAKE) {
             return match env.payload.first() {
                 Some(&HELLO) => or_log(self.on_hello(env, now)),
-                Some(&REPLY) => or_log(self.on_reply(env)),
+                Some(&REPLY) => or_log(self.on_reply(env, now)),
                 Some(&REKEY) => self.on_rekey(env),
                 _ => Verdict::Drop(Reason::BadHandshake),
             };

@@ -8,12 +8,17 @@
 //!   key id and nonce.
 //!
 //! # Modes, chosen per destination (as the thesis says)
-//! - **Public key** (default): the first message from agent A to agent B starts a key agreement:
-//!   A sends a *hello* (fresh X25519 ephemeral key and session id, signed with A's Ed25519
-//!   identity), B answers with its own ephemeral key, signed by B. Both derive the AES-256-GCM
-//!   key with HKDF-SHA256 over the X25519 secret (salt: both ephemeral keys; info: both names)
-//!   and cache it: agreement once per peer and direction, not per message. Messages wait in
-//!   the layer until the key exists (ring: X25519, Ed25519, HKDF, AES-256-GCM).
+//! - **Public key** (default): the first message from agent A to agent B starts a key agreement,
+//!   a vetted Noise handshake (`Noise_IX_25519_AESGCM_SHA256`, the `snow` crate): A's *hello*
+//!   is IX's first message (ephemeral and static X25519 keys), B's *reply* the second. Each side's
+//!   static key is bound to its Ed25519 identity: the handshake payload is the identity's
+//!   signature over the static key, the session id, both names and (hello) the hello's time or
+//!   (reply) the handshake hash, checked against the key the directory lists for that agent. The
+//!   prologue carries the session id and both names. The split's A-to-B key becomes the
+//!   session's AES-256-GCM key, cached: agreement once per peer and direction, not per message.
+//!   Messages wait in the layer until the key exists. Crypto: `ring` for Ed25519, SHA-256,
+//!   AES-256-GCM, HKDF and randomness (also inside snow, through its ring resolver);
+//!   curve25519-dalek for X25519, because ring has no static X25519 keys.
 //! - **Pre-shared key**: for peers configured with a 256-bit key; each sending session draws a
 //!   random 128-bit salt and derives its AES-256-GCM key with HKDF(psk, salt, names) (the
 //!   `aes-gcm` crate seals).
@@ -36,6 +41,31 @@
 //!
 //! Not covered here: replay of a whole valid frame (communication and temporal layers), delay
 //! (temporal layer).
+//!
+//! # Threat model
+//! The attacker reads, drops, delays, replays, alters and injects any frame on any link, and may
+//! hold an identity of her own that the directory lists under her own agent names; she does not
+//! hold another agent's identity key, a pre-shared key she is not meant to have, nor the group
+//! key of the containers. What stops what:
+//!
+//! | attack | defended by |
+//! | --- | --- |
+//! | read a message | AES-256-GCM under a session key only the two ends derive (here) |
+//! | alter any byte of a frame, header included | AEAD tag over payload, header as associated data (here) |
+//! | speak as another agent (masquerade) | handshake signed by the identity the directory lists; session keys bound to both names (here); ACL sender matched to the authenticated one (parser layer) |
+//! | swap a static key in the handshake (man in the middle) | identity signature over the static key; Noise's DH over both static keys (here) |
+//! | replay a hello | hellos remembered per sender and session id, and a hello older than `handshake_max_age` refused (here); a replayed hello yields no key the attacker can use anyway |
+//! | replay or repeat a message | message ids (communication layer), sequence numbers and age (temporal layer) |
+//! | delay, reorder | timestamps and sequence windows (temporal layer) |
+//! | drop frames | retransmission until acknowledged, then counted undeliverable (communication layer) |
+//! | forge container control traffic (joins, heartbeats, agent lists) | the containers' group key in pre-shared-key mode, with the temporal layer (`iw_stack::GuardedTransport`) |
+//! | flood | size caps and rate-limited warnings per reason; rejections counted per kind |
+//!
+//! Not defended: an attacker holding an agent's identity key (she is that agent), or the
+//! group key (she is a container); traffic analysis (who talks to whom, when, how much);
+//! denial of service by an attacker on the path (she can always drop). IX sends the initiator's
+//! static key in clear: it is a fresh key per layer, not the identity, so nothing long-lived is
+//! exposed, but a listener can link an agent's handshakes while the layer lives.
 //!
 //! A receiver that restarts loses its sessions; it answers the next sealed frame with an
 //! unauthenticated re-key request naming the session. The sender retires every session towards

@@ -302,3 +302,114 @@ fn unknown_receiver_is_refused() {
         Verdict::Drop(Reason::UnknownPeer)
     );
 }
+
+/// The first frame `a` sends towards `b`: the hello of a new key agreement.
+fn hello_of(n: &mut Net) -> Envelope {
+    assert_eq!(n.a.outbound(&mut msg(1), Time::ZERO), Verdict::Consumed);
+    let hello = n.a.poll_transmit(Time::ZERO).unwrap();
+    assert!(hello.header.flags.contains(iw_bus::Flags::HANDSHAKE));
+    hello
+}
+
+#[test]
+fn a_hello_signed_by_an_identity_the_directory_does_not_list_is_refused() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    // `b` trusts another key for `a` than the one `a` holds.
+    n.dir
+        .insert("a", Identity::generate().unwrap().public_key());
+    let mut hello = hello_of(&mut n);
+    assert_eq!(
+        n.b.inbound(&mut hello, Time::ZERO),
+        Verdict::Drop(Reason::BadSignature)
+    );
+    assert!(n.b.poll_transmit(Time::ZERO).is_none(), "no reply");
+}
+
+#[test]
+fn a_replayed_hello_is_refused_even_by_a_restarted_receiver() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    let hello = hello_of(&mut n);
+    let (got, _) = exchange(&mut n.a, &mut n.b, vec![hello.clone()]);
+    assert_eq!(got.len(), 1, "the genuine agreement works");
+    assert_eq!(
+        n.b.inbound(&mut hello.clone(), Time::ZERO),
+        Verdict::Drop(Reason::Duplicate),
+        "replayed while its session is held"
+    );
+    assert!(n.b.poll_transmit(Time::ZERO).is_none(), "no second reply");
+    // A receiver that restarted remembers nothing, but the hello's signed time is too old.
+    let id_b = Arc::new(Identity::generate().unwrap());
+    n.dir.insert("b", id_b.public_key());
+    let cfg = SecurityConfig::default();
+    let later = Time::ZERO.plus(cfg.handshake_max_age * 2);
+    n.b = SecurityLayer::new(id_b, Arc::new(n.dir.clone()), cfg);
+    assert_eq!(
+        n.b.inbound(&mut hello.clone(), later),
+        Verdict::Drop(Reason::Stale)
+    );
+    // Re-stamping the hello breaks the identity's signature over its time.
+    let mut restamped = hello;
+    restamped.payload[1 + layer::SID_LEN..1 + layer::SID_LEN + 8]
+        .copy_from_slice(&later.0.to_be_bytes());
+    assert_eq!(
+        n.b.inbound(&mut restamped, later),
+        Verdict::Drop(Reason::BadSignature)
+    );
+}
+
+#[test]
+fn a_man_in_the_middle_swapping_static_keys_is_refused_both_ways() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    let mallory = Identity::generate().unwrap();
+    n.dir.insert("m", mallory.public_key());
+    let mallory_static = snow::Builder::new(layer::NOISE_PARAMS.parse().unwrap())
+        .generate_keypair()
+        .unwrap();
+    let hello = hello_of(&mut n);
+    let (id, at, msg1) = layer::split_hello(&hello.payload).unwrap();
+    // IX's first message is e, s, payload in clear: a's signature is its last 64 bytes.
+    let a_sig = msg1[msg1.len() - 64..].to_vec();
+
+    // Towards b: her own static key under a's signature.
+    let prologue = layer::prologue(&id, "a", "b");
+    let mut hs = layer::noise(&mallory_static.private, &prologue, true).unwrap();
+    let mut m1 = [0u8; layer::NOISE_MAX];
+    let len = hs.write_message(&a_sig, &mut m1).unwrap();
+    let mut swapped = hello.clone();
+    swapped.payload = [&[layer::HELLO][..], &id, &at.to_be_bytes(), &m1[..len]].concat();
+    assert_eq!(
+        n.b.inbound(&mut swapped, Time::ZERO),
+        Verdict::Drop(Reason::BadSignature)
+    );
+
+    // Towards a: she answers a's hello as `b` with her static key and her own identity.
+    let mut hs = layer::noise(&mallory_static.private, &prologue, false).unwrap();
+    let mut buf = [0u8; layer::NOISE_MAX];
+    hs.read_message(msg1, &mut buf).unwrap();
+    let binding = layer::reply_binding(
+        &id,
+        "a",
+        "b",
+        &mallory_static.public,
+        hs.get_handshake_hash(),
+    );
+    let mut m2 = [0u8; layer::NOISE_MAX];
+    let len = hs.write_message(&mallory.sign(&binding), &mut m2).unwrap();
+    let mut reply = Envelope::new(
+        MsgId(99),
+        "b",
+        "a",
+        [&[layer::REPLY][..], &id, &m2[..len]].concat(),
+    );
+    reply.header.flags = iw_bus::Flags::HANDSHAKE;
+    assert_eq!(
+        n.a.inbound(&mut reply, Time::ZERO),
+        Verdict::Drop(Reason::BadSignature)
+    );
+    // a starts a new agreement at once; with the genuine b the message still gets through.
+    let again = n.a.poll_transmit(Time::ZERO).expect("a new hello");
+    assert!(again.header.flags.contains(iw_bus::Flags::HANDSHAKE));
+    let (got, _) = exchange(&mut n.a, &mut n.b, vec![again]);
+    assert_eq!(got.len(), 1);
+    assert_eq!(got[0].payload, msg(1).payload);
+}

@@ -324,7 +324,8 @@ struct ServiceDesk {
     desk: SharedDesk,
     /// Goals not yet given: chair, place.
     waiting: Vec<(String, String)>,
-    /// Given goals by conversation: chair, place.
+    /// Goals given and not answered for good (AGREE is not final), by conversation: chair,
+    /// place.
     given: BTreeMap<String, (String, String)>,
     /// Console answers already reported.
     reported: usize,
@@ -412,6 +413,9 @@ fn parse_point(text: &str) -> Option<nalgebra::Point2<f64>> {
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Installed {
     container: ContainerId,
+    /// The container's life: a restart (a higher one) is a leave and a join, even when it came
+    /// back within the lease with the same key and address.
+    incarnation: u32,
     key: PublicKey,
     addr: PeerAddr,
 }
@@ -601,8 +605,8 @@ impl Runtime {
                 next_report = now.plus(SECURITY_REPORT);
                 self.report_security(&mut reported);
             }
-            self.sync_agent_lists();
-            self.serve(now);
+            let left = self.sync_agent_lists();
+            self.serve(now, &left);
             self.report_bodies(now);
             self.host.step(now);
             std::thread::sleep(period.saturating_sub(clock.now().since(now)));
@@ -612,10 +616,10 @@ impl Runtime {
     }
 
     /// Routes and trusts exactly the other containers' agents the GAL lists under a live
-    /// container; reports who joined and who left.
-    fn sync_agent_lists(&mut self) {
+    /// container; reports who joined and who left, and returns who left.
+    fn sync_agent_lists(&mut self) -> Vec<String> {
         let Some(container) = &self.container else {
-            return;
+            return Vec::new();
         };
         let present: BTreeMap<String, Installed> = container.with(|c| {
             // A container hears only the leader and its seeds; the leader's list keeps only
@@ -624,6 +628,7 @@ impl Runtime {
             let live = c.live_peers();
             let leader_live = live.contains(&c.leader());
             let me = c.id();
+            let versions = c.gal().versions();
             c.gal()
                 .entries()
                 .filter(|(id, _)| *id != me && (live.contains(id) || leader_live))
@@ -633,6 +638,7 @@ impl Runtime {
                         e.name.clone(),
                         Installed {
                             container: id,
+                            incarnation: versions.get(&id).map_or(0, |g| (g >> 32) as u32),
                             key,
                             addr: e.addr.clone(),
                         },
@@ -647,6 +653,7 @@ impl Runtime {
             .filter(|(name, was)| present.get(*name) != Some(was))
             .map(|(n, w)| (n.clone(), w.clone()))
             .collect();
+        let left: Vec<String> = gone.iter().map(|(agent, _)| agent.clone()).collect();
         for (agent, was) in gone {
             self.platform.deregister(&agent);
             bus.remove_route(&agent);
@@ -668,6 +675,7 @@ impl Runtime {
             });
             self.installed.insert(agent, entry);
         }
+        left
     }
 
     /// World only: reports every body every `services.pose_report_ms`.
@@ -707,8 +715,11 @@ impl Runtime {
     }
 
     /// Services only: watches the chairs present, gives each configured goal once its chair's
-    /// cognitive agent is present and its pose known, and reports the console's answers and the chairs' poses.
-    fn serve(&mut self, now: Time) {
+    /// cognitive agent is present and its pose known, and reports the console's answers and the
+    /// chairs' poses. A goal in flight to a chair whose cognitive agent `left` (its container
+    /// stopped, or restarted and lost its plan) is reported failed, with the reason, and given
+    /// again once the chair is back: never silently lost.
+    fn serve(&mut self, now: Time, left: &[String]) {
         let Some(services) = &mut self.services else {
             return;
         };
@@ -719,7 +730,13 @@ impl Runtime {
             .filter_map(|a| a.strip_prefix("cognitive@"))
             .map(str::to_string)
             .collect();
-        services.seen_at.retain(|c, _| chairs.contains(c));
+        let gone: BTreeSet<&str> = left
+            .iter()
+            .filter_map(|a| a.strip_prefix("cognitive@"))
+            .collect();
+        services
+            .seen_at
+            .retain(|c, _| chairs.contains(c) && !gone.contains(c.as_str()));
         for chair in chairs {
             services.seen_at.entry(chair).or_insert(now);
         }
@@ -729,6 +746,50 @@ impl Runtime {
             .filter_map(|a| a.strip_prefix("perception@"))
             .map(str::to_string)
             .collect();
+        for answer in &desk.events[services.reported..] {
+            let Some((chair, place)) = services.given.get(&answer.conversation) else {
+                continue;
+            };
+            let _ = self.events.send(Event::Goal {
+                chair: chair.clone(),
+                place: place.clone(),
+                conversation: answer.conversation.clone(),
+                performative: answer.performative.clone(),
+                reason: answer.reason.clone(),
+            });
+            if answer.performative != "AGREE" {
+                // answered for good: nothing more is expected in this conversation
+                services.given.remove(&answer.conversation);
+            }
+        }
+        services.reported = desk.events.len();
+        for &chair in &gone {
+            // its pose and subscription died with it: wait for the new agent's
+            desk.poses.remove(chair);
+            desk.resubscribe.insert(chair.to_string());
+            services.last_pose_report.remove(chair);
+            let lost: Vec<String> = services
+                .given
+                .iter()
+                .filter(|(_, (c, _))| c == chair)
+                .map(|(conversation, _)| conversation.clone())
+                .collect();
+            for conversation in lost {
+                let Some((chair, place)) = services.given.remove(&conversation) else {
+                    continue;
+                };
+                let _ = self.events.send(Event::Goal {
+                    chair: chair.clone(),
+                    place: place.clone(),
+                    conversation,
+                    performative: "FAILURE".into(),
+                    reason: Some(format!(
+                        "{chair} left before the goal was done (its container stopped or restarted); the goal is given again when it is back"
+                    )),
+                });
+                services.waiting.push((chair, place));
+            }
+        }
         let (ready, waiting): (Vec<_>, Vec<_>) = std::mem::take(&mut services.waiting)
             .into_iter()
             // a chair takes goals once its perception agent publishes and the world is there for
@@ -746,19 +807,6 @@ impl Runtime {
                 .push_back((conversation.clone(), chair.clone(), place.clone()));
             services.given.insert(conversation, (chair, place));
         }
-        for answer in &desk.events[services.reported..] {
-            let Some((chair, place)) = services.given.get(&answer.conversation) else {
-                continue;
-            };
-            let _ = self.events.send(Event::Goal {
-                chair: chair.clone(),
-                place: place.clone(),
-                conversation: answer.conversation.clone(),
-                performative: answer.performative.clone(),
-                reason: answer.reason.clone(),
-            });
-        }
-        services.reported = desk.events.len();
         let every = Duration::from_millis(self.config.services.pose_report_ms);
         for (chair, [x_m, y_m, theta_rad]) in &desk.poses {
             let due = services

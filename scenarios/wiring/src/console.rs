@@ -46,6 +46,9 @@ pub struct Desk {
     pub events: Vec<GoalEvent>,
     /// Chairs whose pose the console subscribes to (their perception agent must be reachable).
     pub watch: BTreeSet<String>,
+    /// Watched chairs whose subscription must be sent again: their perception agent restarted
+    /// and lost it, possibly without ever leaving the watch list between two ticks.
+    pub resubscribe: BTreeSet<String>,
     /// The last pose each watched chair published: x (m), y (m), heading (rad), map frame.
     pub poses: BTreeMap<String, [f64; 3]>,
 }
@@ -121,12 +124,18 @@ impl Agent for Console {
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let (pending, watch): (Vec<(String, String, String)>, BTreeSet<String>) = {
+        let (pending, watch, again) = {
             let mut desk = desk(&self.desk);
-            (desk.outbox.drain(..).collect(), desk.watch.clone())
+            let again = std::mem::take(&mut desk.resubscribe);
+            (
+                desk.outbox.drain(..).collect::<Vec<_>>(),
+                desk.watch.clone(),
+                again,
+            )
         };
-        // A chair that left is subscribed to again when it is back.
-        self.subscribed.retain(|c| watch.contains(c));
+        // A chair that left or restarted is subscribed to again when it is back.
+        self.subscribed
+            .retain(|c| watch.contains(c) && !again.contains(c));
         for chair in watch.difference(&self.subscribed.clone()) {
             let subscribe = AclMessage::new(Performative::Subscribe)
                 .with_receiver(AgentId::new(format!("perception@{chair}")))
