@@ -24,6 +24,8 @@ pub struct SpawnConfig {
     pub body: BodySection,
     /// What the service container does.
     pub services: ServicesSection,
+    /// The services container's dashboard.
+    pub dashboard: DashboardSection,
 }
 
 /// The container: name, id, periods.
@@ -240,6 +242,18 @@ impl Default for ServicesSection {
     }
 }
 
+/// The dashboard the services container serves (staff view and chair views), fed from the
+/// platform's traffic.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DashboardSection {
+    /// Where it listens, `ip:port`; empty: no dashboard.
+    pub listen: String,
+    /// Its access token, which every request must carry (`?token=` or `Authorization: Bearer`);
+    /// required when `listen` is not a loopback address, as for `intellwheels demo --token`.
+    pub token: String,
+}
+
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
@@ -303,6 +317,28 @@ impl SpawnConfig {
                 file: "security.layers".into(),
                 reason: e.to_string(),
             })?;
+        let d = &self.dashboard;
+        if !d.listen.is_empty() {
+            if *role != crate::Role::Services {
+                return bad(
+                    "dashboard.listen",
+                    "only the services container serves the dashboard".into(),
+                );
+            }
+            match d.listen.parse::<std::net::SocketAddr>() {
+                Err(e) => return bad("dashboard.listen", format!("`{}`: {e}", d.listen)),
+                Ok(addr) if !addr.ip().is_loopback() && d.token.is_empty() => {
+                    return bad(
+                        "dashboard.token",
+                        format!(
+                            "empty, but dashboard.listen `{addr}` is not loopback: give a token \
+                             or listen on 127.0.0.1"
+                        ),
+                    );
+                }
+                Ok(_) => {}
+            }
+        }
         if let crate::Role::Chair { .. } = role {
             if self.body.kind != BodyKind::Virtual && self.body.port.is_empty() {
                 return bad(
@@ -368,6 +404,23 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("body.port"), "{err}");
+        let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
+        for (listen, token, role, key) in [
+            ("localhost:80", "", crate::Role::Services, "dashboard.listen"),
+            ("0.0.0.0:8080", "", crate::Role::Services, "dashboard.token"),
+            ("127.0.0.1:8080", "", crate::Role::World, "dashboard.listen"),
+        ] {
+            config.dashboard = DashboardSection {
+                listen: listen.into(),
+                token: token.into(),
+            };
+            let err = config.validate(&role).unwrap_err().to_string();
+            assert!(err.contains(key), "{listen}: {err}");
+        }
+        config.dashboard.token = "s3cret".into();
+        config.dashboard.listen = "0.0.0.0:8080".into();
+        config.validate(&crate::Role::Services).unwrap();
     }
 
     proptest! {

@@ -175,7 +175,7 @@ fn endpoints(role: &Role) -> Vec<String> {
 }
 
 /// Agents to host, with their names.
-type Agents = Vec<(AgentId, Box<dyn iw_agent::Agent>)>;
+pub(crate) type Agents = Vec<(AgentId, Box<dyn iw_agent::Agent>)>;
 
 /// The building of `config`'s map, as the wiring derives it.
 fn building(config: &SpawnConfig) -> Result<Building, NodeError> {
@@ -332,6 +332,8 @@ struct ServiceDesk {
     last_pose_report: BTreeMap<String, Time>,
     /// When each present chair's cognitive agent was first seen.
     seen_at: BTreeMap<String, Time>,
+    /// The dashboard, when configured.
+    dashboard: Option<crate::dashboard::LiveDashboard>,
 }
 
 fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, ServiceDesk), NodeError> {
@@ -379,16 +381,27 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
         ..ServiceConfig::new(chairs.into_iter().collect(), log_path)
     };
     let door_ids = iw_wiring::door_ids(&building.map);
-    let doors = WorldDoors::new(bus.clone(), iw_wiring::agent_id("door", SERVICES), door_ids);
-    let parts =
-        iw_wiring::service_agents(&service_config, &building, Box::new(doors)).map_err(|e| {
-            NodeError::Setup {
-                container: SERVICES.into(),
-                reason: e.to_string(),
-            }
-        })?;
+    let mut doors: Box<dyn iw_door::DoorActuator> = Box::new(WorldDoors::new(
+        bus.clone(),
+        iw_wiring::agent_id("door", SERVICES),
+        door_ids.clone(),
+    ));
+    let mut dashboard = crate::dashboard::LiveDashboard::start(&config.dashboard, &building)?;
+    if let Some(dashboard) = &dashboard {
+        doors = dashboard.watch_doors(doors, door_ids);
+    }
+    let parts = iw_wiring::service_agents(&service_config, &building, doors).map_err(|e| {
+        NodeError::Setup {
+            container: SERVICES.into(),
+            reason: e.to_string(),
+        }
+    })?;
+    let agents = match &mut dashboard {
+        Some(dashboard) => dashboard.attach(parts.agents, parts.refusals),
+        None => parts.agents,
+    };
     Ok((
-        parts.agents,
+        agents,
         ServiceDesk {
             desk: parts.desk,
             waiting,
@@ -397,6 +410,7 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
             conversations: 0,
             last_pose_report: BTreeMap::new(),
             seen_at: BTreeMap::new(),
+            dashboard,
         },
     ))
 }
@@ -419,6 +433,8 @@ struct Installed {
 /// One running container. See the crate docs.
 pub struct Runtime {
     name: String,
+    /// The agents this container hosts.
+    agent_names: Vec<String>,
     config: SpawnConfig,
     host: AgentHost,
     platform: Platform,
@@ -561,9 +577,17 @@ impl Runtime {
             container: name.clone(),
             id,
             bus: advertise,
-            agents: agent_names,
+            agents: agent_names.clone(),
         });
+        if let Some(dashboard) = services.as_ref().and_then(|s| s.dashboard.as_ref()) {
+            let _ = events.send(Event::Serving {
+                container: name.clone(),
+                service: "dashboard".into(),
+                url: dashboard.url(),
+            });
+        }
         Ok(Runtime {
+            agent_names,
             name,
             config,
             host,
@@ -774,6 +798,18 @@ impl Runtime {
                     theta_rad: *theta_rad,
                 });
             }
+        }
+        drop(desk);
+        if let Some(dashboard) = &mut services.dashboard {
+            let goals = dashboard.take_actions(&services.desk);
+            services.waiting.extend(goals);
+            dashboard.publish(
+                now,
+                &services.desk,
+                &services.given,
+                &mut installed.keys(),
+                &self.agent_names,
+            );
         }
     }
 
