@@ -12,6 +12,9 @@
 //!   FAILURE relayed in the staff's conversation. Non go-to actions are refused.
 //! - To the cognitive agent: REQUEST `((action COGNITIVE (go-to :place P)))` in a fresh
 //!   conversation `assist-N`; its AGREE is absorbed, its REFUSE relayed.
+//! - At setup, to its platform's DF (`df@PLATFORM`, `:ontology FIPA-Agent-Management`): a
+//!   registration of service [`SERVICE_NAME`] of type [`SERVICE_TYPE`], so other platforms'
+//!   agents (JADE's) find it with a DF search; the DF's answers are absorbed.
 #![warn(missing_docs)]
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -19,7 +22,16 @@ use std::collections::{BTreeMap, BTreeSet};
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_ontology::OntologyContent;
+use iw_ontology::fipa::{
+    AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
+    ServiceDescription,
+};
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+
+/// The service the assistant registers with its platform's DF.
+pub const SERVICE_NAME: &str = "wheelchair-assistant";
+/// The type of [`SERVICE_NAME`]: giving chairs go-to goals.
+pub const SERVICE_TYPE: &str = "wheelchair-goals";
 
 /// Which chairs exist and who may direct them.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -120,6 +132,36 @@ impl AssistantAgent {
 }
 
 impl Agent for AssistantAgent {
+    fn setup(&mut self, ctx: &mut Context<'_>) {
+        let Some(platform) = ctx.aid().platform().map(str::to_owned) else {
+            return;
+        };
+        let df = AgentId::new(format!("df@{platform}"));
+        let description = DfAgentDescription {
+            name: Some(ctx.aid().clone()),
+            services: vec![ServiceDescription {
+                name: Some(SERVICE_NAME.into()),
+                service_type: Some(SERVICE_TYPE.into()),
+                ..ServiceDescription::default()
+            }],
+            ..DfAgentDescription::default()
+        };
+        let register = ManagementContent::Request(ManagementRequest {
+            actor: df.clone(),
+            action: ManagementAction::Register {
+                description: AgentDescription::Df(description),
+            },
+        });
+        let request = AclMessage::new(Performative::Request)
+            .with_receiver(df)
+            .with_protocol("fipa-request")
+            .with_conversation_id(format!("df-register-{}", ctx.name()));
+        // Without the DF the assistant still works; only foreign platforms cannot find it.
+        if let Err(err) = ctx.send(register.fill(request)) {
+            tracing::warn!(error = %err, "could not register with the DF");
+        }
+    }
+
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         match message.performative {
             Performative::Request => self.on_staff_request(ctx, message),

@@ -26,6 +26,8 @@ pub struct SpawnConfig {
     pub services: ServicesSection,
     /// The services container's dashboard.
     pub dashboard: DashboardSection,
+    /// Message transports to other FIPA platforms.
+    pub mtp: MtpSection,
 }
 
 /// The container: name, id, periods.
@@ -254,6 +256,23 @@ pub struct DashboardSection {
     pub token: String,
 }
 
+/// Message transports to other FIPA platforms (the services container only).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MtpSection {
+    /// The FIPA HTTP MTP (SC00084), JADE's default transport.
+    pub http: HttpMtpSection,
+}
+
+/// The FIPA HTTP MTP gateway: foreign agents (JADE) reach the service agents as
+/// `NAME@services` at `http://LISTEN/acc`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HttpMtpSection {
+    /// Where the gateway listens, `ip:port`; empty: no gateway.
+    pub listen: String,
+}
+
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
@@ -339,6 +358,18 @@ impl SpawnConfig {
                 Ok(_) => {}
             }
         }
+        let mtp = &self.mtp.http.listen;
+        if !mtp.is_empty() {
+            if *role != crate::Role::Services {
+                return bad(
+                    "mtp.http.listen",
+                    "only the services container runs the HTTP MTP gateway".into(),
+                );
+            }
+            if let Err(e) = mtp.parse::<std::net::SocketAddr>() {
+                return bad("mtp.http.listen", format!("`{mtp}`: {e}"));
+            }
+        }
         if let crate::Role::Chair { .. } = role {
             if self.body.kind != BodyKind::Virtual && self.body.port.is_empty() {
                 return bad(
@@ -418,6 +449,14 @@ mod tests {
             let err = config.validate(&role).unwrap_err().to_string();
             assert!(err.contains(key), "{listen}: {err}");
         }
+        config.dashboard = DashboardSection::default();
+        config.mtp.http.listen = "127.0.0.1".into();
+        let err = config
+            .validate(&crate::Role::Services)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("mtp.http.listen"), "{err}");
+        config.mtp.http.listen = String::new();
         config.dashboard.token = "s3cret".into();
         config.dashboard.listen = "0.0.0.0:8080".into();
         config.validate(&crate::Role::Services).unwrap();

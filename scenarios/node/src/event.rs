@@ -18,7 +18,8 @@ pub enum Event {
         /// Its agents.
         agents: Vec<String>,
     },
-    /// A service the container serves besides the bus (services only): `dashboard`.
+    /// A service the container serves besides the bus (services only): `dashboard`, or
+    /// `mtp-http` (the FIPA HTTP MTP gateway; `url` is its transport address).
     Serving {
         /// The container's name.
         container: String,

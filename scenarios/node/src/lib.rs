@@ -15,6 +15,8 @@
 //! - [`Event`]: what a running container reports, one JSON line each.
 //! - The services' dashboard (`[dashboard] listen`): the staff view and the chair views fed
 //!   from the platform's traffic; its drive panel drives a chair through its interface agent.
+//! - The services' FIPA HTTP MTP gateway (`[mtp.http] listen`): foreign platforms (JADE) reach
+//!   the service agents (`df@services`, `assistant@services`, ...) over HTTP.
 //! - [`write_identity`]: a new identity key file.
 //!
 //! # Design
@@ -46,10 +48,11 @@
 mod config;
 mod dashboard;
 mod event;
+mod mtp;
 mod runtime;
 
 pub use config::{
-    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, SecuritySection, ServicesSection,
+    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection, MtpSection, SecuritySection, ServicesSection,
     SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
 pub use event::Event;

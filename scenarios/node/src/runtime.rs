@@ -435,6 +435,8 @@ pub struct Runtime {
     name: String,
     /// The agents this container hosts.
     agent_names: Vec<String>,
+    /// The HTTP MTP gateway, when configured (services).
+    mtp: Option<crate::mtp::HttpMtp>,
     config: SpawnConfig,
     host: AgentHost,
     platform: Platform,
@@ -514,6 +516,15 @@ impl Runtime {
                 (agents, None, None, Some(reports))
             }
         };
+        let mtp = match role {
+            Role::Services => crate::mtp::HttpMtp::start(
+                &config.mtp.http.listen,
+                bus.clone(),
+                &platform,
+                identity.public_key(),
+            )?,
+            _ => None,
+        };
         let mut host = AgentHost::new(bus.clone());
         let messages_sent = Arc::new(AtomicU64::new(0));
         if *role != Role::World {
@@ -586,7 +597,15 @@ impl Runtime {
                 url: dashboard.url(),
             });
         }
+        if let Some(mtp) = &mtp {
+            let _ = events.send(Event::Serving {
+                container: name.clone(),
+                service: "mtp-http".into(),
+                url: mtp.url(),
+            });
+        }
         Ok(Runtime {
+            mtp,
             agent_names,
             name,
             config,
@@ -838,6 +857,8 @@ impl Runtime {
     }
 
     fn shutdown(mut self) {
+        // foreign platforms first: nothing arrives from them while the agents take down
+        drop(self.mtp.take());
         let now = self.host.bus().clock().now();
         self.host.shutdown(now);
         if let Some(body) = &mut self.body
