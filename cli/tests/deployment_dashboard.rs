@@ -156,5 +156,8 @@ fn a_browser_on_the_services_dashboard_sees_three_chair_processes_move_and_drive
         "log: {} records; {relayed} drive requests relayed to interface@chair-c, {streamed} streamed to control@chair-c",
         records.len()
     );
-    assert!(relayed >= 3 && streamed >= 3, "{relayed} relayed, {streamed} streamed");
+    assert!(
+        relayed >= 3 && streamed >= 3,
+        "{relayed} relayed, {streamed} streamed"
+    );
 }

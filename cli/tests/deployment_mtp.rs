@@ -37,7 +37,9 @@ fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
         .port();
     std::fs::write(
         &config,
-        format!("[services]\nchairs = [\"chair-b\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"),
+        format!(
+            "[services]\nchairs = [\"chair-b\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"
+        ),
     )
     .unwrap();
     let services_addr = format!("127.0.0.1:{}", free_port_pair());
@@ -54,7 +56,10 @@ fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
         is(e, "serving", "service", "mtp-http")
     });
     let url = serving["url"].as_str().unwrap().to_string();
-    assert!(url.starts_with(&format!("http://127.0.0.1:{port}")), "{url}");
+    assert!(
+        url.starts_with(&format!("http://127.0.0.1:{port}")),
+        "{url}"
+    );
     let world_addr = format!("127.0.0.1:{}", free_port_pair());
     let mut world = Proc::spawn(&[
         "--world",

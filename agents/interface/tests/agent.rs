@@ -436,7 +436,12 @@ fn a_remote_driver_streams_through_the_interface_and_others_are_refused() {
     // Out of range: refused too; silence after a hold: released within the hold.
     staff.lock().unwrap().push((5.0, 0.0, "panel-2"));
     run(100);
-    assert!(said(&staff_answers).last().unwrap().contains("out of range"));
+    assert!(
+        said(&staff_answers)
+            .last()
+            .unwrap()
+            .contains("out of range")
+    );
     staff.lock().unwrap().push((0.3, 0.1, "panel-3"));
     run(1000);
     let last = drives(&sink);

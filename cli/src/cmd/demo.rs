@@ -28,8 +28,8 @@ use iw_dashboard::{
     MessageView, State, round_cm,
 };
 use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
-use iw_wiring::view::map_view;
 use iw_sim::Map;
+use iw_wiring::view::map_view;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 /// The sample care building shipped with the sources (`scenarios/maps/sample-building.map`).
@@ -553,6 +553,7 @@ fn dashboard_state(
         notices,
         sent: fleet.messages_sent(),
         features: None,
+        sec: Default::default(),
     }
 }
 

@@ -438,7 +438,12 @@ mod tests {
         let mut config = SpawnConfig::default();
         config.security.insecure_dev = true;
         for (listen, token, role, key) in [
-            ("localhost:80", "", crate::Role::Services, "dashboard.listen"),
+            (
+                "localhost:80",
+                "",
+                crate::Role::Services,
+                "dashboard.listen",
+            ),
             ("0.0.0.0:8080", "", crate::Role::Services, "dashboard.token"),
             ("127.0.0.1:8080", "", crate::Role::World, "dashboard.listen"),
         ] {

@@ -5,7 +5,8 @@
 //! - the Global Agent List (the containers and their agents);
 //! - every message the containers' agents exchange, read off the copies each container sends
 //!   the logger;
-//! - the doors as the door agent moved them, and its refusals.
+//! - the doors as the door agent moved them, and its refusals;
+//! - the frames this container's platform refused, per reason (the `security` event's counts).
 //!
 //! The page's asks go back on the bus: a goal through the assistant (as a configured goal), a
 //! drive panel input mapped as the chair's interface agent maps a device and relayed by the
@@ -21,8 +22,8 @@ use iw_acl::AclMessage;
 use iw_agent::{Agent, Context};
 use iw_bus::Time;
 use iw_dashboard::{
-    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, MessageView,
-    State, round_cm,
+    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, MessageView, State,
+    round_cm,
 };
 use iw_door::{ActuatorFault, DoorActuator, RefusalLog};
 use iw_interface::DriveMapping;
@@ -94,7 +95,11 @@ impl Agent for Sniffed {
 
 fn message_view(m: &AclMessage) -> MessageView {
     MessageView {
-        from: m.sender.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+        from: m
+            .sender
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default(),
         to: m
             .receivers
             .iter()
@@ -302,7 +307,8 @@ impl LiveDashboard {
 
     /// Publishes the state at most every [`PUBLISH_EVERY`]: `desk` (poses, answers), `given`
     /// (goal conversation to chair and place), `agents` (the other containers' agents in the
-    /// GAL) and `own` (this container's agents).
+    /// GAL), `own` (this container's agents) and `refused` (frames the platform refused here,
+    /// per reason).
     pub(crate) fn publish(
         &mut self,
         now: Time,
@@ -310,6 +316,7 @@ impl LiveDashboard {
         given: &BTreeMap<String, (String, String)>,
         agents: &mut dyn Iterator<Item = &String>,
         own: &[String],
+        refused: impl FnOnce() -> BTreeMap<String, u64>,
     ) {
         let started = *self.started.get_or_insert(now);
         if self
@@ -324,14 +331,21 @@ impl LiveDashboard {
             // the newest answer about each chair's goal or drive
             let mut answers: BTreeMap<String, String> = BTreeMap::new();
             for e in &desk.events {
-                let chair = given.get(&e.conversation).map(|(c, _)| c.clone()).or_else(|| {
-                    e.conversation
-                        .strip_prefix("drive-")
-                        .and_then(|rest| rest.split_once("-staff@"))
-                        .map(|(c, _)| c.to_string())
-                });
+                let chair = given
+                    .get(&e.conversation)
+                    .map(|(c, _)| c.clone())
+                    .or_else(|| {
+                        e.conversation
+                            .strip_prefix("drive-")
+                            .and_then(|rest| rest.split_once("-staff@"))
+                            .map(|(c, _)| c.to_string())
+                    });
                 if let Some(chair) = chair {
-                    let why = e.reason.as_deref().map(|r| format!(": {r}")).unwrap_or_default();
+                    let why = e
+                        .reason
+                        .as_deref()
+                        .map(|r| format!(": {r}"))
+                        .unwrap_or_default();
                     answers.insert(chair, format!("{} from {}{why}", e.performative, e.from));
                 }
             }
@@ -347,11 +361,10 @@ impl LiveDashboard {
             if *pose != seen.pose && dt >= MIN_SPEED_DT_S {
                 let (dx, dy) = (pose[0] - seen.pose[0], pose[1] - seen.pose[1]);
                 let heading = pose[2];
-                let turn = (pose[2] - seen.pose[2]).sin().atan2((pose[2] - seen.pose[2]).cos());
-                seen.twist = [
-                    (dx * heading.cos() + dy * heading.sin()) / dt,
-                    turn / dt,
-                ];
+                let turn = (pose[2] - seen.pose[2])
+                    .sin()
+                    .atan2((pose[2] - seen.pose[2]).cos());
+                seen.twist = [(dx * heading.cos() + dy * heading.sin()) / dt, turn / dt];
                 seen.pose = *pose;
                 seen.at = now;
             } else if *pose == seen.pose && dt >= 2.0 * MIN_SPEED_DT_S {
@@ -420,7 +433,10 @@ impl LiveDashboard {
             t: now.since(started).as_secs_f32(),
             paused: false,
             chairs,
-            doors: lock(&self.doors).iter().map(|(d, o)| (d.clone(), *o)).collect(),
+            doors: lock(&self.doors)
+                .iter()
+                .map(|(d, o)| (d.clone(), *o))
+                .collect(),
             containers: containers
                 .into_iter()
                 .map(|(name, agents)| ContainerView { name, agents })
@@ -429,6 +445,7 @@ impl LiveDashboard {
             notices,
             sent,
             features: None,
+            sec: refused(),
         };
         if let Err(err) = self.server.publish(&state) {
             tracing::warn!(error = %err, "could not publish the dashboard state");

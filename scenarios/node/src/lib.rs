@@ -52,8 +52,9 @@ mod mtp;
 mod runtime;
 
 pub use config::{
-    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection, MtpSection, SecuritySection, ServicesSection,
-    SpawnConfig, TransportKind, TransportSection, WorldSection,
+    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection,
+    MtpSection, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
+    WorldSection,
 };
 pub use event::Event;
 pub use runtime::{Runtime, control_addr, write_identity};

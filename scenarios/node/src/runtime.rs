@@ -828,6 +828,17 @@ impl Runtime {
                 &services.given,
                 &mut installed.keys(),
                 &self.agent_names,
+                || {
+                    let control = self.control_guard.as_ref().map(|g| g.counters());
+                    let bus = self.host.bus().counters();
+                    let bus = bus.nonzero().map(|(r, n)| (r.name().to_string(), n));
+                    let control = control.iter().flat_map(|c| {
+                        c.nonzero()
+                            .map(|(r, n)| (format!("control:{}", r.name()), n))
+                            .collect::<Vec<_>>()
+                    });
+                    bus.chain(control).collect()
+                },
             );
         }
     }

@@ -134,7 +134,11 @@ impl Agent for Console {
         let (pending, watch, drives) = {
             let mut desk = desk(&self.desk);
             let pending: Vec<(String, String, String)> = desk.outbox.drain(..).collect();
-            (pending, desk.watch.clone(), std::mem::take(&mut desk.drives))
+            (
+                pending,
+                desk.watch.clone(),
+                std::mem::take(&mut desk.drives),
+            )
         };
         for (chair, (linear_mps, angular_radps)) in drives {
             self.drive(ctx, &chair, linear_mps, angular_radps);
