@@ -316,10 +316,13 @@ fn a_held_input_streams_drive_and_release_silence_or_nan_stop_it() {
     );
 }
 
+/// Drive requests waiting to be sent: linear (m/s), angular (rad/s), conversation.
+type Outbox = Arc<Mutex<Vec<(f64, f64, &'static str)>>>;
+
 /// Sends the `drive` requests queued in its outbox (velocity, conversation) each tick and keeps
 /// the answers.
 struct RemotePanel {
-    outbox: Arc<Mutex<Vec<(f64, f64, &'static str)>>>,
+    outbox: Outbox,
     answers: Arc<Mutex<Vec<AclMessage>>>,
 }
 impl Agent for RemotePanel {
