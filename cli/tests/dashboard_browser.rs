@@ -9,20 +9,11 @@
 //! The screenshots' paths are printed. Prints SKIP when chromium, node or playwright-core is
 //! missing (`.ci/run` installs them).
 
+mod common;
+
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
-
-fn chromium() -> Option<PathBuf> {
-    if let Some(path) = std::env::var_os("CHROMIUM") {
-        return Some(PathBuf::from(path));
-    }
-    ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
-        .into_iter()
-        .map(PathBuf::from)
-        .find(|p| p.exists())
-}
 
 /// Kills the demo if the test fails half way.
 struct Demo(Child);
@@ -42,25 +33,13 @@ fn in_browser(test: &str, script: &str) -> Option<()> {
     let _turn = ONE_AT_A_TIME
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let browser_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
-    let Some(chromium) = chromium() else {
-        iw_testdata::skip(
-            test,
-            "no chromium (apt-get install chromium; .ci/run does it)",
-        );
-        return None;
+    let (chromium, browser_dir) = match common::browser_tools() {
+        Ok(tools) => tools,
+        Err(why) => {
+            iw_testdata::skip(test, why);
+            return None;
+        }
     };
-    if !browser_dir.join("node_modules/playwright-core").exists() {
-        iw_testdata::skip(
-            test,
-            "playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)",
-        );
-        return None;
-    }
-    if Command::new("node").arg("--version").output().is_err() {
-        iw_testdata::skip(test, "no node");
-        return None;
-    }
     let log_dir = tempfile::tempdir().unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
         .args(["demo", "--serve", "--bind", "127.0.0.1:0", "--log-dir"])
@@ -80,25 +59,7 @@ fn in_browser(test: &str, script: &str) -> Option<()> {
     std::thread::spawn(move || lines.for_each(drop));
     println!("dashboard at {url}");
 
-    let screenshot = std::env::temp_dir().join(format!(
-        "intellwheels-{}-{}.png",
-        script.trim_end_matches(".mjs"),
-        std::process::id()
-    ));
-    let out = Command::new("node")
-        .current_dir(&browser_dir)
-        .arg(script)
-        .arg(&url)
-        .arg(&chromium)
-        .arg(&screenshot)
-        .output()
-        .expect("run node");
-    println!("{}", String::from_utf8_lossy(&out.stdout));
-    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
-    assert!(out.status.success(), "the browser check failed");
-    let png = std::fs::read(&screenshot).expect("the screenshot");
-    assert!(png.starts_with(b"\x89PNG"), "the screenshot is a PNG");
-    println!("screenshot (CI artifact): {}", screenshot.display());
+    common::run_browser_script(&browser_dir, &chromium, script, &url);
 
     // SIGTERM ends a serving demo cleanly, with its summary
     let pid = demo.0.id().to_string();

@@ -14,14 +14,27 @@
 //! - To the cognitive agent: REQUEST `((action COGNITIVE (go-to :place P)))` in a fresh
 //!   conversation; its AGREE is absorbed, and its REFUSE relayed to staff as a FAILURE with the
 //!   same reason (the assistant has already agreed, so fipa-request allows no REFUSE).
+//! - At setup, to its platform's DF (`df@PLATFORM`, `:ontology FIPA-Agent-Management`): a
+//!   registration of service [`SERVICE_NAME`] of type [`SERVICE_TYPE`], so other platforms'
+//!   agents (JADE's) find it with a DF search; the DF's answers are absorbed.
 #![warn(missing_docs)]
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use iw_acl::{AclMessage, AgentId, Performative};
+use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
+use iw_ontology::fipa::{
+    AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
+    ServiceDescription,
+};
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+
+/// The service the assistant registers with its platform's DF.
+pub const SERVICE_NAME: &str = "wheelchair-assistant";
+/// The type of [`SERVICE_NAME`]: giving chairs go-to goals.
+pub const SERVICE_TYPE: &str = "wheelchair-goals";
 
 /// Which chairs exist and who may direct them.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -37,6 +50,8 @@ pub struct AssistantAgent {
     config: AssistantConfig,
     /// Goals forwarded to a cognitive agent, each with the staff conversation it serves.
     forwarded: Initiated<Responder>,
+    /// The registration with the platform's DF.
+    registration: Initiated<()>,
 }
 
 impl AssistantAgent {
@@ -45,6 +60,7 @@ impl AssistantAgent {
         AssistantAgent {
             config,
             forwarded: Initiated::new(),
+            registration: Initiated::new(),
         }
     }
 
@@ -141,12 +157,57 @@ impl AssistantAgent {
 }
 
 impl Agent for AssistantAgent {
+    fn setup(&mut self, ctx: &mut Context<'_>) {
+        let Some(platform) = ctx.aid().platform().map(str::to_owned) else {
+            return;
+        };
+        let df = AgentId::new(format!("df@{platform}"));
+        let description = DfAgentDescription {
+            name: Some(ctx.aid().clone()),
+            services: vec![ServiceDescription {
+                name: Some(SERVICE_NAME.into()),
+                service_type: Some(SERVICE_TYPE.into()),
+                ..ServiceDescription::default()
+            }],
+            ..DfAgentDescription::default()
+        };
+        let register = ManagementContent::Request(ManagementRequest {
+            actor: df.clone(),
+            action: ManagementAction::Register {
+                description: AgentDescription::Df(description),
+            },
+        });
+        let request = AclMessage::new(Performative::Request)
+            .with_receiver(df)
+            .with_conversation_id(format!("df-register-{}", ctx.name()));
+        // Without the DF the assistant still works; only foreign platforms cannot find it.
+        if let Err(err) = self
+            .registration
+            .open(ctx, Protocol::Request, register.fill(request), ())
+        {
+            tracing::warn!(error = %err, "could not register with the DF");
+        }
+    }
+
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        if let Some(answer) = self.registration.handle(ctx, &message) {
+            match answer {
+                Ok(Progress::Ended(event, ())) if event.kind != EventKind::Informed => {
+                    tracing::warn!(kind = ?event.kind, "the DF did not register the assistant");
+                }
+                Ok(_) => {}
+                Err(err) => tracing::debug!(error = %err, "out-of-protocol DF answer"),
+            }
+            return;
+        }
         if self.on_answer(ctx, &message) {
             return;
         }
         match message.performative {
             Performative::Request => self.on_staff_request(ctx, message),
+            act if answers_a_conversation(act) => {
+                tracing::debug!(performative = %act, "answer in no conversation of ours");
+            }
             _ => {
                 let _ =
                     ctx.not_understood(&message, "the assistant takes go-to requests from staff");

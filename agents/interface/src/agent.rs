@@ -59,6 +59,10 @@ pub struct InterfaceConfig {
     /// A held input whose device has sent nothing for this long counts as released, ms (a
     /// browser tab closed, a cable pulled).
     pub hold_ms: u64,
+    /// Agents of other containers that may drive this chair through this agent with `drive`
+    /// requests (a dashboard's drive panel, relayed by the staff console); everyone else is
+    /// refused.
+    pub remote_drivers: Vec<String>,
 }
 
 impl InterfaceConfig {
@@ -71,6 +75,7 @@ impl InterfaceConfig {
             tick: Duration::from_millis(50),
             mapping: DriveMapping::default(),
             hold_ms: 300,
+            remote_drivers: Vec::new(),
         }
     }
 }
@@ -85,6 +90,9 @@ struct Held {
     conversation: Option<String>,
     /// The control agent refused or ended the stream: nothing is sent until the user lets go.
     stopped: bool,
+    /// Who holds the input: `None` for this chair's own devices, else the remote driver and
+    /// its request conversation.
+    remote: Option<(String, Option<String>)>,
 }
 
 /// The interface agent: inputs in, ACL requests out.
@@ -161,6 +169,7 @@ impl InterfaceAgent {
                     seen_ns: now_ns,
                     conversation: None,
                     stopped: false,
+                    remote: None,
                 });
                 held.command = command;
                 held.seen_ns = now_ns;
@@ -223,6 +232,97 @@ impl InterfaceAgent {
         self.send_drive(ctx, command.linear_mps, command.angular_radps, conversation);
     }
 
+    /// A `drive` request from another container: a remote driver's proportional command,
+    /// held and streamed like a device's. Refused (with the reason): a sender not in
+    /// [`InterfaceConfig::remote_drivers`], a command not finite or beyond the mapping's
+    /// speeds (the chair stops), a second driver while another holds the chair. The first
+    /// command of a conversation is agreed; a stop releases.
+    fn on_remote_drive(&mut self, ctx: &mut Context<'_>, message: AclMessage, from: String) {
+        let drive = match WheelchairContent::from_message(&message) {
+            Ok(WheelchairContent::Request {
+                action:
+                    WheelchairAction::Drive {
+                        linear_mps,
+                        angular_radps,
+                    },
+                ..
+            }) => Ok((linear_mps, angular_radps)),
+            Ok(_) => Err("expected ((action actor (drive :linear V :angular W)))".to_string()),
+            Err(err) => Err(err.to_string()),
+        };
+        let (linear_mps, angular_radps) = match drive {
+            Ok(drive) => drive,
+            Err(why) => {
+                // a broken command from the driver stops the chair (a NaN does not even parse)
+                let holds = self
+                    .held
+                    .as_ref()
+                    .and_then(|h| h.remote.as_ref())
+                    .is_some_and(|(driver, _)| *driver == from);
+                if holds {
+                    self.release(ctx);
+                    self.display().refused_inputs += 1;
+                }
+                let _ = ctx.not_understood(&message, &why);
+                return;
+            }
+        };
+        if !self.config.remote_drivers.contains(&from) {
+            let _ = ctx.refuse(
+                &message,
+                &format!("`{from}` may not drive this chair through its interface"),
+            );
+            return;
+        }
+        let holder = self.held.as_ref().map(|h| h.remote.as_ref().map(|r| &r.0));
+        if let Some(holder) = holder
+            && holder != Some(&from)
+        {
+            let by = holder.map_or("this chair's own input device", String::as_str);
+            let _ = ctx.refuse(&message, &format!("the chair is driven by {by}"));
+            return;
+        }
+        let mapping = self.config.mapping;
+        if !(linear_mps.is_finite() && angular_radps.is_finite())
+            || linear_mps.abs() > mapping.max_linear_mps
+            || angular_radps.abs() > mapping.max_angular_radps
+        {
+            self.release(ctx);
+            self.display().refused_inputs += 1;
+            let _ = ctx.refuse(
+                &message,
+                &format!(
+                    "drive command out of range or not finite: linear {linear_mps} m/s \
+                     (|v| <= {}), angular {angular_radps} rad/s (|w| <= {}); chair stopped",
+                    mapping.max_linear_mps, mapping.max_angular_radps
+                ),
+            );
+            return;
+        }
+        let conversation = message.conversation_id.clone();
+        let known = self
+            .held
+            .as_ref()
+            .and_then(|h| h.remote.as_ref())
+            .is_some_and(|(_, c)| *c == conversation);
+        let command = DriveCommand {
+            device: crate::Device::Remote,
+            linear_mps,
+            angular_radps,
+        };
+        self.on_drive_input(ctx, Some(command));
+        if let Some(held) = &mut self.held {
+            held.remote = Some((from, conversation));
+            if !known {
+                let _ = ctx.send(
+                    message
+                        .create_reply()
+                        .with_performative(Performative::Agree),
+                );
+            }
+        }
+    }
+
     fn display(&self) -> std::sync::MutexGuard<'_, Display> {
         self.display.lock().unwrap_or_else(PoisonError::into_inner)
     }
@@ -262,10 +362,11 @@ impl Agent for InterfaceAgent {
                 self.display().last_answer =
                     Some(format!("{} from {from}{why}", message.performative));
             }
+            Performative::Request => self.on_remote_drive(ctx, message, from),
             _ => {
                 let _ = ctx.not_understood(
                     &message,
-                    "the interface agent only takes answers to its requests",
+                    "the interface agent takes answers to its requests and `drive` requests",
                 );
             }
         }
@@ -289,6 +390,10 @@ impl Agent for InterfaceAgent {
                     }
                 };
                 self.on_drive_input(ctx, command);
+                // the chair's own device takes the chair from a remote driver
+                if let Some(held) = &mut self.held {
+                    held.remote = None;
+                }
                 continue;
             }
             let events = match raw.normalise(t_ms) {

@@ -22,6 +22,9 @@ pub enum Device {
     Voice,
     /// Facial-expression labels from the face tracker.
     Face,
+    /// A drive panel in another container (the services' dashboard), as `drive` requests over
+    /// the bus from an agent of [`crate::InterfaceConfig::remote_drivers`].
+    Remote,
 }
 
 /// One normalised input: a symbol of one device (`up`, `a`, `nod-left`, `go`, `smile`).

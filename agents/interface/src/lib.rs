@@ -4,7 +4,10 @@
 //! control agent, one per tick, in one conversation per hold; on release it sends a stop and
 //! falls silent. Symbolic inputs are normalised to input events; user-defined input sequences,
 //! accepted after a reliability test, are recognised in that stream and turned into FIPA-ACL
-//! requests: goals to the cognitive agent, a stop to the control agent.
+//! requests: goals to the cognitive agent, a stop to the control agent. A drive panel in
+//! another container (the services' dashboard, through the staff console) sends it `drive`
+//! requests; from an agent of [`InterfaceConfig::remote_drivers`] they are held and streamed like
+//! a device's input ([`Device::Remote`]), from anyone else refused.
 //!
 //! # Organization
 //! - [`drive`]: dead zones and gains from proportional readings to the user's velocity command.
@@ -23,6 +26,10 @@
 //! - A held input streams at the tick rate (20 Hz by default); a device silent for
 //!   [`InterfaceConfig::hold_ms`] counts as released. After the control agent refuses or ends a
 //!   stream, nothing is sent until the user lets go.
+//! - A remote `drive` is refused with a reason when its sender is not a remote driver, when it
+//!   is not finite or beyond the mapping's speeds (the chair stops too), or while another driver
+//!   (a device of the chair or another remote) holds the chair; the chair's own device takes
+//!   the chair back from a remote driver.
 //! - Everything leaves as ordinary ACL messages through the bus; the agent holds no other agent.
 #![warn(missing_docs)]
 

@@ -315,3 +315,140 @@ fn a_held_input_streams_drive_and_release_silence_or_nan_stop_it() {
         "released within the hold: {keys:?}"
     );
 }
+
+/// Drive requests waiting to be sent: linear (m/s), angular (rad/s), conversation.
+type Outbox = Arc<Mutex<Vec<(f64, f64, &'static str)>>>;
+
+/// Sends the `drive` requests queued in its outbox (velocity, conversation) each tick and keeps
+/// the answers.
+struct RemotePanel {
+    outbox: Outbox,
+    answers: Arc<Mutex<Vec<AclMessage>>>,
+}
+impl Agent for RemotePanel {
+    fn handle(&mut self, _ctx: &mut Context<'_>, message: AclMessage) {
+        self.answers.lock().unwrap().push(message);
+    }
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        let pending: Vec<_> = self.outbox.lock().unwrap().drain(..).collect();
+        for (linear_mps, angular_radps, conversation) in pending {
+            let request = WheelchairContent::Request {
+                actor: AgentId::new("interface@c1"),
+                action: WheelchairAction::Drive {
+                    linear_mps,
+                    angular_radps,
+                },
+            }
+            .fill(
+                AclMessage::new(Performative::Request)
+                    .with_receiver(AgentId::new("interface@c1"))
+                    .with_protocol("fipa-request")
+                    .with_conversation_id(conversation),
+            );
+            ctx.send(request).unwrap();
+        }
+    }
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_millis(10))
+    }
+}
+
+#[test]
+fn a_remote_driver_streams_through_the_interface_and_others_are_refused() {
+    let (mut host, controller) = host();
+    let sink = Arc::new(Mutex::new(Vec::new()));
+    host.add(AgentId::new("control@c1"), Box::new(Sink(sink.clone())))
+        .unwrap();
+    let display = Arc::new(Mutex::new(iw_interface::Display::default()));
+    let mut config = InterfaceConfig::new(AgentId::new("cognitive@c1"), AgentId::new("control@c1"));
+    config.remote_drivers = vec!["staff@services".into()];
+    let interface = InterfaceAgent::new(
+        config,
+        Recognizer::new(DEFAULT_MAX_GAP_MS),
+        iw_interface::InputQueue::default(),
+        display.clone(),
+    );
+    host.add(AgentId::new("interface@c1"), Box::new(interface))
+        .unwrap();
+    let mut panel = |name: &str| {
+        let outbox = Arc::new(Mutex::new(Vec::new()));
+        let answers = Arc::new(Mutex::new(Vec::new()));
+        host.add(
+            AgentId::new(name),
+            Box::new(RemotePanel {
+                outbox: outbox.clone(),
+                answers: answers.clone(),
+            }),
+        )
+        .unwrap();
+        (outbox, answers)
+    };
+    let (staff, staff_answers) = panel("staff@services");
+    let (evil, evil_answers) = panel("evil@x");
+    let mut run = |ms: u64| {
+        for _ in 0..ms / 10 {
+            host.step(controller.now());
+            controller.advance(Duration::from_millis(10));
+        }
+    };
+    let said = |answers: &Arc<Mutex<Vec<AclMessage>>>| -> Vec<String> {
+        answers
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|m| format!("{} {:?}", m.performative, m.content))
+            .collect()
+    };
+    // The staff's panel holds forward for 600 ms (resent every 100 ms): one AGREE, a stream.
+    for _ in 0..6 {
+        staff.lock().unwrap().push((0.4, 0.0, "panel-1"));
+        run(100);
+    }
+    let streamed = drives(&sink);
+    assert!(streamed.len() >= 10, "{streamed:?}");
+    assert!(streamed.iter().all(|d| d.2 == 0.4 && d.1 == streamed[0].1));
+    assert_eq!(said(&staff_answers).len(), 1, "{:?}", said(&staff_answers));
+    assert!(said(&staff_answers)[0].starts_with("AGREE"));
+    assert_eq!(
+        display.lock().unwrap().drive.map(|d| d.device),
+        Some(Device::Remote)
+    );
+    // An agent not authorised is refused, and so is a second driver; the stream goes on.
+    evil.lock().unwrap().push((0.2, 0.0, "evil-1"));
+    staff.lock().unwrap().push((0.4, 0.0, "panel-1"));
+    run(100);
+    let refused = said(&evil_answers);
+    assert_eq!(refused.len(), 1, "{refused:?}");
+    assert!(
+        refused[0].starts_with("REFUSE") && refused[0].contains("may not drive"),
+        "{refused:?}"
+    );
+    // NaN (which SL cannot even carry): not understood, with the reason, and the chair stopped
+    // at once (the stream's last drive is a stop).
+    staff.lock().unwrap().push((f64::NAN, 0.0, "panel-1"));
+    run(30);
+    let answers = said(&staff_answers);
+    assert!(
+        answers.last().unwrap().starts_with("NOT-UNDERSTOOD")
+            && answers.last().unwrap().contains("expected a number"),
+        "{answers:?}"
+    );
+    let all = drives(&sink);
+    assert_eq!((all.last().unwrap().2, all.last().unwrap().3), (0.0, 0.0));
+    assert_eq!(display.lock().unwrap().drive, None);
+    // Out of range: refused too; silence after a hold: released within the hold.
+    staff.lock().unwrap().push((5.0, 0.0, "panel-2"));
+    run(100);
+    assert!(
+        said(&staff_answers)
+            .last()
+            .unwrap()
+            .contains("out of range")
+    );
+    staff.lock().unwrap().push((0.3, 0.1, "panel-3"));
+    run(1000);
+    let last = drives(&sink);
+    let (stop, moving) = last.split_last().unwrap();
+    assert_eq!((stop.2, stop.3), (0.0, 0.0));
+    assert!(moving.iter().any(|d| d.2 == 0.3 && d.1 != all[0].1));
+}

@@ -41,7 +41,7 @@ pub fn run(trials: usize, json: bool) -> anyhow::Result<()> {
     anyhow::ensure!(trials >= 2, "--trials must be at least 2, got {trials}");
     let map = Map::parse(demo::SAMPLE_BUILDING, "sample-building.map")
         .context("embedded sample building")?;
-    let view = demo::map_view(&map);
+    let view = iw_wiring::view::map_view(&map);
     let chair = ChairConfig {
         name: CHAIR.into(),
         // in the corridor, facing along it: room ahead and behind

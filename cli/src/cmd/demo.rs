@@ -24,11 +24,12 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
 use iw_dashboard::{
-    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DoorView,
-    DriveInput, MapView, MessageView, PassageView, PlaceView, State, round_cm,
+    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DriveInput,
+    MessageView, State, round_cm,
 };
-use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions, RawInput};
+use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
 use iw_sim::Map;
+use iw_wiring::view::map_view;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 /// The sample care building shipped with the sources (`scenarios/maps/sample-building.map`).
@@ -454,83 +455,13 @@ fn apply(
 /// Hands a drive panel input to `chair`'s interface agent, where a device driver's readings go;
 /// the agent streams it as `drive` to its control agent.
 pub(crate) fn push_drive(fleet: &Fleet, chair: &str, input: DriveInput) -> anyhow::Result<()> {
-    let raw = match input {
-        DriveInput::Stick { x, y } => RawInput::Joystick { x, y },
-        DriveInput::Gamepad { x, y } => RawInput::GamepadStick { x, y },
-        DriveInput::Keys {
-            up,
-            down,
-            left,
-            right,
-        } => RawInput::Arrows {
-            up,
-            down,
-            left,
-            right,
-        },
-        DriveInput::Head { pitch, roll } => RawInput::HeadCap {
-            pitch_rad: pitch,
-            roll_rad: roll,
-        },
-    };
     let t_ms = (fleet.time_s() * 1000.0) as u64;
     fleet
         .inputs(chair)?
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .push_back((raw, t_ms));
+        .push_back((iw_wiring::view::raw_input(input), t_ms));
     Ok(())
-}
-
-/// The building as the page draws it.
-pub(crate) fn map_view(map: &Map) -> MapView {
-    let pt = |p: &Point2<f64>| [round_cm(p.x), round_cm(p.y)];
-    MapView {
-        name: map.name.clone(),
-        walls: map
-            .walls
-            .iter()
-            .map(|w| w.iter().map(pt).collect())
-            .collect(),
-        doors: map
-            .doors
-            .iter()
-            .map(|d| DoorView {
-                id: d.id.clone(),
-                a: pt(&d.a),
-                b: pt(&d.b),
-            })
-            .collect(),
-        places: map
-            .places
-            .iter()
-            .map(|p| PlaceView {
-                name: p.name.clone(),
-                at: pt(&p.position),
-            })
-            .collect(),
-        passages: map
-            .passages
-            .iter()
-            .map(|p| PassageView {
-                name: p.name.clone(),
-                a: pt(&p.a),
-                b: pt(&p.b),
-                w: round_cm(p.width_m),
-            })
-            .collect(),
-        sonars: iw_sim::ChairSpec::default()
-            .sonars
-            .iter()
-            .map(|m| {
-                [
-                    round_cm(m.t_body_sonar.translation.x),
-                    round_cm(m.t_body_sonar.translation.y),
-                    round_cm(m.t_body_sonar.rotation.angle()),
-                ]
-            })
-            .collect(),
-    }
 }
 
 /// Sonar range below which the display warns that shared control steers away (the thesis'
@@ -625,6 +556,7 @@ fn dashboard_state(
         notices,
         sent: fleet.messages_sent(),
         features: None,
+        sec: Default::default(),
     }
 }
 

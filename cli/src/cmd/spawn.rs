@@ -178,8 +178,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .context("installing the signal handlers")?;
     }
     let (events, reports) = std::sync::mpsc::channel();
-    let runtime = Runtime::start(&role, config, events)
-        .with_context(|| format!("starting container `{}`", role.name()))?;
+    let runtime = Runtime::start(&role, config, events).with_context(|| match &args.config {
+        // a key the configuration got wrong is named in the error; this names its file
+        Some(path) => format!(
+            "starting container `{}` (configuration {})",
+            role.name(),
+            path.display()
+        ),
+        None => format!("starting container `{}`", role.name()),
+    })?;
     let worker = {
         let stop = stop.clone();
         std::thread::Builder::new()

@@ -140,3 +140,58 @@ pub fn keygen(dir: &Path, name: &str) -> String {
 pub fn keygen_control(dir: &Path) -> String {
     write_key_with("--keygen-control", &dir.join("control.key"))
 }
+
+/// Debian's headless chromium (or `$CHROMIUM`).
+pub fn chromium() -> Option<std::path::PathBuf> {
+    if let Some(path) = std::env::var_os("CHROMIUM") {
+        return Some(std::path::PathBuf::from(path));
+    }
+    ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
+        .into_iter()
+        .map(std::path::PathBuf::from)
+        .find(|p| p.exists())
+}
+
+/// The browser tools: chromium and the script folder (cli/tests/browser) with playwright-core
+/// installed and node; `Err` says which is missing.
+pub fn browser_tools() -> Result<(std::path::PathBuf, std::path::PathBuf), &'static str> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
+    let chromium = chromium().ok_or("no chromium (apt-get install chromium; .ci/run does it)")?;
+    if !dir.join("node_modules/playwright-core").exists() {
+        return Err("playwright-core not installed (npm ci in cli/tests/browser; .ci/run does it)");
+    }
+    if Command::new("node").arg("--version").output().is_err() {
+        return Err("no node");
+    }
+    Ok((chromium, dir))
+}
+
+/// Runs `script` of `dir` with node against `url` in `chromium`; asserts it passed and saved
+/// its screenshot, whose path it returns.
+pub fn run_browser_script(
+    dir: &Path,
+    chromium: &Path,
+    script: &str,
+    url: &str,
+) -> std::path::PathBuf {
+    let screenshot = std::env::temp_dir().join(format!(
+        "intellwheels-{}-{}.png",
+        script.trim_end_matches(".mjs"),
+        std::process::id()
+    ));
+    let out = Command::new("node")
+        .current_dir(dir)
+        .arg(script)
+        .arg(url)
+        .arg(chromium)
+        .arg(&screenshot)
+        .output()
+        .expect("run node");
+    println!("{}", String::from_utf8_lossy(&out.stdout));
+    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "the browser check {script} failed");
+    let png = std::fs::read(&screenshot).expect("the screenshot");
+    assert!(png.starts_with(b"\x89PNG"), "the screenshot is a PNG");
+    println!("screenshot (CI artifact): {}", screenshot.display());
+    screenshot
+}

@@ -24,6 +24,10 @@ pub struct SpawnConfig {
     pub body: BodySection,
     /// What the service container does.
     pub services: ServicesSection,
+    /// The services container's dashboard.
+    pub dashboard: DashboardSection,
+    /// Message transports to other FIPA platforms.
+    pub mtp: MtpSection,
 }
 
 /// The container: name, id, periods.
@@ -240,6 +244,35 @@ impl Default for ServicesSection {
     }
 }
 
+/// The dashboard the services container serves (staff view and chair views), fed from the
+/// platform's traffic.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DashboardSection {
+    /// Where it listens, `ip:port`; empty: no dashboard.
+    pub listen: String,
+    /// Its access token, which every request must carry (`?token=` or `Authorization: Bearer`);
+    /// required when `listen` is not a loopback address, as for `intellwheels demo --token`.
+    pub token: String,
+}
+
+/// Message transports to other FIPA platforms (the services container only).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MtpSection {
+    /// The FIPA HTTP MTP (SC00084), JADE's default transport.
+    pub http: HttpMtpSection,
+}
+
+/// The FIPA HTTP MTP gateway: foreign agents (JADE) reach the service agents as
+/// `NAME@services` at `http://LISTEN/acc`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HttpMtpSection {
+    /// Where the gateway listens, `ip:port`; empty: no gateway.
+    pub listen: String,
+}
+
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
@@ -303,6 +336,40 @@ impl SpawnConfig {
                 file: "security.layers".into(),
                 reason: e.to_string(),
             })?;
+        let d = &self.dashboard;
+        if !d.listen.is_empty() {
+            if *role != crate::Role::Services {
+                return bad(
+                    "dashboard.listen",
+                    "only the services container serves the dashboard".into(),
+                );
+            }
+            match d.listen.parse::<std::net::SocketAddr>() {
+                Err(e) => return bad("dashboard.listen", format!("`{}`: {e}", d.listen)),
+                Ok(addr) if !addr.ip().is_loopback() && d.token.is_empty() => {
+                    return bad(
+                        "dashboard.token",
+                        format!(
+                            "empty, but dashboard.listen `{addr}` is not loopback: give a token \
+                             or listen on 127.0.0.1"
+                        ),
+                    );
+                }
+                Ok(_) => {}
+            }
+        }
+        let mtp = &self.mtp.http.listen;
+        if !mtp.is_empty() {
+            if *role != crate::Role::Services {
+                return bad(
+                    "mtp.http.listen",
+                    "only the services container runs the HTTP MTP gateway".into(),
+                );
+            }
+            if let Err(e) = mtp.parse::<std::net::SocketAddr>() {
+                return bad("mtp.http.listen", format!("`{mtp}`: {e}"));
+            }
+        }
         if let crate::Role::Chair { .. } = role {
             if self.body.kind != BodyKind::Virtual && self.body.port.is_empty() {
                 return bad(
@@ -368,6 +435,36 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("body.port"), "{err}");
+        let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
+        for (listen, token, role, key) in [
+            (
+                "localhost:80",
+                "",
+                crate::Role::Services,
+                "dashboard.listen",
+            ),
+            ("0.0.0.0:8080", "", crate::Role::Services, "dashboard.token"),
+            ("127.0.0.1:8080", "", crate::Role::World, "dashboard.listen"),
+        ] {
+            config.dashboard = DashboardSection {
+                listen: listen.into(),
+                token: token.into(),
+            };
+            let err = config.validate(&role).unwrap_err().to_string();
+            assert!(err.contains(key), "{listen}: {err}");
+        }
+        config.dashboard = DashboardSection::default();
+        config.mtp.http.listen = "127.0.0.1".into();
+        let err = config
+            .validate(&crate::Role::Services)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("mtp.http.listen"), "{err}");
+        config.mtp.http.listen = String::new();
+        config.dashboard.token = "s3cret".into();
+        config.dashboard.listen = "0.0.0.0:8080".into();
+        config.validate(&crate::Role::Services).unwrap();
     }
 
     proptest! {

@@ -18,6 +18,16 @@ pub enum Event {
         /// Its agents.
         agents: Vec<String>,
     },
+    /// A service the container serves besides the bus (services only): `dashboard`, or
+    /// `mtp-http` (the FIPA HTTP MTP gateway; `url` is its transport address).
+    Serving {
+        /// The container's name.
+        container: String,
+        /// What it serves.
+        service: String,
+        /// Where (the dashboard's URL carries its token, as `intellwheels demo` prints it).
+        url: String,
+    },
     /// An agent of another container appeared in the Global Agent List (its container is live).
     Joined {
         /// The agent.

@@ -13,6 +13,10 @@
 //!   watcher, assistant and the staff console, which gives the configured goals), runs the container (heartbeats, election, list sync) and steps the agents in real
 //!   time until asked to stop; then shuts down cleanly.
 //! - [`Event`]: what a running container reports, one JSON line each.
+//! - The services' dashboard (`[dashboard] listen`): the staff view and the chair views fed
+//!   from the platform's traffic; its drive panel drives a chair through its interface agent.
+//! - The services' FIPA HTTP MTP gateway (`[mtp.http] listen`): foreign platforms (JADE) reach
+//!   the service agents (`df@services`, `assistant@services`, ...) over HTTP.
 //! - [`write_identity`]: a new identity key file.
 //!
 //! # Design
@@ -42,12 +46,15 @@
 #![warn(missing_docs)]
 
 mod config;
+mod dashboard;
 mod event;
+mod mtp;
 mod runtime;
 
 pub use config::{
-    BodyKind, BodySection, ContainerSection, GoalSpec, SecuritySection, ServicesSection,
-    SpawnConfig, TransportKind, TransportSection, WorldSection,
+    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection,
+    MtpSection, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
+    WorldSection,
 };
 pub use event::Event;
 pub use runtime::{Runtime, control_addr, write_identity};

@@ -175,7 +175,7 @@ fn endpoints(role: &Role) -> Vec<String> {
 }
 
 /// Agents to host, with their names.
-type Agents = Vec<(AgentId, Box<dyn iw_agent::Agent>)>;
+pub(crate) type Agents = Vec<(AgentId, Box<dyn iw_agent::Agent>)>;
 
 /// The building of `config`'s map, as the wiring derives it.
 fn building(config: &SpawnConfig) -> Result<Building, NodeError> {
@@ -333,6 +333,8 @@ struct ServiceDesk {
     last_pose_report: BTreeMap<String, Time>,
     /// When each present chair's cognitive agent was first seen.
     seen_at: BTreeMap<String, Time>,
+    /// The dashboard, when configured.
+    dashboard: Option<crate::dashboard::LiveDashboard>,
 }
 
 fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, ServiceDesk), NodeError> {
@@ -380,16 +382,27 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
         ..ServiceConfig::new(chairs.into_iter().collect(), log_path)
     };
     let door_ids = iw_wiring::door_ids(&building.map);
-    let doors = WorldDoors::new(bus.clone(), iw_wiring::agent_id("door", SERVICES), door_ids);
-    let parts =
-        iw_wiring::service_agents(&service_config, &building, Box::new(doors)).map_err(|e| {
-            NodeError::Setup {
-                container: SERVICES.into(),
-                reason: e.to_string(),
-            }
-        })?;
+    let mut doors: Box<dyn iw_door::DoorActuator> = Box::new(WorldDoors::new(
+        bus.clone(),
+        iw_wiring::agent_id("door", SERVICES),
+        door_ids.clone(),
+    ));
+    let mut dashboard = crate::dashboard::LiveDashboard::start(&config.dashboard, &building)?;
+    if let Some(dashboard) = &dashboard {
+        doors = dashboard.watch_doors(doors, door_ids);
+    }
+    let parts = iw_wiring::service_agents(&service_config, &building, doors).map_err(|e| {
+        NodeError::Setup {
+            container: SERVICES.into(),
+            reason: e.to_string(),
+        }
+    })?;
+    let agents = match &mut dashboard {
+        Some(dashboard) => dashboard.attach(parts.agents, parts.refusals),
+        None => parts.agents,
+    };
     Ok((
-        parts.agents,
+        agents,
         ServiceDesk {
             desk: parts.desk,
             waiting,
@@ -398,6 +411,7 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
             conversations: 0,
             last_pose_report: BTreeMap::new(),
             seen_at: BTreeMap::new(),
+            dashboard,
         },
     ))
 }
@@ -423,6 +437,10 @@ struct Installed {
 /// One running container. See the crate docs.
 pub struct Runtime {
     name: String,
+    /// The agents this container hosts.
+    agent_names: Vec<String>,
+    /// The HTTP MTP gateway, when configured (services).
+    mtp: Option<crate::mtp::HttpMtp>,
     config: SpawnConfig,
     host: AgentHost,
     platform: Platform,
@@ -502,6 +520,15 @@ impl Runtime {
                 (agents, None, None, Some(reports))
             }
         };
+        let mtp = match role {
+            Role::Services => crate::mtp::HttpMtp::start(
+                &config.mtp.http.listen,
+                bus.clone(),
+                &platform,
+                identity.public_key(),
+            )?,
+            _ => None,
+        };
         let mut host = AgentHost::new(bus.clone());
         let messages_sent = Arc::new(AtomicU64::new(0));
         if *role != Role::World {
@@ -565,9 +592,25 @@ impl Runtime {
             container: name.clone(),
             id,
             bus: advertise,
-            agents: agent_names,
+            agents: agent_names.clone(),
         });
+        if let Some(dashboard) = services.as_ref().and_then(|s| s.dashboard.as_ref()) {
+            let _ = events.send(Event::Serving {
+                container: name.clone(),
+                service: "dashboard".into(),
+                url: dashboard.url(),
+            });
+        }
+        if let Some(mtp) = &mtp {
+            let _ = events.send(Event::Serving {
+                container: name.clone(),
+                service: "mtp-http".into(),
+                url: mtp.url(),
+            });
+        }
         Ok(Runtime {
+            mtp,
+            agent_names,
             name,
             config,
             host,
@@ -823,6 +866,29 @@ impl Runtime {
                 });
             }
         }
+        drop(desk);
+        if let Some(dashboard) = &mut services.dashboard {
+            let goals = dashboard.take_actions(&services.desk);
+            services.waiting.extend(goals);
+            dashboard.publish(
+                now,
+                &services.desk,
+                &services.given,
+                &mut installed.keys(),
+                &self.agent_names,
+                || {
+                    let control = self.control_guard.as_ref().map(|g| g.counters());
+                    let bus = self.host.bus().counters();
+                    let bus = bus.nonzero().map(|(r, n)| (r.name().to_string(), n));
+                    let control = control.iter().flat_map(|c| {
+                        c.nonzero()
+                            .map(|(r, n)| (format!("control:{}", r.name()), n))
+                            .collect::<Vec<_>>()
+                    });
+                    bus.chain(control).collect()
+                },
+            );
+        }
     }
 
     /// Sends a `security` event if the rejection counts changed since `reported`.
@@ -850,6 +916,8 @@ impl Runtime {
     }
 
     fn shutdown(mut self) {
+        // foreign platforms first: nothing arrives from them while the agents take down
+        drop(self.mtp.take());
         let now = self.host.bus().clock().now();
         self.host.shutdown(now);
         if let Some(body) = &mut self.body

@@ -2,7 +2,8 @@
 //! becomes a `fipa-request` to the assistant agent (`go-to` a place for a chair), and the
 //! answers relayed back are recorded. It plans nothing: the chair's cognitive agent does. It also
 //! subscribes to the pose of the chairs the container puts on its watch list (a live deployment
-//! has no simulator to read them from).
+//! has no simulator to read them from), and relays a dashboard's drive panel to a chair's
+//! interface agent as `drive` requests (one conversation per hold).
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -51,6 +52,9 @@ pub struct Desk {
     pub resubscribe: BTreeSet<String>,
     /// The last pose each watched chair published: x (m), y (m), heading (rad), map frame.
     pub poses: BTreeMap<String, [f64; 3]>,
+    /// Drive commands waiting for the console's next tick, the newest per chair: linear (m/s),
+    /// angular (rad/s); a stop ends the chair's drive conversation.
+    pub drives: BTreeMap<String, (f64, f64)>,
 }
 
 /// The shared desk handle.
@@ -67,6 +71,10 @@ pub struct Console {
     assistant: AgentId,
     /// Chairs whose pose subscription was sent.
     subscribed: BTreeSet<String>,
+    /// The drive conversation of each chair being driven from the desk.
+    driving: BTreeMap<String, String>,
+    /// Drive conversations started so far.
+    holds: u64,
 }
 
 impl Console {
@@ -76,6 +84,8 @@ impl Console {
             desk,
             assistant,
             subscribed: BTreeSet::new(),
+            driving: BTreeMap::new(),
+            holds: 0,
         }
     }
 
@@ -124,15 +134,19 @@ impl Agent for Console {
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let (pending, watch, again) = {
+        let (pending, watch, again, drives) = {
             let mut desk = desk(&self.desk);
             let again = std::mem::take(&mut desk.resubscribe);
             (
                 desk.outbox.drain(..).collect::<Vec<_>>(),
                 desk.watch.clone(),
                 again,
+                std::mem::take(&mut desk.drives),
             )
         };
+        for (chair, (linear_mps, angular_radps)) in drives {
+            self.drive(ctx, &chair, linear_mps, angular_radps);
+        }
         // A chair that left or restarted is subscribed to again when it is back.
         self.subscribed
             .retain(|c| watch.contains(c) && !again.contains(c));
@@ -174,5 +188,44 @@ impl Agent for Console {
 
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_millis(50))
+    }
+}
+
+impl Console {
+    /// Sends `chair`'s interface agent one `drive` of the hold in progress (a new conversation
+    /// for a new hold); a stop ends the hold.
+    fn drive(&mut self, ctx: &mut Context<'_>, chair: &str, linear_mps: f64, angular_radps: f64) {
+        let stop = linear_mps == 0.0 && angular_radps == 0.0;
+        let conversation = match self.driving.get(chair) {
+            Some(c) => c.clone(),
+            // a stop outside a hold has nothing to end
+            None if stop => return,
+            None => {
+                self.holds += 1;
+                let c = format!("drive-{chair}-{}-{}", ctx.name(), self.holds);
+                self.driving.insert(chair.to_string(), c.clone());
+                c
+            }
+        };
+        if stop {
+            self.driving.remove(chair);
+        }
+        let interface = AgentId::new(format!("interface@{chair}"));
+        let request = WheelchairContent::Request {
+            actor: interface.clone(),
+            action: WheelchairAction::Drive {
+                linear_mps,
+                angular_radps,
+            },
+        }
+        .fill(
+            AclMessage::new(Performative::Request)
+                .with_receiver(interface)
+                .with_protocol("fipa-request")
+                .with_conversation_id(conversation),
+        );
+        if let Err(err) = ctx.send(request) {
+            tracing::warn!(chair, error = %err, "could not relay a drive command");
+        }
     }
 }

@@ -13,6 +13,7 @@
 //! - [`log_tap`]: a host tap copying every message to the logger.
 //! - [`remote_agents`]: which agents a container routes to which other container.
 //! - [`world_link`]: the world container's agent and a chair's body in it, over the platform.
+//! - [`view`]: what the dashboard is given (the map as drawn, drive panel inputs as readings).
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -43,6 +44,7 @@ use nalgebra::{Isometry2, Point2, Vector2};
 
 mod console;
 pub mod plan;
+pub mod view;
 pub mod world_link;
 
 pub use console::{Console, Desk, GoalEvent, SharedDesk, desk};
@@ -577,8 +579,11 @@ pub fn chair_agents(
     let inputs = InputQueue::default();
     let display = Arc::new(Mutex::new(Display::default()));
     let drive_status = control.drive_status();
+    let mut interface_config = InterfaceConfig::new(cognitive_id.clone(), control_id.clone());
+    // the services' dashboard drive panel, relayed by the staff console
+    interface_config.remote_drivers = vec![agent_id("staff", SERVICES).name];
     let interface = InterfaceAgent::new(
-        InterfaceConfig::new(cognitive_id.clone(), control_id.clone()),
+        interface_config,
         recognizer,
         inputs.clone(),
         display.clone(),

@@ -77,6 +77,10 @@ pub struct State {
     pub sent: u64,
     /// The current visual-odometry frame's features, when the perception agent publishes them.
     pub features: Option<FeatureView>,
+    /// Frames the serving container's platform refused so far, per reason (`bad_tag`,
+    /// `unknown_session`, ...; control-channel ones prefixed `control:`): an attack shows here.
+    #[serde(default)]
+    pub sec: std::collections::BTreeMap<String, u64>,
 }
 
 /// One chair in a frame.
