@@ -51,6 +51,22 @@ pub enum Command {
         #[arg(long, default_value_t = 40)]
         trials: usize,
     },
+    /// The deployment at scale: services, world and N virtual chairs as processes on loopback
+    /// UDP; Global Agent List convergence, REQUEST/AGREE round trip, idle CPU per container.
+    Fleet {
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Chair processes to start.
+        #[arg(long, value_parser = super::flags::count(1000))]
+        chairs: usize,
+        /// Seconds the idle CPU is measured over.
+        #[arg(long, default_value = "10", value_parser = super::flags::seconds)]
+        idle: Duration,
+        /// Seconds the whole run may take before it is abandoned as failed.
+        #[arg(long, default_value = "300", value_parser = super::flags::seconds)]
+        timeout: Duration,
+    },
 }
 
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
@@ -75,6 +91,15 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Drive { json, trials } => {
             super::bench_drive::run(trials, json)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Fleet {
+            json,
+            chairs,
+            idle,
+            timeout,
+        } => {
+            super::bench_fleet::run(chairs, idle, timeout, json)?;
             Ok(ExitCode::SUCCESS)
         }
     }
@@ -251,7 +276,7 @@ fn bench_bus(
     Ok(())
 }
 
-fn round1(x: f64) -> f64 {
+pub(super) fn round1(x: f64) -> f64 {
     (x * 10.0).round() / 10.0
 }
 

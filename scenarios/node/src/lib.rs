@@ -43,6 +43,7 @@
 
 mod config;
 mod event;
+mod probe;
 mod runtime;
 
 pub use config::{
