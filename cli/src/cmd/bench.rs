@@ -57,15 +57,18 @@ pub enum Command {
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
-        /// Chair processes to start.
-        #[arg(long, value_parser = super::flags::count(1000))]
-        chairs: usize,
+        /// Chair processes to start; a comma list (`10,50,100`) runs each fleet in turn.
+        #[arg(long, required = true, value_delimiter = ',', value_parser = super::flags::count(1000))]
+        chairs: Vec<usize>,
         /// Seconds the idle CPU is measured over.
         #[arg(long, default_value = "10", value_parser = super::flags::seconds)]
         idle: Duration,
-        /// Seconds the whole run may take before it is abandoned as failed.
+        /// Seconds each run may take before it is abandoned as failed.
         #[arg(long, default_value = "300", value_parser = super::flags::seconds)]
         timeout: Duration,
+        /// Also draw the cost curves against the number of chairs into this PNG.
+        #[arg(long, value_name = "PNG")]
+        plot: Option<std::path::PathBuf>,
     },
 }
 
@@ -98,8 +101,9 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             chairs,
             idle,
             timeout,
+            plot,
         } => {
-            super::bench_fleet::run(chairs, idle, timeout, json)?;
+            super::bench_fleet::run(&chairs, idle, timeout, json, plot.as_deref())?;
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -525,46 +525,133 @@ fn write_config(path: &Path, map: &Path, log: &Path, chairs: &[String]) -> anyho
     .context("writing the fleet configuration")
 }
 
-/// `bench fleet`: one run of `chairs` chairs; a JSON object or a table.
-pub fn run(chairs: usize, idle: Duration, timeout: Duration, json: bool) -> anyhow::Result<()> {
-    let row = measure(chairs, idle, timeout)?;
+/// `bench fleet`: one run per entry of `chairs`, each a JSON line or a table row; a run that
+/// fails is reported (`error`) and the others still run; the cost curves go to `plot`.
+pub fn run(
+    chairs: &[usize],
+    idle: Duration,
+    timeout: Duration,
+    json: bool,
+    plot: Option<&Path>,
+) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
-    if json {
-        serde_json::to_writer(&mut out, &row)?;
-        writeln!(out)?;
-        return Ok(());
+    if !json {
+        writeln!(
+            out,
+            "{:>6} {:>8} {:>10} {:>5} {:>7} {:>7} {:>7} {:>9} {:>7} {:>10} {:>10} {:>7} {:>6}",
+            "chairs",
+            "launch s",
+            "converge s",
+            "left",
+            "agreed",
+            "rtt p50",
+            "rtt p99",
+            "services%",
+            "world%",
+            "chair% p50",
+            "chair% max",
+            "total%",
+            "idle s"
+        )?;
     }
-    writeln!(
-        out,
-        "{:>6} {:>8} {:>10} {:>5} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "chairs",
-        "launch s",
-        "converge s",
-        "left",
-        "rtt p50",
-        "rtt p99",
-        "services%",
-        "world%",
-        "chair% p50",
-        "chair% max",
-        "total%",
-        "idle s"
-    )?;
-    writeln!(
-        out,
-        "{:>6} {:>8} {:>10} {:>5} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        row.chairs,
-        row.launch_s,
-        row.converged_s,
-        row.left_events,
-        row.rtt_p50_ms,
-        row.rtt_p99_ms,
-        row.services_cpu_pct,
-        row.world_cpu_pct,
-        row.chair_cpu_median_pct,
-        row.chair_cpu_max_pct,
-        row.total_cpu_pct,
-        row.idle_s
+    let mut rows = Vec::new();
+    let mut failed = Vec::new();
+    for &n in chairs {
+        match measure(n, idle, timeout) {
+            Ok(row) => {
+                if json {
+                    serde_json::to_writer(&mut out, &row)?;
+                    writeln!(out)?;
+                } else {
+                    writeln!(
+                        out,
+                        "{:>6} {:>8} {:>10} {:>5} {:>7} {:>7} {:>7} {:>9} {:>7} {:>10} {:>10} {:>7} {:>6}",
+                        row.chairs,
+                        row.launch_s,
+                        row.converged_s,
+                        row.left_events,
+                        row.agreed,
+                        row.rtt_p50_ms,
+                        row.rtt_p99_ms,
+                        row.services_cpu_pct,
+                        row.world_cpu_pct,
+                        row.chair_cpu_median_pct,
+                        row.chair_cpu_max_pct,
+                        row.total_cpu_pct,
+                        row.idle_s
+                    )?;
+                }
+                rows.push(row);
+            }
+            Err(e) => {
+                let reason = format!("{e:#}");
+                if json {
+                    serde_json::to_writer(
+                        &mut out,
+                        &serde_json::json!({ "chairs": n, "error": reason }),
+                    )?;
+                    writeln!(out)?;
+                } else {
+                    writeln!(out, "{n:>6} failed: {reason}")?;
+                }
+                failed.push(n);
+            }
+        }
+        out.flush()?;
+    }
+    if let Some(path) = plot {
+        plot_curves(path, &rows)?;
+    }
+    if !failed.is_empty() {
+        bail!("the fleets of {failed:?} chairs failed (see above)");
+    }
+    Ok(())
+}
+
+/// The cost curves: convergence, idle CPU and the round trip against the number of chairs.
+fn plot_curves(path: &Path, rows: &[FleetRow]) -> anyhow::Result<()> {
+    use iw_plot::curves::{Curve, CurvePanel};
+    let curve = |name: &str, y: fn(&FleetRow) -> f64| Curve {
+        name: name.into(),
+        points: rows.iter().map(|r| (r.chairs as f64, y(r))).collect(),
+    };
+    let panels = [
+        CurvePanel {
+            y_label: "time from launch (s)".into(),
+            curves: vec![
+                curve("every GAL complete", |r| r.converged_s),
+                curve("every chair ready", |r| r.launch_s),
+            ],
+            level: Some(("target: 100 chairs within 5 s".into(), 5.0)),
+        },
+        CurvePanel {
+            y_label: "idle CPU (% of one core)".into(),
+            curves: vec![
+                curve("services", |r| r.services_cpu_pct),
+                curve("world", |r| r.world_cpu_pct),
+                curve("one chair (median)", |r| r.chair_cpu_median_pct),
+            ],
+            level: Some(("target: services below 25 %".into(), 25.0)),
+        },
+        CurvePanel {
+            y_label: "all containers, idle CPU (% of one core)".into(),
+            curves: vec![curve("total", |r| r.total_cpu_pct)],
+            level: Some(("the machine: 2 cores".into(), 200.0)),
+        },
+        CurvePanel {
+            y_label: "REQUEST/AGREE round trip (ms)".into(),
+            curves: vec![
+                curve("p50", |r| r.rtt_p50_ms),
+                curve("p99", |r| r.rtt_p99_ms),
+            ],
+            level: None,
+        },
+    ];
+    iw_plot::curves::plot_curves(
+        path,
+        "intellwheels bench fleet: cost against the number of chair processes",
+        "chair processes",
+        &panels,
     )?;
     Ok(())
 }
