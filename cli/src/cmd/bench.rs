@@ -66,6 +66,12 @@ pub enum Command {
         /// Seconds each run may take before it is abandoned as failed.
         #[arg(long, default_value = "300", value_parser = super::flags::seconds)]
         timeout: Duration,
+        /// Heartbeat period between containers, ms (container.heartbeat_ms).
+        #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+        heartbeat_ms: u64,
+        /// A container not heard for this long is taken for gone, ms (container.lease_ms).
+        #[arg(long, default_value_t = 250, value_parser = clap::value_parser!(u64).range(2..=60_000))]
+        lease_ms: u64,
         /// Also draw the cost curves against the number of chairs into this PNG.
         #[arg(long, value_name = "PNG")]
         plot: Option<std::path::PathBuf>,
@@ -101,9 +107,17 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             chairs,
             idle,
             timeout,
+            heartbeat_ms,
+            lease_ms,
             plot,
         } => {
-            super::bench_fleet::run(&chairs, idle, timeout, json, plot.as_deref())?;
+            let settings = super::bench_fleet::Settings {
+                idle,
+                timeout,
+                heartbeat_ms,
+                lease_ms,
+            };
+            super::bench_fleet::run(&chairs, &settings, json, plot.as_deref())?;
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -31,10 +31,24 @@ const BAY_SPACING_M: f64 = 2.5;
 /// How long the processes get to stop after SIGTERM.
 const STOP_GRACE: Duration = Duration::from_secs(5);
 
+/// How each fleet runs.
+pub struct Settings {
+    /// The idle window.
+    pub idle: Duration,
+    /// Longest run.
+    pub timeout: Duration,
+    /// container.heartbeat_ms of every container.
+    pub heartbeat_ms: u64,
+    /// container.lease_ms of every container.
+    pub lease_ms: u64,
+}
+
 /// What one run measured (the JSON object: these keys and no others).
 #[derive(Debug, serde::Serialize)]
 pub struct FleetRow {
     chairs: usize,
+    heartbeat_ms: u64,
+    lease_ms: u64,
     /// Every container: services, world and the chairs.
     containers: usize,
     /// From the first chair's launch until the last chair reported `ready`, s.
@@ -351,7 +365,8 @@ impl Run {
 }
 
 /// Runs the fleet of `chairs` chairs and measures it.
-pub fn measure(chairs: usize, idle: Duration, timeout: Duration) -> anyhow::Result<FleetRow> {
+pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
+    let (idle, timeout) = (settings.idle, settings.timeout);
     let dir = std::env::temp_dir().join(format!("intellwheels-bench-fleet-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let (tx, rx) = std::sync::mpsc::channel();
@@ -377,7 +392,13 @@ pub fn measure(chairs: usize, idle: Duration, timeout: Duration) -> anyhow::Resu
     std::fs::write(&map_path, map).context("writing the hall map")?;
     let names: Vec<String> = (0..chairs).map(|i| format!("chair-{i}")).collect();
     let config = dir.join("fleet.toml");
-    write_config(&config, &map_path, &dir.join("agents.log"), &names)?;
+    write_config(
+        &config,
+        &map_path,
+        &dir.join("agents.log"),
+        &names,
+        settings,
+    )?;
     let config = config.display().to_string();
     let mut taken = BTreeSet::new();
     let mut args = |peer: Option<&str>| -> anyhow::Result<(String, Vec<String>)> {
@@ -440,6 +461,13 @@ pub fn measure(chairs: usize, idle: Duration, timeout: Duration) -> anyhow::Resu
         let n = r.views.converged();
         bar.set_position(n as u64);
         n == containers
+    })
+    .with_context(|| {
+        format!(
+            "{} of {containers} containers listed every agent; agents left {} times meanwhile",
+            run.views.converged(),
+            run.views.left
+        )
     })?;
     let converged = t0.elapsed();
 
@@ -485,6 +513,8 @@ pub fn measure(chairs: usize, idle: Duration, timeout: Duration) -> anyhow::Resu
     }
     Ok(FleetRow {
         chairs,
+        heartbeat_ms: settings.heartbeat_ms,
+        lease_ms: settings.lease_ms,
         containers,
         launch_s: round2(launch.as_secs_f64()),
         converged_s: round2(converged.as_secs_f64()),
@@ -508,7 +538,13 @@ fn round2(x: f64) -> f64 {
 
 /// The configuration every container reads: the hall, and for the services each chair's goal
 /// (its own bay) and the log.
-fn write_config(path: &Path, map: &Path, log: &Path, chairs: &[String]) -> anyhow::Result<()> {
+fn write_config(
+    path: &Path,
+    map: &Path,
+    log: &Path,
+    chairs: &[String],
+    settings: &Settings,
+) -> anyhow::Result<()> {
     let goals: String = chairs
         .iter()
         .enumerate()
@@ -517,7 +553,9 @@ fn write_config(path: &Path, map: &Path, log: &Path, chairs: &[String]) -> anyho
     std::fs::write(
         path,
         format!(
-            "[world]\nmap = {map:?}\n[services]\ngoals = [{goals}]\nlog = {log:?}\n",
+            "[container]\nheartbeat_ms = {}\nlease_ms = {}\n[world]\nmap = {map:?}\n[services]\ngoals = [{goals}]\nlog = {log:?}\n",
+            settings.heartbeat_ms,
+            settings.lease_ms,
             map = map.display().to_string(),
             log = log.display().to_string(),
         ),
@@ -529,13 +567,17 @@ fn write_config(path: &Path, map: &Path, log: &Path, chairs: &[String]) -> anyho
 /// fails is reported (`error`) and the others still run; the cost curves go to `plot`.
 pub fn run(
     chairs: &[usize],
-    idle: Duration,
-    timeout: Duration,
+    settings: &Settings,
     json: bool,
     plot: Option<&Path>,
 ) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
     if !json {
+        writeln!(
+            out,
+            "heartbeat {} ms, lease {} ms, idle window {:?}",
+            settings.heartbeat_ms, settings.lease_ms, settings.idle
+        )?;
         writeln!(
             out,
             "{:>6} {:>8} {:>10} {:>5} {:>7} {:>7} {:>7} {:>9} {:>7} {:>10} {:>10} {:>7} {:>6}",
@@ -557,7 +599,7 @@ pub fn run(
     let mut rows = Vec::new();
     let mut failed = Vec::new();
     for &n in chairs {
-        match measure(n, idle, timeout) {
+        match measure(n, settings) {
             Ok(row) => {
                 if json {
                     serde_json::to_writer(&mut out, &row)?;
