@@ -51,6 +51,31 @@ pub enum Command {
         #[arg(long, default_value_t = 40)]
         trials: usize,
     },
+    /// The deployment at scale: services, world and N virtual chairs as processes on loopback
+    /// UDP; Global Agent List convergence, REQUEST/AGREE round trip, idle CPU per container.
+    Fleet {
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Chair processes to start; a comma list (`10,50,100`) runs each fleet in turn.
+        #[arg(long, required = true, value_delimiter = ',', value_parser = super::flags::count(1000))]
+        chairs: Vec<usize>,
+        /// Seconds the idle CPU is measured over.
+        #[arg(long, default_value = "10", value_parser = super::flags::seconds)]
+        idle: Duration,
+        /// Seconds each run may take before it is abandoned as failed.
+        #[arg(long, default_value = "300", value_parser = super::flags::seconds)]
+        timeout: Duration,
+        /// Heartbeat period between containers, ms (container.heartbeat_ms).
+        #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+        heartbeat_ms: u64,
+        /// A container not heard for this long is taken for gone, ms (container.lease_ms).
+        #[arg(long, default_value_t = 250, value_parser = clap::value_parser!(u64).range(2..=60_000))]
+        lease_ms: u64,
+        /// Also draw the cost curves against the number of chairs into this PNG.
+        #[arg(long, value_name = "PNG")]
+        plot: Option<std::path::PathBuf>,
+    },
 }
 
 pub fn run(command: Command) -> anyhow::Result<ExitCode> {
@@ -75,6 +100,24 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Drive { json, trials } => {
             super::bench_drive::run(trials, json)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Fleet {
+            json,
+            chairs,
+            idle,
+            timeout,
+            heartbeat_ms,
+            lease_ms,
+            plot,
+        } => {
+            let settings = super::bench_fleet::Settings {
+                idle,
+                timeout,
+                heartbeat_ms,
+                lease_ms,
+            };
+            super::bench_fleet::run(&chairs, &settings, json, plot.as_deref())?;
             Ok(ExitCode::SUCCESS)
         }
     }
@@ -251,7 +294,7 @@ fn bench_bus(
     Ok(())
 }
 
-fn round1(x: f64) -> f64 {
+pub(super) fn round1(x: f64) -> f64 {
     (x * 10.0).round() / 10.0
 }
 

@@ -3,6 +3,7 @@
 pub mod acl;
 pub mod bench;
 mod bench_drive;
+mod bench_fleet;
 pub mod demo;
 pub mod experiment;
 pub mod features;

@@ -34,7 +34,22 @@ pub struct Proc {
 
 impl Proc {
     pub fn spawn(args: &[&str]) -> Proc {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+        Proc::spawn_via(&[], args)
+    }
+
+    /// `intellwheels spawn ARGS` run through a command prefix (`ip netns exec NS`), which must
+    /// exec it so that the child is the container.
+    pub fn spawn_via(prefix: &[&str], args: &[&str]) -> Proc {
+        let exe = env!("CARGO_BIN_EXE_intellwheels");
+        let mut command = match prefix.split_first() {
+            Some((program, rest)) => {
+                let mut c = Command::new(program);
+                c.args(rest).arg(exe);
+                c
+            }
+            None => Command::new(exe),
+        };
+        let mut child = command
             .arg("spawn")
             .args(args)
             .stdout(Stdio::piped())

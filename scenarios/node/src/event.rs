@@ -56,6 +56,14 @@ pub enum Event {
         /// content verbatim when it is not one), or what the services detected themselves.
         reason: Option<String>,
     },
+    /// A chair's cognitive agent agreed to a goal the assistant forwarded (services only): the
+    /// REQUEST/AGREE round trip in real time, each end's wait for its agent step included.
+    Agreed {
+        /// The chair.
+        chair: String,
+        /// From the REQUEST leaving the assistant to the AGREE reaching it, ms.
+        round_trip_ms: f64,
+    },
     /// A chair's pose as its perception agent published it (services only, rate-limited).
     Pose {
         /// The chair.

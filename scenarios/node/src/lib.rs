@@ -49,6 +49,7 @@ mod config;
 mod dashboard;
 mod event;
 mod mtp;
+mod probe;
 mod runtime;
 
 pub use config::{

@@ -25,6 +25,7 @@ use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk};
 use nalgebra::{Isometry2, Vector2};
 
 use crate::config::{BodyKind, SpawnConfig, TransportKind};
+use crate::probe::{AgreeProbe, SharedProbe, Timed};
 use crate::{Event, NodeError, Role, SERVICES};
 
 /// How long the services wait for a world before giving a present chair its goal anyway (a
@@ -335,6 +336,8 @@ struct ServiceDesk {
     seen_at: BTreeMap<String, Time>,
     /// The dashboard, when configured.
     dashboard: Option<crate::dashboard::LiveDashboard>,
+    /// The assistant's REQUEST/AGREE round trips to the chairs.
+    probe: SharedProbe,
 }
 
 fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, ServiceDesk), NodeError> {
@@ -397,9 +400,26 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
             reason: e.to_string(),
         }
     })?;
+    let probe = SharedProbe::default();
+    let agents: Vec<_> = parts
+        .agents
+        .into_iter()
+        .map(|(aid, agent)| {
+            let agent: Box<dyn iw_agent::Agent> =
+                if aid.name == iw_wiring::agent_id("assistant", SERVICES).name {
+                    Box::new(Timed {
+                        inner: agent,
+                        probe: probe.clone(),
+                    })
+                } else {
+                    agent
+                };
+            (aid, agent)
+        })
+        .collect();
     let agents = match &mut dashboard {
-        Some(dashboard) => dashboard.attach(parts.agents, parts.refusals),
-        None => parts.agents,
+        Some(dashboard) => dashboard.attach(agents, parts.refusals),
+        None => agents,
     };
     Ok((
         agents,
@@ -412,6 +432,7 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
             last_pose_report: BTreeMap::new(),
             seen_at: BTreeMap::new(),
             dashboard,
+            probe,
         },
     ))
 }
@@ -535,11 +556,15 @@ impl Runtime {
             // every message sent here is copied to the logger, as in the in-process fleet
             // (the world's sensor frames are not conversation)
             let sent = messages_sent.clone();
+            let probe = services.as_ref().map(|s| s.probe.clone());
             host.set_tap(iw_wiring::log_tap(
                 bus,
                 iw_wiring::agent_id("logger", SERVICES),
-                move |_| {
+                move |message| {
                     sent.fetch_add(1, Ordering::AcqRel);
+                    if let Some(probe) = &probe {
+                        AgreeProbe::on_sent(probe, message);
+                    }
                 },
             ));
         }
@@ -849,6 +874,12 @@ impl Runtime {
             desk.outbox
                 .push_back((conversation.clone(), chair.clone(), place.clone()));
             services.given.insert(conversation, (chair, place));
+        }
+        for (chair, round_trip_ms) in AgreeProbe::take(&services.probe) {
+            let _ = self.events.send(Event::Agreed {
+                chair,
+                round_trip_ms,
+            });
         }
         let every = Duration::from_millis(self.config.services.pose_report_ms);
         for (chair, [x_m, y_m, theta_rad]) in &desk.poses {

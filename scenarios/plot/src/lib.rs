@@ -9,6 +9,7 @@ use std::sync::Once;
 pub use plotters;
 
 pub mod boxplot;
+pub mod curves;
 pub mod paths;
 pub mod trajectory;
 

@@ -1,0 +1,136 @@
+//! Cost curves: measured quantities against one swept parameter (e.g. the number of chair
+//! processes), one panel per quantity, one PNG.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::PlotError;
+
+/// One measured line of a panel: a legend name and `(x, y)` points in x order.
+#[derive(Debug, Clone)]
+pub struct Curve {
+    /// Legend label.
+    pub name: String,
+    /// The points.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// One panel: a quantity, its lines and an optional target drawn as a dashed level.
+#[derive(Debug, Clone)]
+pub struct CurvePanel {
+    /// The y axis label, with its unit.
+    pub y_label: String,
+    /// The lines.
+    pub curves: Vec<Curve>,
+    /// A level to compare with (a target, a capacity): its legend label and value, drawn grey.
+    pub level: Option<(String, f64)>,
+}
+
+const COLOURS: [RGBColor; 4] = [BLUE, RED, RGBColor(0, 150, 0), RGBColor(200, 120, 0)];
+
+/// Draws `panels` side by side (two per row) against `x_label` into a PNG at `path`.
+pub fn plot_curves(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    panels: &[CurvePanel],
+) -> Result<(), PlotError> {
+    crate::register_fonts();
+    let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
+    let rows = panels.len().div_ceil(2).max(1);
+    let root = BitMapBackend::new(path, (1200, 450 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let root = root
+        .titled(title, ("sans-serif", 24))
+        .map_err(|e| err(&e))?;
+    let areas = root.split_evenly((rows, 2));
+    for (panel, area) in panels.iter().zip(&areas) {
+        let points = || panel.curves.iter().flat_map(|c| c.points.iter());
+        let x_max = points().map(|p| p.0).fold(1.0, f64::max);
+        let y_max = points()
+            .map(|p| p.1)
+            .chain(panel.level.as_ref().map(|l| l.1))
+            .filter(|y| y.is_finite())
+            .fold(1e-3, f64::max);
+        let mut chart = ChartBuilder::on(area)
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_max * 1.05, 0.0..y_max * 1.1)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(&panel.y_label)
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(|e| err(&e))?;
+        if let Some((label, target)) = &panel.level {
+            let target = *target;
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(0.0, target), (x_max * 1.05, target)],
+                    6,
+                    4,
+                    ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(2),
+                ))
+                .map_err(|e| err(&e))?
+                .label(label.clone())
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RGBColor(120, 120, 120)));
+        }
+        for (i, curve) in panel.curves.iter().enumerate() {
+            let colour = COLOURS[i % COLOURS.len()];
+            chart
+                .draw_series(LineSeries::new(
+                    curve.points.iter().copied(),
+                    colour.stroke_width(2),
+                ))
+                .map_err(|e| err(&e))?
+                .label(curve.name.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour));
+            chart
+                .draw_series(
+                    curve
+                        .points
+                        .iter()
+                        .map(|&p| Circle::new(p, 4, colour.filled())),
+                )
+                .map_err(|e| err(&e))?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_a_png_with_a_target_level() {
+        let dir = std::env::temp_dir().join(format!("iw-plot-curves-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("curves.png");
+        let panel = CurvePanel {
+            y_label: "converge (s)".into(),
+            curves: vec![Curve {
+                name: "measured".into(),
+                points: vec![(10.0, 0.5), (50.0, 1.5), (100.0, 4.0)],
+            }],
+            level: Some(("target 5 s".into(), 5.0)),
+        };
+        plot_curves(&path, "fleet", "chairs", &[panel.clone(), panel]).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
