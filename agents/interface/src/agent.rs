@@ -138,7 +138,7 @@ impl InterfaceAgent {
         .fill(
             AclMessage::new(Performative::Request)
                 .with_receiver(actor.clone())
-                .with_protocol("fipa-request")
+                .with_protocol(iw_agent::Protocol::Request.fipa_name())
                 .with_conversation_id(conversation),
         )
     }

@@ -154,7 +154,7 @@ impl Agent for Echo {
         });
         let request = AclMessage::new(Performative::Request)
             .with_receiver(df)
-            .with_protocol("fipa-request");
+            .with_protocol(iw_agent::Protocol::Request.fipa_name());
         // A failure is logged and counted by the host; the echo works without the DF.
         let _ = ctx.send(register.fill(request));
     }

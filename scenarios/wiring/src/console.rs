@@ -153,7 +153,7 @@ impl Agent for Console {
         for chair in watch.difference(&self.subscribed.clone()) {
             let subscribe = AclMessage::new(Performative::Subscribe)
                 .with_receiver(AgentId::new(format!("perception@{chair}")))
-                .with_protocol("fipa-subscribe")
+                .with_protocol(iw_agent::Protocol::Subscribe.fipa_name())
                 .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
                 .with_language("fipa-sl0")
                 .with_conversation_id(format!("pose-{chair}-{}", ctx.name()))
@@ -170,7 +170,7 @@ impl Agent for Console {
             .fill(
                 AclMessage::new(Performative::Request)
                     .with_receiver(self.assistant.clone())
-                    .with_protocol("fipa-request")
+                    .with_protocol(iw_agent::Protocol::Request.fipa_name())
                     .with_conversation_id(conversation.clone()),
             );
             if ctx.send(request).is_err() {
@@ -221,7 +221,7 @@ impl Console {
         .fill(
             AclMessage::new(Performative::Request)
                 .with_receiver(interface)
-                .with_protocol("fipa-request")
+                .with_protocol(iw_agent::Protocol::Request.fipa_name())
                 .with_conversation_id(conversation),
         );
         if let Err(err) = ctx.send(request) {
