@@ -13,6 +13,8 @@
 //!   watcher, assistant and the staff console, which gives the configured goals), runs the container (heartbeats, election, list sync) and steps the agents in real
 //!   time until asked to stop; then shuts down cleanly.
 //! - [`Event`]: what a running container reports, one JSON line each.
+//! - [`AdminCommand`]: what the parent process may ask of a running container on its stdin
+//!   (`--admin-stdin`: a goal, a killed agent); not reachable from the network.
 //! - [`write_identity`]: a new identity key file.
 //!
 //! # Design
@@ -50,7 +52,7 @@ pub use config::{
     SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
 pub use event::Event;
-pub use runtime::{Runtime, control_addr, write_identity};
+pub use runtime::{AdminCommand, MAX_ADMIN_LINE, Runtime, control_addr, write_identity};
 
 /// The service container's name.
 pub use iw_wiring::SERVICES;

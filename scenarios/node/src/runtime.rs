@@ -27,6 +27,9 @@ use nalgebra::{Isometry2, Vector2};
 use crate::config::{BodyKind, SpawnConfig, TransportKind};
 use crate::{Event, NodeError, Role, SERVICES};
 
+mod admin;
+pub use admin::{AdminCommand, MAX_ADMIN_LINE};
+
 /// How long the services wait for a world before giving a present chair its goal anyway (a
 /// deployment of real chairs only).
 const WORLD_GRACE: Duration = Duration::from_secs(3);
@@ -34,6 +37,8 @@ const WORLD_GRACE: Duration = Duration::from_secs(3);
 const SAMPLE_BUILDING: &str = include_str!("../../maps/sample-building.map");
 /// How long the container thread waits for a control frame before it ticks.
 const CONTROL_TICK: Duration = Duration::from_millis(10);
+/// Steps the logger is given, alone, at shutdown to log the other agents' last messages.
+const LOGGER_DRAIN_STEPS: usize = 5;
 /// Shortest interval between two `security` events.
 const SECURITY_REPORT: Duration = Duration::from_secs(5);
 
@@ -430,6 +435,8 @@ pub struct Runtime {
     world: Option<WorldReports>,
     body: Option<SharedBody>,
     events: Sender<Event>,
+    /// Admin commands from the parent process ([`Runtime::with_admin`]).
+    admin: Option<std::sync::mpsc::Receiver<Result<AdminCommand, String>>>,
 }
 
 impl Runtime {
@@ -576,6 +583,7 @@ impl Runtime {
             world,
             body,
             events,
+            admin: None,
         })
     }
 
@@ -602,6 +610,7 @@ impl Runtime {
                 self.report_security(&mut reported);
             }
             self.sync_agent_lists();
+            self.obey(now);
             self.serve(now);
             self.report_bodies(now);
             self.host.step(now);
@@ -740,11 +749,13 @@ impl Runtime {
             });
         services.waiting = waiting;
         for (chair, place) in ready {
-            services.conversations += 1;
-            let conversation = format!("goal-{chair}-{}", services.conversations);
-            desk.outbox
-                .push_back((conversation.clone(), chair.clone(), place.clone()));
-            services.given.insert(conversation, (chair, place));
+            admin::give(
+                &mut desk,
+                &mut services.conversations,
+                &mut services.given,
+                chair,
+                place,
+            );
         }
         for answer in &desk.events[services.reported..] {
             let Some((chair, place)) = services.given.get(&answer.conversation) else {
@@ -802,8 +813,23 @@ impl Runtime {
     }
 
     fn shutdown(mut self) {
-        let now = self.host.bus().clock().now();
-        self.host.shutdown(now);
+        let clock = self.host.bus().clock().clone();
+        // The logger goes last, after it has taken the copies of the others' last messages
+        // (sent by their take-downs), so the log holds every message the container sent.
+        let logger = iw_wiring::agent_id("logger", SERVICES).name;
+        for name in self.host.agent_names() {
+            if name != logger {
+                self.host.remove(&name, clock.now());
+            }
+        }
+        if self.services.is_some() {
+            let period = Duration::from_millis(self.config.container.step_ms);
+            for _ in 0..LOGGER_DRAIN_STEPS {
+                std::thread::sleep(period);
+                self.host.step(clock.now());
+            }
+        }
+        self.host.shutdown(clock.now());
         if let Some(body) = &mut self.body
             && let Err(e) = body.stop()
         {
