@@ -543,9 +543,9 @@ pub fn run_processes(
             ),
         ];
         if c.body != BodyKind::Virtual {
-            let board = BoardEmulator::spawn_with_watchdog(
+            let board = BoardEmulator::spawn_real_time(
                 WheelGeometry::default(),
-                iw_fleet::compose::CONTROL_PERIOD.as_nanos() as u64,
+                iw_fleet::compose::CONTROL_PERIOD,
                 Some(BOARD_WATCHDOG),
             )
             .map_err(|e| d.failed(&c.name, format!("emulating its board: {e}")))?;
@@ -781,7 +781,14 @@ pub fn run_processes(
     // the goal answers and body reports arrive from different processes: order them in time
     // (a stable sort keeps each process's order)
     seen.sort_by(|a, b| time_of(a).total_cmp(&time_of(b)));
-    timeline.sort_by(|a, b| a.cmp(b));
+    // by time only (stable: a command before its acknowledgement)
+    let time_in = |line: &String| {
+        line.split(" s:")
+            .next()
+            .and_then(|t| t.trim().parse::<f64>().ok())
+            .unwrap_or(f64::INFINITY)
+    };
+    timeline.sort_by(|a, b| time_in(a).total_cmp(&time_in(b)));
     timeline.extend(d.garbage.iter().map(|g| format!("unreadable event: {g}")));
 
     let container_of = |agent: &str| agent.rsplit_once('@').map(|(_, c)| c.to_string());
