@@ -270,9 +270,22 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
     };
     refuse_an_obstructed_start(config, &t_world_body)?;
     let building = building(config)?;
+    let mut visual = None;
     let body = match config.body.kind {
         BodyKind::Virtual => {
-            SharedBody::new(WorldBody::open(bus.clone(), name, t_world_body).map_err(link_err)?)
+            let body = WorldBody::open(bus.clone(), name, t_world_body).map_err(link_err)?;
+            if config.body.visual_odometry {
+                visual = Some(
+                    iw_wiring::camera::mirror_camera(
+                        name,
+                        load_map(&config.world.map)?,
+                        t_world_body,
+                        body.true_pose(),
+                    )
+                    .map_err(link_err)?,
+                );
+            }
+            SharedBody::new(body)
         }
         BodyKind::Serial | BodyKind::Mixed => {
             let senses = config.body.kind == BodyKind::Mixed;
@@ -290,7 +303,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
         &t_world_body,
         &building,
         body.clone(),
-        None,
+        visual,
         Recognizer::new(iw_wiring::INPUT_MAX_GAP_MS),
     )
     .map_err(|e| NodeError::Setup {

@@ -40,6 +40,7 @@ use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
 use nalgebra::{Isometry2, Point2, Vector2};
 
+pub mod camera;
 mod console;
 pub mod plan;
 pub mod world_link;

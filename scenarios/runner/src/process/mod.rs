@@ -16,9 +16,9 @@
 //! hardware watchdog), as the board of a real chair would be beside its computer.
 //!
 //! Not played across processes (refused by [`Scenario::validate_for`]): sensor failures,
-//! jammed doors and door commands. Visual odometry is not available to a chair process (its
-//! camera would be rendered in the world container); a scenario asking for it runs on wheel
-//! odometry, which the report's timeline says.
+//! jammed doors and door commands. With `visual_odometry`, a virtual chair's container renders
+//! its camera from its own copy of the map at the true pose the world sends
+//! (`iw_wiring::camera`).
 
 pub mod relay;
 
@@ -442,9 +442,10 @@ pub fn run_processes(
     std::fs::write(
         &config,
         format!(
-            "[world]\nmap = {}\nseed = {}\n\n[services]\nchairs = [{}]\nrestricted = {{ {} }}\nlog = {}\npose_report_ms = {BODY_REPORT_MS}\n",
+            "[world]\nmap = {}\nseed = {}\n\n[body]\nvisual_odometry = {}\n\n[services]\nchairs = [{}]\nrestricted = {{ {} }}\nlog = {}\npose_report_ms = {BODY_REPORT_MS}\n",
             quoted(&map_file.display().to_string()),
             scenario.seed,
+            scenario.visual_odometry,
             chairs.join(", "),
             restricted.join(", "),
             quoted(&log.display().to_string()),
@@ -603,12 +604,6 @@ pub fn run_processes(
     let since = |at: Instant| at.saturating_duration_since(t0).as_secs_f64();
     let mut timeline = Vec::new();
     let mut seen = Vec::new();
-    if scenario.visual_odometry {
-        timeline.push(format!(
-            "{:7.2} s: visual odometry is not available to chair processes: wheels only",
-            0.0
-        ));
-    }
     let first_event = d.events.len();
     let duration = Duration::from_secs_f64(scenario.duration_s);
     let steps = (scenario.duration_s * 1000.0 / scenario.step_ms as f64).ceil() as u64;
