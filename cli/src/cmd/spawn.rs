@@ -159,7 +159,8 @@ fn read_admin(
     loop {
         line.clear();
         // at most one byte past the cap, so an endless line cannot fill the memory
-        let read = (&mut stdin)
+        let read = stdin
+            .by_ref()
             .take(iw_node::MAX_ADMIN_LINE as u64 + 1)
             .read_until(b'\n', &mut line);
         match read {
@@ -171,10 +172,18 @@ fn read_admin(
                 ) {
                     break;
                 }
-                // skip the rest of the line
-                let mut rest = Vec::new();
-                if stdin.read_until(b'\n', &mut rest).is_err() {
-                    break;
+                // skip the rest of the line, a bounded piece at a time
+                loop {
+                    line.clear();
+                    match stdin
+                        .by_ref()
+                        .take(iw_node::MAX_ADMIN_LINE as u64)
+                        .read_until(b'\n', &mut line)
+                    {
+                        Ok(0) | Err(_) => return stop_on_close(stop),
+                        Ok(_) if line.last() == Some(&b'\n') => break,
+                        Ok(_) => {}
+                    }
                 }
             }
             Ok(_) => match serde_json::from_slice::<iw_node::AdminCommand>(line.trim_ascii()) {
@@ -191,7 +200,11 @@ fn read_admin(
             },
         }
     }
-    // the parent closed the pipe (or is gone): the container does not outlive it
+    stop_on_close(stop);
+}
+
+/// The parent closed the pipe (or is gone): the container does not outlive it.
+fn stop_on_close(stop: &AtomicBool) {
     stop.store(true, std::sync::atomic::Ordering::Release);
 }
 
