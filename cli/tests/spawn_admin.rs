@@ -33,7 +33,7 @@ fn bad_admin_lines_are_refused_and_a_closed_stdin_stops_the_container() {
         }
     });
     let deadline = Instant::now() + LIMIT;
-    let mut next = |what: &str, want: &dyn Fn(&Value) -> bool| loop {
+    let next = |what: &str, want: &dyn Fn(&Value) -> bool| loop {
         match events.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
             Ok(v) if want(&v) => return v,
             Ok(_) => {}

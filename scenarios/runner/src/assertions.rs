@@ -161,10 +161,10 @@ fn reached_at(seen: &[Observation], chair: &str, within_m: f64) -> Option<f64> {
                 chair: c,
                 pose,
                 ..
-            } if c == chair => {
-                if goal.is_some_and(|g| (pose[0] - g[0]).hypot(pose[1] - g[1]) <= within_m) {
-                    return Some(*time_s);
-                }
+            } if c == chair
+                && goal.is_some_and(|g| (pose[0] - g[0]).hypot(pose[1] - g[1]) <= within_m) =>
+            {
+                return Some(*time_s);
             }
             _ => {}
         }
