@@ -75,11 +75,10 @@ fn passes(name: &str) {
     assert!(asserted > 0, "{report}");
 }
 
-/// Known failure: across processes chair1 reaches its goal (visual odometry on the mirrored
-/// camera), but chair2, leaving bedroom 2 after it, ends against a wall short of the entrance
-/// (one run, on a machine at load 90-150). Without visual odometry both modes fail alike.
+/// Needs the chairs' visual odometry (the mirrored camera) in real time: without it both modes
+/// fail alike (wheels alone drift into a wall); on a machine at load 90-150 chair2 once ended
+/// against a wall.
 #[test]
-#[ignore = "chair2 does not reach the entrance across processes yet; run with --ignored"]
 fn head_on_passes_across_processes() {
     passes("head-on");
 }
