@@ -96,6 +96,27 @@ impl BoardEmulator {
         period_ns: u64,
         watchdog: Option<Duration>,
     ) -> Result<Self, BodyError> {
+        Self::start(geometry, Pace::PerRequest(period_ns), watchdog)
+    }
+
+    /// A board that keeps real time, for a driver in another process running in real time (a
+    /// deployment's chair container): it answers a sensor request no sooner than `period`
+    /// after its last answer, as the board does, and its clock and encoders advance by the
+    /// wall-clock time between answers. With the board's hardware watchdog, as
+    /// [`Self::spawn_with_watchdog`].
+    pub fn spawn_real_time(
+        geometry: WheelGeometry,
+        period: Duration,
+        watchdog: Option<Duration>,
+    ) -> Result<Self, BodyError> {
+        Self::start(geometry, Pace::RealTime(period), watchdog)
+    }
+
+    fn start(
+        geometry: WheelGeometry,
+        pace: Pace,
+        watchdog: Option<Duration>,
+    ) -> Result<Self, BodyError> {
         let (mut master, slave) = TTYPort::pair().map_err(|source| BodyError::Port {
             port: "<pty pair>".to_string(),
             source,
@@ -123,7 +144,7 @@ impl BoardEmulator {
                     &thread_handle,
                     &thread_stop,
                     geometry,
-                    period_ns,
+                    pace,
                     watchdog,
                 )
             })
@@ -160,15 +181,25 @@ impl Drop for BoardEmulator {
     }
 }
 
+/// How the board's clock advances per sensor request.
+#[derive(Debug, Clone, Copy)]
+enum Pace {
+    /// By this many ns, whenever it is asked (deterministic, for simulated time).
+    PerRequest(u64),
+    /// By the wall-clock time since the last answer, answering at most once per period.
+    RealTime(Duration),
+}
+
 fn serve(
     master: &mut TTYPort,
     handle: &BoardHandle,
     stop: &AtomicBool,
     geometry: WheelGeometry,
-    period_ns: u64,
+    pace: Pace,
     watchdog: Option<Duration>,
 ) {
     let mut decoder = Decoder::new();
+    let mut last_answer = Instant::now();
     let mut chunk = [0u8; 256];
     let mut last_reference = (Instant::now(), 0);
     while !stop.load(Ordering::Relaxed) {
@@ -200,7 +231,22 @@ fn serve(
         loop {
             let reply = match decoder.decode() {
                 Ok(None) => break,
-                Ok(Some(message)) => answer(&mut handle.lock(), message, geometry, period_ns),
+                Ok(Some(message)) => {
+                    let period_ns = match (pace, &message) {
+                        (Pace::PerRequest(ns), _) => ns,
+                        (Pace::RealTime(period), Message::RequestSensors) => {
+                            std::thread::sleep(
+                                (last_answer + period).saturating_duration_since(Instant::now()),
+                            );
+                            let now = Instant::now();
+                            let elapsed = now.duration_since(last_answer);
+                            last_answer = now;
+                            u64::try_from(elapsed.as_nanos()).unwrap_or(u64::MAX)
+                        }
+                        (Pace::RealTime(_), _) => 0,
+                    };
+                    answer(&mut handle.lock(), message, geometry, period_ns)
+                }
                 Err(e) => {
                     tracing::debug!(error = %e, "board emulator rejected a frame");
                     handle.lock().rejected += 1;

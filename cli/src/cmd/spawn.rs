@@ -65,6 +65,11 @@ pub struct Args {
     /// chair joins; repeatable (services.goals).
     #[arg(long = "goal", value_name = "CHAIR:PLACE")]
     goals: Vec<String>,
+    /// Take admin commands (JSON lines: a goal, a killed agent) on stdin from the parent
+    /// process, and stop when stdin closes (the parent is gone). The scenario runner's
+    /// `--processes` mode drives its containers this way.
+    #[arg(long)]
+    admin_stdin: bool,
 }
 
 fn flag_err(flag: &'static str, value: &str, reason: &str) -> NodeError {
@@ -135,6 +140,74 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
     Ok(())
 }
 
+/// Reads admin commands from stdin until it closes, then asks the container to stop. A line
+/// that is too long or not a command is passed on as refused (the container reports it in an
+/// `admin` event); nothing on it panics.
+fn read_admin(
+    commands: &std::sync::mpsc::Sender<Result<iw_node::AdminCommand, String>>,
+    stop: &AtomicBool,
+) {
+    use std::io::{BufRead, Read};
+    let refuse = |line: &[u8], error: String| {
+        let shown = String::from_utf8_lossy(&line[..line.len().min(80)]).into_owned();
+        commands
+            .send(Err(format!("`{}`: {error}", shown.trim_end())))
+            .is_ok()
+    };
+    let mut stdin = std::io::stdin().lock();
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        // at most one byte past the cap, so an endless line cannot fill the memory
+        let read = stdin
+            .by_ref()
+            .take(iw_node::MAX_ADMIN_LINE as u64 + 1)
+            .read_until(b'\n', &mut line);
+        match read {
+            Ok(0) | Err(_) => break,
+            Ok(_) if line.last() != Some(&b'\n') && line.len() > iw_node::MAX_ADMIN_LINE => {
+                if !refuse(
+                    &line,
+                    format!("longer than {} bytes", iw_node::MAX_ADMIN_LINE),
+                ) {
+                    break;
+                }
+                // skip the rest of the line, a bounded piece at a time
+                loop {
+                    line.clear();
+                    match stdin
+                        .by_ref()
+                        .take(iw_node::MAX_ADMIN_LINE as u64)
+                        .read_until(b'\n', &mut line)
+                    {
+                        Ok(0) | Err(_) => return stop_on_close(stop),
+                        Ok(_) if line.last() == Some(&b'\n') => break,
+                        Ok(_) => {}
+                    }
+                }
+            }
+            Ok(_) => match serde_json::from_slice::<iw_node::AdminCommand>(line.trim_ascii()) {
+                Ok(command) => {
+                    if commands.send(Ok(command)).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => {
+                    if !refuse(&line, format!("not an admin command: {e}")) {
+                        break;
+                    }
+                }
+            },
+        }
+    }
+    stop_on_close(stop);
+}
+
+/// The parent closed the pipe (or is gone): the container does not outlive it.
+fn stop_on_close(stop: &AtomicBool) {
+    stop.store(true, std::sync::atomic::Ordering::Release);
+}
+
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(path) = &args.keygen {
         let public = iw_node::write_identity(path)?;
@@ -178,15 +251,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .context("installing the signal handlers")?;
     }
     let (events, reports) = std::sync::mpsc::channel();
-    let runtime = Runtime::start(&role, config, events).with_context(|| match &args.config {
-        // a key the configuration got wrong is named in the error; this names its file
-        Some(path) => format!(
-            "starting container `{}` (configuration {})",
-            role.name(),
-            path.display()
-        ),
-        None => format!("starting container `{}`", role.name()),
-    })?;
+    let mut runtime =
+        Runtime::start(&role, config, events).with_context(|| match &args.config {
+            // a key the configuration got wrong is named in the error; this names its file
+            Some(path) => format!(
+                "starting container `{}` (configuration {})",
+                role.name(),
+                path.display()
+            ),
+            None => format!("starting container `{}`", role.name()),
+        })?;
+    if args.admin_stdin {
+        let (commands, admin) = std::sync::mpsc::channel();
+        runtime = runtime.with_admin(admin);
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name("iw-admin".into())
+            .spawn(move || read_admin(&commands, &stop))
+            .context("starting the admin reader")?;
+    }
     let worker = {
         let stop = stop.clone();
         std::thread::Builder::new()

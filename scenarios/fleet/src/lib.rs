@@ -193,30 +193,14 @@ pub struct FleetOptions {
     pub visual_odometry: bool,
 }
 
-/// The perception agent's camera for virtual chair `id`: the simulator's renderer and LSAC-SURF
-/// keyframe odometry. A frame's motion is trusted to 1 cm and 0.5 mrad: at 20 frames/s that lets
-/// the camera take out the heading drift of compressed tyres (about 1 degree per metre on the
-/// simulated encoders) that made long trips end against a wall, while the EKF's gate still passes
-/// most frames (with 4 mm it refused up to a fifth of them and the drift came back); frames the
-/// gate finds inconsistent (fast spins close to a wall) are not fused.
+/// The perception agent's camera for virtual chair `id`: the simulator's renderer
+/// ([`compose::camera::visual_config`]).
 fn sim_camera(world: &SharedWorld, id: ChairId, name: &str) -> Result<VisualConfig, FleetError> {
     let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| FleetError::Setup {
         container: name.to_string(),
         reason: e.to_string(),
     })?;
-    Ok(VisualConfig {
-        t_base_camera: camera.t_base_camera(),
-        source: Box::new(camera),
-        vo: iw_sim::vo::sim_vo_config(
-            iw_features::DetectorKind::LsacSurf,
-            iw_vo::Pipeline::Keyframe,
-        ),
-        motion_noise: nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(
-            0.01f64.powi(2),
-            0.01f64.powi(2),
-            0.0005f64.powi(2),
-        )),
-    })
+    Ok(compose::camera::visual_config(camera))
 }
 
 fn bus_for(

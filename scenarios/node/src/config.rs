@@ -190,6 +190,10 @@ pub struct BodySection {
     pub timeout_ms: u64,
     /// Where the chair starts in the map frame: x (m), y (m), heading (deg).
     pub start: [f64; 3],
+    /// A virtual body's perception agent also runs LSAC-SURF RGB-D visual odometry on a camera
+    /// rendered from the map at the body's true pose the world sends (as the in-process fleet
+    /// renders it), fused with the wheels; costs a render and a detection per control period.
+    pub visual_odometry: bool,
 }
 
 impl Default for BodySection {
@@ -200,6 +204,7 @@ impl Default for BodySection {
             baud: 115_200,
             timeout_ms: 200,
             start: [1.0, 6.0, 0.0],
+            visual_odometry: false,
         }
     }
 }

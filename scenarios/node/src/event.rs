@@ -1,10 +1,11 @@
 //! What a container reports while it runs: one JSON object per line on stdout, so scripts and
-//! tests follow a fleet of processes without scraping logs.
+//! tests follow a fleet of processes without scraping logs (and the scenario runner reads them
+//! back typed).
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One report line. The `event` field names the variant.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "event", rename_all = "kebab-case")]
 pub enum Event {
     /// The container is up: its agents are registered and its addresses bound.
@@ -101,6 +102,15 @@ pub enum Event {
         distance_m: f64,
         /// Contacts with walls, furniture or other chairs so far.
         collisions: u64,
+    },
+    /// An admin command from the parent process (`--admin-stdin`) was carried out, or refused.
+    Admin {
+        /// The container's name.
+        container: String,
+        /// The command, as done (`goal CHAIR PLACE`, `kill-agent NAME`) or as read.
+        done: String,
+        /// Why it was refused, if it was.
+        error: Option<String>,
     },
     /// The container has shut down cleanly.
     Stopped {

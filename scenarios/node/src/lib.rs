@@ -17,6 +17,8 @@
 //!   from the platform's traffic; its drive panel drives a chair through its interface agent.
 //! - The services' FIPA HTTP MTP gateway (`[mtp.http] listen`): foreign platforms (JADE) reach
 //!   the service agents (`df@services`, `assistant@services`, ...) over HTTP.
+//! - [`AdminCommand`]: what the parent process may ask of a running container on its stdin
+//!   (`--admin-stdin`: a goal, a killed agent); not reachable from the network.
 //! - [`write_identity`]: a new identity key file.
 //!
 //! # Design
@@ -58,7 +60,7 @@ pub use config::{
     WorldSection,
 };
 pub use event::Event;
-pub use runtime::{Runtime, control_addr, write_identity};
+pub use runtime::{AdminCommand, MAX_ADMIN_LINE, Runtime, control_addr, write_identity};
 
 /// The service container's name.
 pub use iw_wiring::SERVICES;

@@ -28,6 +28,9 @@ use crate::config::{BodyKind, SpawnConfig, TransportKind};
 use crate::probe::{AgreeProbe, SharedProbe, Timed};
 use crate::{Event, NodeError, Role, SERVICES};
 
+mod admin;
+pub use admin::{AdminCommand, MAX_ADMIN_LINE};
+
 /// How long the services wait for a world before giving a present chair its goal anyway (a
 /// deployment of real chairs only).
 const WORLD_GRACE: Duration = Duration::from_secs(3);
@@ -35,6 +38,8 @@ const WORLD_GRACE: Duration = Duration::from_secs(3);
 const SAMPLE_BUILDING: &str = include_str!("../../maps/sample-building.map");
 /// How long the container thread waits for a control frame before it ticks.
 const CONTROL_TICK: Duration = Duration::from_millis(10);
+/// Steps the logger is given, alone, at shutdown to log the other agents' last messages.
+const LOGGER_DRAIN_STEPS: usize = 5;
 /// Shortest interval between two `security` events.
 const SECURITY_REPORT: Duration = Duration::from_secs(5);
 
@@ -266,9 +271,22 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
     };
     refuse_an_obstructed_start(config, &t_world_body)?;
     let building = building(config)?;
+    let mut visual = None;
     let body = match config.body.kind {
         BodyKind::Virtual => {
-            SharedBody::new(WorldBody::open(bus.clone(), name, t_world_body).map_err(link_err)?)
+            let body = WorldBody::open(bus.clone(), name, t_world_body).map_err(link_err)?;
+            if config.body.visual_odometry {
+                visual = Some(
+                    iw_wiring::camera::mirror_camera(
+                        name,
+                        load_map(&config.world.map)?,
+                        t_world_body,
+                        body.true_pose(),
+                    )
+                    .map_err(link_err)?,
+                );
+            }
+            SharedBody::new(body)
         }
         BodyKind::Serial | BodyKind::Mixed => {
             let senses = config.body.kind == BodyKind::Mixed;
@@ -286,7 +304,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
         &t_world_body,
         &building,
         body.clone(),
-        None,
+        visual,
         Recognizer::new(iw_wiring::INPUT_MAX_GAP_MS),
     )
     .map_err(|e| NodeError::Setup {
@@ -473,6 +491,8 @@ pub struct Runtime {
     world: Option<WorldReports>,
     body: Option<SharedBody>,
     events: Sender<Event>,
+    /// Admin commands from the parent process ([`Runtime::with_admin`]).
+    admin: Option<std::sync::mpsc::Receiver<Result<AdminCommand, String>>>,
 }
 
 impl Runtime {
@@ -648,6 +668,7 @@ impl Runtime {
             world,
             body,
             events,
+            admin: None,
         })
     }
 
@@ -674,6 +695,7 @@ impl Runtime {
                 self.report_security(&mut reported);
             }
             let left = self.sync_agent_lists();
+            self.obey(now);
             self.serve(now, &left);
             self.report_bodies(now);
             self.host.step(now);
@@ -869,11 +891,13 @@ impl Runtime {
             });
         services.waiting = waiting;
         for (chair, place) in ready {
-            services.conversations += 1;
-            let conversation = format!("goal-{chair}-{}", services.conversations);
-            desk.outbox
-                .push_back((conversation.clone(), chair.clone(), place.clone()));
-            services.given.insert(conversation, (chair, place));
+            admin::give(
+                &mut desk,
+                &mut services.conversations,
+                &mut services.given,
+                chair,
+                place,
+            );
         }
         for (chair, round_trip_ms) in AgreeProbe::take(&services.probe) {
             let _ = self.events.send(Event::Agreed {
@@ -949,8 +973,23 @@ impl Runtime {
     fn shutdown(mut self) {
         // foreign platforms first: nothing arrives from them while the agents take down
         drop(self.mtp.take());
-        let now = self.host.bus().clock().now();
-        self.host.shutdown(now);
+        let clock = self.host.bus().clock().clone();
+        // The logger goes last, after it has taken the copies of the others' last messages
+        // (sent by their take-downs), so the log holds every message the container sent.
+        let logger = iw_wiring::agent_id("logger", SERVICES).name;
+        for name in self.host.agent_names() {
+            if name != logger {
+                self.host.remove(&name, clock.now());
+            }
+        }
+        if self.services.is_some() {
+            let period = Duration::from_millis(self.config.container.step_ms);
+            for _ in 0..LOGGER_DRAIN_STEPS {
+                std::thread::sleep(period);
+                self.host.step(clock.now());
+            }
+        }
+        self.host.shutdown(clock.now());
         if let Some(body) = &mut self.body
             && let Err(e) = body.stop()
         {

@@ -79,3 +79,38 @@ fn bad_files_are_errors_naming_the_entry() {
     );
     assert!(iw_scenario::Scenario::parse("name = 3", &path).is_err());
 }
+
+#[test]
+fn what_a_mode_cannot_play_is_refused_naming_the_entry() {
+    let path = scenarios_dir().join("killed.toml");
+    let text = "name = \"x\"\nmap = \"maps/sample-building.map\"\nduration_s = 5\n[[chair]]\nname = \"c\"\nstart = \"entrance\"\n[[fault]]\nkind = \"kill-container\"\nat_s = 1.0\ncontainer = \"c\"\n";
+    let scenario = iw_scenario::Scenario::parse(text, &path).unwrap();
+    let err = iw_scenario::run(&scenario).unwrap_err().to_string();
+    assert!(
+        err.contains("fault[0]") && err.contains("--processes"),
+        "{err}"
+    );
+    let map = scenario.load_map().unwrap();
+    scenario
+        .validate_for(&map, iw_scenario::Mode::Processes)
+        .unwrap();
+    // an unknown container is refused in either mode
+    let unknown = text.replace("container = \"c\"", "container = \"nobody\"");
+    let err = iw_scenario::Scenario::parse(&unknown, &path)
+        .unwrap()
+        .validate(&map)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("fault[0]") && err.contains("nobody"), "{err}");
+
+    let sensors = iw_scenario::Scenario::load(scenarios_dir().join("sensor-failure.toml")).unwrap();
+    let map = sensors.load_map().unwrap();
+    let err = sensors
+        .validate_for(&map, iw_scenario::Mode::Processes)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("fault[0]") && err.contains("without --processes"),
+        "{err}"
+    );
+}

@@ -42,6 +42,7 @@ use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
 use nalgebra::{Isometry2, Point2, Vector2};
 
+pub mod camera;
 mod console;
 pub mod plan;
 pub mod view;
@@ -741,12 +742,16 @@ pub fn list(pages: &WhitePages, aid: &AgentId) {
 /// A tap for a container's host that sends the logger a copy of every message its agents send
 /// (not the logger's own copies and queries), so the log holds every message exchanged; also
 /// calls `also` with each message (counting, dashboards). Copies cross the bus like any message.
+/// Copies the bus has no route for yet (a container whose agents speak before the services
+/// joined) wait, up to [`LOG_BACKLOG`], and go out in order before the next copy.
 pub fn log_tap(
     bus: Arc<Bus>,
     logger: AgentId,
     mut also: impl FnMut(&AclMessage) + Send + 'static,
 ) -> Tap {
     let mut failing = false;
+    let mut backlog: std::collections::VecDeque<(String, Vec<u8>)> =
+        std::collections::VecDeque::new();
     Box::new(move |message: &AclMessage, now| {
         if message
             .ontology
@@ -763,18 +768,34 @@ pub fn log_tap(
             .sender
             .as_ref()
             .map_or("unknown", |s| s.name.as_str());
-        match bus.send(
-            sender,
-            &logger.name,
-            iw_acl::codec::print(&copy).into_bytes(),
-        ) {
-            Ok(_) => failing = false,
-            // once per outage (a container starting before the services would warn per message)
-            Err(err) if !failing => {
-                failing = true;
-                tracing::warn!(error = %err, "copies for the logger not sent until it is reachable");
+        if backlog.len() == LOG_BACKLOG {
+            backlog.pop_front();
+            tracing::warn!("a copy for the logger was dropped: {LOG_BACKLOG} already wait");
+        }
+        backlog.push_back((sender.to_string(), iw_acl::codec::print(&copy).into_bytes()));
+        while let Some((sender, bytes)) = backlog.front() {
+            match bus.send(sender, &logger.name, bytes.clone()) {
+                Ok(_) => {
+                    failing = false;
+                    backlog.pop_front();
+                }
+                // once per outage (a container starting before the services would warn per message)
+                Err(err @ iw_bus::BusError::NoRoute { .. }) => {
+                    if !failing {
+                        failing = true;
+                        tracing::warn!(error = %err, "copies for the logger wait until it is reachable");
+                    }
+                    break;
+                }
+                // not a matter of waiting: this copy cannot be sent
+                Err(err) => {
+                    tracing::warn!(error = %err, "a copy for the logger could not be sent");
+                    backlog.pop_front();
+                }
             }
-            Err(_) => {}
         }
     })
 }
+
+/// Most copies for the logger a container keeps while the logger is unreachable.
+pub const LOG_BACKLOG: usize = 4096;

@@ -87,7 +87,13 @@ pub struct WorldLink {
     last_attach: Option<Time>,
     /// Whether the last send failed (one warning per outage).
     failing: bool,
+    /// The body's true pose in the last frame (a simulated body), for its camera.
+    truth: TruePose,
 }
+
+/// A simulated body's true pose in the world as its last sensor frame gave it (`None` before
+/// the first): what a chair container renders its camera from (`crate::camera`).
+pub type TruePose = Arc<std::sync::Mutex<Option<Isometry2<f64>>>>;
 
 impl WorldLink {
     /// Opens `body@CHAIR` on `bus` for chair `chair` starting at `t_world_body`.
@@ -113,6 +119,7 @@ impl WorldLink {
             tick_offset: (0, 0),
             last_attach: None,
             failing: false,
+            truth: TruePose::default(),
         })
     }
 
@@ -174,6 +181,10 @@ impl WorldLink {
             frame.right_ticks += self.tick_offset.1;
             if self.link == BodyLink::Simulated {
                 self.t_world_body = frame.pose.t_map_base();
+                *self
+                    .truth
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(self.t_world_body);
             }
             self.latest = Some((frame, now));
         }
@@ -236,6 +247,11 @@ impl WorldBody {
         t_world_body: Isometry2<f64>,
     ) -> Result<WorldBody, WiringError> {
         WorldLink::open(bus, chair, BodyLink::Simulated, t_world_body).map(WorldBody)
+    }
+
+    /// Where the world has the body, updated with each frame (for the chair's camera).
+    pub fn true_pose(&self) -> TruePose {
+        self.0.truth.clone()
     }
 }
 

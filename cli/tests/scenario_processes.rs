@@ -1,0 +1,187 @@
+//! `intellwheels scenario run FILE --processes`: the scenario files played by the deployment
+//! (world, services and each chair as `intellwheels spawn` processes over loopback UDP, in real
+//! time) pass with the same assertions as in process, and a killed container is a process
+//! killed outright.
+//!
+//! The runs are serialised (each is a handful of processes in real time; two at once on a
+//! loaded machine would be measuring the machine).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use serde_json::Value;
+
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+fn scenarios() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
+}
+
+/// Runs `file` across processes; returns the exit code and the JSON report.
+fn run(file: &Path) -> (i32, Value) {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let started = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+        .args(["scenario", "run", "--processes", "--json"])
+        .arg(file)
+        .output()
+        .expect("run intellwheels scenario run");
+    let code = out.status.code().unwrap_or(-1);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "{}: exit {code}, no JSON report ({e}); stderr:\n{stderr}",
+            file.display()
+        )
+    });
+    eprintln!(
+        "{}: exit {code} in {:.1} s wall time",
+        file.display(),
+        started.elapsed().as_secs_f64()
+    );
+    (code, report)
+}
+
+/// The outcomes, one line each, for a failure message.
+fn outcomes(report: &Value) -> String {
+    let mut text = String::new();
+    for o in report["outcomes"].as_array().into_iter().flatten() {
+        text.push_str(&format!(
+            "  [{}] {}: {}\n",
+            if o["passed"] == true { "PASS" } else { "FAIL" },
+            o["assertion"].as_str().unwrap_or_default(),
+            o["detail"].as_str().unwrap_or_default()
+        ));
+    }
+    for line in report["timeline"].as_array().into_iter().flatten() {
+        text.push_str(&format!("  {}\n", line.as_str().unwrap_or_default()));
+    }
+    text
+}
+
+fn passes(name: &str) {
+    let (code, report) = run(&scenarios().join(format!("{name}.toml")));
+    assert_eq!(report["mode"], "processes", "{report}");
+    assert_eq!(report["name"], name);
+    assert!(
+        code == 0 && report["passed"] == true,
+        "{name} across processes: exit {code}\n{}",
+        outcomes(&report)
+    );
+    // the same report shape as in process: every assertion has an outcome
+    let asserted = report["outcomes"].as_array().map_or(0, Vec::len);
+    assert!(asserted > 0, "{report}");
+}
+
+/// Needs the chairs' visual odometry (the mirrored camera) in real time: without it both modes
+/// fail alike (wheels alone drift into a wall); on a machine at load 90-150 chair2 once ended
+/// against a wall.
+#[test]
+fn head_on_passes_across_processes() {
+    passes("head-on");
+}
+
+#[test]
+fn mixed_reality_passes_across_processes() {
+    passes("mixed-reality");
+}
+
+#[test]
+fn link_loss_passes_across_processes() {
+    passes("link-loss");
+}
+
+#[test]
+fn killed_agent_passes_across_processes() {
+    passes("killed-agent");
+}
+
+#[test]
+fn restricted_door_passes_across_processes() {
+    passes("restricted-door");
+}
+
+/// A chair container killed outright (SIGKILL) mid-drive: its body stops (the world's watchdog
+/// for a virtual body), the other chair still reaches its goal; in process the same file is
+/// refused with the entry named.
+#[test]
+fn a_killed_container_stops_its_chair_and_is_refused_in_process() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("killed-container.toml");
+    let map = scenarios().join("maps/sample-building.map");
+    std::fs::write(
+        &file,
+        format!(
+            r#"name = "killed-container"
+map = {map:?}
+seed = 4
+duration_s = 16
+
+[[chair]]
+name = "chair1"
+pose = [1.0, 6.0, 0.0]
+
+[[chair]]
+name = "chair2"
+pose = [17.5, 6.0, 180.0]
+
+[[goal]]
+at_s = 0.5
+chair = "chair1"
+xy = [9.0, 6.0]
+
+[[goal]]
+at_s = 0.5
+chair = "chair2"
+xy = [15.5, 6.0]
+
+[[fault]]
+kind = "kill-container"
+at_s = 3.0
+container = "chair1"
+
+[[assert]]
+kind = "stopped"
+chair = "chair1"
+from_s = 5.0
+
+[[assert]]
+kind = "goal-reached"
+chair = "chair2"
+by_s = 15
+
+[[assert]]
+kind = "no-collision"
+"#,
+            map = map.display().to_string()
+        ),
+    )
+    .unwrap();
+    let (code, report) = run(&file);
+    assert!(
+        code == 0 && report["passed"] == true,
+        "exit {code}\n{}",
+        outcomes(&report)
+    );
+    let chair1 = &report["chairs"][0];
+    assert_eq!(chair1["name"], "chair1");
+    assert!(
+        chair1["agents"].as_array().is_some_and(Vec::is_empty),
+        "a killed container has no agents: {chair1}"
+    );
+    assert!(chair1["distance_m"].as_f64().unwrap() > 0.1, "{chair1}");
+
+    let out = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+        .args(["scenario", "run"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("fault[0]") && stderr.contains("--processes"),
+        "{stderr}"
+    );
+}
