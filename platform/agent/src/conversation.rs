@@ -6,7 +6,7 @@
 //!   conversation id and `in-reply-to`, checked against the protocol's state table, and come
 //!   back as a typed [`Progress`].
 //! - [`Context::accept`] and [`Context::answer`]: the participant's side. A
-//!   [`Responder`](iw_interaction::Responder) only lets the agent send what its protocol allows
+//!   [`Responder`] only lets the agent send what its protocol allows
 //!   next (no INFORM before a REQUEST is agreed or refused, nothing after the end).
 //!
 //! Time is the step's time ([`Context::now`]), as Unix milliseconds on the protocol side.
