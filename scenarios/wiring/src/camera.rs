@@ -44,8 +44,8 @@ fn visual_config_over(
     }
 }
 
-/// The camera of chair `chair` of a chair container: `map` rendered at the pose `truth` holds
-/// (at `start` until the first frame).
+/// The camera of chair `chair` of a chair container: `map` rendered at the pose `truth` holds,
+/// stamped with its time (at `start` until the first frame).
 pub fn mirror_camera(
     chair: &str,
     map: Map,
@@ -89,19 +89,27 @@ impl CameraSource for Mirror {
             .truth
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
-        if let Some(pose) = truth {
-            let placed = self
-                .world
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .place(self.id, pose);
-            if let Err(e) = placed {
-                return Some(Err(VoError::Image {
-                    path: "mirrored camera".into(),
-                    reason: e.to_string(),
-                }));
-            }
+        let Some((time_ns, pose)) = truth else {
+            return self.camera.next_frame();
+        };
+        let placed = self
+            .world
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .place(self.id, pose);
+        if let Err(e) = placed {
+            return Some(Err(VoError::Image {
+                path: "mirrored camera".into(),
+                reason: e.to_string(),
+            }));
         }
-        self.camera.next_frame()
+        // Stamped with the body's time at that pose (the local world's clock never runs), so
+        // the perception agent can bridge the frame to its wheel poses.
+        self.camera.next_frame().map(|frame| {
+            frame.map(|mut frame| {
+                frame.timestamp_s = time_ns as f64 * 1e-9;
+                frame
+            })
+        })
     }
 }

@@ -91,9 +91,10 @@ pub struct WorldLink {
     truth: TruePose,
 }
 
-/// A simulated body's true pose in the world as its last sensor frame gave it (`None` before
-/// the first): what a chair container renders its camera from (`crate::camera`).
-pub type TruePose = Arc<std::sync::Mutex<Option<Isometry2<f64>>>>;
+/// A simulated body's true pose in the world as its last sensor frame gave it, with that
+/// frame's time (ns, the body's clock; `None` before the first): what a chair container renders
+/// its camera from, stamped with that time (`crate::camera`).
+pub type TruePose = Arc<std::sync::Mutex<Option<(u64, Isometry2<f64>)>>>;
 
 impl WorldLink {
     /// Opens `body@CHAIR` on `bus` for chair `chair` starting at `t_world_body`.
@@ -184,7 +185,8 @@ impl WorldLink {
                 *self
                     .truth
                     .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(self.t_world_body);
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) =
+                    Some((frame.time_ns, self.t_world_body));
             }
             self.latest = Some((frame, now));
         }
