@@ -78,12 +78,7 @@ fn passes(name: &str) {
 /// Needs the chairs' visual odometry (the mirrored camera) in real time: without it both modes
 /// fail alike (wheels alone drift into a wall); on a machine at load 90-150 chair2 once ended
 /// against a wall.
-///
-/// Ignored: on main after the merge of the vision worker, the localizer in every chair and the
-/// protocol-run agents, both chairs end against a wall and miss their goals in every run (twice
-/// at low load), while the process-mode branch alone passes. The interaction is not found yet.
 #[test]
-#[ignore = "fails on the merged main (both chairs touch a wall); see the doc comment"]
 fn head_on_passes_across_processes() {
     passes("head-on");
 }

@@ -91,9 +91,9 @@ pub struct WorldLink {
     truth: TruePose,
 }
 
-/// A simulated body's true pose in the world as its last sensor frame gave it, with that
-/// frame's time (ns, the body's clock; `None` before the first): what a chair container renders
-/// its camera from, stamped with that time (`crate::camera`).
+/// A simulated body's true pose in the world as its last sensor frame gave it, with the frame's
+/// local arrival time (ns, the time the body's reads carry; `None` before the first): what a
+/// chair container renders its camera from, stamped with that time (`crate::camera`).
 pub type TruePose = Arc<std::sync::Mutex<Option<(u64, Isometry2<f64>)>>>;
 
 impl WorldLink {
@@ -186,7 +186,7 @@ impl WorldLink {
                     .truth
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner) =
-                    Some((frame.time_ns, self.t_world_body));
+                    Some((now.as_ns(), self.t_world_body));
             }
             self.latest = Some((frame, now));
         }
