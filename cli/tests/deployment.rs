@@ -113,16 +113,7 @@ fn world_services_and_three_chairs_as_processes_behave_as_the_in_process_fleet()
         ),
     )
     .unwrap();
-    let services_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--config",
-        config.to_str().unwrap(),
-        "--listen",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
+    let (mut services, services_addr) = Proc::services(&config, &control);
     let ready = services.wait_for("services ready", |e| e["event"] == "ready");
     assert_eq!(
         agents_of(&ready),

@@ -79,16 +79,7 @@ fn a_browser_on_the_services_dashboard_sees_three_chair_processes_move_and_drive
         ),
     )
     .unwrap();
-    let services_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--config",
-        config.to_str().unwrap(),
-        "--listen",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
+    let (mut services, services_addr) = Proc::services(&config, &control);
     let serving = services.wait_for("the dashboard served", |e| {
         is(e, "serving", "service", "dashboard")
     });

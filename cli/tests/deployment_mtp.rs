@@ -42,16 +42,7 @@ fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
         ),
     )
     .unwrap();
-    let services_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--config",
-        config.to_str().unwrap(),
-        "--listen",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
+    let (mut services, services_addr) = Proc::services(&config, &control);
     let serving = services.wait_for("the HTTP MTP served", |e| {
         is(e, "serving", "service", "mtp-http")
     });

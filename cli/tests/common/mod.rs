@@ -37,6 +37,22 @@ impl Proc {
         Proc::spawn_via(&[], args)
     }
 
+    /// The services container with `config`, on a free loopback port pair, under the group
+    /// key `control`; returns it and its bus address for the other containers' `--peer`.
+    pub fn services(config: &Path, control: &str) -> (Proc, String) {
+        let addr = format!("127.0.0.1:{}", free_port_pair());
+        let services = Proc::spawn(&[
+            "--services",
+            "--config",
+            config.to_str().unwrap(),
+            "--listen",
+            &addr,
+            "--control-key",
+            control,
+        ]);
+        (services, addr)
+    }
+
     /// `intellwheels spawn ARGS` run through a command prefix (`ip netns exec NS`), which must
     /// exec it so that the child is the container.
     pub fn spawn_via(prefix: &[&str], args: &[&str]) -> Proc {
