@@ -70,7 +70,7 @@ pub enum Command {
         #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=10_000))]
         heartbeat_ms: u64,
         /// A container not heard for this long is taken for gone, ms (container.lease_ms).
-        #[arg(long, default_value_t = 250, value_parser = clap::value_parser!(u64).range(2..=60_000))]
+        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(2..=60_000))]
         lease_ms: u64,
         /// Also draw the cost curves against the number of chairs into this PNG.
         #[arg(long, value_name = "PNG")]

@@ -52,7 +52,11 @@ impl Default for ContainerSection {
         ContainerSection {
             id: 0,
             heartbeat_ms: 50,
-            lease_ms: 250,
+            // 20 heartbeats: a container process on a loaded host (a CI runner, a chair's
+            // computer busy with vision) misses 250 ms windows, and each miss drops its agents
+            // from every GAL. Safety does not wait on the lease: the wheel and world-link
+            // watchdogs stop a chair within 500 ms.
+            lease_ms: 1000,
             step_ms: 20,
             shutdown_grace_ms: 300,
         }

@@ -3,7 +3,8 @@
 //! with the same bus, layers and keys as any other traffic, through the endpoint `body@CHAIR`.
 //!
 //! - A virtual chair's [`WorldBody`] sends wheel speeds and reads back the sensor frames the
-//!   world sends every period.
+//!   world sends every period: encoders, sonars and the laser, so its localizer matches the map
+//!   as an in-process chair's does.
 //! - A mixed chair's [`WorldGhost`] reports the real chair's pose and returns the virtual sonar
 //!   readings there (other chairs, virtual obstacles, doors); a real chair's ghost only reports.
 //! - The door agent moves the world's doors through [`WorldDoors`].
@@ -233,7 +234,7 @@ impl WorldLink {
             left_ticks: frame.left_ticks,
             right_ticks: frame.right_ticks,
             sonar_m,
-            laser_m: Vec::new(),
+            laser_m: frame.laser_m.clone(),
         })
     }
 }
@@ -502,6 +503,7 @@ impl WorldAgent {
                             left_ticks: sensed.left_ticks,
                             right_ticks: sensed.right_ticks,
                             sonar_m: sensed.sonar_m.to_vec(),
+                            laser_m: sensed.laser_m.clone(),
                             pose: pose_of(&pose),
                         },
                     ))
@@ -637,7 +639,16 @@ mod tests {
         }
         let moved = world.lock().unwrap().pose(id).unwrap();
         assert!(moved.translation.x > 7.6, "{moved}");
-        assert!(body.read().unwrap().left_ticks > 0);
+        let frame = body.read().unwrap();
+        assert!(frame.left_ticks > 0);
+        // the laser comes over the link: the localizer of a spawned chair matches the map with it
+        let beams = ChairSpec::default().laser.unwrap().beams;
+        assert_eq!(frame.laser_m.len(), beams);
+        assert!(
+            frame.laser_m.iter().any(|r| *r < 5.0),
+            "{:?}",
+            frame.laser_m
+        );
         // no more commands: the world's watchdog stops the body
         for _ in 0..60 {
             host.step(clock.now());
