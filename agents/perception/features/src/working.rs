@@ -10,6 +10,17 @@ use crate::{
     DetectorConfig, DetectorKind, FeatureClass, GrayImage32, IntegralImage, Keypoint, LsacSpace,
 };
 
+/// `image` at twice its width and height, bilinear with pixel centres at `(X + 0.5) / 2 - 0.5`
+/// of the input (see [`DetectorConfig::upsample`]).
+pub(crate) fn doubled(image: &image::RgbImage) -> image::RgbImage {
+    image::imageops::resize(
+        image,
+        image.width().saturating_mul(2),
+        image.height().saturating_mul(2),
+        image::imageops::FilterType::Triangle,
+    )
+}
+
 /// Buffers reused frame after frame.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
