@@ -21,8 +21,8 @@ const NT_THRESHOLD: f32 = 10.0;
 /// LSAC-SURF-NT's keypoint count: the strongest responses above the noise floor, as many as
 /// ORB's default; the thesis's fairness rule (4.6) then compares detectors at this count.
 const NT_MAX_KEYPOINTS: usize = 1000;
-/// LSAC-SURF-NT's rank: response x (9 / size)^2, see [`DetectorConfig::rank_size_exponent`].
-const NT_RANK_SIZE_EXPONENT: f32 = 2.0;
+/// LSAC-SURF-NT's rank: response x (9 / size)^1.5, see [`DetectorConfig::rank_size_exponent`].
+const NT_RANK_SIZE_EXPONENT: f32 = 1.5;
 /// LSAC-SURF-NT's spacing of the kept keypoints, input px: the protocol's tolerance (2 px).
 const NT_MIN_SEPARATION_PX: f32 = 2.0;
 
@@ -56,9 +56,9 @@ pub struct DetectorConfig {
     /// Keep at most this many keypoints, highest rank first (`None`: all; the rank is the
     /// response unless [`Self::rank_size_exponent`] says otherwise).
     pub max_keypoints: Option<usize>,
-    /// Detect on the input doubled in size (bilinear), Lowe's octave -1: the finest interior
-    /// filter (15 px) then sees 7.5 input px, closer to the scales where a keypoint localises
-    /// within a pixel or two. Keypoints, sizes and scales are reported in input pixels; the LSAC
+    /// Detect on the input doubled in size (bilinear, then a Gaussian of sigma 1.6 doubled px),
+    /// Lowe's octave -1: the finest interior filter (15 px) then sees 7.5 input px, closer to the
+    /// scales where a keypoint localises within a pixel or two. Keypoints, sizes and scales are reported in input pixels; the LSAC
     /// radius and the noise tile stay in pixels of the doubled image. Costs 4x the pixels.
     #[serde(default)]
     pub upsample: bool,
