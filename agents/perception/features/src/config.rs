@@ -21,6 +21,10 @@ const NT_THRESHOLD: f32 = 10.0;
 /// LSAC-SURF-NT's keypoint count: the strongest responses above the noise floor, as many as
 /// ORB's default; the thesis's fairness rule (4.6) then compares detectors at this count.
 const NT_MAX_KEYPOINTS: usize = 1000;
+/// LSAC-SURF-NT's rank: response x (9 / size)^1.5, see [`DetectorConfig::rank_size_exponent`].
+const NT_RANK_SIZE_EXPONENT: f32 = 1.5;
+/// LSAC-SURF-NT's spacing of the kept keypoints, input px: the protocol's tolerance (2 px).
+const NT_MIN_SEPARATION_PX: f32 = 2.0;
 
 /// Parameters of the shared SURF pipeline. Build with [`DetectorConfig::for_kind`], then adjust.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -49,8 +53,26 @@ pub struct DetectorConfig {
     /// `(lower, upper)` 8-bit gray thresholds: a keypoint whose pixel lies strictly between them is
     /// hard, otherwise soft (thesis Algorithm 2, lines 13-20). `None`: every keypoint is hard.
     pub soft_band: Option<(u8, u8)>,
-    /// Keep at most this many keypoints, strongest response first (`None`: all).
+    /// Keep at most this many keypoints, highest rank first (`None`: all; the rank is the
+    /// response unless [`Self::rank_size_exponent`] says otherwise).
     pub max_keypoints: Option<usize>,
+    /// Detect on the input doubled in size (bilinear, then a Gaussian of sigma 1.6 doubled px),
+    /// Lowe's octave -1: the finest interior filter (15 px) then sees 7.5 input px, closer to the
+    /// scales where a keypoint localises within a pixel or two. Keypoints, sizes and scales are reported in input pixels; the LSAC
+    /// radius and the noise tile stay in pixels of the doubled image. Costs 4x the pixels.
+    #[serde(default)]
+    pub upsample: bool,
+    /// With `max_keypoints`: rank keypoints by `response x (9 / size)^e` instead of the response
+    /// (0: the response). A coarse keypoint's position is interpolated on a grid of step
+    /// `2^octave` and blurred by its filter, so under a fixed pixel tolerance a fine keypoint of
+    /// the same response is the likelier to repeat; 0..=8.
+    #[serde(default)]
+    pub rank_size_exponent: f32,
+    /// With `max_keypoints`: drop a keypoint within this distance (input px, any scale) of a
+    /// higher-ranked kept one (0: off; 0..=64). Two keypoints closer than the repeatability
+    /// tolerance can correspond to one point of the other image only once.
+    #[serde(default)]
+    pub min_separation_px: f32,
     /// Noise-aware threshold (0: off, the thesis's detectors). A keypoint is kept only if its
     /// response also exceeds `noise_factor` times the noise response expected at its filter
     /// size in its tile: the median absolute deviation of the finest (9x9) layer's response
@@ -82,6 +104,9 @@ impl DetectorConfig {
             lsac_space: LsacSpace::PerChannel,
             soft_band: None,
             max_keypoints: None,
+            upsample: false,
+            rank_size_exponent: 0.0,
+            min_separation_px: 0.0,
             noise_factor: 0.0,
             noise_tile_px: default_noise_tile_px(),
         };
@@ -100,6 +125,9 @@ impl DetectorConfig {
                 noise_factor: NT_NOISE_FACTOR,
                 threshold: NT_THRESHOLD,
                 max_keypoints: Some(NT_MAX_KEYPOINTS),
+                upsample: true,
+                rank_size_exponent: NT_RANK_SIZE_EXPONENT,
+                min_separation_px: NT_MIN_SEPARATION_PX,
                 ..base
             },
         }
@@ -157,6 +185,21 @@ impl DetectorConfig {
                 "noise_factor",
                 self.noise_factor.to_string(),
                 "expected a finite value >= 0 (0: off)",
+            );
+        }
+        if !(self.rank_size_exponent.is_finite() && (0.0..=8.0).contains(&self.rank_size_exponent))
+        {
+            return bad(
+                "rank_size_exponent",
+                self.rank_size_exponent.to_string(),
+                "expected 0..=8 (0: rank by the response)",
+            );
+        }
+        if !(self.min_separation_px.is_finite() && (0.0..=64.0).contains(&self.min_separation_px)) {
+            return bad(
+                "min_separation_px",
+                self.min_separation_px.to_string(),
+                "expected 0..=64 px (0: off)",
             );
         }
         if !(16..=512).contains(&self.noise_tile_px) {

@@ -38,6 +38,7 @@ mod image32;
 mod integral;
 mod matching;
 mod noise;
+mod select;
 pub mod sequence;
 mod simd;
 mod working;
@@ -62,8 +63,10 @@ pub enum DetectorKind {
     /// LSAC-SURF with a noise-aware threshold (not in the thesis): the local average division
     /// amplifies sensor noise where the image is dark, so a keypoint must also stand above the
     /// noise measured in its own region of the image (see [`DetectorConfig::noise_factor`]);
-    /// of those, the strongest [`DetectorConfig::max_keypoints`] are kept, so the count does not
-    /// follow the light.
+    /// of those, [`DetectorConfig::max_keypoints`] are kept, so the count does not follow the
+    /// light. Detected on the doubled image ([`DetectorConfig::upsample`]); the kept ones are
+    /// ranked toward fine scales and spaced 2 px apart
+    /// ([`DetectorConfig::rank_size_exponent`], [`DetectorConfig::min_separation_px`]).
     LsacSurfNt,
 }
 
@@ -210,6 +213,13 @@ impl Detector {
         if width == 0 || height == 0 {
             return Ok(Features::default());
         }
+        let doubled;
+        let (image, pixel) = if config.upsample {
+            doubled = working::doubled(image);
+            (&doubled, 2.0)
+        } else {
+            (image, 1.0)
+        };
         self.scratch.prepare(kind, image, config);
         let normalise = (kind == DetectorKind::LnSurf).then_some(&self.scratch.gray_integral);
         self.layers
@@ -221,14 +231,20 @@ impl Detector {
         }
         // LN-SURF describes on the intensity image (Algorithm 1), LSAC-SURF on its working space.
         let describe_on = self.scratch.working(kind);
-        if let Some(max) = config.max_keypoints {
-            keypoints.sort_by(|a, b| b.response.total_cmp(&a.response));
-            keypoints.truncate(max);
-        }
+        let mut keypoints = select::apply(keypoints, config, pixel);
         for kp in &mut keypoints {
             kp.class = working::classify(&self.scratch.gray, kp, config.soft_band);
         }
         let descriptors = describe::describe(describe_on, &mut keypoints, config.upright);
+        if config.upsample {
+            // Pixel centres: doubled pixel X covers input [X / 2, (X + 1) / 2).
+            for kp in &mut keypoints {
+                kp.x = (kp.x + 0.5) / pixel - 0.5;
+                kp.y = (kp.y + 0.5) / pixel - 0.5;
+                kp.size /= pixel;
+                kp.scale /= pixel;
+            }
+        }
         Ok(Features {
             keypoints,
             descriptors,

@@ -82,6 +82,27 @@ fn a_gaussian_blob_is_found_at_its_centre_and_scale() {
 }
 
 #[test]
+fn a_blob_found_on_the_doubled_image_is_reported_in_input_pixels() {
+    // sigma 1.5: finer than the input-resolution pipeline's finest interior level (15 px filter,
+    // interpolated down to 12 px at most: scale 1.6).
+    let img = render(120, 120, |x, y| {
+        40.0 + 180.0 * gaussian(x, y, 60.3, 56.6, 1.5)
+    });
+    let config = DetectorConfig {
+        upsample: true,
+        ..DetectorConfig::for_kind(DetectorKind::Surf)
+    };
+    let f = detect(DetectorKind::Surf, &img, &config).unwrap();
+    let kp = nearest(&f.keypoints, 60.3, 56.6).expect("the blob is detected");
+    assert!(
+        (kp.x - 60.3).abs() < 0.25 && (kp.y - 56.6).abs() < 0.25,
+        "centre {kp:?}"
+    );
+    assert!(kp.scale < 1.6, "scale {}", kp.scale);
+    assert!((kp.size / kp.scale - 9.0 / 1.2).abs() < 1e-3);
+}
+
+#[test]
 fn orientation_turns_with_the_image() {
     let img = texture(200, 200, 7);
     let rotated = image::imageops::rotate90(&img);

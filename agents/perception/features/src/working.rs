@@ -10,6 +10,23 @@ use crate::{
     DetectorConfig, DetectorKind, FeatureClass, GrayImage32, IntegralImage, Keypoint, LsacSpace,
 };
 
+/// Gaussian blur of the doubled image, its px: SIFT's base scale (Lowe 2004, sigma 1.6). Without
+/// it the finest filters respond to the interpolation's own pattern, which a sub-pixel shift of
+/// the scene changes (measured: see `docs/results/repeatability.md`).
+const DOUBLED_SIGMA: f32 = 1.6;
+
+/// `image` at twice its width and height, bilinear with pixel centres at `(X + 0.5) / 2 - 0.5`
+/// of the input, then blurred by [`DOUBLED_SIGMA`] (see [`DetectorConfig::upsample`]).
+pub(crate) fn doubled(image: &image::RgbImage) -> image::RgbImage {
+    let doubled = image::imageops::resize(
+        image,
+        image.width().saturating_mul(2),
+        image.height().saturating_mul(2),
+        image::imageops::FilterType::Triangle,
+    );
+    image::imageops::blur(&doubled, DOUBLED_SIGMA)
+}
+
 /// Buffers reused frame after frame.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
