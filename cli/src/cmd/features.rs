@@ -39,7 +39,7 @@ pub struct Args {
     /// Override the noise-aware threshold's factor (see `DetectorConfig::noise_factor`; 0: off).
     #[arg(long)]
     noise_factor: Option<f32>,
-    /// Keep at most this many keypoints, strongest first (see `DetectorConfig::max_keypoints`).
+    /// Keep at most this many keypoints, in the detector's ranking order (see `DetectorConfig::max_keypoints`).
     #[arg(long)]
     max_keypoints: Option<usize>,
     /// Skip orientation (U-SURF).
