@@ -15,11 +15,14 @@
 //! search and each round of hypothesis updates are spread over control periods, each on the
 //! scan it started with, carried to the present by the odometry since.
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
 use nalgebra::{Matrix3, Point2, Vector3};
 
 use crate::map::LocalizationMap;
 use crate::matcher::{MatcherConfig, match_scan};
-use crate::scan::{ScanPoint, to_map};
+use crate::scan::ScanPoint;
 use iw_vo::{OdometryStep, Pose2, wrap_angle};
 
 /// How the search proposes, tracks and drops hypotheses.
@@ -53,8 +56,8 @@ pub struct GlobalConfig {
     pub poor_fit: f64,
     /// ... this many updates in a row: none is right, the search starts afresh.
     pub poor_after: usize,
-    /// Point evaluations (a field look-up, or one point of one matching iteration) per call of
-    /// [`GlobalLocalizer::step`]: the search's share of a control period.
+    /// Point evaluations on the likelihood field (one point of one matching iteration counts as
+    /// several) per call of [`GlobalLocalizer::step`]: the search's share of a control period.
     pub work_per_step: usize,
 }
 
@@ -90,13 +93,41 @@ struct Hypothesis {
     fit: f64,
 }
 
+/// A grid pose (its index) and its score, ordered by score.
+#[derive(Debug, Clone, Copy)]
+struct Scored {
+    score: f64,
+    index: usize,
+}
+
+impl PartialEq for Scored {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == std::cmp::Ordering::Equal
+    }
+}
+
+impl Eq for Scored {}
+
+impl PartialOrd for Scored {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Scored {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.score.total_cmp(&other.score)
+    }
+}
+
 #[derive(Debug, Clone)]
 enum Phase {
-    /// Scoring the grid (heading-major index `next` over `positions`).
+    /// Scoring the grid (heading-major index `next` over `positions`); `best` keeps the
+    /// best-scoring poses so far, worst on top.
     Grid {
         positions: Vec<Point2<f64>>,
         next: usize,
-        scores: Vec<f64>,
+        best: BinaryHeap<Reverse<Scored>>,
     },
     /// Updating the hypotheses with the current scan, `next` is the next one.
     Update { next: usize },
@@ -109,6 +140,7 @@ enum Phase {
 pub struct GlobalLocalizer {
     config: GlobalConfig,
     matcher: MatcherConfig,
+    log_likelihood: Vec<f64>,
     phase: Phase,
     /// The scan being worked on, subsampled.
     scan: Vec<ScanPoint>,
@@ -120,6 +152,36 @@ pub struct GlobalLocalizer {
     updates: usize,
     poor_in_row: usize,
     restarts: usize,
+}
+
+/// One point of one scan-matching iteration (an exact nearest-segment query among its bucket's
+/// segments, the kernel and the normal equations) weighs this many likelihood-field look-ups: a
+/// rough, generous weight (the `search_period` bench shows no period above the grid's).
+const MATCH_POINT_COST: usize = 30;
+
+/// The grid search keeps this many best poses per hypothesis wanted.
+const SHORTLIST_PER_HYPOTHESIS: usize = 30;
+/// Sorting and thinning the shortlist costs about this many field evaluations per entry.
+const SELECT_COST: usize = 10;
+
+/// The likelihood table spans this many field widths (beyond: the uniform floor alone) ...
+const LIKELIHOOD_SPAN: f64 = 5.0;
+/// ... in this many steps.
+const LIKELIHOOD_STEPS: usize = 100;
+
+/// Tempered log-likelihood of a point at each tabulated distance from the map: a Gaussian of the
+/// field width mixed with a uniform floor, so points on things not on the map cost little.
+fn likelihood_table(config: &GlobalConfig) -> Vec<f64> {
+    (0..=LIKELIHOOD_STEPS)
+        .map(|k| {
+            let d = if k == LIKELIHOOD_STEPS {
+                f64::INFINITY
+            } else {
+                (k as f64 + 0.5) * LIKELIHOOD_SPAN / LIKELIHOOD_STEPS as f64
+            };
+            ((-0.5 * d * d).exp() + 0.05).ln() * config.tempering
+        })
+        .collect()
 }
 
 fn subsample(points: &[ScanPoint], n: usize) -> Vec<ScanPoint> {
@@ -163,6 +225,7 @@ impl GlobalLocalizer {
                 iterations: config.refine_iterations.max(1),
                 ..matcher
             },
+            log_likelihood: likelihood_table(&config),
             phase: Phase::Idle,
             scan: Vec::new(),
             since: Pose2::default(),
@@ -186,7 +249,7 @@ impl GlobalLocalizer {
         self.phase = Phase::Grid {
             positions: free_positions(map, &self.config),
             next: 0,
-            scores: Vec::new(),
+            best: BinaryHeap::new(),
         };
     }
 
@@ -223,37 +286,41 @@ impl GlobalLocalizer {
                 Phase::Grid {
                     positions,
                     next,
-                    scores,
+                    best,
                 } => {
                     let total = positions.len() * self.config.headings.max(1);
                     let cost = self.scan.len().max(1);
-                    if *next < total {
-                        let positions = std::mem::take(positions);
-                        let (mut at, mut scored) = (*next, std::mem::take(scores));
-                        while at < total && budget >= cost {
-                            let pose = self.grid_pose(&positions, at);
-                            scored.push(self.evaluate(map, &pose).0);
-                            at += 1;
-                            budget -= cost;
+                    // the candidates for distinct modes lie among the best few percent
+                    let shortlist = self.config.hypotheses.max(1) * SHORTLIST_PER_HYPOTHESIS;
+                    let (positions, mut best, mut at) =
+                        (std::mem::take(positions), std::mem::take(best), *next);
+                    while at < total && budget >= cost {
+                        let pose = self.grid_pose(&positions, at);
+                        let score = self.evaluate(map, &pose).0;
+                        if best.len() < shortlist {
+                            best.push(Reverse(Scored { score, index: at }));
+                        } else if best.peek().is_some_and(|worst| score > worst.0.score) {
+                            best.pop();
+                            best.push(Reverse(Scored { score, index: at }));
                         }
+                        at += 1;
+                        budget -= cost;
+                    }
+                    if at < total {
                         self.phase = Phase::Grid {
                             positions,
                             next: at,
-                            scores: scored,
+                            best,
                         };
                         return false;
                     }
-                    // selecting the hypotheses takes a call of its own
-                    if budget < self.config.work_per_step.max(1) {
-                        return false;
-                    }
-                    budget = 0;
-                    let (positions, scores) = (std::mem::take(positions), std::mem::take(scores));
-                    self.hypotheses = self.distinct_best(&positions, scores);
+                    budget = budget.saturating_sub(shortlist * SELECT_COST);
+                    self.hypotheses = self.distinct_best(&positions, best);
                     self.phase = Phase::Update { next: 0 };
                 }
                 Phase::Update { next } => {
-                    let cost = self.scan.len().max(1) * (self.matcher.iterations + 2);
+                    let cost = self.scan.len().max(1)
+                        * (self.matcher.iterations * MATCH_POINT_COST + 1);
                     let mut at = *next;
                     while at < self.hypotheses.len() && budget >= cost {
                         self.refine(map, at);
@@ -279,38 +346,39 @@ impl GlobalLocalizer {
     }
 
     /// Log-likelihood of the current scan at `pose`, and the share of its points near the map
-    /// (within two field widths).
+    /// (within two field widths). The inner loop of the search: one rotation per pose, a table
+    /// look-up per point.
     fn evaluate(&self, map: &LocalizationMap, pose: &Pose2) -> (f64, f64) {
+        let (sin, cos) = pose.theta.sin_cos();
+        let per_step = LIKELIHOOD_STEPS as f64 / (LIKELIHOOD_SPAN * self.config.sigma_m);
         let (mut log_w, mut near) = (0.0, 0usize);
         for s in &self.scan {
-            let q = to_map(pose, &s.p_base);
-            let d = map.field_distance(q.x, q.y) / self.config.sigma_m;
-            // a mixture with a uniform floor: points on things not on the map cost little
-            log_w += ((-0.5 * d * d).exp() + 0.05).ln() * self.config.tempering;
-            near += usize::from(d <= 2.0);
+            let (x, y) = (s.p_base.x, s.p_base.y);
+            let d = map.field_distance(pose.x + cos * x - sin * y, pose.y + sin * x + cos * y);
+            let k = ((d * per_step) as usize).min(LIKELIHOOD_STEPS);
+            log_w += self.log_likelihood[k];
+            near += usize::from(d <= 2.0 * self.config.sigma_m);
         }
         (log_w, near as f64 / self.scan.len().max(1) as f64)
     }
 
     /// The best-scoring grid poses, pairwise at least [`GlobalConfig::separation`] apart.
-    fn distinct_best(&self, positions: &[Point2<f64>], scores: Vec<f64>) -> Vec<Hypothesis> {
-        let mut order: Vec<usize> = (0..scores.len()).collect();
-        // the candidates for distinct modes lie among the best few percent
-        let shortlist = (self.config.hypotheses * 30).min(order.len());
-        if shortlist < order.len() {
-            order.select_nth_unstable_by(shortlist, |a, b| scores[*b].total_cmp(&scores[*a]));
-            order.truncate(shortlist);
-        }
-        order.sort_unstable_by(|a, b| scores[*b].total_cmp(&scores[*a]));
+    fn distinct_best(
+        &self,
+        positions: &[Point2<f64>],
+        best: BinaryHeap<Reverse<Scored>>,
+    ) -> Vec<Hypothesis> {
+        // ascending by Reverse: best score first
+        let order = best.into_sorted_vec();
         let (sep_m, sep_rad) = self.config.separation;
         let mut chosen: Vec<Hypothesis> = Vec::with_capacity(self.config.hypotheses);
-        for i in order {
+        for Reverse(candidate) in order {
             if chosen.len() >= self.config.hypotheses {
                 break;
             }
-            let pose = self.grid_pose(positions, i);
+            let pose = self.grid_pose(positions, candidate.index);
             let distinct = chosen.iter().all(|c| {
-                (c.pose.x - pose.x).hypot(c.pose.y - pose.y) >= sep_m
+                (c.pose.x - pose.x).powi(2) + (c.pose.y - pose.y).powi(2) >= sep_m * sep_m
                     || wrap_angle(c.pose.theta - pose.theta).abs() >= sep_rad
             });
             if distinct {
