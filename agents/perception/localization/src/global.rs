@@ -253,7 +253,6 @@ impl GlobalLocalizer {
         };
     }
 
-
     /// Moves every hypothesis by one odometry step.
     pub fn predict(&mut self, step: &OdometryStep) {
         self.since = self.since.compose(&step.as_delta());
@@ -319,8 +318,8 @@ impl GlobalLocalizer {
                     self.phase = Phase::Update { next: 0 };
                 }
                 Phase::Update { next } => {
-                    let cost = self.scan.len().max(1)
-                        * (self.matcher.iterations * MATCH_POINT_COST + 1);
+                    let cost =
+                        self.scan.len().max(1) * (self.matcher.iterations * MATCH_POINT_COST + 1);
                     let mut at = *next;
                     while at < self.hypotheses.len() && budget >= cost {
                         self.refine(map, at);

@@ -237,7 +237,10 @@ pub fn write_outputs(report: &Report, map: &Map, out: &Path) -> Result<Summary, 
 fn plot_global(path: &Path, runs: &[crate::GlobalRun], map: &str) -> Result<(), ExperimentError> {
     let mut found: Vec<f64> = runs
         .iter()
-        .filter(|r| r.error_at_fix.is_some_and(|(m, deg)| m <= 0.10 && deg <= 3.0))
+        .filter(|r| {
+            r.error_at_fix
+                .is_some_and(|(m, deg)| m <= 0.10 && deg <= 3.0)
+        })
         .filter_map(|r| r.distance_m)
         .collect();
     found.sort_by(f64::total_cmp);
