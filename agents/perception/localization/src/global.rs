@@ -151,7 +151,6 @@ pub struct GlobalLocalizer {
     hypotheses: Vec<Hypothesis>,
     updates: usize,
     poor_in_row: usize,
-    restarts: usize,
 }
 
 /// One point of one scan-matching iteration (an exact nearest-segment query among its bucket's
@@ -233,7 +232,6 @@ impl GlobalLocalizer {
             hypotheses: Vec::new(),
             updates: 0,
             poor_in_row: 0,
-            restarts: 0,
         };
         search.restart(map, points);
         search
@@ -264,7 +262,11 @@ impl GlobalLocalizer {
     /// period's scan `points`. Returns whether a round of hypothesis updates completed (then
     /// [`Self::leader`] has news).
     pub fn step(&mut self, map: &LocalizationMap, points: &[ScanPoint]) -> bool {
-        let mut budget = self.config.work_per_step.max(1);
+        let full = self.config.work_per_step.max(1);
+        let mut budget = full;
+        // a budget smaller than one item still does one item a call: the search always ends
+        let may =
+            |budget: usize, cost: usize, first: bool| budget >= cost || (first && budget == full);
         loop {
             match &mut self.phase {
                 Phase::Idle => {
@@ -293,7 +295,8 @@ impl GlobalLocalizer {
                     let shortlist = self.config.hypotheses.max(1) * SHORTLIST_PER_HYPOTHESIS;
                     let (positions, mut best, mut at) =
                         (std::mem::take(positions), std::mem::take(best), *next);
-                    while at < total && budget >= cost {
+                    let first = at;
+                    while at < total && may(budget, cost, at == first) {
                         let pose = self.grid_pose(&positions, at);
                         let score = self.evaluate(map, &pose).0;
                         if best.len() < shortlist {
@@ -303,7 +306,7 @@ impl GlobalLocalizer {
                             best.push(Reverse(Scored { score, index: at }));
                         }
                         at += 1;
-                        budget -= cost;
+                        budget = budget.saturating_sub(cost);
                     }
                     if at < total {
                         self.phase = Phase::Grid {
@@ -320,11 +323,11 @@ impl GlobalLocalizer {
                 Phase::Update { next } => {
                     let cost =
                         self.scan.len().max(1) * (self.matcher.iterations * MATCH_POINT_COST + 1);
-                    let mut at = *next;
-                    while at < self.hypotheses.len() && budget >= cost {
+                    let (first, mut at) = (*next, *next);
+                    while at < self.hypotheses.len() && may(budget, cost, at == first) {
                         self.refine(map, at);
                         at += 1;
-                        budget -= cost;
+                        budget = budget.saturating_sub(cost);
                     }
                     if at < self.hypotheses.len() {
                         self.phase = Phase::Update { next: at };
@@ -436,7 +439,6 @@ impl GlobalLocalizer {
         self.poor_in_row = if poor { self.poor_in_row + 1 } else { 0 };
         if self.poor_in_row >= self.config.poor_after && points.len() >= self.matcher.min_points {
             tracing::debug!("no hypothesis explains the scans: the search starts afresh");
-            self.restarts += 1;
             self.restart(map, points);
         }
     }
@@ -491,11 +493,6 @@ impl GlobalLocalizer {
     /// Rounds of hypothesis updates since the search (re)started.
     pub fn updates(&self) -> usize {
         self.updates
-    }
-
-    /// Times the search started afresh because no hypothesis explained the scans.
-    pub fn restarts(&self) -> usize {
-        self.restarts
     }
 
     /// Hypotheses alive (0 while the grid search runs).

@@ -3,8 +3,8 @@
 use std::sync::Arc;
 
 use iw_localization::{
-    GlobalLocalizer, LocalizationMap, Localizer, LocalizerConfig, MatcherConfig, ScanOutcome,
-    SonarGeometry, Status, UNOBSERVED_VAR, match_scan,
+    GlobalConfig, GlobalLocalizer, LocalizationMap, Localizer, LocalizerConfig, MatcherConfig,
+    ScanOutcome, SonarGeometry, Status, UNOBSERVED_VAR, match_scan,
 };
 use iw_vo::{OdometryStep, Pose2};
 use nalgebra::Matrix3;
@@ -300,6 +300,20 @@ fn the_search_spreads_its_work_over_periods_within_its_budget() {
         assert!(calls < 10_000, "the search never completes a round");
     }
     assert!(calls >= 10, "the grid search took {calls} calls");
+    // a budget below one pose's cost still moves on by one pose a call
+    let tiny = GlobalConfig {
+        work_per_step: 1,
+        ..config
+    };
+    let mut slow = GlobalLocalizer::start(&map, &points, tiny, MatcherConfig::default());
+    let mut tiny_calls = 1usize;
+    while !slow.step(&map, &points) {
+        tiny_calls += 1;
+        assert!(
+            tiny_calls < 1_000_000,
+            "a tiny budget never completes a round"
+        );
+    }
     assert_eq!(
         search.len(),
         unbounded.len(),
