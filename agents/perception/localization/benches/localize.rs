@@ -1,14 +1,13 @@
 //! Cost of the localizer per 50 ms control period in a synthetic 10 x 8 m L-shaped room:
 //! tracking (wheel step, 271 laser beams and 16 sonars matched to the map, EKF update) beside
-//! its peer, the odometry EKF's wheel step alone; and the global search's start and one
-//! particle update. `cargo bench -p iw-localization --bench localize`.
+//! its peer, the odometry EKF's wheel step alone; and a period of a chair that searches for
+//! its pose (the search's bounded share of the period). `cargo bench -p iw-localization
+//! --bench localize`.
 
 use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use iw_localization::{
-    GlobalConfig, GlobalLocalizer, LocalizationMap, Localizer, LocalizerConfig, SonarGeometry,
-};
+use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, SonarGeometry, Status};
 use iw_vo::{OdometryFusion, OdometryStep, Pose2};
 use nalgebra::Matrix3;
 
@@ -52,16 +51,36 @@ fn bench(c: &mut Criterion) {
             l.update_ranges(&ranges, &sonar_m)
         })
     });
-    let points = common::points(&ranges);
-    group.bench_function("global search start (grid 0.2 m x 10 deg)", |b| {
-        b.iter(|| GlobalLocalizer::start(&map, &points, GlobalConfig::default(), config.alpha, 1))
-    });
-    group.bench_function("global particle update (3000 particles)", |b| {
-        let mut g = GlobalLocalizer::start(&map, &points, GlobalConfig::default(), config.alpha, 1);
-        let moving = OdometryStep::from_wheels(0.06, 0.06, 0.56);
+    // A chair with no pose: every period is a wheel step and a range update, and the search
+    // does at most its work budget in it. One iteration is one control period; the search is
+    // restarted whenever it finds the pose, so every sample is a searching period (the grid
+    // search, choosing hypotheses, updating them).
+    // The same room driven in a loop; the scans are cast before timing.
+    let moving = OdometryStep::from_wheels(0.025, 0.026, 0.56);
+    let mut truth = Pose2::new(1.5, 1.5, 0.3);
+    let drive: Vec<Vec<f64>> = (0..400u64)
+        .map(|k| {
+            truth = truth.compose(&moving.as_delta());
+            if truth.x > 8.5 || truth.y > 3.5 {
+                truth = Pose2::new(1.5, 1.5, 0.3);
+            }
+            common::scan(&common::room(), &truth, 0.01, k)
+        })
+        .collect();
+    // A chair with no pose: a wheel step and a range update per period, the search doing at
+    // most its work budget in it. The localizer starts a new search whenever it has found the
+    // pose, so every sample is a searching period (grid search, choosing the hypotheses,
+    // updating them).
+    group.bench_function("searching period (wheel step + bounded search step)", |b| {
+        let mut l = Localizer::new(map.clone(), config.clone(), None);
+        let mut k = 0;
         b.iter(|| {
-            g.predict(&moving);
-            g.update(&map, &points)
+            if l.status() == Status::Tracking {
+                l = Localizer::new(map.clone(), config.clone(), None);
+            }
+            k = (k + 1) % drive.len();
+            l.predict(&moving);
+            l.update_ranges(&drive[k], &sonar_m)
         })
     });
     group.finish();

@@ -1,69 +1,186 @@
-//! Global localization from an unknown start: a particle filter (Monte Carlo localization)
-//! seeded by an exhaustive correlative search over the free space, updated with the laser and
-//! sonars on the map's distance grid while the chair drives.
+//! Global localization from an unknown start: multi-hypothesis tracking.
+//!
+//! A correlative search of the free space (a grid of positions times headings, scored on the
+//! map's likelihood field) proposes the distinct poses that explain the first scan. Each of
+//! them is then tracked while the chair drives: moved by odometry, pulled onto the map by scan
+//! matching, and credited with every scan's log-likelihood. A hypothesis that falls far behind
+//! the best is dropped; two that converge on one pose become one. The search is done when one
+//! hypothesis leads every other by a likelihood ratio, so the ambiguity test weighs the whole
+//! drive, not one scan: two near-identical rooms both stay candidates until a scan tells them
+//! apart, and the right pose is not thrown away because the current scan alone fits a twin
+//! (that is what kept the earlier particle filter searching, and what let it settle outside
+//! the building with no way back).
+//!
+//! The work is bounded per call ([`GlobalConfig::work_per_step`] point evaluations): the grid
+//! search and each round of hypothesis updates are spread over control periods, each on the
+//! scan it started with, carried to the present by the odometry since.
 
-use nalgebra::{Matrix3, Point2};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use nalgebra::{Matrix3, Point2, Vector3};
 
 use crate::map::LocalizationMap;
-use crate::scan::{ScanPoint, to_map};
+use crate::matcher::{MatcherConfig, match_scan};
+use crate::scan::ScanPoint;
 use iw_vo::{OdometryStep, Pose2, wrap_angle};
 
-/// How the particle filter searches.
+/// How the search proposes, tracks and drops hypotheses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GlobalConfig {
-    /// Particles kept (the best-scoring poses of the search, then resampled).
-    pub particles: usize,
     /// Spacing of the search grid, m.
     pub grid_step_m: f64,
     /// Headings tried at each grid point.
     pub headings: usize,
     /// Poses closer than this to the map are not where a chair can stand, m.
     pub clearance_m: f64,
-    /// Scan points used per likelihood (evenly subsampled).
+    /// Scan points used per evaluation (evenly subsampled).
     pub points: usize,
     /// Likelihood field width, m.
     pub sigma_m: f64,
     /// Each point's log-likelihood counts this much (neighbouring beams are not independent).
     pub tempering: f64,
+    /// Hypotheses taken from the grid search at most (its best poses, pairwise distinct).
+    pub hypotheses: usize,
+    /// Two grid poses closer than this in position (m) and heading (rad) are one hypothesis.
+    pub separation: (f64, f64),
+    /// Two tracked hypotheses that converged this close (m, rad) are merged.
+    pub merge: (f64, f64),
+    /// Scan-matching iterations per hypothesis and update.
+    pub refine_iterations: usize,
+    /// A hypothesis whose log-likelihood falls this far behind the best is dropped.
+    pub prune_margin: f64,
     /// Update after this much travel, m, or this much turn, rad.
     pub update_every: (f64, f64),
-    /// Odometry noise is this many times the motion model's.
-    pub motion_noise_scale: f64,
+    /// The best hypothesis explains fewer than this share of the scan points ...
+    pub poor_fit: f64,
+    /// ... this many updates in a row: none is right, the search starts afresh.
+    pub poor_after: usize,
+    /// Point evaluations on the likelihood field (one point of one matching iteration counts as
+    /// several) per call of [`GlobalLocalizer::step`]: the search's share of a control period.
+    pub work_per_step: usize,
 }
 
 impl Default for GlobalConfig {
     fn default() -> Self {
         GlobalConfig {
-            particles: 3000,
             grid_step_m: 0.2,
             headings: 36,
             clearance_m: 0.3,
             points: 48,
             sigma_m: 0.1,
             tempering: 0.25,
+            hypotheses: 100,
+            separation: (0.4, 15f64.to_radians()),
+            merge: (0.1, 5f64.to_radians()),
+            refine_iterations: 4,
+            prune_margin: 30.0,
             update_every: (0.05, 0.05),
-            motion_noise_scale: 2.0,
+            poor_fit: 0.5,
+            poor_after: 20,
+            work_per_step: 150_000,
         }
     }
 }
 
 #[derive(Debug, Clone, Copy)]
-struct Particle {
+struct Hypothesis {
+    /// Pose when the current scan was taken.
     pose: Pose2,
+    /// Accumulated log-likelihood, the best's is 0 after each round.
     log_w: f64,
+    /// Share of the last scan's points near the map at `pose`.
+    fit: f64,
 }
 
-/// The particle filter.
+/// A grid pose (its index) and its score, ordered by score.
+#[derive(Debug, Clone, Copy)]
+struct Scored {
+    score: f64,
+    index: usize,
+}
+
+impl PartialEq for Scored {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == std::cmp::Ordering::Equal
+    }
+}
+
+impl Eq for Scored {}
+
+impl PartialOrd for Scored {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Scored {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.score.total_cmp(&other.score)
+    }
+}
+
+#[derive(Debug, Clone)]
+enum Phase {
+    /// Scoring the grid (heading-major index `next` over `positions`); `best` keeps the
+    /// best-scoring poses so far, worst on top.
+    Grid {
+        positions: Vec<Point2<f64>>,
+        next: usize,
+        best: BinaryHeap<Reverse<Scored>>,
+    },
+    /// Updating the hypotheses with the current scan, `next` is the next one.
+    Update { next: usize },
+    /// Waiting for enough travel for the next update.
+    Idle,
+}
+
+/// The multi-hypothesis search.
 #[derive(Debug, Clone)]
 pub struct GlobalLocalizer {
     config: GlobalConfig,
-    alpha: [f64; 4],
-    particles: Vec<Particle>,
-    rng: ChaCha8Rng,
-    since_update: (f64, f64),
+    matcher: MatcherConfig,
+    log_likelihood: Vec<f64>,
+    phase: Phase,
+    /// The scan being worked on, subsampled.
+    scan: Vec<ScanPoint>,
+    /// Odometry since `scan` was taken.
+    since: Pose2,
+    /// Travel and turn since `scan` was taken.
+    travel: (f64, f64),
+    hypotheses: Vec<Hypothesis>,
     updates: usize,
+    poor_in_row: usize,
+}
+
+/// One point of one scan-matching iteration (an exact nearest-segment query among its bucket's
+/// segments, the kernel and the normal equations) weighs this many likelihood-field look-ups: a
+/// rough, generous weight (the `search_period` bench shows no period above the grid's).
+const MATCH_POINT_COST: usize = 30;
+
+/// The grid search keeps this many best poses per hypothesis wanted.
+const SHORTLIST_PER_HYPOTHESIS: usize = 30;
+/// Sorting and thinning the shortlist costs about this many field evaluations per entry.
+const SELECT_COST: usize = 10;
+
+/// The likelihood table spans this many field widths (beyond: the uniform floor alone) ...
+const LIKELIHOOD_SPAN: f64 = 5.0;
+/// ... in this many steps.
+const LIKELIHOOD_STEPS: usize = 100;
+
+/// Tempered log-likelihood of a point at each tabulated distance from the map: a Gaussian of the
+/// field width mixed with a uniform floor, so points on things not on the map cost little.
+fn likelihood_table(config: &GlobalConfig) -> Vec<f64> {
+    (0..=LIKELIHOOD_STEPS)
+        .map(|k| {
+            let d = if k == LIKELIHOOD_STEPS {
+                f64::INFINITY
+            } else {
+                (k as f64 + 0.5) * LIKELIHOOD_SPAN / LIKELIHOOD_STEPS as f64
+            };
+            ((-0.5 * d * d).exp() + 0.05).ln() * config.tempering
+        })
+        .collect()
 }
 
 fn subsample(points: &[ScanPoint], n: usize) -> Vec<ScanPoint> {
@@ -73,11 +190,10 @@ fn subsample(points: &[ScanPoint], n: usize) -> Vec<ScanPoint> {
     (0..n).map(|k| points[k * points.len() / n]).collect()
 }
 
-/// Scores every free pose of the search grid (tempered log-likelihood of `sample`).
-fn score_grid(map: &LocalizationMap, sample: &[ScanPoint], config: &GlobalConfig) -> Vec<Particle> {
+/// Free grid positions: cell centres at least the clearance from the map.
+fn free_positions(map: &LocalizationMap, config: &GlobalConfig) -> Vec<Point2<f64>> {
     let (lo, hi) = map.bounds();
     let step = config.grid_step_m.max(0.02);
-    let headings = config.headings.max(1);
     let mut positions = Vec::new();
     let mut y = lo.y + step / 2.0;
     while y < hi.y {
@@ -90,229 +206,302 @@ fn score_grid(map: &LocalizationMap, sample: &[ScanPoint], config: &GlobalConfig
         }
         y += step;
     }
-    let mut scored: Vec<Particle> = Vec::with_capacity(positions.len() * headings);
-    for h in 0..headings {
-        let theta = wrap_angle(std::f64::consts::TAU * h as f64 / headings as f64);
-        let rotated: Vec<Point2<f64>> = sample
-            .iter()
-            .map(|p| to_map(&Pose2::new(0.0, 0.0, theta), &p.p_base))
-            .collect();
-        for c in &positions {
-            let log_w = rotated
-                .iter()
-                .map(|q| GlobalLocalizer::log_likelihood(map, c.x + q.x, c.y + q.y, config))
-                .sum::<f64>();
-            scored.push(Particle {
-                pose: Pose2::new(c.x, c.y, theta),
-                log_w,
-            });
-        }
-    }
-    scored
+    positions
 }
 
 impl GlobalLocalizer {
-    /// Starts a search with the first scan: scores every free pose on the grid and keeps the
-    /// best [`GlobalConfig::particles`]. `alpha` is the odometry motion model.
+    /// Starts a search with `points`, the scan of this period: nothing is evaluated yet, the
+    /// grid search runs in [`Self::step`].
     pub fn start(
         map: &LocalizationMap,
         points: &[ScanPoint],
         config: GlobalConfig,
-        alpha: [f64; 4],
-        seed: u64,
+        matcher: MatcherConfig,
     ) -> Self {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let sample = subsample(points, config.points);
-        let step = config.grid_step_m.max(0.02);
-        let headings = config.headings.max(1);
-        let mut scored = score_grid(map, &sample, &config);
-        let keep = config.particles.max(1).min(scored.len());
-        if keep < scored.len() {
-            scored.select_nth_unstable_by(keep, |a, b| b.log_w.total_cmp(&a.log_w));
-            scored.truncate(keep);
-        }
-        let half_heading = std::f64::consts::PI / headings as f64;
-        let particles = scored
-            .into_iter()
-            .map(|p| Particle {
-                pose: Pose2::new(
-                    p.pose.x + rng.random_range(-step / 2.0..step / 2.0),
-                    p.pose.y + rng.random_range(-step / 2.0..step / 2.0),
-                    p.pose.theta + rng.random_range(-half_heading..half_heading),
-                ),
-                log_w: 0.0,
-            })
-            .collect();
-        let mut filter = GlobalLocalizer {
+        let mut search = GlobalLocalizer {
             config,
-            alpha,
-            particles,
-            rng,
-            since_update: (0.0, 0.0),
+            matcher: MatcherConfig {
+                iterations: config.refine_iterations.max(1),
+                ..matcher
+            },
+            log_likelihood: likelihood_table(&config),
+            phase: Phase::Idle,
+            scan: Vec::new(),
+            since: Pose2::default(),
+            travel: (0.0, 0.0),
+            hypotheses: Vec::new(),
             updates: 0,
+            poor_in_row: 0,
         };
-        filter.weigh(map, &sample);
-        filter
+        search.restart(map, points);
+        search
     }
 
-    /// The `k` best grid poses for `points` that lie at least `away_m` from `pose` and from each
-    /// other: where else the chair could be, by this scan alone.
-    pub fn alternatives(
-        map: &LocalizationMap,
-        points: &[ScanPoint],
-        config: &GlobalConfig,
-        pose: &Pose2,
-        away_m: f64,
-        k: usize,
-    ) -> Vec<Pose2> {
-        let sample = subsample(points, config.points);
-        // twice the headings of the search: a twin 5 degrees off its grid heading still scores
-        let fine = GlobalConfig {
-            headings: config.headings * 2,
-            ..*config
+    fn restart(&mut self, map: &LocalizationMap, points: &[ScanPoint]) {
+        self.scan = subsample(points, self.config.points);
+        self.since = Pose2::default();
+        self.travel = (0.0, 0.0);
+        self.hypotheses.clear();
+        self.updates = 0;
+        self.poor_in_row = 0;
+        self.phase = Phase::Grid {
+            positions: free_positions(map, &self.config),
+            next: 0,
+            best: BinaryHeap::new(),
         };
-        let mut scored = score_grid(map, &sample, &fine);
-        scored.sort_unstable_by(|a, b| b.log_w.total_cmp(&a.log_w));
-        let far = |a: &Pose2, b: &Pose2| (a.x - b.x).hypot(a.y - b.y) >= away_m;
-        let mut chosen: Vec<Pose2> = Vec::with_capacity(k);
-        for p in scored {
-            if chosen.len() >= k {
+    }
+
+    /// Moves every hypothesis by one odometry step.
+    pub fn predict(&mut self, step: &OdometryStep) {
+        self.since = self.since.compose(&step.as_delta());
+        self.travel.0 += step.trans.abs();
+        self.travel.1 += (step.rot1 + step.rot2).abs();
+    }
+
+    /// Does at most [`GlobalConfig::work_per_step`] point evaluations of the search with this
+    /// period's scan `points`. Returns whether a round of hypothesis updates completed (then
+    /// [`Self::leader`] has news).
+    pub fn step(&mut self, map: &LocalizationMap, points: &[ScanPoint]) -> bool {
+        let full = self.config.work_per_step.max(1);
+        let mut budget = full;
+        // a budget smaller than one item still does one item a call: the search always ends
+        let may =
+            |budget: usize, cost: usize, first: bool| budget >= cost || (first && budget == full);
+        loop {
+            match &mut self.phase {
+                Phase::Idle => {
+                    let (every_m, every_rad) = self.config.update_every;
+                    if (self.travel.0 < every_m && self.travel.1 < every_rad)
+                        || points.len() < self.matcher.min_points
+                    {
+                        return false;
+                    }
+                    for h in &mut self.hypotheses {
+                        h.pose = h.pose.compose(&self.since);
+                    }
+                    self.scan = subsample(points, self.config.points);
+                    self.since = Pose2::default();
+                    self.travel = (0.0, 0.0);
+                    self.phase = Phase::Update { next: 0 };
+                }
+                Phase::Grid {
+                    positions,
+                    next,
+                    best,
+                } => {
+                    let total = positions.len() * self.config.headings.max(1);
+                    let cost = self.scan.len().max(1);
+                    // the candidates for distinct modes lie among the best few percent
+                    let shortlist = self.config.hypotheses.max(1) * SHORTLIST_PER_HYPOTHESIS;
+                    let (positions, mut best, mut at) =
+                        (std::mem::take(positions), std::mem::take(best), *next);
+                    let first = at;
+                    while at < total && may(budget, cost, at == first) {
+                        let pose = self.grid_pose(&positions, at);
+                        let score = self.evaluate(map, &pose).0;
+                        if best.len() < shortlist {
+                            best.push(Reverse(Scored { score, index: at }));
+                        } else if best.peek().is_some_and(|worst| score > worst.0.score) {
+                            best.pop();
+                            best.push(Reverse(Scored { score, index: at }));
+                        }
+                        at += 1;
+                        budget = budget.saturating_sub(cost);
+                    }
+                    if at < total {
+                        self.phase = Phase::Grid {
+                            positions,
+                            next: at,
+                            best,
+                        };
+                        return false;
+                    }
+                    budget = budget.saturating_sub(shortlist * SELECT_COST);
+                    self.hypotheses = self.distinct_best(&positions, best);
+                    self.phase = Phase::Update { next: 0 };
+                }
+                Phase::Update { next } => {
+                    let cost =
+                        self.scan.len().max(1) * (self.matcher.iterations * MATCH_POINT_COST + 1);
+                    let (first, mut at) = (*next, *next);
+                    while at < self.hypotheses.len() && may(budget, cost, at == first) {
+                        self.refine(map, at);
+                        at += 1;
+                        budget = budget.saturating_sub(cost);
+                    }
+                    if at < self.hypotheses.len() {
+                        self.phase = Phase::Update { next: at };
+                        return false;
+                    }
+                    self.end_round(map, points);
+                    return true;
+                }
+            }
+        }
+    }
+
+    fn grid_pose(&self, positions: &[Point2<f64>], index: usize) -> Pose2 {
+        let headings = self.config.headings.max(1);
+        let (h, p) = (index / positions.len(), index % positions.len());
+        let theta = wrap_angle(std::f64::consts::TAU * h as f64 / headings as f64);
+        Pose2::new(positions[p].x, positions[p].y, theta)
+    }
+
+    /// Log-likelihood of the current scan at `pose`, and the share of its points near the map
+    /// (within two field widths). The inner loop of the search: one rotation per pose, a table
+    /// look-up per point.
+    fn evaluate(&self, map: &LocalizationMap, pose: &Pose2) -> (f64, f64) {
+        let (sin, cos) = pose.theta.sin_cos();
+        let per_step = LIKELIHOOD_STEPS as f64 / (LIKELIHOOD_SPAN * self.config.sigma_m);
+        let (mut log_w, mut near) = (0.0, 0usize);
+        for s in &self.scan {
+            let (x, y) = (s.p_base.x, s.p_base.y);
+            let d = map.field_distance(pose.x + cos * x - sin * y, pose.y + sin * x + cos * y);
+            let k = ((d * per_step) as usize).min(LIKELIHOOD_STEPS);
+            log_w += self.log_likelihood[k];
+            near += usize::from(d <= 2.0 * self.config.sigma_m);
+        }
+        (log_w, near as f64 / self.scan.len().max(1) as f64)
+    }
+
+    /// The best-scoring grid poses, pairwise at least [`GlobalConfig::separation`] apart.
+    fn distinct_best(
+        &self,
+        positions: &[Point2<f64>],
+        best: BinaryHeap<Reverse<Scored>>,
+    ) -> Vec<Hypothesis> {
+        // ascending by Reverse: best score first
+        let order = best.into_sorted_vec();
+        let (sep_m, sep_rad) = self.config.separation;
+        let mut chosen: Vec<Hypothesis> = Vec::with_capacity(self.config.hypotheses);
+        for Reverse(candidate) in order {
+            if chosen.len() >= self.config.hypotheses {
                 break;
             }
-            if far(&p.pose, pose) && chosen.iter().all(|c| far(&p.pose, c)) {
-                chosen.push(p.pose);
+            let pose = self.grid_pose(positions, candidate.index);
+            let distinct = chosen.iter().all(|c| {
+                (c.pose.x - pose.x).powi(2) + (c.pose.y - pose.y).powi(2) >= sep_m * sep_m
+                    || wrap_angle(c.pose.theta - pose.theta).abs() >= sep_rad
+            });
+            if distinct {
+                chosen.push(Hypothesis {
+                    pose,
+                    log_w: 0.0,
+                    fit: 0.0,
+                });
             }
         }
         chosen
     }
 
-    fn log_likelihood(map: &LocalizationMap, x: f64, y: f64, config: &GlobalConfig) -> f64 {
-        let d = map.field_distance(x, y);
-        // a mixture with a uniform floor: points on things that are not on the map cost little
-        (((-0.5 * (d / config.sigma_m).powi(2)).exp() + 0.05).ln()) * config.tempering
+    /// Pulls hypothesis `i` onto the map with the current scan and credits its likelihood.
+    fn refine(&mut self, map: &LocalizationMap, i: usize) {
+        let guess = self.hypotheses[i].pose;
+        let pose = match_scan(map, &self.scan, &guess, &self.matcher)
+            .map(|m| m.pose)
+            // a match that ran off is no refinement
+            .filter(|p| (p.x - guess.x).hypot(p.y - guess.y) < 0.5)
+            .unwrap_or(guess);
+        let (log_w, fit) = self.evaluate(map, &pose);
+        let h = &mut self.hypotheses[i];
+        h.pose = pose;
+        h.log_w += log_w;
+        h.fit = fit;
     }
 
-    fn weigh(&mut self, map: &LocalizationMap, sample: &[ScanPoint]) {
-        for p in &mut self.particles {
-            p.log_w += sample
-                .iter()
-                .map(|s| {
-                    let q = to_map(&p.pose, &s.p_base);
-                    Self::log_likelihood(map, q.x, q.y, &self.config)
-                })
-                .sum::<f64>();
-        }
-        let max = self
-            .particles
-            .iter()
-            .map(|p| p.log_w)
-            .fold(f64::NEG_INFINITY, f64::max);
-        for p in &mut self.particles {
-            p.log_w -= max;
-        }
+    /// After every hypothesis has seen the scan: merge, prune, and start afresh when even the
+    /// best explains the scans poorly.
+    fn end_round(&mut self, map: &LocalizationMap, points: &[ScanPoint]) {
         self.updates += 1;
-    }
-
-    /// Moves every particle by one odometry step with sampled noise.
-    pub fn predict(&mut self, step: &OdometryStep) {
-        let cov = step.covariance(&self.alpha) * self.config.motion_noise_scale.powi(2);
-        for p in &mut self.particles {
-            let noisy = OdometryStep {
-                rot1: step.rot1 + iw_stats::standard_normal(&mut self.rng) * cov[(0, 0)].sqrt(),
-                trans: step.trans + iw_stats::standard_normal(&mut self.rng) * cov[(1, 1)].sqrt(),
-                rot2: step.rot2 + iw_stats::standard_normal(&mut self.rng) * cov[(2, 2)].sqrt(),
-            };
-            p.pose = p.pose.compose(&noisy.as_delta());
-        }
-        self.since_update.0 += step.trans.abs();
-        self.since_update.1 += (step.rot1 + step.rot2).abs();
-    }
-
-    /// Weighs the particles with a scan once the chair has moved enough since the last one, and
-    /// resamples when the weights have degenerated. Returns whether it weighed.
-    pub fn update(&mut self, map: &LocalizationMap, points: &[ScanPoint]) -> bool {
-        if self.since_update.0 < self.config.update_every.0
-            && self.since_update.1 < self.config.update_every.1
-        {
-            return false;
-        }
-        self.since_update = (0.0, 0.0);
-        let sample = subsample(points, self.config.points);
-        if sample.is_empty() {
-            return false;
-        }
-        self.weigh(map, &sample);
-        let weights: Vec<f64> = self.particles.iter().map(|p| p.log_w.exp()).collect();
-        let total: f64 = weights.iter().sum();
-        let n_eff = total * total / weights.iter().map(|w| w * w).sum::<f64>();
-        if n_eff < self.particles.len() as f64 / 2.0 {
-            self.resample(&weights, total);
-        }
-        true
-    }
-
-    /// Low-variance resampling with a little roughening against depletion.
-    fn resample(&mut self, weights: &[f64], total: f64) {
-        let n = self.particles.len();
-        let stride = total / n as f64;
-        let mut target = self.rng.random_range(0.0..stride);
-        let (mut acc, mut i) = (weights[0], 0);
-        let mut next = Vec::with_capacity(n);
-        for _ in 0..n {
-            while acc < target && i + 1 < n {
-                i += 1;
-                acc += weights[i];
-            }
-            let pose = self.particles[i].pose;
-            next.push(Particle {
-                pose: Pose2::new(
-                    pose.x + iw_stats::standard_normal(&mut self.rng) * 0.01,
-                    pose.y + iw_stats::standard_normal(&mut self.rng) * 0.01,
-                    pose.theta + iw_stats::standard_normal(&mut self.rng) * 0.005,
-                ),
-                log_w: 0.0,
+        self.phase = Phase::Idle;
+        self.hypotheses
+            .sort_unstable_by(|a, b| b.log_w.total_cmp(&a.log_w));
+        let best = self.hypotheses.first().map_or(0.0, |h| h.log_w);
+        let (merge_m, merge_rad) = self.config.merge;
+        let mut kept: Vec<Hypothesis> = Vec::with_capacity(self.hypotheses.len());
+        for h in &self.hypotheses {
+            let duplicate = kept.iter().any(|k| {
+                (k.pose.x - h.pose.x).hypot(k.pose.y - h.pose.y) < merge_m
+                    && wrap_angle(k.pose.theta - h.pose.theta).abs() < merge_rad
             });
-            target += stride;
+            if !duplicate && h.log_w - best >= -self.config.prune_margin {
+                kept.push(Hypothesis {
+                    log_w: h.log_w - best,
+                    ..*h
+                });
+            }
         }
-        self.particles = next;
+        self.hypotheses = kept;
+        let poor = self
+            .hypotheses
+            .first()
+            .is_none_or(|h| h.fit < self.config.poor_fit);
+        self.poor_in_row = if poor { self.poor_in_row + 1 } else { 0 };
+        if self.poor_in_row >= self.config.poor_after && points.len() >= self.matcher.min_points {
+            tracing::debug!("no hypothesis explains the scans: the search starts afresh");
+            self.restart(map, points);
+        }
     }
 
-    /// Weighted mean and covariance of the particles.
-    pub fn estimate(&self) -> (Pose2, Matrix3<f64>) {
-        let weights: Vec<f64> = self.particles.iter().map(|p| p.log_w.exp()).collect();
-        let total: f64 = weights.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+    /// The leading hypothesis's current pose and its lead (log-likelihood ratio) over the
+    /// next; infinite when it is the only one. `None` before the grid search is done.
+    pub fn leader(&self) -> Option<(Pose2, f64)> {
+        if matches!(self.phase, Phase::Grid { .. }) {
+            return None;
+        }
+        let best = self.hypotheses.first()?;
+        let lead = self
+            .hypotheses
+            .get(1)
+            .map_or(f64::INFINITY, |second| best.log_w - second.log_w);
+        Some((best.pose.compose(&self.since), lead))
+    }
+
+    /// Mean and covariance of the hypotheses, each weighed by its likelihood; `None` before
+    /// the grid search is done.
+    pub fn estimate(&self) -> Option<(Pose2, Matrix3<f64>)> {
+        if matches!(self.phase, Phase::Grid { .. }) || self.hypotheses.is_empty() {
+            return None;
+        }
+        let best = self
+            .hypotheses
+            .iter()
+            .map(|h| h.log_w)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let poses: Vec<(Pose2, f64)> = self
+            .hypotheses
+            .iter()
+            .map(|h| (h.pose.compose(&self.since), (h.log_w - best).exp()))
+            .collect();
+        let total: f64 = poses.iter().map(|(_, w)| w).sum();
         let (mut x, mut y, mut s, mut c) = (0.0, 0.0, 0.0, 0.0);
-        for (p, w) in self.particles.iter().zip(&weights) {
-            x += w * p.pose.x;
-            y += w * p.pose.y;
-            s += w * p.pose.theta.sin();
-            c += w * p.pose.theta.cos();
+        for (p, w) in &poses {
+            x += w * p.x;
+            y += w * p.y;
+            s += w * p.theta.sin();
+            c += w * p.theta.cos();
         }
         let mean = Pose2::new(x / total, y / total, s.atan2(c));
         let mut cov = Matrix3::zeros();
-        for (p, w) in self.particles.iter().zip(&weights) {
-            let d = nalgebra::Vector3::new(
-                p.pose.x - mean.x,
-                p.pose.y - mean.y,
-                wrap_angle(p.pose.theta - mean.theta),
-            );
+        for (p, w) in &poses {
+            let d = Vector3::new(p.x - mean.x, p.y - mean.y, wrap_angle(p.theta - mean.theta));
             cov += d * d.transpose() * (w / total);
         }
-        (mean, cov)
+        Some((mean, cov))
     }
 
-    /// Scans weighed so far (the first at the start).
+    /// Rounds of hypothesis updates since the search (re)started.
     pub fn updates(&self) -> usize {
         self.updates
     }
 
-    /// Number of particles.
+    /// Hypotheses alive (0 while the grid search runs).
     pub fn len(&self) -> usize {
-        self.particles.len()
+        self.hypotheses.len()
     }
 
-    /// Whether there are no particles (a map with no free space).
+    /// Whether there are no hypotheses (the grid search runs, or the map has no free space).
     pub fn is_empty(&self) -> bool {
-        self.particles.is_empty()
+        self.hypotheses.is_empty()
     }
 }

@@ -10,7 +10,8 @@
 //!   degeneracy-aware covariance ([`MatcherConfig`]).
 //! - [`marker_cell_dark`], [`detect_markers`]: the landmarks' printed pattern, and finding it
 //!   in a camera image.
-//! - [`GlobalLocalizer`]: a particle filter seeded by an exhaustive search of the free space.
+//! - [`GlobalLocalizer`]: multi-hypothesis tracking seeded by an exhaustive search of the free
+//!   space, with a bounded amount of work per control period.
 //! - [`Localizer`]: the EKF (iw-vo's [`iw_vo::OdometryFusion`]) predicted by wheel odometry,
 //!   updated by visual odometry, matched scans and landmarks; searches while lost; drops a
 //!   sensor that goes silent or returns garbage.

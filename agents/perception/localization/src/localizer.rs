@@ -1,6 +1,7 @@
 //! The localizer: an EKF over the base pose (iw-vo's [`OdometryFusion`]) predicted by wheel
 //! odometry, updated by visual odometry, by scans matched to the map and by landmark sightings;
-//! a particle filter takes over while the pose is unknown (no start, or carried elsewhere).
+//! a multi-hypothesis search takes over while the pose is unknown (no start, or carried
+//! elsewhere).
 
 use std::sync::Arc;
 
@@ -15,17 +16,13 @@ use iw_vo::{OdometryFusion, OdometryStep, Pose2, wrap_angle};
 /// When a search may say it has found the pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Confidence {
-    /// Particle spread (position standard deviation) at most, m.
-    pub std_m: f64,
-    /// Particle heading standard deviation at most, rad.
-    pub std_rad: f64,
-    /// Scans weighed at least.
+    /// Rounds of hypothesis updates at least.
     pub min_updates: usize,
-    /// The refined match's inlier fraction at least.
+    /// The leading hypothesis's log-likelihood (as the search tempers it) exceeds every other
+    /// one's by at least this: a likelihood ratio over the whole drive, not one scan.
+    pub margin: f64,
+    /// The full scan's match at the leader has this inlier fraction at least.
     pub min_inliers: f64,
-    /// A pose at least 1 m away whose match has an inlier fraction within this margin of the
-    /// found one's makes the scan ambiguous.
-    pub twin_margin: f64,
 }
 
 /// How the localizer fuses and when it gives up.
@@ -55,8 +52,6 @@ pub struct LocalizerConfig {
     pub landmark_sigma: (f64, f64),
     /// Motion model of the odometry (Thrun's alphas), as in [`iw_vo::DiffDriveParams`].
     pub alpha: [f64; 4],
-    /// Seed of the particle filter.
-    pub seed: u64,
 }
 
 impl LocalizerConfig {
@@ -72,11 +67,9 @@ impl LocalizerConfig {
             matcher: MatcherConfig::default(),
             global: GlobalConfig::default(),
             confidence: Confidence {
-                std_m: 0.05,
-                std_rad: 2f64.to_radians(),
-                min_updates: 20,
+                min_updates: 5,
+                margin: 12.0,
                 min_inliers: 0.8,
-                twin_margin: 0.1,
             },
             gate_chi2: 16.27,
             min_inliers: 0.5,
@@ -84,7 +77,6 @@ impl LocalizerConfig {
             drop_after: 10,
             landmark_sigma: (0.05, 1f64.to_radians()),
             alpha,
-            seed: 1,
         }
     }
 }
@@ -222,7 +214,7 @@ impl Localizer {
         self.status
     }
 
-    /// The pose estimate: the EKF's while tracking, the particles' while searching.
+    /// The pose estimate: the EKF's while tracking, the hypotheses' (weighed by likelihood) while searching.
     pub fn pose(&self) -> Pose2 {
         self.estimate().0
     }
@@ -238,15 +230,14 @@ impl Localizer {
                 let c = self.fusion.covariance();
                 (self.fusion.pose(), (c + c.transpose()) * 0.5)
             }
-            (Status::Searching, Some(search)) => {
-                let (pose, c) = search.estimate();
+            (Status::Searching, search) => match search.as_ref().and_then(|s| s.estimate()) {
                 // never less certain than dead reckoning would say, never overconfident
-                (
+                Some((pose, c)) => (
                     pose,
                     c + Matrix3::from_diagonal(&Vector3::new(0.01, 0.01, 0.003)),
-                )
-            }
-            (Status::Searching, None) => (self.fusion.pose(), Matrix3::identity() * UNKNOWN_VAR),
+                ),
+                None => (self.fusion.pose(), Matrix3::identity() * UNKNOWN_VAR),
+            },
         }
     }
 
@@ -367,13 +358,11 @@ impl Localizer {
         self.status = Status::Searching;
         self.rejected_in_row = 0;
         self.searches += 1;
-        let seed = self.config.seed.wrapping_add(self.searches);
         self.search = Some(GlobalLocalizer::start(
             &self.map,
             points,
             self.config.global,
-            self.config.alpha,
-            seed,
+            self.config.matcher,
         ));
     }
 
@@ -385,51 +374,31 @@ impl Localizer {
             }
             return ScanOutcome::Searched;
         };
-        if !search.update(&self.map, points) {
+        if !search.step(&self.map, points) {
             return ScanOutcome::Searched;
         }
         let confidence = self.config.confidence;
-        let (mean, cov) = search.estimate();
-        if search.updates() < confidence.min_updates
-            || (cov[(0, 0)] + cov[(1, 1)]).sqrt() > confidence.std_m
-            || cov[(2, 2)].sqrt() > confidence.std_rad
-        {
-            return ScanOutcome::Searched;
-        }
-        let Some(m) = match_scan(&self.map, points, &mean, &self.config.matcher) else {
+        let Some((leader, lead)) = search.leader() else {
             return ScanOutcome::Searched;
         };
-        let moved = ((m.pose.x - mean.x).powi(2) + (m.pose.y - mean.y).powi(2)).sqrt();
-        if m.observed < 3
-            || m.inlier_fraction < confidence.min_inliers
-            || moved > 2.0 * confidence.std_m
-        {
+        if search.updates() < confidence.min_updates || lead < confidence.margin {
             return ScanOutcome::Searched;
         }
-        // A twin place explains the scan as well: the particles may have settled in the wrong
-        // one. Search afresh from here, so that both stay candidates until a scan tells them
-        // apart.
-        let twin =
-            GlobalLocalizer::alternatives(&self.map, points, &self.config.global, &m.pose, 1.0, 8)
-                .into_iter()
-                .filter_map(|alt| match_scan(&self.map, points, &alt, &self.config.matcher))
-                .any(|alt| {
-                    // refining may slide back to the found pose: that is no twin
-                    (alt.pose.x - m.pose.x).hypot(alt.pose.y - m.pose.y) >= 0.5
-                        && alt.inlier_fraction >= m.inlier_fraction - confidence.twin_margin
-                });
-        if twin {
-            tracing::debug!("the scan fits elsewhere on the map as well: searching on");
-            self.start_search(points);
+        let Some(m) = match_scan(&self.map, points, &leader, &self.config.matcher) else {
+            return ScanOutcome::Searched;
+        };
+        let moved = (m.pose.x - leader.x).hypot(m.pose.y - leader.y);
+        if m.observed < 3 || m.inlier_fraction < confidence.min_inliers || moved > 0.1 {
             return ScanOutcome::Searched;
         }
+        let spread = search.estimate().map_or(Matrix3::zeros(), |(_, c)| c);
         tracing::info!(
             x = m.pose.x,
             y = m.pose.y,
             theta = m.pose.theta,
             "pose found on the map"
         );
-        self.fusion.reset(m.pose, m.covariance + cov);
+        self.fusion.reset(m.pose, m.covariance + spread);
         self.search = None;
         self.status = Status::Tracking;
         ScanOutcome::Localized

@@ -1,6 +1,6 @@
 //! The map as the localizer sees it: solid segments (walls, furniture) in a bucket grid for
 //! nearest-segment queries, landmarks with known poses, and a coarse distance grid for the
-//! particle filter.
+//! global search.
 
 use nalgebra::{Point2, Vector2};
 
@@ -27,10 +27,10 @@ pub struct Nearest {
 
 /// Bucket size of the segment grid, m.
 const BUCKET_M: f64 = 0.5;
-/// Distance grid cell for the particle filter, m.
+/// Distance grid cell for the global search, m.
 const FIELD_CELL_M: f64 = 0.1;
 
-/// Solid segments and landmarks, indexed for the matcher and the particle filter.
+/// Solid segments and landmarks, indexed for the matcher and the global search.
 #[derive(Debug, Clone)]
 pub struct LocalizationMap {
     segments: Vec<(Point2<f64>, Point2<f64>)>,
@@ -199,7 +199,7 @@ impl LocalizationMap {
     }
 
     /// Distance to the nearest segment from the coarse grid (0.1 m cells, capped at the reach;
-    /// outside the map: the reach). For the particle filter, where speed beats precision.
+    /// outside the map: the reach). For the global search, where speed beats precision.
     pub fn field_distance(&self, x: f64, y: f64) -> f64 {
         let c = (x - self.min.x) / FIELD_CELL_M;
         let r = (y - self.min.y) / FIELD_CELL_M;

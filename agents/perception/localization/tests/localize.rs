@@ -3,8 +3,8 @@
 use std::sync::Arc;
 
 use iw_localization::{
-    LocalizationMap, Localizer, LocalizerConfig, ScanOutcome, SonarGeometry, Status,
-    UNOBSERVED_VAR, match_scan,
+    GlobalConfig, GlobalLocalizer, LocalizationMap, Localizer, LocalizerConfig, MatcherConfig,
+    ScanOutcome, SonarGeometry, Status, UNOBSERVED_VAR, match_scan,
 };
 use iw_vo::{OdometryStep, Pose2};
 use nalgebra::Matrix3;
@@ -234,4 +234,89 @@ fn sonars_alone_are_not_matched_and_the_pose_is_predicted_only() {
     assert_eq!(loc.searches(), 0);
     let e = loc.pose();
     assert!((e.x - odometry.x).abs() < 1e-9 && (e.y - odometry.y).abs() < 1e-9);
+}
+
+/// Two copies of the L-shaped room 12 m apart; only the first has the pillar, which a chair
+/// driving west along the lower arm from its east end sees only after a few metres, round the
+/// corner of the L.
+fn twin_rooms(with_second_pillar: bool) -> Vec<Seg> {
+    let pillar = |s: &Seg| s.0.x > 1.0 && s.0.x < 2.0 && s.0.y > 5.0;
+    let mut world = room();
+    world.extend(
+        room()
+            .into_iter()
+            .filter(|s| with_second_pillar || !pillar(s))
+            .map(|(a, b)| (p(a.x + 12.0, a.y), p(b.x + 12.0, b.y))),
+    );
+    world
+}
+
+#[test]
+fn twin_rooms_stay_candidates_until_a_scan_tells_them_apart() {
+    let world = twin_rooms(false);
+    let mut loc = Localizer::new(map_of(world.clone()), config(), None);
+    let mut truth = Pose2::new(9.0, 1.5, std::f64::consts::PI);
+    let mut found_at_x = None;
+    for k in 0..360u64 {
+        let step = OdometryStep::from_wheels(0.02, 0.02, 0.56);
+        if truth.x > 2.5 {
+            truth = truth.compose(&step.as_delta());
+            loc.predict(&step);
+        }
+        loc.update_ranges(&scan(&world, &truth, 0.01, k), &[]);
+        if loc.status() == Status::Tracking {
+            let e = loc.pose();
+            let err = (e.x - truth.x).hypot(e.y - truth.y);
+            assert!(err < 0.1, "tracking {err} m off at x = {:.2}", truth.x);
+            found_at_x.get_or_insert(truth.x);
+        }
+    }
+    // the room with the pillar: its twin 12 m east explains every scan up to the pillar
+    let x = found_at_x.expect("never found the pose");
+    eprintln!("found at x = {x:.2} m");
+}
+
+#[test]
+fn the_search_spreads_its_work_over_periods_within_its_budget() {
+    let world = room();
+    let map = map_of(world.clone());
+    let truth = Pose2::new(2.0, 2.0, 0.3);
+    let points = points(&scan(&world, &truth, 0.01, 1));
+    let mut config = config().global;
+    config.work_per_step = usize::MAX;
+    let mut unbounded = GlobalLocalizer::start(&map, &points, config, MatcherConfig::default());
+    assert!(
+        unbounded.step(&map, &points),
+        "one unbounded call: the grid, the choice and a first round of updates"
+    );
+    assert!(unbounded.len() > 1);
+    // 20 000 look-ups a call, a small share of the grid's millions (48 points per pose, 36
+    // headings per free position)
+    config.work_per_step = 20_000;
+    let mut search = GlobalLocalizer::start(&map, &points, config, MatcherConfig::default());
+    let mut calls = 0;
+    while !search.step(&map, &points) {
+        calls += 1;
+        assert!(calls < 10_000, "the search never completes a round");
+    }
+    assert!(calls >= 10, "the grid search took {calls} calls");
+    // a budget below one pose's cost still moves on by one pose a call
+    let tiny = GlobalConfig {
+        work_per_step: 1,
+        ..config
+    };
+    let mut slow = GlobalLocalizer::start(&map, &points, tiny, MatcherConfig::default());
+    let mut tiny_calls = 1usize;
+    while !slow.step(&map, &points) {
+        tiny_calls += 1;
+        assert!(
+            tiny_calls < 1_000_000,
+            "a tiny budget never completes a round"
+        );
+    }
+    assert_eq!(
+        search.len(),
+        unbounded.len(),
+        "the same hypotheses, spread over calls"
+    );
 }

@@ -368,9 +368,11 @@ pub fn drive(
     let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
     let mut wheels = WheelOdometry::new(params, start);
     let mut fusion = OdometryFusion::new(start, start_cov, params.alpha);
-    let mut localizer_config = localizer_config(&s.spec);
-    localizer_config.seed = seed;
-    let mut localizer = Localizer::new(lmap.clone(), localizer_config, Some((start, start_cov)));
+    let mut localizer = Localizer::new(
+        lmap.clone(),
+        localizer_config(&s.spec),
+        Some((start, start_cov)),
+    );
     let mut camera = if config.vo_every > 0 {
         Some(SimCamera::new(s.world.clone(), s.id)?)
     } else {
@@ -487,9 +489,7 @@ pub fn global_run(
     let mut s = setup(map, route, fraction, config, seed);
     let params = drive_params(&s.spec);
     let mut wheels = WheelOdometry::new(params, Pose2::default());
-    let mut localizer_config = localizer_config(&s.spec);
-    localizer_config.seed = seed;
-    let mut localizer = Localizer::new(lmap.clone(), localizer_config, None);
+    let mut localizer = Localizer::new(lmap.clone(), localizer_config(&s.spec), None);
     let first = lock(&s.world).sensors(s.id)?.clone();
     wheels.update(first.left_ticks, first.right_ticks);
     let mut run = GlobalRun {
@@ -569,9 +569,11 @@ pub fn kidnap_run(
     let start = pose2(&lock(&s.world).pose(s.id)?);
     let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
     let mut wheels = WheelOdometry::new(params, start);
-    let mut localizer_config = localizer_config(&s.spec);
-    localizer_config.seed = seed;
-    let mut localizer = Localizer::new(lmap.clone(), localizer_config, Some((start, start_cov)));
+    let mut localizer = Localizer::new(
+        lmap.clone(),
+        localizer_config(&s.spec),
+        Some((start, start_cov)),
+    );
     let first = lock(&s.world).sensors(s.id)?.clone();
     wheels.update(first.left_ticks, first.right_ticks);
     let mut run = KidnapRun {

@@ -175,8 +175,9 @@ fn outlines(map: &Map) -> Vec<Outline> {
     walls.chain(furniture).collect()
 }
 
-/// Writes `summary.json`, `paths.png` (first drive: truth and the four estimates) and
-/// `error.png` (position error against time, first drive) into `out`.
+/// Writes `summary.json`, `paths.png` (first drive: truth and the four estimates),
+/// `error.png` (position error against time, first drive) and `global.png` (share of the global
+/// runs localized against metres driven) into `out`.
 pub fn write_outputs(report: &Report, map: &Map, out: &Path) -> Result<Summary, ExperimentError> {
     let io = |path: &Path, source| ExperimentError::Io {
         path: path.display().to_string(),
@@ -225,7 +226,47 @@ pub fn write_outputs(report: &Report, map: &Map, out: &Path) -> Result<Summary, 
         )?;
         plot_errors(&out.join("error.png"), drive)?;
     }
+    if !report.global.is_empty() {
+        plot_global(&out.join("global.png"), &report.global, &report.map)?;
+    }
     Ok(summary)
+}
+
+/// The share of runs that have found their pose (first tracking within 10 cm and 3 degrees)
+/// against the metres driven.
+fn plot_global(path: &Path, runs: &[crate::GlobalRun], map: &str) -> Result<(), ExperimentError> {
+    let mut found: Vec<f64> = runs
+        .iter()
+        .filter(|r| {
+            r.error_at_fix
+                .is_some_and(|(m, deg)| m <= 0.10 && deg <= 3.0)
+        })
+        .filter_map(|r| r.distance_m)
+        .collect();
+    found.sort_by(f64::total_cmp);
+    let share = |k: usize| k as f64 / runs.len() as f64;
+    let points = std::iter::once((0.0, 0.0))
+        .chain(
+            found
+                .iter()
+                .enumerate()
+                .flat_map(|(k, d)| [(*d, share(k)), (*d, share(k + 1))]),
+        )
+        .collect();
+    iw_plot::curves::plot_curves(
+        path,
+        &format!("{map}: global localization, {} runs", runs.len()),
+        "metres driven",
+        &[iw_plot::curves::CurvePanel {
+            y_label: "share of runs localized".into(),
+            curves: vec![iw_plot::curves::Curve {
+                name: "within 10 cm and 3 degrees".into(),
+                points,
+            }],
+            level: Some(("target: 95 % within 5 m".into(), 0.95)),
+        }],
+    )?;
+    Ok(())
 }
 
 /// A curve of the error plot: label, colour, (minutes, metres).
