@@ -10,7 +10,7 @@ use nalgebra::Isometry2;
 use crate::{ChairSpec, Map};
 
 /// Nearest-segment queries answer within this distance, m: the matcher's basin of attraction
-/// and the particle filter's distance cap.
+/// and the global search's likelihood cap.
 const REACH_M: f64 = 1.0;
 
 fn pose2(t: &Isometry2<f64>) -> Pose2 {
