@@ -3,7 +3,8 @@
 //! world once per paradigm, in the thesis's order (manual first): manually, with the thesis's
 //! potential field as a joystick filter ([`Mode::Shared`]), with the same equations through our
 //! older arc-chord mapping ([`Mode::SharedChord`]), with VFH+, and with the control agent's
-//! policy (the arc-chord field, then the arc guard's footprint sweep). Collisions come from the
+//! policy (the arc guard's footprint sweep from the encoder-measured motion, with the laser points
+//! it no longer sees remembered). Collisions come from the
 //! simulator's contact counter (one per new contact); interventions from comparing the user's
 //! command with the one sent to the wheels; "near obstacles" from the true clearance between the
 //! chair's footprint and the map.
@@ -110,7 +111,7 @@ pub enum Mode {
     SharedChord,
     /// VFH+ on the configured [`Sensors`].
     Vfh,
-    /// The control agent's policy: the arc-chord field, then the arc guard's footprint sweep, on
+    /// The control agent's policy: the arc guard's footprint sweep from the measured motion, on
     /// the configured [`Sensors`].
     Guarded,
 }
