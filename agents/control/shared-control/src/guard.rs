@@ -95,6 +95,8 @@ const SCALES: [f64; 6] = [1.0, 0.8, 0.6, 0.4, 0.2, 0.0];
 const STEER_RADPS: [f64; 7] = [0.0, 0.15, -0.15, 0.3, -0.3, 0.5, -0.5];
 /// Longest predicted path, s: bounds the work on absurd speeds.
 const MAX_HORIZON_S: f64 = 5.0;
+/// Finest sampling of the path, s: with [`MAX_HORIZON_S`] it bounds the poses per check.
+const MIN_SAMPLE_S: f64 = 0.005;
 
 impl ArcGuard {
     /// A guard for a chair of `footprint` with sonars at `mounts`.
@@ -106,6 +108,13 @@ impl ArcGuard {
         check_positive("wheel_decel_mps2", params.wheel_decel_mps2)?;
         check_positive("track_m", params.track_m)?;
         check_positive("sample_s", params.sample_s)?;
+        if params.sample_s < MIN_SAMPLE_S {
+            return Err(ControlError::BadParameter {
+                name: "sample_s",
+                value: params.sample_s,
+                why: "must be at least 0.005 s (each sample is a footprint check of every point)",
+            });
+        }
         for (name, value) in [
             ("margin_m", params.margin_m),
             ("latency_s", params.latency_s),
@@ -581,6 +590,31 @@ mod tests {
         assert!(!g.is_clear_from(VelocityCommand::new(0.0, -1.0), ahead, &post));
         let (out, changed) = g.limit_from(Some(VelocityCommand::new(0.0, -1.0)), ahead, &post);
         assert!(changed && out != ahead, "{out:?}");
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_not_run() {
+        let fp = Footprint::PROTOTYPE;
+        let mounts = fp.sonar_mounts().to_vec();
+        for params in [
+            ArcGuardParams {
+                sample_s: 1e-9,
+                ..ArcGuardParams::default()
+            },
+            ArcGuardParams {
+                memory_s: f64::NAN,
+                ..ArcGuardParams::default()
+            },
+            ArcGuardParams {
+                track_m: 0.0,
+                ..ArcGuardParams::default()
+            },
+        ] {
+            assert!(
+                ArcGuard::new(params, fp, mounts.clone()).is_err(),
+                "{params:?}"
+            );
+        }
     }
 
     #[test]
