@@ -22,7 +22,7 @@
 //! - REQUEST `((action (agent-identifier :name control) (drive :linear V :angular W)))` (m/s,
 //!   rad/s): manual driving as a stream, one conversation per stream (held input). The first
 //!   command of a stream gets AGREE; the following ones no answer. Every command goes through
-//!   the potential field and the arc guard with the sonars, and feeds the watchdog: when the
+//!   the arc guard with the sonars, and feeds the watchdog: when the
 //!   stream falls silent for [`ControlConfig::watchdog_ms`] the chair stops and the stream ends
 //!   with INFORM `((done ...))` if the last command was a stop (the user let go), FAILURE
 //!   otherwise. Refused (REFUSE with a reason): a command out of the drive's range or not
@@ -38,9 +38,12 @@
 //! Requests and the subscription run on the interaction protocols' state machines
 //! (`iw_agent::conversation`), so no answer is sent that fipa-request does not allow.
 //!
-//! Driving: the potential field (thesis 3.6) corrects the user's manual command (not the
-//! tactical layer's, whose path the planner keeps clear); then [`ArcGuard`] scales or steers either so the footprint swept until the chair stops (turning in place too) stays clear of
-//! the sonar echoes.
+//! Driving: [`ArcGuard`] scales or steers the user's manual command and the tactical layer's so
+//! the footprint swept until the chair stops (turning in place too) stays clear of the sonar
+//! echoes. It predicts from the speed the encoders measure ([`WheelMotion`]), not from the
+//! command alone. The thesis's potential field (3.6) is not in this path: in the cluttered
+//! circuits of the shared-control experiment the field's turn commands chattered in doorways, and
+//! the guard alone finished more laps with fewer contacts (docs/results/shared-control.md).
 //!
 //! Guarantees: the body is commanded every tick; with no fresh command (manual) or no task the
 //! watchdog ramps the wheels to zero; a body read error stops the chair and fails the task; no
@@ -62,8 +65,8 @@ use iw_shared_control::tactical::{
     Action, ActionSequence, SequenceStatus, Side, TacticalInput, TacticalParams,
 };
 use iw_shared_control::{
-    ArcGuard, ArcGuardParams, Guarded, PotentialField, PotentialFieldParams, SensorMount,
-    SharedController, SharedInput, VelocityCommand,
+    ArcGuard, ArcGuardParams, SensorMount, SharedController, SharedInput, VelocityCommand,
+    WheelMotion,
 };
 use iw_sl::Level;
 use nalgebra::Isometry2;
@@ -98,12 +101,12 @@ pub struct ControlConfig {
     pub drive: DiffDrive,
     /// Gains and tolerances of the basic actions.
     pub tactical: TacticalParams,
-    /// Potential-field constants (thesis equations 3.1-3.4).
-    pub shared: PotentialFieldParams,
+    /// The encoders' geometry, for the motion the guard predicts from.
+    pub wheels: WheelGeometry,
     /// The chair's footprint (the arc guard and wall clearances use it).
     pub footprint: Footprint,
-    /// The footprint guard applied after the potential field: the chair's rectangle swept along
-    /// the commanded arc (turning in place included) until stopped must stay clear of echoes.
+    /// The footprint guard every command passes: the chair's rectangle swept along the commanded
+    /// arc (turning in place included) until stopped must stay clear of echoes.
     pub guard: ArcGuardParams,
     /// Where each of the body's sonars sits, in its order (`iw_body::SONAR_COUNT` of them).
     pub sonar_mounts: Vec<SensorMount>,
@@ -140,7 +143,7 @@ impl ControlConfig {
             guard: ArcGuardParams::default(),
             drive: DiffDrive::new(WheelGeometry::default().track_m, 1.0, 1.5)?,
             tactical: TacticalParams::default(),
-            shared: PotentialFieldParams::default(),
+            wheels: WheelGeometry::default(),
             sonar_mounts,
             watchdog_ms: 500,
             period: Duration::from_millis(50),
@@ -219,8 +222,10 @@ pub struct ControlAgent {
     config: ControlConfig,
     body: Box<dyn Body + Send>,
     basic: BasicControl,
-    /// The potential field, then the arc guard; tactical commands take only `shared.guard`.
-    shared: Guarded<PotentialField>,
+    /// The footprint sweep every command passes (the user's and the tactical layer's).
+    guard: ArcGuard,
+    /// The chair's measured motion, from the encoder ticks of each frame.
+    motion: WheelMotion,
     mode: Mode,
     /// The pose subscription to the perception agent.
     poses: Initiated<()>,
@@ -244,15 +249,14 @@ impl ControlAgent {
             });
         }
         ActionSequence::new(config.tactical, [])?;
-        let shared = Guarded {
-            inner: PotentialField::new(config.shared, config.sonar_mounts.clone())?,
-            guard: ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?,
-        };
+        let guard = ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?;
+        let motion = WheelMotion::new(config.wheels);
         let basic = BasicControl::new(config.drive, config.watchdog_ms.saturating_mul(1_000_000));
         Ok(ControlAgent {
             body,
             basic,
-            shared,
+            guard,
+            motion,
             mode: Mode::Idle,
             poses: Initiated::new(),
             t_map_base: None,
@@ -704,9 +708,11 @@ impl Agent for ControlAgent {
             tracing::info!("watchdog: manual commands stopped arriving; stopping");
             self.end_stream(ctx, None);
         }
-        // The user's commands go through the potential field (thesis 3.6); the tactical layer's
-        // own commands do not (its path is planned clear), only through the arc guard.
-        let (user, shared) = match &self.mode {
+        let motion = self
+            .motion
+            .update(frame.time_ns, frame.left_ticks, frame.right_ticks);
+        // The user's commands and the tactical layer's pass the same guard.
+        let (user, manual) = match &self.mode {
             Mode::Manual(stream) => (Some(stream.user), true),
             Mode::Task(_) => (self.run_task(ctx, &frame), false),
             Mode::Idle => (None, false),
@@ -715,22 +721,20 @@ impl Agent for ControlAgent {
             Some(user) => {
                 let input = SharedInput {
                     user,
-                    speed_mps: user.linear_mps.abs(),
+                    speed_mps: motion.map_or(0.0, |m| m.twist.linear_mps.abs()),
                     sonar_m: &frame.sonar_m,
                     points_chair: &[],
+                    motion,
                 };
-                let out = if shared {
-                    self.shared.step(&input)
-                } else {
-                    self.shared.guard.step(&input)
-                };
-                out.map_or(VelocityCommand::STOP, |out| out.command)
+                self.guard
+                    .step(&input)
+                    .map_or(VelocityCommand::STOP, |out| out.command)
             }
             None => VelocityCommand::STOP,
         };
         *self.status.lock().unwrap_or_else(PoisonError::into_inner) = DriveStatus {
-            user: user.filter(|_| shared),
-            applied: shared.then_some(command),
+            user: user.filter(|_| manual),
+            applied: manual.then_some(command),
         };
         if let Err(err) = self.basic.command(command, now_ns) {
             tracing::warn!(error = %err, "command refused; stopping");

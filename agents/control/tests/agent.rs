@@ -417,24 +417,35 @@ fn failed(rig: &Rig, id: &str) -> bool {
 }
 
 #[test]
-fn a_wall_on_the_right_steers_the_chair_left_not_into_it() {
+fn a_wall_on_the_right_stops_a_spin_into_it_and_leaves_driving_along_it_alone() {
     // Thesis figure 3.4, as the simulator lays the sonars out: S3-S6 (indices 2-5) look right
-    // from the right bar. A wall 25 cm to the right echoes on them while the user drives ahead.
+    // from the right bar. A wall 10 cm to the right echoes on them.
     let mut rig = rig();
     {
         let mut sonar = rig.body.sonar_m.lock().unwrap();
         for k in 2..=5 {
-            sonar[k] = Some(0.25);
+            sonar[k] = Some(0.1);
         }
     }
+    // Driving along it sweeps nothing: the user's command reaches the wheels.
     for _ in 0..10 {
         rig.send(drive(0.4, 0.0));
         rig.run(100);
     }
     let wheels = rig.last_wheels();
     assert!(
-        wheels.right_mps > wheels.left_mps + 0.01,
-        "the chair must turn away from the wall (left): {wheels:?}"
+        (wheels.left_mps - wheels.right_mps).abs() < 1e-9 && wheels.left_mps > 0.3,
+        "driving along the wall is left alone: {wheels:?}"
+    );
+    // Spinning right would swing the front right corner (0.75 m ahead) through it.
+    for _ in 0..10 {
+        rig.send(drive(0.0, -0.8));
+        rig.run(100);
+    }
+    let wheels = rig.last_wheels();
+    assert!(
+        wheels.left_mps - wheels.right_mps < 0.8 * 0.56 * 0.5,
+        "the spin into the wall must be held back: {wheels:?}"
     );
 }
 

@@ -60,6 +60,7 @@ fn bench(c: &mut Criterion) {
         speed_mps: 0.7,
         sonar_m: &sonar,
         points_chair: &laser,
+        motion: None,
     };
     let mut group = c.benchmark_group("shared_control_step");
     group

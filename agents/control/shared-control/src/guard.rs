@@ -1,46 +1,72 @@
-//! A footprint guard along the commanded arc: the chair's rectangle is swept along the arc the
-//! command would drive (turning in place included) for as long as the chair needs to stop, and
-//! the command is changed as little as possible so that no obstacle point enters it.
+//! A footprint guard along the commanded arc: the chair's rectangle is swept along the path the
+//! command would drive (turning in place included) until the chair has stopped, and the command is
+//! changed as little as possible so that no obstacle point enters it.
 //!
 //! The potential field of thesis 3.6 does nothing while the chair spins in place (`F_a = 0`) and
 //! looks only along sonar axes; a long-fronted chair turning beside a wall sweeps its front
 //! corners through the wall. The guard checks exactly that sweep.
+//!
+//! With the chair's measured [`Motion`] the sweep starts from the speed the chair has, ramping to
+//! the command at the braking limits (a chair still turning right keeps turning right for a
+//! moment after a left command), and the dense points of the last [`ArcGuardParams::memory_s`]
+//! are remembered in the odometry frame: a front laser cannot see a door jamb once it is beside
+//! the chair's side or rear, and the side sonars' cones leave gaps there (22 cm apart, 45 degree
+//! cones: they overlap only from 27 cm out).
+
+use std::collections::HashMap;
 
 use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 use crate::error::check_positive;
 use crate::{
-    ControlError, Intervention, SensorMount, SharedController, SharedInput, SharedOutput,
+    ControlError, Intervention, Motion, SensorMount, SharedController, SharedInput, SharedOutput,
     VelocityCommand,
 };
 
 /// Limits of the sweep; defaults suit the prototype.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct ArcGuardParams {
     /// Clearance kept around the footprint, m (0.05).
     pub margin_m: f64,
-    /// Linear braking the chair can count on, m/s^2 (1.0).
-    pub decel_mps2: f64,
-    /// Angular braking, rad/s^2 (3.0).
-    pub angular_decel_radps2: f64,
-    /// Reaction time added to the braking time, s (0.3).
+    /// Acceleration and braking of each drive wheel the guard counts on, m/s^2 (1.0; the basic
+    /// layer ramps each wheel on its own, so a chair changing speed and turn rate together
+    /// changes both more slowly than either alone).
+    pub wheel_decel_mps2: f64,
+    /// Distance between the drive wheels, m (the prototype's 0.56).
+    pub track_m: f64,
+    /// Time the measured speed persists before the wheels follow a new command (one control
+    /// period of actuation delay), s (0.05; only with [`Motion`]).
+    pub latency_s: f64,
+    /// Time the command is held before braking starts (the guard's own latency), s (0.3).
     pub reaction_s: f64,
-    /// Time between two checked poses on the arc, s (0.05).
+    /// Time between two checked poses on the path, s (0.05).
     pub sample_s: f64,
     /// Full sonar cone, deg (45, thesis 3.4).
     pub cone_deg: f64,
+    /// How far the chair may have moved (net, since it saw a dense point) before the point is
+    /// forgotten, m (3; only with [`Motion`]; a heading change counts as the footprint corner's
+    /// travel). Odometry's bias grows with net motion, not with time or with wiggling on the
+    /// spot, so this keeps a remembered point within a few centimetres of where it is.
+    pub memory_travel_m: f64,
+    /// How long a dense point out of the sensor's view stays remembered at most, s (60):
+    /// something that moved away while out of view is not a wall for ever.
+    pub memory_s: f64,
 }
 
 impl Default for ArcGuardParams {
     fn default() -> Self {
         Self {
             margin_m: 0.05,
-            decel_mps2: 1.0,
-            angular_decel_radps2: 3.0,
+            wheel_decel_mps2: 1.0,
+            track_m: iw_body::WheelGeometry::default().track_m,
+            latency_s: 0.05,
             reaction_s: 0.3,
             sample_s: 0.05,
             cone_deg: 45.0,
+            memory_travel_m: 3.0,
+            memory_s: 60.0,
         }
     }
 }
@@ -51,12 +77,26 @@ pub struct ArcGuard {
     params: ArcGuardParams,
     footprint: Footprint,
     mounts: Vec<SensorMount>,
+    memory: Memory,
+    view: Option<DenseView>,
+}
+
+/// Where the dense sensor looks from, and how wide: inside its view the current scan is the
+/// truth (a remembered point it no longer returns has gone); outside, the memory is.
+#[derive(Debug, Clone, Copy)]
+struct DenseView {
+    mount: SensorMount,
+    half_fov_rad: f64,
 }
 
 /// Scales of the user's command tried, largest first.
 const SCALES: [f64; 6] = [1.0, 0.8, 0.6, 0.4, 0.2, 0.0];
 /// Angular offsets tried when scaling alone does not clear the arc, rad/s.
 const STEER_RADPS: [f64; 7] = [0.0, 0.15, -0.15, 0.3, -0.3, 0.5, -0.5];
+/// Longest predicted path, s: bounds the work on absurd speeds.
+const MAX_HORIZON_S: f64 = 5.0;
+/// Finest sampling of the path, s: with [`MAX_HORIZON_S`] it bounds the poses per check.
+const MIN_SAMPLE_S: f64 = 0.005;
 
 impl ArcGuard {
     /// A guard for a chair of `footprint` with sonars at `mounts`.
@@ -65,67 +105,133 @@ impl ArcGuard {
         footprint: Footprint,
         mounts: Vec<SensorMount>,
     ) -> Result<Self, ControlError> {
-        check_positive("decel_mps2", params.decel_mps2)?;
-        check_positive("angular_decel_radps2", params.angular_decel_radps2)?;
+        check_positive("wheel_decel_mps2", params.wheel_decel_mps2)?;
+        check_positive("track_m", params.track_m)?;
         check_positive("sample_s", params.sample_s)?;
-        if params.margin_m.is_nan()
-            || params.margin_m < 0.0
-            || params.reaction_s.is_nan()
-            || params.reaction_s < 0.0
-        {
+        if params.sample_s < MIN_SAMPLE_S {
             return Err(ControlError::BadParameter {
-                name: "margin_m/reaction_s",
-                value: params.margin_m.min(params.reaction_s),
-                why: "must be >= 0",
+                name: "sample_s",
+                value: params.sample_s,
+                why: "must be at least 0.005 s (each sample is a footprint check of every point)",
             });
+        }
+        for (name, value) in [
+            ("margin_m", params.margin_m),
+            ("latency_s", params.latency_s),
+            ("reaction_s", params.reaction_s),
+            ("memory_travel_m", params.memory_travel_m),
+            ("memory_s", params.memory_s),
+        ] {
+            if value.is_nan() || value < 0.0 || value.is_infinite() {
+                return Err(ControlError::BadParameter {
+                    name,
+                    value,
+                    why: "must be finite and >= 0",
+                });
+            }
         }
         Ok(Self {
             params,
             footprint,
             mounts,
+            memory: Memory::default(),
+            view: None,
         })
     }
 
-    /// How long the chair needs to stop from `command`, s.
-    fn horizon_s(&self, command: VelocityCommand) -> f64 {
-        let p = &self.params;
-        p.reaction_s
-            + (command.linear_mps.abs() / p.decel_mps2)
-                .max(command.angular_radps.abs() / p.angular_decel_radps2)
+    /// The guard, told where the dense sensor (`points_chair`) sits and its full field of view
+    /// (rad): remembered points inside that view are dropped when the scan no longer returns
+    /// them. Without it, remembered points are dropped only by [`ArcGuardParams::memory_s`] and
+    /// [`ArcGuardParams::memory_travel_m`].
+    pub fn with_dense_view(mut self, mount: SensorMount, fov_rad: f64) -> Self {
+        self.view = Some(DenseView {
+            mount,
+            half_fov_rad: fov_rad.abs().min(std::f64::consts::TAU) / 2.0,
+        });
+        self
     }
 
-    /// Whether driving `command` until stopped keeps every point in `points` out of the footprint
-    /// (inflated by the margin; points already inside the margin only count if they would enter
-    /// the bare footprint).
+    /// The chair frame's poses (inverted) every `sample_s` while the chair keeps `start` for
+    /// `latency_s`, ramps each wheel to `command`, holds it until `reaction_s`, then brakes to a
+    /// stop; the path's length is the second value.
+    fn path(&self, start: VelocityCommand, command: VelocityCommand) -> (Vec<Isometry2<f64>>, f64) {
+        let p = &self.params;
+        let dt = p.sample_s;
+        let half = p.track_m / 2.0;
+        let wheels = |c: VelocityCommand| {
+            (
+                c.linear_mps - c.angular_radps * half,
+                c.linear_mps + c.angular_radps * half,
+            )
+        };
+        let (mut left, mut right) = wheels(start);
+        let goal = wheels(command);
+        let mut pose = Isometry2::identity();
+        let mut poses = Vec::new();
+        let mut length = 0.0;
+        let mut t = 0.0;
+        while t < MAX_HORIZON_S {
+            let (to_left, to_right) = if start != command && t < p.latency_s {
+                (left, right)
+            } else if t < p.reaction_s {
+                goal
+            } else {
+                (0.0, 0.0)
+            };
+            let (l0, r0) = (left, right);
+            left = approach(left, to_left, p.wheel_decel_mps2 * dt);
+            right = approach(right, to_right, p.wheel_decel_mps2 * dt);
+            t += dt;
+            if [l0, r0, left, right] == [0.0; 4] {
+                if t >= p.reaction_s {
+                    break;
+                }
+                continue;
+            }
+            // the mean wheel speeds over the sample: exact for a linear ramp's distance
+            let (l, r) = ((l0 + left) / 2.0, (r0 + right) / 2.0);
+            let (v, w) = ((l + r) / 2.0, (r - l) / p.track_m);
+            pose *= arc_pose(v, w, dt);
+            length += v.abs() * dt;
+            poses.push(pose.inverse());
+        }
+        (poses, length)
+    }
+
+    /// Whether driving `command` until stopped, from a chair already at that speed, keeps every
+    /// point in `points` out of the footprint (inflated by the margin; points already inside the
+    /// margin only count if they would enter the bare footprint).
     pub fn is_clear(&self, command: VelocityCommand, points: &[Point2<f64>]) -> bool {
-        let (v, w) = (command.linear_mps, command.angular_radps);
-        if v == 0.0 && w == 0.0 {
+        self.is_clear_from(command, command, points)
+    }
+
+    /// [`Self::is_clear`] for a chair moving at `start` when `command` is given.
+    pub fn is_clear_from(
+        &self,
+        start: VelocityCommand,
+        command: VelocityCommand,
+        points: &[Point2<f64>],
+    ) -> bool {
+        let (poses, length) = self.path(start, command);
+        if poses.is_empty() {
             return true;
         }
-        let horizon = self.horizon_s(command);
         let fp = &self.footprint;
+        let margin = self.params.margin_m;
         let inside = |p: &Point2<f64>, m: f64| {
             p.x >= -fp.rear_m - m && p.x <= fp.front_m + m && p.y.abs() <= fp.half_width_m + m
         };
-        let reach = fp.turning_radius_m() + self.params.margin_m + v.abs() * horizon;
-        let steps = (horizon / self.params.sample_s).ceil().max(1.0) as usize;
+        let reach = fp.turning_radius_m() + margin + length;
         points.iter().filter(|p| p.coords.norm() <= reach).all(|p| {
-            let m = if inside(p, self.params.margin_m) {
-                0.0
-            } else {
-                self.params.margin_m
-            };
-            (1..=steps).all(|k| {
-                let t = horizon * k as f64 / steps as f64;
-                !inside(&(arc_pose(v, w, t).inverse() * p), m)
-            })
+            let m = if inside(p, margin) { 0.0 } else { margin };
+            poses.iter().all(|inv| !inside(&(inv * p), m))
         })
     }
 
     /// The obstacle points of one period in the chair frame: each sonar echo spread across the
     /// cone at its range (a sonar reports the nearest echo anywhere in its cone), and the dense
-    /// points.
-    fn points(&self, input: &SharedInput<'_>) -> Result<Vec<Point2<f64>>, ControlError> {
+    /// points (with [`Motion`]: those remembered, which include this period's).
+    fn points(&mut self, input: &SharedInput<'_>) -> Result<Vec<Point2<f64>>, ControlError> {
         if input.sonar_m.len() != self.mounts.len() {
             return Err(ControlError::SonarCount {
                 expected: self.mounts.len(),
@@ -133,7 +239,7 @@ impl ArcGuard {
             });
         }
         let mut points: Vec<Point2<f64>> =
-            Vec::with_capacity(input.sonar_m.len() + input.points_chair.len());
+            Vec::with_capacity(input.sonar_m.len() * 5 + input.points_chair.len());
         for (index, (mount, reading)) in self.mounts.iter().zip(input.sonar_m).enumerate() {
             let Some(d) = *reading else { continue };
             let d = crate::error::check_range("sonar", index, d)?;
@@ -146,12 +252,25 @@ impl ArcGuard {
                     )
             }));
         }
-        points.extend(
-            input
-                .points_chair
-                .iter()
-                .filter(|p| p.x.is_finite() && p.y.is_finite()),
-        );
+        let dense = input
+            .points_chair
+            .iter()
+            .filter(|p| p.x.is_finite() && p.y.is_finite());
+        match input.motion {
+            Some(motion) => {
+                let radius = self.footprint.turning_radius_m() + MEMORY_BEYOND_REACH_M;
+                let keep = Keep {
+                    radius_m: radius,
+                    travel_m: self.params.memory_travel_m,
+                    time_ns: (self.params.memory_s * 1e9) as u64,
+                    corner_m: self.footprint.turning_radius_m(),
+                    view: self.view,
+                };
+                self.memory.update(&motion, dense, &keep);
+                points.extend(self.memory.recall(&motion.t_odom_chair));
+            }
+            None => points.extend(dense),
+        }
         Ok(points)
     }
 
@@ -163,7 +282,18 @@ impl ArcGuard {
         command: VelocityCommand,
         points: &[Point2<f64>],
     ) -> (VelocityCommand, bool) {
-        if self.is_clear(command, points) {
+        self.limit_from(None, command, points)
+    }
+
+    /// [`Self::limit`] for a chair moving at `start` (`None`: at each candidate's own speed).
+    pub fn limit_from(
+        &self,
+        start: Option<VelocityCommand>,
+        command: VelocityCommand,
+        points: &[Point2<f64>],
+    ) -> (VelocityCommand, bool) {
+        let clear = |c: VelocityCommand| self.is_clear_from(start.unwrap_or(c), c, points);
+        if clear(command) {
             return (command, false);
         }
         let mut best: Option<(f64, VelocityCommand)> = None;
@@ -177,13 +307,108 @@ impl ArcGuard {
                 if best.is_some_and(|(c, _)| c <= cost) {
                     continue;
                 }
-                if self.is_clear(candidate, points) {
+                if clear(candidate) {
                     best = Some((cost, candidate));
                 }
             }
         }
         (best.map_or(VelocityCommand::STOP, |(_, c)| c), true)
     }
+}
+
+/// How far beyond the turning radius dense points are remembered, m: more than the longest path
+/// checked at walking speed.
+const MEMORY_BEYOND_REACH_M: f64 = 1.5;
+/// Cell of the remembered-points grid, m: one point per cell (the newest) keeps the memory's
+/// size bounded by the area around the chair, whatever the scan rate.
+const MEMORY_CELL_M: f64 = 0.02;
+
+/// What the memory keeps.
+struct Keep {
+    /// Farthest point from the chair, m.
+    radius_m: f64,
+    /// Largest net motion since a point was seen, m.
+    travel_m: f64,
+    /// Longest time since a point was seen, ns.
+    time_ns: u64,
+    /// Lever arm that turns a heading change into travel, m.
+    corner_m: f64,
+    /// The dense sensor's view, if known.
+    view: Option<DenseView>,
+}
+
+/// One remembered point: where it is (odometry frame), and the chair's pose and the time when it
+/// was last seen.
+#[derive(Debug, Clone, Copy)]
+struct Remembered {
+    at: Point2<f64>,
+    seen_from: Isometry2<f64>,
+    seen_ns: u64,
+}
+
+/// Dense points remembered in the odometry frame, one per grid cell (the newest).
+#[derive(Debug, Clone, Default)]
+struct Memory {
+    cells: HashMap<(i64, i64), Remembered>,
+}
+
+impl Memory {
+    /// Adds this period's points (chair frame) and forgets what `keep` no longer covers.
+    fn update<'a>(
+        &mut self,
+        motion: &Motion,
+        points_chair: impl Iterator<Item = &'a Point2<f64>>,
+        keep: &Keep,
+    ) {
+        let now = motion.t_odom_chair;
+        for p in points_chair.filter(|p| p.coords.norm() <= keep.radius_m) {
+            let at = now * p;
+            let key = (
+                (at.x / MEMORY_CELL_M).floor() as i64,
+                (at.y / MEMORY_CELL_M).floor() as i64,
+            );
+            self.cells.insert(
+                key,
+                Remembered {
+                    at,
+                    seen_from: now,
+                    seen_ns: motion.time_ns,
+                },
+            );
+        }
+        let inv = now.inverse();
+        self.cells.retain(|_, r| {
+            if r.seen_ns == motion.time_ns {
+                return true;
+            }
+            let p = inv * r.at;
+            let moved = r.seen_from.inverse() * now;
+            let net =
+                moved.translation.vector.norm() + moved.rotation.angle().abs() * keep.corner_m;
+            let in_view = keep.view.is_some_and(|v| {
+                let q = v.mount.inverse() * p;
+                q.y.atan2(q.x).abs() <= v.half_fov_rad
+            });
+            !in_view
+                && net <= keep.travel_m
+                && motion.time_ns.saturating_sub(r.seen_ns) <= keep.time_ns
+                && p.coords.norm() <= keep.radius_m
+        });
+    }
+
+    /// The remembered points in the chair frame.
+    fn recall<'a>(
+        &'a self,
+        t_odom_chair: &Isometry2<f64>,
+    ) -> impl Iterator<Item = Point2<f64>> + 'a {
+        let inv = t_odom_chair.inverse();
+        self.cells.values().map(move |r| inv * r.at)
+    }
+}
+
+/// `value` moved towards `target` by at most `step`.
+fn approach(value: f64, target: f64, step: f64) -> f64 {
+    value + (target - value).clamp(-step, step)
 }
 
 /// The chair's pose after driving `v`, `w` for `t` from the origin (exact unicycle arc).
@@ -200,8 +425,9 @@ fn arc_pose(v: f64, w: f64, t: f64) -> Isometry2<f64> {
 impl SharedController for ArcGuard {
     fn step(&mut self, input: &SharedInput<'_>) -> Result<SharedOutput, ControlError> {
         let user = input.user.validate()?;
+        let start = input.motion.map(|m| m.twist.validate()).transpose()?;
         let points = self.points(input)?;
-        let (command, changed) = self.limit(user, &points);
+        let (command, changed) = self.limit_from(start, user, &points);
         let active = if changed { points.len() } else { 0 };
         Ok(SharedOutput {
             command,
@@ -210,31 +436,6 @@ impl SharedController for ArcGuard {
             } else {
                 Intervention::default()
             },
-        })
-    }
-}
-
-/// A shared controller whose command then passes the [`ArcGuard`]: the control agent's policy for
-/// the user's commands (the thesis's potential field, then the footprint sweep it lacks).
-#[derive(Debug, Clone)]
-pub struct Guarded<C> {
-    /// The controller that corrects the user's command first.
-    pub inner: C,
-    /// The sweep applied to whatever `inner` produced.
-    pub guard: ArcGuard,
-}
-
-impl<C: SharedController> SharedController for Guarded<C> {
-    fn step(&mut self, input: &SharedInput<'_>) -> Result<SharedOutput, ControlError> {
-        let first = self.inner.step(input)?;
-        let second = self.guard.step(&SharedInput {
-            user: first.command,
-            ..*input
-        })?;
-        let active = first.intervention.active_readings + second.intervention.active_readings;
-        Ok(SharedOutput {
-            command: second.command,
-            intervention: Intervention::between(input.user, second.command, active),
         })
     }
 }
@@ -266,12 +467,9 @@ mod tests {
     }
 
     #[test]
-    fn guarded_reports_the_change_against_the_users_command() {
+    fn the_change_is_reported_against_the_users_command() {
         // Sonars S1.. all echo at 0.2 m: spinning in place would sweep the corners through them.
-        let mut g = Guarded {
-            inner: crate::Manual,
-            guard: guard(),
-        };
+        let mut g = guard();
         let sonar = [Some(0.2); iw_body::SONAR_COUNT];
         let user = VelocityCommand::new(0.0, -0.8);
         let out = g
@@ -280,6 +478,7 @@ mod tests {
                 speed_mps: 0.0,
                 sonar_m: &sonar,
                 points_chair: &[],
+                motion: None,
             })
             .unwrap();
         assert_ne!(out.command, user);
@@ -288,6 +487,134 @@ mod tests {
             Intervention::between(user, out.command, out.intervention.active_readings)
         );
         assert!(out.intervention.changed() && out.intervention.active_readings > 0);
+    }
+
+    /// The guard, fed `points` (chair frame) with the chair moving at `twist` and at `pose` in
+    /// the odometry frame, at `time_ns`; returns what it sent.
+    fn drive(
+        g: &mut ArcGuard,
+        user: VelocityCommand,
+        twist: VelocityCommand,
+        pose: Isometry2<f64>,
+        time_ns: u64,
+        points: &[Point2<f64>],
+    ) -> VelocityCommand {
+        let sonar = [None; iw_body::SONAR_COUNT];
+        g.step(&SharedInput {
+            user,
+            speed_mps: twist.linear_mps.abs(),
+            sonar_m: &sonar,
+            points_chair: points,
+            motion: Some(Motion {
+                time_ns,
+                t_odom_chair: pose,
+                twist,
+            }),
+        })
+        .unwrap()
+        .command
+    }
+
+    #[test]
+    fn a_door_jamb_seen_ahead_is_remembered_once_beside_the_chair() {
+        // A front laser (at the front left corner, 270 degrees) sees a jamb 0.08 m left of the
+        // chair's side while it is 1 m ahead; once the chair has driven 1.2 m the jamb is beside
+        // the left side, behind the laser, and no sensor returns it. Spinning left would swing
+        // the side into it.
+        let fp = Footprint::PROTOTYPE;
+        let laser = Isometry2::new(Vector2::new(fp.front_m - 0.05, fp.half_width_m), 0.0);
+        let mut g = guard().with_dense_view(laser, 270f64.to_radians());
+        let jamb = Point2::new(1.0 + fp.front_m, fp.half_width_m + 0.08);
+        let seen = drive(
+            &mut g,
+            VelocityCommand::new(0.3, 0.0),
+            VelocityCommand::new(0.3, 0.0),
+            Isometry2::identity(),
+            0,
+            &[jamb],
+        );
+        assert_eq!(seen, VelocityCommand::new(0.3, 0.0));
+        let beside = Isometry2::new(Vector2::new(1.2, 0.0), 0.0);
+        let spin = VelocityCommand::new(0.0, 0.8);
+        let out = drive(
+            &mut g,
+            spin,
+            VelocityCommand::STOP,
+            beside,
+            4_000_000_000,
+            &[],
+        );
+        assert_ne!(out, spin, "the remembered jamb must stop the spin");
+        // a guard without the memory (no motion) lets the same spin through: nothing is seen
+        let (out, changed) = guard().limit(spin, &[]);
+        assert!(!changed && out == spin);
+        // far from where it was seen, the point is forgotten (odometry drift)
+        let far = Isometry2::new(Vector2::new(1.2 + 3.5, 0.0), 0.0);
+        let out = drive(
+            &mut g,
+            spin,
+            VelocityCommand::STOP,
+            far,
+            20_000_000_000,
+            &[],
+        );
+        assert_eq!(out, spin);
+    }
+
+    #[test]
+    fn a_remembered_point_the_scan_no_longer_returns_in_view_is_dropped() {
+        // Something 0.25 m ahead of the front of a chair at 0.5 m/s, then gone from the laser's
+        // view: driving on is allowed again at once (a person who stepped away is not a wall).
+        let fp = Footprint::PROTOTYPE;
+        let laser = Isometry2::new(Vector2::new(fp.front_m - 0.05, fp.half_width_m), 0.0);
+        let mut g = guard().with_dense_view(laser, 270f64.to_radians());
+        let ahead: Vec<Point2<f64>> = (-3..=3)
+            .map(|k| Point2::new(fp.front_m + 0.25, k as f64 * 0.1))
+            .collect();
+        let go = VelocityCommand::new(0.5, 0.0);
+        let here = Isometry2::identity();
+        assert_ne!(drive(&mut g, go, go, here, 0, &ahead), go);
+        assert_eq!(drive(&mut g, go, go, here, 50_000_000, &[]), go);
+    }
+
+    #[test]
+    fn a_chair_still_turning_towards_an_obstacle_is_held_even_if_the_new_command_is_clear() {
+        // A post just right of the front right corner. Going straight ahead from rest is clear,
+        // but a chair already spinning right at 1 rad/s keeps swinging that corner into the post
+        // while its wheels reverse: the guard predicts from the measured speed.
+        let fp = Footprint::PROTOTYPE;
+        let post = [Point2::new(fp.front_m - 0.05, -fp.half_width_m - 0.08)];
+        let g = guard();
+        let ahead = VelocityCommand::new(0.3, 0.0);
+        assert!(g.is_clear(ahead, &post));
+        assert!(!g.is_clear_from(VelocityCommand::new(0.0, -1.0), ahead, &post));
+        let (out, changed) = g.limit_from(Some(VelocityCommand::new(0.0, -1.0)), ahead, &post);
+        assert!(changed && out != ahead, "{out:?}");
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_not_run() {
+        let fp = Footprint::PROTOTYPE;
+        let mounts = fp.sonar_mounts().to_vec();
+        for params in [
+            ArcGuardParams {
+                sample_s: 1e-9,
+                ..ArcGuardParams::default()
+            },
+            ArcGuardParams {
+                memory_s: f64::NAN,
+                ..ArcGuardParams::default()
+            },
+            ArcGuardParams {
+                track_m: 0.0,
+                ..ArcGuardParams::default()
+            },
+        ] {
+            assert!(
+                ArcGuard::new(params, fp, mounts.clone()).is_err(),
+                "{params:?}"
+            );
+        }
     }
 
     #[test]
@@ -301,6 +628,7 @@ mod tests {
                 speed_mps: 0.7,
                 sonar_m: &sonar,
                 points_chair: &[],
+                motion: None,
             })
             .unwrap();
         assert_eq!(out.command, user);

@@ -261,6 +261,7 @@ mod tests {
             speed_mps: user.linear_mps.abs(),
             sonar_m: sonar,
             points_chair: &[],
+            motion: None,
         })
         .unwrap()
     }

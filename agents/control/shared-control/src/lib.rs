@@ -12,8 +12,9 @@
 //! - [`SharedController`]: one trait, `step(&SharedInput) -> SharedOutput`, with
 //!   [`ThesisField`] (thesis equations 3.1-3.4 as a filter on the joystick's input vector, through
 //!   [`JoystickMapping`]), [`PotentialField`] (the same equations with an arc-chord mapping of
-//!   our own), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint
-//!   swept along the commanded arc, turning in place included), [`Guarded`] (a controller, then the guard) and [`Manual`] (pass-through).
+//!   our own), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint swept along the commanded path,
+//!   turning in place included, from the chair's measured [`Motion`] and with the dense points it
+//!   no longer sees remembered: the control agent's policy) and [`Manual`] (pass-through).
 //! - [`tactical`]: basic actions (follow line, spin, turn to angle, go to XY, follow left/right wall,
 //!   wait, stop) and [`tactical::ActionSequence`], each next action starting when the current is done.
 //! - [`basic`]: differential-drive kinematics with limits and a [`basic::Watchdog`] that stops the
@@ -39,15 +40,17 @@ mod error;
 mod guard;
 mod joystick;
 mod manual;
+mod motion;
 mod potential;
 pub mod tactical;
 mod vfh;
 
 pub use command::{MotionIntent, VelocityCommand};
 pub use error::ControlError;
-pub use guard::{ArcGuard, ArcGuardParams, Guarded};
+pub use guard::{ArcGuard, ArcGuardParams};
 pub use joystick::{FieldCentre, JoystickMapping, ThesisField, ThesisFieldParams};
 pub use manual::Manual;
+pub use motion::{Motion, WheelMotion};
 pub use potential::{PotentialField, PotentialFieldParams, Repulsion};
 pub use vfh::{Vfh, VfhParams};
 
@@ -69,6 +72,10 @@ pub struct SharedInput<'a> {
     pub sonar_m: &'a [Option<f64>],
     /// Obstacle points from any dense sensor (laser scanner), in the chair frame, m.
     pub points_chair: &'a [Point2<f64>],
+    /// The chair's measured motion, when its encoders are read ([`WheelMotion`]); the arc guard
+    /// then predicts from the speed the chair has and remembers dense points it no longer sees.
+    /// The thesis's field and VFH+ ignore it.
+    pub motion: Option<Motion>,
 }
 
 /// How much a shared controller changed the user's command in one period.

@@ -310,6 +310,7 @@ mod tests {
                 speed_mps: 0.9,
                 sonar_m: &[Some(1.5), None, Some(0.9), Some(3.0)],
                 points_chair: &[],
+                motion: None,
             })
             .unwrap();
         assert_eq!(out.command, user);
@@ -326,6 +327,7 @@ mod tests {
                 speed_mps: 0.6,
                 sonar_m: &[Some(0.2), None, None, None],
                 points_chair: &[],
+                motion: None,
             })
             .unwrap();
         assert!(ahead.command.linear_mps < 0.6 && ahead.command.linear_mps >= 0.0);
@@ -336,6 +338,7 @@ mod tests {
                 speed_mps: 0.6,
                 sonar_m: &[None, Some(0.2), None, None],
                 points_chair: &[],
+                motion: None,
             })
             .unwrap();
         assert!(left.command.angular_radps < 0.0, "{left:?}");
@@ -351,6 +354,7 @@ mod tests {
             speed_mps: 0.5,
             sonar_m: &[Some(f64::NAN), None, None, None],
             points_chair: &[],
+            motion: None,
         });
         assert!(matches!(
             bad,
@@ -361,6 +365,7 @@ mod tests {
             speed_mps: 0.5,
             sonar_m: &[None],
             points_chair: &[],
+            motion: None,
         });
         assert!(matches!(
             short,

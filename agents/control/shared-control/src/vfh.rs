@@ -357,6 +357,7 @@ mod tests {
             speed_mps: user.linear_mps.abs(),
             sonar_m: &[],
             points_chair: points,
+            motion: None,
         })
         .unwrap()
     }

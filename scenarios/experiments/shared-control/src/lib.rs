@@ -3,7 +3,8 @@
 //! world once per paradigm, in the thesis's order (manual first): manually, with the thesis's
 //! potential field as a joystick filter ([`Mode::Shared`]), with the same equations through our
 //! older arc-chord mapping ([`Mode::SharedChord`]), with VFH+, and with the control agent's
-//! policy (the arc-chord field, then the arc guard's footprint sweep). Collisions come from the
+//! policy (the arc guard's footprint sweep from the encoder-measured motion, with the laser points
+//! it no longer sees remembered). Collisions come from the
 //! simulator's contact counter (one per new contact); interventions from comparing the user's
 //! command with the one sent to the wheels; "near obstacles" from the true clearance between the
 //! chair's footprint and the map.
@@ -34,9 +35,9 @@ pub use sweep::{SweepRow, Variant, sweep, sweep_trials, variants, write_sweep};
 use iw_shared_control::basic::{BasicControl, DiffDrive};
 use iw_shared_control::driver::{Circuit, DriverProfile, Perception, SeeingDriver};
 use iw_shared_control::{
-    ArcGuard, ArcGuardParams, ControlError, Guarded, Intervention, Manual, PotentialField,
+    ArcGuard, ArcGuardParams, ControlError, Intervention, Manual, PotentialField,
     PotentialFieldParams, SharedController, SharedInput, ThesisField, ThesisFieldParams, Vfh,
-    VfhParams,
+    VfhParams, WheelMotion,
 };
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SimError, World};
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -110,7 +111,7 @@ pub enum Mode {
     SharedChord,
     /// VFH+ on the configured [`Sensors`].
     Vfh,
-    /// The control agent's policy: the arc-chord field, then the arc guard's footprint sweep, on
+    /// The control agent's policy: the arc guard's footprint sweep from the measured motion, on
     /// the configured [`Sensors`].
     Guarded,
 }
@@ -350,10 +351,15 @@ fn controller(
             PotentialFieldParams::default(),
             mounts,
         )?),
-        Mode::Guarded => Box::new(Guarded {
-            inner: PotentialField::new(PotentialFieldParams::default(), mounts.clone())?,
-            guard: ArcGuard::new(ArcGuardParams::default(), spec.body_footprint(), mounts)?,
-        }),
+        Mode::Guarded => {
+            let guard = ArcGuard::new(ArcGuardParams::default(), spec.body_footprint(), mounts)?;
+            Box::new(match (&spec.laser, config.sensors) {
+                (Some(laser), Sensors::SonarsLaser) => {
+                    guard.with_dense_view(laser.t_body_laser, laser.fov_deg.to_radians())
+                }
+                _ => guard,
+            })
+        }
         Mode::Vfh => Box::new(Vfh::new(
             VfhParams {
                 robot_radius_m: spec.half_width_m,
@@ -383,6 +389,9 @@ pub fn run_trial(
         spec.max_wheel_accel_mps2,
     )?;
     let mut basic = BasicControl::new(drive, config.watchdog_ns);
+    // The guarded policy reads the encoders as the control agent does; the thesis's field and
+    // VFH+ take no motion input.
+    let mut wheels = (mode == Mode::Guarded).then(|| WheelMotion::new(spec.geometry));
     let mapping = config.field.mapping;
     let mut person =
         SeeingDriver::new(DriverProfile::from_seed(seed), config.device, circuit, seed);
@@ -445,11 +454,15 @@ pub fn run_trial(
             }
             _ => points.clear(),
         }
+        let motion = wheels
+            .as_mut()
+            .and_then(|w| w.update(frame.time_ns, frame.left_ticks, frame.right_ticks));
         let shared = controller.step(&SharedInput {
             user: mapping.to_command(out.input),
             speed_mps,
             sonar_m: &frame.sonar_m,
             points_chair: &points,
+            motion,
         })?;
         basic.command(shared.command, now_ns)?;
         world.command(id, basic.output(now_ns))?;

@@ -90,7 +90,7 @@ pub struct Summary {
     pub shared_chord: ModeSummary,
     /// VFH+ shared control.
     pub vfh: ModeSummary,
-    /// The control agent's policy: arc-chord field, then the arc guard.
+    /// The control agent's policy: the arc guard.
     pub guarded: ModeSummary,
     /// One-tailed Wilcoxon signed-rank p, manual > shared collisions per lap, paired per driver
     /// (exact when computable, as [`Wilcoxon::p`]).
