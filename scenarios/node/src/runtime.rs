@@ -630,8 +630,14 @@ impl Runtime {
             Some(guard) => guard.clone(),
             None => control_transport,
         };
-        let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK)
-            .map_err(|e| setup(e.to_string()))?;
+        let container = ContainerNode::start(
+            container,
+            identity.clone(),
+            control_transport,
+            clock,
+            CONTROL_TICK,
+        )
+        .map_err(|e| setup(e.to_string()))?;
         // a closed receiver only means nobody is listening to reports
         let _ = events.send(Event::Ready {
             container: name.clone(),
