@@ -5,6 +5,8 @@
 //!   nothing: lists are taken only from the elected leader's address, and no generation, even
 //!   `u64::MAX`, pins a route;
 //! - a second services container with the id of a live one is refused, the first undisturbed;
+//! - a holder of the group key, speaking over TCP from the services' own address, cannot speak
+//!   for the services: control frames are signed by each container's identity;
 //! - a receiver restarted with its sessions lost gets the message sealed under the old session.
 
 use std::net::UdpSocket;
