@@ -54,6 +54,10 @@ fn run_to_exit(args: &[&str]) -> (bool, String) {
 fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs_on() {
     let dir = tempfile::tempdir().unwrap();
     let control = keygen_control(dir.path());
+    // A lease no scheduling stall on a loaded machine outlasts: a `left` here is the duplicate's.
+    let config = dir.path().join("lease.toml");
+    std::fs::write(&config, "[container]\nlease_ms = 3000\n").unwrap();
+    let config = config.to_str().unwrap();
     let services_addr = addr();
     let mut services = Proc::spawn(&[
         "--services",
@@ -61,6 +65,8 @@ fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs
         &services_addr,
         "--control-key",
         &control,
+        "--config",
+        config,
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
     let mut world = Proc::spawn(&[
@@ -71,6 +77,8 @@ fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs
         &services_addr,
         "--control-key",
         &control,
+        "--config",
+        config,
     ]);
     world.wait_for("world ready", |e| e["event"] == "ready");
     services.wait_for("the world joined", |e| {
@@ -87,6 +95,8 @@ fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs
             &services_addr,
             "--control-key",
             &control,
+            "--config",
+            config,
         ]);
         assert!(!ok, "a second {role} container ran");
         assert!(
@@ -105,6 +115,8 @@ fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs
         &services_addr,
         "--control-key",
         &control,
+        "--config",
+        config,
     ]);
     services.wait_new("chair-f joined the first services", |e| {
         is(e, "joined", "agent", "cognitive@chair-f")
