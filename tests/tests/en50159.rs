@@ -444,6 +444,7 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
             container.register(agent);
             ContainerNode::start(
                 container,
+                Arc::new(iw_stack::Identity::generate().expect("identity")),
                 transport,
                 clock.clone(),
                 Duration::from_millis(5),

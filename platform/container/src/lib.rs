@@ -8,6 +8,8 @@
 //! - [`Container`]: the pure state machine (heartbeats, leases, lowest-id election, list sync),
 //!   driven with explicit [`iw_bus::Time`]; [`ContainerMsg`] is what containers say.
 //! - [`ContainerNode`]: a container run over a real [`iw_bus::transport::FrameTransport`].
+//! - [`Signed`]: a control frame as it travels, signed by its sender container's Ed25519
+//!   identity.
 //! - [`ContainerError`]: this crate's errors.
 //!
 //! Guarantees:
@@ -17,24 +19,34 @@
 //!   lowest id within one lease plus one heartbeat, and their GALs become equal within a few
 //!   heartbeats after the last change; after a partition heals they converge the same way.
 //! - A malformed control frame is refused with its length and reason, never a panic.
-//! - A live container is bound to the address its heartbeats come from: agent lists are taken
-//!   only from the elected leader's address, a container's part only from that container, and
-//!   a follower mirrors its leader, so no generation (even `u64::MAX`) pins a route. A second
-//!   container claiming a live id is told so ([`ContainerMsg::Duplicate`]) and refuses to run
-//!   ([`Container::refusal`]); the running one is not disturbed. These rules hold beneath the
-//!   control channel's group key, which keeps out whoever lacks it.
+//! - Every control frame is signed by the sender container's Ed25519 identity ([`Signed`]); an
+//!   unsigned or altered one is refused. A live container is bound to the key that signs its
+//!   heartbeats and the address they come from: agent lists are taken only under the elected
+//!   leader's key and address, a container's part only under that container's, each with a
+//!   sequence number above the last (no replay), and a follower mirrors its leader, so no
+//!   generation (even `u64::MAX`) pins a route. A holder of the group key therefore cannot speak
+//!   for another live container, even from its address. A second container claiming a live id
+//!   is told so ([`ContainerMsg::Duplicate`]) and refuses to run ([`Container::refusal`]); the
+//!   running one (the one that has run longer) is not disturbed. These rules hold beneath the
+//!   control channel's group key, which decides who may join at all.
 //!
-//! Known limits: a dead container's agents stay in the GAL (marked by their container id; check
+//! Known limits: an id is bound to a key first come, first served while its lease holds (no
+//! key is pinned in advance), so a group-key holder can claim an id nobody holds, including a
+//! low one that leads, and list agent names of her choosing; and a forged
+//! [`ContainerMsg::Duplicate`] from a group-key holder makes a container refuse to run. A dead
+//! container's agents stay in the GAL (marked by their container id; check
 //! [`Container::live_peers`]) until that container comes back with a higher incarnation.
 #![warn(missing_docs)]
 
 mod lists;
 mod machine;
 mod node;
+mod wire;
 
 pub use lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
 pub use machine::{Container, ContainerConfig, ContainerMsg, Outgoing};
 pub use node::ContainerNode;
+pub use wire::Signed;
 
 /// A container's identity; lower ids win elections.
 #[derive(

@@ -7,9 +7,10 @@ use std::time::Duration;
 
 use iw_bus::Time;
 use iw_bus::transport::PeerAddr;
+use iw_layer_security::PublicKey;
 
 use crate::lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
-use crate::{ContainerError, ContainerId};
+use crate::{ContainerError, ContainerId, Signed};
 
 /// What containers say to each other.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -42,8 +43,8 @@ pub enum ContainerMsg {
         gal: GlobalAgentList,
     },
     /// "Container `id` is already live at `holder`": sent to a container whose heartbeat claims
-    /// an id another live container holds. The newcomer refuses to run (see
-    /// [`Container::refusal`]); the holder is not disturbed.
+    /// an id another live container holds (from another address or under another key). The
+    /// newcomer refuses to run (see [`Container::refusal`]); the holder is not disturbed.
     Duplicate {
         /// The contested id.
         id: ContainerId,
@@ -51,6 +52,9 @@ pub enum ContainerMsg {
         holder: PeerAddr,
         /// The holder's incarnation.
         holder_incarnation: u32,
+        /// How long the holder has run (told by the holder itself) or been heard (told by a
+        /// third party), ms: when two containers claim one id, the one running longer keeps it.
+        holder_uptime_ms: u64,
     },
 }
 
@@ -87,6 +91,9 @@ pub struct ContainerConfig {
     pub id: ContainerId,
     /// Its incarnation (e.g. boot time, s): must grow across restarts so its LAL supersedes.
     pub incarnation: u32,
+    /// The Ed25519 public key its control frames are signed with ([`crate::ContainerNode::start`]
+    /// sets it from the identity it signs with).
+    pub key: PublicKey,
     /// Where it listens for container traffic.
     pub addr: PeerAddr,
     /// Other containers' addresses to greet (the ids are learnt from their heartbeats).
@@ -103,6 +110,7 @@ impl ContainerConfig {
         Self {
             id,
             incarnation: 0,
+            key: [0; 32],
             addr,
             seeds,
             heartbeat_ms: 50,
@@ -115,7 +123,13 @@ impl ContainerConfig {
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Peer {
     addr: PeerAddr,
+    /// The key its frames are signed with: a live id is bound to it.
+    key: PublicKey,
     incarnation: u32,
+    /// The highest sequence number taken from it in this incarnation (replays are refused).
+    seq: u64,
+    /// When this incarnation was first heard.
+    since: Time,
     last_heard: Time,
     leader: ContainerId,
     gal_versions: VersionVector,
@@ -130,14 +144,21 @@ struct Peer {
 /// the network never touches the LAL: local agents keep resolving; a partition elects its own
 /// leader and the lists converge again when it heals.
 ///
-/// Who may say what (the control channel's own rules, beneath its group key):
-/// - a live peer is bound to the address its heartbeats come from: a heartbeat claiming a live
-///   id from another address is answered with [`ContainerMsg::Duplicate`] and otherwise ignored;
-///   one claiming our own id likewise. A higher incarnation from the same address is a restart;
-/// - a LAL is taken only by the leader, only from its container's bound address and current
-///   incarnation, and replaces that container's part (the container is the authority on it);
-/// - a GAL is taken only from the bound address of the container we elected, and a follower
-///   mirrors it (keeping its own part), so no generation, however high, pins a route.
+/// Who may say what (the control channel's own rules, beneath its group key). Every message
+/// comes [`Signed`] by its sender's Ed25519 identity, and:
+/// - a live peer is bound to the key that signs its heartbeats and the address they come from:
+///   a heartbeat claiming a live id under another key or from another address is answered with
+///   [`ContainerMsg::Duplicate`] and otherwise ignored; one claiming our own id likewise. A higher
+///   incarnation under the same key from the same address is a restart; a sequence number not
+///   above the last one taken from that life is a replay, ignored;
+/// - a LAL is taken only by the leader, only under its container's bound key and address and
+///   current incarnation, and replaces that container's part (the container is the authority on
+///   it);
+/// - a GAL is taken only under the bound key and address of the container we elected, and a
+///   follower mirrors it (keeping its own part), so no generation, however high, pins a route;
+/// - of two containers claiming one id, the one that has run longer keeps it: told by the holder
+///   itself, a container that ran a lease longer than the holder answers in kind (so the younger
+///   refuses), and otherwise refuses.
 #[derive(Debug)]
 pub struct Container {
     config: ContainerConfig,
@@ -148,6 +169,8 @@ pub struct Container {
     elections: u64,
     next_heartbeat: Time,
     refusal: Option<String>,
+    /// When this container first ran (its first tick or message).
+    started: Option<Time>,
     /// When a duplicate id was last reported per contested id (one WARN per lease, not per frame).
     duplicate_warned: BTreeMap<ContainerId, Time>,
 }
@@ -167,6 +190,7 @@ impl Container {
             elections: 0,
             next_heartbeat: Time::ZERO,
             refusal: None,
+            started: None,
             duplicate_warned: BTreeMap::new(),
         }
     }
@@ -175,6 +199,11 @@ impl Container {
     /// container says nothing more (no heartbeats, no lists).
     pub fn refusal(&self) -> Option<&str> {
         self.refusal.as_deref()
+    }
+
+    /// Sets the key this container's control frames are signed with.
+    pub(crate) fn set_key(&mut self, key: PublicKey) {
+        self.config.key = key;
     }
 
     /// This container's id.
@@ -227,12 +256,14 @@ impl Container {
             .or_else(|| self.gal.lookup(name).map(|(_, e)| e))
     }
 
-    /// Handles one frame from `from`.
-    pub fn on_message(&mut self, from: &PeerAddr, msg: ContainerMsg, now: Time) -> Vec<Outgoing> {
+    /// Handles one frame from `from`, whose signature [`Signed::open`] checked.
+    pub fn on_message(&mut self, from: &PeerAddr, signed: Signed, now: Time) -> Vec<Outgoing> {
         let mut out = Vec::new();
+        self.started.get_or_insert(now);
         if self.refusal.is_some() {
             return out;
         }
+        let Signed { key, seq, msg } = signed;
         match msg {
             ContainerMsg::Heartbeat {
                 id,
@@ -242,27 +273,39 @@ impl Container {
                 gal_versions,
             } => {
                 if id == self.config.id {
-                    if *from != self.config.addr || incarnation != self.config.incarnation {
+                    if *from != self.config.addr
+                        || key != self.config.key
+                        || incarnation != self.config.incarnation
+                    {
                         // Someone else claims our id: we hold it, we stay; tell the newcomer.
                         self.report_duplicate(id, from, now, &mut out);
                     }
                     return out; // else our own heartbeat, looped back by a seed list naming us
                 }
+                let mut since = now;
                 if let Some(held) = self.peers.get(&id) {
-                    if held.addr != *from {
+                    if held.addr != *from || held.key != key {
                         self.report_duplicate(id, from, now, &mut out);
                         return out;
                     }
-                    if incarnation < held.incarnation {
-                        tracing::debug!(container = %id, incarnation, held = held.incarnation, "heartbeat of an older life ignored");
+                    if incarnation < held.incarnation
+                        || (incarnation == held.incarnation && seq <= held.seq)
+                    {
+                        tracing::debug!(container = %id, incarnation, seq, held = held.incarnation, "heartbeat of an older life or replayed, ignored");
                         return out;
+                    }
+                    if incarnation == held.incarnation {
+                        since = held.since;
                     }
                 }
                 self.peers.insert(
                     id,
                     Peer {
                         addr: from.clone(),
+                        key,
                         incarnation,
+                        seq,
+                        since,
                         last_heard: now,
                         leader,
                         gal_versions,
@@ -272,46 +315,75 @@ impl Container {
                 self.sync_with(id, &mut out);
             }
             ContainerMsg::Lal { id, part } => {
-                let from_owner = self.peers.get(&id).is_some_and(|p| {
-                    p.addr == *from && part.generation >> 32 == u64::from(p.incarnation)
-                });
+                let from_owner = self.take(id, from, &key, seq)
+                    && self
+                        .peers
+                        .get(&id)
+                        .is_some_and(|p| part.generation >> 32 == u64::from(p.incarnation));
                 if self.leader == self.config.id && id != self.config.id && from_owner {
                     self.gal.set_part(id, part);
                 } else if !from_owner {
-                    tracing::debug!(container = %id, %from, "agent list not from its container, ignored");
+                    tracing::debug!(container = %id, %from, "agent list not signed by its container, ignored");
                 }
             }
             ContainerMsg::Gal { leader, gal } => {
-                let from_leader = self.peers.get(&leader).is_some_and(|p| p.addr == *from);
-                if leader == self.leader && leader != self.config.id && from_leader {
+                if leader == self.leader
+                    && leader != self.config.id
+                    && self.take(leader, from, &key, seq)
+                {
                     self.gal.adopt(&gal, self.config.id);
                 } else {
-                    tracing::debug!(claimed = %leader, elected = %self.leader, %from, "global agent list not from the elected leader, ignored");
+                    tracing::debug!(claimed = %leader, elected = %self.leader, %from, "global agent list not signed by the elected leader, ignored");
                 }
             }
             ContainerMsg::Duplicate {
                 id,
                 holder,
                 holder_incarnation,
+                holder_uptime_ms,
             } => {
                 if id != self.config.id || holder == self.config.addr {
                     return out;
                 }
                 // Told by a third party: it knew the holder first. Told by the holder itself:
-                // the elder (lower incarnation, then lower address) keeps the id.
-                let elder =
-                    (holder_incarnation, &holder) < (self.config.incarnation, &self.config.addr);
+                // the one running longer keeps the id, each measured on its own clock (no two
+                // clocks need agree). We keep it only if we ran a lease longer than the holder
+                // says: then our answer, which says so, makes the holder refuse however late it
+                // comes; in a near tie we are the one who refuses.
+                let uptime_ms = self.uptime_ms(now);
+                let elder = holder_uptime_ms.saturating_add(self.config.lease_ms) > uptime_ms;
                 if *from != holder || elder {
                     let reason = format!(
-                        "container id {} is already held by a live container at {holder} (incarnation {holder_incarnation}), as {from} reports; this one ({}, incarnation {}) refuses to run",
+                        "container id {} is already held by a live container at {holder} (incarnation {holder_incarnation}, up {holder_uptime_ms} ms), as {from} reports; this one ({}, incarnation {}, up {uptime_ms} ms) refuses to run",
                         id.0, self.config.addr, self.config.incarnation
                     );
                     tracing::error!("{reason}");
                     self.refusal = Some(reason);
+                } else {
+                    // We ran first: the holder that told us is the newcomer; tell it in kind.
+                    self.report_duplicate(id, from, now, &mut out);
                 }
             }
         }
         out
+    }
+
+    /// Whether a list from `from` signed by `key` with `seq` speaks for live container `id`: its
+    /// bound key and address, and a sequence number above the last taken (then recorded).
+    fn take(&mut self, id: ContainerId, from: &PeerAddr, key: &PublicKey, seq: u64) -> bool {
+        match self.peers.get_mut(&id) {
+            Some(p) if p.addr == *from && p.key == *key && seq > p.seq => {
+                p.seq = seq;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    fn uptime_ms(&self, now: Time) -> u64 {
+        self.started.map_or(0, |t| {
+            now.since(t).as_millis().try_into().unwrap_or(u64::MAX)
+        })
     }
 
     /// Tells `newcomer`, which claims `id`, who holds it; warns once per lease per id.
@@ -322,9 +394,20 @@ impl Container {
         now: Time,
         out: &mut Vec<Outgoing>,
     ) {
-        let (holder, holder_incarnation) = match self.peers.get(&id) {
-            Some(p) if id != self.config.id => (p.addr.clone(), p.incarnation),
-            _ => (self.config.addr.clone(), self.config.incarnation),
+        let (holder, holder_incarnation, holder_uptime_ms) = match self.peers.get(&id) {
+            Some(p) if id != self.config.id => (
+                p.addr.clone(),
+                p.incarnation,
+                now.since(p.since)
+                    .as_millis()
+                    .try_into()
+                    .unwrap_or(u64::MAX),
+            ),
+            _ => (
+                self.config.addr.clone(),
+                self.config.incarnation,
+                self.uptime_ms(now),
+            ),
         };
         let lease = Duration::from_millis(self.config.lease_ms);
         let due = self
@@ -341,12 +424,14 @@ impl Container {
                 id,
                 holder,
                 holder_incarnation,
+                holder_uptime_ms,
             },
         });
     }
 
     /// Expires leases, re-elects, and sends heartbeats when due.
     pub fn on_tick(&mut self, now: Time) -> Vec<Outgoing> {
+        self.started.get_or_insert(now);
         let lease = Duration::from_millis(self.config.lease_ms);
         let before = self.peers.len();
         self.peers.retain(|id, p| {

@@ -7,9 +7,10 @@ use std::time::Duration;
 
 use iw_bus::transport::FrameTransport;
 use iw_bus::{Clock, WarnEvery};
+use iw_layer_security::Identity;
 
-use crate::ContainerError;
-use crate::machine::{Container, ContainerMsg, Outgoing};
+use crate::machine::{Container, Outgoing};
+use crate::{ContainerError, Signed};
 
 /// A running container: receives control frames, ticks its state machine, sends what it says.
 ///
@@ -23,20 +24,24 @@ pub struct ContainerNode {
 }
 
 impl ContainerNode {
-    /// Runs `container` over `transport` (its own endpoint, not an agent bus), timed by `clock`.
+    /// Runs `container` over `transport` (its own endpoint, not an agent bus), timed by `clock`,
+    /// signing what it says as `identity` (the container's own, whose key its agents' entries
+    /// carry); the container's [`crate::ContainerConfig::key`] is set to that identity's key.
     pub fn start(
-        container: Container,
+        mut container: Container,
+        identity: Arc<Identity>,
         transport: Arc<dyn FrameTransport>,
         clock: Clock,
         tick: Duration,
     ) -> Result<Self, ContainerError> {
+        container.set_key(identity.public_key());
         let state = Arc::new(Mutex::new(container));
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let (state, stop) = (Arc::clone(&state), Arc::clone(&stop));
             std::thread::Builder::new()
                 .name("iw-container".into())
-                .spawn(move || run(&state, transport.as_ref(), &clock, tick, &stop))
+                .spawn(move || run(&state, &identity, transport.as_ref(), &clock, tick, &stop))
                 .map_err(|source| ContainerError::Spawn { source })?
         };
         Ok(Self {
@@ -74,6 +79,7 @@ impl Drop for ContainerNode {
 
 fn run(
     state: &Mutex<Container>,
+    identity: &Identity,
     transport: &dyn FrameTransport,
     clock: &Clock,
     tick: Duration,
@@ -82,10 +88,11 @@ fn run(
     let lock = || state.lock().unwrap_or_else(PoisonError::into_inner);
     // Garbage on the control port is one WARN per period, not one per datagram.
     let mut warn = WarnEvery::new(iw_bus::WARN_PERIOD);
+    let mut seq = 0u64;
     while !stop.load(Ordering::Relaxed) {
         let out = match transport.recv_timeout(tick) {
-            Ok(Some((from, frame))) => match ContainerMsg::decode(&frame) {
-                Ok(msg) => lock().on_message(&from, msg, clock.now()),
+            Ok(Some((from, frame))) => match Signed::open(&frame) {
+                Ok(signed) => lock().on_message(&from, signed, clock.now()),
                 Err(e) => {
                     match warn.admit((), clock.now()) {
                         Some(held_back) => {
@@ -104,14 +111,24 @@ fn run(
             }
         };
         let ticked = lock().on_tick(clock.now());
+        // A message sent to several peers at once (a heartbeat) is signed once; each batch gets
+        // new sequence numbers, or a receiver would take a repeated heartbeat for a replay.
+        let mut last: Option<(crate::ContainerMsg, Vec<u8>)> = None;
         for Outgoing { to, msg } in out.into_iter().chain(ticked) {
-            match msg.encode() {
-                Ok(frame) => {
-                    if let Err(e) = transport.send(&to, &frame) {
-                        tracing::debug!(%to, error = %e, "control frame not sent");
+            if last.as_ref().is_none_or(|(m, _)| *m != msg) {
+                seq += 1;
+                match Signed::seal(identity, seq, &msg) {
+                    Ok(frame) => last = Some((msg, frame)),
+                    Err(e) => {
+                        tracing::error!(error = %e, "control message does not encode");
+                        continue;
                     }
                 }
-                Err(e) => tracing::error!(error = %e, "control message does not encode"),
+            }
+            if let Some((_, frame)) = &last
+                && let Err(e) = transport.send(&to, frame)
+            {
+                tracing::debug!(%to, error = %e, "control frame not sent");
             }
         }
     }

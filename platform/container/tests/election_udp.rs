@@ -44,7 +44,8 @@ fn start(
         });
     }
     let transport: Arc<dyn FrameTransport> = Arc::new(transport);
-    ContainerNode::start(container, transport, Clock::system(), TICK).unwrap()
+    let identity = Arc::new(iw_layer_security::Identity::generate().unwrap());
+    ContainerNode::start(container, identity, transport, Clock::system(), TICK).unwrap()
 }
 
 fn leader(node: &ContainerNode) -> u64 {

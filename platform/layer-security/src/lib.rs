@@ -44,9 +44,10 @@
 //!
 //! # Threat model
 //! The attacker reads, drops, delays, replays, alters and injects any frame on any link, and may
-//! hold an identity of her own that the directory lists under her own agent names; she does not
-//! hold another agent's identity key, a pre-shared key she is not meant to have, nor the group
-//! key of the containers. What stops what:
+//! hold an identity of her own that the directory lists under her own agent names, and may hold
+//! the containers' group key (she is then a member of the deployment); she does not hold another
+//! agent's or container's identity key, nor a pre-shared key she is not meant to have. What
+//! stops what:
 //!
 //! | attack | defended by |
 //! | --- | --- |
@@ -58,11 +59,16 @@
 //! | replay or repeat a message | message ids (communication layer), sequence numbers and age (temporal layer) |
 //! | delay, reorder | timestamps and sequence windows (temporal layer) |
 //! | drop frames | retransmission until acknowledged, then counted undeliverable (communication layer) |
-//! | forge container control traffic (joins, heartbeats, agent lists) | the containers' group key in pre-shared-key mode, with the temporal layer (`iw_stack::GuardedTransport`) |
+//! | join the containers at all, or forge, alter or replay control traffic without the group key | admission: the containers' group key in pre-shared-key mode, with the temporal layer (`iw_stack::GuardedTransport`) |
+//! | holding the group key, speak as another live container (its heartbeat, its agent list, the leader's list), even from its address | identity: every control frame is signed by the sender container's Ed25519 identity, the same identity whose key its agents' entries carry and the Noise handshake binds to each static key; a live container id is bound to the key its heartbeats are signed with, lists are taken only under the bound key of their container or of the elected leader, with a growing sequence number (`iw_container::Signed`, `iw_container::Container`) |
+//! | pin a route with a huge list generation | followers mirror the leader's list, the leader takes each container's part as its container says (`iw_container`) |
 //! | flood | size caps and rate-limited warnings per reason; rejections counted per kind |
 //!
-//! Not defended: an attacker holding an agent's identity key (she is that agent), or the
-//! group key (she is a container); traffic analysis (who talks to whom, when, how much);
+//! Not defended: an attacker holding an agent's identity key (she is that agent). A group-key
+//! holder is a container: she can join under an id nobody holds (a low one leads the election)
+//! and list agent names of her choosing, since ids are bound to keys first come, first served
+//! while their lease holds, not pinned in advance; and a forged `Duplicate` from her makes a
+//! container refuse to run. Traffic analysis (who talks to whom, when, how much);
 //! denial of service by an attacker on the path (she can always drop). IX sends the initiator's
 //! static key in clear: it is a fresh key per layer, not the identity, so nothing long-lived is
 //! exposed, but a listener can link an agent's handshakes while the layer lives.

@@ -614,11 +614,18 @@ impl Runtime {
                 addr: PeerAddr(advertise.clone()),
             });
         }
+        // The guard's sender name keys the temporal layer's sequence numbers at each receiver, so
+        // it is unique per process: a duplicate started in the same second as the holder (same
+        // id and incarnation) must not make the holder's frames look out of order.
+        let nonce = std::hash::BuildHasher::hash_one(
+            &std::collections::hash_map::RandomState::new(),
+            std::process::id(),
+        );
         let control_guard = match control_key {
             Some(key) => Some(Arc::new(
                 GuardedTransport::new(
                     control_transport.clone(),
-                    &format!("container-{id}.{incarnation}"),
+                    &format!("container-{id}.{incarnation}.{nonce:016x}"),
                     key,
                     clock.clone(),
                 )
@@ -630,8 +637,14 @@ impl Runtime {
             Some(guard) => guard.clone(),
             None => control_transport,
         };
-        let container = ContainerNode::start(container, control_transport, clock, CONTROL_TICK)
-            .map_err(|e| setup(e.to_string()))?;
+        let container = ContainerNode::start(
+            container,
+            identity.clone(),
+            control_transport,
+            clock,
+            CONTROL_TICK,
+        )
+        .map_err(|e| setup(e.to_string()))?;
         // a closed receiver only means nobody is listening to reports
         let _ = events.send(Event::Ready {
             container: name.clone(),

@@ -5,6 +5,8 @@
 //!   nothing: lists are taken only from the elected leader's address, and no generation, even
 //!   `u64::MAX`, pins a route;
 //! - a second services container with the id of a live one is refused, the first undisturbed;
+//! - a holder of the group key, speaking over TCP from the services' own address, cannot speak
+//!   for the services: control frames are signed by each container's identity;
 //! - a receiver restarted with its sessions lost gets the message sealed under the old session.
 
 use std::net::UdpSocket;
@@ -16,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use iw_bus::transport::PeerAddr;
 use iw_bus::{Bus, BusConfig, Clock};
-use iw_container::{AgentEntry, ContainerId, ContainerMsg, GlobalAgentList, Part};
+use iw_container::{AgentEntry, ContainerId, ContainerMsg, GlobalAgentList, Part, Signed};
 use iw_node::{Event, NodeError, Role, Runtime, SpawnConfig};
 use iw_stack::{Platform, StackConfig};
 use iw_transport_net::UdpTransport;
@@ -186,13 +188,12 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
     let deadline = Instant::now() + Duration::from_secs(2);
     while Instant::now() < deadline {
         for msg in &forged {
-            let frame = msg.encode().unwrap();
-            attacker.send_to(&frame, chair.control()).unwrap();
+            attacker.send_to(&forge(msg), chair.control()).unwrap();
         }
         let mut buf = [0u8; 65536];
         if let Ok((n, _)) = attacker.recv_from(&mut buf) {
             duplicate_told |= matches!(
-                ContainerMsg::decode(&buf[..n]),
+                Signed::open(&buf[..n]).map(|s| s.msg),
                 Ok(ContainerMsg::Duplicate { id: ContainerId(1), ref holder, .. }) if holder.0 == services.control()
             );
         }
@@ -336,4 +337,168 @@ fn rejections_are_counted_and_reported_in_a_security_event() {
         count(e, "bus") > 0 && count(e, "control") > 0
     });
     services.stop().unwrap();
+}
+
+/// A group-key holder's TCP connection to `to` whose hello names `claimed`: the TCP transport
+/// takes the sender's word for its address, so this is how a key holder speaks "from" another
+/// container's address without raw sockets.
+struct SpoofedTcp {
+    claimed: PeerAddr,
+    stream: std::sync::Mutex<std::net::TcpStream>,
+    codec: iw_transport_net::frame::FrameCodec,
+}
+
+impl SpoofedTcp {
+    fn connect(to: &str, claimed: &str) -> SpoofedTcp {
+        use iw_transport_net::frame::{FrameCodec, FrameKind};
+        use std::io::Write;
+        let codec = FrameCodec::new(1 << 20);
+        let mut stream = std::net::TcpStream::connect(to).unwrap();
+        let mut hello = Vec::new();
+        codec
+            .encode(FrameKind::Hello, claimed.as_bytes(), &mut hello)
+            .unwrap();
+        stream.write_all(&hello).unwrap();
+        SpoofedTcp {
+            claimed: PeerAddr(claimed.into()),
+            stream: std::sync::Mutex::new(stream),
+            codec,
+        }
+    }
+}
+
+impl iw_bus::transport::FrameTransport for SpoofedTcp {
+    fn local_addr(&self) -> &PeerAddr {
+        &self.claimed
+    }
+
+    fn max_frame_len(&self) -> usize {
+        self.codec.max_frame_len()
+    }
+
+    fn send(&self, _to: &PeerAddr, frame: &[u8]) -> Result<(), iw_bus::transport::TransportError> {
+        use std::io::Write;
+        let mut bytes = Vec::new();
+        self.codec
+            .encode(iw_transport_net::frame::FrameKind::Data, frame, &mut bytes)
+            .unwrap();
+        self.stream
+            .lock()
+            .unwrap()
+            .write_all(&bytes)
+            .map_err(|source| iw_bus::transport::TransportError::Io {
+                context: "the spoofed connection".into(),
+                source,
+            })
+    }
+
+    fn recv_timeout(
+        &self,
+        timeout: Duration,
+    ) -> Result<Option<(PeerAddr, Vec<u8>)>, iw_bus::transport::TransportError> {
+        std::thread::sleep(timeout);
+        Ok(None)
+    }
+}
+
+/// Issue 20, the control channel: a holder of the group key, speaking over TCP from the
+/// services' control address, forges the services' heartbeat (a higher incarnation, as a
+/// restart would say) and the services' agent list. The chair obeys neither: control frames are
+/// signed by the sender container's identity and a live id is bound to the key it was first
+/// heard with, so the forger's own key does not speak for container 1.
+#[test]
+fn a_key_holder_forging_another_containers_heartbeat_and_list_is_not_obeyed() {
+    let dir = tempfile::tempdir().unwrap();
+    let key = dir.path().join("control.key");
+    iw_stack::write_group_key(&key).unwrap();
+    let tcp = |peers: &[String]| {
+        let mut c = config(key.to_str(), peers);
+        c.transport.kind = iw_node::TransportKind::Tcp;
+        c
+    };
+    let mut services = Running::start(Role::Services, tcp(&[]));
+    let chair = Role::Chair {
+        name: "chair-k".into(),
+    };
+    let mut chair = Running::start(chair, tcp(&[services.bus()]));
+    chair.wait_for("the services joined", joined("assistant@services"));
+    services.wait_for("the chair joined", joined("control@chair-k"));
+
+    let spoofed = Arc::new(SpoofedTcp::connect(&chair.control(), &services.control()));
+    let group_key = iw_stack::read_group_key(&key).unwrap();
+    let attacker = iw_stack::GuardedTransport::new(
+        spoofed,
+        "container-1.4294967295",
+        group_key,
+        Clock::system(),
+    )
+    .unwrap();
+    let evil = |name: &str| AgentEntry {
+        name: name.into(),
+        public_key: forger_key().to_vec(),
+        addr: PeerAddr("127.0.0.1:9".into()),
+    };
+    let mut gal = GlobalAgentList::default();
+    gal.merge_part(
+        ContainerId(1),
+        Part {
+            generation: u64::MAX,
+            agents: vec![evil("assistant@services"), evil("evil@x")],
+        },
+    );
+    let forged = [
+        ContainerMsg::Heartbeat {
+            id: ContainerId(1),
+            incarnation: u32::MAX,
+            leader: ContainerId(1),
+            lal_generation: u64::MAX,
+            gal_versions: Default::default(),
+        },
+        ContainerMsg::Gal {
+            leader: ContainerId(1),
+            gal,
+        },
+    ];
+    use iw_bus::transport::FrameTransport;
+    let to = PeerAddr(chair.control());
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while Instant::now() < deadline {
+        for msg in &forged {
+            attacker.send(&to, &forge(msg)).unwrap();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    chair.drain_for(Duration::from_secs(1));
+    assert!(
+        !chair
+            .seen
+            .iter()
+            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "assistant@services")),
+        "the services' route was taken: {:#?}",
+        chair.seen
+    );
+    assert!(
+        !chair.seen.iter().any(joined("evil@x")),
+        "{:#?}",
+        chair.seen
+    );
+    chair.stop().unwrap();
+    services.stop().unwrap();
+}
+
+/// The forger's own identity (one she may well hold: the group key admits any identity).
+fn forger() -> &'static iw_stack::Identity {
+    static FORGER: std::sync::OnceLock<iw_stack::Identity> = std::sync::OnceLock::new();
+    FORGER.get_or_init(|| iw_stack::Identity::generate().unwrap())
+}
+
+fn forger_key() -> [u8; 32] {
+    forger().public_key()
+}
+
+/// A control frame as the forger sends it: signed by her own identity, with a sequence number
+/// above any the real container used.
+fn forge(msg: &ContainerMsg) -> Vec<u8> {
+    static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(u64::MAX / 2);
+    Signed::seal(forger(), SEQ.fetch_add(1, Ordering::Relaxed), msg).unwrap()
 }
