@@ -37,7 +37,7 @@ mod network;
 
 /// The wiring of the containers, shared with `intellwheels spawn` (crate `iw-wiring`).
 pub use iw_wiring as compose;
-pub use iw_wiring::{Console, Desk, GoalEvent, SERVICES, SharedDesk, plan};
+pub use iw_wiring::{BodyKind, Console, Desk, GoalEvent, SERVICES, SharedDesk, plan};
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -52,7 +52,7 @@ use iw_body::{
     WheelGeometry, WheelSpeeds,
 };
 use iw_bus::{Bus, BusConfig, Clock, MockController, Stack, Time};
-use iw_control_agent::{DriveStatus, SharedDriveStatus};
+use iw_control::{DriveStatus, SharedDriveStatus};
 use iw_door::{ActuatorFault, DoorActuator, Refusal, RefusalLog};
 use iw_interface::{Display, InputQueue, Recognizer};
 use iw_ontology::OntologyContent;
@@ -63,7 +63,7 @@ use nalgebra::{Isometry2, Point2};
 use compose::{Building, ServiceConfig, SharedBody, WiringError, desk};
 /// The interface agent's raw device readings, for [`Fleet::inputs`].
 pub use iw_interface::RawInput;
-use iw_perception_agent::VisualConfig;
+use iw_perception::VisualConfig;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
 
 /// What went wrong composing or driving a fleet.
@@ -161,20 +161,6 @@ pub struct ChairConfig {
     pub name: String,
     /// Where it starts in the map frame.
     pub t_world_body: Isometry2<f64>,
-}
-
-/// What a chair's body is (thesis 3.5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum BodyKind {
-    /// The simulator drives it.
-    #[default]
-    Virtual,
-    /// The serial driver and the interface board (emulated on a pty); its dead-reckoned pose is
-    /// fed into the world, which it does not sense.
-    Real,
-    /// Real, with the virtual sonars of its ghost in the world merged in (nearest wins).
-    Mixed,
 }
 
 /// What a fleet is built with besides its map and chairs.

@@ -59,13 +59,14 @@ mod probe;
 mod runtime;
 
 pub use config::{
-    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection,
-    MtpSection, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
-    WorldSection,
+    BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection, MtpSection,
+    SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
 pub use event::Event;
 pub use runtime::{AdminCommand, MAX_ADMIN_LINE, Runtime, control_addr, write_identity};
 
+/// What a chair's body is (`[body] kind`), the fleet's own type.
+pub use iw_wiring::BodyKind;
 /// The service container's name.
 pub use iw_wiring::SERVICES;
 
