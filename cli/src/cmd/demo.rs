@@ -24,8 +24,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
 use iw_dashboard::{
-    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DriveInput,
-    MessageView, State, round_cm,
+    ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, DriveInput, MessageView,
+    PageAction, State, round_cm,
 };
 use iw_fleet::{BodyKind, ChairConfig, Fleet, FleetOptions};
 use iw_sim::Map;
@@ -227,8 +227,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 Err(err) => push_notice(&mut notices, format!("{action:?}: {err}")),
             }
             match action {
-                Action::Pause { paused: p } => paused = p,
-                Action::Step => single_step = true,
+                PageAction::Pause { paused: p } => paused = p,
+                PageAction::Step => single_step = true,
                 _ => {}
             }
         }
@@ -410,11 +410,11 @@ fn push_notice(notices: &mut VecDeque<String>, text: String) {
 /// nearest the click), doors and faults on the fleet. Returns a notice for the page.
 fn apply(
     fleet: &mut Fleet,
-    action: &Action,
+    action: &PageAction,
     goal_places: &mut BTreeMap<String, String>,
 ) -> anyhow::Result<Option<String>> {
     match action {
-        Action::Goal { chair, x, y } => {
+        PageAction::Goal { chair, x, y } => {
             anyhow::ensure!(
                 x.is_finite() && y.is_finite(),
                 "goal ({x}, {y}) is not a point"
@@ -430,25 +430,25 @@ fn apply(
             goal_places.insert(chair.clone(), place.clone());
             Ok(Some(format!("{chair} -> {place}: request {conversation}")))
         }
-        Action::Door { door, open } => {
+        PageAction::Door { door, open } => {
             fleet.set_door(door, *open)?;
             Ok(Some(format!(
                 "door {door}: asked to {}",
                 if *open { "open" } else { "close" }
             )))
         }
-        Action::Fault { chair, failed } => {
+        PageAction::Fault { chair, failed } => {
             fleet.set_sensor_failure(chair, *failed)?;
             Ok(Some(format!(
                 "{chair}: sensors {}",
                 if *failed { "failed" } else { "restored" }
             )))
         }
-        Action::Drive { chair, input } => {
+        PageAction::Drive { chair, input } => {
             push_drive(fleet, chair, *input)?;
             Ok(None)
         }
-        Action::Pause { .. } | Action::Step => Ok(None),
+        PageAction::Pause { .. } | PageAction::Step => Ok(None),
     }
 }
 
