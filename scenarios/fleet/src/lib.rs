@@ -21,6 +21,7 @@
 //!   [`Fleet::kill_agent`], [`Fleet::set_sensor_failure`], [`Fleet::jam_door`]; the log:
 //!   [`Fleet::messages_sent`] against [`Fleet::messages_logged`].
 //! - [`plan`]: the map as an occupancy grid.
+//! - [`dashboard`]: the fleet as the dashboard shows it, and the page's asks carried out.
 //!
 //! # Guarantees
 //! - Deterministic: each step runs the containers in a fixed order at one simulated instant, then
@@ -33,6 +34,7 @@
 //!   counted against the traffic.
 #![warn(missing_docs)]
 
+pub mod dashboard;
 mod network;
 
 /// The wiring of the containers, shared with `intellwheels spawn` (crate `iw-wiring`).
