@@ -5,8 +5,8 @@
 use std::process::{Command, Output};
 use std::time::Duration;
 
-use iw_mtp_http::platform::Echo;
-use iw_mtp_http::{GatewayConfig, HttpPlatform};
+use iw_mtp_http::GatewayConfig;
+use iw_node::http_platform::{Echo, HttpPlatform};
 
 fn platform(rt: &tokio::runtime::Runtime) -> HttpPlatform {
     let echo: Box<dyn iw_agent::Agent> = Box::new(Echo);

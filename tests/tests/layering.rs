@@ -7,6 +7,11 @@
 //! | `agents/` | `scenarios/`, `cli/` |
 //! | `scenarios/` | `cli/` |
 //!
+//! Inside `platform/`, the message transports (the bus, its layers, the transports and the
+//! FIPA HTTP MTP) carry messages and host no agents: they may not depend on the agent runtime
+//! ([`AGENT_RUNTIME`]: agents and their host, the AMS and DF, containers). A platform that hosts
+//! agents behind a transport is assembled above both (e.g. `iw-node`'s `HttpPlatform`).
+//!
 //! Every kind of dependency counts (normal, build and dev), except a dev-dependency on the
 //! internal test-data locator `tests/testdata`, which only finds `shared/` for tests.
 
@@ -26,6 +31,9 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         _ => &[],
     }
 }
+
+/// The crates under `platform/` that host agents; the rest of `platform/` may not depend on them.
+const AGENT_RUNTIME: [&str; 3] = ["iw-agent", "iw-ams-df", "iw-container"];
 
 struct Member {
     name: String,
@@ -123,6 +131,48 @@ fn no_crate_depends_on_a_layer_above_its_own() {
             }
         }
     }
+    assert!(
+        violations.is_empty(),
+        "layering violations:\n  {}",
+        violations.join("\n  ")
+    );
+}
+
+#[test]
+fn message_transports_host_no_agents() {
+    let members = workspace_members();
+    let runtime: Vec<_> = members
+        .iter()
+        .filter(|m| AGENT_RUNTIME.contains(&m.name.as_str()))
+        .collect();
+    assert_eq!(
+        runtime.len(),
+        AGENT_RUNTIME.len(),
+        "every crate of the agent runtime is a workspace member"
+    );
+    assert!(
+        runtime.iter().all(|m| m.folder == "platform"),
+        "the agent runtime lives under platform/"
+    );
+    let violations: Vec<_> = members
+        .iter()
+        .filter(|m| m.folder == "platform" && !AGENT_RUNTIME.contains(&m.name.as_str()))
+        .flat_map(|m| {
+            m.deps
+                .iter()
+                .filter(|(dep, _)| AGENT_RUNTIME.contains(&dep.as_str()))
+                .map(move |(dep, kind)| {
+                    format!(
+                        "{} (a message transport) depends on {} (the agent runtime){}",
+                        m.name,
+                        dep,
+                        kind.as_deref()
+                            .map(|k| format!(" as a {k}-dependency"))
+                            .unwrap_or_default()
+                    )
+                })
+        })
+        .collect();
     assert!(
         violations.is_empty(),
         "layering violations:\n  {}",

@@ -8,7 +8,7 @@ use iw_agent::AgentHost;
 use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
-use iw_control_agent::{ControlAgent, ControlConfig};
+use iw_control::{ControlAgent, ControlConfig};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
 

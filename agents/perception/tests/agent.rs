@@ -10,7 +10,7 @@ use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, SensorReading, WheelchairContent};
-use iw_perception_agent::{PerceptionAgent, PerceptionConfig};
+use iw_perception::{PerceptionAgent, PerceptionConfig};
 use iw_vo::Pose2;
 
 /// Both wheels advance 100 ticks per read; sonar 0 sees a wall at 1.2 m; every 7th read fails.

@@ -17,7 +17,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use iw_dashboard::{Action, Dashboard, DashboardConfig, DriveInput};
+use iw_dashboard::{Dashboard, DashboardConfig, DriveInput, PageAction};
 use iw_fleet::{ChairConfig, Fleet};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Vector2};
@@ -69,7 +69,7 @@ pub fn run(trials: usize, json: bool) -> anyhow::Result<()> {
             let input = DriveInput::Stick { x: 0.0, y };
             let sent = Instant::now();
             if path == "websocket" {
-                let frame = serde_json::to_string(&Action::Drive {
+                let frame = serde_json::to_string(&PageAction::Drive {
                     chair: CHAIR.into(),
                     input,
                 })?;
@@ -151,7 +151,7 @@ impl Loop<'_> {
         std::thread::sleep(self.next.saturating_duration_since(Instant::now()));
         self.next = self.next.max(Instant::now() - STEP) + STEP;
         while let Some(action) = self.dashboard.try_action() {
-            if let Action::Drive { chair, input } = action {
+            if let PageAction::Drive { chair, input } = action {
                 demo::push_drive(self.fleet, &chair, input)?;
             }
         }

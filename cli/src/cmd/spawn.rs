@@ -84,7 +84,7 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
     if let Some(body) = &args.body {
         let (kind, port) = match body.split_once(':') {
             None if body == "virtual" => (BodyKind::Virtual, ""),
-            Some(("serial", port)) if !port.is_empty() => (BodyKind::Serial, port),
+            Some(("serial", port)) if !port.is_empty() => (BodyKind::Real, port),
             Some(("mixed", port)) if !port.is_empty() => (BodyKind::Mixed, port),
             _ => {
                 return Err(flag_err(

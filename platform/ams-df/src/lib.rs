@@ -10,8 +10,6 @@
 //! - [`Df`], [`matches()`]: the DF agent (register, deregister, modify, search with
 //!   `:max-results`, fipa-subscribe with notifications, cancel) and its template matching.
 //! - [`MAX_RESULTS`]: the most descriptions one search returns.
-//! - [`delivery_failure`]: the AMS's FAILURE with an `MTS-error` for a message that could not be
-//!   delivered, in JADE's form (used by the message transports).
 //!
 //! # Guarantees
 //! - Answers as JADE's: no AGREE; INFORM `((done (action ...)))` or `((result (action ...)
@@ -27,10 +25,8 @@
 
 mod ams;
 pub mod df;
-mod mts;
 mod service;
 
 pub use ams::{Ams, WhitePages};
 pub use df::{Df, matches};
-pub use mts::delivery_failure;
 pub use service::MAX_RESULTS;

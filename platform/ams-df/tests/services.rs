@@ -6,14 +6,13 @@ use std::sync::Arc;
 use iw_acl::codec::{ParseOptions, parse_with, print};
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
-use iw_ams_df::{Ams, Df, WhitePages, delivery_failure};
+use iw_ams_df::{Ams, Df, WhitePages};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Mailbox, MockController, Stack, Time};
 use iw_ontology::OntologyContent;
 use iw_ontology::fipa::{
     AgentDescription, AgentState, AmsAgentDescription, DfAgentDescription, FipaError,
     ManagementAction, ManagementContent, ManagementRequest, SearchConstraints, ServiceDescription,
 };
-use iw_sl::Level;
 
 const AMS: &str = "ams@WheelchairTest";
 const DF: &str = "df@WheelchairTest";
@@ -599,30 +598,4 @@ fn services_do_not_understand_other_acts_ontologies_or_content() {
         );
         assert!(next(&mut me).is_none());
     }
-}
-
-#[test]
-fn delivery_failure_reads_like_jades_ams() {
-    let Some(jade) = captured(
-        "delivery_failure",
-        "fipa/wire/from-jade/05-ams-failure-unknown-receiver.raw",
-    ) else {
-        return;
-    };
-    let Some(sent) = captured("delivery_failure", "fipa/wire/acl/05-unknown-receiver.acl") else {
-        return;
-    };
-    let nobody = AgentId::new("nobody@WheelchairTest").with_address("http://127.0.0.1:7778/acc");
-    let reason = "Agent not found: getContainerID() failed to find agent nobody@WheelchairTest";
-    let ours = delivery_failure(&sent, &nobody, AgentId::new(AMS), reason);
-    assert_eq!(ours.performative, jade.performative);
-    assert_eq!(
-        (&ours.language, &ours.ontology, &ours.protocol),
-        (&jade.language, &jade.ontology, &jade.protocol)
-    );
-    assert_eq!(ours.conversation_id, jade.conversation_id);
-    assert_eq!(ours.receivers[0].name, ME);
-    // JADE spaces its terms irregularly: compare the SL trees.
-    let tree = |m: &AclMessage| iw_sl::parse(m.content_text().unwrap(), Level::Full).unwrap();
-    assert_eq!(tree(&ours), tree(&jade));
 }

@@ -206,7 +206,7 @@ impl Gateway {
                 Err(e) => format!("Delivery failed: {e}"),
             };
             tracing::info!(receiver = %receiver.name, %reason, "undeliverable message");
-            let failure = iw_ams_df::delivery_failure(&message, receiver, self.aid("ams"), &reason);
+            let failure = crate::delivery_failure(&message, receiver, self.aid("ams"), &reason);
             if let Err(e) = self.post(&failure, &sender).await {
                 tracing::warn!(sender = %sender.name, error = %e, "could not report an undeliverable message");
             }
@@ -260,7 +260,7 @@ impl Gateway {
             {
                 return; // Relayed for another foreign agent: nobody local to tell.
             }
-            let failure = iw_ams_df::delivery_failure(
+            let failure = crate::delivery_failure(
                 &message,
                 &to,
                 self.aid("ams"),

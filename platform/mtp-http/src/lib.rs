@@ -16,8 +16,11 @@
 //! - [`gateway`]: [`Gateway`], [`GatewayConfig`]: the platform side on an `iw_bus::Bus`:
 //!   delivery to local agents by name, proxies posting to foreign agents' addresses, FAILURE
 //!   with an MTS error from the AMS for unknown receivers, like JADE's.
-//! - [`platform`]: [`HttpPlatform`], the AMS, the DF and given agents behind a gateway in one
-//!   call, and [`platform::Echo`], the echo agent of the JADE captures.
+//!
+//! This crate moves messages and hosts no agents: a whole platform behind a gateway (AMS, DF and
+//! agents) is assembled above it, in `iw-node` (`http_platform`).
+//! - [`delivery_failure`]: the AMS's FAILURE with an `MTS-error` for a message the gateway could
+//!   not deliver, in JADE's form.
 //! - [`Error`]: every failure with the offending input.
 //!
 //! # Guarantees
@@ -38,7 +41,7 @@ pub mod client;
 pub mod envelope;
 mod error;
 pub mod gateway;
-pub mod platform;
+mod mts;
 pub mod server;
 pub mod tls;
 pub mod wire;
@@ -47,5 +50,5 @@ pub use client::MtpClient;
 pub use envelope::Envelope;
 pub use error::Error;
 pub use gateway::{Gateway, GatewayConfig};
-pub use platform::HttpPlatform;
+pub use mts::delivery_failure;
 pub use server::{Delivery, MtpServer};

@@ -8,9 +8,9 @@
 //!   watcher, assistant) from a configuration, independent of the network, plus the
 //!   [`compose::Building`] the cognitive agents plan on and the logger tap
 //!   ([`compose::log_tap`]). `intellwheels spawn` hosts the same agents in processes.
-//! - [`ChairContainer`]: one [`AgentHost`] on its own [`Bus`] with a chair's agents over one
-//!   [`iw_body::Body`]: virtual (the simulator's [`VirtualBody`]), real (the [`SerialBody`]
-//!   driver talking to a [`BoardEmulator`] on a pty, its dead-reckoned pose fed into the world)
+//! - [`ChairContainer`]: one [`AgentHost`] on its own [`Bus`](iw_bus::Bus) with a chair's agents over one
+//!   [`iw_body::Body`]: virtual (the simulator's [`VirtualBody`](iw_sim::VirtualBody)), real (the [`SerialBody`](iw_body::SerialBody)
+//!   driver talking to a [`BoardEmulator`](iw_body::BoardEmulator) on a pty, its dead-reckoned pose fed into the world)
 //!   or mixed (the same, with the virtual sonars merged in), wrapped by [`FaultyBody`] so a
 //!   sensor failure can be injected.
 //! - [`ServiceContainer`]: the service agents and the staff [`Console`] that hands staff goals
@@ -21,6 +21,12 @@
 //!   [`Fleet::kill_agent`], [`Fleet::set_sensor_failure`], [`Fleet::jam_door`]; the log:
 //!   [`Fleet::messages_sent`] against [`Fleet::messages_logged`].
 //! - [`plan`]: the map as an occupancy grid.
+//!
+//! One job per module: `body` (the three body kinds and the injected sensor failure),
+//! `container` (a container's bus and routes), `doors` (the world's doors for the door agent),
+//! `traffic` (the taps' count and routes), `snapshot`, `error`, `network` (the lockstep
+//! transport); this file composes them into the [`Fleet`].
+//! - [`dashboard`]: the fleet as the dashboard shows it, and the page's asks carried out.
 //!
 //! # Guarantees
 //! - Deterministic: each step runs the containers in a fixed order at one simulated instant, then
@@ -33,11 +39,23 @@
 //!   counted against the traffic.
 #![warn(missing_docs)]
 
+mod body;
+mod container;
+pub mod dashboard;
+mod doors;
+mod error;
 mod network;
+mod snapshot;
+mod traffic;
+
+pub use body::FaultyBody;
+pub use container::{ChairContainer, ServiceContainer};
+pub use error::FleetError;
+pub use snapshot::{ChairSnapshot, Snapshot};
 
 /// The wiring of the containers, shared with `intellwheels spawn` (crate `iw-wiring`).
 pub use iw_wiring as compose;
-pub use iw_wiring::{Console, Desk, GoalEvent, SERVICES, SharedDesk, plan};
+pub use iw_wiring::{BodyKind, Console, Desk, GoalEvent, SERVICES, SharedDesk, plan};
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -45,114 +63,23 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use iw_acl::AclMessage;
 use iw_agent::{AgentHost, HostStats};
-use iw_body::{
-    BoardEmulator, Body, BodyError, MixedBody, Odometry, SensorFrame, SerialBody, VirtualSensors,
-    WheelGeometry, WheelSpeeds,
-};
-use iw_bus::{Bus, BusConfig, Clock, MockController, Stack, Time};
-use iw_control_agent::{DriveStatus, SharedDriveStatus};
-use iw_door::{ActuatorFault, DoorActuator, Refusal, RefusalLog};
+use iw_bus::{Clock, MockController, Time};
+use iw_control::DriveStatus;
+use iw_door::Refusal;
 use iw_interface::{Display, InputQueue, Recognizer};
-use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
-use iw_sim::{ChairId, ChairKind, ChairSpec, GhostSensors, Map, SharedWorld, VirtualBody, World};
+use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SharedWorld, World};
 use nalgebra::{Isometry2, Point2};
 
-use compose::{Building, ServiceConfig, SharedBody, WiringError, desk};
+use compose::{Building, ServiceConfig, desk};
 /// The interface agent's raw device readings, for [`Fleet::inputs`].
 pub use iw_interface::RawInput;
-use iw_perception_agent::VisualConfig;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
 
-/// What went wrong composing or driving a fleet.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum FleetError {
-    /// Two chairs with one name, or a name that clashes with the services.
-    #[error("chair name `{name}` is used twice or reserved")]
-    DuplicateChair {
-        /// The name.
-        name: String,
-    },
-    /// A chair the fleet does not have.
-    #[error("no chair `{name}` in the fleet")]
-    NoSuchChair {
-        /// The name asked for.
-        name: String,
-    },
-    /// A container the fleet does not have (a chair name or `services`).
-    #[error("no agent `{agent}` in container `{container}`")]
-    NoSuchAgent {
-        /// The container.
-        container: String,
-        /// The agent.
-        agent: String,
-    },
-    /// A bus, transport or agent could not be set up.
-    #[error("container `{container}`: {reason}")]
-    Setup {
-        /// The container.
-        container: String,
-        /// Why.
-        reason: String,
-    },
-    /// The simulator refused (unknown door, door blocked).
-    #[error("simulator: {source}")]
-    Sim {
-        /// What it said.
-        #[from]
-        source: iw_sim::SimError,
-    },
-    /// No path to a goal.
-    #[error("cannot plan: {reason}")]
-    Plan {
-        /// Why.
-        reason: String,
-    },
-}
-
-impl From<WiringError> for FleetError {
-    fn from(e: WiringError) -> Self {
-        match e {
-            WiringError::Setup { container, reason } => FleetError::Setup { container, reason },
-            WiringError::Plan { reason } => FleetError::Plan { reason },
-            other => FleetError::Plan {
-                reason: other.to_string(),
-            },
-        }
-    }
-}
-
-/// A [`Body`] whose sensors can be failed on purpose: while failed, every read is an error
-/// (the control agent then stops the chair and fails its task).
-pub struct FaultyBody<B> {
-    inner: B,
-    failed: Arc<AtomicBool>,
-}
-
-impl<B: Body> FaultyBody<B> {
-    /// Wraps `inner`; `failed` switches the failure.
-    pub fn new(inner: B, failed: Arc<AtomicBool>) -> Self {
-        FaultyBody { inner, failed }
-    }
-}
-
-impl<B: Body> Body for FaultyBody<B> {
-    fn read(&mut self) -> Result<SensorFrame, BodyError> {
-        if self.failed.load(Ordering::Acquire) {
-            return Err(BodyError::Virtual {
-                reason: "sensor failure injected".into(),
-            });
-        }
-        self.inner.read()
-    }
-
-    fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
-        self.inner.command(speeds)
-    }
-}
+use body::{body_for, sim_camera};
+use container::{bus_for, route};
+use doors::WorldDoors;
+use traffic::{Traffic, tap_into};
 
 /// One chair to put in the fleet.
 #[derive(Debug, Clone)]
@@ -161,20 +88,6 @@ pub struct ChairConfig {
     pub name: String,
     /// Where it starts in the map frame.
     pub t_world_body: Isometry2<f64>,
-}
-
-/// What a chair's body is (thesis 3.5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum BodyKind {
-    /// The simulator drives it.
-    #[default]
-    Virtual,
-    /// The serial driver and the interface board (emulated on a pty); its dead-reckoned pose is
-    /// fed into the world, which it does not sense.
-    Real,
-    /// Real, with the virtual sonars of its ghost in the world merged in (nearest wins).
-    Mixed,
 }
 
 /// What a fleet is built with besides its map and chairs.
@@ -191,250 +104,6 @@ pub struct FleetOptions {
     /// simulator's rendered camera and fuse it with the wheels (costs a render and a detection
     /// per chair and control period).
     pub visual_odometry: bool,
-}
-
-/// The perception agent's camera for virtual chair `id`: the simulator's renderer
-/// ([`compose::camera::visual_config`]).
-fn sim_camera(world: &SharedWorld, id: ChairId, name: &str) -> Result<VisualConfig, FleetError> {
-    let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| FleetError::Setup {
-        container: name.to_string(),
-        reason: e.to_string(),
-    })?;
-    Ok(compose::camera::visual_config(camera))
-}
-
-fn bus_for(
-    network: &LockstepNetwork,
-    clock: &Clock,
-    container: &str,
-) -> Result<Arc<Bus>, FleetError> {
-    let setup = |reason: String| FleetError::Setup {
-        container: container.to_string(),
-        reason,
-    };
-    let transport = network
-        .endpoint(container)
-        .map_err(|e| setup(e.to_string()))?;
-    let config = BusConfig {
-        tick: Duration::from_millis(1),
-        ..BusConfig::default()
-    };
-    let bus = Bus::start(Stack::new(), Arc::new(transport), clock.clone(), config)
-        .map_err(|e| setup(e.to_string()))?;
-    Ok(Arc::new(bus))
-}
-
-/// Routes `host`'s bus to the agents of the other containers.
-fn route(host: &AgentHost, container: &str, chairs: &[String]) {
-    for (agent, peer) in compose::remote_agents(container, chairs) {
-        host.bus()
-            .add_route(&agent, iw_bus::transport::PeerAddr(peer));
-    }
-}
-
-/// What the taps of all containers see: the traffic count and each chair's last route.
-#[derive(Default)]
-struct Traffic {
-    sent: AtomicU64,
-    paths: Mutex<BTreeMap<String, Vec<[f64; 2]>>>,
-}
-
-impl Traffic {
-    fn saw(&self, message: &AclMessage) {
-        self.sent.fetch_add(1, Ordering::AcqRel);
-        let from_cognitive = message
-            .sender
-            .as_ref()
-            .and_then(|s| s.name.strip_prefix("cognitive@"));
-        let (
-            Some(chair),
-            Ok(WheelchairContent::Request {
-                action: WheelchairAction::Sequence { steps },
-                ..
-            }),
-        ) = (from_cognitive, WheelchairContent::from_message(message))
-        else {
-            return;
-        };
-        let points = steps
-            .iter()
-            .filter_map(|s| match s {
-                WheelchairAction::GotoXy { x_m, y_m } => Some([*x_m, *y_m]),
-                _ => None,
-            })
-            .collect();
-        self.paths
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .insert(chair.to_string(), points);
-    }
-}
-
-fn tap_into(host: &mut AgentHost, traffic: &Arc<Traffic>) {
-    let traffic = traffic.clone();
-    let tap = compose::log_tap(
-        host.bus().clone(),
-        compose::agent_id("logger", SERVICES),
-        move |m| traffic.saw(m),
-    );
-    host.set_tap(tap);
-}
-
-/// The real chair's virtual side when it senses nothing virtual: its ghost is placed at the
-/// pose the real chair reports (virtual chairs see it, collisions are counted), no readings.
-struct PoseFeed(GhostSensors);
-
-impl VirtualSensors for PoseFeed {
-    fn sense_at(
-        &mut self,
-        t_world_body: Isometry2<f64>,
-        time_ns: u64,
-    ) -> Result<SensorFrame, BodyError> {
-        self.0.sense_at(t_world_body, time_ns)?;
-        Ok(SensorFrame::empty(time_ns))
-    }
-}
-
-/// The body of a chair and, for a real or mixed one, the board emulator it talks to.
-fn body_for(
-    kind: BodyKind,
-    name: &str,
-    world: &SharedWorld,
-    id: ChairId,
-    t_world_body: Isometry2<f64>,
-    failed: Arc<AtomicBool>,
-) -> Result<(SharedBody, Option<BoardEmulator>), FleetError> {
-    let setup = |reason: String| FleetError::Setup {
-        container: name.to_string(),
-        reason,
-    };
-    if kind == BodyKind::Virtual {
-        return Ok((
-            SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), failed)),
-            None,
-        ));
-    }
-    let geometry = WheelGeometry::default();
-    let board = BoardEmulator::spawn(geometry, compose::CONTROL_PERIOD.as_nanos() as u64)
-        .map_err(|e| setup(e.to_string()))?;
-    let serial = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2))
-        .map_err(|e| setup(e.to_string()))?;
-    let odometry = Odometry::new(geometry, t_world_body);
-    let ghost = GhostSensors::new(world.clone(), id);
-    let body = if kind == BodyKind::Mixed {
-        SharedBody::new(FaultyBody::new(
-            MixedBody::new(serial, ghost, odometry),
-            failed,
-        ))
-    } else {
-        SharedBody::new(FaultyBody::new(
-            MixedBody::new(serial, PoseFeed(ghost), odometry),
-            failed,
-        ))
-    };
-    Ok((body, Some(board)))
-}
-
-/// A chair's container: its agents on its own bus.
-pub struct ChairContainer {
-    name: String,
-    id: ChairId,
-    kind: BodyKind,
-    host: AgentHost,
-    sensor_failed: Arc<AtomicBool>,
-    inputs: InputQueue,
-    drive_status: SharedDriveStatus,
-    display: Arc<Mutex<Display>>,
-    // dropped after the host (fields drop in order), so the driver never outlives its board
-    _board: Option<BoardEmulator>,
-}
-
-impl ChairContainer {
-    /// The chair's name.
-    pub fn name(&self) -> &str {
-        &self.name
-    }
-
-    /// The agents running in this container.
-    pub fn agents(&self) -> Vec<String> {
-        self.host.agent_names()
-    }
-}
-
-/// The service agents' container.
-pub struct ServiceContainer {
-    host: AgentHost,
-    desk: SharedDesk,
-    refusals: RefusalLog,
-}
-
-/// Moves the world's doors for the door agent; a jammed door faults.
-struct WorldDoors {
-    world: SharedWorld,
-    /// The door agent's door names to map door ids.
-    ids: BTreeMap<String, String>,
-    jammed: Arc<Mutex<BTreeSet<String>>>,
-}
-
-impl DoorActuator for WorldDoors {
-    fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
-        let fault = |reason: String| ActuatorFault {
-            door: door.to_string(),
-            reason,
-        };
-        let id = compose::map_door(&self.ids, door)?;
-        if self
-            .jammed
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .contains(id)
-        {
-            return Err(fault("jammed".into()));
-        }
-        self.world
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .set_door(id, open)
-            .map_err(|e| fault(e.to_string()))
-    }
-}
-
-/// One chair as the snapshot shows it.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct ChairSnapshot {
-    /// Its name.
-    pub name: String,
-    /// True pose in the world: x, y (m), heading (rad).
-    pub pose: [f64; 3],
-    /// Linear (m/s) and angular (rad/s) speed.
-    pub twist: [f64; 2],
-    /// Sonar ranges, m (`None`: no echo).
-    pub sonar_m: Vec<Option<f64>>,
-    /// Contacts with walls, furniture or chairs so far.
-    pub collisions: u64,
-    /// Distance driven, m.
-    pub distance_m: f64,
-    /// Its current goal, if any.
-    pub goal: Option<[f64; 2]>,
-    /// The waypoints it was sent.
-    pub path: Vec<[f64; 2]>,
-    /// The agents of its container.
-    pub agents: Vec<String>,
-}
-
-/// The whole fleet at one instant.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Snapshot {
-    /// Simulated time, s.
-    pub time_s: f64,
-    /// Every chair.
-    pub chairs: Vec<ChairSnapshot>,
-    /// Door id and whether it is open.
-    pub doors: Vec<(String, bool)>,
-    /// The service container's agents.
-    pub services: Vec<String>,
-    /// The last frames between containers.
-    pub recent: Vec<Exchange>,
 }
 
 struct Goal {

@@ -6,6 +6,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::NodeError;
+use iw_wiring::BodyKind;
 
 /// Everything one container process needs. Every section and key has a default, so an empty
 /// file is a valid configuration.
@@ -167,24 +168,11 @@ impl Default for WorldSection {
     }
 }
 
-/// What a chair's body is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum BodyKind {
-    /// A body in the world container, driven over the platform.
-    #[default]
-    Virtual,
-    /// The interface board on a serial port; the chair's pose is reported to the world.
-    Serial,
-    /// The board, with the world's virtual sonars merged in (nearest wins).
-    Mixed,
-}
-
 /// A chair's body.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct BodySection {
-    /// `virtual`, `serial` or `mixed`.
+    /// `virtual`, `serial` (also read as `real`, the scenario's word) or `mixed`.
     pub kind: BodyKind,
     /// The serial port of the interface board (serial and mixed).
     pub port: String,
@@ -419,6 +407,21 @@ mod tests {
     }
 
     #[test]
+    fn a_body_kind_reads_as_the_spawn_config_and_the_scenario_spell_it() {
+        for (text, kind) in [
+            ("virtual", BodyKind::Virtual),
+            ("serial", BodyKind::Real),
+            ("real", BodyKind::Real),
+            ("mixed", BodyKind::Mixed),
+        ] {
+            let config =
+                SpawnConfig::parse(&format!("[body]\nkind = \"{text}\""), "t.toml").unwrap();
+            assert_eq!(config.body.kind, kind, "{text}");
+        }
+        assert!(SpawnConfig::parse("[body]\nkind = \"ghost\"", "t.toml").is_err());
+    }
+
+    #[test]
     fn validation_names_the_key() {
         let err = SpawnConfig::default()
             .validate(&crate::Role::Services)
@@ -438,7 +441,7 @@ mod tests {
         assert!(err.contains("container.lease_ms"), "{err}");
         let mut config = SpawnConfig::default();
         config.security.insecure_dev = true;
-        config.body.kind = BodyKind::Serial;
+        config.body.kind = BodyKind::Real;
         let err = config
             .validate(&crate::Role::Chair { name: "c".into() })
             .unwrap_err()

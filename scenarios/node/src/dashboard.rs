@@ -22,8 +22,8 @@ use iw_acl::AclMessage;
 use iw_agent::{Agent, Context};
 use iw_bus::Time;
 use iw_dashboard::{
-    Action, ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, MessageView, State,
-    round_cm,
+    ChairDisplay, ChairView, ContainerView, Dashboard, DashboardConfig, MessageView, PageAction,
+    State, round_cm,
 };
 use iw_door::{ActuatorFault, DoorActuator, RefusalLog};
 use iw_interface::DriveMapping;
@@ -255,7 +255,7 @@ impl LiveDashboard {
         let mut goals = Vec::new();
         while let Some(action) = self.server.try_action() {
             match action {
-                Action::Goal { chair, x, y } => {
+                PageAction::Goal { chair, x, y } => {
                     let nearest = self
                         .places
                         .iter()
@@ -272,7 +272,7 @@ impl LiveDashboard {
                         None => self.notice(format!("goal ({x}, {y}) for {chair}: not a point")),
                     }
                 }
-                Action::Drive { chair, input } => {
+                PageAction::Drive { chair, input } => {
                     let raw = iw_wiring::view::raw_input(input);
                     let command = match self.mapping.command(&raw) {
                         Some(Ok(c)) => (c.linear_mps, c.angular_radps),

@@ -17,6 +17,9 @@
 //!   from the platform's traffic; its drive panel drives a chair through its interface agent.
 //! - The services' FIPA HTTP MTP gateway (`[mtp.http] listen`): foreign platforms (JADE) reach
 //!   the service agents (`df@services`, `assistant@services`, ...) over HTTP.
+//! - [`http_platform`]: [`HttpPlatform`](http_platform::HttpPlatform), the AMS, the DF and given
+//!   agents on an in-process bus behind an HTTP MTP gateway in one call, and
+//!   [`Echo`](http_platform::Echo), the echo agent of the JADE captures.
 //! - [`AdminCommand`]: what the parent process may ask of a running container on its stdin
 //!   (`--admin-stdin`: a goal, a killed agent); not reachable from the network.
 //! - [`write_identity`]: a new identity key file.
@@ -50,18 +53,20 @@
 mod config;
 mod dashboard;
 mod event;
+pub mod http_platform;
 mod mtp;
 mod probe;
 mod runtime;
 
 pub use config::{
-    BodyKind, BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection,
-    MtpSection, SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection,
-    WorldSection,
+    BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection, MtpSection,
+    SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
 pub use event::Event;
 pub use runtime::{AdminCommand, MAX_ADMIN_LINE, Runtime, control_addr, write_identity};
 
+/// What a chair's body is (`[body] kind`), the fleet's own type.
+pub use iw_wiring::BodyKind;
 /// The service container's name.
 pub use iw_wiring::SERVICES;
 

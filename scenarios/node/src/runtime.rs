@@ -24,7 +24,8 @@ use iw_wiring::world_link::{
 use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk};
 use nalgebra::{Isometry2, Vector2};
 
-use crate::config::{BodyKind, SpawnConfig, TransportKind};
+use crate::BodyKind;
+use crate::config::{SpawnConfig, TransportKind};
 use crate::probe::{AgreeProbe, SharedProbe, Timed};
 use crate::{Event, NodeError, Role, SERVICES};
 
@@ -288,7 +289,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
             }
             SharedBody::new(body)
         }
-        BodyKind::Serial | BodyKind::Mixed => {
+        BodyKind::Real | BodyKind::Mixed => {
             let senses = config.body.kind == BodyKind::Mixed;
             let ghost =
                 WorldGhost::open(bus.clone(), name, t_world_body, senses).map_err(link_err)?;

@@ -6,7 +6,7 @@
 //! local copy of the map and renders the camera there at that pose ([`mirror_camera`]): the
 //! walls, furniture and doors as the map gives them (not other chairs, nor doors moved since).
 
-use iw_perception_agent::VisualConfig;
+use iw_perception::VisualConfig;
 use iw_sim::vo::SimCamera;
 use iw_sim::{ChairKind, ChairSpec, Map, SharedWorld, World};
 use iw_vo::{CameraSource, Intrinsics, VoError};

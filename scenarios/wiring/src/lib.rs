@@ -9,6 +9,7 @@
 //! - [`service_agents`]: `ams@services`, `df@services`, `door@services` (every door of the map),
 //!   `logger@services`, `watcher@services`, `assistant@services` and the staff console
 //!   `staff@services` ([`SERVICE_ROLES`], [`Console`]).
+//! - [`BodyKind`]: virtual, real or mixed, for both.
 //! - [`Building`]: the map as the cognitive agents plan on it; [`plan`]: the map as a grid.
 //! - [`log_tap`]: a host tap copying every message to the logger.
 //! - [`remote_agents`]: which agents a container routes to which other container.
@@ -29,14 +30,14 @@ use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
-use iw_control_agent::{ControlAgent, ControlConfig, SharedDriveStatus};
+use iw_control::{ControlAgent, ControlConfig, SharedDriveStatus};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_localization::{LocalizationMap, Localizer};
 use iw_logger::SyncPolicy;
 use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
 use iw_ontology::fipa::{AgentState, AmsAgentDescription};
-use iw_perception_agent::{PerceptionAgent, PerceptionConfig, VisualConfig};
+use iw_perception::{PerceptionAgent, PerceptionConfig, VisualConfig};
 use iw_sim::{ChairSpec, Map};
 use iw_vo::Pose2;
 use iw_watcher::{WatcherAgent, WatcherConfig};
@@ -52,6 +53,23 @@ pub use console::{Console, Desk, GoalEvent, SharedDesk, desk};
 
 /// The service container's name.
 pub const SERVICES: &str = "services";
+
+/// What a chair's body is (thesis 3.5), the same for the in-process fleet (a scenario's
+/// `body`) and for a chair process (`[body] kind`, `spawn --body`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BodyKind {
+    /// Simulated: the world drives it (in the fleet's simulator or the world container).
+    #[default]
+    Virtual,
+    /// The serial driver talking to the interface board (emulated on a pty in the fleet); its
+    /// dead-reckoned pose is fed into the world, which it does not sense. Spelled `real` in a
+    /// scenario and `serial` in a spawn configuration; both are read.
+    #[serde(alias = "serial")]
+    Real,
+    /// Real, with the virtual sonars of its ghost in the world merged in (nearest wins).
+    Mixed,
+}
 
 /// What went wrong composing a container's agents.
 #[derive(Debug, thiserror::Error)]

@@ -1,6 +1,6 @@
 //! The dashboard, served on the interface agent's side: an on-chair display and a staff view in a
 //! browser, fed compact JSON state over a websocket; what the page asks for comes back as
-//! [`Action`]s for the interface side to send on the bus like any agent.
+//! [`PageAction`]s for the interface side to send on the bus like any agent.
 //!
 //! Organization:
 //! - [`Dashboard`]: the HTTP + websocket server (its own thread and tokio runtime);
@@ -10,7 +10,7 @@
 //!   per-source connection rate).
 //! - [`MapView`], [`State`], [`ChairView`], [`ChairDisplay`], [`MessageView`], [`ContainerView`],
 //!   [`FeatureView`]: what the page is sent (the map once, the state at each publish).
-//! - [`Action`]: what the page may ask; [`DriveInput`]: the drive panel's inputs (on-screen
+//! - [`PageAction`]: what the page may ask; [`DriveInput`]: the drive panel's inputs (on-screen
 //!   joystick, gamepad, arrow keys, head-cap emulation), for the chair's interface agent.
 //!
 //! Routes: `/` (staff view; `/?chair=NAME` is that chair's on-board display), `/map.json`, `/ws`.
@@ -22,6 +22,6 @@ mod state;
 
 pub use server::{ConnectionLimits, Dashboard, DashboardConfig, DashboardError};
 pub use state::{
-    Action, ChairDisplay, ChairView, ContainerView, DoorView, DriveInput, FeatureView, MapView,
-    MessageView, PassageView, PlaceView, State, round_cm,
+    ChairDisplay, ChairView, ContainerView, DoorView, DriveInput, FeatureView, MapView,
+    MessageView, PageAction, PassageView, PlaceView, State, round_cm,
 };

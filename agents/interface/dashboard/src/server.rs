@@ -15,7 +15,7 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use tokio::sync::{Semaphore, oneshot, watch};
 
-use crate::state::{Action, MapView, State};
+use crate::state::{MapView, PageAction, State};
 
 /// The page: plain JS and a canvas, no build step.
 const INDEX_HTML: &str = include_str!("../static/index.html");
@@ -94,7 +94,7 @@ impl Default for ConnectionLimits {
 struct Shared {
     map: Arc<str>,
     frames: watch::Receiver<Arc<str>>,
-    actions: Arc<Mutex<mpsc::Sender<Action>>>,
+    actions: Arc<Mutex<mpsc::Sender<PageAction>>>,
     token: Option<Arc<str>>,
 }
 
@@ -103,7 +103,7 @@ pub struct Dashboard {
     addr: SocketAddr,
     token: Option<String>,
     frames: watch::Sender<Arc<str>>,
-    actions: mpsc::Receiver<Action>,
+    actions: mpsc::Receiver<PageAction>,
     stop: Option<oneshot::Sender<()>>,
     thread: Option<JoinHandle<()>>,
 }
@@ -191,7 +191,7 @@ impl Dashboard {
     }
 
     /// The next thing a page asked for, if any.
-    pub fn try_action(&self) -> Option<Action> {
+    pub fn try_action(&self) -> Option<PageAction> {
         self.actions.try_recv().ok()
     }
 }
@@ -402,7 +402,7 @@ async fn session(mut socket: WebSocket, s: Shared) {
             incoming = socket.recv() => {
                 let Some(Ok(message)) = incoming else { break };
                 let Message::Text(text) = message else { continue };
-                match serde_json::from_str::<Action>(&text) {
+                match serde_json::from_str::<PageAction>(&text) {
                     Ok(action) => {
                         let sent = s.actions.lock().unwrap_or_else(PoisonError::into_inner).send(action);
                         if sent.is_err() {

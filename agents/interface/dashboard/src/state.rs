@@ -165,7 +165,7 @@ pub struct FeatureView {
 /// What the page may ask; sent as JSON `{"do":"goal",...}` over the websocket.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(tag = "do", rename_all = "kebab-case")]
-pub enum Action {
+pub enum PageAction {
     /// Send `chair` towards the place nearest to (`x`, `y`), m.
     Goal { chair: String, x: f64, y: f64 },
     /// Ask the door agent to open (or close) `door`.
@@ -210,36 +210,36 @@ mod tests {
 
     #[test]
     fn actions_parse_from_the_page_shape() {
-        let goal: Action =
+        let goal: PageAction =
             serde_json::from_str(r#"{"do":"goal","chair":"chair-0","x":3.5,"y":2}"#).unwrap();
         assert_eq!(
             goal,
-            Action::Goal {
+            PageAction::Goal {
                 chair: "chair-0".into(),
                 x: 3.5,
                 y: 2.0
             }
         );
-        let drive: Action =
+        let drive: PageAction =
             serde_json::from_str(r#"{"do":"drive","chair":"chair-0","dev":"stick","x":0.5,"y":1}"#)
                 .unwrap();
         assert_eq!(
             drive,
-            Action::Drive {
+            PageAction::Drive {
                 chair: "chair-0".into(),
                 input: DriveInput::Stick { x: 0.5, y: 1.0 }
             }
         );
         assert!(
-            serde_json::from_str::<Action>(
+            serde_json::from_str::<PageAction>(
                 r#"{"do":"drive","chair":"c","dev":"stick","x":null,"y":1}"#
             )
             .is_err(),
             "NaN arrives as null and is refused"
         );
-        let step: Action = serde_json::from_str(r#"{"do":"step"}"#).unwrap();
-        assert_eq!(step, Action::Step);
-        assert!(serde_json::from_str::<Action>(r#"{"do":"explode"}"#).is_err());
+        let step: PageAction = serde_json::from_str(r#"{"do":"step"}"#).unwrap();
+        assert_eq!(step, PageAction::Step);
+        assert!(serde_json::from_str::<PageAction>(r#"{"do":"explode"}"#).is_err());
     }
 
     #[test]

@@ -6,8 +6,8 @@ use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;
 
 use iw_dashboard::{
-    Action, ChairDisplay, ChairView, Dashboard, DashboardConfig, DashboardError, MapView,
-    MessageView, State,
+    ChairDisplay, ChairView, Dashboard, DashboardConfig, DashboardError, MapView, MessageView,
+    PageAction, State,
 };
 
 fn get(addr: SocketAddr, target: &str, extra: &str) -> String {
@@ -123,7 +123,7 @@ fn frames_go_out_and_actions_come_back_over_the_websocket() {
     assert!(error.contains("not understood"), "{error}");
     assert_eq!(
         dashboard.try_action(),
-        Some(Action::Goal {
+        Some(PageAction::Goal {
             chair: "chair-0".into(),
             x: 3.0,
             y: 4.0

@@ -9,7 +9,7 @@
 //! kept-alive connection and over a new one each time. After criterion, the round trip is
 //! timed one by one and its p50/p99 printed.
 //!
-//! Run: `cargo bench -p iw-mtp-http --bench round_trip`
+//! Run: `cargo bench -p iw-node --bench mtp_round_trip`
 
 use std::time::{Duration, Instant};
 
@@ -17,8 +17,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use iw_acl::codec::print;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_bus::Mailbox;
-use iw_mtp_http::platform::Echo;
-use iw_mtp_http::{GatewayConfig, HttpPlatform, MtpClient, MtpServer};
+use iw_mtp_http::{GatewayConfig, MtpClient, MtpServer};
+use iw_node::http_platform::{Echo, HttpPlatform};
 use tokio::runtime::Runtime;
 use tokio::sync::mpsc;
 

@@ -1,7 +1,8 @@
 //! A whole FIPA platform reachable over HTTP in one call: the AMS, the DF and the caller's
-//! agents on an in-process bus, stepped on their own thread, behind a [`Gateway`]. What the
-//! `acl send` tests and the round-trip bench talk to, and what a foreign platform such as JADE
-//! can use.
+//! agents on an in-process bus, stepped on their own thread, behind an `iw_mtp_http` [`Gateway`].
+//! What the `acl send` tests, the JADE-capture tests and the round-trip bench talk to, and what a
+//! foreign platform such as JADE can use. It lives here, beside the services container's
+//! gateway, because the transport crate hosts no agents.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -18,7 +19,7 @@ use iw_ontology::fipa::{
     ServiceDescription,
 };
 
-use crate::{Error, Gateway, GatewayConfig};
+use iw_mtp_http::{Error, Gateway, GatewayConfig};
 
 /// A running platform; dropping it stops its agents and its server.
 pub struct HttpPlatform {

@@ -1,0 +1,117 @@
+//! A chair's body in the fleet: virtual (the simulator drives it), real (the serial driver and
+//! an emulated board, its pose fed into the world) or mixed, each wrapped so a sensor failure can
+//! be injected; and a virtual chair's camera.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use iw_body::{
+    BoardEmulator, Body, BodyError, MixedBody, Odometry, SensorFrame, SerialBody, VirtualSensors,
+    WheelGeometry, WheelSpeeds,
+};
+use iw_perception::VisualConfig;
+use iw_sim::{ChairId, GhostSensors, SharedWorld, VirtualBody};
+use iw_wiring as compose;
+use iw_wiring::SharedBody;
+use nalgebra::Isometry2;
+
+use crate::{BodyKind, FleetError};
+
+/// A [`Body`] whose sensors can be failed on purpose: while failed, every read is an error
+/// (the control agent then stops the chair and fails its task).
+pub struct FaultyBody<B> {
+    inner: B,
+    failed: Arc<AtomicBool>,
+}
+
+impl<B: Body> FaultyBody<B> {
+    /// Wraps `inner`; `failed` switches the failure.
+    pub fn new(inner: B, failed: Arc<AtomicBool>) -> Self {
+        FaultyBody { inner, failed }
+    }
+}
+
+impl<B: Body> Body for FaultyBody<B> {
+    fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        if self.failed.load(Ordering::Acquire) {
+            return Err(BodyError::Virtual {
+                reason: "sensor failure injected".into(),
+            });
+        }
+        self.inner.read()
+    }
+
+    fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
+        self.inner.command(speeds)
+    }
+}
+
+/// The perception agent's camera for virtual chair `id`: the simulator's renderer
+/// ([`compose::camera::visual_config`]).
+pub(crate) fn sim_camera(
+    world: &SharedWorld,
+    id: ChairId,
+    name: &str,
+) -> Result<VisualConfig, FleetError> {
+    let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| FleetError::Setup {
+        container: name.to_string(),
+        reason: e.to_string(),
+    })?;
+    Ok(compose::camera::visual_config(camera))
+}
+
+/// The real chair's virtual side when it senses nothing virtual: its ghost is placed at the
+/// pose the real chair reports (virtual chairs see it, collisions are counted), no readings.
+pub(crate) struct PoseFeed(GhostSensors);
+
+impl VirtualSensors for PoseFeed {
+    fn sense_at(
+        &mut self,
+        t_world_body: Isometry2<f64>,
+        time_ns: u64,
+    ) -> Result<SensorFrame, BodyError> {
+        self.0.sense_at(t_world_body, time_ns)?;
+        Ok(SensorFrame::empty(time_ns))
+    }
+}
+
+/// The body of a chair and, for a real or mixed one, the board emulator it talks to.
+pub(crate) fn body_for(
+    kind: BodyKind,
+    name: &str,
+    world: &SharedWorld,
+    id: ChairId,
+    t_world_body: Isometry2<f64>,
+    failed: Arc<AtomicBool>,
+) -> Result<(SharedBody, Option<BoardEmulator>), FleetError> {
+    let setup = |reason: String| FleetError::Setup {
+        container: name.to_string(),
+        reason,
+    };
+    if kind == BodyKind::Virtual {
+        return Ok((
+            SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), failed)),
+            None,
+        ));
+    }
+    let geometry = WheelGeometry::default();
+    let board = BoardEmulator::spawn(geometry, compose::CONTROL_PERIOD.as_nanos() as u64)
+        .map_err(|e| setup(e.to_string()))?;
+    let serial = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2))
+        .map_err(|e| setup(e.to_string()))?;
+    let odometry = Odometry::new(geometry, t_world_body);
+    let ghost = GhostSensors::new(world.clone(), id);
+    let body = if kind == BodyKind::Mixed {
+        SharedBody::new(FaultyBody::new(
+            MixedBody::new(serial, ghost, odometry),
+            failed,
+        ))
+    } else {
+        SharedBody::new(FaultyBody::new(
+            MixedBody::new(serial, PoseFeed(ghost), odometry),
+            failed,
+        ))
+    };
+    Ok((body, Some(board)))
+}
