@@ -120,7 +120,7 @@ pub struct ControlConfig {
     pub wall_length_m: f64,
     /// How long the body may stay unreadable before the running task fails, ms. The wheels stop
     /// at the first failed read; a task survives a shorter fault (one corrupted serial frame)
-    /// and resumes from rest.
+    /// and resumes from rest, its no-progress time counted afresh.
     pub body_fault_ms: u64,
     /// Agents that may drive this chair by hand. Empty: the agents of this chair's own
     /// container, the part of their name after `@` being the control agent's.
@@ -690,7 +690,12 @@ impl Agent for ControlAgent {
         let now_ns = ctx.now().0;
         let frame = match self.body.read() {
             Ok(frame) => {
-                self.body_fault_since_ns = None;
+                if self.body_fault_since_ns.take().is_some()
+                    && let Mode::Task(task) = &mut self.mode
+                {
+                    // the wheels were stopped for the fault: that time is not the way's fault
+                    task.progress_at = None;
+                }
                 frame
             }
             Err(err) => {

@@ -439,7 +439,10 @@ impl Fact {
             return Err(bad());
         };
         for (name, fact) in [
-            ("error-message", (|reason| Self::ErrorMessage { reason }) as fn(String) -> Self),
+            (
+                "error-message",
+                (|reason| Self::ErrorMessage { reason }) as fn(String) -> Self,
+            ),
             ("body-fault", |reason| Self::BodyFault { reason }),
         ] {
             if predicate.eq_ignore_ascii_case(name) {

@@ -58,6 +58,9 @@ pub const ATTACH_EVERY: Duration = Duration::from_millis(500);
 /// The world's period: it steps and sends every body its frame this often.
 pub const WORLD_PERIOD: Duration = Duration::from_millis(50);
 
+/// A frame this far behind the last one (world time, ns) comes from a restarted world.
+const RESTART_BACK_NS: u64 = 1_000_000_000;
+
 /// Longest simulated step after a stall, s (the simulator never leaps).
 const MAX_STEP_S: f64 = 0.2;
 
@@ -187,7 +190,17 @@ impl WorldLink {
             if chair != self.chair {
                 continue;
             }
-            if !self.fresh(now) {
+            // A world's clock restarts with it: a frame well behind the last one is from a new
+            // world (even one back within the link timeout); one just behind is a late frame.
+            let behind = self
+                .latest
+                .as_ref()
+                .map(|(last, _)| last.time_ns.saturating_sub(frame.time_ns));
+            let restarted = behind.is_some_and(|ns| ns > RESTART_BACK_NS);
+            if behind.is_some_and(|ns| ns > 0) && !restarted && self.fresh(now) {
+                continue;
+            }
+            if !self.fresh(now) || restarted {
                 // a new attachment: continue the ticks from where they were
                 if let Some((last, _)) = &self.latest {
                     self.tick_offset = (
