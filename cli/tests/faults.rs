@@ -9,7 +9,7 @@ use std::io::Read;
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-use common::{LIMIT, Proc, free_port_pair, is, keygen_control};
+use common::{LIMIT, Proc, free_port_pair, is, keygen, keygen_control};
 use serde_json::Value;
 
 fn addr() -> String {
@@ -217,12 +217,17 @@ fn a_killed_worlds_chairs_are_taken_back_by_the_next_world_where_they_stood() {
         &control,
     ]);
     services.wait_for("services ready", |e| e["event"] == "ready");
+    // The world keeps its identity across the restart, as a deployed one does (a fresh key
+    // would be a different container to the chair's security layer, which pinned the first).
+    let world_key = keygen(dir.path(), "world");
     let world_args = [
         "--world",
         "--listen",
         &world_addr,
         "--peer",
         &services_addr,
+        "--key",
+        &world_key,
         "--control-key",
         &control,
     ];
@@ -262,7 +267,11 @@ fn a_killed_worlds_chairs_are_taken_back_by_the_next_world_where_they_stood() {
         .hypot(back["y_m"].as_f64().unwrap() - last["y_m"].as_f64().unwrap());
     assert!(gap_m < 1.5, "last seen {last}, taken back at {back}");
     assert!(back["x_m"].as_f64().unwrap() > 2.0, "{back}");
-    // And the chair goes on: its goal ends.
+    // And the chair goes on: its goal ends. Open: on this machine (load 13-20) it ended in
+    // FAILURE in four runs out of four. A drive the body failed during the outage is now asked
+    // again (a body fault no longer blocks the corridor), but after the re-attach the chair
+    // drives for a while, then makes no progress for 8 s ("blocked: no progress"), and every
+    // re-plan after that is blocked too, until no route is left. Not yet explained.
     let answer = services.wait_for("chair-k's goal answered", |e| {
         is(e, "goal", "chair", "chair-k") && e["performative"] != "AGREE"
     });

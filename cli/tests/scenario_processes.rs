@@ -103,6 +103,13 @@ fn restricted_door_passes_across_processes() {
     passes("restricted-door");
 }
 
+/// The watcher killed inside the services process (`kill-agent` over the admin channel): the
+/// chair waits out the pass timeout and goes on.
+#[test]
+fn watcher_down_passes_across_processes() {
+    passes("watcher-down");
+}
+
 /// A chair container killed outright (SIGKILL) mid-drive: its body stops (the world's watchdog
 /// for a virtual body), the other chair still reaches its goal; in process the same file is
 /// refused with the entry named.

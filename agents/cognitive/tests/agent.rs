@@ -457,3 +457,73 @@ fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
         .collect();
     assert_eq!(answers, [Performative::Agree, Performative::Inform]);
 }
+
+/// FAILURE `((body-fault ...))` from the control agent: what a chair's control agent answers
+/// while its world link is down.
+fn body_fault(m: &AclMessage) -> Vec<AclMessage> {
+    let agree = m.create_reply().with_performative(Performative::Agree);
+    let failure = WheelchairContent::body_fault("body: no sensor frame from the world")
+        .fill(m.create_reply().with_performative(Performative::Failure));
+    vec![agree, failure]
+}
+
+fn answers(rig: &Rig) -> Vec<(Performative, String)> {
+    rig.user
+        .0
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|m| {
+            let reason = WheelchairContent::from_message(m)
+                .ok()
+                .and_then(|c| c.reason().map(str::to_string))
+                .unwrap_or_default();
+            (m.performative, reason)
+        })
+        .collect()
+}
+
+#[test]
+fn a_motion_the_body_failed_is_asked_again_and_the_goal_goes_on_when_the_body_is_back() {
+    let mut failures = 3;
+    let control: Script = Box::new(move |m| {
+        if failures > 0 {
+            failures -= 1;
+            body_fault(m)
+        } else {
+            agree_then(m, Performative::Inform)
+        }
+    });
+    let mut rig = rig(Box::new(|m| agree_then(m, Performative::Inform)), control);
+    rig.goal("c");
+    // Three failures a retry period (1 s) apart, then the motion gets through.
+    rig.run(600);
+    let performatives: Vec<_> = answers(&rig).into_iter().map(|(p, _)| p).collect();
+    assert_eq!(performatives, [Performative::Agree, Performative::Inform]);
+    let control = rig.control.lock().unwrap();
+    assert_eq!(control.len(), 4, "the same motion asked four times");
+    for request in control.iter() {
+        assert_eq!(*waypoints(&action_of(request)).last().unwrap(), (5.0, 9.0));
+    }
+    assert_eq!(rig.door.lock().unwrap().len(), 1, "not re-planned");
+}
+
+#[test]
+fn a_body_failing_past_the_wait_fails_the_goal_with_the_body_reason() {
+    let mut rig = rig(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(body_fault),
+    );
+    rig.goal("c");
+    let wait_steps = (iw_cognitive::agent::BODY_WAIT.as_millis() / 10) as usize;
+    rig.run(wait_steps - 200);
+    assert_eq!(answers(&rig).len(), 1, "still waiting: {:?}", answers(&rig));
+    rig.run(400);
+    let got = answers(&rig);
+    assert_eq!(got.len(), 2, "{got:?}");
+    assert_eq!(got[1].0, Performative::Failure);
+    assert!(
+        got[1].1.contains("body has failed") && got[1].1.contains("no sensor frame"),
+        "{got:?}"
+    );
+}

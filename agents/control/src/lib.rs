@@ -16,8 +16,10 @@
 //!   `(follow-left-wall :distance)`, `(follow-right-wall :distance)` or
 //!   `(action-sequence :steps (sequence A ...))`. Answer: AGREE, then INFORM
 //!   `((done (action control A)))` when finished, or FAILURE `((error-message "..."))` when
-//!   blocked (no progress for [`ControlConfig::blocked_after_ms`]), when the body fails, or when a
-//!   newer request or manual drive preempts it. Other actions (go-to, doors, follow-line) get
+//!   blocked (no progress for [`ControlConfig::blocked_after_ms`]) or when a newer request or
+//!   manual drive preempts it, FAILURE `((body-fault "..."))` when the body stays unreadable past
+//!   [`ControlConfig::body_fault_ms`] or takes no stop (the way is not known to be blocked: the
+//!   requester may try again once the body is back). Other actions (go-to, doors, follow-line) get
 //!   REFUSE; content that is not the ontology gets NOT-UNDERSTOOD.
 //! - REQUEST `((action (agent-identifier :name control) (drive :linear V :angular W)))` (m/s,
 //!   rad/s): manual driving as a stream, one conversation per stream (held input). The first
@@ -121,7 +123,7 @@ pub struct ControlConfig {
     pub wall_length_m: f64,
     /// How long the body may stay unreadable before the running task fails, ms. The wheels stop
     /// at the first failed read; a task survives a shorter fault (one corrupted serial frame)
-    /// and resumes from rest.
+    /// and resumes from rest, its no-progress time counted afresh.
     pub body_fault_ms: u64,
     /// Agents that may drive this chair by hand. Empty: the agents of this chair's own
     /// container, the part of their name after `@` being the control agent's.
@@ -305,7 +307,7 @@ impl ControlAgent {
         if current == Some(true) {
             if let Some(why) = limit {
                 // A broken device mid-stream: end the stream, stop the chair.
-                self.end_stream(ctx, Some(&why));
+                self.end_stream(ctx, Some(&WheelchairContent::error(why)));
                 return;
             }
             if let Mode::Manual(stream) = &mut self.mode {
@@ -382,7 +384,7 @@ impl ControlAgent {
 
     /// Ends the live drive stream: FAILURE with `why`, or (none) INFORM done when the user had
     /// let go (last command a stop), FAILURE for silence otherwise. The chair stops.
-    fn end_stream(&mut self, ctx: &mut Context<'_>, why: Option<&str>) {
+    fn end_stream(&mut self, ctx: &mut Context<'_>, why: Option<&WheelchairContent>) {
         let Mode::Manual(mut stream) = std::mem::replace(&mut self.mode, Mode::Idle) else {
             return;
         };
@@ -406,7 +408,7 @@ impl ControlAgent {
                 let _ = ctx.answer_error(&mut stream.responder, Performative::Failure, &why);
             }
             Some(why) => {
-                let _ = ctx.answer_error(&mut stream.responder, Performative::Failure, why);
+                let _ = ctx.answer(&mut stream.responder, Performative::Failure, why);
             }
         }
     }
@@ -505,11 +507,22 @@ impl ControlAgent {
         Ok(())
     }
 
-    /// Ends a running task or drive stream with FAILURE.
+    /// Ends a running task or drive stream with FAILURE `((error-message why))`.
     fn preempt(&mut self, ctx: &mut Context<'_>, why: &str) {
+        self.fail(ctx, &WheelchairContent::error(why));
+    }
+
+    /// Ends a running task or drive stream with FAILURE `((body-fault why))`: the body failed,
+    /// so the requester may try again when it is back rather than take the way for blocked.
+    fn body_failed(&mut self, ctx: &mut Context<'_>, why: &str) {
+        self.fail(ctx, &WheelchairContent::body_fault(why));
+    }
+
+    /// Ends a running task or drive stream with FAILURE and `why`.
+    fn fail(&mut self, ctx: &mut Context<'_>, why: &WheelchairContent) {
         match std::mem::replace(&mut self.mode, Mode::Idle) {
             Mode::Task(mut task) => {
-                let _ = ctx.answer_error(&mut task.responder, Performative::Failure, why);
+                let _ = ctx.answer(&mut task.responder, Performative::Failure, why);
             }
             manual @ Mode::Manual(_) => {
                 self.mode = manual;
@@ -532,7 +545,7 @@ impl ControlAgent {
     /// period while the fault lasts.
     fn stop_failed(&mut self, ctx: &mut Context<'_>, why: &str, stop: &BodyError) {
         tracing::error!(%why, error = %stop, "the wheels did not take a stop; task failed");
-        self.preempt(ctx, &format!("{why}; the wheel stop failed too: {stop}"));
+        self.body_failed(ctx, &format!("{why}; the wheel stop failed too: {stop}"));
         if let Mode::Manual { .. } = self.mode {
             self.mode = Mode::Idle;
         }
@@ -681,7 +694,12 @@ impl Agent for ControlAgent {
         let now_ns = ctx.now().0;
         let frame = match self.body.read() {
             Ok(frame) => {
-                self.body_fault_since_ns = None;
+                if self.body_fault_since_ns.take().is_some()
+                    && let Mode::Task(task) = &mut self.mode
+                {
+                    // the wheels were stopped for the fault: that time is not the way's fault
+                    task.progress_at = None;
+                }
                 frame
             }
             Err(err) => {
@@ -698,7 +716,7 @@ impl Agent for ControlAgent {
                     return;
                 }
                 tracing::warn!(error = %err, fault_ms = self.config.body_fault_ms, "body unreadable past the fault window; chair stopped, task failed");
-                self.preempt(ctx, &format!("body: {err}"));
+                self.body_failed(ctx, &format!("body: {err}"));
                 return;
             }
         };

@@ -183,12 +183,12 @@ impl Rig {
     }
 }
 
-/// The `error-message` of a reply, empty when it has none.
+/// The `error-message` or `body-fault` of a reply, empty when it has none.
 fn reason(m: &AclMessage) -> String {
-    match WheelchairContent::from_message(m) {
-        Ok(WheelchairContent::Inform(Fact::ErrorMessage { reason })) => reason,
-        _ => String::new(),
-    }
+    WheelchairContent::from_message(m)
+        .ok()
+        .and_then(|c| c.reason().map(str::to_string))
+        .unwrap_or_default()
 }
 
 /// A pose notification as the perception agent sends it: an INFORM in the control agent's
@@ -350,13 +350,13 @@ fn a_body_unreadable_beyond_the_fault_window_fails_the_task() {
         .find(|m| m.performative == Performative::Failure)
         .expect("the task fails");
     assert_eq!(failure.conversation_id.as_deref(), Some("g5"));
-    assert!(
-        failure
-            .content_text()
-            .unwrap_or_default()
-            .contains("no sensor frame"),
-        "{failure:?}"
-    );
+    // A body fault, not an error of the way: the cognitive agent retries rather than re-plans.
+    match WheelchairContent::from_message(failure) {
+        Ok(WheelchairContent::Inform(Fact::BodyFault { reason })) => {
+            assert!(reason.contains("no sensor frame"), "{reason}")
+        }
+        other => panic!("not a body fault: {other:?}"),
+    }
     rig.run(1000);
     assert_eq!(
         rig.last_wheels(),
@@ -382,8 +382,7 @@ fn a_wheel_stop_that_fails_fails_the_task_at_once_and_is_retried() {
         .find(|m| m.performative == Performative::Failure)
         .expect("the task fails at once, not after the fault window");
     assert_eq!(failure.conversation_id.as_deref(), Some("g6"));
-    let reason = failure.content_text().unwrap_or_default();
-    assert!(reason.contains("wheel stop failed"), "{reason}");
+    assert!(reason(failure).contains("wheel stop failed"), "{failure:?}");
     let refused = *rig.body.refused_commands.lock().unwrap();
     assert!(refused >= 2, "the stop is retried ({refused} attempts)");
     // The stop keeps being retried every period until the board takes it.

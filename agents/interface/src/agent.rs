@@ -7,7 +7,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
 use crate::drive::{DriveCommand, DriveMapping};
 use crate::input::RawInput;
@@ -342,11 +342,10 @@ impl Agent for InterfaceAgent {
             | Performative::Refuse
             | Performative::NotUnderstood => {
                 let why = match WheelchairContent::from_message(&message) {
-                    Ok(WheelchairContent::Inform(Fact::ErrorMessage { reason })) => {
-                        format!(": {reason}")
-                    }
-                    _ => String::new(),
-                };
+                    Ok(content) => content.reason().map(|r| format!(": {r}")),
+                    Err(_) => None,
+                }
+                .unwrap_or_default();
                 let ends_stream = matches!(
                     message.performative,
                     Performative::Failure | Performative::Refuse | Performative::NotUnderstood

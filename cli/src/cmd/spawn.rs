@@ -58,6 +58,11 @@ pub struct Args {
     /// (security.insecure_dev).
     #[arg(long)]
     insecure_dev: bool,
+    /// For tests: the world steps in lockstep with its virtual bodies, one fixed 50 ms step once
+    /// every body has sent its wheel speeds (world.lockstep); give it to the world and the
+    /// chairs alike.
+    #[arg(long)]
+    lockstep: bool,
     /// Start pose `X,Y,HEADING_DEG` in the map frame (body.start).
     #[arg(long, value_name = "X,Y,DEG")]
     start: Option<String>,
@@ -117,6 +122,9 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
     }
     if args.insecure_dev {
         config.security.insecure_dev = true;
+    }
+    if args.lockstep {
+        config.world.lockstep = true;
     }
     if let Some(start) = &args.start {
         let values: Vec<f64> = start

@@ -400,12 +400,20 @@ pub enum Fact {
         /// The reason, for a person to read.
         reason: String,
     },
+    /// `(body-fault "why")`: the reason of a FAILURE that came from the chair's body (its
+    /// sensors unreadable, its world link down), not from the way ahead: the action may succeed
+    /// when the body is back, so it says nothing about the route.
+    BodyFault {
+        /// The reason, for a person to read.
+        reason: String,
+    },
 }
 
 impl Fact {
     fn to_formula(&self) -> Formula {
         let (predicate, args) = match self {
             Self::ErrorMessage { reason } => ("error-message", vec![Term::string(reason.as_str())]),
+            Self::BodyFault { reason } => ("body-fault", vec![Term::string(reason.as_str())]),
             Self::AtPose { agent, pose } => ("at-pose", vec![agent.to_term(), pose.to_term()]),
             Self::Reading { agent, reading } => {
                 ("sensor-reading", vec![agent.to_term(), reading.to_term()])
@@ -424,19 +432,25 @@ impl Fact {
     fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
         let bad = || OntologyError::UnexpectedTerm {
             expected: "(at-pose agent pose), (sensor-reading agent reading), (door-state door state) \
-                       or (error-message reason)",
+                       (error-message reason) or (body-fault reason)",
             found: formula.to_string(),
         };
         let Formula::Atomic { predicate, args } = formula else {
             return Err(bad());
         };
-        if predicate.eq_ignore_ascii_case("error-message") {
-            let [reason] = args.as_slice() else {
-                return Err(bad());
-            };
-            return Ok(Self::ErrorMessage {
-                reason: text_of(reason).ok_or_else(bad)?,
-            });
+        for (name, fact) in [
+            (
+                "error-message",
+                (|reason| Self::ErrorMessage { reason }) as fn(String) -> Self,
+            ),
+            ("body-fault", |reason| Self::BodyFault { reason }),
+        ] {
+            if predicate.eq_ignore_ascii_case(name) {
+                let [reason] = args.as_slice() else {
+                    return Err(bad());
+                };
+                return Ok(fact(text_of(reason).ok_or_else(bad)?));
+            }
         }
         let [first, second] = args.as_slice() else {
             return Err(bad());
@@ -496,6 +510,23 @@ impl WheelchairContent {
         Self::Inform(Fact::ErrorMessage {
             reason: reason.into(),
         })
+    }
+
+    /// `((body-fault "reason"))`: a FAILURE because the body failed, not the way ahead.
+    pub fn body_fault(reason: impl Into<String>) -> Self {
+        Self::Inform(Fact::BodyFault {
+            reason: reason.into(),
+        })
+    }
+
+    /// The reason a REFUSE, FAILURE or NOT-UNDERSTOOD gives (`error-message` or `body-fault`).
+    pub fn reason(&self) -> Option<&str> {
+        match self {
+            Self::Inform(Fact::ErrorMessage { reason } | Fact::BodyFault { reason }) => {
+                Some(reason)
+            }
+            _ => None,
+        }
     }
 
     /// As SL content.

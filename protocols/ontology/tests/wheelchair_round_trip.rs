@@ -100,6 +100,7 @@ fn fact() -> impl Strategy<Value = Fact> {
         )
             .prop_map(|(door, state)| Fact::Door { door, state }),
         "[ -~]{0,40}".prop_map(|reason| Fact::ErrorMessage { reason }),
+        "[ -~]{0,40}".prop_map(|reason| Fact::BodyFault { reason }),
     ]
 }
 

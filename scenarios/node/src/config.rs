@@ -157,6 +157,12 @@ pub struct WorldSection {
     pub map: String,
     /// Seed of the simulator's sensor noise.
     pub seed: u64,
+    /// For tests: the world steps by a fixed 50 ms once every virtual body it hears from has sent
+    /// wheel speeds since the last step (one silent for 500 ms is no longer waited for), and each
+    /// virtual chair's body sends one wheel command per frame, so the world's trajectory does not
+    /// depend on the host's load (`iw_wiring::world_link`). Give it to the world and the chairs
+    /// alike. Off: the world steps in real time.
+    pub lockstep: bool,
 }
 
 impl Default for WorldSection {
@@ -164,6 +170,7 @@ impl Default for WorldSection {
         WorldSection {
             map: String::new(),
             seed: 1,
+            lockstep: false,
         }
     }
 }

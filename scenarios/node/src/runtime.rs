@@ -275,7 +275,9 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
     let mut visual = None;
     let body = match config.body.kind {
         BodyKind::Virtual => {
-            let body = WorldBody::open(bus.clone(), name, t_world_body).map_err(link_err)?;
+            let body = WorldBody::open(bus.clone(), name, t_world_body)
+                .map_err(link_err)?
+                .lockstep(config.world.lockstep);
             if config.body.visual_odometry {
                 visual = Some(
                     iw_wiring::camera::mirror_camera(
@@ -321,7 +323,8 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
 /// The world container's agent over `config`'s map.
 fn world_parts(config: &SpawnConfig) -> Result<(Agents, WorldReports), NodeError> {
     let world = World::new(load_map(&config.world.map)?, config.world.seed);
-    let agent = WorldAgent::new(iw_sim::shared(world), iw_wiring::agent_id("door", SERVICES));
+    let agent = WorldAgent::new(iw_sim::shared(world), iw_wiring::agent_id("door", SERVICES))
+        .lockstep(config.world.lockstep);
     let (world, roster) = agent.reports();
     let reports = WorldReports {
         world,

@@ -32,10 +32,10 @@ pub struct GoalEvent {
 /// The reason of an `(error-message "...")` fact (the wheelchair ontology's), as the platform's
 /// agents explain a FAILURE or REFUSE.
 fn error_message(message: &AclMessage) -> Option<String> {
-    match WheelchairContent::from_message(message) {
-        Ok(WheelchairContent::Inform(Fact::ErrorMessage { reason })) => Some(reason),
-        _ => None,
-    }
+    WheelchairContent::from_message(message)
+        .ok()?
+        .reason()
+        .map(str::to_string)
 }
 
 /// What the fleet and the console agent share.

@@ -14,6 +14,18 @@
 //! agent stops the chair) and asks to attach again every [`ATTACH_EVERY`], where it last was, so
 //! chairs re-attach to a restarted world; encoder ticks continue across the restart.
 //! Body-world traffic is sensor data, not agent conversation: it is not copied to the logger.
+//!
+//! Lockstep (for tests, [`WorldAgent::lockstep`] and [`WorldBody::lockstep`]): the world steps
+//! by exactly [`WORLD_PERIOD`] of simulated time, and only once every simulated body it hears
+//! from (within [`LINK_TIMEOUT`]) has sent wheel speeds since the last step. While it waits,
+//! simulated time stands still and every period the bodies get their current frame again (so
+//! their links stay up); a body silent past [`LINK_TIMEOUT`] is no longer waited for, and is
+//! stopped (the watchdog of a lockstep world; a live body waited for cannot move). A lockstep
+//! body sends one wheel command per world step, the first after that step's frame: the command
+//! computed from it (a frame sent again while the world waits is not answered again). So the world's trajectory depends only on the seed, on when each body
+//! attached (in steps) and on what each body commanded at each step, not on when the messages
+//! came or how loaded the host is. The chairs' own agents still run on their own clocks: a
+//! deployment's agents are not made reproducible by this.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -46,6 +58,9 @@ pub const ATTACH_EVERY: Duration = Duration::from_millis(500);
 
 /// The world's period: it steps and sends every body its frame this often.
 pub const WORLD_PERIOD: Duration = Duration::from_millis(50);
+
+/// A frame this far behind the last one (world time, ns) comes from a restarted world.
+const RESTART_BACK_NS: u64 = 1_000_000_000;
 
 /// Longest simulated step after a stall, s (the simulator never leaps).
 const MAX_STEP_S: f64 = 0.2;
@@ -90,6 +105,10 @@ pub struct WorldLink {
     failing: bool,
     /// The body's true pose in the last frame (a simulated body), for its camera.
     truth: TruePose,
+    /// Lockstep: send one wheel command per frame.
+    lockstep: bool,
+    /// The world time (ns) of the frame the last wheel command answered.
+    answered: Option<u64>,
 }
 
 /// A simulated body's true pose in the world as its last sensor frame gave it, with the frame's
@@ -122,6 +141,8 @@ impl WorldLink {
             last_attach: None,
             failing: false,
             truth: TruePose::default(),
+            lockstep: false,
+            answered: None,
         })
     }
 
@@ -170,7 +191,17 @@ impl WorldLink {
             if chair != self.chair {
                 continue;
             }
-            if !self.fresh(now) {
+            // A world's clock restarts with it: a frame well behind the last one is from a new
+            // world (even one back within the link timeout); one just behind is a late frame.
+            let behind = self
+                .latest
+                .as_ref()
+                .map(|(last, _)| last.time_ns.saturating_sub(frame.time_ns));
+            let restarted = behind.is_some_and(|ns| ns > RESTART_BACK_NS);
+            if behind.is_some_and(|ns| ns > 0) && !restarted && self.fresh(now) {
+                continue;
+            }
+            if !self.fresh(now) || restarted {
                 // a new attachment: continue the ticks from where they were
                 if let Some((last, _)) = &self.latest {
                     self.tick_offset = (
@@ -256,6 +287,13 @@ impl WorldBody {
     pub fn true_pose(&self) -> TruePose {
         self.0.truth.clone()
     }
+
+    /// For a lockstep world: one wheel command per world step, the first after its frame (later
+    /// ones for the same step are taken and not sent; the world holds the first until it steps).
+    pub fn lockstep(mut self, on: bool) -> Self {
+        self.0.lockstep = on;
+        self
+    }
 }
 
 impl iw_body::Body for WorldBody {
@@ -264,6 +302,13 @@ impl iw_body::Body for WorldBody {
     }
 
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
+        let frame = self.0.latest.as_ref().map(|(frame, _)| frame.time_ns);
+        if self.0.lockstep {
+            if frame.is_some() && frame == self.0.answered {
+                return Ok(());
+            }
+            self.0.answered = frame;
+        }
         let content = WorldContent::WheelSpeeds {
             chair: self.0.chair.clone(),
             left_mps: speeds.left_mps,
@@ -372,16 +417,20 @@ struct Attached {
     link: BodyLink,
     /// When its chair last sent anything (attach, wheel speeds, pose).
     last_heard: Time,
+    /// Whether it sent wheel speeds since the last step (lockstep waits for every body's).
+    commanded: bool,
 }
 
-/// The world container's agent: the simulator, stepped in real time, its bodies driven and
-/// placed by their chairs' links, its doors moved by the door agent.
+/// The world container's agent: the simulator, stepped in real time (or in lockstep with its
+/// bodies), its bodies driven and placed by their chairs' links, its doors moved by the door
+/// agent.
 pub struct WorldAgent {
     world: SharedWorld,
     bodies: BTreeMap<String, Attached>,
     roster: BodyRoster,
     last_step: Option<Time>,
     door_agent: AgentId,
+    lockstep: bool,
 }
 
 impl WorldAgent {
@@ -393,7 +442,24 @@ impl WorldAgent {
             roster: BodyRoster::default(),
             last_step: None,
             door_agent,
+            lockstep: false,
         }
+    }
+
+    /// Steps in lockstep with the simulated bodies (see the module docs) instead of in real
+    /// time.
+    pub fn lockstep(mut self, on: bool) -> Self {
+        self.lockstep = on;
+        self
+    }
+
+    /// Lockstep: whether every simulated body still heard from has sent wheel speeds since the
+    /// last step (with no such body: always, the world then steps every period).
+    fn all_commanded(&self, now: Time) -> bool {
+        self.bodies
+            .values()
+            .filter(|b| b.link == BodyLink::Simulated && now.since(b.last_heard) <= LINK_TIMEOUT)
+            .all(|b| b.commanded)
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, iw_sim::World> {
@@ -431,6 +497,7 @@ impl WorldAgent {
                         id,
                         link,
                         last_heard: now,
+                        commanded: false,
                     },
                 );
                 Ok(())
@@ -445,6 +512,7 @@ impl WorldAgent {
                     return Err("a tracked body is placed, not driven".into());
                 }
                 body.last_heard = now;
+                body.commanded = true;
                 let id = body.id;
                 self.lock()
                     .command(
@@ -471,18 +539,31 @@ impl WorldAgent {
         }
     }
 
-    /// Stops simulated bodies whose chairs went quiet, steps the world by the real time since
-    /// the last step, and sends every body its frame.
-    fn step(&mut self, ctx: &mut Context<'_>) {
+    /// Stops simulated bodies whose chairs went quiet, steps the world (`advance`) by the real
+    /// time since the last step (lockstep: by [`WORLD_PERIOD`]), and sends every body its frame.
+    fn step(&mut self, ctx: &mut Context<'_>, advance: bool) {
         let now = ctx.now();
-        let dt_s = self
-            .last_step
-            .map_or(0.0, |last| now.since(last).as_secs_f64().min(MAX_STEP_S));
-        self.last_step = Some(now);
+        let dt_s = match self.last_step {
+            _ if !advance => 0.0,
+            _ if self.lockstep => WORLD_PERIOD.as_secs_f64(),
+            Some(last) => now.since(last).as_secs_f64().min(MAX_STEP_S),
+            None => 0.0,
+        };
+        if advance {
+            self.last_step = Some(now);
+            for body in self.bodies.values_mut() {
+                body.commanded = false;
+            }
+        }
+        let watchdog = if self.lockstep {
+            LINK_TIMEOUT
+        } else {
+            WORLD_WATCHDOG
+        };
         let frames: Vec<(String, BodyFrame)> = {
             let mut world = self.lock();
             for body in self.bodies.values() {
-                if body.link == BodyLink::Simulated && now.since(body.last_heard) > WORLD_WATCHDOG {
+                if body.link == BodyLink::Simulated && now.since(body.last_heard) > watchdog {
                     let _ = world.command(body.id, WheelSpeeds::STOP);
                 }
             }
@@ -563,13 +644,18 @@ impl Agent for WorldAgent {
             return;
         }
         let now = ctx.now();
+        let wheels = matches!(content, WorldContent::WheelSpeeds { .. });
         if let Err(reason) = self.on_body(now, content) {
             tracing::debug!(%chair, %reason, "body message refused");
+        }
+        if self.lockstep && wheels && self.all_commanded(now) {
+            self.step(ctx, true);
         }
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        self.step(ctx);
+        let advance = !self.lockstep || self.all_commanded(ctx.now());
+        self.step(ctx, advance);
     }
 
     fn tick_period(&self) -> Option<Duration> {
