@@ -469,7 +469,7 @@ pub(crate) fn push_drive(fleet: &Fleet, chair: &str, input: DriveInput) -> anyho
 const WARN_RANGE_M: f64 = 0.8;
 
 /// The fleet as the page shows it.
-fn dashboard_state(
+pub(crate) fn dashboard_state(
     fleet: &Fleet,
     paused: bool,
     goal_places: &BTreeMap<String, String>,

@@ -29,7 +29,8 @@ use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
-use iw_control_agent::{ControlAgent, ControlConfig, SharedDriveStatus};
+pub use iw_control_agent::SharedDriveStatus;
+use iw_control_agent::{ControlAgent, ControlConfig};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_localization::{LocalizationMap, Localizer};
@@ -589,11 +590,14 @@ pub fn chair_agents(
         inputs.clone(),
         display.clone(),
     );
+    // The interface steps before the control agent: a drive it streams in its tick is in the
+    // control agent's mailbox before that agent's tick in the same host step, so an input
+    // reaches the wheels one step sooner (the in-process delivery is synchronous).
     let agents: Vec<(AgentId, Box<dyn Agent>)> = vec![
         (perception_id, Box::new(perception)),
+        (agent_id("interface", name), Box::new(interface)),
         (control_id, Box::new(control)),
         (cognitive_id, Box::new(cognitive)),
-        (agent_id("interface", name), Box::new(interface)),
     ];
     Ok(ChairAgents {
         agents,
