@@ -30,6 +30,11 @@
 //!   ([`ControlConfig::drivers`]); a second driver while another's stream is live, unless it is
 //!   staff ([`ControlConfig::staff`]): then the first stream ends with FAILURE and the override
 //!   is logged.
+//! - SUBSCRIBE (`fipa-subscribe`) with content naming `drive-applied` (e.g.
+//!   `((drive-applied ?agent ?command))`): AGREE; then, every tick in which the chair is driven by
+//!   hand, INFORM `((drive-applied control (drive :linear V :angular W)))` with what shared
+//!   control applied (a remote driver's screen shows it). One subscription per subscriber and
+//!   conversation; CANCEL ends it.
 //! - INFORM `((at-pose agent (pose ...)))`: the pose the tactical layer steers with, from the
 //!   perception agent. At setup the agent SUBSCRIBEs (`fipa-subscribe`) to
 //!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`; only that
@@ -229,6 +234,8 @@ pub struct ControlAgent {
     /// When the body's reads started failing, while they fail, ns.
     body_fault_since_ns: Option<u64>,
     status: SharedDriveStatus,
+    /// The `drive-applied` subscriptions, each as its SUBSCRIBE.
+    applied_to: Vec<AclMessage>,
 }
 
 impl ControlAgent {
@@ -259,6 +266,7 @@ impl ControlAgent {
             manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)),
             body_fault_since_ns: None,
             status: SharedDriveStatus::default(),
+            applied_to: Vec::new(),
             config,
         })
     }
@@ -462,6 +470,56 @@ impl ControlAgent {
         }));
     }
 
+    /// A SUBSCRIBE to `drive-applied` (agreed and kept) or a CANCEL of one.
+    fn handle_subscription(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        let same = |a: &AclMessage, b: &AclMessage| {
+            a.sender == b.sender && a.conversation_id == b.conversation_id
+        };
+        if message.performative == Performative::Cancel {
+            self.applied_to.retain(|s| !same(s, &message));
+            return;
+        }
+        if !message
+            .content_text()
+            .is_some_and(|t| t.contains("drive-applied"))
+        {
+            let _ = ctx.refuse(
+                &message,
+                "the control agent's subscription is to ((drive-applied ?agent ?command))",
+            );
+            return;
+        }
+        let _ = ctx.send(
+            message
+                .create_reply()
+                .with_performative(Performative::Agree),
+        );
+        self.applied_to.retain(|s| !same(s, &message));
+        self.applied_to.push(message);
+    }
+
+    /// Tells the `drive-applied` subscribers what shared control applied this tick.
+    fn inform_applied(&self, ctx: &mut Context<'_>, command: VelocityCommand) {
+        if self.applied_to.is_empty() {
+            return;
+        }
+        let fact = WheelchairContent::Inform(Fact::Applied {
+            agent: ctx.aid().clone(),
+            linear_mps: command.linear_mps,
+            angular_radps: command.angular_radps,
+        });
+        for subscription in &self.applied_to {
+            let inform = fact.fill(
+                subscription
+                    .create_reply()
+                    .with_performative(Performative::Inform),
+            );
+            if let Err(err) = ctx.send(inform) {
+                tracing::debug!(error = %err, "could not inform a drive-applied subscriber");
+            }
+        }
+    }
+
     /// Maps an ontology action to tactical actions; `Err` names what cannot be driven.
     fn tactical_actions(
         &self,
@@ -655,6 +713,13 @@ impl Agent for ControlAgent {
             None if message.performative == Performative::Request => {
                 self.handle_request(ctx, message)
             }
+            None if matches!(
+                message.performative,
+                Performative::Subscribe | Performative::Cancel
+            ) =>
+            {
+                self.handle_subscription(ctx, message)
+            }
             // An answer in no conversation of ours is not answered: NOT-UNDERSTOOD back to a
             // stray NOT-UNDERSTOOD would start an endless exchange.
             None if answers_a_conversation(message.performative) => {
@@ -663,7 +728,8 @@ impl Agent for ControlAgent {
             None => {
                 let _ = ctx.not_understood(
                     &message,
-                    "the control agent takes requests and its pose subscription's informs",
+                    "the control agent takes requests, drive-applied subscriptions and its pose \
+                     subscription's informs",
                 );
             }
         }
@@ -732,6 +798,9 @@ impl Agent for ControlAgent {
             user: user.filter(|_| shared),
             applied: shared.then_some(command),
         };
+        if shared {
+            self.inform_applied(ctx, command);
+        }
         if let Err(err) = self.basic.command(command, now_ns) {
             tracing::warn!(error = %err, "command refused; stopping");
             let _ = self.basic.command(VelocityCommand::STOP, now_ns);

@@ -638,3 +638,64 @@ fn answers_in_no_conversation_of_ours_are_not_answered() {
     rig.run(50);
     assert_eq!(rig.performatives(), [Performative::Subscribe]);
 }
+
+#[test]
+fn drive_applied_subscribers_are_told_what_shared_control_applied_while_driven_by_hand() {
+    let mut rig = rig();
+    let subscribe = |conversation: &str, content: &str| {
+        AclMessage::new(Performative::Subscribe)
+            .with_protocol("fipa-subscribe")
+            .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
+            .with_language("fipa-sl0")
+            .with_conversation_id(conversation)
+            .with_content(content)
+    };
+    rig.send_as(
+        "other",
+        subscribe("applied-1", "((drive-applied ?agent ?command))"),
+    );
+    rig.send_as("staff", subscribe("poses", "((at-pose ?agent ?pose))"));
+    rig.run(500);
+    assert_eq!(
+        rig.answers_to("other"),
+        [(Performative::Agree, String::new())]
+    );
+    let refused = rig.answers_to("staff");
+    assert!(
+        matches!(refused.as_slice(), [(Performative::Refuse, why)] if why.contains("drive-applied")),
+        "{refused:?}"
+    );
+    let applied = |rig: &Rig| -> Vec<(String, f64, f64)> {
+        rig.others_received
+            .iter()
+            .filter(|(n, m)| n == "other" && m.performative == Performative::Inform)
+            .map(|(_, m)| match WheelchairContent::from_message(m) {
+                Ok(WheelchairContent::Inform(Fact::Applied {
+                    agent,
+                    linear_mps,
+                    angular_radps,
+                })) => (agent.name, linear_mps, angular_radps),
+                other => panic!("not a drive-applied inform: {other:?}"),
+            })
+            .collect()
+    };
+    // idle: nothing to tell
+    assert!(applied(&rig).is_empty());
+    stream(&mut rig, "s1", 0.4, 0.0, 1000);
+    let told = applied(&rig);
+    // every control tick (20 Hz) while driven
+    assert!(told.len() >= 15, "{} informs in 1 s", told.len());
+    assert!(
+        told.iter()
+            .all(|(agent, v, w)| agent == "control" && *v > 0.0 && *v <= 0.4 && w.abs() < 1e-9),
+        "{told:?}"
+    );
+    rig.send_as(
+        "other",
+        AclMessage::new(Performative::Cancel).with_conversation_id("applied-1"),
+    );
+    rig.run(100);
+    let before = applied(&rig).len();
+    stream(&mut rig, "s1", 0.4, 0.0, 500);
+    assert_eq!(applied(&rig).len(), before, "informed after CANCEL");
+}

@@ -451,7 +451,11 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
         })
         .collect();
     let agents = match &mut dashboard {
-        Some(dashboard) => dashboard.attach(agents, parts.refusals),
+        Some(dashboard) => {
+            // the chair views show the sonar picture and what shared control applied
+            iw_wiring::desk(&parts.desk).screen = true;
+            dashboard.attach(agents, parts.refusals)
+        }
         None => agents,
     };
     Ok((
@@ -907,6 +911,8 @@ impl Runtime {
         for &chair in &gone {
             // its pose and subscription died with it: wait for the new agent's
             desk.poses.remove(chair);
+            desk.sonar.remove(chair);
+            desk.applied.remove(chair);
             desk.resubscribe.insert(chair.to_string());
             services.last_pose_report.remove(chair);
             let lost: Vec<String> = services
