@@ -71,7 +71,7 @@ use iw_shared_control::{
     SharedController, SharedInput, VelocityCommand,
 };
 use iw_sl::Level;
-use nalgebra::Isometry2;
+use nalgebra::{Isometry2, Point2};
 
 /// A configuration the control layers refuse.
 #[derive(Debug, thiserror::Error)]
@@ -130,6 +130,40 @@ pub struct ControlConfig {
     pub drivers: Vec<String>,
     /// Staff agents: they may drive any chair, and take it over from its driver (logged).
     pub staff: Vec<String>,
+    /// The laser scanner, if fitted: while the chair is driven by hand its points join the
+    /// sonar echoes in the arc guard, so a wall between two sonar cones is seen too.
+    pub laser: Option<LaserMount>,
+}
+
+/// Where a laser scanner sits on the chair and how its beams spread.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserMount {
+    /// Its pose in the body frame.
+    pub t_body_laser: Isometry2<f64>,
+    /// Field of view, rad: the beams are spread evenly from -fov/2 to +fov/2.
+    pub fov_rad: f64,
+    /// A beam at this range or beyond saw nothing, m.
+    pub max_range_m: f64,
+}
+
+impl LaserMount {
+    /// `ranges` (one per beam) as obstacle points in the body frame, into `out`; beams that saw
+    /// nothing, or read something not finite, are left out.
+    fn points(&self, ranges: &[f64], out: &mut Vec<Point2<f64>>) {
+        out.clear();
+        let n = ranges.len();
+        for (i, &r) in ranges.iter().enumerate() {
+            if !(r.is_finite() && r >= 0.0 && r < self.max_range_m - 1e-6) {
+                continue;
+            }
+            let a = if n > 1 {
+                -self.fov_rad / 2.0 + self.fov_rad * i as f64 / (n - 1) as f64
+            } else {
+                0.0
+            };
+            out.push(self.t_body_laser * Point2::new(r * a.cos(), r * a.sin()));
+        }
+    }
 }
 
 impl ControlConfig {
@@ -154,6 +188,7 @@ impl ControlConfig {
             body_fault_ms: 500,
             drivers: Vec::new(),
             staff: Vec::new(),
+            laser: None,
         })
     }
 }
@@ -236,6 +271,8 @@ pub struct ControlAgent {
     status: SharedDriveStatus,
     /// The `drive-applied` subscriptions, each as its SUBSCRIBE.
     applied_to: Vec<AclMessage>,
+    /// The laser's points of this tick, body frame (kept to reuse the allocation).
+    laser_points: Vec<Point2<f64>>,
 }
 
 impl ControlAgent {
@@ -267,6 +304,7 @@ impl ControlAgent {
             body_fault_since_ns: None,
             status: SharedDriveStatus::default(),
             applied_to: Vec::new(),
+            laser_points: Vec::new(),
             config,
         })
     }
@@ -777,13 +815,17 @@ impl Agent for ControlAgent {
             Mode::Task(_) => (self.run_task(ctx, &frame), false),
             Mode::Idle => (None, false),
         };
+        match (&self.config.laser, shared) {
+            (Some(laser), true) => laser.points(&frame.laser_m, &mut self.laser_points),
+            _ => self.laser_points.clear(),
+        }
         let command = match user {
             Some(user) => {
                 let input = SharedInput {
                     user,
                     speed_mps: user.linear_mps.abs(),
                     sonar_m: &frame.sonar_m,
-                    points_chair: &[],
+                    points_chair: &self.laser_points,
                 };
                 let out = if shared {
                     self.shared.step(&input)

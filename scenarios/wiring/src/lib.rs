@@ -30,7 +30,7 @@ use iw_cognitive::agent::{
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 pub use iw_control_agent::SharedDriveStatus;
-use iw_control_agent::{ControlAgent, ControlConfig};
+use iw_control_agent::{ControlAgent, ControlConfig, LaserMount};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_localization::{LocalizationMap, Localizer};
@@ -558,6 +558,12 @@ pub fn chair_agents(
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep
     // into door posts when it lines up with a doorway.
     control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
+    // the simulated chair's laser (a body without one reads no ranges, and adds no points)
+    control_config.laser = ChairSpec::default().laser.map(|l| LaserMount {
+        t_body_laser: l.t_body_laser,
+        fov_rad: l.fov_deg.to_radians(),
+        max_range_m: l.max_range_m,
+    });
     let control =
         ControlAgent::new(control_config, Box::new(body)).map_err(|e| setup(e.to_string()))?;
     let (plan, start_place) = building.with_start(name, t_world_body)?;
