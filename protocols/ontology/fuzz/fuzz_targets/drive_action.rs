@@ -5,7 +5,6 @@
 //! same value.
 #![no_main]
 
-use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 use libfuzzer_sys::fuzz_target;
 
