@@ -3,8 +3,8 @@
 //! - dashboard.mjs: the page loads, chairs move between two frames, a click on the map sends the
 //!   selected chair a goal and it turns.
 //! - drive.mjs: a chair's on-board view, driven with the on-screen joystick: released while
-//!   moving it stops; it goes through a doorway without contact and does not cross the wall it
-//!   is driven at (contacts at that wall are printed, not failed on: a known gap, see the script).
+//!   moving it stops; it goes through a doorway and, driven straight at a wall, stops short of
+//!   it, with no contact anywhere.
 //!
 //! The screenshots' paths are printed. Prints SKIP when chromium, node or playwright-core is
 //! missing (`.ci/run` installs them).

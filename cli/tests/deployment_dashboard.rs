@@ -4,6 +4,9 @@
 //! - the staff view, fed from the platform's traffic, shows all three chairs move: chair-a and
 //!   chair-b under goals the services give, chair-c driven from its own view with the on-screen
 //!   joystick, then released, after which it stands still;
+//! - while driven, chair-c's view shows the command sent, what shared control applied (its
+//!   control agent's `drive-applied` informs) and its sonar picture (its perception agent's
+//!   readings), all from the bus;
 //! - the drive went over the bus: the logger's log holds the staff console's `drive` requests
 //!   to `interface@chair-c` and the interface agent's stream to `control@chair-c`;
 //! - a request without the token gets 401.

@@ -32,6 +32,11 @@
 //!   ([`ControlConfig::drivers`]); a second driver while another's stream is live, unless it is
 //!   staff ([`ControlConfig::staff`]): then the first stream ends with FAILURE and the override
 //!   is logged.
+//! - SUBSCRIBE (`fipa-subscribe`) with content naming `drive-applied` (e.g.
+//!   `((drive-applied ?agent ?command))`): AGREE; then, every tick in which the chair is driven by
+//!   hand, INFORM `((drive-applied control (drive :linear V :angular W)))` with what shared
+//!   control applied (a remote driver's screen shows it). One subscription per subscriber and
+//!   conversation; CANCEL ends it.
 //! - INFORM `((at-pose agent (pose ...)))`: the pose the tactical layer steers with, from the
 //!   perception agent. At setup the agent SUBSCRIBEs (`fipa-subscribe`) to
 //!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`; only that
@@ -71,7 +76,7 @@ use iw_shared_control::{
     WheelMotion,
 };
 use iw_sl::Level;
-use nalgebra::Isometry2;
+use nalgebra::{Isometry2, Point2};
 
 /// A configuration the control layers refuse.
 #[derive(Debug, thiserror::Error)]
@@ -130,6 +135,40 @@ pub struct ControlConfig {
     pub drivers: Vec<String>,
     /// Staff agents: they may drive any chair, and take it over from its driver (logged).
     pub staff: Vec<String>,
+    /// The laser scanner, if fitted: while the chair is driven by hand its points join the
+    /// sonar echoes in the arc guard, so a wall between two sonar cones is seen too.
+    pub laser: Option<LaserMount>,
+}
+
+/// Where a laser scanner sits on the chair and how its beams spread.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserMount {
+    /// Its pose in the body frame.
+    pub t_body_laser: Isometry2<f64>,
+    /// Field of view, rad: the beams are spread evenly from -fov/2 to +fov/2.
+    pub fov_rad: f64,
+    /// A beam at this range or beyond saw nothing, m.
+    pub max_range_m: f64,
+}
+
+impl LaserMount {
+    /// `ranges` (one per beam) as obstacle points in the body frame, into `out`; beams that saw
+    /// nothing, or read something not finite, are left out.
+    fn points(&self, ranges: &[f64], out: &mut Vec<Point2<f64>>) {
+        out.clear();
+        let n = ranges.len();
+        for (i, &r) in ranges.iter().enumerate() {
+            if !(r.is_finite() && r >= 0.0 && r < self.max_range_m - 1e-6) {
+                continue;
+            }
+            let a = if n > 1 {
+                -self.fov_rad / 2.0 + self.fov_rad * i as f64 / (n - 1) as f64
+            } else {
+                0.0
+            };
+            out.push(self.t_body_laser * Point2::new(r * a.cos(), r * a.sin()));
+        }
+    }
 }
 
 impl ControlConfig {
@@ -154,6 +193,7 @@ impl ControlConfig {
             body_fault_ms: 500,
             drivers: Vec::new(),
             staff: Vec::new(),
+            laser: None,
         })
     }
 }
@@ -236,6 +276,10 @@ pub struct ControlAgent {
     /// When the body's reads started failing, while they fail, ns.
     body_fault_since_ns: Option<u64>,
     status: SharedDriveStatus,
+    /// The `drive-applied` subscriptions, each as its SUBSCRIBE.
+    applied_to: Vec<AclMessage>,
+    /// The laser's points of this tick, body frame (kept to reuse the allocation).
+    laser_points: Vec<Point2<f64>>,
 }
 
 impl ControlAgent {
@@ -265,6 +309,8 @@ impl ControlAgent {
             manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)),
             body_fault_since_ns: None,
             status: SharedDriveStatus::default(),
+            applied_to: Vec::new(),
+            laser_points: Vec::new(),
             config,
         })
     }
@@ -466,6 +512,56 @@ impl ControlAgent {
             sequence,
             progress_at: None,
         }));
+    }
+
+    /// A SUBSCRIBE to `drive-applied` (agreed and kept) or a CANCEL of one.
+    fn handle_subscription(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        let same = |a: &AclMessage, b: &AclMessage| {
+            a.sender == b.sender && a.conversation_id == b.conversation_id
+        };
+        if message.performative == Performative::Cancel {
+            self.applied_to.retain(|s| !same(s, &message));
+            return;
+        }
+        if !message
+            .content_text()
+            .is_some_and(|t| t.contains("drive-applied"))
+        {
+            let _ = ctx.refuse(
+                &message,
+                "the control agent's subscription is to ((drive-applied ?agent ?command))",
+            );
+            return;
+        }
+        let _ = ctx.send(
+            message
+                .create_reply()
+                .with_performative(Performative::Agree),
+        );
+        self.applied_to.retain(|s| !same(s, &message));
+        self.applied_to.push(message);
+    }
+
+    /// Tells the `drive-applied` subscribers what shared control applied this tick.
+    fn inform_applied(&self, ctx: &mut Context<'_>, command: VelocityCommand) {
+        if self.applied_to.is_empty() {
+            return;
+        }
+        let fact = WheelchairContent::Inform(Fact::Applied {
+            agent: ctx.aid().clone(),
+            linear_mps: command.linear_mps,
+            angular_radps: command.angular_radps,
+        });
+        for subscription in &self.applied_to {
+            let inform = fact.fill(
+                subscription
+                    .create_reply()
+                    .with_performative(Performative::Inform),
+            );
+            if let Err(err) = ctx.send(inform) {
+                tracing::debug!(error = %err, "could not inform a drive-applied subscriber");
+            }
+        }
     }
 
     /// Maps an ontology action to tactical actions; `Err` names what cannot be driven.
@@ -672,6 +768,13 @@ impl Agent for ControlAgent {
             None if message.performative == Performative::Request => {
                 self.handle_request(ctx, message)
             }
+            None if matches!(
+                message.performative,
+                Performative::Subscribe | Performative::Cancel
+            ) =>
+            {
+                self.handle_subscription(ctx, message)
+            }
             // An answer in no conversation of ours is not answered: NOT-UNDERSTOOD back to a
             // stray NOT-UNDERSTOOD would start an endless exchange.
             None if answers_a_conversation(message.performative) => {
@@ -680,7 +783,8 @@ impl Agent for ControlAgent {
             None => {
                 let _ = ctx.not_understood(
                     &message,
-                    "the control agent takes requests and its pose subscription's informs",
+                    "the control agent takes requests, drive-applied subscriptions and its pose \
+                     subscription's informs",
                 );
             }
         }
@@ -735,13 +839,19 @@ impl Agent for ControlAgent {
             Mode::Task(_) => (self.run_task(ctx, &frame), false),
             Mode::Idle => (None, false),
         };
+        // The laser joins the sonars when a person drives; the tactical layer's paths are
+        // planned clear of the map.
+        match (&self.config.laser, manual) {
+            (Some(laser), true) => laser.points(&frame.laser_m, &mut self.laser_points),
+            _ => self.laser_points.clear(),
+        }
         let command = match user {
             Some(user) => {
                 let input = SharedInput {
                     user,
                     speed_mps: motion.map_or(0.0, |m| m.twist.linear_mps.abs()),
                     sonar_m: &frame.sonar_m,
-                    points_chair: &[],
+                    points_chair: &self.laser_points,
                     motion,
                 };
                 self.guard
@@ -754,6 +864,9 @@ impl Agent for ControlAgent {
             user: user.filter(|_| manual),
             applied: manual.then_some(command),
         };
+        if manual {
+            self.inform_applied(ctx, command);
+        }
         if let Err(err) = self.basic.command(command, now_ns) {
             tracing::warn!(error = %err, "command refused; stopping");
             let _ = self.basic.command(VelocityCommand::STOP, now_ns);

@@ -8,7 +8,7 @@ use iw_agent::AgentHost;
 use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
-use iw_control::{ControlAgent, ControlConfig};
+use iw_control::{ControlAgent, ControlConfig, LaserMount};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
 
@@ -24,6 +24,8 @@ struct Recorder {
     failing_commands: Arc<Mutex<u32>>,
     /// Wheel commands refused so far.
     refused_commands: Arc<Mutex<u32>>,
+    /// The laser ranges every read returns.
+    laser_m: Arc<Mutex<Vec<f64>>>,
 }
 
 /// A silent serial link's timeout when `failing` still counts failures (one used up).
@@ -46,6 +48,7 @@ impl Body for Recorder {
         fails(&self.failing_reads)?;
         Ok(SensorFrame {
             sonar_m: *self.sonar_m.lock().unwrap(),
+            laser_m: self.laser_m.lock().unwrap().clone(),
             ..SensorFrame::empty(0)
         })
     }
@@ -83,6 +86,11 @@ fn drive(linear_mps: f64, angular_radps: f64) -> AclMessage {
 }
 
 fn rig() -> Rig {
+    rig_with(|_| {})
+}
+
+/// A rig whose control agent's configuration `adjust` changed.
+fn rig_with(adjust: impl FnOnce(&mut ControlConfig)) -> Rig {
     let network = InProcNetwork::new();
     let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
     let bus = Bus::start(
@@ -96,6 +104,7 @@ fn rig() -> Rig {
     let body = Recorder::default();
     let mut config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
     config.staff = vec!["staff".into()];
+    adjust(&mut config);
     host.add(
         AgentId::new("control"),
         Box::new(ControlAgent::new(config, Box::new(body.clone())).unwrap()),
@@ -647,4 +656,103 @@ fn answers_in_no_conversation_of_ours_are_not_answered() {
     rig.send(AclMessage::new(Performative::NotUnderstood).with_conversation_id("nobody-knows"));
     rig.run(50);
     assert_eq!(rig.performatives(), [Performative::Subscribe]);
+}
+
+#[test]
+fn drive_applied_subscribers_are_told_what_shared_control_applied_while_driven_by_hand() {
+    let mut rig = rig();
+    let subscribe = |conversation: &str, content: &str| {
+        AclMessage::new(Performative::Subscribe)
+            .with_protocol("fipa-subscribe")
+            .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
+            .with_language("fipa-sl0")
+            .with_conversation_id(conversation)
+            .with_content(content)
+    };
+    rig.send_as(
+        "other",
+        subscribe("applied-1", "((drive-applied ?agent ?command))"),
+    );
+    rig.send_as("staff", subscribe("poses", "((at-pose ?agent ?pose))"));
+    rig.run(500);
+    assert_eq!(
+        rig.answers_to("other"),
+        [(Performative::Agree, String::new())]
+    );
+    let refused = rig.answers_to("staff");
+    assert!(
+        matches!(refused.as_slice(), [(Performative::Refuse, why)] if why.contains("drive-applied")),
+        "{refused:?}"
+    );
+    let applied = |rig: &Rig| -> Vec<(String, f64, f64)> {
+        rig.others_received
+            .iter()
+            .filter(|(n, m)| n == "other" && m.performative == Performative::Inform)
+            .map(|(_, m)| match WheelchairContent::from_message(m) {
+                Ok(WheelchairContent::Inform(Fact::Applied {
+                    agent,
+                    linear_mps,
+                    angular_radps,
+                })) => (agent.name, linear_mps, angular_radps),
+                other => panic!("not a drive-applied inform: {other:?}"),
+            })
+            .collect()
+    };
+    // idle: nothing to tell
+    assert!(applied(&rig).is_empty());
+    stream(&mut rig, "s1", 0.4, 0.0, 1000);
+    let told = applied(&rig);
+    // every control tick (20 Hz) while driven
+    assert!(told.len() >= 15, "{} informs in 1 s", told.len());
+    assert!(
+        told.iter()
+            .all(|(agent, v, w)| agent == "control" && *v > 0.0 && *v <= 0.4 && w.abs() < 1e-9),
+        "{told:?}"
+    );
+    rig.send_as(
+        "other",
+        AclMessage::new(Performative::Cancel).with_conversation_id("applied-1"),
+    );
+    rig.run(100);
+    let before = applied(&rig).len();
+    stream(&mut rig, "s1", 0.4, 0.0, 500);
+    assert_eq!(applied(&rig).len(), before, "informed after CANCEL");
+}
+
+#[test]
+fn driven_by_hand_a_wall_only_the_laser_sees_holds_the_chair_back() {
+    // A laser at the chair's front, 181 beams over 180 degrees, sees a wall 15 cm ahead of the
+    // front that no sonar echoes (the ranges stay as the chair does not move).
+    let ranges: Vec<f64> = (0..181)
+        .map(|i| {
+            let a = (i as f64 - 90.0).to_radians();
+            if a.cos() > 0.2 { 0.15 / a.cos() } else { 10.0 }
+        })
+        .collect();
+    let forward = |laser: Option<LaserMount>| {
+        let mut rig = rig_with(|c| c.laser = laser);
+        *rig.body.laser_m.lock().unwrap() = ranges.clone();
+        for _ in 0..10 {
+            rig.send(drive(0.4, 0.0));
+            rig.run(100);
+        }
+        let w = rig.last_wheels();
+        (w.left_mps + w.right_mps) / 2.0
+    };
+    let mount = LaserMount {
+        t_body_laser: nalgebra::Isometry2::new(nalgebra::Vector2::new(0.75, 0.0), 0.0),
+        fov_rad: std::f64::consts::PI,
+        max_range_m: 10.0,
+    };
+    let blind = forward(None);
+    assert!(
+        blind > 0.3,
+        "without the laser the wall is not seen: {blind} m/s"
+    );
+    // held back: slowed (the guard may still let it turn away on a clear arc)
+    let seen = forward(Some(mount));
+    assert!(
+        seen < 0.5 * blind,
+        "with the laser the chair is held back: {seen} m/s against {blind} m/s"
+    );
 }

@@ -42,14 +42,21 @@ pub enum Command {
         #[arg(long, default_value_t = 32, value_parser = super::flags::count(4096))]
         window: usize,
     },
-    /// Drive panel input to wheel command, in process (websocket and device queue paths).
+    /// Drive panel input to wheel command: in process (websocket and device queue paths; with
+    /// `--browser-dir`, from a real browser's pointer event) and, with `--browser-dir`, across
+    /// processes (services serving the dashboard, world, chair).
     Drive {
         /// Print one JSON object per line instead of a table.
         #[arg(long)]
         json: bool,
-        /// Inputs timed per path (each takes about 1.2 s).
+        /// Inputs timed per path (each takes about 1.2 s; 2.5 s in the browser).
         #[arg(long, default_value_t = 40)]
         trials: usize,
+        /// The folder of latency.mjs with playwright-core installed (cli/tests/browser): also
+        /// time Chromium's pointer events, in process and across processes (`$CHROMIUM` or
+        /// Debian's chromium).
+        #[arg(long, value_name = "DIR")]
+        browser_dir: Option<std::path::PathBuf>,
     },
     /// The deployment at scale: services, world and N virtual chairs as processes on loopback
     /// UDP; Global Agent List convergence, REQUEST/AGREE round trip, idle CPU per container.
@@ -98,8 +105,12 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             bench_bus(&transports, &layer_sets, seconds / 2, window, json)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Drive { json, trials } => {
-            super::bench_drive::run(trials, json)?;
+        Command::Drive {
+            json,
+            trials,
+            browser_dir,
+        } => {
+            super::bench_drive::run(trials, json, browser_dir.as_deref())?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Fleet {

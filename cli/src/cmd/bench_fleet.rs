@@ -77,7 +77,7 @@ pub struct FleetRow {
 }
 
 /// The container processes; each is stopped when this is dropped.
-struct Procs {
+pub(super) struct Procs {
     /// Name and child, in launch order (services, world, chairs).
     children: Vec<(String, Child)>,
     events: Sender<(usize, Value)>,
@@ -85,7 +85,17 @@ struct Procs {
 }
 
 impl Procs {
-    fn launch(&mut self, name: &str, args: &[String]) -> anyhow::Result<()> {
+    /// No process yet; their stderr goes to files in `dir` (removed on drop), their events to
+    /// `events`, tagged with their launch index.
+    pub(super) fn new(dir: PathBuf, events: Sender<(usize, Value)>) -> Procs {
+        Procs {
+            children: Vec::new(),
+            events,
+            dir,
+        }
+    }
+
+    pub(super) fn launch(&mut self, name: &str, args: &[String]) -> anyhow::Result<()> {
         let exe = std::env::current_exe().context("locating the intellwheels binary")?;
         let stderr = std::fs::File::create(self.dir.join(format!("{name}.stderr")))
             .context("creating a stderr file")?;
@@ -118,7 +128,7 @@ impl Procs {
     }
 
     /// Exits so far, with the container's name and the tail of its stderr.
-    fn exited(&mut self) -> Option<String> {
+    pub(super) fn exited(&mut self) -> Option<String> {
         for (name, child) in &mut self.children {
             if let Ok(Some(status)) = child.try_wait() {
                 let err = std::fs::read_to_string(self.dir.join(format!("{name}.stderr")))
@@ -156,7 +166,7 @@ impl Drop for Procs {
 }
 
 /// Two consecutive free UDP ports on loopback (bus and control channel), not in `taken`.
-fn free_port_pair(taken: &mut BTreeSet<u16>) -> anyhow::Result<u16> {
+pub(super) fn free_port_pair(taken: &mut BTreeSet<u16>) -> anyhow::Result<u16> {
     for _ in 0..1000 {
         let a = UdpSocket::bind("127.0.0.1:0").context("binding a loopback port")?;
         let port = a.local_addr()?.port();
@@ -289,7 +299,7 @@ impl Views {
 }
 
 /// The percentile `q` of sorted `values` (nearest rank); 0 when empty.
-fn percentile(sorted: &[f64], q: f64) -> f64 {
+pub(super) fn percentile(sorted: &[f64], q: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
     }
@@ -374,11 +384,7 @@ pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
     let (tx, rx) = std::sync::mpsc::channel();
     let containers = chairs + 2;
     let mut run = Run {
-        procs: Procs {
-            children: Vec::new(),
-            events: tx,
-            dir: dir.clone(),
-        },
+        procs: Procs::new(dir.clone(), tx),
         rx,
         views: Views::new(containers),
         agreed: BTreeMap::new(),

@@ -3,7 +3,8 @@
 // processes; see ../deployment_dashboard.rs). The staff view must show all three chairs and see
 // them move: chair-a and chair-b under goals the services gave, chair-c driven from its own view
 // with the on-screen joystick (real pointer events, relayed over the bus to its interface agent)
-// and released, after which it stands still. Saves a screenshot of the staff view.
+// and released, after which it stands still. While driven, chair-c's view shows the command sent,
+// what shared control applied and the sonar picture, all three from the bus. Saves a screenshot of the staff view.
 import { chromium } from "playwright-core";
 
 const [url, executablePath, screenshot] = process.argv.slice(2);
@@ -38,6 +39,12 @@ try {
   const shown = await own.evaluate((n) => window.iw.last.chairs.find((c) => c.n === n).d, DRIVEN);
   console.log(`${DRIVEN} driven ${((Date.now() - pressed) / 1000).toFixed(1)} s; its view shows ${JSON.stringify(shown)}`);
   if (!shown.user || shown.user[0] <= 0) fail("the chair view does not show the user's command: " + JSON.stringify(shown));
+  // what shared control applied (told by the chair's control agent) and the sonar picture (its
+  // perception agent's readings), both over the bus
+  if (!shown.applied || shown.applied[0] <= 0) fail("the chair view does not show what shared control applied: " + JSON.stringify(shown));
+  const sonar = await own.evaluate((n) => window.iw.last.chairs.find((c) => c.n === n).s, DRIVEN);
+  console.log(`${DRIVEN} sonar (m): ${JSON.stringify(sonar)}`);
+  if (sonar.length < 8 || !sonar.some((r) => r > 0 && r < 3)) fail("the chair view has no sonar picture: " + JSON.stringify(sonar));
   await own.mouse.up();
   // Released: the stop goes at once; the interface's 300 ms hold and the control agent's
   // watchdog stop it anyway. It must then stand still.

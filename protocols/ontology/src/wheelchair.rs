@@ -395,6 +395,17 @@ pub enum Fact {
         /// Its state.
         state: DoorState,
     },
+    /// `(drive-applied agent (drive :linear V :angular W))`: what shared control made of the
+    /// user's drive command at the control tick, as `agent` (a chair's control agent) handed
+    /// it to the wheels: what a remote driver's screen shows beside the command it sent.
+    Applied {
+        /// The control agent.
+        agent: AgentId,
+        /// Linear speed, m/s.
+        linear_mps: f64,
+        /// Angular speed, rad/s.
+        angular_radps: f64,
+    },
     /// `(error-message "why")`: the reason a REFUSE, FAILURE or NOT-UNDERSTOOD carries.
     ErrorMessage {
         /// The reason, for a person to read.
@@ -422,6 +433,21 @@ impl Fact {
                 "door-state",
                 vec![Term::string(door.as_str()), Term::string(state.name())],
             ),
+            Self::Applied {
+                agent,
+                linear_mps,
+                angular_radps,
+            } => (
+                "drive-applied",
+                vec![
+                    agent.to_term(),
+                    WheelchairAction::Drive {
+                        linear_mps: *linear_mps,
+                        angular_radps: *angular_radps,
+                    }
+                    .to_term(),
+                ],
+            ),
         };
         Formula::Atomic {
             predicate: predicate.into(),
@@ -431,8 +457,8 @@ impl Fact {
 
     fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
         let bad = || OntologyError::UnexpectedTerm {
-            expected: "(at-pose agent pose), (sensor-reading agent reading), (door-state door state) \
-                       (error-message reason) or (body-fault reason)",
+            expected: "(at-pose agent pose), (sensor-reading agent reading), (door-state door state), \
+                       (drive-applied agent (drive ...)), (error-message reason) or (body-fault reason)",
             found: formula.to_string(),
         };
         let Formula::Atomic { predicate, args } = formula else {
@@ -464,6 +490,17 @@ impl Fact {
                 agent: AgentId::from_term(first)?,
                 reading: SensorReading::from_term(second)?,
             }),
+            "drive-applied" => match WheelchairAction::from_term(second)? {
+                WheelchairAction::Drive {
+                    linear_mps,
+                    angular_radps,
+                } => Ok(Self::Applied {
+                    agent: AgentId::from_term(first)?,
+                    linear_mps,
+                    angular_radps,
+                }),
+                _ => Err(bad()),
+            },
             "door-state" => Ok(Self::Door {
                 door: text_of(first).ok_or_else(bad)?,
                 state: word_value(

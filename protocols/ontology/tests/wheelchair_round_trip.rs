@@ -101,6 +101,13 @@ fn fact() -> impl Strategy<Value = Fact> {
             .prop_map(|(door, state)| Fact::Door { door, state }),
         "[ -~]{0,40}".prop_map(|reason| Fact::ErrorMessage { reason }),
         "[ -~]{0,40}".prop_map(|reason| Fact::BodyFault { reason }),
+        (agent(), finite(), finite()).prop_map(|(agent, linear_mps, angular_radps)| {
+            Fact::Applied {
+                agent,
+                linear_mps,
+                angular_radps,
+            }
+        }),
     ]
 }
 
@@ -120,6 +127,73 @@ proptest! {
     fn every_message_round_trips_through_sl_text(msg in content()) {
         let text = msg.to_content().to_string();
         prop_assert_eq!(WheelchairContent::parse(&text), Ok(msg), "{}", text);
+    }
+
+    /// A `drive` as another implementation may write it: either slot order, any case, integer
+    /// or decimal speeds; it reads as the speeds written.
+    #[test]
+    fn drive_text_reads_back_in_any_slot_order_and_case(
+        linear in -10i32..10,
+        linear_frac in 0u32..1000,
+        angular in finite(),
+        swapped in any::<bool>(),
+        upper in any::<bool>(),
+    ) {
+        let linear_mps = f64::from(linear) + f64::from(linear_frac) / 1000.0;
+        let linear_text = if linear_frac == 0 { linear.to_string() } else { format!("{linear_mps}") };
+        let angular_text = iw_sl::Term::float(angular).to_string();
+        let (a, b) = (format!(":linear {linear_text}"), format!(":angular {angular_text}"));
+        let slots = if swapped { format!("{b} {a}") } else { format!("{a} {b}") };
+        let verb = if upper { "DRIVE" } else { "drive" };
+        let text = format!("((action (agent-identifier :name control@c) ({verb} {slots})))");
+        let read = WheelchairContent::parse(&text);
+        prop_assert!(
+            matches!(
+                read,
+                Ok(WheelchairContent::Request {
+                    action: WheelchairAction::Drive { linear_mps: l, angular_radps: w },
+                    ..
+                }) if l == linear_text.parse::<f64>().unwrap() && w == angular
+            ),
+            "{} read as {:?}", text, read
+        );
+    }
+
+    /// A `drive` with one character deleted, inserted or replaced anywhere reads as an error or
+    /// as a value that prints and reads back the same (a drive's speeds finite); it never panics.
+    #[test]
+    fn edited_drive_text_is_an_error_or_a_value_that_round_trips(
+        linear in finite(),
+        angular in finite(),
+        at in any::<prop::sample::Index>(),
+        edit in 0u8..3,
+        ch in prop_oneof![Just('('), Just(')'), Just(':'), Just(' '), Just('-'), Just('e'), Just('.'), any::<char>()],
+    ) {
+        let text = WheelchairContent::Request {
+            actor: AgentId::new("control@c"),
+            action: WheelchairAction::Drive { linear_mps: linear, angular_radps: angular },
+        }
+        .to_content()
+        .to_string();
+        let mut chars: Vec<char> = text.chars().collect();
+        let i = at.index(chars.len());
+        match edit {
+            0 => { chars.remove(i); }
+            1 => chars.insert(i, ch),
+            _ => chars[i] = ch,
+        }
+        let edited: String = chars.into_iter().collect();
+        if let Ok(content) = WheelchairContent::parse(&edited) {
+            if let WheelchairContent::Request {
+                action: WheelchairAction::Drive { linear_mps, angular_radps },
+                ..
+            } = &content
+            {
+                prop_assert!(linear_mps.is_finite() && angular_radps.is_finite(), "{}", edited);
+            }
+            let printed = content.to_content().to_string();
+            prop_assert_eq!(WheelchairContent::parse(&printed), Ok(content), "{} -> {}", edited, printed);
+        }
     }
 
     #[test]
@@ -256,4 +330,32 @@ fn wrong_content_says_what_is_wrong() {
         WheelchairContent::parse("((not (x y)))"),
         Err(OntologyError::Sl(_))
     ));
+}
+
+#[test]
+fn a_drive_reads_only_with_finite_speeds() {
+    let drive = |speed: &str| {
+        WheelchairContent::parse(&format!(
+            "((action (agent-identifier :name c@P) (drive :linear {speed} :angular 0)))"
+        ))
+    };
+    for speed in [
+        "1e400", "-1e400", "NaN", "nan", "inf", "-inf", "Infinity", "0x10",
+    ] {
+        let read = drive(speed);
+        assert!(read.is_err(), "{speed}: {read:?}");
+    }
+    for (speed, value) in [("1e-400", 0.0), ("+1", 1.0), (".5", 0.5), ("5.", 5.0)] {
+        assert_eq!(
+            drive(speed),
+            Ok(WheelchairContent::Request {
+                actor: AgentId::new("c@P"),
+                action: WheelchairAction::Drive {
+                    linear_mps: value,
+                    angular_radps: 0.0
+                }
+            }),
+            "{speed}"
+        );
+    }
 }

@@ -1,6 +1,8 @@
 //! The services container's dashboard (`[dashboard] listen`): `iw-dashboard`'s staff view and
 //! chair views, fed from what the services learn over the bus rather than from a simulator:
-//! - the chairs' poses, which their perception agents publish to the staff console;
+//! - the chairs' poses and sonar ranges, which their perception agents publish to the staff
+//!   console, and what shared control applied to a chair driven by hand, which its control
+//!   agent tells the console;
 //! - the goals given and their answers, and the drive panel's commands and their answers;
 //! - the Global Agent List (the containers and their agents);
 //! - every message the containers' agents exchange, read off the copies each container sends
@@ -34,6 +36,9 @@ use crate::{NodeError, SERVICES};
 
 /// How often the page gets a new state.
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
+/// How long a chair's applied command is shown after its control agent last told it (it tells
+/// every control period while driven by hand).
+const APPLIED_FOR: Duration = Duration::from_millis(500);
 /// Messages kept for the sniffer.
 const RECENT: usize = 40;
 /// Notices kept.
@@ -326,7 +331,8 @@ impl LiveDashboard {
             return;
         }
         self.last_publish = Some(now);
-        let (poses, answers) = {
+        let now_s = now.0 as f64 * 1e-9;
+        let (poses, answers, sonar, applied) = {
             let desk = iw_wiring::desk(desk);
             // the newest answer about each chair's goal or drive
             let mut answers: BTreeMap<String, String> = BTreeMap::new();
@@ -349,7 +355,14 @@ impl LiveDashboard {
                     answers.insert(chair, format!("{} from {}{why}", e.performative, e.from));
                 }
             }
-            (desk.poses.clone(), answers)
+            // what shared control applied, while the control agent keeps telling it
+            let applied: BTreeMap<String, [f64; 2]> = desk
+                .applied
+                .iter()
+                .filter(|(_, (_, at_s))| now_s - at_s <= APPLIED_FOR.as_secs_f64())
+                .map(|(chair, (v, _))| (chair.clone(), *v))
+                .collect();
+            (desk.poses.clone(), answers, desk.sonar.clone(), applied)
         };
         for (chair, pose) in &poses {
             let seen = self.motion.entry(chair.clone()).or_insert(Motion {
@@ -387,7 +400,10 @@ impl LiveDashboard {
                     k: "deployed".into(),
                     p: [round_cm(p[0]), round_cm(p[1]), round_cm(p[2])],
                     v: [round_cm(twist[0]), round_cm(twist[1])],
-                    s: Vec::new(),
+                    s: sonar
+                        .get(name)
+                        .map(|r| r.iter().map(|&r| round_cm(r)).collect())
+                        .unwrap_or_default(),
                     g: at,
                     path: Vec::new(),
                     u: 0.0,
@@ -406,7 +422,7 @@ impl LiveDashboard {
                             .driving
                             .get(name)
                             .map(|v| [round_cm(v[0]), round_cm(v[1])]),
-                        applied: None,
+                        applied: applied.get(name).map(|v| [round_cm(v[0]), round_cm(v[1])]),
                     },
                 }
             })

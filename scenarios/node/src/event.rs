@@ -103,6 +103,19 @@ pub enum Event {
         /// Contacts with walls, furniture or other chairs so far.
         collisions: u64,
     },
+    /// A chair's control agent handed its wheels the first non-zero command of a manual drive
+    /// (chairs only; once per drive, not per command), read right after the agent step that did
+    /// it: when, for `intellwheels bench drive`'s latency across processes.
+    DriveApplied {
+        /// The chair.
+        chair: String,
+        /// What shared control applied: linear, m/s.
+        linear_mps: f64,
+        /// Angular, rad/s.
+        angular_radps: f64,
+        /// Wall-clock time, ms since the Unix epoch.
+        unix_ms: f64,
+    },
     /// An admin command from the parent process (`--admin-stdin`) was carried out, or refused.
     Admin {
         /// The container's name.

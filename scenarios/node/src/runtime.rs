@@ -201,6 +201,16 @@ fn building(config: &SpawnConfig) -> Result<Building, NodeError> {
 struct ChairParts {
     agents: Agents,
     body: SharedBody,
+    drive: DriveWatch,
+}
+
+/// A chair's control agent's drive status, watched for the first command of each manual drive
+/// that reaches the wheels ([`Event::DriveApplied`]).
+struct DriveWatch {
+    chair: String,
+    status: iw_wiring::SharedDriveStatus,
+    /// A non-zero command was applied at the last look.
+    driving: bool,
 }
 
 /// The serial body on its own I/O thread: a read blocks up to the board timeout (200 ms), four
@@ -317,6 +327,11 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
     Ok(ChairParts {
         agents: parts.agents,
         body,
+        drive: DriveWatch {
+            chair: name.to_string(),
+            status: parts.drive_status,
+            driving: false,
+        },
     })
 }
 
@@ -440,7 +455,11 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
         })
         .collect();
     let agents = match &mut dashboard {
-        Some(dashboard) => dashboard.attach(agents, parts.refusals),
+        Some(dashboard) => {
+            // the chair views show the sonar picture and what shared control applied
+            iw_wiring::desk(&parts.desk).screen = true;
+            dashboard.attach(agents, parts.refusals)
+        }
         None => agents,
     };
     Ok((
@@ -494,6 +513,7 @@ pub struct Runtime {
     messages_sent: Arc<AtomicU64>,
     world: Option<WorldReports>,
     body: Option<SharedBody>,
+    drive: Option<DriveWatch>,
     events: Sender<Event>,
     /// Admin commands from the parent process ([`Runtime::with_admin`]).
     admin: Option<std::sync::mpsc::Receiver<Result<AdminCommand, String>>>,
@@ -551,18 +571,24 @@ impl Runtime {
         let bus = Bus::start(stack, bus_transport, clock.clone(), BusConfig::default())
             .map_err(|e| setup(e.to_string()))?;
         let bus = Arc::new(bus);
-        let (agents, body, services, world) = match role {
+        let (agents, body, drive, services, world) = match role {
             Role::Chair { name } => {
                 let parts = chair_parts(name, &config, &bus)?;
-                (parts.agents, Some(parts.body), None, None)
+                (
+                    parts.agents,
+                    Some(parts.body),
+                    Some(parts.drive),
+                    None,
+                    None,
+                )
             }
             Role::Services => {
                 let (agents, desk) = service_parts(&config, &bus)?;
-                (agents, None, Some(desk), None)
+                (agents, None, None, Some(desk), None)
             }
             Role::World => {
                 let (agents, reports) = world_parts(&config)?;
-                (agents, None, None, Some(reports))
+                (agents, None, None, None, Some(reports))
             }
         };
         let mtp = match role {
@@ -684,6 +710,7 @@ impl Runtime {
             services,
             world,
             body,
+            drive,
             events,
             admin: None,
         })
@@ -716,6 +743,7 @@ impl Runtime {
             self.serve(now, &left);
             self.report_bodies(now);
             self.host.step(now);
+            self.report_drive();
             std::thread::sleep(period.saturating_sub(clock.now().since(now)));
         }
         self.shutdown();
@@ -783,6 +811,33 @@ impl Runtime {
             self.installed.insert(agent, entry);
         }
         left
+    }
+
+    /// Chairs only: reports the first non-zero command of each manual drive as it reaches the
+    /// wheels.
+    fn report_drive(&mut self) {
+        let Some(watch) = &mut self.drive else { return };
+        let applied = watch
+            .status
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .applied
+            .filter(|v| v.linear_mps != 0.0 || v.angular_radps != 0.0);
+        let driving = applied.is_some();
+        if let Some(v) = applied
+            && !watch.driving
+        {
+            let unix_ms = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0.0, |d| d.as_secs_f64() * 1e3);
+            let _ = self.events.send(Event::DriveApplied {
+                chair: watch.chair.clone(),
+                linear_mps: v.linear_mps,
+                angular_radps: v.angular_radps,
+                unix_ms,
+            });
+        }
+        watch.driving = driving;
     }
 
     /// World only: reports every body every `services.pose_report_ms`.
@@ -873,6 +928,8 @@ impl Runtime {
         for &chair in &gone {
             // its pose and subscription died with it: wait for the new agent's
             desk.poses.remove(chair);
+            desk.sonar.remove(chair);
+            desk.applied.remove(chair);
             desk.resubscribe.insert(chair.to_string());
             services.last_pose_report.remove(chair);
             let lost: Vec<String> = services

@@ -2,7 +2,8 @@
 //! becomes a `fipa-request` to the assistant agent (`go-to` a place for a chair), and the
 //! answers relayed back are recorded. It plans nothing: the chair's cognitive agent does. It also
 //! subscribes to the pose of the chairs the container puts on its watch list (a live deployment
-//! has no simulator to read them from), and relays a dashboard's drive panel to a chair's
+//! has no simulator to read them from), with a screen also to their sonar readings and to what
+//! their control agents apply while driven by hand, and relays a dashboard's drive panel to a chair's
 //! interface agent as `drive` requests (one conversation per hold).
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
@@ -12,7 +13,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, SensorReading, WheelchairAction, WheelchairContent};
 
 /// An answer the console received about one goal.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -55,6 +56,15 @@ pub struct Desk {
     /// Drive commands waiting for the console's next tick, the newest per chair: linear (m/s),
     /// angular (rad/s); a stop ends the chair's drive conversation.
     pub drives: BTreeMap<String, (f64, f64)>,
+    /// A screen shows the watched chairs as their users see them: the console also subscribes
+    /// to their sonar readings and to what their control agents apply while driven by hand.
+    pub screen: bool,
+    /// The last sonar ranges each watched chair published, m, in the body's sonar order
+    /// (with [`Desk::screen`]).
+    pub sonar: BTreeMap<String, Vec<f64>>,
+    /// What shared control last applied to each chair driven by hand: linear (m/s), angular
+    /// (rad/s), and when it was told, s of the bus clock (with [`Desk::screen`]).
+    pub applied: BTreeMap<String, ([f64; 2], f64)>,
 }
 
 /// The shared desk handle.
@@ -110,13 +120,36 @@ impl Console {
 
 impl Agent for Console {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        if message.performative == Performative::Inform
-            && let Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) =
-                WheelchairContent::from_message(&message)
-        {
-            let pose = [pose.x_m, pose.y_m, pose.theta_rad];
-            desk(&self.desk).poses.insert(agent.name, pose);
-            return;
+        if message.performative == Performative::Inform {
+            match WheelchairContent::from_message(&message) {
+                Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) => {
+                    let pose = [pose.x_m, pose.y_m, pose.theta_rad];
+                    desk(&self.desk).poses.insert(agent.name, pose);
+                    return;
+                }
+                Ok(WheelchairContent::Inform(Fact::Reading {
+                    agent,
+                    reading: SensorReading::Sonar { ranges_m },
+                })) => {
+                    desk(&self.desk).sonar.insert(agent.name, ranges_m);
+                    return;
+                }
+                Ok(WheelchairContent::Inform(Fact::Applied {
+                    agent,
+                    linear_mps,
+                    angular_radps,
+                })) => {
+                    // the control agent of the chair that is its container
+                    if let Some((_, chair)) = agent.name.split_once('@') {
+                        let at_s = ctx.now().0 as f64 * 1e-9;
+                        desk(&self.desk)
+                            .applied
+                            .insert(chair.to_string(), ([linear_mps, angular_radps], at_s));
+                    }
+                    return;
+                }
+                _ => {}
+            }
         }
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let from = message
@@ -134,7 +167,7 @@ impl Agent for Console {
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let (pending, watch, again, drives) = {
+        let (pending, watch, again, drives, screen) = {
             let mut desk = desk(&self.desk);
             let again = std::mem::take(&mut desk.resubscribe);
             (
@@ -142,6 +175,7 @@ impl Agent for Console {
                 desk.watch.clone(),
                 again,
                 std::mem::take(&mut desk.drives),
+                desk.screen,
             )
         };
         for (chair, (linear_mps, angular_radps)) in drives {
@@ -150,16 +184,35 @@ impl Agent for Console {
         // A chair that left or restarted is subscribed to again when it is back.
         self.subscribed
             .retain(|c| watch.contains(c) && !again.contains(c));
+        let me = ctx.name().to_string();
         for chair in watch.difference(&self.subscribed.clone()) {
-            let subscribe = AclMessage::new(Performative::Subscribe)
-                .with_receiver(AgentId::new(format!("perception@{chair}")))
-                .with_protocol(iw_agent::Protocol::Subscribe.fipa_name())
-                .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
-                .with_language("fipa-sl0")
-                .with_conversation_id(format!("pose-{chair}-{}", ctx.name()))
-                .with_content("((at-pose ?agent ?pose))");
-            if ctx.send(subscribe).is_ok() {
+            let subscribe = |to: &str, conversation: &str, content: &str| {
+                AclMessage::new(Performative::Subscribe)
+                    .with_receiver(AgentId::new(format!("{to}@{chair}")))
+                    .with_protocol(iw_agent::Protocol::Subscribe.fipa_name())
+                    .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
+                    .with_language("fipa-sl0")
+                    .with_conversation_id(format!("{conversation}-{chair}-{me}"))
+                    .with_content(content)
+            };
+            let poses = if screen {
+                subscribe(
+                    "perception",
+                    "pose",
+                    "((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))",
+                )
+            } else {
+                subscribe("perception", "pose", "((at-pose ?agent ?pose))")
+            };
+            if ctx.send(poses).is_ok() {
                 self.subscribed.insert(chair.clone());
+                if screen {
+                    let applied =
+                        subscribe("control", "applied", "((drive-applied ?agent ?command))");
+                    if let Err(err) = ctx.send(applied) {
+                        tracing::warn!(chair, error = %err, "could not subscribe to drive-applied");
+                    }
+                }
             }
         }
         for (conversation, chair, place) in pending {

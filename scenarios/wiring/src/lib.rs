@@ -30,7 +30,8 @@ use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
-use iw_control::{ControlAgent, ControlConfig, SharedDriveStatus};
+pub use iw_control::SharedDriveStatus;
+use iw_control::{ControlAgent, ControlConfig, LaserMount};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_interface::{Display, InputQueue, InterfaceAgent, InterfaceConfig, Recognizer};
 use iw_localization::{LocalizationMap, Localizer};
@@ -575,6 +576,12 @@ pub fn chair_agents(
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep
     // into door posts when it lines up with a doorway.
     control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
+    // the simulated chair's laser (a body without one reads no ranges, and adds no points)
+    control_config.laser = ChairSpec::default().laser.map(|l| LaserMount {
+        t_body_laser: l.t_body_laser,
+        fov_rad: l.fov_deg.to_radians(),
+        max_range_m: l.max_range_m,
+    });
     let control =
         ControlAgent::new(control_config, Box::new(body)).map_err(|e| setup(e.to_string()))?;
     let (plan, start_place) = building.with_start(name, t_world_body)?;
@@ -607,11 +614,14 @@ pub fn chair_agents(
         inputs.clone(),
         display.clone(),
     );
+    // The interface steps before the control agent: a drive it streams in its tick is in the
+    // control agent's mailbox before that agent's tick in the same host step, so an input
+    // reaches the wheels one step sooner (the in-process delivery is synchronous).
     let agents: Vec<(AgentId, Box<dyn Agent>)> = vec![
         (perception_id, Box::new(perception)),
+        (agent_id("interface", name), Box::new(interface)),
         (control_id, Box::new(control)),
         (cognitive_id, Box::new(cognitive)),
-        (agent_id("interface", name), Box::new(interface)),
     ];
     Ok(ChairAgents {
         agents,
