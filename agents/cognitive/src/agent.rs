@@ -18,10 +18,8 @@
 //!   (action-sequence :steps (sequence (goto-xy :x :y) ...))))`, one per `move` or `pass-door`
 //!   step; INFORM done = next step; FAILURE = that connection is treated as blocked and the goal
 //!   re-planned, except FAILURE `((body-fault "..."))`: the chair's body failed (its world link
-//!   down, its board unreadable), which says nothing of the way, so the step is asked again every
-//!   [`BODY_RETRY_EVERY`] from where the chair then is, and the goal fails only when the body has
-//!   failed for [`BODY_WAIT`] (a world container restarted, a board re-plugged: the goal goes
-//!   on). Each step has its own conversation id (`cog-N`); answers to an abandoned step
+//!   down, its sensors or board unreadable), which says nothing of the way, so the goal fails at
+//!   once with the body's reason (staff see why; a re-plan would only report "no route"). Each step has its own conversation id (`cog-N`); answers to an abandoned step
 //!   are ignored. Goals, steps and the pose subscription run on the interaction protocols'
 //!   state machines (`iw_agent::conversation`): an answer out of protocol changes nothing.
 //! - Sent to the watcher agent, when [`CognitiveConfig::watcher`] is set and a motion crosses one
@@ -140,12 +138,6 @@ pub const RELEASE_RADIUS_M: f64 = 0.6;
 /// How long the watcher has to agree to a pass request before it is taken for unreachable.
 pub const PASS_ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
 
-/// How often a motion step that failed with the body is asked again while the body is down.
-pub const BODY_RETRY_EVERY: Duration = Duration::from_secs(1);
-
-/// How long a goal outlives a failing body (retrying its motion) before it fails.
-pub const BODY_WAIT: Duration = Duration::from_secs(60);
-
 /// The building domain shipped with the crate.
 pub const BUILDING_DOMAIN: &str = include_str!("../domains/building.pddl");
 
@@ -184,16 +176,6 @@ enum Waiting {
     },
 }
 
-/// A motion step held back while the chair's body fails.
-struct Outage {
-    /// The step to ask again; `None` while the retry is under way.
-    motion: Option<Motion>,
-    /// When the body first failed in this outage (bus time, ns).
-    since_ns: u64,
-    /// When to ask again (bus time, ns).
-    retry_at_ns: u64,
-}
-
 /// The cognitive agent of one wheelchair.
 pub struct CognitiveAgent {
     config: CognitiveConfig,
@@ -218,8 +200,6 @@ pub struct CognitiveAgent {
     held: BTreeMap<String, (String, &'static str)>,
     /// Passages to let go when the chair gets to a point of the drive under way.
     releases: Vec<(String, Point2<f64>)>,
-    /// The motion step waiting for the body to come back, if the body failed it.
-    outage: Option<Outage>,
     conversations: u64,
 }
 
@@ -274,7 +254,6 @@ impl CognitiveAgent {
             legs: VecDeque::new(),
             held: BTreeMap::new(),
             releases: Vec::new(),
-            outage: None,
             conversations: 0,
         })
     }
@@ -625,7 +604,6 @@ impl CognitiveAgent {
         }
         self.legs.clear();
         self.releases.clear();
-        self.outage = None;
         let held: Vec<String> = self.held.keys().cloned().collect();
         for passage in held {
             self.release(ctx, &passage);
@@ -737,7 +715,6 @@ impl CognitiveAgent {
                 self.replan(ctx);
             }
             Waiting::Drive { motion } if done => {
-                self.outage = None;
                 self.release_reached(ctx, |_| true);
                 self.next_leg(ctx, motion)
             }
@@ -745,10 +722,10 @@ impl CognitiveAgent {
                 if let Ok(WheelchairContent::Inform(Fact::BodyFault { reason })) =
                     WheelchairContent::from_message(message)
                 {
-                    self.body_failed(ctx, motion, &reason);
+                    tracing::warn!(chair = %self.config.chair, from = %motion.from, to = %motion.to, %reason, "the body failed the motion; goal failed");
+                    self.finish(ctx, Err(format!("the chair's body failed: {reason}")));
                     return;
                 }
-                self.outage = None;
                 let why = message.content_text().unwrap_or_default();
                 tracing::info!(chair = %self.config.chair, from = %motion.from, to = %motion.to, answer = %performative, why, "motion failed; re-planning");
                 self.blocked.insert((motion.from, motion.to));
@@ -771,54 +748,6 @@ impl CognitiveAgent {
                 self.next_leg(ctx, motion);
             }
         }
-    }
-
-    /// The body failed `motion`: it is asked again in [`BODY_RETRY_EVERY`], or the goal fails
-    /// when the body has failed for [`BODY_WAIT`].
-    fn body_failed(&mut self, ctx: &mut Context<'_>, motion: Motion, reason: &str) {
-        let now_ns = ctx.now().0;
-        // A retry that failed within ten retry periods continues the outage; a later failure
-        // (the body came back, drove, and failed again) starts a new one.
-        let continues = |o: &Outage| {
-            Duration::from_nanos(now_ns.saturating_sub(o.retry_at_ns)) < BODY_RETRY_EVERY * 10
-        };
-        let since_ns = self
-            .outage
-            .as_ref()
-            .filter(|o| continues(o))
-            .map_or(now_ns, |o| o.since_ns);
-        let down = Duration::from_nanos(now_ns.saturating_sub(since_ns));
-        if down >= BODY_WAIT {
-            let why = format!(
-                "the chair's body has failed for {} s: {reason}",
-                down.as_secs()
-            );
-            self.finish(ctx, Err(why));
-            return;
-        }
-        tracing::warn!(chair = %self.config.chair, from = %motion.from, to = %motion.to, %reason, "the body failed the motion; asking again when it may be back");
-        let retry_ns = u64::try_from(BODY_RETRY_EVERY.as_nanos()).unwrap_or(u64::MAX);
-        self.outage = Some(Outage {
-            motion: Some(motion),
-            since_ns,
-            retry_at_ns: now_ns.saturating_add(retry_ns),
-        });
-    }
-
-    /// Asks again for the motion step the body failed, when it is time.
-    fn retry_after_outage(&mut self, ctx: &mut Context<'_>) {
-        let now_ns = ctx.now().0;
-        let Some(outage) = self.outage.as_mut() else {
-            return;
-        };
-        if now_ns < outage.retry_at_ns {
-            return;
-        }
-        let Some(Motion { from, to, door, .. }) = outage.motion.take() else {
-            return;
-        };
-        tracing::info!(chair = %self.config.chair, %from, %to, "asking again for the motion the body failed");
-        self.motion(ctx, from, to, door);
     }
 
     fn on_pose(&mut self, ctx: &mut Context<'_>, x_m: f64, y_m: f64, uncertainty_m2: f64) {
@@ -862,13 +791,14 @@ impl Agent for CognitiveAgent {
     }
 
     fn tick_period(&self) -> Option<Duration> {
-        Some(Duration::from_millis(200))
+        self.config
+            .watcher
+            .as_ref()
+            .map(|_| Duration::from_millis(200))
     }
 
-    /// Asks again for a motion the body failed; gives up waiting for a watcher that does not
-    /// answer or does not grant in time.
+    /// Gives up waiting for a watcher that does not answer or does not grant in time.
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        self.retry_after_outage(ctx);
         let Some((
             conversation,
             Waiting::Pass {

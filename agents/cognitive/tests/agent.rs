@@ -484,46 +484,20 @@ fn answers(rig: &Rig) -> Vec<(Performative, String)> {
 }
 
 #[test]
-fn a_motion_the_body_failed_is_asked_again_and_the_goal_goes_on_when_the_body_is_back() {
-    let mut failures = 3;
-    let control: Script = Box::new(move |m| {
-        if failures > 0 {
-            failures -= 1;
-            body_fault(m)
-        } else {
-            agree_then(m, Performative::Inform)
-        }
-    });
-    let mut rig = rig(Box::new(|m| agree_then(m, Performative::Inform)), control);
-    rig.goal("c");
-    // Three failures a retry period (1 s) apart, then the motion gets through.
-    rig.run(600);
-    let performatives: Vec<_> = answers(&rig).into_iter().map(|(p, _)| p).collect();
-    assert_eq!(performatives, [Performative::Agree, Performative::Inform]);
-    let control = rig.control.lock().unwrap();
-    assert_eq!(control.len(), 4, "the same motion asked four times");
-    for request in control.iter() {
-        assert_eq!(*waypoints(&action_of(request)).last().unwrap(), (5.0, 9.0));
-    }
-    assert_eq!(rig.door.lock().unwrap().len(), 1, "not re-planned");
-}
-
-#[test]
-fn a_body_failing_past_the_wait_fails_the_goal_with_the_body_reason() {
+fn a_body_fault_fails_the_goal_at_once_with_the_body_reason_and_no_re_plan() {
     let mut rig = rig(
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(body_fault),
     );
     rig.goal("c");
-    let wait_steps = (iw_cognitive::agent::BODY_WAIT.as_millis() / 10) as usize;
-    rig.run(wait_steps - 200);
-    assert_eq!(answers(&rig).len(), 1, "still waiting: {:?}", answers(&rig));
-    rig.run(400);
+    rig.run(600);
     let got = answers(&rig);
     assert_eq!(got.len(), 2, "{got:?}");
     assert_eq!(got[1].0, Performative::Failure);
     assert!(
-        got[1].1.contains("body has failed") && got[1].1.contains("no sensor frame"),
+        got[1].1.contains("body failed") && got[1].1.contains("no sensor frame"),
         "{got:?}"
     );
+    assert_eq!(rig.control.lock().unwrap().len(), 1, "not asked again");
+    assert_eq!(rig.door.lock().unwrap().len(), 1, "not re-planned");
 }

@@ -3,10 +3,8 @@
 //!
 //! Group `layers_300B` is wall time; `layers_300B_cpu` the bench thread's CPU time.
 //!
-//! Group `control_frame_cpu`: one container control message written and read back, as JSON
-//! (the wire before control frames were signed: the peer) and as a [`iw_container::Signed`]
-//! frame (Ed25519 sign and verify), for a heartbeat and for a 20-agent global list. The group
-//! key's sealing on top is the `security` row above.
+//! Container control frames are timed beside their code: `cargo bench -p iw-container --bench
+//! control_frame`.
 //!
 //! Run: `cargo bench -p iw-stack --bench layers` (or build it with `--profile test` and run the
 //! binary with `--bench`)
@@ -33,71 +31,6 @@ fn bench(c: &mut Criterion) {
     for cpu in [false, true] {
         run(c, cpu);
     }
-    control(c);
-}
-
-/// Times `one` in this thread's CPU time.
-fn cpu_iter(bench: &mut criterion::Bencher<'_>, mut one: impl FnMut()) {
-    bench.iter_custom(|iters| {
-        let start = thread_cpu();
-        for _ in 0..iters {
-            one();
-        }
-        thread_cpu() - start
-    })
-}
-
-fn control(c: &mut Criterion) {
-    use iw_container::{AgentEntry, ContainerId, ContainerMsg, GlobalAgentList, Part, Signed};
-    let identity = iw_stack::Identity::generate().expect("identity");
-    let heartbeat = ContainerMsg::Heartbeat {
-        id: ContainerId(1001),
-        incarnation: 1_764_000_000,
-        leader: ContainerId(1),
-        lal_generation: (1_764_000_000 << 32) | 7,
-        gal_versions: (0..3).map(|i| (ContainerId(i), i << 32)).collect(),
-    };
-    let mut gal = GlobalAgentList::default();
-    for container in 0..4u64 {
-        gal.merge_part(
-            ContainerId(container),
-            Part {
-                generation: (container << 32) | 5,
-                agents: (0..5)
-                    .map(|a| AgentEntry {
-                        name: format!("agent{a}@chair-{container}"),
-                        public_key: identity.public_key().to_vec(),
-                        addr: iw_bus::transport::PeerAddr(format!("10.0.0.{container}:7700")),
-                    })
-                    .collect(),
-            },
-        );
-    }
-    let gal = ContainerMsg::Gal {
-        leader: ContainerId(1),
-        gal,
-    };
-    let mut group = c.benchmark_group("control_frame_cpu");
-    group.throughput(Throughput::Elements(1));
-    group.measurement_time(Duration::from_secs(3));
-    group.warm_up_time(Duration::from_secs(1));
-    for (name, msg) in [("heartbeat", &heartbeat), ("gal20", &gal)] {
-        group.bench_function(format!("{name}_json"), |b| {
-            cpu_iter(b, || {
-                let frame = msg.encode().expect("encodes");
-                black_box(ContainerMsg::decode(&frame).expect("decodes"));
-            })
-        });
-        let mut seq = 0;
-        group.bench_function(format!("{name}_signed"), |b| {
-            cpu_iter(b, || {
-                seq += 1;
-                let frame = Signed::seal(&identity, seq, msg).expect("seals");
-                black_box(Signed::open(&frame).expect("opens"));
-            })
-        });
-    }
-    group.finish();
 }
 
 fn run(c: &mut Criterion, cpu: bool) {
