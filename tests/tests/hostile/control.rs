@@ -140,6 +140,32 @@ fn a_container_without_a_control_key_refuses_to_start() {
     );
 }
 
+/// The services' take-over, as a forger sends it: a heartbeat claiming the services' id, and the
+/// services' list (assistant re-routed, an agent added) at a generation that would pin it forever.
+fn takeover(evil: impl Fn(&str) -> AgentEntry) -> [ContainerMsg; 2] {
+    let mut pinned = GlobalAgentList::default();
+    pinned.merge_part(
+        ContainerId(1),
+        Part {
+            generation: u64::MAX,
+            agents: vec![evil("assistant@services"), evil("evil@x")],
+        },
+    );
+    [
+        ContainerMsg::Heartbeat {
+            id: ContainerId(1),
+            incarnation: u32::MAX,
+            leader: ContainerId(1),
+            lal_generation: u64::MAX,
+            gal_versions: Default::default(),
+        },
+        ContainerMsg::Gal {
+            leader: ContainerId(1),
+            gal: pinned,
+        },
+    ]
+}
+
 /// Even in a development run with no control key, forged lists from a socket re-route nothing.
 #[test]
 fn forged_heartbeats_and_agent_lists_reroute_nothing() {
@@ -161,29 +187,7 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
         public_key: vec![0xee; 32],
         addr: PeerAddr(attacker.local_addr().unwrap().to_string()),
     };
-    let mut pinned = GlobalAgentList::default();
-    pinned.merge_part(
-        ContainerId(1),
-        Part {
-            generation: u64::MAX,
-            agents: vec![evil("assistant@services"), evil("evil@x")],
-        },
-    );
-    let forged = [
-        // Claims the services' id from the attacker's address.
-        ContainerMsg::Heartbeat {
-            id: ContainerId(1),
-            incarnation: u32::MAX,
-            leader: ContainerId(1),
-            lal_generation: u64::MAX,
-            gal_versions: Default::default(),
-        },
-        // The services' list with a generation that would pin it forever.
-        ContainerMsg::Gal {
-            leader: ContainerId(1),
-            gal: pinned,
-        },
-    ];
+    let forged = takeover(evil);
     let mut duplicate_told = false;
     let deadline = Instant::now() + Duration::from_secs(2);
     while Instant::now() < deadline {
@@ -438,27 +442,7 @@ fn a_key_holder_forging_another_containers_heartbeat_and_list_is_not_obeyed() {
         public_key: forger_key().to_vec(),
         addr: PeerAddr("127.0.0.1:9".into()),
     };
-    let mut gal = GlobalAgentList::default();
-    gal.merge_part(
-        ContainerId(1),
-        Part {
-            generation: u64::MAX,
-            agents: vec![evil("assistant@services"), evil("evil@x")],
-        },
-    );
-    let forged = [
-        ContainerMsg::Heartbeat {
-            id: ContainerId(1),
-            incarnation: u32::MAX,
-            leader: ContainerId(1),
-            lal_generation: u64::MAX,
-            gal_versions: Default::default(),
-        },
-        ContainerMsg::Gal {
-            leader: ContainerId(1),
-            gal,
-        },
-    ];
+    let forged = takeover(evil);
     use iw_bus::transport::FrameTransport;
     let to = PeerAddr(chair.control());
     let deadline = Instant::now() + Duration::from_secs(3);
