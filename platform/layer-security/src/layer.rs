@@ -570,9 +570,12 @@ impl SecurityLayer {
         Ok(Verdict::Consumed)
     }
 
-    /// A hello from `a` to our `b`: refused unless fresh, never seen, and signed by the identity
-    /// the directory lists for `a` over the Noise static key it carries; answered with a reply
-    /// signed likewise, and the receive session kept.
+    /// A hello from `a` to our `b`: refused unless signed by the identity the directory lists for
+    /// `a` over the Noise static key it carries, fresh and never seen; answered with a reply
+    /// signed likewise, and the receive session kept. Freshness and repetition are judged only
+    /// once the signature holds: a stale or repeated verdict is final for the frame (the layer
+    /// below keeps its id), so it must never be passed on a corrupted copy of some other frame,
+    /// whose genuine retransmission would then be taken for a duplicate and lost.
     fn on_hello(&mut self, env: &Envelope, now: Time) -> Result<Verdict, SecurityError> {
         let (a, b) = (env.header.sender.as_str(), env.header.receiver.as_str());
         let Some((id, at, msg1)) = split_hello(&env.payload) else {
@@ -581,13 +584,6 @@ impl SecurityLayer {
         let Some(key_a) = self.directory.public_key(a) else {
             return Ok(Verdict::Drop(Reason::UnknownPeer));
         };
-        if Duration::from_nanos(now.0.abs_diff(at)) > self.config.handshake_max_age {
-            return Ok(Verdict::Drop(Reason::Stale));
-        }
-        let seen = (a.to_string(), id);
-        if self.hellos_seen.contains(&seen) {
-            return Ok(Verdict::Drop(Reason::Duplicate));
-        }
         let pair = self.noise_static()?;
         let static_b = pair.public.clone();
         let mut hs = noise(&pair.private, &prologue(&id, a, b), false)?;
@@ -604,6 +600,13 @@ impl SecurityLayer {
             &payload[..n],
         ) {
             return Ok(Verdict::Drop(Reason::BadSignature));
+        }
+        if Duration::from_nanos(now.0.abs_diff(at)) > self.config.handshake_max_age {
+            return Ok(Verdict::Drop(Reason::Stale));
+        }
+        let seen = (a.to_string(), id);
+        if self.hellos_seen.contains(&seen) {
+            return Ok(Verdict::Drop(Reason::Duplicate));
         }
         self.hellos.push_back(seen.clone());
         self.hellos_seen.insert(seen);
