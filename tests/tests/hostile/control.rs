@@ -140,6 +140,23 @@ fn a_container_without_a_control_key_refuses_to_start() {
     );
 }
 
+/// The chair still routes to the real services, and no forged agent joined it.
+fn assert_services_kept(chair: &Running) {
+    assert!(
+        !chair
+            .seen
+            .iter()
+            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "assistant@services")),
+        "the services' route was taken: {:#?}",
+        chair.seen
+    );
+    assert!(
+        !chair.seen.iter().any(joined("evil@x")),
+        "{:#?}",
+        chair.seen
+    );
+}
+
 /// The services' take-over, as a forger sends it: a heartbeat claiming the services' id, and the
 /// services' list (assistant re-routed, an agent added) at a generation that would pin it forever.
 fn takeover(evil: impl Fn(&str) -> AgentEntry) -> [ContainerMsg; 2] {
@@ -204,19 +221,7 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
     }
     chair.drain_for(Duration::from_millis(500));
     assert!(duplicate_told, "the claim on a live id was answered");
-    assert!(
-        !chair
-            .seen
-            .iter()
-            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "assistant@services")),
-        "the services' route never changed: {:#?}",
-        chair.seen
-    );
-    assert!(
-        !chair.seen.iter().any(joined("evil@x")),
-        "{:#?}",
-        chair.seen
-    );
+    assert_services_kept(&chair);
     chair.stop().unwrap();
     services.stop().unwrap();
 }
@@ -453,19 +458,7 @@ fn a_key_holder_forging_another_containers_heartbeat_and_list_is_not_obeyed() {
         std::thread::sleep(Duration::from_millis(20));
     }
     chair.drain_for(Duration::from_secs(1));
-    assert!(
-        !chair
-            .seen
-            .iter()
-            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "assistant@services")),
-        "the services' route was taken: {:#?}",
-        chair.seen
-    );
-    assert!(
-        !chair.seen.iter().any(joined("evil@x")),
-        "{:#?}",
-        chair.seen
-    );
+    assert_services_kept(&chair);
     chair.stop().unwrap();
     services.stop().unwrap();
 }
