@@ -722,7 +722,7 @@ impl CognitiveAgent {
                 if let Ok(WheelchairContent::Inform(Fact::BodyFault { reason })) =
                     WheelchairContent::from_message(message)
                 {
-                    tracing::warn!(chair = %self.config.chair, from = %motion.from, to = %motion.to, %reason, "the body failed the motion; goal failed");
+                    tracing::info!(chair = %self.config.chair, from = %motion.from, to = %motion.to, %reason, "the body failed the motion");
                     self.finish(ctx, Err(format!("the chair's body failed: {reason}")));
                     return;
                 }
