@@ -56,10 +56,11 @@ pub struct DetectorConfig {
     /// Keep at most this many keypoints, highest rank first (`None`: all; the rank is the
     /// response unless [`Self::rank_size_exponent`] says otherwise).
     pub max_keypoints: Option<usize>,
-    /// Detect on the input doubled in size (bilinear, then a Gaussian of sigma 1.6 doubled px),
-    /// Lowe's octave -1: the finest interior filter (15 px) then sees 7.5 input px, closer to the
-    /// scales where a keypoint localises within a pixel or two. Keypoints, sizes and scales are reported in input pixels; the LSAC
-    /// radius and the noise tile stay in pixels of the doubled image. Costs 4x the pixels.
+    /// Detect on the input doubled in size (bilinear, then a Gaussian of sigma 1.6 doubled px,
+    /// kept in float: no rounding back to 8 bits), Lowe's octave -1: the finest interior filter
+    /// (15 px) then sees 7.5 input px, closer to the scales where a keypoint localises within a
+    /// pixel or two. Keypoints, sizes and scales are reported in input pixels; the LSAC radius
+    /// and the noise tile stay in pixels of the doubled image. Costs 4x the pixels.
     #[serde(default)]
     pub upsample: bool,
     /// With `max_keypoints`: rank keypoints by `response x (9 / size)^e` instead of the response

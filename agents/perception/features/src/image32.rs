@@ -61,6 +61,14 @@ impl GrayImage32 {
             *out = luma(px.0);
         }
     }
+
+    /// Luma of three float channel planes of one size.
+    pub(crate) fn luma_of(&mut self, [r, g, b]: [&GrayImage32; 3]) {
+        self.resize(r.width, r.height);
+        for (((out, &r), &g), &b) in self.data.iter_mut().zip(&r.data).zip(&g.data).zip(&b.data) {
+            *out = luma_f32([r, g, b]);
+        }
+    }
 }
 
 /// BT.601 luma of one 8-bit RGB pixel.

@@ -192,6 +192,8 @@ pub enum FeatureError {
 #[derive(Debug, Default)]
 pub struct Detector {
     scratch: working::Scratch,
+    /// The doubled input ([`DetectorConfig::upsample`]).
+    doubled: working::Planes,
     layers: hessian::ScaleSpace,
 }
 
@@ -213,14 +215,13 @@ impl Detector {
         if width == 0 || height == 0 {
             return Ok(Features::default());
         }
-        let doubled;
-        let (image, pixel) = if config.upsample {
-            doubled = working::doubled(image);
-            (&doubled, 2.0)
+        let (source, pixel) = if config.upsample {
+            self.doubled.double(image);
+            (working::Source::Planes(&self.doubled), 2.0)
         } else {
-            (image, 1.0)
+            (working::Source::Rgb(image), 1.0)
         };
-        self.scratch.prepare(kind, image, config);
+        self.scratch.prepare(kind, source, config);
         let normalise = (kind == DetectorKind::LnSurf).then_some(&self.scratch.gray_integral);
         self.layers
             .compute(self.scratch.working(kind), normalise, config);

@@ -15,16 +15,166 @@ use crate::{
 /// the scene changes (measured: see `docs/results/repeatability.md`).
 const DOUBLED_SIGMA: f32 = 1.6;
 
-/// `image` at twice its width and height, bilinear with pixel centres at `(X + 0.5) / 2 - 0.5`
-/// of the input, then blurred by [`DOUBLED_SIGMA`] (see [`DetectorConfig::upsample`]).
-pub(crate) fn doubled(image: &image::RgbImage) -> image::RgbImage {
-    let doubled = image::imageops::resize(
-        image,
-        image.width().saturating_mul(2),
-        image.height().saturating_mul(2),
-        image::imageops::FilterType::Triangle,
-    );
-    image::imageops::blur(&doubled, DOUBLED_SIGMA)
+/// The three colour channels of an image as `f32` planes (8-bit units, not rounded).
+#[derive(Debug, Default)]
+pub(crate) struct Planes {
+    channels: [GrayImage32; 3],
+    /// Scratch of the separable passes.
+    tmp: GrayImage32,
+}
+
+impl Planes {
+    /// Width, px.
+    pub(crate) fn width(&self) -> usize {
+        self.channels[0].width()
+    }
+
+    /// Height, px.
+    pub(crate) fn height(&self) -> usize {
+        self.channels[0].height()
+    }
+
+    /// `image` at twice its width and height (bilinear, pixel centres at `(X + 0.5) / 2 - 0.5` of
+    /// the input), then blurred by [`DOUBLED_SIGMA`] (see [`DetectorConfig::upsample`]). Kept in
+    /// float: rounding back to 8 bits would add a quantisation noise of its own, largest
+    /// relative to the signal where the light is dim.
+    pub(crate) fn double(&mut self, image: &image::RgbImage) {
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        let kernel = gaussian_kernel(DOUBLED_SIGMA);
+        let raw = image.as_raw();
+        for (c, plane) in self.channels.iter_mut().enumerate() {
+            // Rows doubled horizontally into `tmp` (2w x h), then columns into `plane` (2w x 2h).
+            self.tmp.resize(2 * w, h);
+            self.tmp
+                .as_mut_slice()
+                .par_chunks_mut(2 * w)
+                .enumerate()
+                .for_each(|(y, out)| {
+                    let row = &raw[3 * y * w..3 * (y + 1) * w];
+                    double_line(out, |x| f32::from(row[3 * x + c]), w);
+                });
+            plane.resize(2 * w, 2 * h);
+            let tmp = &self.tmp;
+            plane
+                .as_mut_slice()
+                .par_chunks_mut(2 * w)
+                .enumerate()
+                .for_each(|(y, out)| {
+                    let i = y / 2;
+                    let other = if y % 2 == 0 {
+                        i.saturating_sub(1)
+                    } else {
+                        (i + 1).min(h - 1)
+                    };
+                    let (a, b) = (row_of(tmp, i), row_of(tmp, other));
+                    for ((o, &a), &b) in out.iter_mut().zip(a).zip(b) {
+                        *o = 0.75 * a + 0.25 * b;
+                    }
+                });
+            blur(plane, &mut self.tmp, &kernel);
+        }
+    }
+
+    /// Channel `c` (0 red, 1 green, 2 blue).
+    fn channel(&self, c: usize) -> &GrayImage32 {
+        &self.channels[c]
+    }
+}
+
+/// Row `y` of `image`.
+fn row_of(image: &GrayImage32, y: usize) -> &[f32] {
+    let w = image.width();
+    &image.as_slice()[y * w..(y + 1) * w]
+}
+
+/// One line of `n` samples (`at(i)`) doubled into `out` (2n): sample `2i` lies a quarter pixel
+/// before input sample `i`, `2i + 1` a quarter after; the border repeats.
+fn double_line(out: &mut [f32], at: impl Fn(usize) -> f32, n: usize) {
+    for i in 0..n {
+        let (here, before, after) = (at(i), at(i.saturating_sub(1)), at((i + 1).min(n - 1)));
+        out[2 * i] = 0.75 * here + 0.25 * before;
+        out[2 * i + 1] = 0.75 * here + 0.25 * after;
+    }
+}
+
+/// Normalised Gaussian taps `-r..=r`, `r = ceil(3 sigma)`.
+fn gaussian_kernel(sigma: f32) -> Vec<f32> {
+    let r = (3.0 * sigma).ceil() as i32;
+    let taps: Vec<f32> = (-r..=r)
+        .map(|i| (-0.5 * (i as f32 / sigma).powi(2)).exp())
+        .collect();
+    let total: f32 = taps.iter().sum();
+    taps.into_iter().map(|t| t / total).collect()
+}
+
+/// Separable convolution of `image` with `kernel` in place (border repeated); `tmp` is scratch.
+fn blur(image: &mut GrayImage32, tmp: &mut GrayImage32, kernel: &[f32]) {
+    let (w, h) = (image.width(), image.height());
+    if w == 0 || h == 0 {
+        return;
+    }
+    let r = kernel.len() / 2;
+    tmp.resize(w, h);
+    let src = &*image;
+    tmp.as_mut_slice()
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, out)| {
+            let row = row_of(src, y);
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = kernel
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &t)| t * row[(x + k).saturating_sub(r).min(w - 1)])
+                    .sum();
+            }
+        });
+    let tmp = &*tmp;
+    image
+        .as_mut_slice()
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, out)| {
+            out.fill(0.0);
+            for (k, &t) in kernel.iter().enumerate() {
+                let row = row_of(tmp, (y + k).saturating_sub(r).min(h - 1));
+                for (o, &v) in out.iter_mut().zip(row) {
+                    *o += t * v;
+                }
+            }
+        });
+}
+
+/// What a detection runs on: the input's 8-bit pixels, or float planes (the doubled image).
+#[derive(Clone, Copy)]
+pub(crate) enum Source<'a> {
+    /// The input image.
+    Rgb(&'a image::RgbImage),
+    /// Float channels.
+    Planes(&'a Planes),
+}
+
+impl Source<'_> {
+    fn size(self) -> (usize, usize) {
+        match self {
+            Source::Rgb(image) => (image.width() as usize, image.height() as usize),
+            Source::Planes(planes) => (planes.width(), planes.height()),
+        }
+    }
+
+    /// Channel `c` of row `y` into `out` (as many samples as the width).
+    fn channel_row(self, c: usize, y: usize, out: &mut [f32]) {
+        match self {
+            Source::Rgb(image) => {
+                let w = image.width() as usize;
+                let raw = &image.as_raw()[3 * y * w..3 * (y + 1) * w];
+                for (o, &v) in out.iter_mut().zip(raw.iter().skip(c).step_by(3)) {
+                    *o = f32::from(v);
+                }
+            }
+            Source::Planes(planes) => out.copy_from_slice(row_of(planes.channel(c), y)),
+        }
+    }
 }
 
 /// Buffers reused frame after frame.
@@ -38,20 +188,23 @@ pub(crate) struct Scratch {
 }
 
 impl Scratch {
-    /// Fills the buffers `kind` needs from `image`.
+    /// Fills the buffers `kind` needs from `source`.
     pub(crate) fn prepare(
         &mut self,
         kind: DetectorKind,
-        image: &image::RgbImage,
+        source: Source<'_>,
         config: &DetectorConfig,
     ) {
-        self.gray.luma_into(image);
+        match source {
+            Source::Rgb(image) => self.gray.luma_into(image),
+            Source::Planes(planes) => self.gray.luma_of(planes.channels.each_ref()),
+        }
         if !kind.is_lsac() {
             self.gray_integral
                 .compute(&self.gray, kind == DetectorKind::LnSurf);
             return;
         }
-        let (w, h) = (self.gray.width(), self.gray.height());
+        let (w, h) = source.size();
         self.lsac.resize(w, h);
         let radii = nested_radii(config.lsac_radius_px);
         let floor = config.lsac_min_average;
@@ -76,28 +229,28 @@ impl Scratch {
                     );
             }
             LsacSpace::PerChannel => {
-                self.channel_integrals
-                    .par_iter_mut()
-                    .enumerate()
-                    .for_each(|(c, ii)| ii.compute_channel(image, c));
+                self.channel_integrals.par_iter_mut().enumerate().for_each(
+                    |(c, ii)| match source {
+                        Source::Rgb(image) => ii.compute_channel(image, c),
+                        Source::Planes(planes) => ii.compute(planes.channel(c), false),
+                    },
+                );
                 let iis = &self.channel_integrals;
-                let raw = image.as_raw();
                 self.lsac
                     .as_mut_slice()
                     .par_chunks_mut(w)
                     .enumerate()
                     .for_each_init(
-                        || vec![0.0; w],
-                        |average, (y, row)| {
+                        || (vec![0.0; w], vec![0.0; w]),
+                        |(average, pixels), (y, row)| {
                             // Luma of the three ratios, summed channel by channel in luma_f32's order.
                             for (c, (ii, weight)) in iis.iter().zip(LUMA_WEIGHTS).enumerate() {
                                 local_average_row(ii, y, &radii, average);
-                                let pixels =
-                                    raw[3 * y * w..3 * (y + 1) * w].iter().skip(c).step_by(3);
+                                source.channel_row(c, y, pixels);
                                 for ((out, &i), &a) in
-                                    row.iter_mut().zip(pixels).zip(average.iter())
+                                    row.iter_mut().zip(pixels.iter()).zip(average.iter())
                                 {
-                                    let term = weight * lsac_sample(f32::from(i), a, floor);
+                                    let term = weight * lsac_sample(i, a, floor);
                                     *out = if c == 0 { term } else { *out + term };
                                 }
                             }
@@ -237,6 +390,40 @@ pub(crate) fn classify(gray: &GrayImage32, kp: &Keypoint, band: Option<(u8, u8)>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn doubling_commutes_with_a_gain_because_it_does_not_round() {
+        // Even values halve exactly in 8 bits: the doubled planes of the dim image must be half
+        // the bright image's. Rounding the doubled image back to 8 bits broke this (LIC, LCC).
+        let (w, h) = (23, 17);
+        let bright = image::RgbImage::from_fn(w, h, |x, y| {
+            let v = |k: u32| (((x * 7 + y * 13 + k * 5) * 37) % 128 * 2) as u8;
+            image::Rgb([v(0), v(1), v(2)])
+        });
+        let dim = image::RgbImage::from_fn(w, h, |x, y| {
+            image::Rgb(bright.get_pixel(x, y).0.map(|v| v / 2))
+        });
+        let (mut a, mut b) = (Planes::default(), Planes::default());
+        a.double(&bright);
+        b.double(&dim);
+        assert_eq!((a.width(), a.height()), (2 * w as usize, 2 * h as usize));
+        for c in 0..3 {
+            for (&p, &q) in a.channel(c).as_slice().iter().zip(b.channel(c).as_slice()) {
+                assert!((p - 2.0 * q).abs() < 1e-3, "channel {c}: {p} vs 2 x {q}");
+            }
+        }
+        // A flat image stays flat, borders included.
+        let flat = image::RgbImage::from_pixel(5, 4, image::Rgb([9, 99, 199]));
+        a.double(&flat);
+        for (c, v) in [9.0, 99.0, 199.0].into_iter().enumerate() {
+            assert!(
+                a.channel(c)
+                    .as_slice()
+                    .iter()
+                    .all(|&p| (p - v).abs() < 1e-3)
+            );
+        }
+    }
 
     #[test]
     fn row_averages_equal_the_per_pixel_average() {
