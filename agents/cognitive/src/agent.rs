@@ -33,7 +33,8 @@
 //!
 //! Landmarks: before a motion step, and whenever a pose arrives during one, if the trace of the
 //! pose's x-y covariance exceeds [`CognitiveConfig::uncertainty_m2`] above its value at the last
-//! landmark visit, the step is re-issued via the nearest landmark.
+//! landmark visit, the step is re-issued via the nearest landmark ([`LandmarkStop`]: on the
+//! marker's axis, so the camera faces it on the way in).
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
@@ -85,6 +86,18 @@ pub struct DoorPassage {
     pub at: Point2<f64>,
 }
 
+/// Where the chair relocalises: the point it stops at, and the point it comes from so that its
+/// camera faces the marker on the way in (a chair arriving along its path sees the marker only
+/// when the path happens to come from the marker's side).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LandmarkStop {
+    /// Where the chair stops, map frame, m.
+    pub at: Point2<f64>,
+    /// Where it drives to first, on the marker's axis behind `at`; `None` for a landmark place
+    /// with no marker to face.
+    pub from: Option<Point2<f64>>,
+}
+
 /// The building as the strategic layer sees it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BuildingMap {
@@ -94,8 +107,8 @@ pub struct BuildingMap {
     pub connections: Vec<(String, String)>,
     /// Doors between places.
     pub doors: Vec<DoorPassage>,
-    /// Landmarks the chair can relocalise at, map frame, m.
-    pub landmarks: Vec<Point2<f64>>,
+    /// Landmarks the chair can relocalise at.
+    pub landmarks: Vec<LandmarkStop>,
     /// Narrow passages the watcher lets chairs through one direction at a time.
     pub passages: Vec<NarrowPassage>,
 }
@@ -227,12 +240,11 @@ impl CognitiveAgent {
             known("door", &door.b)?;
         }
         let points = config.map.places.iter().map(|(n, p)| (n.clone(), *p));
-        let landmarks = config
-            .map
-            .landmarks
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (format!("landmark {i}"), *p));
+        let landmarks = config.map.landmarks.iter().enumerate().flat_map(|(i, l)| {
+            std::iter::once(l.at)
+                .chain(l.from)
+                .map(move |p| (format!("landmark {i}"), p))
+        });
         for (name, p) in points.chain(landmarks) {
             grid.astar(p, p)
                 .map_err(|source| CognitiveError::BadPoint { name, source })?;
@@ -383,9 +395,10 @@ impl CognitiveAgent {
             && let Some(landmark) = map
                 .landmarks
                 .iter()
-                .min_by(|a, b| (*a - here).norm().total_cmp(&(*b - here).norm()))
+                .min_by(|a, b| (a.at - here).norm().total_cmp(&(b.at - here).norm()))
         {
-            stops.push(*landmark);
+            stops.extend(landmark.from);
+            stops.push(landmark.at);
         }
         if let Some(d) = door
             .as_ref()

@@ -171,6 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         )]),
         log_path: Some(log_dir.join("agents.log")),
         visual_odometry: true,
+        ..FleetOptions::default()
     };
     let mut fleet =
         Fleet::with_options(map, args.seed, &chairs, options).context("composing the fleet")?;

@@ -18,28 +18,41 @@ use nalgebra::Isometry2;
 
 use crate::{BodyKind, FleetError};
 
-/// A [`Body`] whose sensors can be failed on purpose: while failed, every read is an error
-/// (the control agent then stops the chair and fails its task).
+/// The sensor faults that can be injected into a chair's body.
+#[derive(Debug, Clone, Default)]
+pub struct SensorFaults {
+    /// Every read fails (the control agent then stops the chair and fails its task).
+    pub failed: Arc<AtomicBool>,
+    /// The laser returns no ranges (covered or broken) while the rest reads on: the localizer
+    /// can no longer match the map and dead-reckons.
+    pub laser_blind: Arc<AtomicBool>,
+}
+
+/// A [`Body`] whose sensors can be failed on purpose ([`SensorFaults`]).
 pub struct FaultyBody<B> {
     inner: B,
-    failed: Arc<AtomicBool>,
+    faults: SensorFaults,
 }
 
 impl<B: Body> FaultyBody<B> {
-    /// Wraps `inner`; `failed` switches the failure.
-    pub fn new(inner: B, failed: Arc<AtomicBool>) -> Self {
-        FaultyBody { inner, failed }
+    /// Wraps `inner`; `faults` switch the failures.
+    pub fn new(inner: B, faults: SensorFaults) -> Self {
+        FaultyBody { inner, faults }
     }
 }
 
 impl<B: Body> Body for FaultyBody<B> {
     fn read(&mut self) -> Result<SensorFrame, BodyError> {
-        if self.failed.load(Ordering::Acquire) {
+        if self.faults.failed.load(Ordering::Acquire) {
             return Err(BodyError::Virtual {
                 reason: "sensor failure injected".into(),
             });
         }
-        self.inner.read()
+        let mut frame = self.inner.read()?;
+        if self.faults.laser_blind.load(Ordering::Acquire) {
+            frame.laser_m.clear();
+        }
+        Ok(frame)
     }
 
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
@@ -83,7 +96,7 @@ pub(crate) fn body_for(
     world: &SharedWorld,
     id: ChairId,
     t_world_body: Isometry2<f64>,
-    failed: Arc<AtomicBool>,
+    faults: SensorFaults,
 ) -> Result<(SharedBody, Option<BoardEmulator>), FleetError> {
     let setup = |reason: String| FleetError::Setup {
         container: name.to_string(),
@@ -91,7 +104,7 @@ pub(crate) fn body_for(
     };
     if kind == BodyKind::Virtual {
         return Ok((
-            SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), failed)),
+            SharedBody::new(FaultyBody::new(VirtualBody::new(world.clone(), id), faults)),
             None,
         ));
     }
@@ -105,12 +118,12 @@ pub(crate) fn body_for(
     let body = if kind == BodyKind::Mixed {
         SharedBody::new(FaultyBody::new(
             MixedBody::new(serial, ghost, odometry),
-            failed,
+            faults,
         ))
     } else {
         SharedBody::new(FaultyBody::new(
             MixedBody::new(serial, PoseFeed(ghost), odometry),
-            failed,
+            faults,
         ))
     };
     Ok((body, Some(board)))

@@ -1,7 +1,6 @@
 //! The fleet's containers: a chair's agents or the service agents on their own bus over the
 //! lockstep network, routed to the others.
 
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -15,7 +14,7 @@ use iw_sim::ChairId;
 use iw_wiring as compose;
 use iw_wiring::SharedDesk;
 
-use crate::{BodyKind, FleetError, LockstepNetwork};
+use crate::{BodyKind, FleetError, LockstepNetwork, SensorFaults};
 
 pub(crate) fn bus_for(
     network: &LockstepNetwork,
@@ -52,7 +51,7 @@ pub struct ChairContainer {
     pub(crate) id: ChairId,
     pub(crate) kind: BodyKind,
     pub(crate) host: AgentHost,
-    pub(crate) sensor_failed: Arc<AtomicBool>,
+    pub(crate) faults: SensorFaults,
     pub(crate) inputs: InputQueue,
     pub(crate) drive_status: SharedDriveStatus,
     pub(crate) display: Arc<Mutex<Display>>,

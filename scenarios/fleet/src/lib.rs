@@ -18,7 +18,8 @@
 //! - [`Fleet`]: the world, the containers and the [`LockstepNetwork`] between their buses, on
 //!   one mock clock. [`Fleet::new`] / [`Fleet::with_options`], [`Fleet::goal`] /
 //!   [`Fleet::goal_place`], [`Fleet::step`], [`Fleet::snapshot`]; faults: [`Fleet::set_link`],
-//!   [`Fleet::kill_agent`], [`Fleet::set_sensor_failure`], [`Fleet::jam_door`]; the log:
+//!   [`Fleet::kill_agent`], [`Fleet::set_sensor_failure`], [`Fleet::set_laser_blind`],
+//!   [`Fleet::jam_door`]; what a chair believes: [`Fleet::estimate`]; the log:
 //!   [`Fleet::messages_sent`] against [`Fleet::messages_logged`].
 //! - [`plan`]: the map as an occupancy grid.
 //!
@@ -48,7 +49,7 @@ mod network;
 mod snapshot;
 mod traffic;
 
-pub use body::FaultyBody;
+pub use body::{FaultyBody, SensorFaults};
 pub use container::{ChairContainer, ServiceContainer};
 pub use error::FleetError;
 pub use snapshot::{ChairSnapshot, Snapshot};
@@ -59,7 +60,7 @@ pub use iw_wiring::{BodyKind, Console, Desk, GoalEvent, SERVICES, SharedDesk, pl
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
@@ -68,6 +69,7 @@ use iw_bus::{Clock, MockController, Time};
 use iw_control::DriveStatus;
 use iw_door::Refusal;
 use iw_interface::{Display, InputQueue, Recognizer};
+use iw_ontology::wheelchair::Pose;
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SharedWorld, World};
 use nalgebra::{Isometry2, Point2};
 
@@ -104,6 +106,9 @@ pub struct FleetOptions {
     /// simulator's rendered camera and fuse it with the wheels (costs a render and a detection
     /// per chair and control period).
     pub visual_odometry: bool,
+    /// The trace of a chair's x-y pose covariance, m², above which its cognitive agent detours
+    /// past a landmark; `None`: [`compose::LANDMARK_UNCERTAINTY_M2`].
+    pub landmark_uncertainty_m2: Option<f64>,
 }
 
 struct Goal {
@@ -173,7 +178,17 @@ impl Fleet {
         }
         let (clock, controller) = Clock::mock(Time::from_ns(0));
         let network = LockstepNetwork::new();
-        let building = Building::from_map(map.clone())?;
+        let mut building = Building::from_map(map.clone())?;
+        if let Some(m2) = options.landmark_uncertainty_m2 {
+            if !(m2.is_finite() && m2 > 0.0) {
+                return Err(FleetError::Plan {
+                    reason: format!(
+                        "the landmark detour's uncertainty threshold must be a positive number of m², got {m2}"
+                    ),
+                });
+            }
+            building.landmark_uncertainty_m2 = m2;
+        }
         let mut world = World::new(map, seed);
         let ids: Vec<ChairId> = chairs
             .iter()
@@ -243,15 +258,9 @@ impl Fleet {
         for (config, id) in chairs.iter().zip(ids) {
             let name = &config.name;
             let kind = options.bodies.get(name).copied().unwrap_or_default();
-            let sensor_failed = Arc::new(AtomicBool::new(false));
-            let (body, board) = body_for(
-                kind,
-                name,
-                &world,
-                id,
-                config.t_world_body,
-                sensor_failed.clone(),
-            )?;
+            let faults = SensorFaults::default();
+            let (body, board) =
+                body_for(kind, name, &world, id, config.t_world_body, faults.clone())?;
             let visual = if options.visual_odometry && kind == BodyKind::Virtual {
                 Some(sim_camera(&world, id, name)?)
             } else {
@@ -276,7 +285,7 @@ impl Fleet {
                 id,
                 kind,
                 host,
-                sensor_failed,
+                faults,
                 inputs: agents.inputs,
                 display: agents.display,
                 drive_status: agents.drive_status,
@@ -422,9 +431,34 @@ impl Fleet {
     pub fn set_sensor_failure(&mut self, chair: &str, failed: bool) -> Result<(), FleetError> {
         let i = self.index(chair)?;
         self.chairs[i]
-            .sensor_failed
+            .faults
+            .failed
             .store(failed, Ordering::Release);
         Ok(())
+    }
+
+    /// Blinds (or restores) `chair`'s laser: it returns no ranges while the wheels, sonars and
+    /// camera read on.
+    pub fn set_laser_blind(&mut self, chair: &str, blind: bool) -> Result<(), FleetError> {
+        let i = self.index(chair)?;
+        self.chairs[i]
+            .faults
+            .laser_blind
+            .store(blind, Ordering::Release);
+        Ok(())
+    }
+
+    /// The pose `chair`'s perception agent last published, with its covariance (what the
+    /// chair's other agents steer by); `None` before the first.
+    pub fn estimate(&self, chair: &str) -> Result<Option<Pose>, FleetError> {
+        self.index(chair)?;
+        Ok(self
+            .traffic
+            .estimates
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(chair)
+            .cloned())
     }
 
     /// Closes `door` (a map door id) and keeps it closed from now on: the door agent's

@@ -1,5 +1,6 @@
-//! What the containers' taps see: every message counted (and copied to the logger), and each
-//! chair's last route read off its cognitive agent's requests.
+//! What the containers' taps see: every message counted (and copied to the logger), each
+//! chair's last route read off its cognitive agent's requests, and the last pose its perception
+//! agent published.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -8,31 +9,44 @@ use std::sync::{Arc, Mutex, PoisonError};
 use iw_acl::AclMessage;
 use iw_agent::AgentHost;
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
 use iw_wiring as compose;
 use iw_wiring::SERVICES;
 
-/// What the taps of all containers see: the traffic count and each chair's last route.
+/// What the taps of all containers see: the traffic count, each chair's last route and the
+/// last pose its perception agent published.
 #[derive(Default)]
 pub(crate) struct Traffic {
     pub(crate) sent: AtomicU64,
     pub(crate) paths: Mutex<BTreeMap<String, Vec<[f64; 2]>>>,
+    pub(crate) estimates: Mutex<BTreeMap<String, Pose>>,
 }
 
 impl Traffic {
     fn saw(&self, message: &AclMessage) {
         self.sent.fetch_add(1, Ordering::AcqRel);
-        let from_cognitive = message
-            .sender
-            .as_ref()
-            .and_then(|s| s.name.strip_prefix("cognitive@"));
+        let sender = message.sender.as_ref().map(|s| s.name.as_str());
+        if let Some(chair) = sender.and_then(|s| s.strip_prefix("perception@")) {
+            if let Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) =
+                WheelchairContent::from_message(message)
+            {
+                self.estimates
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .insert(chair.to_string(), pose);
+            }
+            return;
+        }
         let (
             Some(chair),
             Ok(WheelchairContent::Request {
                 action: WheelchairAction::Sequence { steps },
                 ..
             }),
-        ) = (from_cognitive, WheelchairContent::from_message(message))
+        ) = (
+            sender.and_then(|s| s.strip_prefix("cognitive@")),
+            WheelchairContent::from_message(message),
+        )
         else {
             return;
         };

@@ -64,6 +64,7 @@ pub fn run_with_progress(
             .collect(),
         log_path: None,
         visual_odometry: scenario.visual_odometry,
+        ..FleetOptions::default()
     };
     let mut fleet =
         Fleet::with_options(map, scenario.seed, &configs, options).map_err(fleet_err(0.0))?;

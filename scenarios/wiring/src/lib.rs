@@ -27,7 +27,7 @@ use iw_assistant::{AssistantAgent, AssistantConfig};
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::Bus;
 use iw_cognitive::agent::{
-    BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage,
+    BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage, LandmarkStop,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 pub use iw_control::SharedDriveStatus;
@@ -95,6 +95,15 @@ pub enum WiringError {
 /// How far in front of a landmark's marker the chair may stop to read it, in order of
 /// preference, m: the camera sits 0.6 m ahead of the base and measures depth up to 3.5 m.
 const LANDMARK_VIEW_M: [f64; 3] = [1.8, 1.5, 2.2];
+
+/// How much farther out on a marker's axis the chair's landmark detour comes in from, m: it
+/// drives the last metre towards the marker, so the camera reads it on the way in.
+const LANDMARK_RUN_IN_M: f64 = 1.0;
+
+/// The trace of a chair's x-y pose covariance, m², above which its cognitive agent detours past
+/// a landmark (thesis 3.8), unless the deployment sets [`Building::landmark_uncertainty_m2`]:
+/// about 0.5 m standard deviation, when 1.5 to 2 m openings become marginal.
+pub const LANDMARK_UNCERTAINTY_M2: f64 = 0.5;
 
 /// The clearance a doorway must leave the chair's centre, m: the chair's half width less a few
 /// centimetres (the grid rounds it up a cell), so a 1 m doorway stays passable.
@@ -211,6 +220,9 @@ pub struct Building {
     /// The map as every chair's localizer matches its laser and sonars against it (walls,
     /// furniture, the doors drawn closed, landmarks), indexed once and shared.
     pub localization: Arc<LocalizationMap>,
+    /// The trace of a chair's x-y pose covariance, m², above which its cognitive agent detours
+    /// past a landmark ([`LANDMARK_UNCERTAINTY_M2`] unless set).
+    pub landmark_uncertainty_m2: f64,
 }
 
 impl Building {
@@ -231,22 +243,31 @@ impl Building {
         let mut landmarks = Vec::new();
         for place in &map.places {
             if place.name.starts_with("landmark") {
-                landmarks.push(place.position);
+                landmarks.push(LandmarkStop {
+                    at: place.position,
+                    from: None,
+                });
             } else {
                 places.insert(place.name.clone(), place.position);
             }
         }
         let passable = grid.inflated(CHAIR_RADIUS_M);
-        // in front of each marker, within the camera's depth range, where the chair may stand
+        // in front of each marker, within the camera's depth range, where the chair may stand,
+        // come to along the marker's axis where there is room for the run-in
         for marker in &map.landmarks {
             let normal = Vector2::new(marker.facing_rad.cos(), marker.facing_rad.sin());
-            let view = LANDMARK_VIEW_M.iter().find_map(|d| {
-                let p = marker.position + normal * *d;
+            let free = |d: f64| {
+                let p = marker.position + normal * d;
                 let (c, r) = passable.cell_of(&p)?;
                 (!passable.is_occupied(c, r)).then_some(p)
-            });
-            match view {
-                Some(p) => landmarks.push(p),
+            };
+            let stops: Vec<_> = LANDMARK_VIEW_M
+                .iter()
+                .filter_map(|d| Some((free(*d)?, free(d + LANDMARK_RUN_IN_M))))
+                .collect();
+            let best = stops.iter().find(|(_, from)| from.is_some());
+            match best.or(stops.first()).copied() {
+                Some((at, from)) => landmarks.push(LandmarkStop { at, from }),
                 None => {
                     tracing::warn!(
                         landmark = marker.id,
@@ -332,6 +353,7 @@ impl Building {
             grid,
             domain,
             localization,
+            landmark_uncertainty_m2: LANDMARK_UNCERTAINTY_M2,
         })
     }
 
@@ -598,7 +620,7 @@ pub fn chair_agents(
         // the building's grid is inflated already (with lanes through the doorways)
         chair_radius_m: 0.0,
         start_place,
-        uncertainty_m2: 0.5,
+        uncertainty_m2: building.landmark_uncertainty_m2,
         max_states: 20_000,
     })
     .map_err(|e| setup(e.to_string()))?;
