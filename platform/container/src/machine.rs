@@ -203,7 +203,9 @@ pub struct Container {
     next_heartbeat: Time,
     /// When the last heartbeat went: a change is told one heartbeat period after it at most.
     last_heartbeat: Time,
-    /// The leader whose list this GAL mirrors: held parts are trusted only from it.
+    /// The leader whose list this GAL mirrors: held parts are trusted only from it. Leading
+    /// alone for a while (its lease missed) does not change it, so the same leader back needs
+    /// to send only what changed.
     gal_from: ContainerId,
     /// Bumped on every change of the GAL, the live peers or the leader.
     revision: u64,
@@ -559,7 +561,7 @@ impl Container {
     fn heartbeat(&self) -> ContainerMsg {
         // A follower tells what it took from the leader it names (a list mirrored from an
         // earlier leader is not vouched for): that leader then sends it everything else.
-        let gal_versions = if self.gal_from == self.leader {
+        let gal_versions = if self.gal_from == self.leader || self.leader == self.config.id {
             self.gal.versions()
         } else {
             self.gal
@@ -615,9 +617,6 @@ impl Container {
             tracing::info!(container = %self.config.id, old = %self.leader, new = %lowest, "leader elected");
             self.leader = lowest;
             self.elections += 1;
-            if lowest == self.config.id {
-                self.gal_from = lowest; // a leader vouches for its own list
-            }
             self.changed();
         }
     }
