@@ -328,9 +328,18 @@ mod tests {
             [ContainerId(2), ContainerId(3)]
         );
         assert!(follower.adopt_delta(&leader.versions(), &delta, ContainerId(5), true));
-        assert_eq!(follower.lookup("a2").map(|(id, _)| id), Some(ContainerId(2)));
-        assert!(follower.lookup("a1").is_some(), "held at the leader's generation");
-        assert!(follower.lookup("a4").is_none(), "follows in the next exchange");
+        assert_eq!(
+            follower.lookup("a2").map(|(id, _)| id),
+            Some(ContainerId(2))
+        );
+        assert!(
+            follower.lookup("a1").is_some(),
+            "held at the leader's generation"
+        );
+        assert!(
+            follower.lookup("a4").is_none(),
+            "follows in the next exchange"
+        );
         assert!(follower.lookup("mine").is_some());
         let (rest, whole) = leader.delta(&follower.versions(), ContainerId(5), 2 * one);
         assert!(whole);

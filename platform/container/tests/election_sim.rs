@@ -567,13 +567,22 @@ fn a_hundred_chairs_converge_in_frames_that_fit_a_datagram_and_idle_linearly() {
         whole.encode().unwrap().len() > 65_507,
         "the whole list would not fit"
     );
-    assert!(net.longest <= 40 * 1024, "longest frame {} bytes", net.longest);
+    assert!(
+        net.longest <= 40 * 1024,
+        "longest frame {} bytes",
+        net.longest
+    );
 
     // Idle: over 10 s, the services hear every chair 5 times a second (lease 250 ms, heartbeat
     // every 50 ms), and a chair hears the services alone at that rate.
     let before = net.received.clone();
     net.run(Duration::from_secs(10));
-    let heard: Vec<u64> = net.received.iter().zip(&before).map(|(a, b)| a - b).collect();
+    let heard: Vec<u64> = net
+        .received
+        .iter()
+        .zip(&before)
+        .map(|(a, b)| a - b)
+        .collect();
     let per_second = |n: u64| n as f64 / 10.0;
     let idle_rate = 1000.0 / config(1, addr(1), vec![]).idle_heartbeat().as_millis() as f64;
     assert!(
