@@ -480,6 +480,7 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
     let forged = [
         ContainerMsg::Gal {
             leader: ContainerId(0),
+            versions: gal.versions(),
             gal,
         },
         ContainerMsg::Lal {

@@ -63,6 +63,7 @@ fn control(c: &mut Criterion) {
     }
     let gal = ContainerMsg::Gal {
         leader: ContainerId(1),
+        versions: gal.versions(),
         gal,
     };
     let mut group = c.benchmark_group("control_frame_cpu");

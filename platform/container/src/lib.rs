@@ -18,13 +18,19 @@
 //! - With a connected set of containers whose heartbeats arrive within the lease, all elect the
 //!   lowest id within one lease plus one heartbeat, and their GALs become equal within a few
 //!   heartbeats after the last change; after a partition heals they converge the same way.
+//! - Cost grows with the containers one hears, not with their square: a container heartbeats to
+//!   its seeds and to whoever heartbeats to it (chairs greet the services, so the leader hears
+//!   N and a chair one), every `heartbeat_ms` while the lists differ and every fifth of the
+//!   lease once they agree. A list travels as the parts the follower lacks, at most 32 KiB a
+//!   frame, so no GAL is too big for a datagram.
 //! - A malformed control frame is refused with its length and reason, never a panic.
 //! - Every control frame is signed by the sender container's Ed25519 identity ([`Signed`]); an
 //!   unsigned or altered one is refused. A live container is bound to the key that signs its
 //!   heartbeats and the address they come from: agent lists are taken only under the elected
 //!   leader's key and address, a container's part only under that container's, each with a
-//!   sequence number above the last (no replay), and a follower mirrors its leader, so no
-//!   generation (even `u64::MAX`) pins a route. A holder of the group key therefore cannot speak
+//!   sequence number above the last (no replay), and a follower mirrors its leader: it keeps a
+//!   part only at the generation the leader's last list names, sent by that leader or held from
+//!   an earlier list of the same leader, so no generation (even `u64::MAX`) pins a route. A holder of the group key therefore cannot speak
 //!   for another live container, even from its address. A second container claiming a live id
 //!   is told so ([`ContainerMsg::Duplicate`]) and refuses to run ([`Container::refusal`]); the
 //!   running one (the one that has run longer) is not disturbed. These rules hold beneath the

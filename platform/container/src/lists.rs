@@ -85,6 +85,17 @@ pub struct Part {
     pub agents: Vec<AgentEntry>,
 }
 
+impl Part {
+    /// About how many bytes of JSON this part takes (a public key's bytes as numbers).
+    fn wire_size(&self) -> usize {
+        32 + self
+            .agents
+            .iter()
+            .map(|a| a.name.len() + a.addr.0.len() + 4 * a.public_key.len() + 48)
+            .sum::<usize>()
+    }
+}
+
 /// Generations per container: what a global list knows.
 pub type VersionVector = BTreeMap<ContainerId, u64>;
 
@@ -117,16 +128,57 @@ impl GlobalAgentList {
         true
     }
 
-    /// Takes the leader's list as it is, except for container `own`'s part (kept from `self`):
-    /// a follower mirrors its leader instead of merging by generation, so a bogus generation
-    /// another container once held is gone as soon as the leader sends its list. Returns whether
-    /// anything changed.
-    pub fn adopt(&mut self, leader: &GlobalAgentList, own: ContainerId) -> bool {
-        let mut parts = leader.parts.clone();
-        match self.parts.get(&own) {
-            Some(mine) => parts.insert(own, mine.clone()),
-            None => parts.remove(&own),
-        };
+    /// The parts a list holding `has` lacks or holds at another generation, except `skip`'s (the
+    /// receiver's own), in container order, as many as fit about `budget` bytes of JSON (at
+    /// least one): the rest follow in the next exchange. Returns them and whether all did fit.
+    pub fn delta(
+        &self,
+        has: &VersionVector,
+        skip: ContainerId,
+        budget: usize,
+    ) -> (GlobalAgentList, bool) {
+        let mut out = GlobalAgentList::default();
+        let mut used = 0;
+        for (id, part) in &self.parts {
+            if *id == skip || has.get(id) == Some(&part.generation) {
+                continue;
+            }
+            let size = part.wire_size();
+            if !out.parts.is_empty() && used + size > budget {
+                return (out, false);
+            }
+            used += size;
+            out.parts.insert(*id, part.clone());
+        }
+        (out, true)
+    }
+
+    /// Mirrors a leader's list sent as `versions` (the whole list's) and `delta` (parts this
+    /// list lacked), except for container `own`'s part (kept from `self`). A part is kept at
+    /// the leader's generation only: from `delta`, or held already when `held_from_leader`
+    /// (the held parts came from this leader). Anything else is dropped, so a bogus generation
+    /// another container once held is gone as soon as the leader speaks, and a part missing
+    /// here is asked for again by the next heartbeat. Returns whether anything changed.
+    pub fn adopt_delta(
+        &mut self,
+        versions: &VersionVector,
+        delta: &GlobalAgentList,
+        own: ContainerId,
+        held_from_leader: bool,
+    ) -> bool {
+        let mut parts: BTreeMap<ContainerId, Part> = versions
+            .iter()
+            .filter(|(id, _)| **id != own)
+            .filter_map(|(id, generation)| {
+                let at = |p: &&Part| p.generation == *generation;
+                let sent = delta.parts.get(id).filter(at);
+                let held = || self.parts.get(id).filter(at).filter(|_| held_from_leader);
+                sent.or_else(held).map(|p| (*id, p.clone()))
+            })
+            .collect();
+        if let Some(mine) = self.parts.get(&own) {
+            parts.insert(own, mine.clone());
+        }
         let changed = parts != self.parts;
         self.parts = parts;
         changed
@@ -246,9 +298,57 @@ mod tests {
         follower.merge_part(ContainerId(9), part(2, &["mine"]));
         let mut leader = gal.clone();
         leader.merge_part(ContainerId(9), part(1, &["stale-view-of-mine"]));
-        assert!(follower.adopt(&leader, ContainerId(9)));
+        let (delta, whole) = leader.delta(&follower.versions(), ContainerId(9), usize::MAX);
+        assert!(whole);
+        assert!(follower.adopt_delta(&leader.versions(), &delta, ContainerId(9), true));
         assert!(follower.lookup("evil").is_none());
         assert!(follower.lookup("mine").is_some(), "own part kept");
         assert!(follower.lookup("stale-view-of-mine").is_none());
+    }
+
+    #[test]
+    fn a_delta_carries_only_what_the_receiver_lacks_within_its_budget() {
+        let part = |g: u64, name: &str| Part {
+            generation: g,
+            agents: vec![entry(name)],
+        };
+        let mut leader = GlobalAgentList::default();
+        for id in 1..=5 {
+            leader.merge_part(ContainerId(id), part(id, &format!("a{id}")));
+        }
+        let mut follower = GlobalAgentList::default();
+        follower.merge_part(ContainerId(1), part(1, "a1"));
+        follower.merge_part(ContainerId(2), part(1, "old-a2"));
+        follower.merge_part(ContainerId(5), part(9, "mine"));
+        let one = part(3, "a3").wire_size();
+        let (delta, whole) = leader.delta(&follower.versions(), ContainerId(5), 2 * one);
+        assert!(!whole, "three parts are lacking, two fit");
+        assert_eq!(
+            delta.versions().into_keys().collect::<Vec<_>>(),
+            [ContainerId(2), ContainerId(3)]
+        );
+        assert!(follower.adopt_delta(&leader.versions(), &delta, ContainerId(5), true));
+        assert_eq!(
+            follower.lookup("a2").map(|(id, _)| id),
+            Some(ContainerId(2))
+        );
+        assert!(
+            follower.lookup("a1").is_some(),
+            "held at the leader's generation"
+        );
+        assert!(
+            follower.lookup("a4").is_none(),
+            "follows in the next exchange"
+        );
+        assert!(follower.lookup("mine").is_some());
+        let (rest, whole) = leader.delta(&follower.versions(), ContainerId(5), 2 * one);
+        assert!(whole);
+        assert_eq!(rest.len(), 1);
+        follower.adopt_delta(&leader.versions(), &rest, ContainerId(5), true);
+        assert_eq!(follower.len(), 5);
+        // Held parts from another leader are not trusted: only what this one sent is kept.
+        let mut other = follower.clone();
+        assert!(other.adopt_delta(&leader.versions(), &rest, ContainerId(5), false));
+        assert_eq!(other.len(), 2);
     }
 }

@@ -15,7 +15,8 @@ use crate::{ContainerError, ContainerId, Signed};
 /// What containers say to each other.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ContainerMsg {
-    /// "I am alive": sent every heartbeat period to every known container.
+    /// "I am alive": sent to every known container every heartbeat period while the lists are
+    /// settling, every idle period once they agree, and at once after a change.
     Heartbeat {
         /// Sender.
         id: ContainerId,
@@ -25,7 +26,8 @@ pub enum ContainerMsg {
         leader: ContainerId,
         /// The sender's LAL generation.
         lal_generation: u64,
-        /// What the sender's GAL holds.
+        /// What the sender's GAL holds (a follower: only what it took from the leader it names,
+        /// and its own part).
         gal_versions: VersionVector,
     },
     /// A follower's LAL, sent to the leader when the leader's GAL lacks its latest generation.
@@ -35,11 +37,15 @@ pub enum ContainerMsg {
         /// Its list.
         part: Part,
     },
-    /// The leader's GAL, sent to a follower whose GAL differs from it.
+    /// The leader's GAL as far as a follower lacks it, sent when the follower's heartbeat
+    /// shows it differs: the follower mirrors `versions` from the parts it holds and `gal`.
     Gal {
         /// The leader.
         leader: ContainerId,
-        /// The list.
+        /// What the leader's whole list holds.
+        versions: VersionVector,
+        /// The parts the follower lacks (as many as fit one frame; the rest follow its next
+        /// heartbeat).
         gal: GlobalAgentList,
     },
     /// "Container `id` is already live at `holder`": sent to a container whose heartbeat claims
@@ -98,7 +104,8 @@ pub struct ContainerConfig {
     pub addr: PeerAddr,
     /// Other containers' addresses to greet (the ids are learnt from their heartbeats).
     pub seeds: Vec<PeerAddr>,
-    /// Heartbeat period, ms (default 50).
+    /// Heartbeat period while the lists settle, ms (default 50). Once they agree a container
+    /// heartbeats every [`ContainerConfig::idle_heartbeat`] instead.
     pub heartbeat_ms: u64,
     /// A container not heard for this long is taken for dead, ms (default 250; several heartbeats).
     pub lease_ms: u64,
@@ -117,7 +124,22 @@ impl ContainerConfig {
             lease_ms: 250,
         }
     }
+
+    /// The heartbeat period once the lists agree: a fifth of the lease (five heartbeats per
+    /// lease, as the defaults' 50/250), never shorter than `heartbeat_ms`.
+    pub fn idle_heartbeat(&self) -> Duration {
+        Duration::from_millis((self.lease_ms / 5).max(self.heartbeat_ms))
+    }
 }
+
+/// `versions` without container `id`'s entry.
+fn others(versions: &VersionVector, id: ContainerId) -> impl Iterator<Item = (&ContainerId, &u64)> {
+    versions.iter().filter(move |(c, _)| **c != id)
+}
+
+/// About how many bytes of agent entries one [`ContainerMsg::Gal`] carries: half the largest UDP
+/// datagram, so a frame with its signature and the group key's seal always fits one.
+const LIST_FRAME_BUDGET: usize = 32 * 1024;
 
 /// What is known of a live peer.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -133,6 +155,10 @@ struct Peer {
     last_heard: Time,
     leader: ContainerId,
     gal_versions: VersionVector,
+    /// The last list sent to it (leader only): what our list and its list held then, and when.
+    /// The same answer is not repeated within two heartbeats (its heartbeat crossed the list in
+    /// flight).
+    answered: Option<(VersionVector, VersionVector, Time)>,
 }
 
 /// One container: its LAL, its copy of the GAL, the live peers and the elected leader.
@@ -143,6 +169,13 @@ struct Peer {
 /// follower sends its LAL when the leader's heartbeat lacks its generation. Losing the leader or
 /// the network never touches the LAL: local agents keep resolving; a partition elects its own
 /// leader and the lists converge again when it heals.
+///
+/// Cost: a container heartbeats to its seeds and to the peers that heartbeat to it, so where
+/// chairs greet the services only (every deployment of this repository) the leader hears N
+/// containers and each chair one. A list goes as a delta: the parts the follower's heartbeat
+/// shows it lacks, at most [`LIST_FRAME_BUDGET`] bytes a frame. Heartbeats go every
+/// `heartbeat_ms` while anything differs and every [`ContainerConfig::idle_heartbeat`] once the
+/// lists agree; a change (a new peer, a list taken) is told at the next tick.
 ///
 /// Who may say what (the control channel's own rules, beneath its group key). Every message
 /// comes [`Signed`] by its sender's Ed25519 identity, and:
@@ -168,6 +201,14 @@ pub struct Container {
     leader: ContainerId,
     elections: u64,
     next_heartbeat: Time,
+    /// When the last heartbeat went: a change is told one heartbeat period after it at most.
+    last_heartbeat: Time,
+    /// The leader whose list this GAL mirrors: held parts are trusted only from it. Leading
+    /// alone for a while (its lease missed) does not change it, so the same leader back needs
+    /// to send only what changed.
+    gal_from: ContainerId,
+    /// Bumped on every change of the GAL, the live peers or the leader.
+    revision: u64,
     refusal: Option<String>,
     /// When this container first ran (its first tick or message).
     started: Option<Time>,
@@ -183,12 +224,15 @@ impl Container {
         gal.merge_part(config.id, lal.to_part());
         Self {
             leader: config.id,
+            gal_from: config.id,
             config,
             lal,
             gal,
             peers: BTreeMap::new(),
             elections: 0,
             next_heartbeat: Time::ZERO,
+            last_heartbeat: Time::ZERO,
+            revision: 0,
             refusal: None,
             started: None,
             duplicate_warned: BTreeMap::new(),
@@ -221,6 +265,12 @@ impl Container {
         self.elections
     }
 
+    /// A number that grows whenever the GAL, the live peers or the leader change: a reader of
+    /// the lists need not look again while it stands.
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+
     /// Live peers' ids.
     pub fn live_peers(&self) -> BTreeSet<ContainerId> {
         self.peers.keys().copied().collect()
@@ -240,12 +290,16 @@ impl Container {
     pub fn register(&mut self, entry: AgentEntry) {
         self.lal.insert(entry);
         self.gal.merge_part(self.config.id, self.lal.to_part());
+        self.changed();
     }
 
     /// Stops hosting `name`; `false` if it was not hosted here.
     pub fn deregister(&mut self, name: &str) -> bool {
         let removed = self.lal.remove(name);
-        self.gal.merge_part(self.config.id, self.lal.to_part());
+        if removed {
+            self.gal.merge_part(self.config.id, self.lal.to_part());
+            self.changed();
+        }
         removed
     }
 
@@ -283,7 +337,9 @@ impl Container {
                     return out; // else our own heartbeat, looped back by a seed list naming us
                 }
                 let mut since = now;
-                if let Some(held) = self.peers.get(&id) {
+                let mut answered = None;
+                let known = self.peers.get(&id);
+                if let Some(held) = known {
                     if held.addr != *from || held.key != key {
                         self.report_duplicate(id, from, now, &mut out);
                         return out;
@@ -296,7 +352,17 @@ impl Container {
                     }
                     if incarnation == held.incarnation {
                         since = held.since;
+                        answered.clone_from(&held.answered);
                     }
+                }
+                if known.is_none() {
+                    // A newcomer hears at once whom we take for leader (it elects before the
+                    // next heartbeat), and everybody hears of it at the next tick.
+                    out.push(Outgoing {
+                        to: from.clone(),
+                        msg: self.heartbeat(),
+                    });
+                    self.changed();
                 }
                 self.peers.insert(
                     id,
@@ -309,10 +375,12 @@ impl Container {
                         last_heard: now,
                         leader,
                         gal_versions,
+                        answered,
                     },
                 );
                 self.elect();
-                self.sync_with(id, &mut out);
+                let versions = self.gal.versions();
+                self.sync_with(id, now, &versions, &mut out);
             }
             ContainerMsg::Lal { id, part } => {
                 let from_owner = self.take(id, from, &key, seq)
@@ -321,17 +389,33 @@ impl Container {
                         .get(&id)
                         .is_some_and(|p| part.generation >> 32 == u64::from(p.incarnation));
                 if self.leader == self.config.id && id != self.config.id && from_owner {
-                    self.gal.set_part(id, part);
+                    if self.gal.set_part(id, part) {
+                        self.changed();
+                    }
                 } else if !from_owner {
                     tracing::debug!(container = %id, %from, "agent list not signed by its container, ignored");
                 }
             }
-            ContainerMsg::Gal { leader, gal } => {
+            ContainerMsg::Gal {
+                leader,
+                versions,
+                gal,
+            } => {
                 if leader == self.leader
                     && leader != self.config.id
                     && self.take(leader, from, &key, seq)
                 {
-                    self.gal.adopt(&gal, self.config.id);
+                    let held_from_leader = self.gal_from == leader;
+                    self.gal_from = leader;
+                    if self
+                        .gal
+                        .adopt_delta(&versions, &gal, self.config.id, held_from_leader)
+                    {
+                        self.changed();
+                    }
+                    if let Some(p) = self.peers.get_mut(&leader) {
+                        p.gal_versions = versions;
+                    }
                 } else {
                     tracing::debug!(claimed = %leader, elected = %self.leader, %from, "global agent list not signed by the elected leader, ignored");
                 }
@@ -442,6 +526,7 @@ impl Container {
             alive
         });
         if self.peers.len() != before {
+            self.changed();
             self.elect();
         }
         let mut out = Vec::new();
@@ -449,14 +534,14 @@ impl Container {
             return out;
         }
         if now >= self.next_heartbeat {
-            self.next_heartbeat = now.plus(Duration::from_millis(self.config.heartbeat_ms));
-            let heartbeat = ContainerMsg::Heartbeat {
-                id: self.config.id,
-                incarnation: self.config.incarnation,
-                leader: self.leader,
-                lal_generation: self.lal.generation(),
-                gal_versions: self.gal.versions(),
+            let period = if self.settled() {
+                self.config.idle_heartbeat()
+            } else {
+                Duration::from_millis(self.config.heartbeat_ms)
             };
+            self.next_heartbeat = now.plus(period);
+            self.last_heartbeat = now;
+            let heartbeat = self.heartbeat();
             let mut targets: BTreeSet<&PeerAddr> = self.config.seeds.iter().collect();
             targets.extend(self.peers.values().map(|p| &p.addr));
             targets.remove(&self.config.addr);
@@ -465,11 +550,60 @@ impl Container {
                 msg: heartbeat.clone(),
             }));
             let ids: Vec<ContainerId> = self.peers.keys().copied().collect();
+            let versions = self.gal.versions();
             for id in ids {
-                self.sync_with(id, &mut out);
+                self.sync_with(id, now, &versions, &mut out);
             }
         }
         out
+    }
+
+    fn heartbeat(&self) -> ContainerMsg {
+        // A follower tells what it took from the leader it names (a list mirrored from an
+        // earlier leader is not vouched for): that leader then sends it everything else.
+        let gal_versions = if self.gal_from == self.leader || self.leader == self.config.id {
+            self.gal.versions()
+        } else {
+            self.gal
+                .versions()
+                .into_iter()
+                .filter(|(id, _)| *id == self.config.id)
+                .collect()
+        };
+        ContainerMsg::Heartbeat {
+            id: self.config.id,
+            incarnation: self.config.incarnation,
+            leader: self.leader,
+            lal_generation: self.lal.generation(),
+            gal_versions,
+        }
+    }
+
+    /// Whether the lists agree as far as this container can tell: a leader's every peer holds
+    /// its list; a follower holds its leader's list and the leader holds its part.
+    fn settled(&self) -> bool {
+        let versions = self.gal.versions();
+        if self.leader == self.config.id {
+            self.peers.values().all(|p| p.gal_versions == versions)
+        } else {
+            self.gal_from == self.leader
+                && self
+                    .peers
+                    .get(&self.leader)
+                    .is_some_and(|l| l.gal_versions == versions)
+        }
+    }
+
+    /// Notes a change of the lists, the peers or the leader: readers look again, and peers hear
+    /// of it at the next tick.
+    fn changed(&mut self) {
+        self.revision += 1;
+        let soon = self
+            .last_heartbeat
+            .plus(Duration::from_millis(self.config.heartbeat_ms));
+        if soon < self.next_heartbeat {
+            self.next_heartbeat = soon;
+        }
     }
 
     fn elect(&mut self) {
@@ -483,24 +617,43 @@ impl Container {
             tracing::info!(container = %self.config.id, old = %self.leader, new = %lowest, "leader elected");
             self.leader = lowest;
             self.elections += 1;
+            self.changed();
         }
     }
 
-    /// Sends `id` what it lacks: the GAL if we lead and it is behind, our LAL if it leads and
-    /// lacks our generation.
-    fn sync_with(&self, id: ContainerId, out: &mut Vec<Outgoing>) {
-        let Some(peer) = self.peers.get(&id) else {
+    /// Sends `id` what it lacks: the parts of the GAL it lacks if we lead and it is behind
+    /// (not the same answer again within two heartbeats), our LAL if it leads and lacks our
+    /// generation.
+    fn sync_with(
+        &mut self,
+        id: ContainerId,
+        now: Time,
+        versions: &VersionVector,
+        out: &mut Vec<Outgoing>,
+    ) {
+        let repeat = Duration::from_millis(2 * self.config.heartbeat_ms);
+        let leading = self.leader == self.config.id;
+        let Some(peer) = self.peers.get_mut(&id) else {
             return;
         };
-        if self.leader == self.config.id && peer.gal_versions != self.gal.versions() {
+        // its own part is its to send, not ours
+        let behind = leading && others(&peer.gal_versions, id).ne(others(versions, id));
+        let answered_lately = peer.answered.as_ref().is_some_and(|(ours, has, at)| {
+            ours == versions && *has == peer.gal_versions && now.since(*at) < repeat
+        });
+        if behind && !answered_lately {
+            let (gal, _) = self.gal.delta(&peer.gal_versions, id, LIST_FRAME_BUDGET);
+            peer.answered = Some((versions.clone(), peer.gal_versions.clone(), now));
             out.push(Outgoing {
                 to: peer.addr.clone(),
                 msg: ContainerMsg::Gal {
                     leader: self.config.id,
-                    gal: self.gal.clone(),
+                    versions: versions.clone(),
+                    gal,
                 },
             });
         }
+        let peer = &self.peers[&id];
         if id == self.leader
             && peer.gal_versions.get(&self.config.id).copied() != Some(self.lal.generation())
         {

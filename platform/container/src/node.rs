@@ -12,6 +12,10 @@ use iw_layer_security::Identity;
 use crate::machine::{Container, Outgoing};
 use crate::{ContainerError, Signed};
 
+/// Most frames taken in one go before the container ticks (a flood cannot starve its own
+/// heartbeats).
+const MAX_BATCH: usize = 256;
+
 /// A running container: receives control frames, ticks its state machine, sends what it says.
 ///
 /// Transport errors (a lost network) are logged and retried, never fatal: the container and its
@@ -90,26 +94,30 @@ fn run(
     let mut warn = WarnEvery::new(iw_bus::WARN_PERIOD);
     let mut seq = 0u64;
     while !stop.load(Ordering::Relaxed) {
-        let out = match transport.recv_timeout(tick) {
-            Ok(Some((from, frame))) => match Signed::open(&frame) {
-                Ok(signed) => lock().on_message(&from, signed, clock.now()),
-                Err(e) => {
-                    match warn.admit((), clock.now()) {
+        // Everything already queued is taken before the leases are judged: a process that was
+        // not scheduled for a lease must not expire peers whose heartbeats wait in its socket.
+        let mut out = Vec::new();
+        let mut wait = tick;
+        for _ in 0..MAX_BATCH {
+            match transport.recv_timeout(wait) {
+                Ok(Some((from, frame))) => match Signed::open(&frame) {
+                    Ok(signed) => out.extend(lock().on_message(&from, signed, clock.now())),
+                    Err(e) => match warn.admit((), clock.now()) {
                         Some(held_back) => {
                             tracing::warn!(%from, error = %e, held_back, "ignoring a control frame (one warning per 10 s)")
                         }
                         None => tracing::debug!(%from, error = %e, "ignoring a control frame"),
-                    }
-                    Vec::new()
+                    },
+                },
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::warn!(error = %e, "container transport failed; carrying on alone");
+                    std::thread::sleep(tick);
+                    break;
                 }
-            },
-            Ok(None) => Vec::new(),
-            Err(e) => {
-                tracing::warn!(error = %e, "container transport failed; carrying on alone");
-                std::thread::sleep(tick);
-                Vec::new()
             }
-        };
+            wait = Duration::ZERO;
+        }
         let ticked = lock().on_tick(clock.now());
         // A message sent to several peers at once (a heartbeat) is signed once; each batch gets
         // new sequence numbers, or a receiver would take a repeated heartbeat for a replay.

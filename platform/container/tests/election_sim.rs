@@ -52,15 +52,21 @@ struct SimNet {
     lost: u64,
     /// Sequence numbers: one counter for all, so each sender's grow.
     seq: u64,
+    /// Frames each node took.
+    received: Vec<u64>,
+    /// The longest message seen, bytes of JSON.
+    longest: usize,
 }
 
 impl SimNet {
+    /// `n` containers, each greeting all.
     fn new(n: u64) -> Self {
+        Self::with_seeds(n, |_| (1..=n).map(addr).collect())
+    }
+
+    fn with_seeds(n: u64, seeds: impl Fn(u64) -> Vec<PeerAddr>) -> Self {
         let nodes = (1..=n)
-            .map(|i| {
-                let seeds = (1..=n).map(addr).collect();
-                Some(Container::new(config(i, addr(i), seeds)))
-            })
+            .map(|i| Some(Container::new(config(i, addr(i), seeds(i)))))
             .collect();
         Self {
             nodes,
@@ -68,6 +74,8 @@ impl SimNet {
             now: Time::from_ns(1_000_000_000),
             lost: 0,
             seq: 0,
+            received: vec![0; n as usize],
+            longest: 0,
         }
     }
 
@@ -99,6 +107,8 @@ impl SimNet {
                     match self.nodes.get_mut(t) {
                         Some(Some(n)) if self.group[t] == self.group[from] => {
                             self.seq += 1;
+                            self.received[t] += 1;
+                            self.longest = self.longest.max(msg.encode().unwrap().len());
                             let sender = from as u64 + 1;
                             next.extend(
                                 n.on_message(
@@ -287,6 +297,7 @@ fn forged_lists_are_ignored_and_no_generation_pins_a_route() {
         );
         ContainerMsg::Gal {
             leader: ContainerId(leader),
+            versions: gal.versions(),
             gal,
         }
     };
@@ -371,6 +382,7 @@ fn a_heartbeat_under_another_key_is_a_duplicate_and_a_replayed_list_is_ignored()
     );
     let replay = ContainerMsg::Gal {
         leader: ContainerId(1),
+        versions: stale.versions(),
         gal: stale,
     };
     net.node(2)
@@ -520,4 +532,71 @@ fn told_by_the_holder_the_younger_refuses_whatever_the_incarnations_and_addresse
         then,
     );
     assert!(young.refusal().is_some(), "the younger one refuses");
+}
+
+/// Issue 16 item 8 at the state machine: 100 chairs greeting the services only (as deployed),
+/// five agents each. Every list reaches everyone although the whole list would not fit one
+/// datagram; once the lists agree, heartbeats slow to a fifth of the lease, and the services
+/// hear each chair, and each chair the services only: linear in the chairs.
+#[test]
+fn a_hundred_chairs_converge_in_frames_that_fit_a_datagram_and_idle_linearly() {
+    const CHAIRS: u64 = 100;
+    let mut net = SimNet::with_seeds(CHAIRS + 1, |i| if i == 1 { vec![] } else { vec![addr(1)] });
+    for i in 1..=CHAIRS + 1 {
+        for role in ["cognitive", "control", "perception", "interface", "body"] {
+            net.node(i).register(AgentEntry {
+                name: format!("{role}@chair-{i:03}"),
+                public_key: vec![0xa5; 32],
+                addr: PeerAddr(format!("127.0.0.1:{}", 40000 + i)),
+            });
+        }
+    }
+    net.run(Duration::from_secs(3));
+    let everyone = net.node(1).gal().clone();
+    assert_eq!(everyone.len(), 5 * (CHAIRS as usize + 1));
+    for i in 2..=CHAIRS + 1 {
+        assert_eq!(net.node(i).gal(), &everyone, "container {i}");
+        assert_eq!(net.node(i).leader(), ContainerId(1));
+    }
+    let whole = ContainerMsg::Gal {
+        leader: ContainerId(1),
+        versions: everyone.versions(),
+        gal: everyone,
+    };
+    assert!(
+        whole.encode().unwrap().len() > 65_507,
+        "the whole list would not fit"
+    );
+    assert!(
+        net.longest <= 40 * 1024,
+        "longest frame {} bytes",
+        net.longest
+    );
+
+    // Idle: over 10 s, the services hear every chair 5 times a second (lease 250 ms, heartbeat
+    // every 50 ms), and a chair hears the services alone at that rate.
+    let before = net.received.clone();
+    net.run(Duration::from_secs(10));
+    let heard: Vec<u64> = net
+        .received
+        .iter()
+        .zip(&before)
+        .map(|(a, b)| a - b)
+        .collect();
+    let per_second = |n: u64| n as f64 / 10.0;
+    let idle_rate = 1000.0 / config(1, addr(1), vec![]).idle_heartbeat().as_millis() as f64;
+    assert!(
+        per_second(heard[0]) <= 1.1 * idle_rate * CHAIRS as f64,
+        "the services took {} frames/s",
+        per_second(heard[0])
+    );
+    for (i, n) in heard.iter().enumerate().skip(1) {
+        assert!(
+            per_second(*n) <= 1.1 * idle_rate,
+            "chair {} took {} frames/s",
+            i + 1,
+            per_second(*n)
+        );
+    }
+    assert_eq!(net.lost, 0);
 }

@@ -178,6 +178,7 @@ fn takeover(evil: impl Fn(&str) -> AgentEntry) -> [ContainerMsg; 2] {
         },
         ContainerMsg::Gal {
             leader: ContainerId(1),
+            versions: pinned.versions(),
             gal: pinned,
         },
     ]
