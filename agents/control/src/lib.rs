@@ -24,7 +24,7 @@
 //! - REQUEST `((action (agent-identifier :name control) (drive :linear V :angular W)))` (m/s,
 //!   rad/s): manual driving as a stream, one conversation per stream (held input). The first
 //!   command of a stream gets AGREE; the following ones no answer. Every command goes through
-//!   the arc guard with the sonars, and feeds the watchdog: when the
+//!   the arc guard with the sonars and the laser, and feeds the watchdog: when the
 //!   stream falls silent for [`ControlConfig::watchdog_ms`] the chair stops and the stream ends
 //!   with INFORM `((done ...))` if the last command was a stop (the user let go), FAILURE
 //!   otherwise. Refused (REFUSE with a reason): a command out of the drive's range or not
@@ -47,7 +47,7 @@
 //!
 //! Driving: [`ArcGuard`] scales or steers the user's manual command and the tactical layer's so
 //! the footprint swept until the chair stops (turning in place too) stays clear of the sonar
-//! echoes. It predicts from the speed the encoders measure ([`WheelMotion`]), not from the
+//! echoes and the laser's points (those out of its view remembered). It predicts from the speed the encoders measure ([`WheelMotion`]), not from the
 //! command alone. The thesis's potential field (3.6) is not in this path: in the cluttered
 //! circuits of the shared-control experiment the field's turn commands chattered in doorways, and
 //! the guard alone finished more laps with fewer contacts (docs/results/shared-control.md).
@@ -135,8 +135,9 @@ pub struct ControlConfig {
     pub drivers: Vec<String>,
     /// Staff agents: they may drive any chair, and take it over from its driver (logged).
     pub staff: Vec<String>,
-    /// The laser scanner, if fitted: while the chair is driven by hand its points join the
-    /// sonar echoes in the arc guard, so a wall between two sonar cones is seen too.
+    /// The laser scanner, if fitted: its points join the sonar echoes in the arc guard, for the
+    /// user's commands and the tasks' alike, so a wall between two sonar cones is seen too (and
+    /// remembered once it is beside the chair, out of the laser's view).
     pub laser: Option<LaserMount>,
 }
 
@@ -296,6 +297,10 @@ impl ControlAgent {
         }
         ActionSequence::new(config.tactical, [])?;
         let guard = ArcGuard::new(config.guard, config.footprint, config.sonar_mounts.clone())?;
+        let guard = match &config.laser {
+            Some(laser) => guard.with_dense_view(laser.t_body_laser, laser.fov_rad),
+            None => guard,
+        };
         let motion = WheelMotion::new(config.wheels);
         let basic = BasicControl::new(config.drive, config.watchdog_ms.saturating_mul(1_000_000));
         Ok(ControlAgent {
@@ -839,11 +844,12 @@ impl Agent for ControlAgent {
             Mode::Task(_) => (self.run_task(ctx, &frame), false),
             Mode::Idle => (None, false),
         };
-        // The laser joins the sonars when a person drives; the tactical layer's paths are
-        // planned clear of the map.
-        match (&self.config.laser, manual) {
-            (Some(laser), true) => laser.points(&frame.laser_m, &mut self.laser_points),
-            _ => self.laser_points.clear(),
+        // The laser joins the sonars for the user's commands and the tactical layer's alike: a
+        // plan is clear of the map, not of a trolley or a jamb the localizer has placed a few
+        // centimetres off; the guard also remembers the laser's points once out of its view.
+        match &self.config.laser {
+            Some(laser) => laser.points(&frame.laser_m, &mut self.laser_points),
+            None => self.laser_points.clear(),
         }
         let command = match user {
             Some(user) => {

@@ -756,3 +756,43 @@ fn driven_by_hand_a_wall_only_the_laser_sees_holds_the_chair_back() {
         "with the laser the chair is held back: {seen} m/s against {blind} m/s"
     );
 }
+
+#[test]
+fn a_task_is_held_back_by_a_wall_only_the_laser_sees_too() {
+    // The same wall as above, 15 cm ahead of the front, no sonar echo: a go-to straight at it
+    // drives on blind, and is held back when the laser is fitted (the tactical layer's path is
+    // planned on the map, which need not hold a trolley or a jamb the localizer misplaced).
+    let ranges: Vec<f64> = (0..181)
+        .map(|i| {
+            let a = (i as f64 - 90.0).to_radians();
+            if a.cos() > 0.2 { 0.15 / a.cos() } else { 10.0 }
+        })
+        .collect();
+    let forward = |laser: Option<LaserMount>| {
+        let mut rig = rig_with(|c| c.laser = laser);
+        *rig.body.laser_m.lock().unwrap() = ranges.clone();
+        rig.send_pose(0.0, 0.0, 0.0);
+        rig.send(goto_far("laser-task"));
+        for _ in 0..10 {
+            rig.send_pose(0.0, 0.0, 0.0);
+            rig.run(100);
+        }
+        let w = rig.last_wheels();
+        (w.left_mps + w.right_mps) / 2.0
+    };
+    let mount = LaserMount {
+        t_body_laser: nalgebra::Isometry2::new(nalgebra::Vector2::new(0.75, 0.0), 0.0),
+        fov_rad: std::f64::consts::PI,
+        max_range_m: 10.0,
+    };
+    let blind = forward(None);
+    assert!(
+        blind > 0.2,
+        "without the laser the task drives on: {blind} m/s"
+    );
+    let seen = forward(Some(mount));
+    assert!(
+        seen < 0.5 * blind,
+        "with the laser the task is held back: {seen} m/s against {blind} m/s"
+    );
+}

@@ -81,8 +81,8 @@ pub struct ArcGuard {
     view: Option<DenseView>,
 }
 
-/// Where the dense sensor looks from, and how wide: inside its view the current scan is the
-/// truth (a remembered point it no longer returns has gone); outside, the memory is.
+/// Where the dense sensor looks from, and how wide: inside its view a remembered point that the
+/// scan has looked through for [`FORGET_SEEN_GONE_NS`] has gone; outside, the memory is kept.
 #[derive(Debug, Clone, Copy)]
 struct DenseView {
     mount: SensorMount,
@@ -140,8 +140,8 @@ impl ArcGuard {
     }
 
     /// The guard, told where the dense sensor (`points_chair`) sits and its full field of view
-    /// (rad): remembered points inside that view are dropped when the scan no longer returns
-    /// them. Without it, remembered points are dropped only by [`ArcGuardParams::memory_s`] and
+    /// (rad): remembered points inside that view are dropped once its beams have passed through
+    /// them (or returned nothing) for 1 s. Without it, remembered points are dropped only by [`ArcGuardParams::memory_s`] and
     /// [`ArcGuardParams::memory_travel_m`].
     pub fn with_dense_view(mut self, mount: SensorMount, fov_rad: f64) -> Self {
         self.view = Some(DenseView {
@@ -199,8 +199,8 @@ impl ArcGuard {
     }
 
     /// Whether driving `command` until stopped, from a chair already at that speed, keeps every
-    /// point in `points` out of the footprint (inflated by the margin; points already inside the
-    /// margin only count if they would enter the bare footprint).
+    /// point in `points` out of the footprint (inflated by the margin; a point already inside the
+    /// margin may not come any closer).
     pub fn is_clear(&self, command: VelocityCommand, points: &[Point2<f64>]) -> bool {
         self.is_clear_from(command, command, points)
     }
@@ -216,15 +216,15 @@ impl ArcGuard {
         if poses.is_empty() {
             return true;
         }
-        let fp = &self.footprint;
+        let fp = self.footprint;
         let margin = self.params.margin_m;
-        let inside = |p: &Point2<f64>, m: f64| {
-            p.x >= -fp.rear_m - m && p.x <= fp.front_m + m && p.y.abs() <= fp.half_width_m + m
-        };
         let reach = fp.turning_radius_m() + margin + length;
         points.iter().filter(|p| p.coords.norm() <= reach).all(|p| {
-            let m = if inside(p, margin) { 0.0 } else { margin };
-            poses.iter().all(|inv| !inside(&(inv * p), m))
+            // A point already inside the margin may not come closer than it is: sampled points
+            // stand for surfaces (a jamb's end lies a few centimetres past the last beam that hit
+            // it), so letting it reach the bare footprint let the chair touch what was between.
+            let keep = box_distance(&fp, p).min(margin) - CLOSER_TOLERANCE_M;
+            poses.iter().all(|inv| box_distance(&fp, &(inv * p)) > keep)
         })
     }
 
@@ -316,6 +316,18 @@ impl ArcGuard {
     }
 }
 
+/// How much closer than it is a point inside the margin may come, m: float rounding only (an
+/// exact parallel drive keeps the distance).
+const CLOSER_TOLERANCE_M: f64 = 1e-6;
+
+/// Distance from `p` (chair frame) to the footprint, in the metric of a rectangle inflated with
+/// square corners (the larger of the lengthwise and sideways gaps; 0 inside).
+fn box_distance(fp: &Footprint, p: &Point2<f64>) -> f64 {
+    let dx = (p.x - fp.front_m).max(-fp.rear_m - p.x);
+    let dy = p.y.abs() - fp.half_width_m;
+    dx.max(dy).max(0.0)
+}
+
 /// How far beyond the turning radius dense points are remembered, m: more than the longest path
 /// checked at walking speed.
 const MEMORY_BEYOND_REACH_M: f64 = 1.5;
@@ -344,6 +356,8 @@ struct Remembered {
     at: Point2<f64>,
     seen_from: Isometry2<f64>,
     seen_ns: u64,
+    /// Since when every scan has shown free space through it, ns.
+    gone_since_ns: Option<u64>,
 }
 
 /// Dense points remembered in the odometry frame, one per grid cell (the newest).
@@ -361,7 +375,20 @@ impl Memory {
         keep: &Keep,
     ) {
         let now = motion.t_odom_chair;
-        for p in points_chair.filter(|p| p.coords.norm() <= keep.radius_m) {
+        let points_chair: Vec<&Point2<f64>> = points_chair.collect();
+        // this scan as (bearing, range) from the sensor, by bearing: the evidence of free space
+        let scan: Vec<(f64, f64)> = keep.view.map_or_else(Vec::new, |v| {
+            let mut scan: Vec<(f64, f64)> = points_chair
+                .iter()
+                .map(|p| polar(&(v.mount.inverse() * *p)))
+                .collect();
+            scan.sort_by(|a, b| a.0.total_cmp(&b.0));
+            scan
+        });
+        for p in points_chair
+            .into_iter()
+            .filter(|p| p.coords.norm() <= keep.radius_m)
+        {
             let at = now * p;
             let key = (
                 (at.x / MEMORY_CELL_M).floor() as i64,
@@ -373,6 +400,7 @@ impl Memory {
                     at,
                     seen_from: now,
                     seen_ns: motion.time_ns,
+                    gone_since_ns: None,
                 },
             );
         }
@@ -385,11 +413,19 @@ impl Memory {
             let moved = r.seen_from.inverse() * now;
             let net =
                 moved.translation.vector.norm() + moved.rotation.angle().abs() * keep.corner_m;
-            let in_view = keep.view.is_some_and(|v| {
-                let q = v.mount.inverse() * p;
-                q.y.atan2(q.x).abs() <= v.half_fov_rad
+            let seen_through = keep.view.and_then(|v| {
+                let (bearing, range) = polar(&(v.mount.inverse() * p));
+                (bearing.abs() <= v.half_fov_rad).then(|| !returned(&scan, bearing, range))
             });
-            !in_view
+            match seen_through {
+                Some(true) => _ = r.gone_since_ns.get_or_insert(motion.time_ns),
+                Some(false) => r.gone_since_ns = None,
+                None => {}
+            }
+            let seen_gone = r
+                .gone_since_ns
+                .is_some_and(|t| motion.time_ns.saturating_sub(t) >= FORGET_SEEN_GONE_NS);
+            !seen_gone
                 && net <= keep.travel_m
                 && motion.time_ns.saturating_sub(r.seen_ns) <= keep.time_ns
                 && p.coords.norm() <= keep.radius_m
@@ -404,6 +440,36 @@ impl Memory {
         let inv = t_odom_chair.inverse();
         self.cells.values().map(move |r| inv * r.at)
     }
+}
+
+/// Bearing and range of `p` from the origin.
+fn polar(p: &Point2<f64>) -> (f64, f64) {
+    (p.y.atan2(p.x), p.coords.norm())
+}
+
+/// How long the scan must show free space through a remembered point before it is forgotten,
+/// ns (1 s): a thin wall seen edge-on, like a door jamb while the laser crosses the doorway's
+/// plane, returns no beam for a few scans although it is there.
+const FORGET_SEEN_GONE_NS: u64 = 1_000_000_000;
+
+/// Half the bearing window in which a scan return vouches for a remembered point, rad: a beam
+/// either side of the point's bearing at the prototype's 1 degree spacing.
+const VOUCH_BEARING_RAD: f64 = 1.5 * std::f64::consts::PI / 180.0;
+/// How far behind a remembered point a return may lie and still vouch for it, m: on a surface
+/// seen at a grazing angle the next beam hits several centimetres farther along it.
+const VOUCH_RANGE_M: f64 = 0.1;
+
+/// Whether the scan (by bearing) returned something at about `bearing`, no farther than `range`
+/// plus [`VOUCH_RANGE_M`]: the point is still there, or hidden behind something nearer. Only a
+/// beam that passed it (or returned nothing) shows it gone. A surface seen at a grazing angle is
+/// hit at different places scan by scan, and judging each remembered point by the current scan
+/// alone forgot the parts between this scan's beams, such as a jamb's end.
+fn returned(scan: &[(f64, f64)], bearing: f64, range: f64) -> bool {
+    let from = scan.partition_point(|(b, _)| *b < bearing - VOUCH_BEARING_RAD);
+    scan[from..]
+        .iter()
+        .take_while(|(b, _)| *b <= bearing + VOUCH_BEARING_RAD)
+        .any(|(_, r)| *r <= range + VOUCH_RANGE_M)
 }
 
 /// `value` moved towards `target` by at most `step`.
@@ -562,9 +628,11 @@ mod tests {
     }
 
     #[test]
-    fn a_remembered_point_the_scan_no_longer_returns_in_view_is_dropped() {
+    fn a_remembered_point_the_scan_looks_through_in_view_is_dropped_after_a_second() {
         // Something 0.25 m ahead of the front of a chair at 0.5 m/s, then gone from the laser's
-        // view: driving on is allowed again at once (a person who stepped away is not a wall).
+        // view: driving on is allowed again once the scan has shown free space there for 1 s (a
+        // person who stepped away is not a wall), not at the first empty scan (a jamb seen
+        // edge-on returns no beam for a few scans).
         let fp = Footprint::PROTOTYPE;
         let laser = Isometry2::new(Vector2::new(fp.front_m - 0.05, fp.half_width_m), 0.0);
         let mut g = guard().with_dense_view(laser, 270f64.to_radians());
@@ -574,7 +642,46 @@ mod tests {
         let go = VelocityCommand::new(0.5, 0.0);
         let here = Isometry2::identity();
         assert_ne!(drive(&mut g, go, go, here, 0, &ahead), go);
-        assert_eq!(drive(&mut g, go, go, here, 50_000_000, &[]), go);
+        assert_ne!(drive(&mut g, go, go, here, 50_000_000, &[]), go);
+        assert_ne!(drive(&mut g, go, go, here, 1_000_000_000, &[]), go);
+        assert_eq!(drive(&mut g, go, go, here, 1_050_000_000, &[]), go);
+    }
+
+    #[test]
+    fn a_point_hidden_behind_a_nearer_return_is_kept() {
+        // A post 0.25 m ahead, then a box seen in front of it on the same bearing: the post is
+        // hidden, not gone, and still holds the chair back after the forgetting time.
+        let fp = Footprint::PROTOTYPE;
+        let laser = Isometry2::new(Vector2::new(fp.front_m - 0.05, fp.half_width_m), 0.0);
+        let mut g = guard().with_dense_view(laser, 270f64.to_radians());
+        let post = Point2::new(fp.front_m + 0.25, fp.half_width_m);
+        let nearer = Point2::new(fp.front_m + 0.15, fp.half_width_m);
+        let go = VelocityCommand::new(0.5, 0.0);
+        let here = Isometry2::identity();
+        drive(&mut g, go, go, here, 0, &[post]);
+        for k in 1..=30 {
+            drive(&mut g, go, go, here, k * 50_000_000, &[nearer]);
+        }
+        assert_eq!(g.memory.cells.len(), 2, "the hidden post is remembered");
+    }
+
+    #[test]
+    fn a_point_inside_the_margin_may_not_come_closer() {
+        // A jamb's last laser point 3 cm beside the front right corner (inside the 5 cm margin):
+        // the surface goes on between the beams, so the chair may drive along it or away, but
+        // not towards it, even by less than it would take to touch the point itself.
+        let fp = Footprint::PROTOTYPE;
+        let jamb = [Point2::new(fp.front_m - 0.1, -fp.half_width_m - 0.03)];
+        let g = guard();
+        assert!(g.is_clear(VelocityCommand::new(0.3, 0.0), &jamb));
+        assert!(
+            g.is_clear(VelocityCommand::new(0.3, 0.3), &jamb),
+            "turning away"
+        );
+        assert!(
+            !g.is_clear(VelocityCommand::new(0.3, -0.1), &jamb),
+            "a gentle turn towards it closes the 3 cm by less than the whole gap"
+        );
     }
 
     #[test]
