@@ -99,7 +99,8 @@ impl Deployment {
 
     /// The world container on a free loopback address, peering the services.
     pub fn world(&self) -> Launch {
-        self.launch("world", &["--world"], &loopback()).peer_services(self)
+        self.launch("world", &["--world"], &loopback())
+            .peer_services(self)
     }
 
     /// Chair `name` on a free loopback address, peering the services.
