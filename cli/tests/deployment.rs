@@ -16,7 +16,7 @@ mod common;
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use common::{Proc, free_port_pair, is, keygen_control};
+use common::{Deployment, Proc, is};
 use iw_fleet::{ChairConfig, Fleet, FleetOptions};
 use nalgebra::{Isometry2, Vector2};
 use serde_json::Value;
@@ -95,25 +95,22 @@ fn world_services_and_three_chairs_as_processes_behave_as_the_in_process_fleet()
     let (expected, b_in_process) = in_process_outcomes();
     assert_eq!(expected.len(), 2, "{expected:?}");
 
-    let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("agents.log");
-    let control = keygen_control(dir.path());
-    let config = dir.path().join("services.toml");
+    let net = Deployment::new();
+    let log = net.dir.path().join("agents.log");
     let goals: String = CHAIRS
         .iter()
         .filter_map(|(name, _, goal)| {
             goal.map(|g| format!("{{ chair = \"{name}\", place = \"{g}\" }},"))
         })
         .collect();
-    std::fs::write(
-        &config,
-        format!(
+    let config = net.file(
+        "services.toml",
+        &format!(
             "[services]\nchairs = [\"chair-a\"]\ngoals = [{goals}]\nrestricted = {{ bathroom = [\"chair-a\"] }}\nlog = \"{}\"\n",
             log.display()
         ),
-    )
-    .unwrap();
-    let (mut services, services_addr) = Proc::services(&config, &control);
+    );
+    let mut services = net.services().config(&config).spawn();
     let ready = services.wait_for("services ready", |e| e["event"] == "ready");
     assert_eq!(
         agents_of(&ready),
@@ -127,41 +124,19 @@ fn world_services_and_three_chairs_as_processes_behave_as_the_in_process_fleet()
             "watcher@services"
         ]
     );
-    let world_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--listen",
-        &world_addr,
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
+    let mut world = net.world().spawn();
     let ready = world.wait_for("world ready", |e| e["event"] == "ready");
     assert_eq!(agents_of(&ready), ["world@world"]);
 
-    let mut chairs: Vec<(String, Proc)> = Vec::new();
+    let mut chairs: Vec<Proc> = Vec::new();
     for (name, [x, y, deg], _) in CHAIRS {
-        let addr = format!("127.0.0.1:{}", free_port_pair());
-        let start = format!("{x},{y},{deg}");
-        let mut chair = Proc::spawn(&[
-            "--chair",
-            name,
-            "--start",
-            &start,
-            "--listen",
-            &addr,
-            "--peer",
-            &services_addr,
-            "--control-key",
-            &control,
-        ]);
+        let mut chair = net.chair(name).start(&format!("{x},{y},{deg}")).spawn();
         let ready = chair.wait_for(&format!("{name} ready"), |e| e["event"] == "ready");
         assert_eq!(
             agents_of(&ready),
             ["cognitive", "control", "interface", "perception"].map(|r| format!("{r}@{name}"))
         );
-        chairs.push((name.to_string(), chair));
+        chairs.push(chair);
     }
 
     // Every goal ends as it ended in the in-process run.
@@ -202,15 +177,11 @@ fn world_services_and_three_chairs_as_processes_behave_as_the_in_process_fleet()
 
     // The logger's log holds every message: the chairs stop first, then the services.
     let mut sent = 0;
-    for (name, chair) in &mut chairs {
-        assert!(chair.terminate().success(), "{name}");
-        let stopped = chair.wait_for(&format!("{name} stopped"), |e| e["event"] == "stopped");
-        sent += stopped["messages_sent"].as_u64().unwrap();
+    for chair in &mut chairs {
+        sent += chair.stop()["messages_sent"].as_u64().unwrap();
     }
-    assert!(services.terminate().success());
-    let stopped = services.wait_for("services stopped", |e| e["event"] == "stopped");
-    sent += stopped["messages_sent"].as_u64().unwrap();
-    assert!(world.terminate().success());
+    sent += services.stop()["messages_sent"].as_u64().unwrap();
+    world.stop();
     let records = iw_logger::read_records(&log, iw_logger::DEFAULT_MAX_RECORD_LEN).unwrap();
     assert!(sent > 0);
     // Known gap: a few messages (14 of 6101 in one run) are sent after the logger stopped

@@ -19,7 +19,7 @@ mod common;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 
-use common::{Proc, free_port_pair, is, keygen_control};
+use common::{Deployment, Proc, is};
 
 /// Name, start (x, y, heading in degrees), goal place.
 const CHAIRS: [(&str, [f64; 3], Option<&str>); 3] = [
@@ -56,10 +56,8 @@ fn a_browser_on_the_services_dashboard_sees_three_chair_processes_move_and_drive
         Err(why) => panic!("{why} (set INTELLWHEELS_NO_BROWSER=1 to skip this test)"),
     };
 
-    let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("agents.log");
-    let control = keygen_control(dir.path());
-    let config = dir.path().join("services.toml");
+    let net = Deployment::new();
+    let log = net.dir.path().join("agents.log");
     let goals: String = CHAIRS
         .iter()
         .filter_map(|(name, _, goal)| {
@@ -74,15 +72,14 @@ fn a_browser_on_the_services_dashboard_sees_three_chair_processes_move_and_drive
             .unwrap()
             .port()
     );
-    std::fs::write(
-        &config,
-        format!(
+    let config = net.file(
+        "services.toml",
+        &format!(
             "[services]\nchairs = [\"chair-c\"]\ngoals = [{goals}]\nlog = \"{}\"\n\n[dashboard]\nlisten = \"{dashboard}\"\ntoken = \"{TOKEN}\"\n",
             log.display()
         ),
-    )
-    .unwrap();
-    let (mut services, services_addr) = Proc::services(&config, &control);
+    );
+    let mut services = net.services().config(&config).spawn();
     let serving = services.wait_for("the dashboard served", |e| {
         is(e, "serving", "service", "dashboard")
     });
@@ -96,45 +93,20 @@ fn a_browser_on_the_services_dashboard_sees_three_chair_processes_move_and_drive
         status_of(&dashboard, &format!("/map.json?token={TOKEN}")).contains(" 200 "),
         "with the token"
     );
-    let world_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--listen",
-        &world_addr,
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
-    world.wait_for("world ready", |e| e["event"] == "ready");
-    let mut chairs: Vec<(String, Proc)> = Vec::new();
-    for (name, [x, y, deg], _) in CHAIRS {
-        let addr = format!("127.0.0.1:{}", free_port_pair());
-        let start = format!("{x},{y},{deg}");
-        let mut chair = Proc::spawn(&[
-            "--chair",
-            name,
-            "--start",
-            &start,
-            "--listen",
-            &addr,
-            "--peer",
-            &services_addr,
-            "--control-key",
-            &control,
-        ]);
-        chair.wait_for(&format!("{name} ready"), |e| e["event"] == "ready");
-        chairs.push((name.to_string(), chair));
-    }
+    let mut world = net.world().ready();
+    let mut chairs: Vec<Proc> = CHAIRS
+        .iter()
+        .map(|(name, [x, y, deg], _)| net.chair(name).start(&format!("{x},{y},{deg}")).ready())
+        .collect();
     println!("dashboard at {url}");
 
     common::run_browser_script(&browser_dir, &chromium, "deployment.mjs", &url);
 
-    for (name, chair) in &mut chairs {
-        assert!(chair.terminate().success(), "{name}");
+    for chair in &mut chairs {
+        chair.stop();
     }
-    assert!(services.terminate().success());
-    assert!(world.terminate().success());
+    services.stop();
+    world.stop();
     // The drive crossed the bus: console to interface, interface to control.
     let records = iw_logger::read_records(&log, iw_logger::DEFAULT_MAX_RECORD_LEN).unwrap();
     let drives = |from: &str, to: &str| {

@@ -8,7 +8,7 @@ mod common;
 
 use std::process::Command;
 
-use common::{Proc, free_port_pair, is, keygen_control};
+use common::{Deployment, is, stop_all};
 
 /// `intellwheels acl send ARGS`: its exit success and the replies it printed.
 fn send(args: &[&str]) -> (bool, Vec<String>) {
@@ -27,22 +27,19 @@ fn send(args: &[&str]) -> (bool, Vec<String>) {
 
 #[test]
 fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
-    let dir = tempfile::tempdir().unwrap();
-    let control = keygen_control(dir.path());
-    let config = dir.path().join("services.toml");
+    let net = Deployment::new();
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
         .unwrap()
         .port();
-    std::fs::write(
-        &config,
-        format!(
+    let config = net.file(
+        "services.toml",
+        &format!(
             "[services]\nchairs = [\"chair-b\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"
         ),
-    )
-    .unwrap();
-    let (mut services, services_addr) = Proc::services(&config, &control);
+    );
+    let mut services = net.services().config(&config).spawn();
     let serving = services.wait_for("the HTTP MTP served", |e| {
         is(e, "serving", "service", "mtp-http")
     });
@@ -51,31 +48,8 @@ fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
         url.starts_with(&format!("http://127.0.0.1:{port}")),
         "{url}"
     );
-    let world_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--listen",
-        &world_addr,
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
-    world.wait_for("world ready", |e| e["event"] == "ready");
-    let chair_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut chair = Proc::spawn(&[
-        "--chair",
-        "chair-b",
-        "--start",
-        "15.75,6.0,-90",
-        "--listen",
-        &chair_addr,
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
-    chair.wait_for("chair-b ready", |e| e["event"] == "ready");
+    let mut world = net.world().ready();
+    let mut chair = net.chair("chair-b").start("15.75,6.0,-90").ready();
     // the chair is there for the services once its perception agent publishes its pose
     services.wait_for("chair-b's pose", |e| is(e, "pose", "chair", "chair-b"));
 
@@ -153,7 +127,5 @@ fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
         "{lines:?}"
     );
 
-    assert!(chair.terminate().success());
-    assert!(services.terminate().success());
-    assert!(world.terminate().success());
+    stop_all([&mut chair, &mut services, &mut world]);
 }

@@ -5,46 +5,8 @@
 
 mod common;
 
-use std::io::Read;
-use std::process::{Command, Stdio};
-use std::time::Instant;
-
-use common::{LIMIT, Proc, free_port_pair, is, keygen, keygen_control};
+use common::{Deployment, is, stop_all};
 use serde_json::Value;
-
-fn addr() -> String {
-    format!("127.0.0.1:{}", free_port_pair())
-}
-
-/// Runs `intellwheels spawn ARGS` to its exit (killed after LIMIT); its success and stderr.
-fn run_to_exit(args: &[&str]) -> (bool, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-        .arg("spawn")
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = stderr.read_to_string(&mut text);
-        text
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if start.elapsed() > LIMIT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("spawn {args:?} still running after {LIMIT:?}");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    };
-    (status.success(), reader.join().unwrap())
-}
 
 /// The second services container peers the first, so the holder itself tells it `Duplicate`:
 /// the one that has run longer keeps the id (it used to be the lower incarnation, in seconds,
@@ -52,52 +14,21 @@ fn run_to_exit(args: &[&str]) -> (bool, String) {
 /// on beside it).
 #[test]
 fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs_on() {
-    let dir = tempfile::tempdir().unwrap();
-    let control = keygen_control(dir.path());
+    let net = Deployment::new();
     // A lease no scheduling stall on a loaded machine outlasts: a `left` here is the duplicate's.
-    let config = dir.path().join("lease.toml");
-    std::fs::write(&config, "[container]\nlease_ms = 3000\n").unwrap();
-    let config = config.to_str().unwrap();
-    let services_addr = addr();
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--listen",
-        &services_addr,
-        "--control-key",
-        &control,
-        "--config",
-        config,
-    ]);
-    services.wait_for("services ready", |e| e["event"] == "ready");
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--listen",
-        &addr(),
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-        "--config",
-        config,
-    ]);
-    world.wait_for("world ready", |e| e["event"] == "ready");
+    let config = net.file("lease.toml", "[container]\nlease_ms = 3000\n");
+    let mut services = net.services().config(&config).ready();
+    let mut world = net.world().config(&config).ready();
     services.wait_for("the world joined", |e| {
         is(e, "joined", "agent", "world@world")
     });
 
-    for role in ["--services", "--world"] {
-        let second = addr();
-        let (ok, stderr) = run_to_exit(&[
-            role,
-            "--listen",
-            &second,
-            "--peer",
-            &services_addr,
-            "--control-key",
-            &control,
-            "--config",
-            config,
-        ]);
+    let second_services = net
+        .services()
+        .listen(&common::loopback())
+        .arg("--peer", net.services_addr());
+    for (role, second) in [("--services", second_services), ("--world", net.world())] {
+        let (ok, stderr) = second.config(&config).run_to_exit();
         assert!(!ok, "a second {role} container ran");
         assert!(
             stderr.contains("already held by a live container") && stderr.contains("refuses"),
@@ -106,18 +37,7 @@ fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs
     }
 
     // The first ones run on: a chair joining now is seen by both, and nothing left meanwhile.
-    let mut chair = Proc::spawn(&[
-        "--chair",
-        "chair-f",
-        "--listen",
-        &addr(),
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-        "--config",
-        config,
-    ]);
+    let mut chair = net.chair("chair-f").config(&config).spawn();
     services.wait_new("chair-f joined the first services", |e| {
         is(e, "joined", "agent", "cognitive@chair-f")
     });
@@ -127,66 +47,32 @@ fn a_second_services_or_world_with_a_live_identity_is_refused_and_the_first_runs
     world.wait_for("the world attached chair-f's body", |e| {
         is(e, "body", "chair", "chair-f")
     });
-    for (name, proc) in [("services", &services), ("world", &world)] {
+    for proc in [&services, &world] {
         let left: Vec<&Value> = proc.seen.iter().filter(|e| e["event"] == "left").collect();
-        assert!(left.is_empty(), "{name} saw agents leave: {left:?}");
+        assert!(left.is_empty(), "{} saw agents leave: {left:?}", proc.label);
     }
-    assert!(chair.terminate().success());
-    assert!(world.terminate().success());
-    assert!(services.terminate().success());
+    stop_all([&mut chair, &mut world, &mut services]);
 }
 
 #[test]
 fn a_chair_alone_keeps_trying_and_joins_when_its_services_and_world_come() {
-    let dir = tempfile::tempdir().unwrap();
-    let control = keygen_control(dir.path());
-    let services_addr = addr();
-    let mut chair = Proc::spawn(&[
-        "--chair",
-        "chair-l",
-        "--start",
-        "15.75,6.0,-90",
-        "--listen",
-        &addr(),
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
-    chair.wait_for("chair-l ready", |e| e["event"] == "ready");
+    let net = Deployment::new();
+    let mut chair = net.chair("chair-l").start("15.75,6.0,-90").ready();
     // Alone for a while (its greetings go nowhere): it keeps running and lists nobody.
     std::thread::sleep(std::time::Duration::from_secs(3));
     assert!(
         chair.child.try_wait().unwrap().is_none(),
         "chair-l gave up without its services"
     );
-    while let Ok(event) = chair.events.try_recv() {
-        chair.seen.push(event);
-    }
+    chair.drain();
     assert!(
         !chair.seen.iter().any(|e| e["event"] == "joined"),
         "{:?}",
         chair.seen
     );
 
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--listen",
-        &services_addr,
-        "--goal",
-        "chair-l:therapy",
-        "--control-key",
-        &control,
-    ]);
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--listen",
-        &addr(),
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
+    let mut services = net.services().goal("chair-l:therapy").spawn();
+    let mut world = net.world().spawn();
     chair.wait_for("chair-l joined late", |e| {
         is(e, "joined", "agent", "assistant@services")
     });
@@ -196,55 +82,18 @@ fn a_chair_alone_keeps_trying_and_joins_when_its_services_and_world_come() {
         is(e, "goal", "chair", "chair-l") && e["performative"] != "AGREE"
     });
     assert_eq!(answer["performative"], "INFORM", "{answer}");
-    assert!(chair.terminate().success());
-    assert!(world.terminate().success());
-    assert!(services.terminate().success());
+    stop_all([&mut chair, &mut world, &mut services]);
 }
 
 #[test]
 fn a_killed_worlds_chairs_are_taken_back_by_the_next_world_where_they_stood() {
-    let dir = tempfile::tempdir().unwrap();
-    let control = keygen_control(dir.path());
-    let services_addr = addr();
-    let world_addr = addr();
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--listen",
-        &services_addr,
-        "--goal",
-        "chair-k:dining-hall",
-        "--control-key",
-        &control,
-    ]);
-    services.wait_for("services ready", |e| e["event"] == "ready");
+    let net = Deployment::new();
+    let mut services = net.services().goal("chair-k:dining-hall").ready();
     // The world keeps its identity across the restart, as a deployed one does (a fresh key
     // would be a different container to the chair's security layer, which pinned the first).
-    let world_key = keygen(dir.path(), "world");
-    let world_args = [
-        "--world",
-        "--listen",
-        &world_addr,
-        "--peer",
-        &services_addr,
-        "--key",
-        &world_key,
-        "--control-key",
-        &control,
-    ];
-    let mut world = Proc::spawn(&world_args);
-    world.wait_for("world ready", |e| e["event"] == "ready");
-    let mut chair = Proc::spawn(&[
-        "--chair",
-        "chair-k",
-        "--start",
-        "1.0,6.0,0",
-        "--listen",
-        &addr(),
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
+    let world_launch = net.world().key(&net.key("world"));
+    let mut world = world_launch.ready();
+    let mut chair = net.chair("chair-k").start("1.0,6.0,0").spawn();
     services.wait_for("chair-k's goal agreed", |e| {
         is(e, "goal", "chair", "chair-k") && e["performative"] == "AGREE"
     });
@@ -252,12 +101,10 @@ fn a_killed_worlds_chairs_are_taken_back_by_the_next_world_where_they_stood() {
     let last = world.wait_for("chair-k driving", |e| {
         is(e, "body", "chair", "chair-k") && e["distance_m"].as_f64().unwrap() > 2.0
     });
-    world.child.kill().unwrap();
-    world.child.wait().unwrap();
+    world.kill();
     services.wait_new("the world left", |e| is(e, "left", "agent", "world@world"));
 
-    let mut world = Proc::spawn(&world_args);
-    world.wait_for("the new world ready", |e| e["event"] == "ready");
+    let mut world = world_launch.ready();
     let back = world.wait_for("chair-k's body in the new world", |e| {
         is(e, "body", "chair", "chair-k")
     });
@@ -280,7 +127,5 @@ fn a_killed_worlds_chairs_are_taken_back_by_the_next_world_where_they_stood() {
         "{answer}"
     );
     eprintln!("after the world's restart chair-k's goal ended with {answer}");
-    assert!(chair.terminate().success());
-    assert!(world.terminate().success());
-    assert!(services.terminate().success());
+    stop_all([&mut chair, &mut world, &mut services]);
 }

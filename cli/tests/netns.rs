@@ -15,7 +15,7 @@ mod common;
 
 use std::process::Command;
 
-use common::{Proc, is, keygen_control};
+use common::{Deployment, is};
 
 /// Namespace names start with this and the test process id.
 const PREFIX: &str = "iwnt-";
@@ -147,8 +147,7 @@ fn world_services_and_chairs_in_their_own_namespaces_run_a_goal_and_rejoin_after
         Ok(lan) => lan,
         Err(e) => return skip(&format!("cannot make the namespaces: {e}")),
     };
-    let dir = tempfile::tempdir().unwrap();
-    let control = keygen_control(dir.path());
+    let net = Deployment::new().services_at("10.77.0.2:7700");
     let via = |node: &str| {
         [
             "ip".to_string(),
@@ -157,56 +156,22 @@ fn world_services_and_chairs_in_their_own_namespaces_run_a_goal_and_rejoin_after
             lan.ns(node),
         ]
     };
-    let spawn = |node: &str, args: &[&str]| {
-        let prefix = via(node);
-        let prefix: Vec<&str> = prefix.iter().map(String::as_str).collect();
-        Proc::spawn_via(&prefix, args)
-    };
-    let services_addr = "10.77.0.2:7700";
-    let mut services = spawn(
-        "services",
-        &[
-            "--services",
-            "--listen",
-            services_addr,
-            "--goal",
-            "chair-a:therapy",
-            "--control-key",
-            &control,
-        ],
-    );
-    services.wait_for("services ready", |e| e["event"] == "ready");
-    let mut world = spawn(
-        "world",
-        &[
-            "--world",
-            "--listen",
-            "10.77.0.3:7700",
-            "--peer",
-            services_addr,
-            "--control-key",
-            &control,
-        ],
-    );
-    world.wait_for("world ready", |e| e["event"] == "ready");
+    let mut services = net
+        .services()
+        .goal("chair-a:therapy")
+        .via(&via("services"))
+        .ready();
+    let mut world = net
+        .world()
+        .listen("10.77.0.3:7700")
+        .via(&via("world"))
+        .ready();
     let chair = |node: &str, addr: &str, start: &str| {
-        let mut p = spawn(
-            node,
-            &[
-                "--chair",
-                node,
-                "--start",
-                start,
-                "--listen",
-                addr,
-                "--peer",
-                services_addr,
-                "--control-key",
-                &control,
-            ],
-        );
-        p.wait_for(&format!("{node} ready"), |e| e["event"] == "ready");
-        p
+        net.chair(node)
+            .start(start)
+            .listen(addr)
+            .via(&via(node))
+            .ready()
     };
     let _a = chair("chair-a", "10.77.0.4:7700", "15.75,6.0,-90");
     let mut b = chair("chair-b", "10.77.0.5:7700", "7.0,6.0,0");

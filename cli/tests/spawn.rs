@@ -9,7 +9,7 @@ use serde_json::Value;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use common::{LIMIT, Proc, free_port_pair, is, keygen, keygen_control};
+use common::{Deployment, LIMIT, Proc, is, stop_all};
 
 use iw_body::{BoardEmulator, WheelGeometry, WheelSpeeds};
 
@@ -24,7 +24,7 @@ fn board_until(
     let deadline = Instant::now() + LIMIT;
     while !f(&board.handle().state()) {
         if Instant::now() >= deadline {
-            services.seen.extend(services.events.try_iter());
+            services.drain();
             panic!(
                 "board never {what}: {:?}\nservices saw {:#?}",
                 board.handle().state(),
@@ -37,84 +37,27 @@ fn board_until(
 
 #[test]
 fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
-    let dir = tempfile::tempdir().unwrap();
-    let keys: Vec<String> = ["services", "chair-a", "chair-b", "chair-c"]
-        .iter()
-        .map(|n| keygen(dir.path(), n))
-        .collect();
-    let control = keygen_control(dir.path());
+    let net = Deployment::new();
     let board = BoardEmulator::spawn_with_watchdog(
         WheelGeometry::default(),
         50_000_000,
         Some(Duration::from_millis(300)),
     )
     .expect("pty");
-    let services_addr = format!("127.0.0.1:{}", free_port_pair());
-    let world_addr = format!("127.0.0.1:{}", free_port_pair());
-
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--listen",
-        &services_addr,
-        "--key",
-        &keys[0],
-        "--control-key",
-        &control,
-        "--goal",
-        "chair-a:office",
-        "--goal",
-        "chair-b:bathroom",
-        "--goal",
-        "chair-c:therapy",
-    ]);
-    services.wait_for("services ready", |e| e["event"] == "ready");
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--listen",
-        &world_addr,
-        "--peer",
-        &services_addr,
-        "--control-key",
-        &control,
-    ]);
-    world.wait_for("world ready", |e| e["event"] == "ready");
-    let a_addr = format!("127.0.0.1:{}", free_port_pair());
+    let mut services = net
+        .services()
+        .key(&net.key("services"))
+        .goal("chair-a:office")
+        .goal("chair-b:bathroom")
+        .goal("chair-c:therapy")
+        .ready();
+    let mut world = net.world().ready();
     let serial = format!("serial:{}", board.port_name());
-    let mut chair_a = Proc::spawn(&[
-        "--chair",
-        "chair-a",
-        "--body",
-        &serial,
-        "--start",
-        "1.0,6.0,0",
-        "--listen",
-        &a_addr,
-        "--peer",
-        &services_addr,
-        "--key",
-        &keys[1],
-        "--control-key",
-        &control,
-    ]);
-    chair_a.wait_for("chair-a ready", |e| e["event"] == "ready");
-    let b_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut chair_b = Proc::spawn(&[
-        "--chair",
-        "chair-b",
-        "--body",
-        "virtual",
-        "--start",
-        "7.5,8.5,-90",
-        "--listen",
-        &b_addr,
-        "--peer",
-        &services_addr,
-        "--key",
-        &keys[2],
-        "--control-key",
-        &control,
-    ]);
-    chair_b.wait_for("chair-b ready", |e| e["event"] == "ready");
+    let chair = |name: &str, body: &str, start: &str| {
+        net.chair(name).body(body).start(start).key(&net.key(name))
+    };
+    let mut chair_a = chair("chair-a", &serial, "1.0,6.0,0").ready();
+    let mut chair_b = chair("chair-b", "virtual", "7.5,8.5,-90").ready();
 
     for agent in [
         "control@chair-a",
@@ -136,8 +79,7 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
         s.speeds != WheelSpeeds::STOP
     });
 
-    chair_a.child.kill().unwrap(); // SIGKILL: no take-down, no last stop
-    chair_a.child.wait().unwrap();
+    chair_a.kill(); // SIGKILL: no take-down, no last stop
     board_until(&board, &mut services, "stopped by its watchdog", |s| {
         s.speeds == WheelSpeeds::STOP && s.watchdog_stops >= 1
     });
@@ -150,22 +92,11 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     services.wait_new("a chair-b pose after the kill", |e| {
         is(e, "pose", "chair", "chair-b")
     });
-    let c_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut chair_c = Proc::spawn(&[
-        "--chair",
-        "chair-c",
-        "--start",
-        "15.0,8.2,180",
-        "--listen",
-        &c_addr,
-        "--peer",
-        &services_addr,
-        "--key",
-        &keys[3],
-        "--control-key",
-        &control,
-    ]);
-    chair_c.wait_for("chair-c ready", |e| e["event"] == "ready");
+    let _chair_c = net
+        .chair("chair-c")
+        .start("15.0,8.2,180")
+        .key(&net.key("chair-c"))
+        .ready();
     for chair in ["chair-b", "chair-c"] {
         services.wait_for(&format!("{chair}'s goal done"), |e| {
             is(e, "goal", "chair", chair) && e["performative"] == "INFORM"
@@ -180,16 +111,11 @@ fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     );
 
     // SIGTERM: chair-b stops cleanly and the services see it deregister.
-    let status = chair_b.terminate();
-    assert!(status.success(), "chair-b exit status {status}");
-    chair_b.wait_for("chair-b stopped", |e| e["event"] == "stopped");
+    chair_b.stop();
     services.wait_for("chair-b's control agent leaving", |e| {
         is(e, "left", "agent", "control@chair-b")
     });
-    let status = services.terminate();
-    assert!(status.success(), "services exit status {status}");
-    services.wait_for("services stopped", |e| e["event"] == "stopped");
-    assert!(world.terminate().success());
+    stop_all([&mut services, &mut world]);
 }
 
 #[test]
@@ -253,50 +179,22 @@ fn bad_flags_and_files_are_clear_errors() {
 /// Services, the world and one virtual chair over `transport`, listening at the given addresses:
 /// the chair joins, its goal is done, and it leaves cleanly.
 fn goal_done_over(transport: &str, services_addr: &str, world_addr: &str, chair_addr: &str) {
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--transport",
-        transport,
-        "--listen",
-        services_addr,
-        "--goal",
-        "chair-s:therapy",
-        "--insecure-dev",
-    ]);
-    services.wait_for("services ready", |e| e["event"] == "ready");
-    let mut world = Proc::spawn(&[
-        "--world",
-        "--transport",
-        transport,
-        "--listen",
-        world_addr,
-        "--peer",
-        services_addr,
-        "--insecure-dev",
-    ]);
-    world.wait_for("world ready", |e| e["event"] == "ready");
-    let mut chair = Proc::spawn(&[
-        "--chair",
-        "chair-s",
-        "--start",
-        "15.0,8.2,180",
-        "--transport",
-        transport,
-        "--listen",
-        chair_addr,
-        "--peer",
-        services_addr,
-        "--insecure-dev",
-    ]);
+    let net = Deployment::insecure(transport, services_addr);
+    let mut services = net.services().goal("chair-s:therapy").ready();
+    let mut world = net.world().listen(world_addr).ready();
+    let mut chair = net
+        .chair("chair-s")
+        .start("15.0,8.2,180")
+        .listen(chair_addr)
+        .spawn();
     services.wait_for("chair-s's goal done", |e| {
         is(e, "goal", "chair", "chair-s") && e["performative"] == "INFORM"
     });
-    assert!(chair.terminate().success());
+    chair.stop();
     services.wait_for("chair-s's control agent leaving", |e| {
         is(e, "left", "agent", "control@chair-s")
     });
-    assert!(services.terminate().success());
-    assert!(world.terminate().success());
+    stop_all([&mut services, &mut world]);
 }
 
 #[test]
@@ -337,47 +235,24 @@ fn containers_over_tcp_join_and_a_goal_is_done() {
 /// the services saw the chair leave; otherwise it is at once, and the chair's higher
 /// incarnation tells the services it is a new life.
 fn chair_restarted_after_sigkill(after_lease: bool) {
-    let dir = tempfile::tempdir().unwrap();
-    let services_key = keygen(dir.path(), "services");
-    let chair_key = keygen(dir.path(), "chair-r");
-    let control = keygen_control(dir.path());
-    let services_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut services = Proc::spawn(&[
-        "--services",
-        "--listen",
-        &services_addr,
-        "--key",
-        &services_key,
-        "--control-key",
-        &control,
-        "--goal",
-        "chair-r:dining-hall",
-    ]);
-    services.wait_for("services ready", |e| e["event"] == "ready");
-    let chair_addr = format!("127.0.0.1:{}", free_port_pair());
-    let chair_args = [
-        "--chair",
-        "chair-r",
-        "--start",
-        "1.0,6.0,0",
-        "--listen",
-        &chair_addr,
-        "--peer",
-        &services_addr,
-        "--key",
-        &chair_key,
-        "--control-key",
-        &control,
-    ];
+    let net = Deployment::new();
+    let mut services = net
+        .services()
+        .key(&net.key("services"))
+        .goal("chair-r:dining-hall")
+        .ready();
+    let chair_launch = net
+        .chair("chair-r")
+        .start("1.0,6.0,0")
+        .key(&net.key("chair-r"));
     let agreed = |e: &Value| is(e, "goal", "chair", "chair-r") && e["performative"] == "AGREE";
-    let mut chair = Proc::spawn(&chair_args);
+    let mut chair = chair_launch.spawn();
     services.wait_for("the first goal agreed", agreed);
-    chair.child.kill().unwrap(); // SIGKILL: no deregistration, sessions lost
-    chair.child.wait().unwrap();
+    chair.kill(); // SIGKILL: no deregistration, sessions lost
     if !after_lease {
         // incarnations count seconds: make sure the new life has a higher one
         std::thread::sleep(Duration::from_millis(1100));
-        chair = Proc::spawn(&chair_args);
+        chair = chair_launch.spawn();
     }
     services.wait_new("the chair leaving", |e| {
         is(e, "left", "agent", "control@chair-r")
@@ -391,7 +266,7 @@ fn chair_restarted_after_sigkill(after_lease: bool) {
         "{failed}"
     );
     if after_lease {
-        chair = Proc::spawn(&chair_args);
+        chair = chair_launch.spawn();
     }
     let again = services.wait_new("the goal agreed again after the restart", agreed);
     assert_ne!(
@@ -399,8 +274,7 @@ fn chair_restarted_after_sigkill(after_lease: bool) {
         "a new conversation"
     );
     assert_eq!(again["place"], "dining-hall");
-    assert!(chair.terminate().success());
-    assert!(services.terminate().success());
+    stop_all([&mut chair, &mut services]);
 }
 
 #[test]
@@ -418,49 +292,25 @@ fn a_chair_restarted_at_once_after_sigkill_gets_its_goal_again() {
 /// and agreed: not silently lost.
 #[test]
 fn a_services_container_restarted_after_sigkill_gets_its_chair_back() {
-    let dir = tempfile::tempdir().unwrap();
-    let services_key = keygen(dir.path(), "services");
-    let chair_key = keygen(dir.path(), "chair-q");
-    let control = keygen_control(dir.path());
-    let services_addr = format!("127.0.0.1:{}", free_port_pair());
-    let services_args = [
-        "--services",
-        "--listen",
-        &services_addr,
-        "--key",
-        &services_key,
-        "--control-key",
-        &control,
-        "--goal",
-        "chair-q:dining-hall",
-    ];
-    let mut services = Proc::spawn(&services_args);
-    services.wait_for("services ready", |e| e["event"] == "ready");
-    let chair_addr = format!("127.0.0.1:{}", free_port_pair());
-    let mut chair = Proc::spawn(&[
-        "--chair",
-        "chair-q",
-        "--start",
-        "1.0,6.0,0",
-        "--listen",
-        &chair_addr,
-        "--peer",
-        &services_addr,
-        "--key",
-        &chair_key,
-        "--control-key",
-        &control,
-    ]);
+    let net = Deployment::new();
+    let services_launch = net
+        .services()
+        .key(&net.key("services"))
+        .goal("chair-q:dining-hall");
+    let mut services = services_launch.ready();
+    let mut chair = net
+        .chair("chair-q")
+        .start("1.0,6.0,0")
+        .key(&net.key("chair-q"))
+        .spawn();
     let agreed = |e: &Value| is(e, "goal", "chair", "chair-q") && e["performative"] == "AGREE";
     services.wait_for("the first goal agreed", agreed);
-    services.child.kill().unwrap(); // SIGKILL: sessions, lists and goals in memory lost
-    services.child.wait().unwrap();
-    let mut services = Proc::spawn(&services_args);
+    services.kill(); // SIGKILL: sessions, lists and goals in memory lost
+    let mut services = services_launch.spawn();
     services.wait_for("the restarted services ready", |e| e["event"] == "ready");
     services.wait_for("chair-q's cognitive agent back", |e| {
         is(e, "joined", "agent", "cognitive@chair-q")
     });
     services.wait_for("the goal given again and agreed", agreed);
-    assert!(chair.terminate().success());
-    assert!(services.terminate().success());
+    stop_all([&mut chair, &mut services]);
 }

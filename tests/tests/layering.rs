@@ -12,8 +12,10 @@
 //! ([`AGENT_RUNTIME`]: agents and their host, the AMS and DF, containers). A platform that hosts
 //! agents behind a transport is assembled above both (e.g. `iw-node`'s `HttpPlatform`).
 //!
-//! Every kind of dependency counts (normal, build and dev), except a dev-dependency on the
-//! internal test-data locator `tests/testdata`, which only finds `shared/` for tests.
+//! Every kind of dependency counts (normal, build and dev), except a dev-dependency on an
+//! internal test helper under `tests/` that itself depends on nothing of ours (the test-data
+//! locator `tests/testdata`, the benches' clock `tests/bench-clock`): it cannot carry a layer
+//! upwards.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -102,10 +104,13 @@ fn no_crate_depends_on_a_layer_above_its_own() {
             .find(|m| m.name == name)
             .map(|m| m.folder.as_str())
     };
-    let test_data = members
+    // Test helpers: crates under tests/ with no dependency of ours.
+    let helpers: Vec<&str> = members
         .iter()
-        .find(|m| m.name == "iw-testdata")
-        .map(|m| m.name.clone());
+        .filter(|m| m.folder == "tests")
+        .filter(|m| m.deps.iter().all(|(dep, _)| folder_of(dep).is_none()))
+        .map(|m| m.name.as_str())
+        .collect();
     let mut violations = Vec::new();
     for member in &members {
         if !LAYERS.contains(&member.folder.as_str()) {
@@ -115,9 +120,9 @@ fn no_crate_depends_on_a_layer_above_its_own() {
             let Some(dep_folder) = folder_of(dep) else {
                 continue; // third party
             };
-            let test_data_for_tests =
-                kind.as_deref() == Some("dev") && Some(dep) == test_data.as_ref();
-            if forbidden(&member.folder).contains(&dep_folder) && !test_data_for_tests {
+            let helper_for_tests =
+                kind.as_deref() == Some("dev") && helpers.contains(&dep.as_str());
+            if forbidden(&member.folder).contains(&dep_folder) && !helper_for_tests {
                 violations.push(format!(
                     "{} (under {}/) depends on {} (under {}/){}",
                     member.name,

@@ -25,10 +25,6 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
-use iw_ontology::fipa::{
-    AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
-    ServiceDescription,
-};
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
 /// The service the assistant registers with its platform's DF.
@@ -158,33 +154,11 @@ impl AssistantAgent {
 
 impl Agent for AssistantAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
-        let Some(platform) = ctx.aid().platform().map(str::to_owned) else {
+        let Some(request) = ctx.df_registration(SERVICE_NAME, SERVICE_TYPE) else {
             return;
         };
-        let df = AgentId::new(format!("df@{platform}"));
-        let description = DfAgentDescription {
-            name: Some(ctx.aid().clone()),
-            services: vec![ServiceDescription {
-                name: Some(SERVICE_NAME.into()),
-                service_type: Some(SERVICE_TYPE.into()),
-                ..ServiceDescription::default()
-            }],
-            ..DfAgentDescription::default()
-        };
-        let register = ManagementContent::Request(ManagementRequest {
-            actor: df.clone(),
-            action: ManagementAction::Register {
-                description: AgentDescription::Df(description),
-            },
-        });
-        let request = AclMessage::new(Performative::Request)
-            .with_receiver(df)
-            .with_conversation_id(format!("df-register-{}", ctx.name()));
         // Without the DF the assistant still works; only foreign platforms cannot find it.
-        if let Err(err) = self
-            .registration
-            .open(ctx, Protocol::Request, register.fill(request), ())
-        {
+        if let Err(err) = self.registration.open(ctx, Protocol::Request, request, ()) {
             tracing::warn!(error = %err, "could not register with the DF");
         }
     }

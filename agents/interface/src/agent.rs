@@ -5,7 +5,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::conversation::answers_a_conversation;
+use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
@@ -86,7 +87,7 @@ struct Held {
     command: DriveCommand,
     /// When the device last reported, ns of the bus clock.
     seen_ns: u64,
-    /// The stream's conversation, from its first command on.
+    /// The stream's conversation (in [`InterfaceAgent::streams`]), from its first command on.
     conversation: Option<String>,
     /// The control agent refused or ended the stream: nothing is sent until the user lets go.
     stopped: bool,
@@ -101,7 +102,10 @@ pub struct InterfaceAgent {
     recognizer: Recognizer<Command>,
     inputs: InputQueue,
     display: Arc<Mutex<Display>>,
-    conversations: u64,
+    /// The requests recognised sequences sent (goals, stops).
+    requests: Initiated<()>,
+    /// The drive streams to the control agent, one per hold.
+    streams: Initiated<()>,
     held: Option<Held>,
 }
 
@@ -119,43 +123,30 @@ impl InterfaceAgent {
             recognizer,
             inputs,
             display,
-            conversations: 0,
+            requests: Initiated::new(),
+            streams: Initiated::new(),
             held: None,
         }
     }
 
-    fn conversation(&mut self, ctx: &Context<'_>) -> String {
-        self.conversations += 1;
-        format!("{}-{}", ctx.name(), self.conversations)
-    }
-
-    /// `action` asked of `actor` in `conversation`.
-    fn request(actor: &AgentId, action: WheelchairAction, conversation: String) -> AclMessage {
+    /// `action` asked of `actor` (the conversation's protocol and id are the caller's).
+    fn request(actor: &AgentId, action: WheelchairAction) -> AclMessage {
         WheelchairContent::Request {
             actor: actor.clone(),
             action,
         }
-        .fill(
-            AclMessage::new(Performative::Request)
-                .with_receiver(actor.clone())
-                .with_protocol(iw_agent::Protocol::Request.fipa_name())
-                .with_conversation_id(conversation),
-        )
+        .fill(AclMessage::new(Performative::Request).with_receiver(actor.clone()))
     }
 
-    fn command_request(&mut self, ctx: &Context<'_>, command: &Command) -> AclMessage {
-        let conversation = self.conversation(ctx);
+    fn command_request(&self, command: &Command) -> AclMessage {
         match command {
             Command::Goal { place } => Self::request(
                 &self.config.cognitive,
                 WheelchairAction::GoTo {
                     place: place.clone(),
                 },
-                conversation,
             ),
-            Command::Stop => {
-                Self::request(&self.config.control, WheelchairAction::Stop, conversation)
-            }
+            Command::Stop => Self::request(&self.config.control, WheelchairAction::Stop),
         }
     }
 
@@ -184,24 +175,40 @@ impl InterfaceAgent {
         let Some(held) = self.held.take() else { return };
         self.display().drive = None;
         if let (Some(conversation), false) = (held.conversation, held.stopped) {
-            self.send_drive(ctx, 0.0, 0.0, conversation);
+            self.send_drive(ctx, 0.0, 0.0, Some(&conversation));
         }
     }
 
+    /// One command of the drive stream: the first opens its conversation (returned), the
+    /// others go on in `conversation`. `None` back when the control agent already ended it.
     fn send_drive(
         &mut self,
         ctx: &mut Context<'_>,
         linear_mps: f64,
         angular_radps: f64,
-        conversation: String,
-    ) {
-        let drive = WheelchairAction::Drive {
-            linear_mps,
-            angular_radps,
+        conversation: Option<&str>,
+    ) -> Option<String> {
+        let drive = Self::request(
+            &self.config.control,
+            WheelchairAction::Drive {
+                linear_mps,
+                angular_radps,
+            },
+        );
+        let sent = match conversation {
+            Some(id) => self
+                .streams
+                .stream(ctx, id, &drive)
+                .map(|open| open.then(|| id.to_string())),
+            None => self
+                .streams
+                .open(ctx, Protocol::Request, drive, ())
+                .map(Some),
         };
-        if let Err(err) = ctx.send(Self::request(&self.config.control, drive, conversation)) {
+        sent.unwrap_or_else(|err| {
             tracing::warn!("could not send a drive command: {err}");
-        }
+            conversation.map(str::to_string)
+        })
     }
 
     /// Streams the held command, one per tick; a device silent past the hold counts as
@@ -218,18 +225,52 @@ impl InterfaceAgent {
             return;
         }
         let command = held.command;
-        let conversation = match &held.conversation {
-            Some(c) => c.clone(),
-            None => {
-                let c = self.conversation(ctx);
-                if let Some(held) = &mut self.held {
-                    held.conversation = Some(c.clone());
-                }
-                c
-            }
-        };
+        let conversation = held.conversation.clone();
         self.display().drive = Some(command);
-        self.send_drive(ctx, command.linear_mps, command.angular_radps, conversation);
+        let now = self.send_drive(
+            ctx,
+            command.linear_mps,
+            command.angular_radps,
+            conversation.as_deref(),
+        );
+        if let Some(held) = &mut self.held {
+            // ended by the control agent before its answer came: quiet until the user lets go
+            held.stopped = conversation.is_some() && now.is_none();
+            held.conversation = now.or(conversation);
+        }
+    }
+
+    /// An answer in one of this agent's conversations: shown, and a drive stream the control
+    /// agent refused or ended stops sending. `false` when it belongs to none of them.
+    fn on_answer(&mut self, ctx: &Context<'_>, message: &AclMessage, from: &str) -> bool {
+        let in_stream = self.streams.handle(ctx, message);
+        let is_stream = in_stream.is_some();
+        let Some(answer) = in_stream.or_else(|| self.requests.handle(ctx, message)) else {
+            return false;
+        };
+        match answer {
+            Err(err) => {
+                tracing::debug!(error = %err, "out-of-protocol answer");
+                return true;
+            }
+            Ok(Progress::Ended(event, ())) if is_stream && event.kind != EventKind::Informed => {
+                if let Some(held) = &mut self.held
+                    && held.conversation.is_some()
+                    && held.conversation == message.conversation_id
+                {
+                    // Refused or ended by the control agent: quiet until the user lets go.
+                    held.stopped = true;
+                }
+            }
+            Ok(_) => {}
+        }
+        let why = match WheelchairContent::from_message(message) {
+            Ok(content) => content.reason().map(|r| format!(": {r}")),
+            Err(_) => None,
+        }
+        .unwrap_or_default();
+        self.display().last_answer = Some(format!("{} from {from}{why}", message.performative));
+        true
     }
 
     /// A `drive` request from another container: a remote driver's proportional command,
@@ -335,31 +376,12 @@ impl Agent for InterfaceAgent {
             .as_ref()
             .map(|s| s.name.clone())
             .unwrap_or_default();
+        if self.on_answer(ctx, &message, &from) {
+            return;
+        }
         match message.performative {
-            Performative::Agree
-            | Performative::Inform
-            | Performative::Failure
-            | Performative::Refuse
-            | Performative::NotUnderstood => {
-                let why = match WheelchairContent::from_message(&message) {
-                    Ok(content) => content.reason().map(|r| format!(": {r}")),
-                    Err(_) => None,
-                }
-                .unwrap_or_default();
-                let ends_stream = matches!(
-                    message.performative,
-                    Performative::Failure | Performative::Refuse | Performative::NotUnderstood
-                );
-                if let Some(held) = &mut self.held
-                    && ends_stream
-                    && held.conversation.is_some()
-                    && held.conversation == message.conversation_id
-                {
-                    // Refused or ended by the control agent: quiet until the user lets go.
-                    held.stopped = true;
-                }
-                self.display().last_answer =
-                    Some(format!("{} from {from}{why}", message.performative));
+            act if answers_a_conversation(act) => {
+                tracing::debug!(performative = %act, %from, "answer in no conversation of ours");
             }
             Performative::Request => self.on_remote_drive(ctx, message, from),
             _ => {
@@ -405,8 +427,8 @@ impl Agent for InterfaceAgent {
             };
             for event in events {
                 if let Some(command) = self.recognizer.feed(event) {
-                    let message = self.command_request(ctx, &command);
-                    if let Err(err) = ctx.send(message) {
+                    let message = self.command_request(&command);
+                    if let Err(err) = self.requests.open(ctx, Protocol::Request, message, ()) {
                         tracing::warn!("could not send {command:?}: {err}");
                     }
                     self.display().last_command = Some(command);

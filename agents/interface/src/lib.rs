@@ -30,6 +30,10 @@
 //!   is not finite or beyond the mapping's speeds (the chair stops too), or while another driver
 //!   (a device of the chair or another remote) holds the chair; the chair's own device takes
 //!   the chair back from a remote driver.
+//! - Its goal and stop requests and its drive streams (a fipa-request refined by each further
+//!   command, `iw_interaction::Initiator::stream`) run on the interaction protocols' state
+//!   machines: answers are matched by conversation and `in-reply-to`, and one the protocol does
+//!   not allow changes nothing.
 //! - Everything leaves as ordinary ACL messages through the bus; the agent holds no other agent.
 #![warn(missing_docs)]
 

@@ -1,8 +1,9 @@
-//! What the process tests of `intellwheels spawn` share: free loopback ports and a container
-//! process whose JSON events are followed.
+//! What the process tests of `intellwheels spawn` share: free loopback ports, a deployment that
+//! launches its roles (services, world, chairs) with their flags, and a container process whose
+//! JSON events are followed and which is taken down with an asserted clean exit.
 #![allow(dead_code)] // each test binary uses part of it
 
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Read};
 use std::net::UdpSocket;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -25,34 +26,232 @@ pub fn free_port_pair() -> u16 {
     }
 }
 
+/// A bus address on loopback with its control port free too.
+pub fn loopback() -> String {
+    format!("127.0.0.1:{}", free_port_pair())
+}
+
+/// One deployment under test: where its services listen (the others' `--peer`), how its
+/// containers are secured, the transport, and a folder for its keys and config files. Each role
+/// it launches gets those flags; a test adds the rest.
+pub struct Deployment {
+    pub dir: tempfile::TempDir,
+    services_addr: String,
+    /// The control group key file, or `None` for `--insecure-dev`.
+    control: Option<String>,
+    transport: Option<String>,
+}
+
+impl Deployment {
+    /// Secured by a fresh control group key, services on a free loopback address, over UDP.
+    pub fn new() -> Deployment {
+        let dir = tempfile::tempdir().unwrap();
+        let control = keygen_control(dir.path());
+        Deployment {
+            dir,
+            services_addr: loopback(),
+            control: Some(control),
+            transport: None,
+        }
+    }
+
+    /// `--insecure-dev` over `transport`, the services at `services_addr`.
+    pub fn insecure(transport: &str, services_addr: &str) -> Deployment {
+        Deployment {
+            dir: tempfile::tempdir().unwrap(),
+            services_addr: services_addr.to_string(),
+            control: None,
+            transport: Some(transport.to_string()),
+        }
+    }
+
+    /// The services listen at `addr` instead.
+    pub fn services_at(mut self, addr: &str) -> Deployment {
+        self.services_addr = addr.to_string();
+        self
+    }
+
+    pub fn services_addr(&self) -> &str {
+        &self.services_addr
+    }
+
+    /// The control group key file (panics on an insecure deployment).
+    pub fn control_key(&self) -> &str {
+        self.control.as_deref().expect("a secured deployment")
+    }
+
+    /// A fresh identity key file named `name` in the deployment's folder.
+    pub fn key(&self, name: &str) -> String {
+        keygen(self.dir.path(), name)
+    }
+
+    /// Writes `text` to the file `name` in the deployment's folder; its path.
+    pub fn file(&self, name: &str, text: &str) -> String {
+        let path = self.dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path.display().to_string()
+    }
+
+    /// The services container at the deployment's services address.
+    pub fn services(&self) -> Launch {
+        self.launch("services", &["--services"], &self.services_addr)
+    }
+
+    /// The world container on a free loopback address, peering the services.
+    pub fn world(&self) -> Launch {
+        self.launch("world", &["--world"], &loopback())
+            .peer_services(self)
+    }
+
+    /// Chair `name` on a free loopback address, peering the services.
+    pub fn chair(&self, name: &str) -> Launch {
+        self.launch(name, &["--chair", name], &loopback())
+            .peer_services(self)
+    }
+
+    fn launch(&self, label: &str, role: &[&str], listen: &str) -> Launch {
+        let mut security: Vec<String> = match &self.control {
+            Some(key) => vec!["--control-key".into(), key.clone()],
+            None => vec!["--insecure-dev".into()],
+        };
+        if let Some(transport) = &self.transport {
+            security.extend(["--transport".into(), transport.clone()]);
+        }
+        Launch {
+            label: label.to_string(),
+            role: role.iter().map(|a| a.to_string()).collect(),
+            listen: listen.to_string(),
+            common: security,
+            extra: Vec::new(),
+            prefix: Vec::new(),
+        }
+    }
+}
+
+/// One container to start: its role, address and flags. Cloned to start the same container
+/// again (a restart keeps its address, key and flags).
+#[derive(Clone)]
+pub struct Launch {
+    label: String,
+    role: Vec<String>,
+    listen: String,
+    common: Vec<String>,
+    extra: Vec<String>,
+    prefix: Vec<String>,
+}
+
+impl Launch {
+    /// Adds `FLAG VALUE`.
+    pub fn arg(mut self, flag: &str, value: &str) -> Launch {
+        self.extra.extend([flag.to_string(), value.to_string()]);
+        self
+    }
+
+    pub fn listen(mut self, addr: &str) -> Launch {
+        self.listen = addr.to_string();
+        self
+    }
+
+    pub fn goal(self, goal: &str) -> Launch {
+        self.arg("--goal", goal)
+    }
+
+    /// `--start X,Y,DEG`.
+    pub fn start(self, pose: &str) -> Launch {
+        self.arg("--start", pose)
+    }
+
+    pub fn key(self, path: &str) -> Launch {
+        self.arg("--key", path)
+    }
+
+    pub fn config(self, path: &str) -> Launch {
+        self.arg("--config", path)
+    }
+
+    pub fn body(self, body: &str) -> Launch {
+        self.arg("--body", body)
+    }
+
+    /// Run through a command prefix (`ip netns exec NS`), which must exec the container.
+    pub fn via(mut self, prefix: &[String]) -> Launch {
+        self.prefix = prefix.to_vec();
+        self
+    }
+
+    fn peer_services(self, deployment: &Deployment) -> Launch {
+        self.arg("--peer", &deployment.services_addr.clone())
+    }
+
+    pub fn addr(&self) -> &str {
+        &self.listen
+    }
+
+    fn args(&self) -> Vec<String> {
+        let mut args = self.role.clone();
+        args.extend(["--listen".to_string(), self.listen.clone()]);
+        args.extend(self.extra.iter().cloned());
+        args.extend(self.common.iter().cloned());
+        args
+    }
+
+    pub fn spawn(&self) -> Proc {
+        let prefix: Vec<&str> = self.prefix.iter().map(String::as_str).collect();
+        let args = self.args();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let mut proc = Proc::spawn_via(&prefix, &args);
+        proc.label = self.label.clone();
+        proc
+    }
+
+    /// Starts it and waits for its `ready` event.
+    pub fn ready(&self) -> Proc {
+        let mut proc = self.spawn();
+        proc.wait_for(&format!("{} ready", self.label), |e| e["event"] == "ready");
+        proc
+    }
+
+    /// Runs it to its exit (killed after LIMIT); its success and stderr.
+    pub fn run_to_exit(&self) -> (bool, String) {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+            .arg("spawn")
+            .args(self.args())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stderr = child.stderr.take().unwrap();
+        let reader = std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = stderr.read_to_string(&mut text);
+            text
+        });
+        let start = Instant::now();
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            if start.elapsed() > LIMIT {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("{} still running after {LIMIT:?}", self.label);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        (status.success(), reader.join().unwrap())
+    }
+}
+
 /// A running container and its stdout events.
 pub struct Proc {
+    /// Its role or chair name, for messages.
+    pub label: String,
     pub child: Child,
     pub events: Receiver<Value>,
     pub seen: Vec<Value>,
 }
 
 impl Proc {
-    pub fn spawn(args: &[&str]) -> Proc {
-        Proc::spawn_via(&[], args)
-    }
-
-    /// The services container with `config`, on a free loopback port pair, under the group
-    /// key `control`; returns it and its bus address for the other containers' `--peer`.
-    pub fn services(config: &Path, control: &str) -> (Proc, String) {
-        let addr = format!("127.0.0.1:{}", free_port_pair());
-        let services = Proc::spawn(&[
-            "--services",
-            "--config",
-            config.to_str().unwrap(),
-            "--listen",
-            &addr,
-            "--control-key",
-            control,
-        ]);
-        (services, addr)
-    }
-
     /// `intellwheels spawn ARGS` run through a command prefix (`ip netns exec NS`), which must
     /// exec it so that the child is the container.
     pub fn spawn_via(prefix: &[&str], args: &[&str]) -> Proc {
@@ -84,6 +283,7 @@ impl Proc {
             }
         });
         Proc {
+            label: "container".to_string(),
             child,
             events,
             seen: Vec::new(),
@@ -130,6 +330,33 @@ impl Proc {
             .unwrap();
         assert!(status.success(), "kill -TERM");
         self.child.wait().unwrap()
+    }
+
+    /// The clean take-down: SIGTERM, a successful exit and its `stopped` event, which it
+    /// returns (with the count of messages sent).
+    pub fn stop(&mut self) -> Value {
+        let status = self.terminate();
+        assert!(status.success(), "{} exit status {status}", self.label);
+        let what = format!("{} stopped", self.label);
+        self.wait_for(&what, |e| e["event"] == "stopped")
+    }
+
+    /// SIGKILL: no take-down at all.
+    pub fn kill(&mut self) {
+        self.child.kill().unwrap();
+        self.child.wait().unwrap();
+    }
+
+    /// Takes in the events printed so far without waiting.
+    pub fn drain(&mut self) {
+        self.seen.extend(self.events.try_iter());
+    }
+}
+
+/// Stops each container in order (see [`Proc::stop`]).
+pub fn stop_all<const N: usize>(procs: [&mut Proc; N]) {
+    for proc in procs {
+        proc.stop();
     }
 }
 

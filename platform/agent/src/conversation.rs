@@ -177,6 +177,29 @@ impl<T> Initiated<T> {
         Ok(())
     }
 
+    /// Sends `next` as the next item of request stream `id` ([`iw_interaction::Initiator::stream`]):
+    /// `false` when `id` is not open (the participant ended it), and nothing is sent.
+    pub fn stream(
+        &mut self,
+        ctx: &mut Context<'_>,
+        id: &str,
+        next: &AclMessage,
+    ) -> Result<bool, AgentError> {
+        let Some((initiator, _)) = self.open.get(id) else {
+            return Ok(false);
+        };
+        let messages = initiator
+            .stream(next)
+            .map_err(|source| AgentError::Protocol {
+                agent: ctx.name().to_owned(),
+                source,
+            })?;
+        for message in messages {
+            ctx.send(message)?;
+        }
+        Ok(true)
+    }
+
     /// Forgets conversation `id` without a word to its participants (the agent gave up on it;
     /// late answers are then not ours). Returns its data.
     pub fn forget(&mut self, id: &str) -> Option<T> {

@@ -6,7 +6,7 @@
 //!   plus a periodic `tick` for control loops). Handlers are short and never block.
 //! - [`Context`]: an agent's view of the platform: its [`AgentId`], the time, `send`, and the
 //!   replies that carry a reason ([`Context::refuse`], [`Context::failure`],
-//!   [`Context::not_understood`]).
+//!   [`Context::not_understood`]), and the DF registration ([`Context::df_registration`]).
 //! - [`AgentHost`]: owns the agents of a container; [`AgentHost::step`] runs them once at a
 //!   given time (simulated time: scenarios run faster than real time and deterministically), and
 //!   [`AgentHost::run_until`] paces steps with the bus clock (real time).
@@ -32,6 +32,10 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_bus::{Bus, BusError, Mailbox, Time};
 use iw_ontology::OntologyContent;
+use iw_ontology::fipa::{
+    AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
+    ServiceDescription,
+};
 use iw_ontology::wheelchair::WheelchairContent;
 
 pub mod conversation;
@@ -152,6 +156,34 @@ impl Context<'_> {
         }
         self.tapped(&message);
         Ok(())
+    }
+
+    /// The fipa-request that registers this agent's service `name` of type `service_type` with
+    /// its platform's DF (`df@PLATFORM`), so other platforms' agents (JADE's) find it with a DF
+    /// search; `None` when this agent's name names no platform. Conversation
+    /// `df-register-AGENT`.
+    pub fn df_registration(&self, name: &str, service_type: &str) -> Option<AclMessage> {
+        let df = AgentId::new(format!("df@{}", self.aid.platform()?));
+        let description = DfAgentDescription {
+            name: Some(self.aid.clone()),
+            services: vec![ServiceDescription {
+                name: Some(name.into()),
+                service_type: Some(service_type.into()),
+                ..ServiceDescription::default()
+            }],
+            ..DfAgentDescription::default()
+        };
+        let register = ManagementContent::Request(ManagementRequest {
+            actor: df.clone(),
+            action: ManagementAction::Register {
+                description: AgentDescription::Df(description),
+            },
+        });
+        let request = AclMessage::new(Performative::Request)
+            .with_receiver(df)
+            .with_protocol(Protocol::Request.fipa_name())
+            .with_conversation_id(format!("df-register-{}", self.name()));
+        Some(register.fill(request))
     }
 
     /// Replies NOT-UNDERSTOOD to `message` with a reason, as FIPA asks of an agent that cannot

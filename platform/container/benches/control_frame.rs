@@ -11,28 +11,7 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-
-/// CPU time of this thread (the machine is shared: wall time also counts other processes).
-fn thread_cpu() -> Duration {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant the kernel knows.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
-}
-
-/// Times `one` in this thread's CPU time.
-fn cpu_iter(bench: &mut criterion::Bencher<'_>, mut one: impl FnMut()) {
-    bench.iter_custom(|iters| {
-        let start = thread_cpu();
-        for _ in 0..iters {
-            one();
-        }
-        thread_cpu() - start
-    })
-}
+use iw_bench_clock::cpu_iter;
 
 fn control(c: &mut Criterion) {
     use iw_container::{AgentEntry, ContainerId, ContainerMsg, GlobalAgentList, Part, Signed};

@@ -39,14 +39,7 @@ fn bus_message() -> String {
 struct ThreadCpuTime;
 
 fn thread_cpu_ns() -> u64 {
-    let mut now = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `now` is a valid, writable timespec; the clock id is a constant Linux supports.
-    let status = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut now) };
-    assert_eq!(status, 0, "CLOCK_THREAD_CPUTIME_ID unavailable");
-    u64::try_from(now.tv_sec).unwrap_or(0) * 1_000_000_000 + u64::try_from(now.tv_nsec).unwrap_or(0)
+    u64::try_from(iw_bench_clock::thread_cpu().as_nanos()).unwrap_or(u64::MAX)
 }
 
 impl Measurement for ThreadCpuTime {

@@ -380,6 +380,29 @@ impl Initiator {
         Ok(self.follow_up(index, act, state, None))
     }
 
+    /// fipa-request as a stream (a held input's drive commands): `next`'s content and
+    /// parameters as a further REQUEST to every participant that has not ended the
+    /// conversation, which goes on as before. The participant answers the opening (AGREE, then
+    /// INFORM or FAILURE when the stream ends), so an item asks for no reply of its own.
+    pub fn stream(&self, next: &AclMessage) -> Result<Vec<AclMessage>, Error> {
+        let mut out = Vec::new();
+        for session in self.sessions.iter().filter(|s| !s.state.is_done()) {
+            let name = &session.participant.name;
+            self.protocol
+                .step(Actor::Initiator, session.state, Performative::Request, name)?;
+            let mut message = next.clone();
+            message.performative = Performative::Request;
+            message.sender = self.me.clone();
+            message.receivers = vec![session.participant.clone()];
+            message.protocol = Some(self.protocol.fipa_name().to_owned());
+            message.conversation_id = Some(self.conversation_id.clone());
+            message.reply_with = None;
+            message.in_reply_to = None;
+            out.push(message);
+        }
+        Ok(out)
+    }
+
     /// Builds an initiator follow-up (answering the participant's last message when there is
     /// one), registers its `reply-with`, and moves the session to `state`.
     fn follow_up(

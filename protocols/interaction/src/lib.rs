@@ -10,8 +10,9 @@
 //! - [`Protocol`], [`SessionState`], [`Outcome`]: the protocols and their state machine.
 //! - [`Initiator`]: one engine for all protocols (modelled on JADE's `AchieveREInitiator`):
 //!   a [`Session`] per participant keyed by `reply-with`, [`Event`]s or a typed [`Handler`],
-//!   contract-net decisions ([`Initiator::decide`], [`Initiator::iterate`]) and
-//!   [`Initiator::cancel`] for subscriptions.
+//!   contract-net decisions ([`Initiator::decide`], [`Initiator::iterate`]),
+//!   [`Initiator::cancel`] for subscriptions and [`Initiator::stream`] for a request refined
+//!   while it runs (a held input's drive commands).
 //! - [`Responder`]: the participant's side.
 //! - [`Error`]: out-of-protocol acts, late answers, foreign conversations.
 //!
@@ -27,6 +28,9 @@
 //! # Known limits
 //! - Only the first answer of a round has a deadline; a result after AGREE may come any time.
 //! - In a subscription being cancelled, any INFORM counts as the cancel confirmation.
+//! - A request stream is our extension of fipa-request (SC00026 has one REQUEST): further
+//!   REQUESTs in the conversation until the participant ends it. A FIPA participant that does
+//!   not know it answers each as a new request.
 #![warn(missing_docs)]
 
 mod error;

@@ -133,6 +133,11 @@ impl Protocol {
             (S::AwaitingResponse | S::Subscribed, P::Cancel) if self == Self::Subscribe => {
                 Some(S::Cancelling)
             }
+            // A request stream (a held input's drive commands): until the participant ends it,
+            // the initiator refines its request with further REQUESTs; the state is unchanged.
+            (S::AwaitingResponse | S::AwaitingResult, P::Request) if self == Self::Request => {
+                Some(state)
+            }
             _ => None,
         }
     }
@@ -324,6 +329,22 @@ mod tests {
                     .all(|&p| r.after_participant_act(state, p).is_none())
             );
         }
+    }
+
+    #[test]
+    fn a_request_is_streamed_only_until_the_participant_ends_it() {
+        let r = Protocol::Request;
+        for state in [SessionState::AwaitingResponse, SessionState::AwaitingResult] {
+            assert_eq!(r.after_initiator_act(state, P::Request), Some(state));
+        }
+        assert_eq!(
+            r.after_initiator_act(SessionState::Done(Outcome::Refused), P::Request),
+            None
+        );
+        assert_eq!(
+            Protocol::Query.after_initiator_act(SessionState::AwaitingResult, P::Request),
+            None
+        );
     }
 
     #[test]

@@ -665,3 +665,34 @@ fn propose_is_accepted_or_rejected() {
         [Outcome::Accepted, Outcome::Rejected, Outcome::NotUnderstood].map(SessionState::Done)
     );
 }
+
+#[test]
+fn a_request_stream_goes_on_until_the_participant_ends_it() {
+    let (mut initiator, mut responders) = start(Protocol::Request, P::Request, &["control"]);
+    let next = AclMessage::new(P::Request).with_content("((action x (drive :linear 0.2)))");
+    // Before and after the AGREE, each item is a REQUEST in the same conversation, to the
+    // participant, asking no reply of its own.
+    for agreed in [false, true] {
+        if agreed {
+            let kind = answer(&mut initiator, &mut responders[0], P::Agree, T0 + 1).unwrap();
+            assert_eq!(kind, EventKind::Agreed);
+        }
+        let items = initiator.stream(&next).unwrap();
+        assert_eq!(items.len(), 1);
+        let item = wire(&items[0]);
+        assert_eq!(item.performative, P::Request);
+        assert_eq!(item.conversation_id.as_deref(), Some("conv-1"));
+        assert_eq!(item.protocol.as_deref(), Some("fipa-request"));
+        assert_eq!(item.receivers, vec![aid("control")]);
+        assert_eq!(item.reply_with, None);
+        assert_eq!(item.content, next.content);
+    }
+    // The participant's end is still matched to the opening; then nothing more is streamed.
+    let kind = answer(&mut initiator, &mut responders[0], P::Failure, T0 + 2).unwrap();
+    assert_eq!(kind, EventKind::Failed);
+    assert!(initiator.is_done());
+    assert!(initiator.stream(&next).unwrap().is_empty());
+    // Only fipa-request streams.
+    let (query, _) = start(Protocol::Query, P::QueryRef, &["control"]);
+    assert!(query.stream(&next).is_err());
+}

@@ -9,15 +9,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use iw_acl::{AclMessage, AgentId, Performative};
+use iw_acl::{AclMessage, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_ams_df::{Ams, Df, WhitePages};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
-use iw_ontology::OntologyContent;
-use iw_ontology::fipa::{
-    AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
-    ServiceDescription,
-};
 
 use iw_mtp_http::{Error, Gateway, GatewayConfig};
 
@@ -136,28 +131,10 @@ pub struct Echo;
 
 impl Agent for Echo {
     fn setup(&mut self, ctx: &mut Context<'_>) {
-        let platform = ctx.aid().platform().unwrap_or_default().to_owned();
-        let df = AgentId::new(format!("df@{platform}"));
-        let description = DfAgentDescription {
-            name: Some(ctx.aid().clone()),
-            services: vec![ServiceDescription {
-                name: Some("echo-service".into()),
-                service_type: Some("wheelchair-echo".into()),
-                ..ServiceDescription::default()
-            }],
-            ..DfAgentDescription::default()
-        };
-        let register = ManagementContent::Request(ManagementRequest {
-            actor: df.clone(),
-            action: ManagementAction::Register {
-                description: AgentDescription::Df(description),
-            },
-        });
-        let request = AclMessage::new(Performative::Request)
-            .with_receiver(df)
-            .with_protocol(iw_agent::Protocol::Request.fipa_name());
         // A failure is logged and counted by the host; the echo works without the DF.
-        let _ = ctx.send(register.fill(request));
+        if let Some(request) = ctx.df_registration("echo-service", "wheelchair-echo") {
+            let _ = ctx.send(request);
+        }
     }
 
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {

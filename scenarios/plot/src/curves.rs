@@ -5,7 +5,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::PlotError;
+use crate::{PlotError, draw_legend, line_key};
 
 /// One measured line of a panel: a legend name and `(x, y)` points in x order.
 #[derive(Debug, Clone)]
@@ -77,7 +77,7 @@ pub fn plot_curves(
                 ))
                 .map_err(|e| err(&e))?
                 .label(label.clone())
-                .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RGBColor(120, 120, 120)));
+                .legend(line_key(RGBColor(120, 120, 120)));
         }
         for (i, curve) in panel.curves.iter().enumerate() {
             let colour = COLOURS[i % COLOURS.len()];
@@ -88,7 +88,7 @@ pub fn plot_curves(
                 ))
                 .map_err(|e| err(&e))?
                 .label(curve.name.clone())
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour));
+                .legend(line_key(colour));
             chart
                 .draw_series(
                     curve
@@ -98,14 +98,7 @@ pub fn plot_curves(
                 )
                 .map_err(|e| err(&e))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 13))
-            .draw()
-            .map_err(|e| err(&e))?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, path)?;
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())

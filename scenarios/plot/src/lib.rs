@@ -31,6 +31,36 @@ pub fn register_fonts() {
     });
 }
 
+/// The legend box of every figure: white, framed, 13 px labels, at `position`; a drawing
+/// error names the file being drawn, `path`.
+pub(crate) fn draw_legend<'a, DB, CT>(
+    chart: &mut plotters::prelude::ChartContext<'a, DB, CT>,
+    position: plotters::prelude::SeriesLabelPosition,
+    path: &std::path::Path,
+) -> Result<(), PlotError>
+where
+    DB: plotters::prelude::DrawingBackend + 'a,
+    CT: plotters::coord::CoordTranslate,
+{
+    use plotters::prelude::{BLACK, Color, WHITE};
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .draw()
+        .map_err(|e| PlotError::draw(path, e))
+}
+
+/// A legend entry's key for a line series: a 20 px stroke in `style`.
+pub(crate) fn line_key(
+    style: impl Into<plotters::style::ShapeStyle>,
+) -> impl Fn((i32, i32)) -> plotters::element::PathElement<(i32, i32)> {
+    let style = style.into();
+    move |(x, y)| plotters::element::PathElement::new([(x, y), (x + 20, y)], style)
+}
+
 /// Why a plot could not be written.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

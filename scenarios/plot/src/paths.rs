@@ -5,7 +5,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::PlotError;
+use crate::{PlotError, draw_legend, line_key};
 
 /// A piece of map geometry, world frame, m.
 #[derive(Debug, Clone)]
@@ -126,9 +126,7 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
             .draw_series(DashedLineSeries::new(route, 6, 6, grey.stroke_width(2)))
             .map_err(|e| err(&e))?
             .label("circuit")
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2))
-            });
+            .legend(line_key(grey.stroke_width(2)));
     }
     for (i, series) in figure.paths.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
@@ -139,9 +137,7 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
             ))
             .map_err(|e| err(&e))?
             .label(series.label.clone())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
-            });
+            .legend(line_key(colour.stroke_width(3)));
     }
     if !figure.markers.is_empty() {
         chart
@@ -155,14 +151,7 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
             .label(figure.marker_label.clone())
             .legend(|(x, y)| Cross::new((x + 10, y), 6, RED.stroke_width(3)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .draw()
-        .map_err(|e| err(&e))?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, path)?;
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }

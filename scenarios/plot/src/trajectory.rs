@@ -4,7 +4,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::PlotError;
+use crate::{PlotError, draw_legend, line_key};
 
 /// One trajectory: a name for the legend and `(time s, [x, y, z] m)` samples.
 #[derive(Debug, Clone)]
@@ -82,18 +82,10 @@ pub fn plot_trajectories(
                 ))
                 .map_err(|e| err(&e))?
                 .label(t.name.clone())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                });
+                .legend(line_key(colour.stroke_width(2)));
         }
         if axis == 0 {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 13))
-                .draw()
-                .map_err(|e| err(&e))?;
+            draw_legend(&mut chart, SeriesLabelPosition::MiddleRight, path)?;
         }
     }
     // Top view with equal scales on both axes so shapes are not distorted.

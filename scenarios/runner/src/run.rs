@@ -9,7 +9,7 @@ use crate::ScenarioError;
 use crate::assertions::check;
 use crate::observe::{Observation, Totals};
 use crate::report::{ChairSummary, Mode, Report};
-use crate::schedule::{Action, add_goal_places, schedule};
+use crate::schedule::{Cue, add_goal_places, schedule};
 use crate::schema::{Fault, Scenario};
 
 /// Rounds of message delivery without time passing at the end of a run.
@@ -83,7 +83,7 @@ pub fn run_with_progress(
             }
             next += 1;
             let line = match action {
-                Action::Goal(g, point) => {
+                Cue::Goal(g, point) => {
                     seen.push(Observation::GoalGiven {
                         time_s: now_s,
                         chair: g.chair.clone(),
@@ -111,7 +111,7 @@ pub fn run_with_progress(
                         Err(e) => return Err(fleet_err(now_s)(e)),
                     }
                 }
-                Action::Door(d) => {
+                Cue::Door(d) => {
                     fleet.set_door(&d.door, d.open).map_err(fleet_err(now_s))?;
                     format!(
                         "door {} {}",
@@ -119,7 +119,7 @@ pub fn run_with_progress(
                         if d.open { "opened" } else { "closed" }
                     )
                 }
-                Action::Fault(f) => {
+                Cue::Fault(f) => {
                     match f {
                         Fault::LinkLoss { container, .. } => fleet.set_link(container, false),
                         Fault::KillAgent {
@@ -137,11 +137,11 @@ pub fn run_with_progress(
                     .map_err(fleet_err(now_s))?;
                     format!("fault {}", serde_json::to_string(f).unwrap_or_default())
                 }
-                Action::LinkUp(container) => {
+                Cue::LinkUp(container) => {
                     fleet.set_link(container, true).map_err(fleet_err(now_s))?;
                     format!("link {container} restored")
                 }
-                Action::SensorsBack(chair) => {
+                Cue::SensorsBack(chair) => {
                     fleet
                         .set_sensor_failure(chair, false)
                         .map_err(fleet_err(now_s))?;

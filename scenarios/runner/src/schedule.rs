@@ -1,5 +1,5 @@
-//! The scenario's goals, door commands and faults as one time-ordered list, the same for both
-//! modes.
+//! The scenario's goals, door commands and faults as one time-ordered list of cues, the same
+//! for both modes.
 
 use iw_sim::Map;
 use nalgebra::Point2;
@@ -7,9 +7,9 @@ use nalgebra::Point2;
 use crate::ScenarioError;
 use crate::schema::{DoorEntry, Fault, GoalEntry, Scenario};
 
-/// Something scheduled in the run.
+/// A cue: something the scenario makes happen at its time in the run.
 #[derive(Debug, Clone, Copy)]
-pub enum Action<'a> {
+pub enum Cue<'a> {
     /// Give a goal (the point it resolves to).
     Goal(&'a GoalEntry, Point2<f64>),
     /// Open or close a door.
@@ -42,33 +42,33 @@ pub fn add_goal_places(scenario: &Scenario, map: &mut Map) {
     }
 }
 
-/// Every action of `scenario`, ordered by time; entries at one time keep file order (goals,
+/// Every cue of `scenario`, ordered by time; entries at one time keep file order (goals,
 /// doors, faults).
 pub fn schedule<'a>(
     scenario: &'a Scenario,
     map: &Map,
-) -> Result<Vec<(f64, Action<'a>)>, ScenarioError> {
-    let mut schedule: Vec<(f64, Action)> = Vec::new();
+) -> Result<Vec<(f64, Cue<'a>)>, ScenarioError> {
+    let mut schedule: Vec<(f64, Cue)> = Vec::new();
     for g in &scenario.goals {
         let point = scenario
             .goal_point(g, map)
             .map_err(|reason| scenario.invalid(g.chair.clone(), reason))?;
-        schedule.push((g.at_s, Action::Goal(g, point)));
+        schedule.push((g.at_s, Cue::Goal(g, point)));
     }
-    schedule.extend(scenario.doors.iter().map(|d| (d.at_s, Action::Door(d))));
+    schedule.extend(scenario.doors.iter().map(|d| (d.at_s, Cue::Door(d))));
     for f in &scenario.faults {
-        schedule.push((f.at_s(), Action::Fault(f)));
+        schedule.push((f.at_s(), Cue::Fault(f)));
         match f {
             Fault::LinkLoss {
                 at_s,
                 container,
                 for_s: Some(d),
-            } => schedule.push((at_s + d, Action::LinkUp(container))),
+            } => schedule.push((at_s + d, Cue::LinkUp(container))),
             Fault::SensorFailure {
                 at_s,
                 chair,
                 for_s: Some(d),
-            } => schedule.push((at_s + d, Action::SensorsBack(chair))),
+            } => schedule.push((at_s + d, Cue::SensorsBack(chair))),
             _ => {}
         }
     }

@@ -4,14 +4,15 @@
 //! subscribes to the pose of the chairs the container puts on its watch list (a live deployment
 //! has no simulator to read them from), with a screen also to their sonar readings and to what
 //! their control agents apply while driven by hand, and relays a dashboard's drive panel to a chair's
-//! interface agent as `drive` requests (one conversation per hold).
+//! interface agent as `drive` requests (one request stream per hold). Every conversation runs
+//! on the interaction protocols' state machines (`iw_agent::Initiated`).
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::{Agent, Context, Initiated, Progress, Protocol};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, SensorReading, WheelchairAction, WheelchairContent};
 
@@ -81,6 +82,12 @@ pub struct Console {
     assistant: AgentId,
     /// Chairs whose pose subscription was sent.
     subscribed: BTreeSet<String>,
+    /// The goals given to the assistant, each a fipa-request.
+    goals: Initiated<()>,
+    /// The pose, reading and drive-applied subscriptions, each with its chair.
+    subscriptions: Initiated<String>,
+    /// The drive streams to chairs' interface agents, one per hold, each with its chair.
+    streams: Initiated<String>,
     /// The drive conversation of each chair being driven from the desk.
     driving: BTreeMap<String, String>,
     /// Drive conversations started so far.
@@ -94,6 +101,9 @@ impl Console {
             desk,
             assistant,
             subscribed: BTreeSet::new(),
+            goals: Initiated::new(),
+            subscriptions: Initiated::new(),
+            streams: Initiated::new(),
             driving: BTreeMap::new(),
             holds: 0,
         }
@@ -120,36 +130,36 @@ impl Console {
 
 impl Agent for Console {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        if message.performative == Performative::Inform {
-            match WheelchairContent::from_message(&message) {
-                Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) => {
-                    let pose = [pose.x_m, pose.y_m, pose.theta_rad];
-                    desk(&self.desk).poses.insert(agent.name, pose);
-                    return;
+        if let Some(answer) = self.subscriptions.handle(ctx, &message) {
+            match answer {
+                Ok(Progress::Continues(_)) if message.performative == Performative::Inform => {
+                    self.on_notification(ctx, &message);
                 }
-                Ok(WheelchairContent::Inform(Fact::Reading {
-                    agent,
-                    reading: SensorReading::Sonar { ranges_m },
-                })) => {
-                    desk(&self.desk).sonar.insert(agent.name, ranges_m);
-                    return;
+                Ok(Progress::Ended(event, chair)) => {
+                    tracing::debug!(%chair, kind = ?event.kind, "a subscription ended");
                 }
-                Ok(WheelchairContent::Inform(Fact::Applied {
-                    agent,
-                    linear_mps,
-                    angular_radps,
-                })) => {
-                    // the control agent of the chair that is its container
-                    if let Some((_, chair)) = agent.name.split_once('@') {
-                        let at_s = ctx.now().0 as f64 * 1e-9;
-                        desk(&self.desk)
-                            .applied
-                            .insert(chair.to_string(), ([linear_mps, angular_radps], at_s));
-                    }
-                    return;
-                }
-                _ => {}
+                Ok(Progress::Continues(_)) => {}
+                Err(err) => tracing::debug!(error = %err, "out-of-protocol notification"),
             }
+            return;
+        }
+        if let Some(answer) = self.streams.handle(ctx, &message) {
+            if let Ok(Progress::Ended(event, chair)) = answer {
+                // the interface agent refused or ended the hold: the next drive starts anew
+                tracing::info!(%chair, kind = ?event.kind, reason = ?error_message(&message), "drive stream ended");
+                if self.driving.get(&chair) == message.conversation_id.as_ref() {
+                    self.driving.remove(&chair);
+                }
+            }
+            return;
+        }
+        let Some(answer) = self.goals.handle(ctx, &message) else {
+            tracing::debug!(performative = %message.performative, "a message in no conversation of ours");
+            return;
+        };
+        if let Err(err) = answer {
+            tracing::debug!(error = %err, "out-of-protocol answer about a goal");
+            return;
         }
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let from = message
@@ -189,7 +199,6 @@ impl Agent for Console {
             let subscribe = |to: &str, conversation: &str, content: &str| {
                 AclMessage::new(Performative::Subscribe)
                     .with_receiver(AgentId::new(format!("{to}@{chair}")))
-                    .with_protocol(iw_agent::Protocol::Subscribe.fipa_name())
                     .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
                     .with_language("fipa-sl0")
                     .with_conversation_id(format!("{conversation}-{chair}-{me}"))
@@ -204,12 +213,18 @@ impl Agent for Console {
             } else {
                 subscribe("perception", "pose", "((at-pose ?agent ?pose))")
             };
-            if ctx.send(poses).is_ok() {
+            let opened = self
+                .subscriptions
+                .open(ctx, Protocol::Subscribe, poses, chair.clone());
+            if opened.is_ok() {
                 self.subscribed.insert(chair.clone());
                 if screen {
                     let applied =
                         subscribe("control", "applied", "((drive-applied ?agent ?command))");
-                    if let Err(err) = ctx.send(applied) {
+                    if let Err(err) =
+                        self.subscriptions
+                            .open(ctx, Protocol::Subscribe, applied, chair.clone())
+                    {
                         tracing::warn!(chair, error = %err, "could not subscribe to drive-applied");
                     }
                 }
@@ -223,10 +238,13 @@ impl Agent for Console {
             .fill(
                 AclMessage::new(Performative::Request)
                     .with_receiver(self.assistant.clone())
-                    .with_protocol(iw_agent::Protocol::Request.fipa_name())
                     .with_conversation_id(conversation.clone()),
             );
-            if ctx.send(request).is_err() {
+            if self
+                .goals
+                .open(ctx, Protocol::Request, request, ())
+                .is_err()
+            {
                 let me = ctx.name().to_string();
                 self.record(
                     ctx,
@@ -245,24 +263,41 @@ impl Agent for Console {
 }
 
 impl Console {
+    /// A subscription's INFORM: a chair's pose, sonar reading or what its control applied.
+    fn on_notification(&self, ctx: &Context<'_>, message: &AclMessage) {
+        match WheelchairContent::from_message(message) {
+            Ok(WheelchairContent::Inform(Fact::AtPose { agent, pose })) => {
+                let pose = [pose.x_m, pose.y_m, pose.theta_rad];
+                desk(&self.desk).poses.insert(agent.name, pose);
+            }
+            Ok(WheelchairContent::Inform(Fact::Reading {
+                agent,
+                reading: SensorReading::Sonar { ranges_m },
+            })) => {
+                desk(&self.desk).sonar.insert(agent.name, ranges_m);
+            }
+            Ok(WheelchairContent::Inform(Fact::Applied {
+                agent,
+                linear_mps,
+                angular_radps,
+            })) => {
+                // the control agent of the chair that is its container
+                if let Some((_, chair)) = agent.name.split_once('@') {
+                    let at_s = ctx.now().0 as f64 * 1e-9;
+                    desk(&self.desk)
+                        .applied
+                        .insert(chair.to_string(), ([linear_mps, angular_radps], at_s));
+                }
+            }
+            Ok(other) => tracing::debug!(?other, "a notification of another kind"),
+            Err(err) => tracing::debug!(error = %err, "an unreadable notification"),
+        }
+    }
+
     /// Sends `chair`'s interface agent one `drive` of the hold in progress (a new conversation
     /// for a new hold); a stop ends the hold.
     fn drive(&mut self, ctx: &mut Context<'_>, chair: &str, linear_mps: f64, angular_radps: f64) {
         let stop = linear_mps == 0.0 && angular_radps == 0.0;
-        let conversation = match self.driving.get(chair) {
-            Some(c) => c.clone(),
-            // a stop outside a hold has nothing to end
-            None if stop => return,
-            None => {
-                self.holds += 1;
-                let c = format!("drive-{chair}-{}-{}", ctx.name(), self.holds);
-                self.driving.insert(chair.to_string(), c.clone());
-                c
-            }
-        };
-        if stop {
-            self.driving.remove(chair);
-        }
         let interface = AgentId::new(format!("interface@{chair}"));
         let request = WheelchairContent::Request {
             actor: interface.clone(),
@@ -271,13 +306,30 @@ impl Console {
                 angular_radps,
             },
         }
-        .fill(
-            AclMessage::new(Performative::Request)
-                .with_receiver(interface)
-                .with_protocol(iw_agent::Protocol::Request.fipa_name())
-                .with_conversation_id(conversation),
-        );
-        if let Err(err) = ctx.send(request) {
+        .fill(AclMessage::new(Performative::Request).with_receiver(interface));
+        let sent = match self.driving.get(chair).cloned() {
+            Some(id) => {
+                let sent = self.streams.stream(ctx, &id, &request).map(|_| ());
+                if stop {
+                    // the hold is over here; the interface agent answers no more
+                    self.driving.remove(chair);
+                    self.streams.forget(&id);
+                }
+                sent
+            }
+            // a stop outside a hold has nothing to end
+            None if stop => return,
+            None => {
+                self.holds += 1;
+                let id = format!("drive-{chair}-{}-{}", ctx.name(), self.holds);
+                self.driving.insert(chair.to_string(), id.clone());
+                let request = request.with_conversation_id(id);
+                self.streams
+                    .open(ctx, Protocol::Request, request, chair.to_string())
+                    .map(|_| ())
+            }
+        };
+        if let Err(err) = sent {
             tracing::warn!(chair, error = %err, "could not relay a drive command");
         }
     }

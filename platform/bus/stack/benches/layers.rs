@@ -11,21 +11,10 @@
 
 mod common;
 
-use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-
-/// CPU time of this thread (the machine is shared: wall time also counts other processes).
-fn thread_cpu() -> Duration {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant the kernel knows.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
-}
+use iw_bench_clock::cpu_iter;
 
 fn bench(c: &mut Criterion) {
     for cpu in [false, true] {
@@ -47,13 +36,7 @@ fn run(c: &mut Criterion, cpu: bool) {
         let mut one = || exchange.one();
         group.bench_function(set, |bench| {
             if cpu {
-                bench.iter_custom(|iters| {
-                    let start = thread_cpu();
-                    for _ in 0..iters {
-                        black_box(one());
-                    }
-                    thread_cpu() - start
-                })
+                cpu_iter(bench, &mut one)
             } else {
                 bench.iter(&mut one)
             }

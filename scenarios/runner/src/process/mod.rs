@@ -40,7 +40,7 @@ use crate::ScenarioError;
 use crate::assertions::check;
 use crate::observe::{Observation, Totals};
 use crate::report::{ChairSummary, Mode, Report};
-use crate::schedule::{Action, add_goal_places, schedule};
+use crate::schedule::{Cue, add_goal_places, schedule};
 use crate::schema::{Fault, Scenario};
 use relay::Relay;
 
@@ -616,7 +616,7 @@ pub fn run_processes(
             }
             next += 1;
             let line = match action {
-                Action::Goal(g, point) => {
+                Cue::Goal(g, point) => {
                     seen.push(Observation::GoalGiven {
                         time_s: now_s,
                         chair: g.chair.clone(),
@@ -635,7 +635,7 @@ pub fn run_processes(
                         g.chair, point.x, point.y
                     )
                 }
-                Action::Fault(f) => {
+                Cue::Fault(f) => {
                     match f {
                         Fault::LinkLoss { container, .. } => {
                             if let Some(relay) = &d.relay {
@@ -657,13 +657,13 @@ pub fn run_processes(
                     }
                     format!("fault {}", serde_json::to_string(f).unwrap_or_default())
                 }
-                Action::LinkUp(container) => {
+                Cue::LinkUp(container) => {
                     if let Some(relay) = &d.relay {
                         relay.set_link(container, true);
                     }
                     format!("link {container} restored")
                 }
-                Action::Door(_) | Action::SensorsBack(_) => {
+                Cue::Door(_) | Cue::SensorsBack(_) => {
                     return Err(scenario.invalid("door", "cannot be played across processes"));
                 }
             };
