@@ -173,6 +173,12 @@ impl Launch {
         self.arg("--body", body)
     }
 
+    /// `--lockstep`: a world that steps only when its bodies have spoken, or a chair in one.
+    pub fn lockstep(mut self) -> Launch {
+        self.extra.push("--lockstep".to_string());
+        self
+    }
+
     /// Run through a command prefix (`ip netns exec NS`), which must exec the container.
     pub fn via(mut self, prefix: &[String]) -> Launch {
         self.prefix = prefix.to_vec();

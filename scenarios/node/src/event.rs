@@ -102,6 +102,9 @@ pub enum Event {
         distance_m: f64,
         /// Contacts with walls, furniture or other chairs so far.
         collisions: u64,
+        /// The world's simulated time, s: real time since it started, except that a lockstep
+        /// world's clock stands still while it waits for its bodies' wheel speeds.
+        world_s: f64,
     },
     /// A chair's control agent handed its wheels the first non-zero command of a manual drive
     /// (chairs only; once per drive, not per command), read right after the agent step that did

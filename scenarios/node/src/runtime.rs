@@ -299,7 +299,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
                     .map_err(link_err)?,
                 );
             }
-            SharedBody::new(body)
+            SharedBody::new(body).outages(iw_wiring::world_link::REATTACH_WAIT)
         }
         BodyKind::Real | BodyKind::Mixed => {
             let senses = config.body.kind == BodyKind::Mixed;
@@ -884,6 +884,7 @@ impl Runtime {
                 theta_rad: pose.rotation.angle(),
                 distance_m,
                 collisions,
+                world_s: world.time_ns() as f64 * 1e-9,
             });
         }
     }

@@ -513,6 +513,8 @@ impl Rooms {
 #[derive(Clone)]
 pub struct SharedBody {
     inner: Arc<Mutex<Cached>>,
+    /// How long the body may stay unreadable and still come back (see [`SharedBody::outages`]).
+    outage: Option<Duration>,
 }
 
 /// A body and the frame read since its last command.
@@ -523,7 +525,17 @@ impl SharedBody {
     pub fn new(body: impl Body + Send + 'static) -> Self {
         SharedBody {
             inner: Arc::new(Mutex::new((Box::new(body), None))),
+            outage: None,
         }
+    }
+
+    /// A body whose faults are outages of up to `wait` that it recovers from by itself (a
+    /// virtual chair's world link re-attaching): the control agent holds a task through one,
+    /// wheels stopped, instead of failing it after its short fault window (a board or sensor
+    /// that fails is reported at once).
+    pub fn outages(mut self, wait: Duration) -> Self {
+        self.outage = Some(wait);
+        self
     }
 }
 
@@ -598,6 +610,9 @@ pub fn chair_agents(
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep
     // into door posts when it lines up with a doorway.
     control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
+    if let Some(wait) = body.outage {
+        control_config.body_fault_ms = u64::try_from(wait.as_millis()).unwrap_or(u64::MAX);
+    }
     // the simulated chair's laser (a body without one reads no ranges, and adds no points)
     control_config.laser = ChairSpec::default().laser.map(|l| LaserMount {
         t_body_laser: l.t_body_laser,

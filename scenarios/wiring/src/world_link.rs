@@ -12,7 +12,12 @@
 //! Faults: a simulated body the world hears no wheel command from for [`WORLD_WATCHDOG`] is
 //! stopped there; a body that hears no frame for [`LINK_TIMEOUT`] fails its reads (the control
 //! agent stops the chair) and asks to attach again every [`ATTACH_EVERY`], where it last was, so
-//! chairs re-attach to a restarted world; encoder ticks continue across the restart.
+//! chairs re-attach to a restarted world; encoder ticks continue across the restart. A virtual
+//! chair's only faults are such outages: its control agent holds the task in flight through one
+//! of up to [`REATTACH_WAIT`] (wheels stopped) and carries it on from rest once frames come
+//! again, and fails it with the link's reason past that. While the link is down a stop that
+//! cannot be sent is taken: the world's watchdog stops a body it does not hear from, and a
+//! restarted world attaches it at rest.
 //! Body-world traffic is sensor data, not agent conversation: it is not copied to the logger.
 //!
 //! Lockstep (for tests, [`WorldAgent::lockstep`] and [`WorldBody::lockstep`]): the world steps
@@ -58,6 +63,11 @@ pub const ATTACH_EVERY: Duration = Duration::from_millis(500);
 
 /// The world's period: it steps and sends every body its frame this often.
 pub const WORLD_PERIOD: Duration = Duration::from_millis(50);
+
+/// How long a virtual chair's task waits for its world to come back (a world container
+/// restarted, a partition healed) before it fails: process start-up plus joining, with room for
+/// a loaded host.
+pub const REATTACH_WAIT: Duration = Duration::from_secs(30);
 
 /// A frame this far behind the last one (world time, ns) comes from a restarted world.
 const RESTART_BACK_NS: u64 = 1_000_000_000;
@@ -249,9 +259,13 @@ impl WorldLink {
         self.poll();
         let now = self.bus.clock().now();
         if !self.fresh(now) {
+            let silent = match &self.latest {
+                Some((_, at)) => format!("for {} ms", now.since(*at).as_millis()),
+                None => "yet".to_string(),
+            };
             return Err(link_err(format!(
-                "no sensor frame from the world for {} ms: link down, attaching again",
-                LINK_TIMEOUT.as_millis()
+                "no sensor frame from the world {silent}: link down, attaching again every {} ms",
+                ATTACH_EVERY.as_millis()
             )));
         }
         let (frame, at) = self.latest.as_ref().expect("fresh implies a frame");
@@ -314,7 +328,14 @@ impl iw_body::Body for WorldBody {
             left_mps: speeds.left_mps,
             right_mps: speeds.right_mps,
         };
-        self.0.send(&content).map_err(link_err)
+        match self.0.send(&content) {
+            // No world hears this body: its watchdog stops the body (or the world is gone, and
+            // the next one attaches it at rest), so the stop holds.
+            Err(_) if speeds == WheelSpeeds::STOP && !self.0.fresh(self.0.bus.clock().now()) => {
+                Ok(())
+            }
+            sent => sent.map_err(link_err),
+        }
     }
 }
 

@@ -723,6 +723,7 @@ pub fn run_processes(
                 theta_rad,
                 distance_m,
                 collisions,
+                ..
             } => {
                 let speed_mps = match last_body.get(chair) {
                     Some((t, dist)) if time_s > *t => (distance_m - dist).abs() / (time_s - t),

@@ -1,0 +1,132 @@
+//! A virtual chair's body through a world outage, over real buses: while its world is gone it
+//! fails its reads with how long the world has been silent, takes a stop (the world's watchdog
+//! stops a body it does not hear; a new world attaches it at rest) but refuses a drive, and a
+//! restarted world takes it back where it stood with its wheel ticks continued.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use iw_agent::AgentHost;
+use iw_body::{Body, SensorFrame, WheelSpeeds};
+use iw_bus::transport::PeerAddr;
+use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
+use iw_wiring::agent_id;
+use iw_wiring::world_link::{LINK_TIMEOUT, WorldAgent, WorldBody, body_endpoint, world_agent};
+use nalgebra::{Isometry2, Vector2};
+
+/// A world on its own bus (endpoint `endpoint`) with chair `c1`'s body routed to it.
+fn world(network: &InProcNetwork, clock: &Clock, endpoint: &str) -> AgentHost {
+    let bus = Arc::new(
+        Bus::start(
+            Stack::new(),
+            Arc::new(network.endpoint(endpoint).unwrap()),
+            clock.clone(),
+            BusConfig::default(),
+        )
+        .unwrap(),
+    );
+    bus.add_route(&body_endpoint("c1").name, PeerAddr("c1".into()));
+    let map = iw_sim::Map::parse(
+        include_str!("../../maps/sample-building.map"),
+        "sample-building.map",
+    )
+    .unwrap();
+    let agent = WorldAgent::new(
+        iw_sim::shared(iw_sim::World::new(map, 1)),
+        agent_id("door", "services"),
+    );
+    let mut host = AgentHost::new(bus);
+    host.add(world_agent(), Box::new(agent)).unwrap();
+    host
+}
+
+/// Steps `host` and commands `speeds` until the body reads a frame that `done` accepts.
+fn drive_until(
+    host: &mut AgentHost,
+    body: &mut WorldBody,
+    clock: &Clock,
+    speeds: WheelSpeeds,
+    done: impl Fn(&SensorFrame) -> bool,
+) -> SensorFrame {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        assert!(Instant::now() < deadline, "the body never got there");
+        host.step(clock.now());
+        if let Ok(frame) = body.read() {
+            if done(&frame) {
+                return frame;
+            }
+            body.command(speeds).unwrap();
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn a_body_rides_out_its_worlds_restart() {
+    let network = InProcNetwork::new();
+    let clock = Clock::system();
+    let chair_bus = Arc::new(
+        Bus::start(
+            Stack::new(),
+            Arc::new(network.endpoint("c1").unwrap()),
+            clock.clone(),
+            BusConfig::default(),
+        )
+        .unwrap(),
+    );
+    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
+    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
+    let mut body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
+    let forward = WheelSpeeds {
+        left_mps: 0.3,
+        right_mps: 0.3,
+    };
+
+    let mut first = world(&network, &clock, "w1");
+    let before = drive_until(&mut first, &mut body, &clock, forward, |f| {
+        f.left_ticks > 2000
+    });
+
+    // The world dies: it steps no more, and its route goes (its lease ran out).
+    drop(first);
+    chair_bus.remove_route(&world_agent().name);
+    std::thread::sleep(LINK_TIMEOUT + Duration::from_millis(200));
+    let err = body.read().unwrap_err().to_string();
+    assert!(
+        err.contains("no sensor frame from the world for") && err.contains("attaching again"),
+        "{err}"
+    );
+    let silent_ms: u64 = err
+        .split("for ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no silence in {err}"));
+    assert!(silent_ms >= LINK_TIMEOUT.as_millis() as u64, "{err}");
+    body.stop().expect("a stop with no world to take it holds");
+    let drive = body.command(forward);
+    assert!(drive.is_err(), "a drive with no world: {drive:?}");
+
+    // A new world at another endpoint: the body attaches to it where it stood, and its ticks go
+    // on from where they were instead of starting again from zero.
+    chair_bus.add_route(&world_agent().name, PeerAddr("w2".into()));
+    let mut second = world(&network, &clock, "w2");
+    let after = drive_until(&mut second, &mut body, &clock, forward, |_| true);
+    assert!(
+        after.left_ticks >= before.left_ticks,
+        "ticks went back: {} then {}",
+        before.left_ticks,
+        after.left_ticks
+    );
+    assert!(
+        after.left_ticks - before.left_ticks < 2000,
+        "ticks jumped: {} then {}",
+        before.left_ticks,
+        after.left_ticks
+    );
+    let on = drive_until(&mut second, &mut body, &clock, forward, |f| {
+        f.left_ticks > after.left_ticks + 500
+    });
+    assert!(on.left_ticks > after.left_ticks);
+}
