@@ -41,11 +41,14 @@
 mod lists;
 mod machine;
 mod node;
+mod roster;
+mod vetting;
 mod wire;
 
 pub use lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
 pub use machine::{Container, ContainerConfig, ContainerMsg, Outgoing};
 pub use node::ContainerNode;
+pub use roster::{MAX_ROSTER_BYTES, Pin, Roster};
 pub use wire::Signed;
 
 /// A container's identity; lower ids win elections.
@@ -76,6 +79,17 @@ pub enum ContainerError {
     #[error("container message does not encode: {reason}")]
     Encode {
         /// Encoder's complaint.
+        reason: String,
+    },
+    /// A roster file that cannot be read or is wrong, or that pins another identity for this
+    /// container.
+    #[error("roster {file}{}: {reason}", line.map(|n| format!(" line {n}")).unwrap_or_default())]
+    Roster {
+        /// The file (or what the roster was built from).
+        file: String,
+        /// The line at fault (1-based), when one is.
+        line: Option<usize>,
+        /// Why.
         reason: String,
     },
     /// The container thread could not start.

@@ -38,7 +38,7 @@ fn signed(signer: [u8; 32], seq: u64, msg: ContainerMsg) -> Signed {
 fn agent(name: &str, container: u64) -> AgentEntry {
     AgentEntry {
         name: name.into(),
-        public_key: name.as_bytes().to_vec(),
+        public_key: key(container).to_vec(),
         addr: addr(container),
     }
 }
@@ -155,7 +155,7 @@ fn lowest_id_is_elected_and_the_gal_reaches_everyone() {
         );
     }
     let key = net.node(3).resolve("a2").unwrap().public_key.clone();
-    assert_eq!(key, b"a2");
+    assert_eq!(key, self::key(2), "an agent carries its container's key");
     // A later registration travels follower -> leader -> followers.
     net.node(3).register(agent("late", 3));
     net.run(Duration::from_millis(300));
