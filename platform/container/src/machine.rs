@@ -168,6 +168,10 @@ struct Peer {
 /// - of two containers claiming one id, the one that has run longer keeps it: told by the holder
 ///   itself, a container that ran a lease longer than the holder answers in kind (so the younger
 ///   refuses), and otherwise refuses.
+/// - beneath these, a list part is taken only if each entry carries its container's key; and
+///   with a roster ([`ContainerConfig::roster`]) a frame speaks for an id only under its pinned
+///   key, a part carries only agents named for its container, and a `Duplicate` is believed only
+///   under this container's own pinned key (see the crate docs).
 #[derive(Debug)]
 pub struct Container {
     config: ContainerConfig,
