@@ -257,10 +257,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 None => (member.as_str(), 0),
                 Some((name, id)) => (
                     name,
-                    id.parse::<u64>()
-                        .ok()
-                        .filter(|id| *id > 0)
-                        .ok_or_else(|| flag_err("--member", member, "expected NAME or NAME=ID, ID a positive integer"))?,
+                    id.parse::<u64>().ok().filter(|id| *id > 0).ok_or_else(|| {
+                        flag_err(
+                            "--member",
+                            member,
+                            "expected NAME or NAME=ID, ID a positive integer",
+                        )
+                    })?,
                 ),
             };
             members.push((name.to_string(), id));

@@ -54,7 +54,10 @@ fn a_written_roster_keeps_existing_keys_and_pins_derived_ids() {
     let err = write_roster(&path, dir.path(), &members(&["../escape"]))
         .unwrap_err()
         .to_string();
-    assert!(err.contains("--member") && err.contains("../escape"), "{err}");
+    assert!(
+        err.contains("--member") && err.contains("../escape"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -100,7 +103,10 @@ fn a_container_whose_identity_is_not_pinned_refuses_to_start() {
         "{err}"
     );
     // the world, which the roster does not list
-    let err = start_error(Role::World, config(&dir.path().join("services.pk8"), &roster));
+    let err = start_error(
+        Role::World,
+        config(&dir.path().join("services.pk8"), &roster),
+    );
     assert!(
         err.contains(&shown) && err.contains("lists no container id 2"),
         "{err}"

@@ -700,7 +700,13 @@ fn under_a_roster_an_agent_list_with_foreign_agents_or_from_a_non_leader_is_igno
     };
     let end = Instant::now() + Duration::from_secs(3);
     while Instant::now() < end {
-        let to_services = [sign(&heartbeat), sign(&ContainerMsg::Lal { id: m, part: part.clone() })];
+        let to_services = [
+            sign(&heartbeat),
+            sign(&ContainerMsg::Lal {
+                id: m,
+                part: part.clone(),
+            }),
+        ];
         flood(&attacker, &services.control(), &to_services, Duration::ZERO);
         let to_chair = [sign(&ContainerMsg::Gal {
             leader: m,
