@@ -8,6 +8,9 @@
 //! - a holder of the group key, speaking over TCP from the services' own address, cannot speak
 //!   for the services: control frames are signed by each container's identity;
 //! - a receiver restarted with its sessions lost gets the message sealed under the old session.
+//! - under a roster (`security.roster`), a holder of the group key cannot claim a free low id
+//!   or a pinned one, cannot stop a container with a forged `Duplicate`, and a member cannot
+//!   list another container's agents.
 
 use std::net::UdpSocket;
 use std::sync::Arc;
