@@ -418,8 +418,7 @@ fn a_container_whose_key_is_not_pinned_refuses_to_start() {
         iw_bus::Clock::system(),
         STEP,
     )
-    .err()
-    .expect("refused")
+    .expect_err("refused")
     .to_string();
     assert!(
         err.contains("test roster")
