@@ -44,6 +44,9 @@ init = [n for n, svc in services.items()
         if isinstance(svc, dict) and "--keygen-control" in " ".join(svc.get("entrypoint") or [])]
 if len(init) != 1:
     fail(f"expected one init service writing the control key (--keygen-control), found {init}")
+init_cmd = " ".join(services[init[0]].get("entrypoint") or [])
+if "--keygen-roster" not in init_cmd:
+    fail(f"init service {init[0]}: must write the roster (--keygen-roster)")
 for name, svc in services.items():
     if not isinstance(svc, dict):
         fail(f"service {name} is not a mapping")
@@ -56,7 +59,7 @@ for name, svc in services.items():
         continue
     deps = svc.get("depends_on") or {}
     if not isinstance(deps, dict) or deps.get(init[0], {}).get("condition") != "service_completed_successfully":
-        fail(f"service {name}: must depend on {init[0]} completing (the control key)")
+        fail(f"service {name}: must depend on {init[0]} completing (the keys and the roster)")
     cmd = svc.get("command")
     if not (isinstance(cmd, list) and cmd and cmd[0] == "spawn" and all(isinstance(c, str) for c in cmd)):
         fail(f"service {name}: command must be a list of strings starting with `spawn`")
@@ -67,6 +70,10 @@ for name, svc in services.items():
         fail(f"service {name}: --chair must name the service")
     if "--control-key" not in cmd or "--insecure-dev" in cmd:
         fail(f"service {name}: the control channel must be keyed (--control-key, no --insecure-dev)")
+    if "--roster" not in cmd or "--key" not in cmd:
+        fail(f"service {name}: identities must be pinned (--key and --roster)")
+    if f"--member {name}" not in init_cmd:
+        fail(f"service {name}: the init service's roster lacks it (--member {name})")
     for s in svc.get("secrets", []):
         if s not in declared:
             fail(f"service {name} uses undeclared secret {s}")

@@ -441,28 +441,35 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
                 ..ContainerConfig::new(ContainerId(id), transport.local_addr().clone(), seeds)
             };
             let mut container = Container::new(config);
-            container.register(agent);
-            ContainerNode::start(
+            let identity = Arc::new(iw_stack::Identity::generate().expect("identity"));
+            // an agent carries its container's identity key
+            let key = identity.public_key();
+            container.register(AgentEntry {
+                public_key: key.to_vec(),
+                ..agent
+            });
+            let node = ContainerNode::start(
                 container,
-                Arc::new(iw_stack::Identity::generate().expect("identity")),
+                identity,
                 transport,
                 clock.clone(),
                 Duration::from_millis(5),
             )
-            .expect("container")
+            .expect("container");
+            (node, key)
         };
     let group = [7u8; 32];
     let a_guard = guarded("container-1.1", group);
     let a_addr = a_guard.local_addr().clone();
-    let a = start(1, a_guard.clone(), vec![], entry("door", 1, "bus-a"));
-    let b = start(
+    let (a, a_key) = start(1, a_guard.clone(), vec![], entry("door", 1, "bus-a"));
+    let (b, _) = start(
         2,
         guarded("container-2.1", group),
         vec![a_addr.clone()],
         entry("nav", 2, "bus-b"),
     );
     // Id 0 would win the election; it claims `door` with its own key and adds `spy`.
-    let rogue = start(
+    let (rogue, _) = start(
         0,
         guarded("container-0.1", [9u8; 32]),
         vec![a_addr.clone()],
@@ -541,7 +548,7 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
             let (owner, door) = c.gal().lookup("door").expect("door listed");
             assert_eq!(
                 (owner, door.public_key.as_slice()),
-                (ContainerId(1), &[1u8; 32][..]),
+                (ContainerId(1), &a_key[..]),
                 "door keeps its own key"
             );
         });

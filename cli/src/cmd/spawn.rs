@@ -12,7 +12,7 @@ use iw_node::{BodyKind, GoalSpec, NodeError, Role, Runtime, SpawnConfig, Transpo
 
 /// Flags; each overrides the configuration file's key of the same meaning.
 #[derive(clap::Args)]
-#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "world", "keygen", "keygen_control"]))]
+#[command(group = clap::ArgGroup::new("role").required(true).args(["chair", "services", "world", "keygen", "keygen_control", "keygen_roster"]))]
 pub struct Args {
     /// Run chair NAME's perception, control, cognitive and interface agents.
     #[arg(long, value_name = "NAME")]
@@ -30,6 +30,15 @@ pub struct Args {
     /// container of a deployment is given the same file (--control-key).
     #[arg(long, value_name = "FILE")]
     keygen_control: Option<PathBuf>,
+    /// Write the deployment's roster to FILE and exit: each --member's identity key is
+    /// `NAME.pk8` beside FILE (written, mode 0600, if absent; an existing one is kept), and FILE
+    /// pins each member's id to its key (security.roster). Rewrites FILE.
+    #[arg(long, value_name = "FILE", requires = "members")]
+    keygen_roster: Option<PathBuf>,
+    /// A container of the roster --keygen-roster writes: `NAME` (its id derived as spawn
+    /// derives it: services 1, world 2, a chair from its name) or `NAME=ID`; repeat.
+    #[arg(long = "member", value_name = "NAME[=ID]", requires = "keygen_roster")]
+    members: Vec<String>,
     /// The configuration file (keys documented in deploy/default.toml).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
@@ -54,6 +63,10 @@ pub struct Args {
     /// The control group key file (security.control_key); required unless --insecure-dev.
     #[arg(long, value_name = "FILE")]
     control_key: Option<String>,
+    /// The deployment's roster of container identities (security.roster): control frames then
+    /// speak for an id only under its pinned key.
+    #[arg(long, value_name = "FILE")]
+    roster: Option<String>,
     /// Run without a control key: control traffic unauthenticated, for development only
     /// (security.insecure_dev).
     #[arg(long)]
@@ -119,6 +132,9 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
     }
     if let Some(key) = &args.control_key {
         config.security.control_key = key.clone();
+    }
+    if let Some(roster) = &args.roster {
+        config.security.roster = roster.clone();
     }
     if args.insecure_dev {
         config.security.insecure_dev = true;
@@ -231,6 +247,39 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         println!(
             "{}",
             serde_json::json!({ "event": "control-key", "path": path.display().to_string() })
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if let Some(path) = &args.keygen_roster {
+        let mut members = Vec::new();
+        for member in &args.members {
+            let (name, id) = match member.split_once('=') {
+                None => (member.as_str(), 0),
+                Some((name, id)) => (
+                    name,
+                    id.parse::<u64>().ok().filter(|id| *id > 0).ok_or_else(|| {
+                        flag_err(
+                            "--member",
+                            member,
+                            "expected NAME or NAME=ID, ID a positive integer",
+                        )
+                    })?,
+                ),
+            };
+            members.push((name.to_string(), id));
+        }
+        let dir = match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => std::path::Path::new("."),
+        };
+        let roster = iw_node::write_roster(path, dir, &members)?;
+        let pinned: Vec<_> = roster
+            .pins()
+            .map(|(id, pin)| serde_json::json!({ "id": id.0, "name": pin.name }))
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({ "event": "roster", "path": path.display().to_string(), "containers": pinned })
         );
         return Ok(ExitCode::SUCCESS);
     }

@@ -10,6 +10,8 @@
 //! - [`ContainerNode`]: a container run over a real [`iw_bus::transport::FrameTransport`].
 //! - [`Signed`]: a control frame as it travels, signed by its sender container's Ed25519
 //!   identity.
+//! - [`Roster`], [`Pin`]: a deployment's container identities pinned in advance (id, name,
+//!   Ed25519 key), read from a file ([`ContainerConfig::roster`]).
 //! - [`ContainerError`]: this crate's errors.
 //!
 //! Guarantees:
@@ -35,23 +37,43 @@
 //!   is told so ([`ContainerMsg::Duplicate`]) and refuses to run ([`Container::refusal`]); the
 //!   running one (the one that has run longer) is not disturbed. These rules hold beneath the
 //!   control channel's group key, which decides who may join at all.
+//! - A list entry carries its container's identity key (an agent's messages are verified with
+//!   it): a container's part whose entries carry another key is refused, at the leader (a LAL)
+//!   and at a follower (a part of the leader's GAL, against the key that container's live id is
+//!   bound to here, or one key for the whole part when it is not known).
+//! - With a [`Roster`] ([`ContainerConfig::roster`]), no id is bound to whoever claims it first:
+//!   a frame speaks for id X only under X's pinned key, so an id the roster does not list is
+//!   nobody's (a group-key holder cannot claim a free id, nor a low one to lead) and a listed id
+//!   cannot be claimed under another key, even while its container is down; a container's part
+//!   carries only agents named `ROLE@NAME` for its pinned name, under its pinned key; a
+//!   `Duplicate` is believed only under the receiver's own pinned key (a third party's report
+//!   makes it greet the named holder, which answers itself if it holds that identity); and a
+//!   container whose own key is not the one pinned for its id does not start
+//!   ([`ContainerNode::start`]). Refusals are counted per reason ([`Container::counters`]:
+//!   `unknown_peer`, `mismatch`) and warned at most once per 10 s per kind.
 //!
-//! Known limits: an id is bound to a key first come, first served while its lease holds (no
-//! key is pinned in advance), so a group-key holder can claim an id nobody holds, including a
-//! low one that leads, and list agent names of her choosing; and a forged
-//! [`ContainerMsg::Duplicate`] from a group-key holder makes a container refuse to run. A dead
-//! container's agents stay in the GAL (marked by their container id; check
-//! [`Container::live_peers`]) until that container comes back with a higher incarnation.
+//! Known limits: without a roster (the weaker mode) an id is bound to a key first come, first
+//! served while its lease holds, so a group-key holder can claim an id nobody holds, including a
+//! low one that leads, list agent names of her choosing under her own key, and make a
+//! container refuse to run with a forged [`ContainerMsg::Duplicate`]. With a roster, a holder
+//! of a container's own identity key is that container: she can do all it may (list its own
+//! agents, stop a second holder of its key), nothing more. Control frames are signed per
+//! frame, not carried in per-peer sessions. A dead container's agents stay in the GAL (marked
+//! by their container id; check [`Container::live_peers`]) until that container comes back with
+//! a higher incarnation.
 #![warn(missing_docs)]
 
 mod lists;
 mod machine;
 mod node;
+mod roster;
+mod vetting;
 mod wire;
 
 pub use lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
 pub use machine::{Container, ContainerConfig, ContainerMsg, Outgoing};
 pub use node::ContainerNode;
+pub use roster::{MAX_ROSTER_BYTES, Pin, Roster};
 pub use wire::Signed;
 
 /// A container's identity; lower ids win elections.
@@ -82,6 +104,17 @@ pub enum ContainerError {
     #[error("container message does not encode: {reason}")]
     Encode {
         /// Encoder's complaint.
+        reason: String,
+    },
+    /// A roster file that cannot be read or is wrong, or that pins another identity for this
+    /// container.
+    #[error("roster {file}{}: {reason}", line.map(|n| format!(" line {n}")).unwrap_or_default())]
+    Roster {
+        /// The file (or what the roster was built from).
+        file: String,
+        /// The line at fault (1-based), when one is.
+        line: Option<usize>,
+        /// Why.
         reason: String,
     },
     /// The container thread could not start.

@@ -12,7 +12,9 @@ use crate::ContainerId;
 pub struct AgentEntry {
     /// The agent's name (its FIPA agent identifier's `:name`).
     pub name: String,
-    /// The public key its messages are verified with (Ed25519, raw bytes).
+    /// The public key its messages are verified with (Ed25519, raw bytes): its container's
+    /// identity key, which also signs the container's control frames, so a list is taken only
+    /// if each entry carries the key of the container it is listed under.
     pub public_key: Vec<u8>,
     /// The bus address of its container.
     pub addr: PeerAddr,
@@ -182,6 +184,11 @@ impl GlobalAgentList {
         let changed = parts != self.parts;
         self.parts = parts;
         changed
+    }
+
+    /// Keeps only the parts `keep` accepts.
+    pub(crate) fn retain_parts(&mut self, mut keep: impl FnMut(ContainerId, &Part) -> bool) {
+        self.parts.retain(|id, part| keep(*id, part));
     }
 
     /// Merges every part of `other`; returns whether anything changed. Commutative, idempotent.

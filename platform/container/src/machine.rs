@@ -3,6 +3,7 @@
 //! to send, so every behaviour is tested in simulated time.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
 use std::time::Duration;
 
 use iw_bus::Time;
@@ -10,7 +11,8 @@ use iw_bus::transport::PeerAddr;
 use iw_layer_security::PublicKey;
 
 use crate::lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
-use crate::{ContainerError, ContainerId, Signed};
+use crate::vetting::{Vetting, speaker};
+use crate::{ContainerError, ContainerId, Roster, Signed};
 
 /// What containers say to each other.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -109,6 +111,12 @@ pub struct ContainerConfig {
     pub heartbeat_ms: u64,
     /// A container not heard for this long is taken for dead, ms (default 250; several heartbeats).
     pub lease_ms: u64,
+    /// The deployment's pinned identities (default none: ids are bound to keys first come,
+    /// first served, the weaker mode). With a roster, a frame speaks for an id only under that
+    /// id's pinned key, an id it does not list is nobody's, list entries must be named for
+    /// their container, and a `Duplicate` is believed only under this container's own pinned
+    /// key.
+    pub roster: Option<Arc<Roster>>,
 }
 
 impl ContainerConfig {
@@ -122,6 +130,7 @@ impl ContainerConfig {
             seeds,
             heartbeat_ms: 50,
             lease_ms: 250,
+            roster: None,
         }
     }
 
@@ -192,6 +201,10 @@ struct Peer {
 /// - of two containers claiming one id, the one that has run longer keeps it: told by the holder
 ///   itself, a container that ran a lease longer than the holder answers in kind (so the younger
 ///   refuses), and otherwise refuses.
+/// - beneath these, a list part is taken only if each entry carries its container's key; and
+///   with a roster ([`ContainerConfig::roster`]) a frame speaks for an id only under its pinned
+///   key, a part carries only agents named for its container, and a `Duplicate` is believed only
+///   under this container's own pinned key (see the crate docs).
 #[derive(Debug)]
 pub struct Container {
     config: ContainerConfig,
@@ -214,6 +227,8 @@ pub struct Container {
     started: Option<Time>,
     /// When a duplicate id was last reported per contested id (one WARN per lease, not per frame).
     duplicate_warned: BTreeMap<ContainerId, Time>,
+    /// The roster's and the list entries' checks, with their rejection counters.
+    vetting: Vetting,
 }
 
 impl Container {
@@ -225,7 +240,6 @@ impl Container {
         Self {
             leader: config.id,
             gal_from: config.id,
-            config,
             lal,
             gal,
             peers: BTreeMap::new(),
@@ -236,6 +250,8 @@ impl Container {
             refusal: None,
             started: None,
             duplicate_warned: BTreeMap::new(),
+            vetting: Vetting::new(config.roster.clone()),
+            config,
         }
     }
 
@@ -248,6 +264,18 @@ impl Container {
     /// Sets the key this container's control frames are signed with.
     pub(crate) fn set_key(&mut self, key: PublicKey) {
         self.config.key = key;
+    }
+
+    /// The roster this container checks identities against, if any.
+    pub fn roster(&self) -> Option<&Roster> {
+        self.vetting.roster()
+    }
+
+    /// Control frames refused for who signed them or what their lists carry, per reason
+    /// (`unknown_peer`: an id the roster does not list; `mismatch`: a key not pinned for its id,
+    /// a list entry not its container's, a `Duplicate` not under the pinned key).
+    pub fn counters(&self) -> &iw_bus::Counters {
+        self.vetting.counters()
     }
 
     /// This container's id.
@@ -318,6 +346,11 @@ impl Container {
             return out;
         }
         let Signed { key, seq, msg } = signed;
+        if let Some(id) = speaker(&msg)
+            && !self.vetting.speaks_for(id, &key, from, now)
+        {
+            return out;
+        }
         match msg {
             ContainerMsg::Heartbeat {
                 id,
@@ -389,7 +422,9 @@ impl Container {
                         .get(&id)
                         .is_some_and(|p| part.generation >> 32 == u64::from(p.incarnation));
                 if self.leader == self.config.id && id != self.config.id && from_owner {
-                    if self.gal.set_part(id, part) {
+                    if self.vetting.vet_part(id, Some(&key), &part, from, now)
+                        && self.gal.set_part(id, part)
+                    {
                         self.changed();
                     }
                 } else if !from_owner {
@@ -405,6 +440,10 @@ impl Container {
                     && leader != self.config.id
                     && self.take(leader, from, &key, seq)
                 {
+                    let peers = &self.peers;
+                    let gal =
+                        self.vetting
+                            .vet_gal(gal, |id| peers.get(&id).map(|p| p.key), from, now);
                     let held_from_leader = self.gal_from == leader;
                     self.gal_from = leader;
                     if self
@@ -427,6 +466,18 @@ impl Container {
                 holder_uptime_ms,
             } => {
                 if id != self.config.id || holder == self.config.addr {
+                    return out;
+                }
+                if !self.vetting.believes_duplicate(id, &key, from, now) {
+                    // Under a roster only a holder of this container's own identity can hold
+                    // its id: greet the named holder, which, if it is one, answers itself.
+                    let period = Duration::from_millis(self.config.heartbeat_ms);
+                    if self.vetting.probe_due(now, period) {
+                        out.push(Outgoing {
+                            to: holder,
+                            msg: self.heartbeat(),
+                        });
+                    }
                     return out;
                 }
                 // Told by a third party: it knew the holder first. Told by the holder itself:
@@ -558,6 +609,7 @@ impl Container {
         out
     }
 
+    /// "I am alive", as of now.
     fn heartbeat(&self) -> ContainerMsg {
         // A follower tells what it took from the leader it names (a list mirrored from an
         // earlier leader is not vouched for): that leader then sends it everything else.

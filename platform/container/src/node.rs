@@ -31,6 +31,8 @@ impl ContainerNode {
     /// Runs `container` over `transport` (its own endpoint, not an agent bus), timed by `clock`,
     /// signing what it says as `identity` (the container's own, whose key its agents' entries
     /// carry); the container's [`crate::ContainerConfig::key`] is set to that identity's key.
+    /// Refused ([`ContainerError::Roster`]) when the container's roster pins another key for
+    /// its id, or does not list it.
     pub fn start(
         mut container: Container,
         identity: Arc<Identity>,
@@ -39,6 +41,9 @@ impl ContainerNode {
         tick: Duration,
     ) -> Result<Self, ContainerError> {
         container.set_key(identity.public_key());
+        if let Some(roster) = container.roster() {
+            roster.check_own(container.id(), None, &identity.public_key())?;
+        }
         let state = Arc::new(Mutex::new(container));
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {

@@ -38,7 +38,7 @@ fn signed(signer: [u8; 32], seq: u64, msg: ContainerMsg) -> Signed {
 fn agent(name: &str, container: u64) -> AgentEntry {
     AgentEntry {
         name: name.into(),
-        public_key: name.as_bytes().to_vec(),
+        public_key: key(container).to_vec(),
         addr: addr(container),
     }
 }
@@ -165,7 +165,7 @@ fn lowest_id_is_elected_and_the_gal_reaches_everyone() {
         );
     }
     let key = net.node(3).resolve("a2").unwrap().public_key.clone();
-    assert_eq!(key, b"a2");
+    assert_eq!(key, self::key(2), "an agent carries its container's key");
     // A later registration travels follower -> leader -> followers.
     net.node(3).register(agent("late", 3));
     net.run(Duration::from_millis(300));
@@ -546,7 +546,7 @@ fn a_hundred_chairs_converge_in_frames_that_fit_a_datagram_and_idle_linearly() {
         for role in ["cognitive", "control", "perception", "interface", "body"] {
             net.node(i).register(AgentEntry {
                 name: format!("{role}@chair-{i:03}"),
-                public_key: vec![0xa5; 32],
+                public_key: key(i).to_vec(),
                 addr: PeerAddr(format!("127.0.0.1:{}", 40000 + i)),
             });
         }

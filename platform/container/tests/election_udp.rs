@@ -36,15 +36,15 @@ fn start(
     config.heartbeat_ms = 20;
     config.lease_ms = 150;
     let mut container = Container::new(config);
+    let identity = Arc::new(iw_layer_security::Identity::generate().unwrap());
     for a in agents {
         container.register(AgentEntry {
             name: a.to_string(),
-            public_key: vec![id as u8; 32],
+            public_key: identity.public_key().to_vec(),
             addr: addr.clone(),
         });
     }
     let transport: Arc<dyn FrameTransport> = Arc::new(transport);
-    let identity = Arc::new(iw_layer_security::Identity::generate().unwrap());
     ContainerNode::start(container, identity, transport, Clock::system(), TICK).unwrap()
 }
 
@@ -82,9 +82,11 @@ fn leader_dies_another_is_elected_and_lists_resync_on_return() {
     assert!(c2.with(|c| c.resolve("wheel").is_some() && c.resolve("camera").is_some()));
     let addr3 = seeds[2].clone();
     c3.with(|c| {
+        // carrying its container's key, as every entry must
+        let key = c.lal().entries().next().expect("hosted").public_key.clone();
         c.register(AgentEntry {
             name: "lidar".into(),
-            public_key: vec![3; 32],
+            public_key: key,
             addr: addr3,
         })
     });

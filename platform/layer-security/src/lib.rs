@@ -62,13 +62,16 @@
 //! | join the containers at all, or forge, alter or replay control traffic without the group key | admission: the containers' group key in pre-shared-key mode, with the temporal layer (`iw_stack::GuardedTransport`) |
 //! | holding the group key, speak as another live container (its heartbeat, its agent list, the leader's list), even from its address | identity: every control frame is signed by the sender container's Ed25519 identity, the same identity whose key its agents' entries carry and the Noise handshake binds to each static key; a live container id is bound to the key its heartbeats are signed with, lists are taken only under the bound key of their container or of the elected leader, with a growing sequence number (`iw_container::Signed`, `iw_container::Container`) |
 //! | pin a route with a huge list generation | followers mirror the leader's list, the leader takes each container's part as its container says (`iw_container`) |
+//! | holding the group key, list agents under her own container that carry another container's key | every list entry must carry the key of the container whose part it is in: the signer's for its own list, the bound key at a follower (`iw_container`) |
+//! | holding the group key, with a deployment roster (`security.roster`): claim an id nobody holds (a low one to lead), a listed id under her own key, or another container's agent names; stop a container with a forged `Duplicate` | pinning: the roster pins each id to one key and one name in advance; a frame speaks for an id only under its pinned key (an unlisted id is nobody's), a container's part carries only `ROLE@NAME` for its pinned name, and a `Duplicate` is believed only under the receiver's own pinned key; a container whose key is not pinned for its id refuses to start (`iw_container::Roster`) |
 //! | flood | size caps and rate-limited warnings per reason; rejections counted per kind |
 //!
-//! Not defended: an attacker holding an agent's identity key (she is that agent). A group-key
-//! holder is a container: she can join under an id nobody holds (a low one leads the election)
-//! and list agent names of her choosing, since ids are bound to keys first come, first served
-//! while their lease holds, not pinned in advance; and a forged `Duplicate` from her makes a
-//! container refuse to run. Traffic analysis (who talks to whom, when, how much);
+//! Not defended: an attacker holding an agent's or a container's identity key (she is that
+//! agent or container: with a roster she may say all it may, nothing more). Without a roster
+//! (the weaker mode, warned at start) a group-key holder is a container of her choosing: she can
+//! join under an id nobody holds (a low one leads the election) and list agent names of her
+//! choosing, since ids are bound to keys first come, first served while their lease holds; and
+//! a forged `Duplicate` from her makes a container refuse to run. Traffic analysis (who talks to whom, when, how much);
 //! denial of service by an attacker on the path (she can always drop). IX sends the initiator's
 //! static key in clear: it is a fresh key per layer, not the identity, so nothing long-lived is
 //! exposed, but a listener can link an agent's handshakes while the layer lives.

@@ -134,6 +134,11 @@ pub struct SecuritySection {
     pub control_key: String,
     /// Run without a control key: control traffic is not authenticated (development only).
     pub insecure_dev: bool,
+    /// The deployment's roster of container identities (`ID NAME PUBLIC_KEY` per line;
+    /// `intellwheels spawn --keygen-roster FILE --member NAME ...` writes one with the keys):
+    /// a control frame then speaks for an id only under the key pinned for it. Empty: ids are
+    /// bound to keys first come, first served (the weaker mode).
+    pub roster: String,
     /// Bus layers: `all`, `none`, or a comma list of `comm`, `security`, `temporal`, `parser`.
     pub layers: String,
 }
@@ -144,6 +149,7 @@ impl Default for SecuritySection {
             identity_key: String::new(),
             control_key: String::new(),
             insecure_dev: false,
+            roster: String::new(),
             layers: "all".into(),
         }
     }
@@ -333,6 +339,16 @@ impl SpawnConfig {
                     .into(),
             );
         }
+        if !self.security.roster.is_empty() && self.security.identity_key.is_empty() {
+            return bad(
+                "security.identity_key",
+                format!(
+                    "empty, but security.roster `{}` pins this container's key: give the identity \
+                     key file the roster was made from (--key FILE)",
+                    self.security.roster
+                ),
+            );
+        }
         self.security
             .layers
             .parse::<iw_bus::LayerSet>()
@@ -483,6 +499,23 @@ mod tests {
         config.mtp.http.listen = String::new();
         config.dashboard.token = "s3cret".into();
         config.dashboard.listen = "0.0.0.0:8080".into();
+        config.validate(&crate::Role::Services).unwrap();
+    }
+
+    #[test]
+    fn a_roster_needs_an_identity_key() {
+        let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
+        config.security.roster = "deploy/keys/roster".into();
+        let err = config
+            .validate(&crate::Role::Services)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("security.identity_key") && err.contains("deploy/keys/roster"),
+            "{err}"
+        );
+        config.security.identity_key = "services.pk8".into();
         config.validate(&crate::Role::Services).unwrap();
     }
 

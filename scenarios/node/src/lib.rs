@@ -22,7 +22,8 @@
 //!   [`Echo`](http_platform::Echo), the echo agent of the JADE captures.
 //! - [`AdminCommand`]: what the parent process may ask of a running container on its stdin
 //!   (`--admin-stdin`: a goal, a killed agent); not reachable from the network.
-//! - [`write_identity`]: a new identity key file.
+//! - [`write_identity`]: a new identity key file; [`write_roster`]: a deployment's identity
+//!   keys and the roster that pins them (`security.roster`).
 //!
 //! # Design
 //! - Two endpoints per container: the agent bus at `transport.listen` and the container
@@ -63,7 +64,9 @@ pub use config::{
     SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection, WorldSection,
 };
 pub use event::Event;
-pub use runtime::{AdminCommand, MAX_ADMIN_LINE, Runtime, control_addr, write_identity};
+pub use runtime::{
+    AdminCommand, MAX_ADMIN_LINE, Runtime, control_addr, write_identity, write_roster,
+};
 
 /// What a chair's body is (`[body] kind`), the fleet's own type.
 pub use iw_wiring::BodyKind;

@@ -12,7 +12,7 @@ use iw_agent::AgentHost;
 use iw_body::{Body, BodyWorker, MixedBody, Odometry, SerialBody, WheelGeometry};
 use iw_bus::transport::{FrameTransport, PeerAddr};
 use iw_bus::{Bus, BusConfig, Clock, LayerSet, Time};
-use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode};
+use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerNode, Roster};
 use iw_interface::Recognizer;
 use iw_sim::{ChairKind, ChairSpec, Map, World};
 use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
@@ -133,6 +133,86 @@ fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
             path: e.path,
             reason: e.reason,
         })
+}
+
+/// The deployment's roster from `path`; `None` when none is configured (the weaker mode, said
+/// once at start).
+fn load_roster(path: &str) -> Result<Option<Arc<Roster>>, NodeError> {
+    if path.is_empty() {
+        tracing::warn!(
+            "no security.roster: container ids are bound to keys first come, first served (a \
+             holder of the control key can claim an id nobody holds); pin them with a roster"
+        );
+        return Ok(None);
+    }
+    Roster::load(Path::new(path))
+        .map(|r| Some(Arc::new(r)))
+        .map_err(roster_error)
+}
+
+fn roster_error(e: iw_container::ContainerError) -> NodeError {
+    NodeError::Config {
+        file: "security.roster".into(),
+        reason: e.to_string(),
+    }
+}
+
+/// Writes the identity keys of `members` (name, and id or 0 to derive it from the name) into
+/// `dir` as `NAME.pk8` (a key already there is kept and read), then the deployment's roster of
+/// them to `roster` (replaced whole, fsynced): what `security.roster` reads.
+pub fn write_roster(
+    roster: &Path,
+    dir: &Path,
+    members: &[(String, u64)],
+) -> Result<Roster, NodeError> {
+    use std::io::Write;
+    let mut pins = Vec::new();
+    for (name, id) in members {
+        let role = match name.as_str() {
+            SERVICES => Role::Services,
+            n if n == iw_wiring::world_link::WORLD => Role::World,
+            n => Role::Chair { name: n.into() },
+        };
+        let id = match id {
+            0 => derived_id(&role),
+            id => *id,
+        };
+        if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+            return Err(NodeError::Flag {
+                flag: "--member",
+                value: name.clone(),
+                reason: "a container name is a plain file name (no `/`, not starting with `.`)"
+                    .into(),
+            });
+        }
+        let path = dir.join(format!("{name}.pk8"));
+        let key = if path.exists() {
+            load_identity(&path.display().to_string())?.public_key()
+        } else {
+            write_identity(&path)?
+        };
+        pins.push((
+            ContainerId(id),
+            iw_container::Pin {
+                name: name.clone(),
+                key,
+            },
+        ));
+    }
+    let shown = roster.display().to_string();
+    let roster_text = Roster::new(&shown, pins).map_err(roster_error)?;
+    let bad = |reason: String| NodeError::Config {
+        file: shown.clone(),
+        reason,
+    };
+    // written beside and renamed over, so a reader never sees half a roster
+    let part = roster.with_extension("part");
+    let mut file = std::fs::File::create(&part).map_err(|e| bad(e.to_string()))?;
+    file.write_all(roster_text.to_string().as_bytes())
+        .and_then(|()| file.sync_all())
+        .and_then(|()| std::fs::rename(&part, roster))
+        .map_err(|e| bad(e.to_string()))?;
+    Ok(roster_text)
 }
 
 fn load_map(path: &str) -> Result<Map, NodeError> {
@@ -485,6 +565,19 @@ fn parse_point(text: &str) -> Option<nalgebra::Point2<f64>> {
     (x.is_finite() && y.is_finite()).then(|| nalgebra::Point2::new(x, y))
 }
 
+/// The control channel's rejections: its group-key guard's, and the container's own (ids and
+/// keys the roster does not pin, lists carrying foreign agents).
+fn control_counters(
+    guard: Option<&GuardedTransport>,
+    container: Option<&ContainerNode>,
+) -> iw_bus::Counters {
+    let mut counters = guard.map(|g| g.counters()).unwrap_or_default();
+    if let Some(container) = container {
+        container.with(|c| counters.merge(c.counters()));
+    }
+    counters
+}
+
 /// An agent of another container, as installed on this bus.
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Installed {
@@ -545,6 +638,16 @@ impl Runtime {
             })?;
         let identity = Arc::new(load_identity(&config.security.identity_key)?);
         let control_key = load_control_key(&config.security.control_key)?;
+        let roster = load_roster(&config.security.roster)?;
+        let id = match config.container.id {
+            0 => derived_id(role),
+            id => id,
+        };
+        if let Some(roster) = &roster {
+            roster
+                .check_own(ContainerId(id), Some(&name), &identity.public_key())
+                .map_err(roster_error)?;
+        }
         let t = &config.transport;
         let advertise = if t.advertise.is_empty() {
             t.listen.clone()
@@ -626,10 +729,6 @@ impl Runtime {
             host.add(aid, agent).map_err(|e| setup(e.to_string()))?;
         }
 
-        let id = match config.container.id {
-            0 => derived_id(role),
-            id => id,
-        };
         let incarnation = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs() as u32);
@@ -637,6 +736,7 @@ impl Runtime {
             incarnation,
             heartbeat_ms: config.container.heartbeat_ms,
             lease_ms: config.container.lease_ms,
+            roster,
             ..ContainerConfig::new(ContainerId(id), PeerAddr(control_listen), seeds)
         };
         let mut container = Container::new(container_config);
@@ -1019,14 +1119,14 @@ impl Runtime {
                 &mut installed.keys(),
                 &self.agent_names,
                 || {
-                    let control = self.control_guard.as_ref().map(|g| g.counters());
+                    let control =
+                        control_counters(self.control_guard.as_deref(), self.container.as_ref());
                     let bus = self.host.bus().counters();
                     let bus = bus.nonzero().map(|(r, n)| (r.name().to_string(), n));
-                    let control = control.iter().flat_map(|c| {
-                        c.nonzero()
-                            .map(|(r, n)| (format!("control:{}", r.name()), n))
-                            .collect::<Vec<_>>()
-                    });
+                    let control = control
+                        .nonzero()
+                        .map(|(r, n)| (format!("control:{}", r.name()), n))
+                        .collect::<Vec<_>>();
                     bus.chain(control).collect()
                 },
             );
@@ -1036,11 +1136,7 @@ impl Runtime {
     /// Sends a `security` event if the rejection counts changed since `reported`.
     fn report_security(&self, reported: &mut (iw_bus::Counters, iw_bus::Counters)) {
         let bus = self.host.bus().counters();
-        let control = self
-            .control_guard
-            .as_ref()
-            .map(|g| g.counters())
-            .unwrap_or_default();
+        let control = control_counters(self.control_guard.as_deref(), self.container.as_ref());
         if (&bus, &control) == (&reported.0, &reported.1) {
             return;
         }

@@ -8,6 +8,9 @@
 //! - a holder of the group key, speaking over TCP from the services' own address, cannot speak
 //!   for the services: control frames are signed by each container's identity;
 //! - a receiver restarted with its sessions lost gets the message sealed under the old session.
+//! - under a roster (`security.roster`), a holder of the group key cannot claim a free low id
+//!   or a pinned one, cannot stop a container with a forged `Duplicate`, and a member cannot
+//!   list another container's agents.
 
 use std::net::UdpSocket;
 use std::sync::Arc;
@@ -160,9 +163,15 @@ fn assert_services_kept(chair: &Running) {
 /// The services' take-over, as a forger sends it: a heartbeat claiming the services' id, and the
 /// services' list (assistant re-routed, an agent added) at a generation that would pin it forever.
 fn takeover(evil: impl Fn(&str) -> AgentEntry) -> [ContainerMsg; 2] {
+    takeover_as(1, evil)
+}
+
+/// The take-over as container `id` (the services' id, or a free one lower than theirs, which
+/// wins the election): its heartbeat, and its list as the leader's.
+fn takeover_as(id: u64, evil: impl Fn(&str) -> AgentEntry) -> [ContainerMsg; 2] {
     let mut pinned = GlobalAgentList::default();
     pinned.merge_part(
-        ContainerId(1),
+        ContainerId(id),
         Part {
             generation: u64::MAX,
             agents: vec![evil("assistant@services"), evil("evil@x")],
@@ -170,14 +179,14 @@ fn takeover(evil: impl Fn(&str) -> AgentEntry) -> [ContainerMsg; 2] {
     );
     [
         ContainerMsg::Heartbeat {
-            id: ContainerId(1),
+            id: ContainerId(id),
             incarnation: u32::MAX,
-            leader: ContainerId(1),
+            leader: ContainerId(id),
             lal_generation: u64::MAX,
             gal_versions: Default::default(),
         },
         ContainerMsg::Gal {
-            leader: ContainerId(1),
+            leader: ContainerId(id),
             versions: pinned.versions(),
             gal: pinned,
         },
@@ -479,4 +488,247 @@ fn forger_key() -> [u8; 32] {
 fn forge(msg: &ContainerMsg) -> Vec<u8> {
     static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(u64::MAX / 2);
     Signed::seal(forger(), SEQ.fetch_add(1, Ordering::Relaxed), msg).unwrap()
+}
+
+// ---- a deployment with a roster (`security.roster`): identities pinned in advance ------------
+
+/// A deployment's group key, identity keys and roster in a temporary directory.
+struct Pinned {
+    dir: tempfile::TempDir,
+}
+
+impl Pinned {
+    fn new(members: &[&str]) -> Pinned {
+        let dir = tempfile::tempdir().unwrap();
+        iw_stack::write_group_key(&dir.path().join("control.key")).unwrap();
+        let members: Vec<(String, u64)> = members.iter().map(|m| (m.to_string(), 0)).collect();
+        iw_node::write_roster(&dir.path().join("roster"), dir.path(), &members).unwrap();
+        Pinned { dir }
+    }
+
+    /// Container `name`'s configuration: its own key, the roster, the group key.
+    fn config(&self, name: &str, peers: &[String]) -> SpawnConfig {
+        let path = |f: &str| self.dir.path().join(f).display().to_string();
+        let mut c = config(Some(&path("control.key")), peers);
+        c.security.identity_key = path(&format!("{name}.pk8"));
+        c.security.roster = path("roster");
+        c
+    }
+
+    /// Container `name`'s pinned id.
+    fn id(&self, name: &str) -> u64 {
+        let roster = iw_container::Roster::load(&self.dir.path().join("roster")).unwrap();
+        let (id, _) = roster.pins().find(|(_, p)| p.name == name).unwrap();
+        id.0
+    }
+
+    /// A group-key holder's own UDP endpoint on the control channel.
+    fn attacker(&self, name: &str) -> iw_stack::GuardedTransport {
+        let key = iw_stack::read_group_key(&self.dir.path().join("control.key")).unwrap();
+        iw_stack::GuardedTransport::new(
+            Arc::new(UdpTransport::bind("127.0.0.1:0").unwrap()),
+            name,
+            key,
+            Clock::system(),
+        )
+        .unwrap()
+    }
+}
+
+/// Services and chair `chair` of deployment `pinned`, joined.
+fn pinned_pair(pinned: &Pinned, chair: &str) -> (Running, Running) {
+    let mut services = Running::start(Role::Services, pinned.config("services", &[]));
+    let mut chair_c = Running::start(
+        Role::Chair { name: chair.into() },
+        pinned.config(chair, &[services.bus()]),
+    );
+    chair_c.wait_for("the services joined", joined("assistant@services"));
+    services.wait_for("the chair joined", joined(&format!("control@{chair}")));
+    (services, chair_c)
+}
+
+/// `container`'s control rejections for `reason` in its latest `security` event.
+fn control_rejections(container: &Running, reason: &str) -> u64 {
+    container
+        .seen
+        .iter()
+        .filter_map(|e| match e {
+            Event::Security { control, .. } => control.get(reason).copied(),
+            _ => None,
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// Sends `frames` to `to`, and again every 20 ms for `d`.
+fn flood(attacker: &iw_stack::GuardedTransport, to: &str, frames: &[Vec<u8>], d: Duration) {
+    use iw_bus::transport::FrameTransport;
+    let to = PeerAddr(to.into());
+    let end = Instant::now() + d;
+    loop {
+        for f in frames {
+            attacker.send(&to, f).unwrap();
+        }
+        if Instant::now() >= end {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Under a roster, a holder of the group key claims id 0 (free, lower than the services', so it
+/// would lead) and id 2 (the world's, pinned to a key she does not hold), each with a list as
+/// the leader's re-routing the assistant. Without a roster the claim of id 0 is obeyed (the
+/// weaker mode's known limit); with one the chair obeys neither, and counts them.
+#[test]
+fn under_a_roster_a_key_holder_claiming_a_free_low_id_is_not_obeyed() {
+    let pinned = Pinned::new(&["services", "world", "chair-p"]);
+    let (services, mut chair) = pinned_pair(&pinned, "chair-p");
+    let attacker = pinned.attacker("container-0.1.attacker");
+    let evil = |name: &str| AgentEntry {
+        name: name.into(),
+        public_key: forger_key().to_vec(),
+        addr: PeerAddr("127.0.0.1:9".into()),
+    };
+    let frames: Vec<Vec<u8>> = [0, 2]
+        .into_iter()
+        .flat_map(|id| takeover_as(id, evil))
+        .map(|m| forge(&m))
+        .collect();
+    flood(&attacker, &chair.control(), &frames, Duration::from_secs(3));
+    chair.drain_for(Duration::from_secs(1));
+    assert_services_kept(&chair);
+    chair.wait_for("the claims counted", |e| {
+        matches!(e, Event::Security { control, .. }
+            if control.get("unknown_peer").is_some_and(|n| *n > 0)
+                && control.get("mismatch").is_some_and(|n| *n > 0))
+    });
+    println!(
+        "chair refused: unknown_peer {}, mismatch {}",
+        control_rejections(&chair, "unknown_peer"),
+        control_rejections(&chair, "mismatch")
+    );
+    chair.stop().unwrap();
+    services.stop().unwrap();
+}
+
+/// Under a roster, a forged `Duplicate` (signed by a group-key holder's own identity, naming
+/// herself as the holder of the chair's id, running "forever") does not stop the chair: only
+/// the chair's own pinned key can say its id is held.
+#[test]
+fn under_a_roster_a_forged_duplicate_does_not_stop_a_running_container() {
+    let pinned = Pinned::new(&["services", "chair-d"]);
+    let (mut services, mut chair) = pinned_pair(&pinned, "chair-d");
+    let attacker = pinned.attacker("container-9.1.attacker");
+    let forged = ContainerMsg::Duplicate {
+        id: ContainerId(pinned.id("chair-d")),
+        holder: PeerAddr(attacker_addr(&attacker)),
+        holder_incarnation: 0,
+        holder_uptime_ms: u64::MAX,
+    };
+    flood(
+        &attacker,
+        &chair.control(),
+        &[forge(&forged)],
+        Duration::from_secs(3),
+    );
+    chair.drain_for(Duration::from_secs(1));
+    assert!(
+        !chair.thread.as_ref().unwrap().is_finished(),
+        "the chair stopped: {:#?}",
+        chair.seen
+    );
+    chair.wait_for("the forgery counted", |e| {
+        matches!(e, Event::Security { control, .. } if control.get("mismatch").is_some_and(|n| *n > 0))
+    });
+    services.drain_for(Duration::ZERO);
+    assert!(
+        !services
+            .seen
+            .iter()
+            .any(|e| matches!(e, Event::Left { agent, .. } if agent == "control@chair-d")),
+        "the services lost the chair: {:#?}",
+        services.seen
+    );
+    chair.stop().expect("the chair ran on and stopped cleanly");
+    services.stop().unwrap();
+}
+
+fn attacker_addr(t: &iw_stack::GuardedTransport) -> String {
+    use iw_bus::transport::FrameTransport;
+    t.local_addr().0.clone()
+}
+
+/// Under a roster, a member of the deployment (she holds chair-m's own pinned key, and the
+/// group key) lists, as chair-m's agents, the services' assistant at her address and an agent
+/// `evil@x`; and sends the chair a global list as if she led. The leader refuses her part (a
+/// container's part carries only `ROLE@ITS-NAME` under its key), the chair refuses a list from a
+/// non-leader: the chair keeps its services.
+#[test]
+fn under_a_roster_an_agent_list_with_foreign_agents_or_from_a_non_leader_is_ignored() {
+    let pinned = Pinned::new(&["services", "chair-q", "chair-m"]);
+    let (mut services, mut chair) = pinned_pair(&pinned, "chair-q");
+    let member = iw_stack::Identity::from_pkcs8(
+        &std::fs::read(pinned.dir.path().join("chair-m.pk8")).unwrap(),
+    )
+    .unwrap();
+    let m = ContainerId(pinned.id("chair-m"));
+    let attacker = pinned.attacker("container-m.1.attacker");
+    let here = PeerAddr(attacker_addr(&attacker));
+    let entry = |name: &str| AgentEntry {
+        name: name.into(),
+        public_key: member.public_key().to_vec(),
+        addr: here.clone(),
+    };
+    let part = Part {
+        generation: (1 << 32) + 7,
+        agents: vec![
+            entry("assistant@services"),
+            entry("evil@x"),
+            entry("control@chair-m"),
+        ],
+    };
+    let mut as_leader = GlobalAgentList::default();
+    as_leader.merge_part(m, part.clone());
+    let mut seq = 0u64;
+    let mut sign = |msg: &ContainerMsg| {
+        seq += 1;
+        Signed::seal(&member, seq, msg).unwrap()
+    };
+    let heartbeat = ContainerMsg::Heartbeat {
+        id: m,
+        incarnation: 1,
+        leader: ContainerId(1),
+        lal_generation: part.generation,
+        gal_versions: Default::default(),
+    };
+    let end = Instant::now() + Duration::from_secs(3);
+    while Instant::now() < end {
+        let to_services = [
+            sign(&heartbeat),
+            sign(&ContainerMsg::Lal {
+                id: m,
+                part: part.clone(),
+            }),
+        ];
+        flood(&attacker, &services.control(), &to_services, Duration::ZERO);
+        let to_chair = [sign(&ContainerMsg::Gal {
+            leader: m,
+            gal: as_leader.clone(),
+        })];
+        flood(&attacker, &chair.control(), &to_chair, Duration::ZERO);
+        std::thread::sleep(Duration::from_millis(30));
+    }
+    chair.drain_for(Duration::from_secs(1));
+    assert_services_kept(&chair);
+    assert!(
+        !chair.seen.iter().any(joined("control@chair-m")),
+        "the whole part was refused: {:#?}",
+        chair.seen
+    );
+    services.wait_for("the foreign agents counted", |e| {
+        matches!(e, Event::Security { control, .. } if control.get("mismatch").is_some_and(|n| *n > 0))
+    });
+    chair.stop().unwrap();
+    services.stop().unwrap();
 }

@@ -5,6 +5,8 @@
 //! |--------------------------------------------|--------------|
 //! | forged control frames, impostor services,  | [`control`]  |
 //! | a restart after `kill -9`                  |              |
+//! | free ids, forged `Duplicate`, foreign      |              |
+//! | agents under a roster                      |              |
 //! | flipped bytes, torn tails, spliced records | [`log`]      |
 //! | connection flood, slowloris on dashboard   | [`dashboard`]|
 //! | extreme flags, a FIFO as input             | [`flags`]    |
