@@ -714,6 +714,7 @@ fn under_a_roster_an_agent_list_with_foreign_agents_or_from_a_non_leader_is_igno
         flood(&attacker, &services.control(), &to_services, Duration::ZERO);
         let to_chair = [sign(&ContainerMsg::Gal {
             leader: m,
+            versions: as_leader.versions(),
             gal: as_leader.clone(),
         })];
         flood(&attacker, &chair.control(), &to_chair, Duration::ZERO);
