@@ -32,11 +32,12 @@
 //!   leader's key and address, a container's part only under that container's, each with a
 //!   sequence number above the last (no replay), and a follower mirrors its leader: it keeps a
 //!   part only at the generation the leader's last list names, sent by that leader or held from
-//!   an earlier list of the same leader, so no generation (even `u64::MAX`) pins a route. A holder of the group key therefore cannot speak
-//!   for another live container, even from its address. A second container claiming a live id
-//!   is told so ([`ContainerMsg::Duplicate`]) and refuses to run ([`Container::refusal`]); the
-//!   running one (the one that has run longer) is not disturbed. These rules hold beneath the
-//!   control channel's group key, which decides who may join at all.
+//!   an earlier list of the same leader, so no generation (even `u64::MAX`) pins a route. A
+//!   holder of the group key therefore cannot speak for another live container, even from its
+//!   address. A second container claiming a live id is told so ([`ContainerMsg::Duplicate`])
+//!   and refuses to run ([`Container::refusal`]); the running one (the one that has run longer)
+//!   is not disturbed. These rules hold beneath the control channel's group key, which decides
+//!   who may join at all.
 //! - A list entry carries its container's identity key (an agent's messages are verified with
 //!   it): a container's part whose entries carry another key is refused, at the leader (a LAL)
 //!   and at a follower (a part of the leader's GAL, against the key that container's live id is

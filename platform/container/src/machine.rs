@@ -182,9 +182,9 @@ struct Peer {
 /// Cost: a container heartbeats to its seeds and to the peers that heartbeat to it, so where
 /// chairs greet the services only (every deployment of this repository) the leader hears N
 /// containers and each chair one. A list goes as a delta: the parts the follower's heartbeat
-/// shows it lacks, at most [`LIST_FRAME_BUDGET`] bytes a frame. Heartbeats go every
-/// `heartbeat_ms` while anything differs and every [`ContainerConfig::idle_heartbeat`] once the
-/// lists agree; a change (a new peer, a list taken) is told at the next tick.
+/// shows it lacks, at most 32 KiB a frame. Heartbeats go every `heartbeat_ms` while anything
+/// differs and every [`ContainerConfig::idle_heartbeat`] once the lists agree; a change (a new
+/// peer, a list taken) is told at the next tick.
 ///
 /// Who may say what (the control channel's own rules, beneath its group key). Every message
 /// comes [`Signed`] by its sender's Ed25519 identity, and:
