@@ -719,16 +719,31 @@ fn drive_applied_subscribers_are_told_what_shared_control_applied_while_driven_b
     assert_eq!(applied(&rig).len(), before, "informed after CANCEL");
 }
 
-#[test]
-fn driven_by_hand_a_wall_only_the_laser_sees_holds_the_chair_back() {
-    // A laser at the chair's front, 181 beams over 180 degrees, sees a wall 15 cm ahead of the
-    // front that no sonar echoes (the ranges stay as the chair does not move).
-    let ranges: Vec<f64> = (0..181)
+/// A 181-beam scan of a wall 15 cm ahead of the laser, across the front (beams more than ~78°
+/// to the side see nothing).
+fn wall_ahead_scan() -> Vec<f64> {
+    (0..181)
         .map(|i| {
             let a = (i as f64 - 90.0).to_radians();
             if a.cos() > 0.2 { 0.15 / a.cos() } else { 10.0 }
         })
-        .collect();
+        .collect()
+}
+
+/// A laser at the chair's front, looking ahead over 180°.
+fn front_laser() -> LaserMount {
+    LaserMount {
+        t_body_laser: nalgebra::Isometry2::new(nalgebra::Vector2::new(0.75, 0.0), 0.0),
+        fov_rad: std::f64::consts::PI,
+        max_range_m: 10.0,
+    }
+}
+
+#[test]
+fn driven_by_hand_a_wall_only_the_laser_sees_holds_the_chair_back() {
+    // A laser at the chair's front, 181 beams over 180 degrees, sees a wall 15 cm ahead of the
+    // front that no sonar echoes (the ranges stay as the chair does not move).
+    let ranges = wall_ahead_scan();
     let forward = |laser: Option<LaserMount>| {
         let mut rig = rig_with(|c| c.laser = laser);
         *rig.body.laser_m.lock().unwrap() = ranges.clone();
@@ -739,11 +754,7 @@ fn driven_by_hand_a_wall_only_the_laser_sees_holds_the_chair_back() {
         let w = rig.last_wheels();
         (w.left_mps + w.right_mps) / 2.0
     };
-    let mount = LaserMount {
-        t_body_laser: nalgebra::Isometry2::new(nalgebra::Vector2::new(0.75, 0.0), 0.0),
-        fov_rad: std::f64::consts::PI,
-        max_range_m: 10.0,
-    };
+    let mount = front_laser();
     let blind = forward(None);
     assert!(
         blind > 0.3,
@@ -762,12 +773,7 @@ fn a_task_is_held_back_by_a_wall_only_the_laser_sees_too() {
     // The same wall as above, 15 cm ahead of the front, no sonar echo: a go-to straight at it
     // drives on blind, and is held back when the laser is fitted (the tactical layer's path is
     // planned on the map, which need not hold a trolley or a jamb the localizer misplaced).
-    let ranges: Vec<f64> = (0..181)
-        .map(|i| {
-            let a = (i as f64 - 90.0).to_radians();
-            if a.cos() > 0.2 { 0.15 / a.cos() } else { 10.0 }
-        })
-        .collect();
+    let ranges = wall_ahead_scan();
     let forward = |laser: Option<LaserMount>| {
         let mut rig = rig_with(|c| c.laser = laser);
         *rig.body.laser_m.lock().unwrap() = ranges.clone();
@@ -780,11 +786,7 @@ fn a_task_is_held_back_by_a_wall_only_the_laser_sees_too() {
         let w = rig.last_wheels();
         (w.left_mps + w.right_mps) / 2.0
     };
-    let mount = LaserMount {
-        t_body_laser: nalgebra::Isometry2::new(nalgebra::Vector2::new(0.75, 0.0), 0.0),
-        fov_rad: std::f64::consts::PI,
-        max_range_m: 10.0,
-    };
+    let mount = front_laser();
     let blind = forward(None);
     assert!(
         blind > 0.2,
