@@ -739,21 +739,29 @@ fn front_laser() -> LaserMount {
     }
 }
 
+/// The mean wheel speed after 1 s facing that wall, with `laser` fitted or not: `start` once,
+/// then `each` before every 100 ms.
+fn speed_facing_a_wall(
+    laser: Option<LaserMount>,
+    start: impl FnOnce(&mut Rig),
+    mut each: impl FnMut(&mut Rig),
+) -> f64 {
+    let mut rig = rig_with(|c| c.laser = laser);
+    *rig.body.laser_m.lock().unwrap() = wall_ahead_scan();
+    start(&mut rig);
+    for _ in 0..10 {
+        each(&mut rig);
+        rig.run(100);
+    }
+    let w = rig.last_wheels();
+    (w.left_mps + w.right_mps) / 2.0
+}
+
 #[test]
 fn driven_by_hand_a_wall_only_the_laser_sees_holds_the_chair_back() {
     // A laser at the chair's front, 181 beams over 180 degrees, sees a wall 15 cm ahead of the
     // front that no sonar echoes (the ranges stay as the chair does not move).
-    let ranges = wall_ahead_scan();
-    let forward = |laser: Option<LaserMount>| {
-        let mut rig = rig_with(|c| c.laser = laser);
-        *rig.body.laser_m.lock().unwrap() = ranges.clone();
-        for _ in 0..10 {
-            rig.send(drive(0.4, 0.0));
-            rig.run(100);
-        }
-        let w = rig.last_wheels();
-        (w.left_mps + w.right_mps) / 2.0
-    };
+    let forward = |laser| speed_facing_a_wall(laser, |_| {}, |rig| rig.send(drive(0.4, 0.0)));
     let mount = front_laser();
     let blind = forward(None);
     assert!(
@@ -773,18 +781,15 @@ fn a_task_is_held_back_by_a_wall_only_the_laser_sees_too() {
     // The same wall as above, 15 cm ahead of the front, no sonar echo: a go-to straight at it
     // drives on blind, and is held back when the laser is fitted (the tactical layer's path is
     // planned on the map, which need not hold a trolley or a jamb the localizer misplaced).
-    let ranges = wall_ahead_scan();
-    let forward = |laser: Option<LaserMount>| {
-        let mut rig = rig_with(|c| c.laser = laser);
-        *rig.body.laser_m.lock().unwrap() = ranges.clone();
-        rig.send_pose(0.0, 0.0, 0.0);
-        rig.send(goto_far("laser-task"));
-        for _ in 0..10 {
-            rig.send_pose(0.0, 0.0, 0.0);
-            rig.run(100);
-        }
-        let w = rig.last_wheels();
-        (w.left_mps + w.right_mps) / 2.0
+    let forward = |laser| {
+        speed_facing_a_wall(
+            laser,
+            |rig| {
+                rig.send_pose(0.0, 0.0, 0.0);
+                rig.send(goto_far("laser-task"));
+            },
+            |rig| rig.send_pose(0.0, 0.0, 0.0),
+        )
     };
     let mount = front_laser();
     let blind = forward(None);
