@@ -236,6 +236,37 @@ fn hex(key: &PublicKey) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Any text (a damaged or hostile file) parses or is refused naming the file, never a
+        /// panic.
+        #[test]
+        fn any_text_parses_or_is_refused_naming_the_file(text in "(?s).{0,400}") {
+            if let Err(e) = Roster::parse(&text, "deploy.roster") {
+                prop_assert!(e.to_string().starts_with("roster deploy.roster"), "{}", e);
+            }
+        }
+
+        /// Whatever a roster writes it reads back the same.
+        #[test]
+        fn a_written_roster_parses_back(
+            pins in proptest::collection::btree_map(
+                any::<u64>(),
+                ("[a-z][a-z0-9-]{0,12}", any::<[u8; 32]>()),
+                1..8,
+            )
+        ) {
+            let pins = pins
+                .into_iter()
+                .map(|(id, (name, key))| (ContainerId(id), Pin { name, key }));
+            // a drawn repeat of a name or key is refused by `new`, and is not this property's
+            let Ok(roster) = Roster::new("r", pins) else {
+                return Ok(());
+            };
+            prop_assert_eq!(Roster::parse(&roster.to_string(), "r").unwrap(), roster);
+        }
+    }
 
     fn key(b: u8) -> String {
         hex(&[b; 32])
