@@ -90,6 +90,15 @@ pub enum Role {
 }
 
 impl Role {
+    /// The role of the container called `name` (the inverse of [`Role::name`]).
+    pub fn of_name(name: &str) -> Role {
+        match name {
+            SERVICES => Role::Services,
+            n if n == iw_wiring::world_link::WORLD => Role::World,
+            n => Role::Chair { name: n.into() },
+        }
+    }
+
     /// The container's name.
     pub fn name(&self) -> &str {
         match self {

@@ -168,15 +168,7 @@ pub fn write_roster(
     use std::io::Write;
     let mut pins = Vec::new();
     for (name, id) in members {
-        let role = match name.as_str() {
-            SERVICES => Role::Services,
-            n if n == iw_wiring::world_link::WORLD => Role::World,
-            n => Role::Chair { name: n.into() },
-        };
-        let id = match id {
-            0 => derived_id(&role),
-            id => *id,
-        };
+        let id = container_id(*id, &Role::of_name(name));
         if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
             return Err(NodeError::Flag {
                 flag: "--member",
@@ -226,6 +218,14 @@ fn load_map(path: &str) -> Result<Map, NodeError> {
         map: path.into(),
         reason: e.to_string(),
     })
+}
+
+/// The container id: `configured`, or when that is 0 the one derived from its role.
+fn container_id(configured: u64, role: &Role) -> u64 {
+    match configured {
+        0 => derived_id(role),
+        id => id,
+    }
 }
 
 /// The id a container gets when the configuration leaves it 0: the services 1 (they lead), a
@@ -639,10 +639,7 @@ impl Runtime {
         let identity = Arc::new(load_identity(&config.security.identity_key)?);
         let control_key = load_control_key(&config.security.control_key)?;
         let roster = load_roster(&config.security.roster)?;
-        let id = match config.container.id {
-            0 => derived_id(role),
-            id => id,
-        };
+        let id = container_id(config.container.id, role);
         if let Some(roster) = &roster {
             roster
                 .check_own(ContainerId(id), Some(&name), &identity.public_key())
