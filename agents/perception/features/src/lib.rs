@@ -61,10 +61,10 @@ pub enum DetectorKind {
     /// SURF on the local space average colour image (thesis Algorithm 2).
     LsacSurf,
     /// LSAC-SURF with a noise-aware threshold (not in the thesis): the local average division
-    /// amplifies sensor noise where the image is dark, so a keypoint must also stand above the
-    /// noise measured in its own region of the image (see [`DetectorConfig::noise_factor`]);
-    /// of those, [`DetectorConfig::max_keypoints`] are kept, so the count does not follow the
-    /// light. Detected on the doubled image ([`DetectorConfig::upsample`]); the kept ones are
+    /// amplifies sensor noise where the image is dark, so a keypoint must also stand above what
+    /// the image's own noise gives in its region, and the strongest by signal-to-noise are kept
+    /// (see [`DetectorConfig::noise_factor`]); of those, [`DetectorConfig::max_keypoints`] are
+    /// kept, so the count does not follow the light. Detected on the doubled image ([`DetectorConfig::upsample`]); the kept ones are
     /// ranked toward fine scales and spaced 2 px apart
     /// ([`DetectorConfig::rank_size_exponent`], [`DetectorConfig::min_separation_px`]).
     LsacSurfNt,
@@ -194,6 +194,8 @@ pub struct Detector {
     scratch: working::Scratch,
     /// The doubled input ([`DetectorConfig::upsample`]).
     doubled: working::Planes,
+    /// The input's luma, where the noise model measures the camera's noise.
+    input_gray: GrayImage32,
     layers: hessian::ScaleSpace,
 }
 
@@ -226,13 +228,27 @@ impl Detector {
         self.layers
             .compute(self.scratch.working(kind), normalise, config);
         let mut keypoints = extrema::find(&self.layers, config);
-        if config.noise_factor > 0.0 {
-            let floor = noise::NoiseFloor::measure(&self.layers, config);
-            keypoints.retain(|kp| kp.response > floor.threshold(kp));
-        }
+        // The noise model (LSAC-SURF-NT): drop responses noise could give in their region, and
+        // rank the rest by signal-to-noise (the weights) rather than by the bare response.
+        let weights = if config.noise_factor > 0.0 && kind.is_lsac() {
+            self.input_gray.luma_into(image);
+            let floor = noise::NoiseFloor::measure(&self.input_gray, config);
+            let mut weights = Vec::with_capacity(keypoints.len());
+            keypoints.retain(|kp| {
+                let average = self.scratch.local_average_at(kp.x, kp.y, config);
+                let keep = kp.response > floor.threshold(kp, average);
+                if keep {
+                    weights.push(1.0 / floor.unit(average));
+                }
+                keep
+            });
+            Some(weights)
+        } else {
+            None
+        };
         // LN-SURF describes on the intensity image (Algorithm 1), LSAC-SURF on its working space.
         let describe_on = self.scratch.working(kind);
-        let mut keypoints = select::apply(keypoints, config, pixel);
+        let mut keypoints = select::apply(keypoints, weights.as_deref(), config, pixel);
         for kp in &mut keypoints {
             kp.class = working::classify(&self.scratch.gray, kp, config.soft_band);
         }

@@ -1,23 +1,33 @@
-//! The noise floor of LSAC-SURF-NT: how strong a response pure image noise gives, measured per
-//! tile from the image itself.
+//! The noise model of LSAC-SURF-NT: how strong a response the camera's own noise gives at each
+//! keypoint, estimated from the image itself.
 //!
-//! Why: LSAC-SURF divides the image by its local average, which makes the working image
+//! Why: LSAC-SURF divides the image by its local average `a`, which makes the working image
 //! invariant to the light's gain but multiplies sensor noise by `255 / (2 a)`: in a dark region
-//! (small `a`) noise becomes full-contrast texture and the box-filter Hessian finds blobs in it.
-//! A fixed threshold cannot tell those from structure; a threshold that scales with the local
-//! noise can.
+//! noise becomes full-contrast texture and the box-filter Hessian finds blobs in it. A fixed
+//! threshold cannot tell those from structure; a threshold that follows the local noise can.
 //!
-//! Estimate: in each tile, the median absolute deviation (MAD) of the finest layer's response
-//! (9x9 filters, every pixel). Most of a tile is not a keypoint, so the median ignores the
-//! structure that keypoints sit on and follows the noise. For a larger filter of side `L` (lobe
-//! `l = L / 3`) white noise of variance `s^2` gives `var(Dxx) = s^2 * 6 l (2 l - 1) / L^4`
-//! (unit box weights 1, -2, 1 over `(2 l - 1) x l` cells each, normalised by the area `L^2`), and
-//! the determinant scales with that variance: the floor at size `L` is the 9x9 floor times
-//! `v(L) / v(9)`. Assumption (the thesis is silent): noise is white; correlated noise (demosaicing,
-//! JPEG) makes the coarser floors optimistic, never stricter than the 9x9 one.
+//! Model: the input's noise `sigma` (8-bit units) is signal-independent (read noise and
+//! rounding: the regime where dim light is noisy), so in the working image it is
+//! `sigma_w(a) = 255 sigma / (2 a)`, per region through the local average `a` at the keypoint.
+//! For a filter of side `L` (lobe `l = L / 3`) white noise of variance `s^2` gives
+//! `var(Dxx) = s^2 v(L)`, `v(L) = 6 l (2 l - 1) / L^4` (unit box weights 1, -2, 1 over
+//! `(2 l - 1) x l` cells each, normalised by the area `L^2`), and the determinant of noise scales
+//! as `s^2 v(L)`: that is the noise unit a keypoint's response is compared with.
+//!
+//! Estimate of `sigma`: Immerkaer's (1996) finest-scale operator, the 3x3 difference of two
+//! Laplacians, which cancels any locally planar signal; per tile `sqrt(pi / 2) / 6` times the
+//! mean absolute response, and over the image a low quantile of the tiles (texture only raises a
+//! tile's figure; tiles with a saturated pixel are skipped: clipping hides noise). Never below
+//! the 8-bit rounding noise `1 / sqrt(12)`. Assumption (the thesis is silent): noise is white;
+//! demosaicing and JPEG correlate it, which the factor absorbs.
 
-use crate::hessian::ScaleSpace;
+use crate::image32::GrayImage32;
 use crate::{DetectorConfig, Keypoint};
+
+/// Rounding noise of an 8-bit image, 8-bit units: the least noise an 8-bit input can carry.
+const ROUNDING_SIGMA: f32 = 0.288_675_13;
+/// Quantile of the tiles' noise figures taken as the image's noise (texture only raises a tile).
+const TILE_QUANTILE: f32 = 0.25;
 
 /// Variance of a unit-noise `Dxx` box response at filter side `size` (see the module docs).
 fn white_noise_variance(size: f32) -> f32 {
@@ -25,107 +35,126 @@ fn white_noise_variance(size: f32) -> f32 {
     6.0 * lobe * (2.0 * lobe - 1.0) / size.powi(4)
 }
 
-/// Per-tile noise thresholds, from the finest layer.
+/// The noise model of one image.
 pub(crate) struct NoiseFloor {
-    tile_px: usize,
-    cols: usize,
-    rows: usize,
-    /// `noise_factor * MAD` of the 9x9 responses per tile, row-major; 0 for a tile with no valid
-    /// response (the base threshold then decides alone).
-    floors: Vec<f32>,
+    /// The input's noise, 8-bit units.
+    sigma: f32,
+    factor: f32,
     base: f32,
+    min_average: f32,
 }
 
 impl NoiseFloor {
-    /// Measures the floor on `space` (computed with `config`, whose `noise_factor` is > 0).
-    pub(crate) fn measure(space: &ScaleSpace, config: &DetectorConfig) -> Self {
-        let tile_px = config.noise_tile_px.max(1);
-        let Some(layer) = space.layers.first() else {
-            return NoiseFloor {
-                tile_px,
-                cols: 0,
-                rows: 0,
-                floors: Vec::new(),
-                base: config.threshold,
-            };
-        };
-        // The finest layer samples every pixel: its map is the image's size.
-        let (cols, rows) = (layer.cols.div_ceil(tile_px), layer.rows.div_ceil(tile_px));
-        let mut floors = vec![0.0; cols * rows];
-        let valid = layer.first_col <= layer.last_col && layer.first_row <= layer.last_row;
-        let mut values = Vec::with_capacity(tile_px * tile_px);
-        for ty in 0..rows {
-            for tx in 0..cols {
-                values.clear();
-                if valid {
-                    let r0 = (ty * tile_px).max(layer.first_row);
-                    let r1 = ((ty + 1) * tile_px).min(layer.last_row + 1);
-                    let c0 = (tx * tile_px).max(layer.first_col);
-                    let c1 = ((tx + 1) * tile_px).min(layer.last_col + 1);
-                    for r in r0..r1 {
-                        if c0 < c1 {
-                            values.extend_from_slice(
-                                &layer.responses[r * layer.cols + c0..r * layer.cols + c1],
-                            );
-                        }
-                    }
+    /// Estimates the noise of `gray` (the input's luma, input pixels) for `config` (whose
+    /// `noise_factor` is > 0).
+    pub(crate) fn measure(gray: &GrayImage32, config: &DetectorConfig) -> Self {
+        NoiseFloor {
+            sigma: estimate_sigma(gray, config.noise_tile_px),
+            factor: config.noise_factor,
+            base: config.threshold,
+            min_average: config.lsac_min_average,
+        }
+    }
+
+    /// The determinant that noise alone gives at the 9x9 filter where the local average is
+    /// `average` (the noise unit of that region).
+    pub(crate) fn unit(&self, average: f32) -> f32 {
+        let sigma_w = 255.0 * self.sigma / (2.0 * average.max(self.min_average));
+        sigma_w * sigma_w * white_noise_variance(9.0)
+    }
+
+    /// The response `kp` must exceed where the local average is `average`: the base threshold or
+    /// `noise_factor` noise units at its filter size, whichever is higher.
+    pub(crate) fn threshold(&self, kp: &Keypoint, average: f32) -> f32 {
+        let at_size = white_noise_variance(kp.size.max(9.0)) / white_noise_variance(9.0);
+        self.base.max(self.factor * self.unit(average) * at_size)
+    }
+}
+
+/// Immerkaer's noise estimate of `gray` (see the module docs), tiles of `tile` px.
+fn estimate_sigma(gray: &GrayImage32, tile: usize) -> f32 {
+    let (w, h) = (gray.width(), gray.height());
+    let tile = tile.max(4);
+    let px = gray.as_slice();
+    let mut figures = Vec::new();
+    for ty in (1..h.saturating_sub(1)).step_by(tile) {
+        for tx in (1..w.saturating_sub(1)).step_by(tile) {
+            let (y1, x1) = ((ty + tile).min(h - 1), (tx + tile).min(w - 1));
+            let mut sum = 0.0f64;
+            let mut saturated = false;
+            for y in ty..y1 {
+                for x in tx..x1 {
+                    let at = |dx: usize, dy: usize| px[(y + dy - 1) * w + x + dx - 1];
+                    saturated |= at(1, 1) >= 254.5;
+                    let v = 4.0 * at(1, 1) - 2.0 * (at(0, 1) + at(2, 1) + at(1, 0) + at(1, 2))
+                        + (at(0, 0) + at(2, 0) + at(0, 2) + at(2, 2));
+                    sum += f64::from(v.abs());
                 }
-                floors[ty * cols + tx] = config.noise_factor * mad(&mut values);
+            }
+            let n = (y1 - ty) * (x1 - tx);
+            if !saturated && n >= 16 {
+                let mean = sum / n as f64;
+                figures.push(((std::f64::consts::PI / 2.0).sqrt() / 6.0 * mean) as f32);
             }
         }
-        NoiseFloor {
-            tile_px,
-            cols,
-            rows,
-            floors,
-            base: config.threshold,
-        }
     }
-
-    /// The response `kp` must exceed: the base threshold or its tile's noise floor at its size,
-    /// whichever is higher.
-    pub(crate) fn threshold(&self, kp: &Keypoint) -> f32 {
-        if self.cols == 0 || self.rows == 0 {
-            return self.base;
-        }
-        let tx = ((kp.x.max(0.0) as usize) / self.tile_px).min(self.cols - 1);
-        let ty = ((kp.y.max(0.0) as usize) / self.tile_px).min(self.rows - 1);
-        let at_size = white_noise_variance(kp.size.max(9.0)) / white_noise_variance(9.0);
-        self.base.max(self.floors[ty * self.cols + tx] * at_size)
+    if figures.is_empty() {
+        return ROUNDING_SIGMA;
     }
-}
-
-/// Median absolute deviation from the median (0 for an empty sample); reorders `values`.
-fn mad(values: &mut [f32]) -> f32 {
-    let Some(median) = median_of(values) else {
-        return 0.0;
-    };
-    for v in values.iter_mut() {
-        *v = (*v - median).abs();
-    }
-    median_of(values).unwrap_or(0.0)
-}
-
-/// The upper median (no averaging: a robust statistic needs no interpolation).
-fn median_of(values: &mut [f32]) -> Option<f32> {
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(mid, f32::total_cmp);
-    Some(*m)
+    let at = ((figures.len() - 1) as f32 * TILE_QUANTILE).round() as usize;
+    let (_, q, _) = figures.select_nth_unstable_by(at, f32::total_cmp);
+    q.max(ROUNDING_SIGMA)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// A smooth ramp with a deterministic pseudo-Gaussian noise of `sigma` (sum of 12 uniforms).
+    fn noisy_ramp(w: usize, h: usize, sigma: f32) -> GrayImage32 {
+        let mut img = GrayImage32::new(w, h);
+        let mut state = 0x9e37_79b9_u32;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let n: f32 = (0..12).map(|_| uniform()).sum::<f32>() - 6.0;
+                img.as_mut_slice()[y * w + x] = 60.0 + 0.2 * x as f32 + 0.1 * y as f32 + sigma * n;
+            }
+        }
+        img
+    }
+
     #[test]
-    fn mad_ignores_a_minority_of_outliers() {
-        // Median 3, deviations 2, 1, 0, 1, 2 and two huge ones: MAD 2.
-        let mut v = vec![1.0, 2.0, 3.0, 4.0, 5.0, 1000.0, -1000.0];
-        assert_eq!(mad(&mut v), 2.0);
-        assert_eq!(mad(&mut []), 0.0);
+    fn the_estimate_recovers_the_noise_of_a_planar_image() {
+        for sigma in [1.0, 3.0, 8.0] {
+            let got = estimate_sigma(&noisy_ramp(256, 192, sigma), 32);
+            assert!(
+                (got - sigma).abs() < 0.15 * sigma,
+                "added {sigma}, estimated {got}"
+            );
+        }
+        // No noise at all: an 8-bit image still carries its rounding.
+        assert_eq!(estimate_sigma(&noisy_ramp(64, 64, 0.0), 32), ROUNDING_SIGMA);
+    }
+
+    #[test]
+    fn the_floor_rises_where_the_region_is_dark() {
+        let config = DetectorConfig::for_kind(crate::DetectorKind::LsacSurfNt);
+        let floor = NoiseFloor {
+            sigma: 2.0,
+            factor: 10.0,
+            base: 0.0,
+            min_average: 4.0,
+        };
+        // Half the light, four times the noise unit (the division by `a` doubles sigma_w).
+        assert!((floor.unit(20.0) / floor.unit(40.0) - 4.0).abs() < 1e-4);
+        // Below the LSAC divisor's floor the model stops growing, as the working image does.
+        assert_eq!(floor.unit(1.0), floor.unit(config.lsac_min_average));
     }
 
     #[test]

@@ -13,16 +13,23 @@ fn rank(kp: &Keypoint, exponent: f32) -> f32 {
 }
 
 /// Keeps at most `max` keypoints, highest rank first, none within `separation` px of a keypoint
-/// kept before it. Deterministic: ties keep the input order.
+/// kept before it. A keypoint's rank is multiplied by its `weights` entry when given (the noise
+/// model's 1 / noise unit: the rank becomes a signal-to-noise ratio). Deterministic: ties keep
+/// the input order.
 pub(crate) fn keep(
     mut keypoints: Vec<Keypoint>,
+    weights: Option<&[f32]>,
     max: usize,
     exponent: f32,
     separation: f32,
 ) -> Vec<Keypoint> {
     let mut ranked: Vec<(f32, Keypoint)> = keypoints
         .drain(..)
-        .map(|kp| (rank(&kp, exponent), kp))
+        .enumerate()
+        .map(|(i, kp)| {
+            let weight = weights.and_then(|w| w.get(i)).copied().unwrap_or(1.0);
+            (rank(&kp, exponent) * weight, kp)
+        })
         .collect();
     ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
     if separation <= 0.0 {
@@ -59,12 +66,14 @@ pub(crate) fn keep(
 /// keypoints' coordinates (2 on a doubled image).
 pub(crate) fn apply(
     keypoints: Vec<Keypoint>,
+    weights: Option<&[f32]>,
     config: &DetectorConfig,
     pixel: f32,
 ) -> Vec<Keypoint> {
     match config.max_keypoints {
         Some(max) => keep(
             keypoints,
+            weights,
             max,
             config.rank_size_exponent,
             config.min_separation_px * pixel,
@@ -99,6 +108,7 @@ mod tests {
                 kp(10.0, 0.0, 30.0, 3.0),
                 kp(20.0, 0.0, 9.0, 2.0),
             ],
+            None,
             2,
             0.0,
             0.0,
@@ -114,6 +124,7 @@ mod tests {
         // 3.0 at 27 px ranks 3 (9/27)^2 = 0.33, below 1.0 at 9 px.
         let kept = keep(
             vec![kp(10.0, 0.0, 27.0, 3.0), kp(0.0, 0.0, 9.0, 1.0)],
+            None,
             1,
             2.0,
             0.0,
@@ -130,6 +141,7 @@ mod tests {
                 kp(8.0, 5.0, 15.0, 0.8),  // 3 px: kept
                 kp(-3.0, 5.0, 15.0, 0.7), // other side of a cell border, 8 px: kept
             ],
+            None,
             10,
             0.0,
             2.0,

@@ -261,6 +261,26 @@ impl Scratch {
         self.lsac_integral.compute(&self.lsac, false);
     }
 
+    /// The local average (luma of the per-channel averages, or the gray one) at working-image
+    /// point `(x, y)`, as the LSAC division used it there; needs `prepare` with an LSAC kind.
+    pub(crate) fn local_average_at(&self, x: f32, y: f32, config: &DetectorConfig) -> f32 {
+        let (w, h) = (self.lsac.width(), self.lsac.height());
+        let (x, y) = (
+            (x.round().max(0.0) as usize).min(w.saturating_sub(1)),
+            (y.round().max(0.0) as usize).min(h.saturating_sub(1)),
+        );
+        let radii = nested_radii(config.lsac_radius_px);
+        match config.lsac_space {
+            LsacSpace::Gray => local_average(&self.gray_integral, x, y, &radii),
+            LsacSpace::PerChannel => self
+                .channel_integrals
+                .iter()
+                .zip(LUMA_WEIGHTS)
+                .map(|(ii, weight)| weight * local_average(ii, x, y, &radii))
+                .sum(),
+        }
+    }
+
     /// The integral image the Hessian runs on for `kind`.
     pub(crate) fn working(&self, kind: DetectorKind) -> &IntegralImage {
         match kind {

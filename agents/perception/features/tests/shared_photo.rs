@@ -58,3 +58,60 @@ fn detectors_on_a_shared_photo() {
     );
     assert!(rates[2] > 60.0, "lsac-surf {:.1} %", rates[2]);
 }
+
+/// Issue 22: dimmed to 1/8 with read noise (sigma 2, 8-bit units), a photograph gives
+/// LSAC-SURF-NT (uncapped) about as many keypoints as in full light: the noise model keeps the
+/// amplified noise from becoming keypoints. Without it (factor 0) the count grows by over 30 %,
+/// so the test can fail.
+#[test]
+fn lsac_surf_nt_does_not_promote_noise_in_the_dark() {
+    let Some(path) = iw_testdata::require(
+        "lsac_surf_nt_does_not_promote_noise_in_the_dark",
+        "data/images/skimage/camera.png",
+    ) else {
+        return;
+    };
+    let img = image::open(&path).expect("shared photo decodes").to_rgb8();
+    // Deterministic Gaussian noise: sum of 12 xorshift uniforms, minus 6.
+    let mut state = 0x2545_f491_u32;
+    let mut uniform = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        f64::from(state) / f64::from(u32::MAX)
+    };
+    let mut dark = img.clone();
+    for px in dark.pixels_mut() {
+        let n: f64 = (0..12).map(|_| uniform()).sum::<f64>() - 6.0;
+        // One noise sample per pixel (a gray sensor): the channels stay equal.
+        for c in px.0.iter_mut() {
+            *c = (f64::from(*c) / 8.0 + 2.0 * n).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    let count = |image: &image::RgbImage, factor: Option<f32>| {
+        let mut config = DetectorConfig::for_kind(DetectorKind::LsacSurfNt);
+        config.max_keypoints = Some(usize::MAX);
+        if let Some(k) = factor {
+            config.noise_factor = k;
+        }
+        detect(DetectorKind::LsacSurfNt, image, &config)
+            .unwrap()
+            .keypoints
+            .len() as f64
+    };
+    let (light, dark_aware, dark_blind) = (
+        count(&img, None),
+        count(&dark, None),
+        count(&dark, Some(0.0)),
+    );
+    eprintln!(
+        "uncapped keypoints: full light {light}, dark {dark_aware} (noise model), {dark_blind} (no model)"
+    );
+    let ratio = dark_aware / light;
+    assert!((0.7..=1.3).contains(&ratio), "dark / light = {ratio:.2}");
+    assert!(
+        dark_blind / light > 1.3,
+        "without the model: {:.2}",
+        dark_blind / light
+    );
+}
