@@ -88,11 +88,13 @@
 
 mod identity;
 mod layer;
+mod peer;
 
 pub use identity::{
     Directory, Identity, KeyDirectory, PublicKey, signed_bytes, verify, verify_envelope,
 };
 pub use layer::{PreSharedKey, SealInfo, SecurityConfig, SecurityLayer};
+pub use peer::{Opened, PeerSessions};
 
 /// Failures of key handling (never of message checks, which are drop verdicts).
 #[derive(Debug, thiserror::Error)]
