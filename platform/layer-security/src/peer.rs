@@ -79,9 +79,10 @@ struct Agreeing {
     started: Time,
 }
 
+/// Boxed: a Noise state is large, and a hundred peers each hold one or the other.
 enum Outbound {
-    Agreeing(Agreeing),
-    Agreed(Agreed),
+    Agreeing(Box<Agreeing>),
+    Agreed(Box<Agreed>),
 }
 
 struct Inbound {
@@ -175,24 +176,18 @@ impl PeerSessions {
             &prologue(&id, INITIATOR, RESPONDER),
             true,
         )?;
-        let binding = self.binding(&hello_binding(
-            &id,
-            INITIATOR,
-            RESPONDER,
-            &static_pub,
-            at,
-        ));
+        let binding = self.binding(&hello_binding(&id, INITIATOR, RESPONDER, &static_pub, at));
         let mut msg = [0u8; NOISE_MAX];
         let n = hs.write_message(&binding, &mut msg).map_err(noise_err)?;
         let hello = [&head(HELLO, &id)[..], &at.to_be_bytes(), &msg[..n]].concat();
         self.send.insert(
             peer.to_string(),
-            Outbound::Agreeing(Agreeing {
+            Outbound::Agreeing(Box::new(Agreeing {
                 id,
                 noise: Some(hs),
                 queued,
                 started: now,
-            }),
+            })),
         );
         Ok(vec![hello])
     }
@@ -423,7 +418,7 @@ impl PeerSessions {
         for frame in queued {
             back.push(seal_data(&mut session, &frame).map_err(|_| Reason::BadHandshake)?);
         }
-        self.send.insert(peer, Outbound::Agreed(session));
+        self.send.insert(peer, Outbound::Agreed(Box::new(session)));
         Ok(())
     }
 
@@ -539,7 +534,11 @@ mod tests {
         let (mut b, _) = sessions();
         let hello = a.seal("b", b"first", T).unwrap();
         assert_eq!(hello.len(), 1);
-        assert_eq!(hello[0][MAGIC.len()], HELLO, "a hello goes before the first frame");
+        assert_eq!(
+            hello[0][MAGIC.len()],
+            HELLO,
+            "a hello goes before the first frame"
+        );
         assert!(a.seal("b", b"second", T).unwrap().is_empty(), "held");
         let opened = exchange(&mut a, &mut b, "a", hello, T);
         let frames: Vec<_> = opened.into_iter().map(Result::unwrap).collect();
@@ -552,7 +551,11 @@ mod tests {
         );
         let third = a.seal("b", b"third", T).unwrap();
         assert_eq!(third.len(), 1);
-        assert_eq!(third[0][MAGIC.len()], DATA, "agreed once: a data frame at once");
+        assert_eq!(
+            third[0][MAGIC.len()],
+            DATA,
+            "agreed once: a data frame at once"
+        );
         let opened = exchange(&mut a, &mut b, "a", third.clone(), T);
         assert_eq!(opened[0].as_ref().unwrap().frame, b"third");
         // replayed within the session, or any byte changed: refused
@@ -562,9 +565,15 @@ mod tests {
         for i in 0..fourth.len() {
             let mut bad = fourth.clone();
             bad[i] ^= 1;
-            assert!(b.open("a", &bad, T, &mut back).is_err(), "byte {i} flipped was taken");
+            assert!(
+                b.open("a", &bad, T, &mut back).is_err(),
+                "byte {i} flipped was taken"
+            );
         }
-        assert_eq!(b.open("a", &fourth, T, &mut back).unwrap().unwrap().frame, b"fourth");
+        assert_eq!(
+            b.open("a", &fourth, T, &mut back).unwrap().unwrap().frame,
+            b"fourth"
+        );
     }
 
     #[test]
@@ -619,12 +628,18 @@ mod tests {
         let at = HEAD + 8 + 64; // after the stamp and Noise's clear ephemeral and static keys
         let mut swapped = hello.clone();
         swapped[at..at + 32].copy_from_slice(&Identity::generate().unwrap().public_key());
-        assert_eq!(b.open("a", &swapped, T, &mut back), Err(Reason::BadSignature));
+        assert_eq!(
+            b.open("a", &swapped, T, &mut back),
+            Err(Reason::BadSignature)
+        );
         let late = T.plus(Duration::from_secs(31));
         assert_eq!(b.open("a", &hello, late, &mut back), Err(Reason::Stale));
         assert!(b.open("a", &hello, T, &mut back).is_ok());
         assert_eq!(b.open("a", &hello, T, &mut back), Err(Reason::Duplicate));
         assert_eq!(back.len(), 1, "one reply, to the one hello taken");
-        assert_eq!(b.open("a", b"IWC1 junk", T, &mut back), Err(Reason::NotSealed));
+        assert_eq!(
+            b.open("a", b"IWC1 junk", T, &mut back),
+            Err(Reason::NotSealed)
+        );
     }
 }
