@@ -20,6 +20,8 @@
 //! refused), unaltered. A session goes one way (sender to receiver), and is agreed once per
 //! peer, then each frame costs one AEAD seal and open. A new session from the same identity and
 //! address (a restarted peer) drops the older ones, so no frame of an earlier life opens again.
+//! Memory is bounded whatever arrives: at most 4096 peers sent to, 4096 receive sessions (a few
+//! per address) and 4096 hellos remembered, and frames held per peer while agreeing are capped.
 
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::Arc;
@@ -55,6 +57,9 @@ const RESPONDER: &str = "#control-responder";
 const SESSIONS_MAX: usize = 4096;
 /// Hellos remembered by session id, to refuse a replayed one.
 const HELLOS_KEPT: usize = 4096;
+/// Peers sent to at most (agreed or agreeing): beyond it, agreements unanswered for the
+/// handshake timeout are forgotten first, then a new peer waits.
+const PEERS_MAX: usize = 4096;
 
 /// A frame opened under a session.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -162,6 +167,16 @@ impl PeerSessions {
                 return Ok(Vec::new());
             }
             _ => {}
+        }
+        if self.send.len() >= PEERS_MAX && !self.send.contains_key(peer) {
+            self.send.retain(|_, s| match s {
+                Outbound::Agreeing(a) => now.since(a.started) < timeout,
+                Outbound::Agreed(_) => true,
+            });
+            if self.send.len() >= PEERS_MAX {
+                tracing::debug!(%peer, "too many control peers: frame not sent");
+                return Ok(Vec::new());
+            }
         }
         let mut queued = match self.send.remove(peer) {
             Some(Outbound::Agreeing(pending)) => pending.queued,
@@ -616,6 +631,22 @@ mod tests {
         assert_eq!(again[0][MAGIC.len()], HELLO, "a new agreement");
         let opened = exchange(&mut a, &mut b, "a", again, T);
         assert_eq!(opened[0].as_ref().unwrap().frame, b"three");
+    }
+
+    #[test]
+    fn peers_sent_to_are_capped_and_unanswered_agreements_make_room() {
+        let (mut a, _) = sessions();
+        for n in 0..PEERS_MAX {
+            assert_eq!(a.seal(&format!("p{n}"), b"x", T).unwrap().len(), 1);
+        }
+        assert!(a.seal("one more", b"x", T).unwrap().is_empty(), "waits");
+        let later = T.plus(Duration::from_secs(2));
+        assert_eq!(
+            a.seal("one more", b"x", later).unwrap().len(),
+            1,
+            "room made"
+        );
+        assert!(a.send.len() <= PEERS_MAX);
     }
 
     #[test]
