@@ -21,6 +21,40 @@ python=python3
 echo "== kubernetes manifests"
 kubernetes-validate --strict --quiet "$here"/k8s/*.yaml
 
+echo "== kubernetes: each container's identity key in its own pod only"
+"$python" - "$here"/k8s/*.yaml <<'PY'
+import os, sys, yaml
+owners = {}
+for path in sys.argv[1:]:
+    for doc in yaml.safe_load_all(open(path)):
+        if not isinstance(doc, dict) or doc.get("kind") not in ("Deployment", "StatefulSet", "Pod"):
+            continue
+        name = doc["metadata"]["name"]
+        where = f"{path}: {doc['kind']} {name}"
+        spec = doc["spec"] if doc["kind"] == "Pod" else doc["spec"]["template"]["spec"]
+        if doc["kind"] != "Pod" and doc["spec"].get("replicas", 1) != 1:
+            sys.exit(f"{where}: several replicas would share one identity key; one workload per container")
+        volumes = {v["name"]: v for v in spec.get("volumes", [])}
+        for c in spec["containers"]:
+            keys = [a.split("=", 1)[1] for a in c.get("args", []) if a.startswith("--key=")]
+            if len(keys) != 1:
+                sys.exit(f"{where}: container {c['name']} must name its identity key once (--key=)")
+            key = keys[0]
+            mounts = [m for m in c.get("volumeMounts", []) if key.startswith(m["mountPath"].rstrip("/") + "/")]
+            if len(mounts) != 1:
+                sys.exit(f"{where}: its key {key} must come from one mounted volume")
+            secret = volumes[mounts[0]["name"]].get("secret")
+            if not secret:
+                sys.exit(f"{where}: its key {key} must come from a Secret")
+            items = [i["path"] for i in secret.get("items", [])]
+            if items != [os.path.basename(key)]:
+                sys.exit(f"{where}: its key Secret {secret['secretName']} must project only {os.path.basename(key)} (items), found {items}")
+            if secret["secretName"] in owners:
+                sys.exit(f"{where}: its key Secret {secret['secretName']} is also mounted by {owners[secret['secretName']]}")
+            owners[secret["secretName"]] = where
+print(f"{len(owners)} workloads, each with an identity key Secret of its own")
+PY
+
 echo "== Dockerfile (hadolint)"
 hadolint --failure-threshold warning "$here/Dockerfile"
 
@@ -47,6 +81,7 @@ if len(init) != 1:
 init_cmd = " ".join(services[init[0]].get("entrypoint") or [])
 if "--keygen-roster" not in init_cmd:
     fail(f"init service {init[0]}: must write the roster (--keygen-roster)")
+key_volumes = {}
 for name, svc in services.items():
     if not isinstance(svc, dict):
         fail(f"service {name} is not a mapping")
@@ -74,6 +109,15 @@ for name, svc in services.items():
         fail(f"service {name}: identities must be pinned (--key and --roster)")
     if f"--member {name}" not in init_cmd:
         fail(f"service {name}: the init service's roster lacks it (--member {name})")
+    # Its identity key comes from a volume of its own, which the init service fills.
+    key = cmd[cmd.index("--key") + 1]
+    own = [v.split(":")[0] for v in svc.get("volumes", [])
+           if key.startswith(v.split(":")[1].rstrip("/") + "/")]
+    if len(own) != 1:
+        fail(f"service {name}: its key {key} must come from one volume")
+    key_volumes[name] = own[0]
+    if not any(v.split(":")[0] == own[0] for v in services[init[0]].get("volumes", [])):
+        fail(f"service {name}: the init service does not fill its key volume {own[0]}")
     for s in svc.get("secrets", []):
         if s not in declared:
             fail(f"service {name} uses undeclared secret {s}")
@@ -83,7 +127,14 @@ for name, svc in services.items():
     for dep in svc.get("depends_on", []):
         if dep not in services:
             fail(f"service {name} depends on unknown service {dep}")
-print(f"{path}: services, world and {len(chairs)} chairs OK")
+# A container holds its own identity key and no other: no other container mounts its key volume.
+for name, vol in key_volumes.items():
+    others = [n for n, svc in services.items()
+              if n != name and n not in init
+              and any(v.split(":")[0] == vol for v in svc.get("volumes", []))]
+    if others:
+        fail(f"service {name}: its key volume {vol} is also mounted by {others}")
+print(f"{path}: services, world and {len(chairs)} chairs OK, each with its own key volume")
 PY
 
 echo "== systemd unit"

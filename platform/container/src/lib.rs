@@ -8,8 +8,9 @@
 //! - [`Container`]: the pure state machine (heartbeats, leases, lowest-id election, list sync),
 //!   driven with explicit [`iw_bus::Time`]; [`ContainerMsg`] is what containers say.
 //! - [`ContainerNode`]: a container run over a real [`iw_bus::transport::FrameTransport`].
-//! - [`Signed`]: a control frame as it travels, signed by its sender container's Ed25519
-//!   identity.
+//! - [`ControlChannel`]: a container's end of the control channel, per-peer Noise sessions
+//!   bound to each container's Ed25519 identity; [`Authenticated`]: a control message as it
+//!   comes out of one.
 //! - [`Roster`], [`Pin`]: a deployment's container identities pinned in advance (id, name,
 //!   Ed25519 key), read from a file ([`ContainerConfig::roster`]).
 //! - [`ContainerError`]: this crate's errors.
@@ -26,9 +27,11 @@
 //!   lease once they agree. A list travels as the parts the follower lacks, at most 32 KiB a
 //!   frame, so no GAL is too big for a datagram.
 //! - A malformed control frame is refused with its length and reason, never a panic.
-//! - Every control frame is signed by the sender container's Ed25519 identity ([`Signed`]); an
-//!   unsigned or altered one is refused. A live container is bound to the key that signs its
-//!   heartbeats and the address they come from: agent lists are taken only under the elected
+//! - Every control frame travels in a Noise session between the two containers
+//!   ([`ControlChannel`]), agreed once per peer with the data plane's handshake, each static key
+//!   bound to the container's Ed25519 identity; a frame outside a session, altered, or
+//!   replayed within it is refused and counted. A live container is bound to the identity its
+//!   heartbeats' session was agreed with and the address they come from: agent lists are taken only under the elected
 //!   leader's key and address, a container's part only under that container's, each with a
 //!   sequence number above the last (no replay), and a follower mirrors its leader: it keeps a
 //!   part only at the generation the leader's last list names, sent by that leader or held from
@@ -58,8 +61,7 @@
 //! low one that leads, list agent names of her choosing under her own key, and make a
 //! container refuse to run with a forged [`ContainerMsg::Duplicate`]. With a roster, a holder
 //! of a container's own identity key is that container: she can do all it may (list its own
-//! agents, stop a second holder of its key), nothing more. Control frames are signed per
-//! frame, not carried in per-peer sessions. A dead container's agents stay in the GAL (marked
+//! agents, stop a second holder of its key), nothing more. A dead container's agents stay in the GAL (marked
 //! by their container id; check [`Container::live_peers`]) until that container comes back with
 //! a higher incarnation.
 #![warn(missing_docs)]
@@ -75,7 +77,7 @@ pub use lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector
 pub use machine::{Container, ContainerConfig, ContainerMsg, Outgoing};
 pub use node::ContainerNode;
 pub use roster::{MAX_ROSTER_BYTES, Pin, Roster};
-pub use wire::Signed;
+pub use wire::{Authenticated, ControlChannel};
 
 /// A container's identity; lower ids win elections.
 #[derive(
@@ -100,6 +102,22 @@ pub enum ContainerError {
         len: usize,
         /// Decoder's complaint.
         reason: String,
+    },
+    /// A control datagram refused by the sessions (not a session's, altered, replayed, a
+    /// handshake that does not verify).
+    #[error("control datagram of {len} bytes refused: {reason}")]
+    Refused {
+        /// Datagram length, bytes.
+        len: usize,
+        /// Why.
+        reason: iw_bus::Reason,
+    },
+    /// The control sessions failed (the system random generator, a key setup).
+    #[error("control sessions: {source}")]
+    Sessions {
+        /// The security layer's error.
+        #[source]
+        source: iw_layer_security::SecurityError,
     },
     /// A message that does not encode.
     #[error("container message does not encode: {reason}")]

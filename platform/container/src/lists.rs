@@ -13,7 +13,7 @@ pub struct AgentEntry {
     /// The agent's name (its FIPA agent identifier's `:name`).
     pub name: String,
     /// The public key its messages are verified with (Ed25519, raw bytes): its container's
-    /// identity key, which also signs the container's control frames, so a list is taken only
+    /// identity key, which its control sessions are also agreed under, so a list is taken only
     /// if each entry carries the key of the container it is listed under.
     pub public_key: Vec<u8>,
     /// The bus address of its container.

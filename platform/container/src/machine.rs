@@ -12,7 +12,7 @@ use iw_layer_security::PublicKey;
 
 use crate::lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
 use crate::vetting::{Vetting, speaker};
-use crate::{ContainerError, ContainerId, Roster, Signed};
+use crate::{Authenticated, ContainerError, ContainerId, Roster};
 
 /// What containers say to each other.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -99,8 +99,8 @@ pub struct ContainerConfig {
     pub id: ContainerId,
     /// Its incarnation (e.g. boot time, s): must grow across restarts so its LAL supersedes.
     pub incarnation: u32,
-    /// The Ed25519 public key its control frames are signed with ([`crate::ContainerNode::start`]
-    /// sets it from the identity it signs with).
+    /// The Ed25519 public key of the identity its control sessions are agreed with
+    /// ([`crate::ContainerNode::start`] sets it from that identity).
     pub key: PublicKey,
     /// Where it listens for container traffic.
     pub addr: PeerAddr,
@@ -147,14 +147,14 @@ fn others(versions: &VersionVector, id: ContainerId) -> impl Iterator<Item = (&C
 }
 
 /// About how many bytes of agent entries one [`ContainerMsg::Gal`] carries: half the largest UDP
-/// datagram, so a frame with its signature and the group key's seal always fits one.
+/// datagram, so a frame with its session's seal and the group key's always fits one.
 const LIST_FRAME_BUDGET: usize = 32 * 1024;
 
 /// What is known of a live peer.
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Peer {
     addr: PeerAddr,
-    /// The key its frames are signed with: a live id is bound to it.
+    /// The identity key its frames come under: a live id is bound to it.
     key: PublicKey,
     incarnation: u32,
     /// The highest sequence number taken from it in this incarnation (replays are refused).
@@ -187,8 +187,9 @@ struct Peer {
 /// peer, a list taken) is told at the next tick.
 ///
 /// Who may say what (the control channel's own rules, beneath its group key). Every message
-/// comes [`Signed`] by its sender's Ed25519 identity, and:
-/// - a live peer is bound to the key that signs its heartbeats and the address they come from:
+/// comes [`Authenticated`] by a session agreed with its sender's Ed25519 identity, and:
+/// - a live peer is bound to the identity key its heartbeats come under and the address they
+///   come from:
 ///   a heartbeat claiming a live id under another key or from another address is answered with
 ///   [`ContainerMsg::Duplicate`] and otherwise ignored; one claiming our own id likewise. A higher
 ///   incarnation under the same key from the same address is a restart; a sequence number not
@@ -261,7 +262,7 @@ impl Container {
         self.refusal.as_deref()
     }
 
-    /// Sets the key this container's control frames are signed with.
+    /// Sets the key of the identity this container's control sessions are agreed with.
     pub(crate) fn set_key(&mut self, key: PublicKey) {
         self.config.key = key;
     }
@@ -271,11 +272,19 @@ impl Container {
         self.vetting.roster()
     }
 
-    /// Control frames refused for who signed them or what their lists carry, per reason
-    /// (`unknown_peer`: an id the roster does not list; `mismatch`: a key not pinned for its id,
-    /// a list entry not its container's, a `Duplicate` not under the pinned key).
+    /// Control frames refused, per reason: by the sessions (`not_sealed`, `bad_tag`,
+    /// `unknown_session`, `duplicate`, `bad_handshake`, `bad_signature`, `stale`, and
+    /// `malformed` for a frame that is no container message), or for whose identity they came
+    /// under or what their lists carry (`unknown_peer`: an id the roster does not list;
+    /// `mismatch`: a key not pinned for its id, a list entry not its container's, a `Duplicate`
+    /// not under the pinned key).
     pub fn counters(&self) -> &iw_bus::Counters {
         self.vetting.counters()
+    }
+
+    /// Counts a control datagram the sessions refused.
+    pub(crate) fn refused(&mut self, reason: iw_bus::Reason) {
+        self.vetting.count(reason);
     }
 
     /// This container's id.
@@ -338,14 +347,20 @@ impl Container {
             .or_else(|| self.gal.lookup(name).map(|(_, e)| e))
     }
 
-    /// Handles one frame from `from`, whose signature [`Signed::open`] checked.
-    pub fn on_message(&mut self, from: &PeerAddr, signed: Signed, now: Time) -> Vec<Outgoing> {
+    /// Handles one message from `from`, whose sender identity its session authenticated
+    /// ([`crate::ControlChannel::open`]).
+    pub fn on_message(
+        &mut self,
+        from: &PeerAddr,
+        message: Authenticated,
+        now: Time,
+    ) -> Vec<Outgoing> {
         let mut out = Vec::new();
         self.started.get_or_insert(now);
         if self.refusal.is_some() {
             return out;
         }
-        let Signed { key, seq, msg } = signed;
+        let Authenticated { key, seq, msg } = message;
         if let Some(id) = speaker(&msg)
             && !self.vetting.speaks_for(id, &key, from, now)
         {
@@ -428,7 +443,7 @@ impl Container {
                         self.changed();
                     }
                 } else if !from_owner {
-                    tracing::debug!(container = %id, %from, "agent list not signed by its container, ignored");
+                    tracing::debug!(container = %id, %from, "agent list not under its container's identity, ignored");
                 }
             }
             ContainerMsg::Gal {
@@ -456,7 +471,7 @@ impl Container {
                         p.gal_versions = versions;
                     }
                 } else {
-                    tracing::debug!(claimed = %leader, elected = %self.leader, %from, "global agent list not signed by the elected leader, ignored");
+                    tracing::debug!(claimed = %leader, elected = %self.leader, %from, "global agent list not under the elected leader's identity, ignored");
                 }
             }
             ContainerMsg::Duplicate {
@@ -503,7 +518,7 @@ impl Container {
         out
     }
 
-    /// Whether a list from `from` signed by `key` with `seq` speaks for live container `id`: its
+    /// Whether a list from `from` under `key` with `seq` speaks for live container `id`: its
     /// bound key and address, and a sequence number above the last taken (then recorded).
     fn take(&mut self, id: ContainerId, from: &PeerAddr, key: &PublicKey, seq: u64) -> bool {
         match self.peers.get_mut(&id) {

@@ -6,11 +6,12 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use iw_bus::transport::FrameTransport;
+use iw_bus::transport::PeerAddr;
 use iw_bus::{Clock, WarnEvery};
 use iw_layer_security::Identity;
 
 use crate::machine::{Container, Outgoing};
-use crate::{ContainerError, Signed};
+use crate::{ContainerError, ControlChannel};
 
 /// Most frames taken in one go before the container ticks (a flood cannot starve its own
 /// heartbeats).
@@ -29,8 +30,9 @@ pub struct ContainerNode {
 
 impl ContainerNode {
     /// Runs `container` over `transport` (its own endpoint, not an agent bus), timed by `clock`,
-    /// signing what it says as `identity` (the container's own, whose key its agents' entries
-    /// carry); the container's [`crate::ContainerConfig::key`] is set to that identity's key.
+    /// speaking in control sessions as `identity` (the container's own, whose key its agents'
+    /// entries carry); the container's [`crate::ContainerConfig::key`] is set to that
+    /// identity's key.
     /// Refused ([`ContainerError::Roster`]) when the container's roster pins another key for
     /// its id, or does not list it.
     pub fn start(
@@ -44,13 +46,14 @@ impl ContainerNode {
         if let Some(roster) = container.roster() {
             roster.check_own(container.id(), None, &identity.public_key())?;
         }
+        let channel = ControlChannel::new(Arc::clone(&identity))?;
         let state = Arc::new(Mutex::new(container));
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let (state, stop) = (Arc::clone(&state), Arc::clone(&stop));
             std::thread::Builder::new()
                 .name("iw-container".into())
-                .spawn(move || run(&state, &identity, transport.as_ref(), &clock, tick, &stop))
+                .spawn(move || run(&state, channel, transport.as_ref(), &clock, tick, &stop))
                 .map_err(|source| ContainerError::Spawn { source })?
         };
         Ok(Self {
@@ -88,16 +91,23 @@ impl Drop for ContainerNode {
 
 fn run(
     state: &Mutex<Container>,
-    identity: &Identity,
+    mut channel: ControlChannel,
     transport: &dyn FrameTransport,
     clock: &Clock,
     tick: Duration,
     stop: &AtomicBool,
 ) {
     let lock = || state.lock().unwrap_or_else(PoisonError::into_inner);
-    // Garbage on the control port is one WARN per period, not one per datagram.
+    // Refused datagrams (garbage, a session this end lost) are one WARN per period, not one
+    // per datagram.
     let mut warn = WarnEvery::new(iw_bus::WARN_PERIOD);
-    let mut seq = 0u64;
+    let send = |to: &PeerAddr, datagrams: Vec<Vec<u8>>| {
+        for d in datagrams {
+            if let Err(e) = transport.send(to, &d) {
+                tracing::debug!(%to, error = %e, "control datagram not sent");
+            }
+        }
+    };
     while !stop.load(Ordering::Relaxed) {
         // Everything already queued is taken before the leases are judged: a process that was
         // not scheduled for a lease must not expire peers whose heartbeats wait in its socket.
@@ -105,15 +115,30 @@ fn run(
         let mut wait = tick;
         for _ in 0..MAX_BATCH {
             match transport.recv_timeout(wait) {
-                Ok(Some((from, frame))) => match Signed::open(&frame) {
-                    Ok(signed) => out.extend(lock().on_message(&from, signed, clock.now())),
-                    Err(e) => match warn.admit((), clock.now()) {
-                        Some(held_back) => {
-                            tracing::warn!(%from, error = %e, held_back, "ignoring a control frame (one warning per 10 s)")
+                Ok(Some((from, datagram))) => {
+                    let now = clock.now();
+                    let mut back = Vec::new();
+                    let opened = channel.open(&from, &datagram, now, &mut back);
+                    send(&from, back);
+                    match opened {
+                        Ok(Some(message)) => out.extend(lock().on_message(&from, message, now)),
+                        Ok(None) => {}
+                        Err(e) => {
+                            lock().refused(match &e {
+                                ContainerError::Refused { reason, .. } => *reason,
+                                _ => iw_bus::Reason::Malformed,
+                            });
+                            match warn.admit((), now) {
+                                Some(held_back) => {
+                                    tracing::warn!(%from, error = %e, held_back, "ignoring a control datagram (one warning per 10 s)")
+                                }
+                                None => {
+                                    tracing::debug!(%from, error = %e, "ignoring a control datagram")
+                                }
+                            }
                         }
-                        None => tracing::debug!(%from, error = %e, "ignoring a control frame"),
-                    },
-                },
+                    }
+                }
                 Ok(None) => break,
                 Err(e) => {
                     tracing::warn!(error = %e, "container transport failed; carrying on alone");
@@ -123,25 +148,14 @@ fn run(
             }
             wait = Duration::ZERO;
         }
-        let ticked = lock().on_tick(clock.now());
-        // A message sent to several peers at once (a heartbeat) is signed once; each batch gets
-        // new sequence numbers, or a receiver would take a repeated heartbeat for a replay.
-        let mut last: Option<(crate::ContainerMsg, Vec<u8>)> = None;
+        let now = clock.now();
+        let ticked = lock().on_tick(now);
+        // Each peer gets the message under its own session (one AEAD seal each), with a
+        // sequence number of its own: a receiver takes a repeated heartbeat for a new one.
         for Outgoing { to, msg } in out.into_iter().chain(ticked) {
-            if last.as_ref().is_none_or(|(m, _)| *m != msg) {
-                seq += 1;
-                match Signed::seal(identity, seq, &msg) {
-                    Ok(frame) => last = Some((msg, frame)),
-                    Err(e) => {
-                        tracing::error!(error = %e, "control message does not encode");
-                        continue;
-                    }
-                }
-            }
-            if let Some((_, frame)) = &last
-                && let Err(e) = transport.send(&to, frame)
-            {
-                tracing::debug!(%to, error = %e, "control frame not sent");
+            match channel.seal(&to, &msg, now) {
+                Ok(datagrams) => send(&to, datagrams),
+                Err(e) => tracing::error!(error = %e, "control message not sealed"),
             }
         }
     }

@@ -3,9 +3,9 @@
 //!
 //! The file is text, one container per line, `ID NAME PUBLIC_KEY`: the container id (decimal),
 //! its name (the part after `@` in its agents' names, `control@chair-0` for `chair-0`) and its
-//! Ed25519 public key (64 hex digits, the identity it signs control frames with). Blank lines and
-//! lines starting with `#` are ignored. Ids, names and keys are each unique: one key speaks for
-//! one container only.
+//! Ed25519 public key (64 hex digits, the identity its control sessions are agreed under).
+//! Blank lines and lines starting with `#` are ignored. Ids, names and keys are each unique: one
+//! key speaks for one container only.
 
 use std::collections::BTreeMap;
 use std::path::Path;

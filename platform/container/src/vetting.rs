@@ -51,6 +51,11 @@ impl Vetting {
         &self.counters
     }
 
+    /// Counts a refusal that is warned elsewhere.
+    pub(crate) fn count(&mut self, reason: Reason) {
+        self.counters.record(reason);
+    }
+
     /// Counts a refusal and runs `warn` (with how many were held back) when a warning of `kind`
     /// is due.
     fn refuse(&mut self, reason: Reason, kind: &'static str, now: Time, warn: impl FnOnce(u64)) {
@@ -61,7 +66,7 @@ impl Vetting {
         }
     }
 
-    /// Whether a frame signed by `key` may speak for container `id`: under a roster only under
+    /// Whether a frame under identity `key` may speak for container `id`: under a roster only under
     /// `id`'s pinned key (an id the roster does not list is nobody's); without one, anyone may
     /// (the container then binds a live id to the first key heard).
     pub(crate) fn speaks_for(
@@ -78,7 +83,7 @@ impl Vetting {
             Some(pin) if pin.key == *key => true,
             Some(pin) => {
                 self.refuse(Reason::Mismatch, "unpinned-key", now, |held_back| {
-                    tracing::warn!(container = %id, name = %pin.name, %from, roster = roster.source(), held_back, "control frame for a container not signed by the key the roster pins for it: refused (one warning per 10 s)");
+                    tracing::warn!(container = %id, name = %pin.name, %from, roster = roster.source(), held_back, "control frame for a container not under the key the roster pins for it: refused (one warning per 10 s)");
                 });
                 false
             }
@@ -93,7 +98,7 @@ impl Vetting {
 
     /// Whether `part`, said to be container `id`'s, carries only that container's agents: each
     /// entry's key is the container's (its agents are verified with its identity): the pinned
-    /// key under a roster, else `key` when known (the signer of its list, or the key its live
+    /// key under a roster, else `key` when known (the sender of its list, or the key its live
     /// id is bound to), else one key for all; and under a roster each name is `ROLE@NAME` for
     /// the pinned name.
     pub(crate) fn vet_part(
@@ -151,7 +156,7 @@ impl Vetting {
         gal
     }
 
-    /// Whether a `Duplicate` about this container's id `id`, signed by `key`, is believed:
+    /// Whether a `Duplicate` about this container's id `id`, under `key`, is believed:
     /// under a roster only under `id`'s pinned key (this container's own: only a second holder
     /// of its identity can hold its id), else from anyone who passed admission.
     pub(crate) fn believes_duplicate(
@@ -168,7 +173,7 @@ impl Vetting {
             return true;
         }
         self.refuse(Reason::Mismatch, "unpinned-duplicate", now, |held_back| {
-            tracing::warn!(container = %id, %from, held_back, "a `Duplicate` not signed by this container's pinned key is not believed; its named holder is greeted instead, and answers itself if it holds this identity (one warning per 10 s)");
+            tracing::warn!(container = %id, %from, held_back, "a `Duplicate` not under this container's pinned key is not believed; its named holder is greeted instead, and answers itself if it holds this identity (one warning per 10 s)");
         });
         false
     }

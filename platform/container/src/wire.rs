@@ -1,97 +1,139 @@
-//! Control frames on the wire: every [`ContainerMsg`] travels signed by its sender container's
-//! Ed25519 identity (the identity its agents' list entries carry and the data plane's Noise
-//! handshake binds to its static key), with a sequence number.
+//! Control frames on the wire: every [`ContainerMsg`] travels in a Noise session between the
+//! sender and the receiver container ([`iw_layer_security::PeerSessions`]: the data plane's
+//! handshake, each static key bound to the container's Ed25519 identity, the identity its
+//! agents' list entries carry), with the sender's sequence number.
 //!
-//! Layout: `IWC1`, the signer's public key (32 bytes), the signature (64), the sequence number
-//! (8, big-endian), then the message as JSON. The signature covers a context string, the key,
-//! the sequence number and the JSON, so no part can be swapped.
+//! A session's frame: the sequence number (8 bytes, big-endian), then the message as JSON. The
+//! session authenticates the identity and refuses a frame replayed within it; the sequence
+//! number grows across all the sender's sessions in one life, so a frame of an earlier session
+//! (a re-keyed one) is refused by the container as a replay too.
 
-use iw_layer_security::{Identity, PublicKey, verify};
+use std::sync::Arc;
+
+use iw_bus::Time;
+use iw_bus::transport::PeerAddr;
+use iw_layer_security::{Identity, PeerSessions, PublicKey, SecurityConfig};
 
 use crate::{ContainerError, ContainerMsg};
 
-const MAGIC: &[u8; 4] = b"IWC1";
-/// Domain separation: a control signature is never valid as any other signature.
-const CONTEXT: &[u8] = b"iw-control-v1";
-const KEY_AT: usize = MAGIC.len();
-const SIG_AT: usize = KEY_AT + 32;
-const SEQ_AT: usize = SIG_AT + 64;
-const BODY_AT: usize = SEQ_AT + 8;
+const SEQ_LEN: usize = 8;
 
-/// A control message whose signature checked: who signed it, its sequence number, what it says.
+/// A control message from an identity a session authenticated: whose it is, its sequence
+/// number, what it says.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Signed {
-    /// The Ed25519 public key that signed the frame.
+pub struct Authenticated {
+    /// The Ed25519 public key of the identity the session was agreed with.
     pub key: PublicKey,
-    /// The signer's sequence number (grows by one per frame it signs in one life).
+    /// The sender's sequence number (grows by one per frame it sends in one life).
     pub seq: u64,
     /// The message.
     pub msg: ContainerMsg,
 }
 
-impl Signed {
-    /// Signs `msg` as `identity` with sequence number `seq`.
-    pub fn seal(
-        identity: &Identity,
-        seq: u64,
-        msg: &ContainerMsg,
-    ) -> Result<Vec<u8>, ContainerError> {
-        let body = msg.encode()?;
-        let key = identity.public_key();
-        let sig = identity.sign(&signed_bytes(&key, seq, &body));
-        let mut frame = Vec::with_capacity(BODY_AT + body.len());
-        frame.extend_from_slice(MAGIC);
-        frame.extend_from_slice(&key);
-        frame.extend_from_slice(&sig);
-        frame.extend_from_slice(&seq.to_be_bytes());
-        frame.extend_from_slice(&body);
-        Ok(frame)
-    }
-
-    /// Checks a frame's signature and decodes it; anything else is
-    /// [`ContainerError::BadMessage`] (unsigned, altered, or not a container message).
-    pub fn open(frame: &[u8]) -> Result<Signed, ContainerError> {
-        let bad = |reason: &str| ContainerError::BadMessage {
-            len: frame.len(),
-            reason: reason.into(),
-        };
-        if frame.len() < BODY_AT || &frame[..KEY_AT] != MAGIC {
-            return Err(bad("not a signed control frame (no IWC1 header)"));
-        }
-        let mut key = [0u8; 32];
-        key.copy_from_slice(&frame[KEY_AT..SIG_AT]);
-        let mut seq = [0u8; 8];
-        seq.copy_from_slice(&frame[SEQ_AT..BODY_AT]);
-        let seq = u64::from_be_bytes(seq);
-        let body = &frame[BODY_AT..];
-        if !verify(&key, &signed_bytes(&key, seq, body), &frame[SIG_AT..SEQ_AT]) {
-            return Err(bad("the signature does not verify"));
-        }
-        Ok(Signed {
-            key,
-            seq,
-            msg: ContainerMsg::decode(body)?,
-        })
-    }
+/// One container's end of the control channel: its sessions with every peer, sans I/O.
+#[derive(Debug)]
+pub struct ControlChannel {
+    sessions: PeerSessions,
+    seq: u64,
 }
 
-fn signed_bytes(key: &PublicKey, seq: u64, body: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(CONTEXT.len() + 40 + body.len());
-    out.extend_from_slice(CONTEXT);
-    out.extend_from_slice(key);
-    out.extend_from_slice(&seq.to_be_bytes());
-    out.extend_from_slice(body);
-    out
+impl ControlChannel {
+    /// The channel of the container speaking as `identity`.
+    pub fn new(identity: Arc<Identity>) -> Result<Self, ContainerError> {
+        let config = SecurityConfig {
+            // Control frames repeat (heartbeats): a few held while a session is agreed suffice.
+            max_queued: 64,
+            ..SecurityConfig::default()
+        };
+        let sessions = PeerSessions::new(identity, config)
+            .map_err(|source| ContainerError::Sessions { source })?;
+        Ok(Self { sessions, seq: 0 })
+    }
+
+    /// The datagrams to send to `to` now for `msg`: the message sealed under the session, or
+    /// a hello when none is agreed (the message then goes with the reply, see
+    /// [`ControlChannel::open`]).
+    pub fn seal(
+        &mut self,
+        to: &PeerAddr,
+        msg: &ContainerMsg,
+        now: Time,
+    ) -> Result<Vec<Vec<u8>>, ContainerError> {
+        self.seq += 1;
+        let mut frame = self.seq.to_be_bytes().to_vec();
+        frame.extend_from_slice(&msg.encode()?);
+        self.sessions
+            .seal(&to.0, &frame, now)
+            .map_err(|source| ContainerError::Sessions { source })
+    }
+
+    /// Takes a datagram from `from`: the message it carries, if it is a session's frame
+    /// (`Ok(None)` for a handshake). What must go back to `from` (a handshake reply, messages
+    /// that waited for its reply, a re-key request) is appended to `back`. A refused datagram
+    /// is [`ContainerError::Refused`] with the reason; a frame that opens but is not a container
+    /// message is [`ContainerError::BadMessage`].
+    pub fn open(
+        &mut self,
+        from: &PeerAddr,
+        datagram: &[u8],
+        now: Time,
+        back: &mut Vec<Vec<u8>>,
+    ) -> Result<Option<Authenticated>, ContainerError> {
+        let opened = self
+            .sessions
+            .open(&from.0, datagram, now, back)
+            .map_err(|reason| ContainerError::Refused {
+                len: datagram.len(),
+                reason,
+            })?;
+        let Some(opened) = opened else {
+            return Ok(None);
+        };
+        let Some((seq, body)) = opened.frame.split_first_chunk::<SEQ_LEN>() else {
+            return Err(ContainerError::BadMessage {
+                len: opened.frame.len(),
+                reason: "shorter than a sequence number".into(),
+            });
+        };
+        Ok(Some(Authenticated {
+            key: opened.key,
+            seq: u64::from_be_bytes(*seq),
+            msg: ContainerMsg::decode(body)?,
+        }))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::ContainerId;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn any_datagram_opens_or_is_refused_never_a_panic(
+            datagram in proptest::collection::vec(any::<u8>(), 0..300),
+            kind in 0u8..6,
+        ) {
+            let mut channel = ControlChannel::new(Arc::new(Identity::generate().unwrap())).unwrap();
+            let mut back = Vec::new();
+            // as is, and behind a valid head of each kind
+            let headed = [&b"IWN1"[..], &[kind], &datagram].concat();
+            for d in [datagram.as_slice(), &headed] {
+                match channel.open(&PeerAddr("x".into()), d, Time(1), &mut back) {
+                    Ok(m) => prop_assert!(m.is_none(), "a message out of random bytes"),
+                    Err(e) => prop_assert!(!e.to_string().is_empty()),
+                }
+            }
+        }
+    }
 
     #[test]
-    fn a_signed_frame_opens_and_any_changed_byte_is_refused() {
-        let identity = Identity::generate().unwrap();
+    fn a_message_goes_after_the_handshake_with_its_sender_key_and_sequence_number() {
+        let identity = Arc::new(Identity::generate().unwrap());
+        let mut a = ControlChannel::new(identity.clone()).unwrap();
+        let mut b = ControlChannel::new(Arc::new(Identity::generate().unwrap())).unwrap();
+        let (a_addr, b_addr) = (PeerAddr("a".into()), PeerAddr("b".into()));
         let msg = ContainerMsg::Heartbeat {
             id: ContainerId(3),
             incarnation: 9,
@@ -99,18 +141,34 @@ mod tests {
             lal_generation: 4,
             gal_versions: Default::default(),
         };
-        let frame = Signed::seal(&identity, 17, &msg).unwrap();
-        let opened = Signed::open(&frame).unwrap();
-        assert_eq!((opened.key, opened.seq), (identity.public_key(), 17));
-        assert_eq!(opened.msg, msg);
-        for i in 0..frame.len() {
-            let mut bad = frame.clone();
-            bad[i] ^= 1;
-            assert!(Signed::open(&bad).is_err(), "byte {i} flipped was taken");
-        }
-        let err = Signed::open(&msg.encode().unwrap())
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("not a signed control frame"), "{err}");
+        let now = Time(1);
+        let hello = a.seal(&b_addr, &msg, now).unwrap();
+        let mut back = Vec::new();
+        assert_eq!(b.open(&a_addr, &hello[0], now, &mut back).unwrap(), None);
+        let mut to_b = Vec::new();
+        assert_eq!(a.open(&b_addr, &back[0], now, &mut to_b).unwrap(), None);
+        let opened = b.open(&a_addr, &to_b[0], now, &mut back).unwrap().unwrap();
+        assert_eq!(
+            (opened.key, opened.seq, opened.msg),
+            (identity.public_key(), 1, msg.clone())
+        );
+        let next = a.seal(&b_addr, &msg, now).unwrap();
+        let opened = b.open(&a_addr, &next[0], now, &mut back).unwrap().unwrap();
+        assert_eq!(opened.seq, 2);
+        let err = b.open(&a_addr, &next[0], now, &mut back).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ContainerError::Refused {
+                    reason: iw_bus::Reason::Duplicate,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let err = b
+            .open(&a_addr, &msg.encode().unwrap(), now, &mut back)
+            .unwrap_err();
+        assert!(err.to_string().contains("not_sealed"), "{err}");
     }
 }

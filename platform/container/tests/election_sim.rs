@@ -6,7 +6,9 @@ use std::time::Duration;
 
 use iw_bus::Time;
 use iw_bus::transport::PeerAddr;
-use iw_container::{AgentEntry, Container, ContainerConfig, ContainerId, ContainerMsg, Signed};
+use iw_container::{
+    AgentEntry, Authenticated, Container, ContainerConfig, ContainerId, ContainerMsg,
+};
 
 const STEP: Duration = Duration::from_millis(10);
 
@@ -26,9 +28,9 @@ fn config(id: u64, at: PeerAddr, seeds: Vec<PeerAddr>) -> ContainerConfig {
     }
 }
 
-/// `msg` as signed by `signer` with sequence number `seq`.
-fn signed(signer: [u8; 32], seq: u64, msg: ContainerMsg) -> Signed {
-    Signed {
+/// `msg` as it comes out of a session with identity `signer`, with sequence number `seq`.
+fn signed(signer: [u8; 32], seq: u64, msg: ContainerMsg) -> Authenticated {
+    Authenticated {
         key: signer,
         seq,
         msg,
@@ -371,7 +373,7 @@ fn a_heartbeat_under_another_key_is_a_duplicate_and_a_replayed_list_is_ignored()
     net.run(Duration::from_millis(300));
     assert_eq!(net.leaders(), [(1, 1), (2, 1)].into());
 
-    // The leader's list, signed by the leader, replayed with a sequence number already used.
+    // The leader's list, from the leader, replayed with a sequence number already used.
     let mut stale = iw_container::GlobalAgentList::default();
     stale.merge_part(
         ContainerId(1),

@@ -9,8 +9,8 @@ use std::time::Duration;
 use iw_bus::transport::{FrameTransport, PeerAddr};
 use iw_bus::{Reason, Time};
 use iw_container::{
-    AgentEntry, Container, ContainerConfig, ContainerId, ContainerMsg, GlobalAgentList, Outgoing,
-    Part, Pin, Roster, Signed,
+    AgentEntry, Authenticated, Container, ContainerConfig, ContainerId, ContainerMsg,
+    GlobalAgentList, Outgoing, Part, Pin, Roster,
 };
 
 const STEP: Duration = Duration::from_millis(10);
@@ -105,7 +105,7 @@ impl Net {
                     };
                     if let Some(n) = self.nodes.get_mut((to - 1) as usize) {
                         self.seq += 1;
-                        let signed = Signed {
+                        let signed = Authenticated {
                             key: key(from),
                             seq: self.seq,
                             msg: o.msg,
@@ -122,7 +122,7 @@ impl Net {
         }
     }
 
-    /// Container `to` hears `msg` from `from` signed by `signer`.
+    /// Container `to` hears `msg` from `from` under identity `signer`.
     fn hear(
         &mut self,
         to: u64,
@@ -134,7 +134,7 @@ impl Net {
         let (now, seq) = (self.now, self.seq);
         self.node(to).on_message(
             from,
-            Signed {
+            Authenticated {
                 key: signer,
                 seq,
                 msg,
@@ -261,7 +261,7 @@ fn a_second_holder_of_the_pinned_identity_is_refused_through_the_holder() {
     let later = now.plus(STEP);
     let probe = copy.on_message(
         &addr(1),
-        Signed {
+        Authenticated {
             key: key(1),
             seq: 1,
             msg: duplicate.clone(),
@@ -282,7 +282,7 @@ fn a_second_holder_of_the_pinned_identity_is_refused_through_the_holder() {
     };
     copy.on_message(
         &addr(2),
-        Signed {
+        Authenticated {
             key: key(2),
             seq: 2,
             msg: answer.clone(),

@@ -24,7 +24,7 @@ const NONCE_LEN: usize = 12;
 const TAG_LEN: usize = 16;
 pub(crate) const HELLO: u8 = 1;
 pub(crate) const REPLY: u8 = 2;
-const REKEY: u8 = 3;
+pub(crate) const REKEY: u8 = 3;
 /// The Noise protocol of the key agreement: IX (both static keys travel, two messages: the
 /// hello and its reply), X25519, AES-256-GCM, SHA-256.
 pub(crate) const NOISE_PARAMS: &str = "Noise_IX_25519_AESGCM_SHA256";
@@ -156,7 +156,7 @@ fn nested_get<'a, V>(m: &'a Nested<V>, a: &str, b: &str) -> Option<&'a V> {
     m.get(a).and_then(|x| x.get(b))
 }
 
-fn nonce_bytes(counter: u64) -> [u8; NONCE_LEN] {
+pub(crate) fn nonce_bytes(counter: u64) -> [u8; NONCE_LEN] {
     let mut n = [0u8; NONCE_LEN];
     n[4..].copy_from_slice(&counter.to_be_bytes());
     n
@@ -296,7 +296,7 @@ pub(crate) fn reply_binding(id: &[u8], a: &str, b: &str, static_b: &[u8], hash: 
     ])
 }
 
-fn noise_err(_: snow::Error) -> SecurityError {
+pub(crate) fn noise_err(_: snow::Error) -> SecurityError {
     SecurityError::KeyDerivation
 }
 
@@ -323,7 +323,7 @@ pub(crate) fn noise(
 /// The AEAD key of the initiator-to-responder direction, the only one a session uses (the
 /// other direction agrees its own session). Raw, because frames carry their header as
 /// associated data, which snow's transport messages do not take.
-fn split_key(hs: &mut HandshakeState) -> Result<LessSafeKey, SecurityError> {
+pub(crate) fn split_key(hs: &mut HandshakeState) -> Result<LessSafeKey, SecurityError> {
     let (to_responder, _) = hs.dangerously_get_raw_split();
     ring_key(&to_responder)
 }

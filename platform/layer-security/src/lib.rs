@@ -6,6 +6,9 @@
 //!   the agents' public keys as the agent lists carry them.
 //! - [`verify_envelope`]: third-party check of a signed message; [`SealInfo`]: a sealed frame's
 //!   key id and nonce.
+//! - [`PeerSessions`]: the same key agreement for a channel of byte frames between identities
+//!   known by address (the containers' control channel), with the peer's identity key carried
+//!   in the handshake; [`Opened`]: a frame it opened.
 //!
 //! # Modes, chosen per destination (as the thesis says)
 //! - **Public key** (default): the first message from agent A to agent B starts a key agreement,
@@ -60,7 +63,9 @@
 //! | delay, reorder | timestamps and sequence windows (temporal layer) |
 //! | drop frames | retransmission until acknowledged, then counted undeliverable (communication layer) |
 //! | join the containers at all, or forge, alter or replay control traffic without the group key | admission: the containers' group key in pre-shared-key mode, with the temporal layer (`iw_stack::GuardedTransport`) |
-//! | holding the group key, speak as another live container (its heartbeat, its agent list, the leader's list), even from its address | identity: every control frame is signed by the sender container's Ed25519 identity, the same identity whose key its agents' entries carry and the Noise handshake binds to each static key; a live container id is bound to the key its heartbeats are signed with, lists are taken only under the bound key of their container or of the elected leader, with a growing sequence number (`iw_container::Signed`, `iw_container::Container`) |
+//! | holding the group key, speak as another live container (its heartbeat, its agent list, the leader's list), even from its address | identity: every control frame travels in a Noise session between the two containers ([`PeerSessions`], `iw_container::ControlChannel`): the data plane's handshake, each static key bound by a signature to the container's Ed25519 identity (the identity whose key its agents' entries carry); a frame outside a session, altered or replayed within it is refused; a live container id is bound to the identity its heartbeats' session was agreed with, lists are taken only under the bound identity of their container or of the elected leader, with a growing sequence number (`iw_container::Container`) |
+//! | speak from another container's address (a spoofed source, a TCP hello naming it) | the handshake's reply goes to the address claimed, not to her: she agrees no session ([`PeerSessions`]) |
+//! | replay a control frame of a restarted container's earlier life | a new session from the same identity and address drops the older ones; the container refuses an older incarnation or a sequence number not above the last (`iw_container`) |
 //! | pin a route with a huge list generation | followers mirror the leader's list, the leader takes each container's part as its container says (`iw_container`) |
 //! | holding the group key, list agents under her own container that carry another container's key | every list entry must carry the key of the container whose part it is in: the signer's for its own list, the bound key at a follower (`iw_container`) |
 //! | holding the group key, with a deployment roster (`security.roster`): claim an id nobody holds (a low one to lead), a listed id under her own key, or another container's agent names; stop a container with a forged `Duplicate` | pinning: the roster pins each id to one key and one name in advance; a frame speaks for an id only under its pinned key (an unlisted id is nobody's), a container's part carries only `ROLE@NAME` for its pinned name, and a `Duplicate` is believed only under the receiver's own pinned key; a container whose key is not pinned for its id refuses to start (`iw_container::Roster`) |
@@ -76,6 +81,10 @@
 //! static key in clear: it is a fresh key per layer, not the identity, so nothing long-lived is
 //! exposed, but a listener can link an agent's handshakes while the layer lives.
 //!
+//! The control channel's sessions ([`PeerSessions`]) are re-agreed the same way, without taking
+//! frames back: a restarted receiver answers a frame of a session it lost with a re-key request,
+//! its sender agrees a new session at its next frame, and heartbeats repeat.
+//!
 //! A receiver that restarts loses its sessions; it answers the next sealed frame with an
 //! unauthenticated re-key request naming the session. The sender retires every session towards
 //! that receiver, takes back the frames still held for it below (the communication layer's
@@ -88,11 +97,13 @@
 
 mod identity;
 mod layer;
+mod peer;
 
 pub use identity::{
     Directory, Identity, KeyDirectory, PublicKey, signed_bytes, verify, verify_envelope,
 };
 pub use layer::{PreSharedKey, SealInfo, SecurityConfig, SecurityLayer};
+pub use peer::{Opened, PeerSessions};
 
 /// Failures of key handling (never of message checks, which are drop verdicts).
 #[derive(Debug, thiserror::Error)]

@@ -6,7 +6,8 @@
 //!   `u64::MAX`, pins a route;
 //! - a second services container with the id of a live one is refused, the first undisturbed;
 //! - a holder of the group key, speaking over TCP from the services' own address, cannot speak
-//!   for the services: control frames are signed by each container's identity;
+//!   for the services: control frames travel in sessions agreed with each container's
+//!   identity, and the agreement's reply goes to the address she claims;
 //! - a receiver restarted with its sessions lost gets the message sealed under the old session.
 //! - under a roster (`security.roster`), a holder of the group key cannot claim a free low id
 //!   or a pinned one, cannot stop a container with a forged `Duplicate`, and a member cannot
@@ -19,9 +20,10 @@ use std::sync::mpsc::{Receiver, channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use iw_bus::transport::FrameTransport;
 use iw_bus::transport::PeerAddr;
 use iw_bus::{Bus, BusConfig, Clock};
-use iw_container::{AgentEntry, ContainerId, ContainerMsg, GlobalAgentList, Part, Signed};
+use iw_container::{AgentEntry, ContainerId, ContainerMsg, ControlChannel, GlobalAgentList, Part};
 use iw_node::{Event, NodeError, Role, Runtime, SpawnConfig};
 use iw_stack::{Platform, StackConfig};
 use iw_transport_net::UdpTransport;
@@ -205,30 +207,21 @@ fn forged_heartbeats_and_agent_lists_reroute_nothing() {
     chair.wait_for("the services joined", joined("assistant@services"));
     services.wait_for("the chair joined", joined("control@chair-f"));
 
-    let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
-    attacker
-        .set_read_timeout(Some(Duration::from_millis(200)))
-        .unwrap();
+    let mut attacker = Forger::new(
+        forger(),
+        Arc::new(UdpTransport::bind("127.0.0.1:0").unwrap()),
+    );
+    let here = PeerAddr(attacker.addr());
     let evil = |name: &str| AgentEntry {
         name: name.into(),
         public_key: vec![0xee; 32],
-        addr: PeerAddr(attacker.local_addr().unwrap().to_string()),
+        addr: here.clone(),
     };
     let forged = takeover(evil);
-    let mut duplicate_told = false;
-    let deadline = Instant::now() + Duration::from_secs(2);
-    while Instant::now() < deadline {
-        for msg in &forged {
-            attacker.send_to(&forge(msg), chair.control()).unwrap();
-        }
-        let mut buf = [0u8; 65536];
-        if let Ok((n, _)) = attacker.recv_from(&mut buf) {
-            duplicate_told |= matches!(
-                Signed::open(&buf[..n]).map(|s| s.msg),
-                Ok(ContainerMsg::Duplicate { id: ContainerId(1), ref holder, .. }) if holder.0 == services.control()
-            );
-        }
-    }
+    attacker.flood(&chair.control(), &forged, Duration::from_secs(2));
+    let duplicate_told = attacker.heard.iter().any(|m| {
+        matches!(m, ContainerMsg::Duplicate { id: ContainerId(1), holder, .. } if holder.0 == services.control())
+    });
     chair.drain_for(Duration::from_millis(500));
     assert!(duplicate_told, "the claim on a live id was answered");
     assert_services_kept(&chair);
@@ -422,9 +415,12 @@ impl iw_bus::transport::FrameTransport for SpoofedTcp {
 
 /// Issue 20, the control channel: a holder of the group key, speaking over TCP from the
 /// services' control address, forges the services' heartbeat (a higher incarnation, as a
-/// restart would say) and the services' agent list. The chair obeys neither: control frames are
-/// signed by the sender container's identity and a live id is bound to the key it was first
-/// heard with, so the forger's own key does not speak for container 1.
+/// restart would say) and the services' agent list. The chair obeys neither: control frames
+/// travel in sessions agreed with the sender container's identity, and the chair answers her
+/// hello at the address she claims, the services', which refuses the reply (counted there as
+/// `bad_handshake`): she never holds a session with the chair. Had she one, her own key would
+/// not speak for container 1 either (a live id is bound to the key it was first heard with; the
+/// other tests here show that).
 #[test]
 fn a_key_holder_forging_another_containers_heartbeat_and_list_is_not_obeyed() {
     let dir = tempfile::tempdir().unwrap();
@@ -445,49 +441,102 @@ fn a_key_holder_forging_another_containers_heartbeat_and_list_is_not_obeyed() {
 
     let spoofed = Arc::new(SpoofedTcp::connect(&chair.control(), &services.control()));
     let group_key = iw_stack::read_group_key(&key).unwrap();
-    let attacker = iw_stack::GuardedTransport::new(
+    let guarded = iw_stack::GuardedTransport::new(
         spoofed,
         "container-1.4294967295",
         group_key,
         Clock::system(),
     )
     .unwrap();
+    let mut attacker = Forger::new(forger(), Arc::new(guarded));
     let evil = |name: &str| AgentEntry {
         name: name.into(),
         public_key: forger_key().to_vec(),
         addr: PeerAddr("127.0.0.1:9".into()),
     };
     let forged = takeover(evil);
-    use iw_bus::transport::FrameTransport;
-    let to = PeerAddr(chair.control());
-    let deadline = Instant::now() + Duration::from_secs(3);
-    while Instant::now() < deadline {
-        for msg in &forged {
-            attacker.send(&to, &forge(msg)).unwrap();
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    attacker.flood(&chair.control(), &forged, Duration::from_secs(3));
     chair.drain_for(Duration::from_secs(1));
     assert_services_kept(&chair);
+    services.wait_for("the chair's reply to her hello refused at the services", |e| {
+        matches!(e, Event::Security { control, .. } if control.get("bad_handshake").is_some_and(|n| *n > 0))
+    });
     chair.stop().unwrap();
     services.stop().unwrap();
 }
 
 /// The forger's own identity (one she may well hold: the group key admits any identity).
-fn forger() -> &'static iw_stack::Identity {
-    static FORGER: std::sync::OnceLock<iw_stack::Identity> = std::sync::OnceLock::new();
-    FORGER.get_or_init(|| iw_stack::Identity::generate().unwrap())
+fn forger() -> Arc<iw_stack::Identity> {
+    static FORGER: std::sync::OnceLock<Arc<iw_stack::Identity>> = std::sync::OnceLock::new();
+    FORGER
+        .get_or_init(|| Arc::new(iw_stack::Identity::generate().unwrap()))
+        .clone()
 }
 
 fn forger_key() -> [u8; 32] {
     forger().public_key()
 }
 
-/// A control frame as the forger sends it: signed by her own identity, with a sequence number
-/// above any the real container used.
-fn forge(msg: &ContainerMsg) -> Vec<u8> {
-    static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(u64::MAX / 2);
-    Signed::seal(forger(), SEQ.fetch_add(1, Ordering::Relaxed), msg).unwrap()
+/// An attacker's end of the control channel: an identity she holds, over a transport of hers.
+/// She agrees sessions as any container does (the real control channel's code), then says in
+/// them what she likes.
+struct Forger {
+    channel: ControlChannel,
+    transport: Arc<dyn FrameTransport>,
+    /// Every message she was sent.
+    heard: Vec<ContainerMsg>,
+}
+
+impl Forger {
+    fn new(identity: Arc<iw_stack::Identity>, transport: Arc<dyn FrameTransport>) -> Forger {
+        Forger {
+            channel: ControlChannel::new(identity).unwrap(),
+            transport,
+            heard: Vec::new(),
+        }
+    }
+
+    fn addr(&self) -> String {
+        self.transport.local_addr().0.clone()
+    }
+
+    /// Sends `msgs` to `to`, and again every 20 ms for `d`, answering handshakes meanwhile.
+    fn flood(&mut self, to: &str, msgs: &[ContainerMsg], d: Duration) {
+        let to = PeerAddr(to.into());
+        let end = Instant::now() + d;
+        loop {
+            for msg in msgs {
+                let now = Clock::system().now();
+                for datagram in self.channel.seal(&to, msg, now).unwrap() {
+                    self.transport.send(&to, &datagram).unwrap();
+                }
+            }
+            self.pump(Duration::from_millis(20));
+            if Instant::now() >= end {
+                return;
+            }
+        }
+    }
+
+    /// Takes what arrives for `d`: handshakes answered, messages kept in `heard`.
+    fn pump(&mut self, d: Duration) {
+        let end = Instant::now() + d;
+        while let Ok(Some((from, datagram))) = self
+            .transport
+            .recv_timeout(end.saturating_duration_since(Instant::now()))
+        {
+            let mut back = Vec::new();
+            let opened = self
+                .channel
+                .open(&from, &datagram, Clock::system().now(), &mut back);
+            for d in back {
+                let _ = self.transport.send(&from, &d);
+            }
+            if let Ok(Some(m)) = opened {
+                self.heard.push(m.msg);
+            }
+        }
+    }
 }
 
 // ---- a deployment with a roster (`security.roster`): identities pinned in advance ------------
@@ -522,16 +571,17 @@ impl Pinned {
         id.0
     }
 
-    /// A group-key holder's own UDP endpoint on the control channel.
-    fn attacker(&self, name: &str) -> iw_stack::GuardedTransport {
+    /// A group-key holder's own UDP endpoint on the control channel, speaking as `identity`.
+    fn attacker(&self, name: &str, identity: Arc<iw_stack::Identity>) -> Forger {
         let key = iw_stack::read_group_key(&self.dir.path().join("control.key")).unwrap();
-        iw_stack::GuardedTransport::new(
+        let guarded = iw_stack::GuardedTransport::new(
             Arc::new(UdpTransport::bind("127.0.0.1:0").unwrap()),
             name,
             key,
             Clock::system(),
         )
-        .unwrap()
+        .unwrap();
+        Forger::new(identity, Arc::new(guarded))
     }
 }
 
@@ -560,22 +610,6 @@ fn control_rejections(container: &Running, reason: &str) -> u64 {
         .unwrap_or(0)
 }
 
-/// Sends `frames` to `to`, and again every 20 ms for `d`.
-fn flood(attacker: &iw_stack::GuardedTransport, to: &str, frames: &[Vec<u8>], d: Duration) {
-    use iw_bus::transport::FrameTransport;
-    let to = PeerAddr(to.into());
-    let end = Instant::now() + d;
-    loop {
-        for f in frames {
-            attacker.send(&to, f).unwrap();
-        }
-        if Instant::now() >= end {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 /// Under a roster, a holder of the group key claims id 0 (free, lower than the services', so it
 /// would lead) and id 2 (the world's, pinned to a key she does not hold), each with a list as
 /// the leader's re-routing the assistant. Without a roster the claim of id 0 is obeyed (the
@@ -584,18 +618,17 @@ fn flood(attacker: &iw_stack::GuardedTransport, to: &str, frames: &[Vec<u8>], d:
 fn under_a_roster_a_key_holder_claiming_a_free_low_id_is_not_obeyed() {
     let pinned = Pinned::new(&["services", "world", "chair-p"]);
     let (services, mut chair) = pinned_pair(&pinned, "chair-p");
-    let attacker = pinned.attacker("container-0.1.attacker");
+    let mut attacker = pinned.attacker("container-0.1.attacker", forger());
     let evil = |name: &str| AgentEntry {
         name: name.into(),
         public_key: forger_key().to_vec(),
         addr: PeerAddr("127.0.0.1:9".into()),
     };
-    let frames: Vec<Vec<u8>> = [0, 2]
+    let forged: Vec<ContainerMsg> = [0, 2]
         .into_iter()
         .flat_map(|id| takeover_as(id, evil))
-        .map(|m| forge(&m))
         .collect();
-    flood(&attacker, &chair.control(), &frames, Duration::from_secs(3));
+    attacker.flood(&chair.control(), &forged, Duration::from_secs(3));
     chair.drain_for(Duration::from_secs(1));
     assert_services_kept(&chair);
     chair.wait_for("the claims counted", |e| {
@@ -612,26 +645,21 @@ fn under_a_roster_a_key_holder_claiming_a_free_low_id_is_not_obeyed() {
     services.stop().unwrap();
 }
 
-/// Under a roster, a forged `Duplicate` (signed by a group-key holder's own identity, naming
+/// Under a roster, a forged `Duplicate` (sent under a group-key holder's own identity, naming
 /// herself as the holder of the chair's id, running "forever") does not stop the chair: only
 /// the chair's own pinned key can say its id is held.
 #[test]
 fn under_a_roster_a_forged_duplicate_does_not_stop_a_running_container() {
     let pinned = Pinned::new(&["services", "chair-d"]);
     let (mut services, mut chair) = pinned_pair(&pinned, "chair-d");
-    let attacker = pinned.attacker("container-9.1.attacker");
+    let mut attacker = pinned.attacker("container-9.1.attacker", forger());
     let forged = ContainerMsg::Duplicate {
         id: ContainerId(pinned.id("chair-d")),
-        holder: PeerAddr(attacker_addr(&attacker)),
+        holder: PeerAddr(attacker.addr()),
         holder_incarnation: 0,
         holder_uptime_ms: u64::MAX,
     };
-    flood(
-        &attacker,
-        &chair.control(),
-        &[forge(&forged)],
-        Duration::from_secs(3),
-    );
+    attacker.flood(&chair.control(), &[forged], Duration::from_secs(3));
     chair.drain_for(Duration::from_secs(1));
     assert!(
         !chair.thread.as_ref().unwrap().is_finished(),
@@ -654,11 +682,6 @@ fn under_a_roster_a_forged_duplicate_does_not_stop_a_running_container() {
     services.stop().unwrap();
 }
 
-fn attacker_addr(t: &iw_stack::GuardedTransport) -> String {
-    use iw_bus::transport::FrameTransport;
-    t.local_addr().0.clone()
-}
-
 /// Under a roster, a member of the deployment (she holds chair-m's own pinned key, and the
 /// group key) lists, as chair-m's agents, the services' assistant at her address and an agent
 /// `evil@x`; and sends the chair a global list as if she led. The leader refuses her part (a
@@ -668,13 +691,15 @@ fn attacker_addr(t: &iw_stack::GuardedTransport) -> String {
 fn under_a_roster_an_agent_list_with_foreign_agents_or_from_a_non_leader_is_ignored() {
     let pinned = Pinned::new(&["services", "chair-q", "chair-m"]);
     let (mut services, mut chair) = pinned_pair(&pinned, "chair-q");
-    let member = iw_stack::Identity::from_pkcs8(
-        &std::fs::read(pinned.dir.path().join("chair-m.pk8")).unwrap(),
-    )
-    .unwrap();
+    let member = Arc::new(
+        iw_stack::Identity::from_pkcs8(
+            &std::fs::read(pinned.dir.path().join("chair-m.pk8")).unwrap(),
+        )
+        .unwrap(),
+    );
     let m = ContainerId(pinned.id("chair-m"));
-    let attacker = pinned.attacker("container-m.1.attacker");
-    let here = PeerAddr(attacker_addr(&attacker));
+    let mut attacker = pinned.attacker("container-m.1.attacker", member.clone());
+    let here = PeerAddr(attacker.addr());
     let entry = |name: &str| AgentEntry {
         name: name.into(),
         public_key: member.public_key().to_vec(),
@@ -690,11 +715,6 @@ fn under_a_roster_an_agent_list_with_foreign_agents_or_from_a_non_leader_is_igno
     };
     let mut as_leader = GlobalAgentList::default();
     as_leader.merge_part(m, part.clone());
-    let mut seq = 0u64;
-    let mut sign = |msg: &ContainerMsg| {
-        seq += 1;
-        Signed::seal(&member, seq, msg).unwrap()
-    };
     let heartbeat = ContainerMsg::Heartbeat {
         id: m,
         incarnation: 1,
@@ -705,20 +725,19 @@ fn under_a_roster_an_agent_list_with_foreign_agents_or_from_a_non_leader_is_igno
     let end = Instant::now() + Duration::from_secs(3);
     while Instant::now() < end {
         let to_services = [
-            sign(&heartbeat),
-            sign(&ContainerMsg::Lal {
+            heartbeat.clone(),
+            ContainerMsg::Lal {
                 id: m,
                 part: part.clone(),
-            }),
+            },
         ];
-        flood(&attacker, &services.control(), &to_services, Duration::ZERO);
-        let to_chair = [sign(&ContainerMsg::Gal {
+        attacker.flood(&services.control(), &to_services, Duration::ZERO);
+        let to_chair = [ContainerMsg::Gal {
             leader: m,
             versions: as_leader.versions(),
             gal: as_leader.clone(),
-        })];
-        flood(&attacker, &chair.control(), &to_chair, Duration::ZERO);
-        std::thread::sleep(Duration::from_millis(30));
+        }];
+        attacker.flood(&chair.control(), &to_chair, Duration::ZERO);
     }
     chair.drain_for(Duration::from_secs(1));
     assert_services_kept(&chair);
