@@ -851,6 +851,9 @@ impl Agent for ControlAgent {
             Some(laser) => laser.points(&frame.laser_m, &mut self.laser_points),
             None => self.laser_points.clear(),
         }
+        // A person pushing into a spot the guard holds is backed out of it; a task is not (the
+        // cognitive agent re-plans a blocked route).
+        self.guard.set_recovery(manual);
         let command = match user {
             Some(user) => {
                 let input = SharedInput {

@@ -122,7 +122,8 @@ pub struct SharedControlArgs {
     /// Name of the map's route to drive (must be `closed`).
     #[arg(long, default_value = "lap")]
     route: String,
-    /// Base seed; driver i uses seed + i.
+    /// First driver's seed; driver i is the person of seed + i, whatever the set's size, so
+    /// `--drivers 16 --seed 101` runs seeds 101-116 and `--drivers 8` (seed 1) the page's 1-8.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// A lap not finished within this many simulated seconds ends the driver's trial.

@@ -12,6 +12,10 @@
 //! are remembered in the odometry frame: a front laser cannot see a door jamb once it is beside
 //! the chair's side or rear, and the side sonars' cones leave gaps there (22 cm apart, 45 degree
 //! cones: they overlap only from 27 cm out).
+//!
+//! A chair the guard holds while its user keeps pushing (off the centre line and at an angle at
+//! the entry of a tight passage) is backed out along the way it came, every backing command
+//! passing the same sweep check, so the user can come in again straight ([`ArcGuard::set_recovery`]).
 
 use std::collections::HashMap;
 
@@ -19,6 +23,7 @@ use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 use crate::error::check_positive;
+use crate::recovery::{Plan, Recovery};
 use crate::{
     ControlError, Intervention, Motion, SensorMount, SharedController, SharedInput, SharedOutput,
     VelocityCommand,
@@ -53,6 +58,13 @@ pub struct ArcGuardParams {
     /// How long a dense point out of the sensor's view stays remembered at most, s (60):
     /// something that moved away while out of view is not a wall for ever.
     pub memory_s: f64,
+    /// How long the user must have asked for motion that the guard mostly held back, without
+    /// the chair getting anywhere, before the guard backs it out the way it came, s (3; only with
+    /// [`Motion`], and not after [`ArcGuard::set_recovery`] turned it off).
+    pub stall_s: f64,
+    /// How far from where it stalled the chair is backed out, along the way it came, m (0.8;
+    /// 0 never backs out).
+    pub backup_m: f64,
 }
 
 impl Default for ArcGuardParams {
@@ -67,6 +79,8 @@ impl Default for ArcGuardParams {
             cone_deg: 45.0,
             memory_travel_m: 3.0,
             memory_s: 60.0,
+            stall_s: 3.0,
+            backup_m: 0.8,
         }
     }
 }
@@ -79,6 +93,7 @@ pub struct ArcGuard {
     mounts: Vec<SensorMount>,
     memory: Memory,
     view: Option<DenseView>,
+    recovery: Option<Recovery>,
 }
 
 /// Where the dense sensor looks from, and how wide: inside its view a remembered point that the
@@ -121,6 +136,8 @@ impl ArcGuard {
             ("reaction_s", params.reaction_s),
             ("memory_travel_m", params.memory_travel_m),
             ("memory_s", params.memory_s),
+            ("stall_s", params.stall_s),
+            ("backup_m", params.backup_m),
         ] {
             if value.is_nan() || value < 0.0 || value.is_infinite() {
                 return Err(ControlError::BadParameter {
@@ -136,7 +153,22 @@ impl ArcGuard {
             mounts,
             memory: Memory::default(),
             view: None,
+            recovery: Some(Recovery::default()),
         })
+    }
+
+    /// Whether a stalled chair is backed out (on by default). A person pushing into a spot the
+    /// guard holds needs it; a planner that re-plans when blocked does not, and the control agent
+    /// turns it off for tasks.
+    pub fn set_recovery(&mut self, on: bool) {
+        if on != self.recovery.is_some() {
+            self.recovery = on.then(Recovery::default);
+        }
+    }
+
+    /// Whether the guard is backing the chair out of a stall now.
+    pub fn is_backing(&self) -> bool {
+        self.recovery.as_ref().is_some_and(Recovery::is_backing)
     }
 
     /// The guard, told where the dense sensor (`points_chair`) sits and its full field of view
@@ -316,6 +348,11 @@ impl ArcGuard {
     }
 }
 
+/// Share of the user's wheel speed under which the guard's command holds the user back.
+const HELD_SHARE: f64 = 0.5;
+/// Wheel speed under which the user is not asking for motion, m/s.
+const PUSH_WHEEL_MPS: f64 = 0.03;
+
 /// How much closer than it is a point inside the margin may come, m: float rounding only (an
 /// exact parallel drive keeps the distance).
 const CLOSER_TOLERANCE_M: f64 = 1e-6;
@@ -488,12 +525,61 @@ fn arc_pose(v: f64, w: f64, t: f64) -> Isometry2<f64> {
     Isometry2::new(Vector2::new(x, y), th)
 }
 
+impl ArcGuard {
+    /// The command sent for `user`: backing out of a stall if [`Recovery`] says so (each backing
+    /// command passes the same sweep check, and if none does the chair stops and the backing
+    /// ends), else [`Self::limit_from`].
+    fn drive(
+        &mut self,
+        motion: Option<&Motion>,
+        start: Option<VelocityCommand>,
+        user: VelocityCommand,
+        points: &[Point2<f64>],
+    ) -> (VelocityCommand, bool) {
+        let p = self.params;
+        let Some(motion) = motion else {
+            return self.limit_from(start, user, points);
+        };
+        let Some(mut recovery) = self.recovery.take() else {
+            return self.limit_from(start, user, points);
+        };
+        let (time, pose) = (motion.time_ns, motion.t_odom_chair);
+        let wheel_speed = |c: VelocityCommand| {
+            let turn = c.angular_radps * p.track_m / 2.0;
+            (c.linear_mps - turn).abs().max((c.linear_mps + turn).abs())
+        };
+        let (command, changed, held) = match recovery.plan(time, &pose, user) {
+            Plan::Back(candidates) => {
+                let clear = candidates
+                    .into_iter()
+                    .find(|&c| self.is_clear_from(start.unwrap_or(c), c, points));
+                (
+                    clear.unwrap_or(VelocityCommand::STOP),
+                    true,
+                    clear.is_none(),
+                )
+            }
+            Plan::Pass => {
+                let (command, changed) = self.limit_from(start, user, points);
+                let held = wheel_speed(command) < HELD_SHARE * wheel_speed(user);
+                (command, changed, held)
+            }
+        };
+        if p.backup_m > 0.0 {
+            let pushing = wheel_speed(user) > PUSH_WHEEL_MPS;
+            recovery.observe(time, &pose, (pushing, held), (p.stall_s, p.backup_m));
+        }
+        self.recovery = Some(recovery);
+        (command, changed)
+    }
+}
+
 impl SharedController for ArcGuard {
     fn step(&mut self, input: &SharedInput<'_>) -> Result<SharedOutput, ControlError> {
         let user = input.user.validate()?;
         let start = input.motion.map(|m| m.twist.validate()).transpose()?;
         let points = self.points(input)?;
-        let (command, changed) = self.limit_from(start, user, &points);
+        let (command, changed) = self.drive(input.motion.as_ref(), start, user, &points);
         let active = if changed { points.len() } else { 0 };
         Ok(SharedOutput {
             command,

@@ -42,6 +42,7 @@ mod joystick;
 mod manual;
 mod motion;
 mod potential;
+mod recovery;
 pub mod tactical;
 mod vfh;
 

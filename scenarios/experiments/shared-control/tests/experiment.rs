@@ -51,6 +51,37 @@ fn a_trial_is_deterministic() {
 }
 
 #[test]
+fn a_drivers_trial_depends_on_their_seed_not_on_the_set_they_are_in() {
+    // `--drivers 16 --seed 101` runs seeds 101-116: driver 3 of that set is the same person, and
+    // drives the same trial, as the only driver of `--drivers 1 --seed 104`. So a larger set's
+    // figures extend a smaller one's, driver by driver.
+    let map = office_circuit().unwrap();
+    let config = |drivers, seed| Config {
+        drivers,
+        seed,
+        lap_timeout_s: 20.0,
+        ..Config::default()
+    };
+    let in_set = run_trial(&map, &config(16, 101), 3, Mode::Guarded).unwrap();
+    let alone = run_trial(&map, &config(1, 104), 0, Mode::Guarded).unwrap();
+    assert_eq!(in_set.driver, 3);
+    assert_eq!(without_index(in_set), without_index(alone));
+    let other = run_trial(&map, &config(1, 105), 0, Mode::Guarded).unwrap();
+    assert_ne!(
+        without_index(other),
+        without_index(run_trial(&map, &config(1, 104), 0, Mode::Guarded).unwrap()),
+        "another seed is another person"
+    );
+}
+
+/// A trial with its index in the set cleared.
+fn without_index(
+    trial: iw_shared_control_experiment::Trial,
+) -> iw_shared_control_experiment::Trial {
+    iw_shared_control_experiment::Trial { driver: 0, ..trial }
+}
+
+#[test]
 fn unknown_route_is_a_clear_error() {
     let map = office_circuit().unwrap();
     let config = Config {

@@ -1,0 +1,231 @@
+//! The arc guard's way out of a spot where it holds a user who keeps pushing.
+//!
+//! A chair that reaches a tight passage off its centre line and at an angle cannot line up where
+//! it is: turning would swing a front corner into the furniture, and going on would touch the
+//! wall. The guard rightly holds it, but a user who keeps pushing forward stays stuck (on the
+//! ward corridor's 0.95 m passage, 50-130 s). What frees it is to back out along the way it came
+//! and come in again from farther back, with room to line up.
+//!
+//! [`Recovery`] keeps the chair's recent path (odometry frame). When the user has asked for motion
+//! for [`crate::ArcGuardParams::stall_s`], the guard has held back most of it, and the chair has
+//! not got 0.25 m from where the hold began, it drives the chair back along that path by reverse pure pursuit until it is
+//! [`crate::ArcGuardParams::backup_m`] away from where it stalled. Every command it sends still
+//! passes the guard's sweep check, so no point inside the margin comes closer; when backing
+//! would, it stops and hands the chair back. Letting go of the input (a stop) ends it at once.
+
+use std::collections::VecDeque;
+
+use nalgebra::{Isometry2, Point2};
+
+use crate::VelocityCommand;
+
+/// Spacing of the remembered path, m.
+const TRAIL_STEP_M: f64 = 0.05;
+/// Longest remembered path, points (3 m at [`TRAIL_STEP_M`]).
+const TRAIL_POINTS: usize = 60;
+/// Net motion from where the hold began that counts as progress (the stall is over), m.
+const PROGRESS_M: f64 = 0.25;
+/// Input under which the user is not asking for motion (linear, m/s; turn, rad/s).
+const PUSH_MPS: f64 = 0.05;
+/// Fraction of the periods since the hold began that must have been held to call it a stall.
+const STALL_HELD_SHARE: f64 = 0.5;
+/// A gap in the user's pushing longer than this ends the hold, s: they are doing something else.
+const PAUSE_S: f64 = 1.5;
+/// Speed of the backing out, m/s (reverse).
+const BACK_MPS: f64 = 0.2;
+/// Scales of [`BACK_MPS`] tried when backing at full speed is not clear.
+const BACK_SCALES: [f64; 3] = [1.0, 0.6, 0.3];
+/// How far back along the path the reverse pursuit aims, m.
+const LOOKAHEAD_M: f64 = 0.35;
+/// Distance to the path's last point at which the backing has arrived, m.
+const ARRIVED_M: f64 = 0.1;
+/// Longest backing, s: bounds it if the wheels slip or the path cannot be followed.
+const BACK_MAX_S: f64 = 10.0;
+/// Turn rate of the reverse pursuit at most, rad/s.
+const BACK_TURN_RADPS: f64 = 0.6;
+
+/// The hold being watched: since when, from where, and how many periods held.
+#[derive(Debug, Clone, Copy)]
+struct Hold {
+    since_ns: u64,
+    from: Isometry2<f64>,
+    last_push_ns: u64,
+    periods: u32,
+    held: u32,
+}
+
+/// Backing out along `path` (odometry frame, nearest first, farthest last).
+#[derive(Debug, Clone)]
+struct Backing {
+    since_ns: u64,
+    path: Vec<Point2<f64>>,
+    /// Index of the first path point not yet passed.
+    next: usize,
+}
+
+/// Watches for a stall and backs the chair out of it.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Recovery {
+    /// Recent positions, oldest first, [`TRAIL_STEP_M`] apart.
+    trail: VecDeque<Point2<f64>>,
+    hold: Option<Hold>,
+    backing: Option<Backing>,
+}
+
+/// What the recovery wants this period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Plan {
+    /// Nothing: the guard limits the user's command as usual.
+    Pass,
+    /// Back out: try these commands, best first; the first one clear is sent, and if none is,
+    /// the backing ends and the chair stops.
+    Back([VelocityCommand; BACK_SCALES.len()]),
+}
+
+impl Recovery {
+    /// Records the pose at `time_ns` and says what to do with the `user`'s command.
+    pub(crate) fn plan(
+        &mut self,
+        time_ns: u64,
+        pose: &Isometry2<f64>,
+        user: VelocityCommand,
+    ) -> Plan {
+        self.remember(pose);
+        let Some(backing) = &mut self.backing else {
+            return Plan::Pass;
+        };
+        let here = Point2::from(pose.translation.vector);
+        // Letting go of the input is a stop, and the user's stop always wins.
+        let released = user.linear_mps.abs() < PUSH_MPS && user.angular_radps.abs() < PUSH_MPS;
+        let timed_out = time_ns.saturating_sub(backing.since_ns) as f64 * 1e-9 > BACK_MAX_S;
+        let last = backing.path.last().copied();
+        let arrived = last.is_none_or(|p| (p - here).norm() <= ARRIVED_M);
+        if released || timed_out || arrived {
+            self.end(pose);
+            return Plan::Pass;
+        }
+        while backing.next + 1 < backing.path.len()
+            && (backing.path[backing.next] - here).norm() < LOOKAHEAD_M
+        {
+            backing.next += 1;
+        }
+        let target = pose.inverse() * backing.path[backing.next];
+        // Pure pursuit backwards: the arc through the chair, tangent to its axis, that passes the
+        // target has curvature 2y/d^2 whichever way it is driven.
+        let d2 = target.coords.norm_squared().max(1e-6);
+        let curvature = 2.0 * target.y / d2;
+        let pursue = (BACK_MPS * curvature).clamp(-BACK_TURN_RADPS, BACK_TURN_RADPS);
+        // The way it came, slower if faster would bring something closer.
+        Plan::Back(BACK_SCALES.map(|s| VelocityCommand::new(-BACK_MPS * s, -pursue * s)))
+    }
+
+    /// Notes the period's outcome: whether the user asked for motion (`pushing`) and whether the
+    /// guard `held` most of it back (or, while backing, whether it sent nothing at all). Starts
+    /// backing out when the hold has lasted `stall_s` and a path `backup_m` long is known.
+    pub(crate) fn observe(
+        &mut self,
+        time_ns: u64,
+        pose: &Isometry2<f64>,
+        (pushing, held): (bool, bool),
+        (stall_s, backup_m): (f64, f64),
+    ) {
+        if self.backing.is_some() {
+            if held {
+                // Backing would bring something closer: stop and give the chair back.
+                self.end(pose);
+            }
+            return;
+        }
+        let held = pushing && held;
+        let hold = match &mut self.hold {
+            Some(h)
+                if (Point2::from(pose.translation.vector)
+                    - Point2::from(h.from.translation.vector))
+                .norm()
+                    <= PROGRESS_M
+                    && (pushing
+                        || time_ns.saturating_sub(h.last_push_ns) as f64 * 1e-9 <= PAUSE_S) =>
+            {
+                h
+            }
+            _ => {
+                self.hold = held.then_some(Hold {
+                    since_ns: time_ns,
+                    from: *pose,
+                    last_push_ns: time_ns,
+                    periods: 0,
+                    held: 0,
+                });
+                match &mut self.hold {
+                    Some(h) => h,
+                    None => return,
+                }
+            }
+        };
+        hold.periods += 1;
+        hold.held += u32::from(held);
+        if pushing {
+            hold.last_push_ns = time_ns;
+        }
+        let lasted = time_ns.saturating_sub(hold.since_ns) as f64 * 1e-9;
+        if lasted < stall_s || f64::from(hold.held) < STALL_HELD_SHARE * f64::from(hold.periods) {
+            return;
+        }
+        let from = Point2::from(hold.from.translation.vector);
+        if let Some(path) = self.path_back(&from, backup_m) {
+            self.backing = Some(Backing {
+                since_ns: time_ns,
+                path,
+                next: 0,
+            });
+        }
+        self.hold = None;
+    }
+
+    /// Whether the chair is being backed out.
+    pub(crate) fn is_backing(&self) -> bool {
+        self.backing.is_some()
+    }
+
+    /// The remembered path back from the newest pose to the first one `backup_m` from `from`,
+    /// nearest first; `None` if the path known does not reach that far.
+    fn path_back(&self, from: &Point2<f64>, backup_m: f64) -> Option<Vec<Point2<f64>>> {
+        let mut path = Vec::new();
+        for &p in self.trail.iter().rev() {
+            path.push(p);
+            if (p - from).norm() >= backup_m {
+                return Some(path);
+            }
+        }
+        None
+    }
+
+    /// Ends a backing: the path from where it ended on stays, the part backed over goes.
+    fn end(&mut self, pose: &Isometry2<f64>) {
+        if let Some(b) = self.backing.take() {
+            let keep = self.trail.len().saturating_sub(b.next + 1);
+            self.trail.truncate(keep);
+            self.trail.push_back(Point2::from(pose.translation.vector));
+        }
+        self.hold = None;
+    }
+
+    /// Adds `pose` to the trail when it is [`TRAIL_STEP_M`] from the newest (not while backing:
+    /// the way back is the way it came).
+    fn remember(&mut self, pose: &Isometry2<f64>) {
+        if self.backing.is_some() {
+            return;
+        }
+        let here = Point2::from(pose.translation.vector);
+        if self
+            .trail
+            .back()
+            .is_none_or(|last| (here - last).norm() >= TRAIL_STEP_M)
+        {
+            self.trail.push_back(here);
+            if self.trail.len() > TRAIL_POINTS {
+                self.trail.pop_front();
+            }
+        }
+    }
+}
