@@ -10,9 +10,8 @@
 //! - Every container's `ready` event lists its agents (four per chair, all the service agents),
 //!   and the logger's log holds every message the containers' agents sent: per container, as
 //!   many records from its agents as its `stopped` event counts messages sent (the chairs stop
-//!   first, then the services, whose logger goes last). Copies sent before the logger was
-//!   routed wait for it, and the services' own take-down messages are logged before the logger
-//!   stops; without either, the count falls short.
+//!   first, then the services, whose logger goes last). Copies a chair's agents make before
+//!   the logger is routed to wait for it: dropped instead, each chair's log fell 4 short.
 
 mod common;
 
