@@ -199,6 +199,10 @@ pub struct BodySection {
     /// rendered from the map at the body's true pose the world sends (as the in-process fleet
     /// renders it), fused with the wheels; costs a render and a detection per control period.
     pub visual_odometry: bool,
+    /// How long a virtual body's task waits, wheels stopped, for its world link to come back
+    /// before it fails with the link's reason, ms (`iw_wiring::world_link::REATTACH_WAIT` by
+    /// default: a world restart with room for a loaded host).
+    pub reattach_wait_ms: u64,
 }
 
 impl Default for BodySection {
@@ -210,6 +214,8 @@ impl Default for BodySection {
             timeout_ms: 200,
             start: [1.0, 6.0, 0.0],
             visual_odometry: false,
+            reattach_wait_ms: u64::try_from(iw_wiring::world_link::REATTACH_WAIT.as_millis())
+                .unwrap_or(u64::MAX),
         }
     }
 }
@@ -403,6 +409,13 @@ impl SpawnConfig {
             if self.body.start.iter().any(|v| !v.is_finite()) {
                 return bad("body.start", format!("{:?} is not finite", self.body.start));
             }
+            let wait = self.body.reattach_wait_ms;
+            if wait == 0 || wait > 600_000 {
+                return bad(
+                    "body.reattach_wait_ms",
+                    format!("{wait} ms is outside 1..=600000"),
+                );
+            }
         }
         Ok(())
     }
@@ -470,6 +483,14 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("body.port"), "{err}");
+        let mut config = SpawnConfig::default();
+        config.security.insecure_dev = true;
+        config.body.reattach_wait_ms = 0;
+        let err = config
+            .validate(&crate::Role::Chair { name: "c".into() })
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("body.reattach_wait_ms"), "{err}");
         let mut config = SpawnConfig::default();
         config.security.insecure_dev = true;
         for (listen, token, role, key) in [

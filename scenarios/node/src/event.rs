@@ -119,6 +119,16 @@ pub enum Event {
         /// Wall-clock time, ms since the Unix epoch.
         unix_ms: f64,
     },
+    /// A chair's wheels took a command to move after a stop, or a stop after moving (chairs
+    /// only; read after each agent step): when, so a test sees a chair stop on a lost world link.
+    Wheels {
+        /// The chair.
+        chair: String,
+        /// Whether the wheels now turn.
+        moving: bool,
+        /// Wall-clock time, ms since the Unix epoch.
+        unix_ms: f64,
+    },
     /// An admin command from the parent process (`--admin-stdin`) was carried out, or refused.
     Admin {
         /// The container's name.

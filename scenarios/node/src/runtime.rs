@@ -291,6 +291,8 @@ struct DriveWatch {
     status: iw_wiring::SharedDriveStatus,
     /// A non-zero command was applied at the last look.
     driving: bool,
+    /// The wheels turned at the last look.
+    moving: bool,
 }
 
 /// The serial body on its own I/O thread: a read blocks up to the board timeout (200 ms), four
@@ -379,7 +381,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
                     .map_err(link_err)?,
                 );
             }
-            SharedBody::new(body).outages(iw_wiring::world_link::REATTACH_WAIT)
+            SharedBody::new(body).outages(Duration::from_millis(config.body.reattach_wait_ms))
         }
         BodyKind::Real | BodyKind::Mixed => {
             let senses = config.body.kind == BodyKind::Mixed;
@@ -411,6 +413,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
             chair: name.to_string(),
             status: parts.drive_status,
             driving: false,
+            moving: false,
         },
     })
 }
@@ -923,9 +926,23 @@ impl Runtime {
     }
 
     /// Chairs only: reports the first non-zero command of each manual drive as it reaches the
-    /// wheels.
+    /// wheels, and each change between turning and stopped wheels.
     fn report_drive(&mut self) {
         let Some(watch) = &mut self.drive else { return };
+        let unix_ms = || {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0.0, |d| d.as_secs_f64() * 1e3)
+        };
+        let moving = self.body.as_ref().is_some_and(SharedBody::moving);
+        if moving != watch.moving {
+            watch.moving = moving;
+            let _ = self.events.send(Event::Wheels {
+                chair: watch.chair.clone(),
+                moving,
+                unix_ms: unix_ms(),
+            });
+        }
         let applied = watch
             .status
             .lock()
@@ -936,14 +953,11 @@ impl Runtime {
         if let Some(v) = applied
             && !watch.driving
         {
-            let unix_ms = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0.0, |d| d.as_secs_f64() * 1e3);
             let _ = self.events.send(Event::DriveApplied {
                 chair: watch.chair.clone(),
                 linear_mps: v.linear_mps,
                 angular_radps: v.angular_radps,
-                unix_ms,
+                unix_ms: unix_ms(),
             });
         }
         watch.driving = driving;

@@ -515,6 +515,8 @@ pub struct SharedBody {
     inner: Arc<Mutex<Cached>>,
     /// How long the body may stay unreadable and still come back (see [`SharedBody::outages`]).
     outage: Option<Duration>,
+    /// The last wheel command the body took was not a stop.
+    moving: Arc<std::sync::atomic::AtomicBool>,
 }
 
 /// A body and the frame read since its last command.
@@ -526,7 +528,14 @@ impl SharedBody {
         SharedBody {
             inner: Arc::new(Mutex::new((Box::new(body), None))),
             outage: None,
+            moving: Arc::default(),
         }
+    }
+
+    /// Whether the last wheel command the body took was not a stop (what a chair container
+    /// reports of its wheels).
+    pub fn moving(&self) -> bool {
+        self.moving.load(std::sync::atomic::Ordering::Acquire)
     }
 
     /// A body whose faults are outages of up to `wait` that it recovers from by itself (a
@@ -554,7 +563,12 @@ impl Body for SharedBody {
     fn command(&mut self, speeds: WheelSpeeds) -> Result<(), BodyError> {
         let mut guard = self.inner.lock().unwrap_or_else(PoisonError::into_inner);
         guard.1 = None;
-        guard.0.command(speeds)
+        guard.0.command(speeds)?;
+        self.moving.store(
+            speeds != WheelSpeeds::STOP,
+            std::sync::atomic::Ordering::Release,
+        );
+        Ok(())
     }
 }
 

@@ -66,7 +66,7 @@ pub const WORLD_PERIOD: Duration = Duration::from_millis(50);
 
 /// How long a virtual chair's task waits for its world to come back (a world container
 /// restarted, a partition healed) before it fails: process start-up plus joining, with room for
-/// a loaded host.
+/// a loaded host. The default of a chair container's `body.reattach_wait_ms`.
 pub const REATTACH_WAIT: Duration = Duration::from_secs(30);
 
 /// A frame this far behind the last one (world time, ns) comes from a restarted world.
