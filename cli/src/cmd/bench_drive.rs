@@ -39,7 +39,7 @@ use iw_sim::Map;
 use nalgebra::{Isometry2, Vector2};
 use serde_json::Value;
 
-use super::bench_fleet::{Procs, free_port_pair, percentile};
+use super::bench_fleet::{EVENT_QUEUE, Procs, free_port_pair, percentile};
 use super::demo;
 
 const CHAIR: &str = "chair-0";
@@ -400,8 +400,8 @@ fn browser_in_process(
 fn across_processes(browser: &Browser, trials: usize) -> anyhow::Result<Vec<f64>> {
     let dir = std::env::temp_dir().join(format!("intellwheels-bench-drive-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let (tx, rx) = std::sync::mpsc::channel();
-    let mut procs = Procs::new(dir.clone(), tx);
+    let (tx, rx) = std::sync::mpsc::sync_channel(EVENT_QUEUE);
+    let mut procs = Procs::new(dir.clone(), tx, &["ready", "serving", "drive-applied"]);
     let control = dir.join("control.key");
     iw_stack::write_group_key(&control)?;
     let control = control.display().to_string();

@@ -18,7 +18,9 @@ use std::io::{BufRead, BufReader, Write};
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -32,6 +34,12 @@ const BAY_SPACING_M: f64 = 2.5;
 const GOAL_WAIT: Duration = Duration::from_secs(30);
 /// How long the processes get to stop after SIGTERM.
 const STOP_GRACE: Duration = Duration::from_secs(5);
+/// Events queued between the containers' readers and the bench, at most: a full queue holds the
+/// readers back (and through its pipe the container's writer), it never grows (at 100 chairs an
+/// unbounded one grew to 1.9 GB while the bench was not scheduled).
+pub(super) const EVENT_QUEUE: usize = 65_536;
+/// The events `bench fleet` reads; the rest are dropped unparsed by the readers and counted.
+const FLEET_EVENTS: &[&str] = &["ready", "joined", "left", "agreed", "goal"];
 
 /// How each fleet runs.
 pub struct Settings {
@@ -60,6 +68,19 @@ pub struct FleetRow {
     /// `left` events before convergence and during the idle window (agents dropped because a
     /// container missed its lease).
     left_events: usize,
+    /// Of those, the ones the services reported (chairs' agents they dropped) and the ones the
+    /// chairs reported (the other containers' agents a chair dropped).
+    left_at_services: usize,
+    left_at_chairs: usize,
+    /// Leases that expired, from the containers' logs: the services' (a chair or the world
+    /// not heard from for `lease_ms`) and the chairs' (the services or the world not heard from).
+    leases_expired_at_services: usize,
+    leases_expired_at_chairs: usize,
+    /// Event lines the bench's readers dropped unparsed (kinds it does not read).
+    events_shed: u64,
+    /// The machine's 1-minute load average when the run started and when it ended.
+    load_avg_start: f64,
+    load_avg_end: f64,
     /// Chairs whose cognitive agent AGREEd to its goal.
     agreed: usize,
     rtt_p50_ms: f64,
@@ -80,26 +101,47 @@ pub struct FleetRow {
 pub(super) struct Procs {
     /// Name and child, in launch order (services, world, chairs).
     children: Vec<(String, Child)>,
-    events: Sender<(usize, Value)>,
+    events: SyncSender<(usize, Value)>,
+    /// The event kinds passed on.
+    wanted: &'static [&'static str],
+    /// Lines dropped by the readers: not JSON, or a kind not wanted.
+    shed: Arc<AtomicU64>,
     dir: PathBuf,
 }
 
 impl Procs {
-    /// No process yet; their stderr goes to files in `dir` (removed on drop), their events to
-    /// `events`, tagged with their launch index.
-    pub(super) fn new(dir: PathBuf, events: Sender<(usize, Value)>) -> Procs {
+    /// No process yet; their stderr goes to files in `dir` (removed on drop), their events of
+    /// the kinds in `wanted` to `events` (a bounded queue, [`EVENT_QUEUE`]), tagged with their
+    /// launch index.
+    pub(super) fn new(
+        dir: PathBuf,
+        events: SyncSender<(usize, Value)>,
+        wanted: &'static [&'static str],
+    ) -> Procs {
         Procs {
             children: Vec::new(),
             events,
+            wanted,
+            shed: Arc::default(),
             dir,
         }
+    }
+
+    /// Lines the readers dropped so far.
+    pub(super) fn shed(&self) -> u64 {
+        self.shed.load(Ordering::Relaxed)
     }
 
     pub(super) fn launch(&mut self, name: &str, args: &[String]) -> anyhow::Result<()> {
         let exe = std::env::current_exe().context("locating the intellwheels binary")?;
         let stderr = std::fs::File::create(self.dir.join(format!("{name}.stderr")))
             .context("creating a stderr file")?;
-        let mut child = Command::new(exe)
+        let mut command = Command::new(exe);
+        if std::env::var_os("RUST_LOG").is_none() {
+            // the containers log each lease that expires at info (counted in the results)
+            command.env("RUST_LOG", "warn,iw_container=info");
+        }
+        let mut child = command
             .arg("spawn")
             .args(args)
             .stdin(Stdio::null())
@@ -109,19 +151,10 @@ impl Procs {
             .with_context(|| format!("starting container {name}"))?;
         let stdout = child.stdout.take().context("the child's stdout")?;
         let index = self.children.len();
-        let events = self.events.clone();
+        let (events, wanted, shed) = (self.events.clone(), self.wanted, self.shed.clone());
         std::thread::Builder::new()
             .name(format!("events-{name}"))
-            .spawn(move || {
-                for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                    // every line of `spawn` is one JSON event; anything else is not ours
-                    if let Ok(value) = serde_json::from_str::<Value>(&line)
-                        && events.send((index, value)).is_err()
-                    {
-                        return;
-                    }
-                }
-            })
+            .spawn(move || read_events(BufReader::new(stdout), index, &events, wanted, &shed))
             .context("starting an event reader")?;
         self.children.push((name.to_string(), child));
         Ok(())
@@ -140,6 +173,17 @@ impl Procs {
         None
     }
 
+    /// Lines of each container's log (in launch order) that hold `text`.
+    pub(super) fn log_lines(&self, text: &str) -> Vec<usize> {
+        self.children
+            .iter()
+            .map(|(name, _)| {
+                std::fs::read_to_string(self.dir.join(format!("{name}.stderr")))
+                    .map_or(0, |log| log.lines().filter(|l| l.contains(text)).count())
+            })
+            .collect()
+    }
+
     /// SIGTERM to all (chairs first, services last), then SIGKILL to what is left.
     fn stop(&mut self) {
         for (_, child) in self.children.iter().rev() {
@@ -155,6 +199,39 @@ impl Procs {
             let _ = child.wait();
         }
         self.children.clear();
+    }
+}
+
+/// The kind of a `spawn` event line: its first field, `{"event":"KIND",` (the tag serde writes
+/// first), read without parsing the line.
+fn event_kind(line: &str) -> Option<&str> {
+    let rest = line.strip_prefix("{\"event\":\"")?;
+    rest.split_once('"').map(|(kind, _)| kind)
+}
+
+/// Passes container `index`'s events of the `wanted` kinds to `events` until its output or
+/// the receiver closes; every other line is dropped unparsed and counted in `shed`.
+fn read_events(
+    lines: impl BufRead,
+    index: usize,
+    events: &SyncSender<(usize, Value)>,
+    wanted: &[&str],
+    shed: &AtomicU64,
+) {
+    for line in lines.lines().map_while(Result::ok) {
+        let value = event_kind(&line)
+            .filter(|kind| wanted.contains(kind))
+            .and_then(|_| serde_json::from_str::<Value>(&line).ok());
+        match value {
+            Some(value) => {
+                if events.send((index, value)).is_err() {
+                    return;
+                }
+            }
+            None => {
+                shed.fetch_add(1, Ordering::Relaxed);
+            }
+        }
     }
 }
 
@@ -207,6 +284,15 @@ fn hall(chairs: usize) -> (String, Vec<[f64; 2]>) {
     (map, bays)
 }
 
+/// The machine's 1-minute load average (other work on the machine shows in every figure).
+fn load_average() -> anyhow::Result<f64> {
+    let text = std::fs::read_to_string("/proc/loadavg").context("reading /proc/loadavg")?;
+    text.split_whitespace()
+        .next()
+        .and_then(|v| v.parse().ok())
+        .context("/proc/loadavg without a 1-minute figure")
+}
+
 /// User plus system CPU time of `pid` so far, s.
 fn cpu_seconds(pid: u32) -> anyhow::Result<f64> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat"))
@@ -238,6 +324,8 @@ struct Views {
     own: Vec<Option<BTreeSet<String>>>,
     /// Agents each container installed (joined and not left since).
     installed: Vec<BTreeSet<String>>,
+    /// `left` events per container.
+    left_at: Vec<usize>,
     left: usize,
 }
 
@@ -246,6 +334,7 @@ impl Views {
         Views {
             own: vec![None; containers],
             installed: vec![BTreeSet::new(); containers],
+            left_at: vec![0; containers],
             left: 0,
         }
     }
@@ -269,6 +358,7 @@ impl Views {
             }
             Some("left") => {
                 self.installed[index].remove(&agent());
+                self.left_at[index] += 1;
                 self.left += 1;
             }
             _ => {}
@@ -346,8 +436,13 @@ impl Run {
             match self.rx.recv_timeout(Duration::from_millis(20)) {
                 Ok((index, event)) => {
                     self.apply(index, &event);
-                    // take what is queued before checking: the check walks every list
-                    while let Ok((index, event)) = self.rx.try_recv() {
+                    // take what is queued before checking (the check walks every list), but no
+                    // more than a queue's worth: readers refill it as fast as it drains, and
+                    // the deadline must still be seen
+                    for _ in 0..EVENT_QUEUE {
+                        let Ok((index, event)) = self.rx.try_recv() else {
+                            break;
+                        };
                         self.apply(index, &event);
                     }
                 }
@@ -369,6 +464,27 @@ impl Run {
         }
     }
 
+    /// What the containers' logs say went wrong so far: how many of them logged each kind of
+    /// trouble, and how often.
+    fn trouble(&self) -> String {
+        [
+            "lease expired",
+            "world unreachable",
+            "no sensor frame",
+            "key agreement pending, queue full",
+            "undeliverable",
+        ]
+        .iter()
+        .map(|text| {
+            let lines = self.procs.log_lines(text);
+            let containers = lines.iter().filter(|n| **n > 0).count();
+            let total: usize = lines.iter().sum();
+            format!("`{text}` {total} times in {containers} containers")
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+    }
+
     /// Takes events for `window` (keeps the pipes drained while the fleet idles).
     fn drain_for(&mut self, window: Duration) -> anyhow::Result<()> {
         let end = Instant::now() + window;
@@ -381,10 +497,11 @@ pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
     let (idle, timeout) = (settings.idle, settings.timeout);
     let dir = std::env::temp_dir().join(format!("intellwheels-bench-fleet-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let (tx, rx) = std::sync::mpsc::channel();
+    let load_avg_start = load_average()?;
+    let (tx, rx) = std::sync::mpsc::sync_channel(EVENT_QUEUE);
     let containers = chairs + 2;
     let mut run = Run {
-        procs: Procs::new(dir.clone(), tx),
+        procs: Procs::new(dir.clone(), tx, FLEET_EVENTS),
         rx,
         views: Views::new(containers),
         agreed: BTreeMap::new(),
@@ -472,9 +589,10 @@ pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
     })
     .with_context(|| {
         format!(
-            "{} of {containers} containers listed every agent; agents left {} times meanwhile",
+            "{} of {containers} containers listed every agent; agents left {} times meanwhile; {}",
             run.views.converged(),
-            run.views.left
+            run.views.left,
+            run.trouble()
         )
     })?;
     let converged = t0.elapsed();
@@ -521,6 +639,7 @@ pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
             "agents left while the fleet idled: containers missed their leases"
         );
     }
+    let expired = run.procs.log_lines("lease expired");
     Ok(FleetRow {
         chairs,
         heartbeat_ms: settings.heartbeat_ms,
@@ -529,6 +648,13 @@ pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
         launch_s: round2(launch.as_secs_f64()),
         converged_s: round2(converged.as_secs_f64()),
         left_events: run.views.left,
+        left_at_services: run.views.left_at[0],
+        left_at_chairs: run.views.left_at[2..].iter().sum(),
+        leases_expired_at_services: expired[0],
+        leases_expired_at_chairs: expired[2..].iter().sum(),
+        events_shed: run.procs.shed(),
+        load_avg_start,
+        load_avg_end: load_average()?,
         agreed: rtt.len(),
         rtt_p50_ms: round1(percentile(&rtt, 0.5)),
         rtt_p99_ms: round1(percentile(&rtt, 0.99)),
@@ -742,6 +868,53 @@ mod tests {
         }
         std::hint::black_box(x);
         assert!(cpu_seconds(pid).unwrap() > before);
+    }
+
+    #[test]
+    fn readers_pass_wanted_events_and_count_what_they_drop() {
+        let lines = concat!(
+            "{\"event\":\"joined\",\"agent\":\"a@1\",\"container\":1}\n",
+            "{\"event\":\"body\",\"chair\":\"c\"}\n",
+            "not json\n",
+            "{\"event\":\"left\",\"agent\":\"a@1\",\"container\":1}\n",
+            "{\"event\":\"joined\",\"agent\":\n",
+        );
+        let (tx, rx) = std::sync::mpsc::sync_channel(8);
+        let shed = AtomicU64::new(0);
+        read_events(lines.as_bytes(), 3, &tx, &["joined", "left"], &shed);
+        drop(tx);
+        let got: Vec<(usize, String)> = rx
+            .iter()
+            .map(|(i, v)| (i, v["event"].as_str().unwrap().to_string()))
+            .collect();
+        assert_eq!(got, [(3, "joined".into()), (3, "left".into())]);
+        // the body event, the line that is not JSON and the cut-off one
+        assert_eq!(shed.load(Ordering::Relaxed), 3);
+    }
+
+    #[test]
+    fn a_full_event_queue_holds_the_reader_back_instead_of_growing() {
+        let line = "{\"event\":\"left\",\"agent\":\"a@1\",\"container\":1}\n";
+        let lines = line.repeat(100);
+        let (tx, rx) = std::sync::mpsc::sync_channel(4);
+        let reader = std::thread::spawn(move || {
+            read_events(lines.as_bytes(), 0, &tx, &["left"], &AtomicU64::new(0));
+        });
+        std::thread::sleep(Duration::from_millis(100));
+        // nobody took any: the reader waits at the bound, with its pipe still holding the rest
+        assert!(!reader.is_finished());
+        assert_eq!(rx.iter().count(), 100);
+        reader.join().unwrap();
+    }
+
+    #[test]
+    fn an_event_kind_is_read_from_the_tag_serde_writes_first() {
+        assert_eq!(
+            event_kind(r#"{"event":"ready","agents":[]}"#),
+            Some("ready")
+        );
+        assert_eq!(event_kind(r#"{"agents":[],"event":"ready"}"#), None);
+        assert_eq!(event_kind("{\"event\":\"cut"), None);
     }
 
     #[test]

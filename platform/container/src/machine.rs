@@ -302,6 +302,16 @@ impl Container {
         self.elections
     }
 
+    /// When [`Container::on_tick`] next has something to do: the next heartbeat, or the
+    /// earliest lease to expire. Until then a tick only costs its wake-up.
+    pub fn next_due(&self) -> Time {
+        let lease = Duration::from_millis(self.config.lease_ms);
+        self.peers
+            .values()
+            .map(|p| p.last_heard.plus(lease))
+            .fold(self.next_heartbeat, Time::min)
+    }
+
     /// A number that grows whenever the GAL, the live peers or the leader change: a reader of
     /// the lists need not look again while it stands.
     pub fn revision(&self) -> u64 {

@@ -602,3 +602,24 @@ fn a_hundred_chairs_converge_in_frames_that_fit_a_datagram_and_idle_linearly() {
     }
     assert_eq!(net.lost, 0);
 }
+
+#[test]
+fn a_tick_before_next_due_does_nothing_and_one_at_it_does() {
+    let mut net = SimNet::new(3);
+    net.run(Duration::from_secs(2));
+    let now = net.now;
+    let settings = config(1, addr(1), Vec::new());
+    let lease = Duration::from_millis(settings.lease_ms);
+    let node = net.node(1);
+    let due = node.next_due();
+    assert!(due > now, "something overdue after a tick: {due} at {now}");
+    // no later than the next heartbeat, which goes at least every fifth of the lease
+    assert!(due <= now.plus(settings.idle_heartbeat()));
+    let revision = node.revision();
+    let just_before = Time::from_ns(due.as_ns() - 1);
+    assert!(node.on_tick(just_before).is_empty());
+    assert_eq!(node.revision(), revision);
+    assert!(!node.on_tick(due).is_empty(), "the heartbeat due then");
+    // with the peers silent from now on, their leases come due no later than a lease from now
+    assert!(node.next_due() <= now.plus(lease));
+}

@@ -28,7 +28,15 @@ pub struct UdpTransport {
     max_frame_len: usize,
     /// Read timeout currently set on the socket, ns (0 = none yet): saves a syscall per receive.
     read_timeout_ns: AtomicU64,
+    /// Whether the socket is IPv4 (read once at bind: not a syscall per send).
+    ipv4: bool,
     resolved: Resolved,
+}
+
+thread_local! {
+    /// The receive buffer of every receive on this thread: one datagram's worth, allocated once
+    /// per thread (a zeroed 64 KiB array per receive cost a memset per frame and per timeout).
+    static RECV_BUF: std::cell::RefCell<Vec<u8>> = std::cell::RefCell::new(vec![0; UDP_MAX_PAYLOAD + 1]);
 }
 
 /// Peer addresses already resolved, so a host name costs one lookup, not one per datagram. An
@@ -111,6 +119,7 @@ impl UdpTransport {
             local: PeerAddr(bound.to_string()),
             max_frame_len: max_frame_len.min(UDP_MAX_PAYLOAD),
             read_timeout_ns: AtomicU64::new(0),
+            ipv4: bound.is_ipv4(),
             resolved: Resolved::default(),
         })
     }
@@ -204,8 +213,7 @@ impl FrameTransport for UdpTransport {
                 max: self.max_frame_len,
             });
         }
-        let ipv4 = self.socket.local_addr().is_ok_and(|a| a.is_ipv4());
-        let dest = self.resolved.get(to, ipv4)?;
+        let dest = self.resolved.get(to, self.ipv4)?;
         self.socket.send_to(frame, dest).map_err(|source| {
             self.resolved.forget(to);
             TransportError::Io {
@@ -224,9 +232,16 @@ impl FrameTransport for UdpTransport {
             return Ok(None);
         }
         self.set_read_timeout(timeout)?;
-        let mut buf = [0u8; UDP_MAX_PAYLOAD + 1];
+        RECV_BUF.with_borrow_mut(|buf| self.recv_into(buf))
+    }
+}
+
+impl UdpTransport {
+    /// One datagram into `buf` (at least one byte longer than the longest frame, so a longer
+    /// datagram shows as too long), within the read timeout set.
+    fn recv_into(&self, buf: &mut [u8]) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         loop {
-            match self.socket.recv_from(&mut buf) {
+            match self.socket.recv_from(buf) {
                 Ok((len, from)) => {
                     if len > self.max_frame_len {
                         tracing::warn!(%from, len, max = self.max_frame_len, "dropping oversized UDP frame");

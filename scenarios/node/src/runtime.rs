@@ -37,8 +37,9 @@ pub use admin::{AdminCommand, MAX_ADMIN_LINE};
 const WORLD_GRACE: Duration = Duration::from_secs(3);
 /// The sample care building shipped with the sources, used when no map is configured.
 const SAMPLE_BUILDING: &str = include_str!("../../maps/sample-building.map");
-/// How long the container thread waits for a control frame before it ticks.
-const CONTROL_TICK: Duration = Duration::from_millis(10);
+/// Longest the container thread waits for a control frame before it ticks (sooner when a
+/// heartbeat or a lease is due): the delay before a change made here (an agent killed) is told.
+const CONTROL_TICK: Duration = Duration::from_millis(50);
 /// Steps the logger is given, alone, at shutdown to log the other agents' last messages.
 const LOGGER_DRAIN_STEPS: usize = 5;
 /// Shortest interval between two `security` events.
