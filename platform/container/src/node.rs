@@ -151,10 +151,10 @@ impl<'a> Driver<'a> {
         // Everything already queued is taken before the leases are judged: a process that was
         // not scheduled for a lease must not expire peers whose heartbeats wait in its socket.
         let mut out = Vec::new();
-        // no sooner than something is due (a heartbeat, a lease): an idle container wakes a
+        // No sooner than something is due (a heartbeat, a lease): an idle container wakes a
         // few times a second, not every tick; `tick` bounds the wait for changes made through
         // `with` meanwhile
-        let mut wait = lock().next_due().since(clock.now()).min(tick);
+        let mut wait = self.lock().next_due().since(clock.now()).min(tick);
         for _ in 0..MAX_BATCH {
             match transport.recv_timeout(wait) {
                 Ok(Some((from, datagram))) => {
