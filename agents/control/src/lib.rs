@@ -220,18 +220,11 @@ enum Mode {
 
 /// A live manual drive stream: who drives, in which conversation, and the last command.
 struct Stream {
-    /// The stream's conversation, answered once at its start and once at its end.
+    /// The stream's conversation: answered once at its start and once at its end, and the
+    /// judge of which later commands are the stream's (same driver and conversation, not ended).
     responder: Responder,
-    /// The conversation id the driver gave (every command of the stream carries it).
-    conversation: Option<String>,
     driver: String,
     user: VelocityCommand,
-}
-
-impl Stream {
-    fn is(&self, message: &AclMessage) -> bool {
-        sender_name(message) == self.driver && message.conversation_id == self.conversation
-    }
 }
 
 fn sender_name(message: &AclMessage) -> &str {
@@ -350,8 +343,8 @@ impl ControlAgent {
         {
             self.end_stream(ctx, None);
         }
-        let current = match &self.mode {
-            Mode::Manual(stream) => Some(stream.is(&message)),
+        let current = match &mut self.mode {
+            Mode::Manual(stream) => Some(ctx.continues(&mut stream.responder, &message)),
             _ => None,
         };
         let limit = self.range_error(user);
@@ -405,7 +398,6 @@ impl ControlAgent {
         }
         self.mode = Mode::Manual(Box::new(Stream {
             responder,
-            conversation: message.conversation_id,
             driver,
             user,
         }));

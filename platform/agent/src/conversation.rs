@@ -263,6 +263,13 @@ impl Context<'_> {
         }
     }
 
+    /// Whether `message` goes on with `responder`'s conversation (a request stream's next
+    /// REQUEST, a CANCEL of a subscription); if so it is applied to `responder`. A message of
+    /// another conversation or sender, or one the protocol does not allow now, changes nothing.
+    pub fn continues(&self, responder: &mut Responder, message: &AclMessage) -> bool {
+        responder.handle(message, unix_ms(self.now())).is_ok()
+    }
+
     /// Sends `act` in `responder`'s conversation, with `content` (its ontology and language
     /// set), if the protocol allows `act` now; otherwise nothing is sent and the error says why.
     pub fn answer<C: OntologyContent>(

@@ -85,7 +85,9 @@ impl Responder {
         Ok(reply)
     }
 
-    /// Applies an initiator follow-up; returns the new state.
+    /// Applies an initiator follow-up; returns the new state. A further REQUEST of a request
+    /// stream ([`crate::Initiator::stream`]) is checked like any follow-up (same conversation,
+    /// same initiator, the stream not ended), but the replies still answer the opening.
     pub fn handle(
         &mut self,
         message: &AclMessage,
@@ -104,7 +106,9 @@ impl Responder {
             self.deadline_unix_ms = message.reply_by.map(|t| t.to_unix_ms(now_unix_ms));
         }
         self.state = state;
-        self.latest = message.clone();
+        if act != Performative::Request {
+            self.latest = message.clone();
+        }
         Ok(state)
     }
 
