@@ -60,7 +60,7 @@ pub use iw_wiring::{BodyKind, Console, Desk, GoalEvent, SERVICES, SharedDesk, pl
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
@@ -432,22 +432,24 @@ impl Fleet {
 
     /// Fails (or restores) every sensor read of `chair`.
     pub fn set_sensor_failure(&mut self, chair: &str, failed: bool) -> Result<(), FleetError> {
-        let i = self.index(chair)?;
-        self.chairs[i]
-            .faults
-            .failed
-            .store(failed, Ordering::Release);
-        Ok(())
+        self.set_fault(chair, |f| &f.failed, failed)
     }
 
     /// Blinds (or restores) `chair`'s laser: it returns no ranges while the wheels, sonars and
     /// camera read on.
     pub fn set_laser_blind(&mut self, chair: &str, blind: bool) -> Result<(), FleetError> {
+        self.set_fault(chair, |f| &f.laser_blind, blind)
+    }
+
+    /// Sets (or clears) the fault `which` picks of `chair`'s sensors.
+    fn set_fault(
+        &self,
+        chair: &str,
+        which: impl FnOnce(&SensorFaults) -> &AtomicBool,
+        on: bool,
+    ) -> Result<(), FleetError> {
         let i = self.index(chair)?;
-        self.chairs[i]
-            .faults
-            .laser_blind
-            .store(blind, Ordering::Release);
+        which(&self.chairs[i].faults).store(on, Ordering::Release);
         Ok(())
     }
 
