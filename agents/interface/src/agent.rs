@@ -59,7 +59,7 @@ pub struct InterfaceConfig {
     pub mapping: DriveMapping,
     /// A held input whose device has sent nothing for this long counts as released, ms (a
     /// browser tab closed, a cable pulled).
-    pub hold_ms: u64,
+    pub hold: Duration,
     /// Agents of other containers that may drive this chair through this agent with `drive`
     /// requests (a dashboard's drive panel, relayed by the staff console); everyone else is
     /// refused.
@@ -75,7 +75,7 @@ impl InterfaceConfig {
             control,
             tick: Duration::from_millis(50),
             mapping: DriveMapping::default(),
-            hold_ms: 300,
+            hold: Duration::from_millis(300),
             remote_drivers: Vec::new(),
         }
     }
@@ -216,7 +216,8 @@ impl InterfaceAgent {
     fn stream(&mut self, ctx: &mut Context<'_>) {
         let now_ns = ctx.now().0;
         let Some(held) = &self.held else { return };
-        if now_ns.saturating_sub(held.seen_ns) > self.config.hold_ms.saturating_mul(1_000_000) {
+        let hold_ns = u64::try_from(self.config.hold.as_nanos()).unwrap_or(u64::MAX);
+        if now_ns.saturating_sub(held.seen_ns) > hold_ns {
             tracing::info!("drive input silent past the hold; releasing");
             self.release(ctx);
             return;

@@ -660,7 +660,7 @@ pub fn chair_agents(
     // into door posts when it lines up with a doorway.
     control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
     if let Some(wait) = body.outage {
-        control_config.body_fault_ms = u64::try_from(wait.as_millis()).unwrap_or(u64::MAX);
+        control_config.body_fault = wait;
     }
     // the simulated chair's laser (a body without one reads no ranges, and adds no points)
     control_config.laser = ChairSpec::default().laser.map(|l| LaserMount {
