@@ -278,13 +278,31 @@ impl Context<'_> {
         act: Performative,
         content: &C,
     ) -> Result<(), AgentError> {
-        let reply = responder
+        let reply = self.reply_in(responder, act)?;
+        self.send(content.fill(reply))
+    }
+
+    /// [`Context::answer`] with no content: an AGREE that restates nothing.
+    pub fn acknowledge(
+        &mut self,
+        responder: &mut Responder,
+        act: Performative,
+    ) -> Result<(), AgentError> {
+        let reply = self.reply_in(responder, act)?;
+        self.send(reply)
+    }
+
+    fn reply_in(
+        &self,
+        responder: &mut Responder,
+        act: Performative,
+    ) -> Result<AclMessage, AgentError> {
+        responder
             .reply(act, unix_ms(self.now()))
             .map_err(|source| AgentError::Protocol {
                 agent: self.name().to_owned(),
                 source,
-            })?;
-        self.send(content.fill(reply))
+            })
     }
 
     /// [`Context::answer`] with an `error-message` reason: REFUSE or FAILURE in

@@ -57,6 +57,16 @@ impl Responder {
         self.state
     }
 
+    /// The conversation answered.
+    pub fn conversation_id(&self) -> &str {
+        &self.conversation_id
+    }
+
+    /// The agent that opened the conversation, when the opening named it.
+    pub fn initiator(&self) -> Option<&AgentId> {
+        self.initiator.as_ref()
+    }
+
     /// The initiator's latest message (the request, the CFP, the accepted proposal, ...).
     pub fn latest(&self) -> &AclMessage {
         &self.latest
