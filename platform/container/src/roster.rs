@@ -217,7 +217,8 @@ fn parse_line(line: &str) -> Result<(ContainerId, Pin), String> {
             key.chars().count()
         ));
     }
-    let bytes = PublicKey::from_hex(key).map_err(|e| format!("the key of `{name}`: {e}"))?;
+    let bytes = PublicKey::from_hex(key)
+        .map_err(|e| format!("the key of `{name}` is not 64 hex digits: {e}"))?;
     Ok((
         ContainerId(id),
         Pin {

@@ -61,7 +61,7 @@ pub fn read_group_key(path: &Path) -> Result<PreSharedKey, GroupKeyError> {
             digits.chars().count()
         )));
     }
-    PreSharedKey::from_hex(digits).map_err(|e| bad(e.to_string()))
+    PreSharedKey::from_hex(digits).map_err(|e| bad(format!("not 64 hex digits: {e}")))
 }
 
 #[cfg(test)]
