@@ -85,7 +85,7 @@ fn main() -> ExitCode {
             if cmd::is_broken_pipe(&err) {
                 return ExitCode::SUCCESS;
             }
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", cmd::describe(&err));
             ExitCode::from(2)
         }
     }

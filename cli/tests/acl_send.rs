@@ -67,7 +67,7 @@ fn request_search_and_unknown_receiver() {
         lines,
         [
             "AGREE",
-            "INFORM ((done ((action (agent-identifier :name echo@WheelchairTest) (move-to :room kitchen)))))"
+            "INFORM ((done (action (agent-identifier :name echo@WheelchairTest) (move-to :room kitchen))))"
         ]
     );
 

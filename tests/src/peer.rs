@@ -8,23 +8,6 @@
 //! peer -> test   REPORT <Report as key=value pairs>
 //! ```
 
-/// Lower-case hex of `bytes`.
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// A 32-byte key from 64 hex digits.
-pub fn unhex32(text: &str) -> Option<[u8; 32]> {
-    if text.len() != 64 || !text.is_ascii() {
-        return None;
-    }
-    let mut out = [0u8; 32];
-    for (i, o) in out.iter_mut().enumerate() {
-        *o = u8::from_str_radix(text.get(2 * i..2 * i + 2)?, 16).ok()?;
-    }
-    Some(out)
-}
-
 /// What the peer accepted.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Report {
@@ -87,12 +70,5 @@ mod tests {
         };
         assert_eq!(Report::parse(&r.to_line()), Some(r));
         assert_eq!(Report::parse("REPORT bogus"), None);
-    }
-
-    #[test]
-    fn hex_round_trips() {
-        let k = [0xabu8; 32];
-        assert_eq!(unhex32(&hex(&k)), Some(k));
-        assert_eq!(unhex32("zz"), None);
     }
 }

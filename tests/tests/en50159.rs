@@ -21,9 +21,10 @@ use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use hex::FromHex;
 use iw_bus::{Bus, BusConfig, Clock, Envelope, FrameCodec, Impairments, Reason, Time};
 use iw_stack::{LayerSet, Ordering, Platform, StackConfig};
-use iw_tests::peer::{Report, hex, unhex32};
+use iw_tests::peer::Report;
 use iw_tests::{Link, Side, acl, number_of};
 use iw_transport_net::{ImpairConfig, ImpairProxy, UdpTransport};
 
@@ -594,7 +595,7 @@ impl Peer {
         let parts: Vec<&str> = line.split_whitespace().collect();
         assert_eq!(parts.first(), Some(&"READY"), "peer said `{line}`");
         let addr = parts[1].parse().expect("socket address");
-        let key = unhex32(parts[2]).expect("key");
+        let key = <[u8; 32]>::from_hex(parts[2]).expect("key");
         Peer {
             child,
             stdin,
@@ -630,7 +631,7 @@ fn system_run(
     writeln!(
         peer.stdin,
         "PEER {} {}",
-        hex(&node.identity.public_key()),
+        hex::encode(node.identity.public_key()),
         proxy.addr()
     )
     .expect("peer stdin");

@@ -31,7 +31,7 @@ mod worker;
 
 pub use emulator::{BoardEmulator, BoardHandle, BoardState};
 pub use mixed::{MixedBody, VirtualSensors, merge_nearest};
-pub use odometry::{Odometry, WheelGeometry, WheelTravel};
+pub use odometry::{Odometry, TRACK_M, WheelGeometry, WheelTravel};
 pub use serial::SerialBody;
 pub use worker::BodyWorker;
 

@@ -4,6 +4,10 @@ use nalgebra::{Isometry2, Vector2};
 
 use crate::SensorFrame;
 
+/// Distance between the prototype's drive wheels' contact points, m: the one value every model
+/// of the chair's drive (odometry, the VO wheel model, shared control) starts from.
+pub const TRACK_M: f64 = 0.56;
+
 /// The drive geometry the encoders are read against (nominal values: the real tyre differs).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WheelGeometry {
@@ -16,11 +20,11 @@ pub struct WheelGeometry {
 }
 
 impl Default for WheelGeometry {
-    /// A typical powered wheelchair: 14" drive wheels 0.56 m apart, a 512-line quadrature encoder
+    /// A typical powered wheelchair: 14" drive wheels [`TRACK_M`] apart, a 512-line quadrature encoder
     /// on the motor shaft behind an 18:1 gearbox.
     fn default() -> Self {
         Self {
-            track_m: 0.56,
+            track_m: TRACK_M,
             wheel_radius_m: 0.175,
             ticks_per_rev: 4.0 * 512.0 * 18.0,
         }

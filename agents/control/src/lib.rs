@@ -16,16 +16,16 @@
 //!   `(follow-left-wall :distance)`, `(follow-right-wall :distance)` or
 //!   `(action-sequence :steps (sequence A ...))`. Answer: AGREE, then INFORM
 //!   `((done (action control A)))` when finished, or FAILURE `((error-message "..."))` when
-//!   blocked (no progress for [`ControlConfig::blocked_after_ms`]) or when a newer request or
+//!   blocked (no progress for [`ControlConfig::blocked_after`]) or when a newer request or
 //!   manual drive preempts it, FAILURE `((body-fault "..."))` when the body stays unreadable past
-//!   [`ControlConfig::body_fault_ms`] or takes no stop (the way is not known to be blocked: the
+//!   [`ControlConfig::body_fault`] or takes no stop (the way is not known to be blocked: the
 //!   requester may try again once the body is back). Other actions (go-to, doors, follow-line) get
 //!   REFUSE; content that is not the ontology gets NOT-UNDERSTOOD.
 //! - REQUEST `((action (agent-identifier :name control) (drive :linear V :angular W)))` (m/s,
 //!   rad/s): manual driving as a stream, one conversation per stream (held input). The first
 //!   command of a stream gets AGREE; the following ones no answer. Every command goes through
 //!   the arc guard with the sonars and the laser, and feeds the watchdog: when the
-//!   stream falls silent for [`ControlConfig::watchdog_ms`] the chair stops and the stream ends
+//!   stream falls silent for [`ControlConfig::watchdog`] the chair stops and the stream ends
 //!   with INFORM `((done ...))` if the last command was a stop (the user let go), FAILURE
 //!   otherwise. Refused (REFUSE with a reason): a command out of the drive's range or not
 //!   finite (mid-stream: FAILURE, and the chair stops); a driver that is not of this chair
@@ -42,8 +42,10 @@
 //!   [`ControlConfig::perception`] with content `((at-pose ?agent ?pose))`; only that
 //!   subscription's notifications move the pose (an INFORM in another conversation does not).
 //!
-//! Requests and the subscription run on the interaction protocols' state machines
-//! (`iw_agent::conversation`), so no answer is sent that fipa-request does not allow.
+//! Requests, drive streams, the `drive-applied` subscriptions and its own pose subscription run
+//! on the interaction protocols' state machines (`iw_agent::conversation`): a drive stream's
+//! later commands and a CANCEL are matched to their conversation by its responder, and no
+//! answer is sent that the protocol does not allow.
 //!
 //! Driving: [`ArcGuard`] scales or steers the user's manual command and the tactical layer's so
 //! the footprint swept until the chair stops (turning in place too) stays clear of the sonar
@@ -117,19 +119,19 @@ pub struct ControlConfig {
     pub guard: ArcGuardParams,
     /// Where each of the body's sonars sits, in its order (`iw_body::SONAR_COUNT` of them).
     pub sonar_mounts: Vec<SensorMount>,
-    /// Manual commands older than this stop the chair, ms.
-    pub watchdog_ms: u64,
+    /// Manual commands older than this stop the chair.
+    pub watchdog: Duration,
     /// Control period.
     pub period: Duration,
     /// A task during which the chair travels less than [`BLOCKED_TRAVEL_M`] and turns less than
-    /// [`BLOCKED_TURN_RAD`] net for this long fails as blocked, ms.
-    pub blocked_after_ms: u64,
+    /// [`BLOCKED_TURN_RAD`] net for this long fails as blocked.
+    pub blocked_after: Duration,
     /// Travel of a wall-following action before it is done, m.
     pub wall_length_m: f64,
-    /// How long the body may stay unreadable before the running task fails, ms. The wheels stop
+    /// How long the body may stay unreadable before the running task fails. The wheels stop
     /// at the first failed read; a task survives a shorter fault (one corrupted serial frame)
     /// and resumes from rest, its no-progress time counted afresh.
-    pub body_fault_ms: u64,
+    pub body_fault: Duration,
     /// Agents that may drive this chair by hand. Empty: the agents of this chair's own
     /// container, the part of their name after `@` being the control agent's.
     pub drivers: Vec<String>,
@@ -187,11 +189,11 @@ impl ControlConfig {
             tactical: TacticalParams::default(),
             wheels: WheelGeometry::default(),
             sonar_mounts,
-            watchdog_ms: 500,
+            watchdog: Duration::from_millis(500),
             period: Duration::from_millis(50),
-            blocked_after_ms: 8000,
+            blocked_after: Duration::from_secs(8),
             wall_length_m: 3.0,
-            body_fault_ms: 500,
+            body_fault: Duration::from_millis(500),
             drivers: Vec::new(),
             staff: Vec::new(),
             laser: None,
@@ -220,18 +222,16 @@ enum Mode {
 
 /// A live manual drive stream: who drives, in which conversation, and the last command.
 struct Stream {
-    /// The stream's conversation, answered once at its start and once at its end.
+    /// The stream's conversation: answered once at its start and once at its end, and the
+    /// judge of which later commands are the stream's (same driver and conversation, not ended).
     responder: Responder,
-    /// The conversation id the driver gave (every command of the stream carries it).
-    conversation: Option<String>,
     driver: String,
     user: VelocityCommand,
 }
 
-impl Stream {
-    fn is(&self, message: &AclMessage) -> bool {
-        sender_name(message) == self.driver && message.conversation_id == self.conversation
-    }
+/// `d` in the bus clock's nanoseconds (saturating: a window of centuries never closes).
+fn ns(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 fn sender_name(message: &AclMessage) -> &str {
@@ -277,8 +277,8 @@ pub struct ControlAgent {
     /// When the body's reads started failing, while they fail, ns.
     body_fault_since_ns: Option<u64>,
     status: SharedDriveStatus,
-    /// The `drive-applied` subscriptions, each as its SUBSCRIBE.
-    applied_to: Vec<AclMessage>,
+    /// The `drive-applied` subscriptions, each its conversation's responder.
+    applied_to: Vec<Responder>,
     /// The laser's points of this tick, body frame (kept to reuse the allocation).
     laser_points: Vec<Point2<f64>>,
 }
@@ -302,7 +302,7 @@ impl ControlAgent {
             None => guard,
         };
         let motion = WheelMotion::new(config.wheels);
-        let basic = BasicControl::new(config.drive, config.watchdog_ms.saturating_mul(1_000_000));
+        let basic = BasicControl::new(config.drive, ns(config.watchdog));
         Ok(ControlAgent {
             body,
             basic,
@@ -311,7 +311,7 @@ impl ControlAgent {
             mode: Mode::Idle,
             poses: Initiated::new(),
             t_map_base: None,
-            manual_watchdog: Watchdog::new(config.watchdog_ms.saturating_mul(1_000_000)),
+            manual_watchdog: Watchdog::new(ns(config.watchdog)),
             body_fault_since_ns: None,
             status: SharedDriveStatus::default(),
             applied_to: Vec::new(),
@@ -350,8 +350,8 @@ impl ControlAgent {
         {
             self.end_stream(ctx, None);
         }
-        let current = match &self.mode {
-            Mode::Manual(stream) => Some(stream.is(&message)),
+        let current = match &mut self.mode {
+            Mode::Manual(stream) => Some(ctx.continues(&mut stream.responder, &message)),
             _ => None,
         };
         let limit = self.range_error(user);
@@ -405,7 +405,6 @@ impl ControlAgent {
         }
         self.mode = Mode::Manual(Box::new(Stream {
             responder,
-            conversation: message.conversation_id,
             driver,
             user,
         }));
@@ -454,7 +453,7 @@ impl ControlAgent {
             None => {
                 let why = format!(
                     "watchdog: no drive command for {} ms; chair stopped",
-                    self.config.watchdog_ms
+                    self.config.watchdog.as_millis()
                 );
                 let _ = ctx.answer_error(&mut stream.responder, Performative::Failure, &why);
             }
@@ -521,34 +520,40 @@ impl ControlAgent {
 
     /// A SUBSCRIBE to `drive-applied` (agreed and kept) or a CANCEL of one.
     fn handle_subscription(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
-        let same = |a: &AclMessage, b: &AclMessage| {
-            a.sender == b.sender && a.conversation_id == b.conversation_id
-        };
         if message.performative == Performative::Cancel {
-            self.applied_to.retain(|s| !same(s, &message));
+            self.applied_to.retain_mut(|s| !ctx.continues(s, &message));
             return;
         }
+        let Some(mut responder) = ctx.accept(&message) else {
+            return;
+        };
         if !message
             .content_text()
             .is_some_and(|t| t.contains("drive-applied"))
         {
-            let _ = ctx.refuse(
-                &message,
+            let _ = ctx.answer_error(
+                &mut responder,
+                Performative::Refuse,
                 "the control agent's subscription is to ((drive-applied ?agent ?command))",
             );
             return;
         }
-        let _ = ctx.send(
-            message
-                .create_reply()
-                .with_performative(Performative::Agree),
-        );
-        self.applied_to.retain(|s| !same(s, &message));
-        self.applied_to.push(message);
+        if ctx
+            .acknowledge(&mut responder, Performative::Agree)
+            .is_err()
+        {
+            return;
+        }
+        // a SUBSCRIBE again in a live subscription's conversation renews it
+        self.applied_to.retain(|s| {
+            s.conversation_id() != responder.conversation_id()
+                || s.initiator() != responder.initiator()
+        });
+        self.applied_to.push(responder);
     }
 
     /// Tells the `drive-applied` subscribers what shared control applied this tick.
-    fn inform_applied(&self, ctx: &mut Context<'_>, command: VelocityCommand) {
+    fn inform_applied(&mut self, ctx: &mut Context<'_>, command: VelocityCommand) {
         if self.applied_to.is_empty() {
             return;
         }
@@ -557,13 +562,8 @@ impl ControlAgent {
             linear_mps: command.linear_mps,
             angular_radps: command.angular_radps,
         });
-        for subscription in &self.applied_to {
-            let inform = fact.fill(
-                subscription
-                    .create_reply()
-                    .with_performative(Performative::Inform),
-            );
-            if let Err(err) = ctx.send(inform) {
+        for subscription in &mut self.applied_to {
+            if let Err(err) = ctx.answer(subscription, Performative::Inform, &fact) {
                 tracing::debug!(error = %err, "could not inform a drive-applied subscriber");
             }
         }
@@ -696,9 +696,8 @@ impl ControlAgent {
                 now_ns
             }
         };
-        let blocked = now_ns.saturating_sub(since)
-            > self.config.blocked_after_ms.saturating_mul(1_000_000)
-            && !task.is_waiting();
+        let blocked =
+            now_ns.saturating_sub(since) > ns(self.config.blocked_after) && !task.is_waiting();
         match outcome {
             Ok(out) if out.status == SequenceStatus::Finished => {
                 let done = WheelchairContent::Done {
@@ -818,13 +817,11 @@ impl Agent for ControlAgent {
                     return;
                 }
                 let since = *self.body_fault_since_ns.get_or_insert(now_ns);
-                if now_ns.saturating_sub(since)
-                    < self.config.body_fault_ms.saturating_mul(1_000_000)
-                {
+                if now_ns.saturating_sub(since) < ns(self.config.body_fault) {
                     tracing::warn!(error = %err, "body read failed; wheels stopped, task held");
                     return;
                 }
-                tracing::warn!(error = %err, fault_ms = self.config.body_fault_ms, "body unreadable past the fault window; chair stopped, task failed");
+                tracing::warn!(error = %err, fault_ms = self.config.body_fault.as_millis(), "body unreadable past the fault window; chair stopped, task failed");
                 self.body_failed(ctx, &format!("body: {err}"));
                 return;
             }

@@ -19,14 +19,16 @@
 //! - QUERY-REF of a door's state is answered with INFORM `((door-state D open|closed))`; content
 //!   is `((door-state D ?state))`.
 //! - Anything else: NOT-UNDERSTOOD.
+//!
+//! Both run on the interaction protocols' state machines (`iw_agent::Responder`), so no answer
+//! is sent that fipa-request or fipa-query does not allow.
 #![warn(missing_docs)]
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
 
 use iw_acl::{AclMessage, Performative};
-use iw_agent::{Agent, Context};
-use iw_ontology::OntologyContent;
+use iw_agent::{Agent, Context, Responder};
 use iw_ontology::wheelchair::{DoorState, Fact, WheelchairAction, WheelchairContent};
 
 /// A door that could not be moved.
@@ -96,10 +98,15 @@ impl DoorAgent {
         }
     }
 
-    fn refuse(&mut self, ctx: &mut Context<'_>, message: &AclMessage, door: &str, reason: String) {
-        let requester = message
-            .sender
-            .as_ref()
+    fn refuse(
+        &mut self,
+        ctx: &mut Context<'_>,
+        request: &mut Responder,
+        door: &str,
+        reason: String,
+    ) {
+        let requester = request
+            .initiator()
             .map(|s| s.name.clone())
             .unwrap_or_default();
         tracing::warn!(door, requester = %requester, reason = %reason, "door request refused");
@@ -111,7 +118,7 @@ impl DoorAgent {
                 reason: reason.clone(),
             });
         }
-        let _ = ctx.refuse(message, &reason);
+        let _ = ctx.answer_error(request, Performative::Refuse, &reason);
     }
 
     fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
@@ -125,16 +132,23 @@ impl DoorAgent {
         ) else {
             return;
         };
+        let Some(mut request) = ctx.accept(&message) else {
+            return;
+        };
         let (door, open) = match &action {
             WheelchairAction::OpenDoor { door } => (door.clone(), true),
             WheelchairAction::CloseDoor { door } => (door.clone(), false),
             _ => {
-                let _ = ctx.refuse(&message, "the door agent only opens and closes doors");
+                let _ = ctx.answer_error(
+                    &mut request,
+                    Performative::Refuse,
+                    "the door agent only opens and closes doors",
+                );
                 return;
             }
         };
         let Some(policy) = self.config.doors.get(&door) else {
-            self.refuse(ctx, &message, &door, format!("unknown door `{door}`"));
+            self.refuse(ctx, &mut request, &door, format!("unknown door `{door}`"));
             return;
         };
         let requester = message
@@ -145,14 +159,19 @@ impl DoorAgent {
         if open && policy.restricted && !policy.authorised.contains(requester) {
             let reason =
                 format!("`{requester}` is not authorised to open restricted door `{door}`");
-            self.refuse(ctx, &message, &door, reason);
+            self.refuse(ctx, &mut request, &door, reason);
             return;
         }
-        let agree = message
-            .create_reply()
-            .with_performative(Performative::Agree);
-        let _ =
-            ctx.send(agree.with_content(message.content_text().unwrap_or_default().to_string()));
+        let asked = WheelchairContent::Request {
+            actor: actor.clone(),
+            action: action.clone(),
+        };
+        if ctx
+            .answer(&mut request, Performative::Agree, &asked)
+            .is_err()
+        {
+            return;
+        }
         match self.actuator.set(&door, open) {
             Ok(()) => {
                 if open {
@@ -161,17 +180,11 @@ impl DoorAgent {
                     self.open.remove(&door);
                 }
                 let done = WheelchairContent::Done { actor, action };
-                let _ = ctx.send(
-                    done.fill(
-                        message
-                            .create_reply()
-                            .with_performative(Performative::Inform),
-                    ),
-                );
+                let _ = ctx.answer(&mut request, Performative::Inform, &done);
             }
             Err(fault) => {
                 tracing::warn!(error = %fault, "door actuator fault");
-                let _ = ctx.failure(&message, &fault.to_string());
+                let _ = ctx.answer_error(&mut request, Performative::Failure, &fault.to_string());
             }
         }
     }
@@ -189,19 +202,16 @@ impl DoorAgent {
             );
             return;
         };
+        let Some(mut query) = ctx.accept(&message) else {
+            return;
+        };
         let state = if self.open.contains(&door) {
             DoorState::Open
         } else {
             DoorState::Closed
         };
         let fact = WheelchairContent::Inform(Fact::Door { door, state });
-        let _ = ctx.send(
-            fact.fill(
-                message
-                    .create_reply()
-                    .with_performative(Performative::Inform),
-            ),
-        );
+        let _ = ctx.answer(&mut query, Performative::Inform, &fact);
     }
 }
 

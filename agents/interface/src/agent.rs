@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::conversation::answers_a_conversation;
-use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol};
+use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
@@ -59,7 +59,7 @@ pub struct InterfaceConfig {
     pub mapping: DriveMapping,
     /// A held input whose device has sent nothing for this long counts as released, ms (a
     /// browser tab closed, a cable pulled).
-    pub hold_ms: u64,
+    pub hold: Duration,
     /// Agents of other containers that may drive this chair through this agent with `drive`
     /// requests (a dashboard's drive panel, relayed by the staff console); everyone else is
     /// refused.
@@ -75,7 +75,7 @@ impl InterfaceConfig {
             control,
             tick: Duration::from_millis(50),
             mapping: DriveMapping::default(),
-            hold_ms: 300,
+            hold: Duration::from_millis(300),
             remote_drivers: Vec::new(),
         }
     }
@@ -92,8 +92,8 @@ struct Held {
     /// The control agent refused or ended the stream: nothing is sent until the user lets go.
     stopped: bool,
     /// Who holds the input: `None` for this chair's own devices, else the remote driver and
-    /// its request conversation.
-    remote: Option<(String, Option<String>)>,
+    /// its drive stream (agreed once; it judges which later commands are the stream's).
+    remote: Option<(String, Responder)>,
 }
 
 /// The interface agent: inputs in, ACL requests out.
@@ -216,7 +216,8 @@ impl InterfaceAgent {
     fn stream(&mut self, ctx: &mut Context<'_>) {
         let now_ns = ctx.now().0;
         let Some(held) = &self.held else { return };
-        if now_ns.saturating_sub(held.seen_ns) > self.config.hold_ms.saturating_mul(1_000_000) {
+        let hold_ns = u64::try_from(self.config.hold.as_nanos()).unwrap_or(u64::MAX);
+        if now_ns.saturating_sub(held.seen_ns) > hold_ns {
             tracing::info!("drive input silent past the hold; releasing");
             self.release(ctx);
             return;
@@ -281,17 +282,17 @@ impl InterfaceAgent {
     fn on_remote_drive(&mut self, ctx: &mut Context<'_>, message: AclMessage, from: String) {
         let drive = match WheelchairContent::from_message(&message) {
             Ok(WheelchairContent::Request {
+                actor,
                 action:
                     WheelchairAction::Drive {
                         linear_mps,
                         angular_radps,
                     },
-                ..
-            }) => Ok((linear_mps, angular_radps)),
+            }) => Ok((actor, linear_mps, angular_radps)),
             Ok(_) => Err("expected ((action actor (drive :linear V :angular W)))".to_string()),
             Err(err) => Err(err.to_string()),
         };
-        let (linear_mps, angular_radps) = match drive {
+        let (actor, linear_mps, angular_radps) = match drive {
             Ok(drive) => drive,
             Err(why) => {
                 // a broken command from the driver stops the chair (a NaN does not even parse)
@@ -340,27 +341,36 @@ impl InterfaceAgent {
             );
             return;
         }
-        let conversation = message.conversation_id.clone();
         let known = self
             .held
-            .as_ref()
-            .and_then(|h| h.remote.as_ref())
-            .is_some_and(|(_, c)| *c == conversation);
+            .as_mut()
+            .and_then(|h| h.remote.as_mut())
+            .is_some_and(|(_, stream)| ctx.continues(stream, &message));
+        // A new conversation is a new stream; one that cannot open (NOT-UNDERSTOOD) moves nothing.
+        let opened = if known {
+            None
+        } else {
+            let Some(stream) = ctx.accept(&message) else {
+                return;
+            };
+            Some(stream)
+        };
         let command = DriveCommand {
             device: crate::Device::Remote,
             linear_mps,
             angular_radps,
         };
         self.on_drive_input(ctx, Some(command));
-        if let Some(held) = &mut self.held {
-            held.remote = Some((from, conversation));
-            if !known {
-                let _ = ctx.send(
-                    message
-                        .create_reply()
-                        .with_performative(Performative::Agree),
-                );
-            }
+        if let (Some(held), Some(mut stream)) = (&mut self.held, opened) {
+            let request = WheelchairContent::Request {
+                actor,
+                action: WheelchairAction::Drive {
+                    linear_mps,
+                    angular_radps,
+                },
+            };
+            let _ = ctx.answer(&mut stream, Performative::Agree, &request);
+            held.remote = Some((from, stream));
         }
     }
 

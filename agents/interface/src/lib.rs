@@ -24,7 +24,7 @@
 //! - No input can panic the agent: bad symbols are refused with [`InterfaceError`] and dropped;
 //!   a broken proportional reading (NaN, infinite, out of range) is dropped and stops the chair.
 //! - A held input streams at the tick rate (20 Hz by default); a device silent for
-//!   [`InterfaceConfig::hold_ms`] counts as released. After the control agent refuses or ends a
+//!   [`InterfaceConfig::hold`] counts as released. After the control agent refuses or ends a
 //!   stream, nothing is sent until the user lets go.
 //! - A remote `drive` is refused with a reason when its sender is not a remote driver, when it
 //!   is not finite or beyond the mapping's speeds (the chair stops too), or while another driver

@@ -34,7 +34,8 @@
 //!   `sensor-reading` also gets `((sensor-reading CHAIR (sonar-reading :ranges (sequence ...))))`
 //!   (no echo reads as the sonar's maximum range, [`PerceptionConfig::sonar_max_m`]).
 //! - CANCEL in the conversation of a subscription: ends it, INFORM `((done ...))` is not sent
-//!   (FIPA allows silence); other performatives get NOT-UNDERSTOOD.
+//!   (FIPA allows silence); other performatives get NOT-UNDERSTOOD. Each subscription is its
+//!   conversation's `iw_agent::Responder`: the notifications answer it, a CANCEL ends only it.
 //!
 //! Guarantees: a failed body read or camera frame skips that update and is logged, never
 //! panics; the published covariance is the EKF's, symmetric.
@@ -45,10 +46,9 @@ mod vision;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::{Agent, Context, Responder};
 use iw_body::Body;
 use iw_localization::{Localizer, Status};
-use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, SensorReading, WheelchairContent};
 use iw_vo::{
     CameraSource, DiffDriveParams, OdometryFusion, Pose2, VoConfig, WheelOdometry, planar_motion,
@@ -129,7 +129,8 @@ impl PerceptionConfig {
 }
 
 struct Subscription {
-    request: AclMessage,
+    /// The subscription's conversation: its notifications answer it, a CANCEL ends it.
+    responder: Responder,
     readings: bool,
 }
 
@@ -372,22 +373,10 @@ impl PerceptionAgent {
                 ranges_m: self.last_sonar_m.clone(),
             },
         });
-        for sub in &self.subscribers {
-            let _ = ctx.send(
-                pose.fill(
-                    sub.request
-                        .create_reply()
-                        .with_performative(Performative::Inform),
-                ),
-            );
+        for sub in &mut self.subscribers {
+            let _ = ctx.answer(&mut sub.responder, Performative::Inform, &pose);
             if sub.readings && !self.last_sonar_m.is_empty() {
-                let _ = ctx.send(
-                    sonar.fill(
-                        sub.request
-                            .create_reply()
-                            .with_performative(Performative::Inform),
-                    ),
-                );
+                let _ = ctx.answer(&mut sub.responder, Performative::Inform, &sonar);
             }
         }
     }
@@ -406,26 +395,28 @@ impl Agent for PerceptionAgent {
                     return;
                 }
                 let readings = text.contains("sensor-reading");
-                let agree = message
-                    .create_reply()
-                    .with_performative(Performative::Agree)
-                    .with_content(text.to_string());
-                let _ = ctx.send(agree);
+                let Some(mut responder) = ctx.accept(&message) else {
+                    return;
+                };
+                if ctx
+                    .acknowledge(&mut responder, Performative::Agree)
+                    .is_err()
+                {
+                    return;
+                }
                 // One subscription per (subscriber, conversation): a repeated subscribe replaces it.
                 self.subscribers.retain(|s| {
-                    !(s.request.sender == message.sender
-                        && s.request.conversation_id == message.conversation_id)
+                    s.responder.conversation_id() != responder.conversation_id()
+                        || s.responder.initiator() != responder.initiator()
                 });
                 self.subscribers.push(Subscription {
-                    request: message,
+                    responder,
                     readings,
                 });
             }
             Performative::Cancel => {
-                self.subscribers.retain(|s| {
-                    !(s.request.sender == message.sender
-                        && s.request.conversation_id == message.conversation_id)
-                });
+                self.subscribers
+                    .retain_mut(|s| !ctx.continues(&mut s.responder, &message));
             }
             _ => {
                 let _ =

@@ -762,7 +762,7 @@ pub fn run(
                 rows.push(row);
             }
             Err(e) => {
-                let reason = format!("{e:#}");
+                let reason = super::describe(&e);
                 if json {
                     serde_json::to_writer(
                         &mut out,

@@ -108,7 +108,7 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
         Ok(code) => Ok(code),
         Err(err) if super::is_broken_pipe(&err) => Err(err),
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", super::describe(&err));
             Ok(ExitCode::FAILURE)
         }
     }

@@ -235,10 +235,9 @@ fn stop_on_close(stop: &AtomicBool) {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(path) = &args.keygen {
         let public = iw_node::write_identity(path)?;
-        let hex: String = public.iter().map(|b| format!("{b:02x}")).collect();
         println!(
             "{}",
-            serde_json::json!({ "event": "key", "path": path.display().to_string(), "public_key": hex })
+            serde_json::json!({ "event": "key", "path": path.display().to_string(), "public_key": hex::encode(public) })
         );
         return Ok(ExitCode::SUCCESS);
     }

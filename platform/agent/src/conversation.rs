@@ -263,6 +263,13 @@ impl Context<'_> {
         }
     }
 
+    /// Whether `message` goes on with `responder`'s conversation (a request stream's next
+    /// REQUEST, a CANCEL of a subscription); if so it is applied to `responder`. A message of
+    /// another conversation or sender, or one the protocol does not allow now, changes nothing.
+    pub fn continues(&self, responder: &mut Responder, message: &AclMessage) -> bool {
+        responder.handle(message, unix_ms(self.now())).is_ok()
+    }
+
     /// Sends `act` in `responder`'s conversation, with `content` (its ontology and language
     /// set), if the protocol allows `act` now; otherwise nothing is sent and the error says why.
     pub fn answer<C: OntologyContent>(
@@ -271,13 +278,31 @@ impl Context<'_> {
         act: Performative,
         content: &C,
     ) -> Result<(), AgentError> {
-        let reply = responder
+        let reply = self.reply_in(responder, act)?;
+        self.send(content.fill(reply))
+    }
+
+    /// [`Context::answer`] with no content: an AGREE that restates nothing.
+    pub fn acknowledge(
+        &mut self,
+        responder: &mut Responder,
+        act: Performative,
+    ) -> Result<(), AgentError> {
+        let reply = self.reply_in(responder, act)?;
+        self.send(reply)
+    }
+
+    fn reply_in(
+        &self,
+        responder: &mut Responder,
+        act: Performative,
+    ) -> Result<AclMessage, AgentError> {
+        responder
             .reply(act, unix_ms(self.now()))
             .map_err(|source| AgentError::Protocol {
                 agent: self.name().to_owned(),
                 source,
-            })?;
-        self.send(content.fill(reply))
+            })
     }
 
     /// [`Context::answer`] with an `error-message` reason: REFUSE or FAILURE in

@@ -11,7 +11,7 @@ use iw_bus::transport::PeerAddr;
 use iw_layer_security::PublicKey;
 
 use crate::lists::{AgentEntry, GlobalAgentList, LocalAgentList, Part, VersionVector};
-use crate::vetting::{Vetting, speaker};
+use crate::vetting::{Claim, Vetting, speaker};
 use crate::{Authenticated, ContainerError, ContainerId, Roster};
 
 /// What containers say to each other.
@@ -371,8 +371,13 @@ impl Container {
             return out;
         }
         let Authenticated { key, seq, msg } = message;
+        let claim = |id| Claim {
+            id,
+            key: &key,
+            from,
+        };
         if let Some(id) = speaker(&msg)
-            && !self.vetting.speaks_for(id, &key, from, now)
+            && !self.vetting.speaks_for(claim(id), now)
         {
             return out;
         }
@@ -493,7 +498,7 @@ impl Container {
                 if id != self.config.id || holder == self.config.addr {
                     return out;
                 }
-                if !self.vetting.believes_duplicate(id, &key, from, now) {
+                if !self.vetting.believes_duplicate(claim(id), now) {
                     // Under a roster only a holder of this container's own identity can hold
                     // its id: greet the named holder, which, if it is one, answers itself.
                     let period = Duration::from_millis(self.config.heartbeat_ms);

@@ -10,6 +10,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use hex::FromHex;
 use iw_layer_security::PublicKey;
 
 use crate::{ContainerError, ContainerId};
@@ -139,8 +140,8 @@ impl Roster {
                 "pins container id {} ({this}) to key {}, but this container's identity key is {} \
                  (give the identity key file the roster was made from, or make the roster again)",
                 id.0,
-                hex(&pin.key),
-                hex(key)
+                hex::encode(pin.key),
+                hex::encode(key)
             ),
             Some(_) => return Ok(()),
         };
@@ -193,7 +194,7 @@ impl std::fmt::Display for Roster {
             "# Container roster: ID NAME PUBLIC_KEY (Ed25519, hex), one container per line."
         )?;
         for (id, pin) in &self.pins {
-            writeln!(f, "{} {} {}", id.0, pin.name, hex(&pin.key))?;
+            writeln!(f, "{} {} {}", id.0, pin.name, hex::encode(pin.key))?;
         }
         Ok(())
     }
@@ -210,16 +211,14 @@ fn parse_line(line: &str) -> Result<(ContainerId, Pin), String> {
     let id = id
         .parse::<u64>()
         .map_err(|e| format!("container id `{id}`: {e}"))?;
-    if key.len() != 64 || !key.bytes().all(|b| b.is_ascii_hexdigit()) {
+    if key.len() != 64 {
         return Err(format!(
             "the key of `{name}` is not 64 hex digits ({} characters)",
             key.chars().count()
         ));
     }
-    let mut bytes: PublicKey = [0; 32];
-    for (i, b) in bytes.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&key[2 * i..2 * i + 2], 16).map_err(|e| e.to_string())?;
-    }
+    let bytes = PublicKey::from_hex(key)
+        .map_err(|e| format!("the key of `{name}` is not 64 hex digits: {e}"))?;
     Ok((
         ContainerId(id),
         Pin {
@@ -227,10 +226,6 @@ fn parse_line(line: &str) -> Result<(ContainerId, Pin), String> {
             key: bytes,
         },
     ))
-}
-
-fn hex(key: &PublicKey) -> String {
-    key.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 #[cfg(test)]
@@ -269,7 +264,7 @@ mod tests {
     }
 
     fn key(b: u8) -> String {
-        hex(&[b; 32])
+        hex::encode([b; 32])
     }
 
     #[test]
@@ -292,6 +287,10 @@ mod tests {
             (format!("1 services {}\n2 world", key(1)), "line 2"),
             (format!("x services {}", key(1)), "container id `x`"),
             ("1 services abc".to_string(), "not 64 hex digits"),
+            (
+                format!("1 services {}", "g".repeat(64)),
+                "Invalid character 'g' at position 0",
+            ),
             (
                 format!("1 services {}\n1 world {}", key(1), key(2)),
                 "listed twice",

@@ -24,6 +24,18 @@ pub(crate) fn speaker(msg: &ContainerMsg) -> Option<ContainerId> {
     }
 }
 
+/// A frame's claim about container `id`: the identity whose session carried it and where it came
+/// from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Claim<'a> {
+    /// The container the frame speaks for (or, a `Duplicate`, about).
+    pub(crate) id: ContainerId,
+    /// The identity bound to the session that carried it.
+    pub(crate) key: &'a PublicKey,
+    /// The address it came from.
+    pub(crate) from: &'a PeerAddr,
+}
+
 /// A container's checks of who speaks for whom, with their counters.
 #[derive(Debug)]
 pub(crate) struct Vetting {
@@ -69,13 +81,8 @@ impl Vetting {
     /// Whether a frame under identity `key` may speak for container `id`: under a roster only under
     /// `id`'s pinned key (an id the roster does not list is nobody's); without one, anyone may
     /// (the container then binds a live id to the first key heard).
-    pub(crate) fn speaks_for(
-        &mut self,
-        id: ContainerId,
-        key: &PublicKey,
-        from: &PeerAddr,
-        now: Time,
-    ) -> bool {
+    pub(crate) fn speaks_for(&mut self, claim: Claim<'_>, now: Time) -> bool {
+        let Claim { id, key, from } = claim;
         let Some(roster) = self.roster.clone() else {
             return true;
         };
@@ -159,13 +166,8 @@ impl Vetting {
     /// Whether a `Duplicate` about this container's id `id`, under `key`, is believed:
     /// under a roster only under `id`'s pinned key (this container's own: only a second holder
     /// of its identity can hold its id), else from anyone who passed admission.
-    pub(crate) fn believes_duplicate(
-        &mut self,
-        id: ContainerId,
-        key: &PublicKey,
-        from: &PeerAddr,
-        now: Time,
-    ) -> bool {
+    pub(crate) fn believes_duplicate(&mut self, claim: Claim<'_>, now: Time) -> bool {
+        let Claim { id, key, from } = claim;
         let Some(roster) = self.roster.clone() else {
             return true;
         };

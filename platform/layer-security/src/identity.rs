@@ -26,7 +26,7 @@ pub struct Identity {
 impl std::fmt::Debug for Identity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Identity")
-            .field("public", &hex(&self.public))
+            .field("public", &hex::encode(self.public))
             .finish_non_exhaustive()
     }
 }
@@ -143,8 +143,4 @@ impl KeyDirectory for Directory {
             .get(agent)
             .copied()
     }
-}
-
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
 }

@@ -57,6 +57,16 @@ impl Responder {
         self.state
     }
 
+    /// The conversation answered.
+    pub fn conversation_id(&self) -> &str {
+        &self.conversation_id
+    }
+
+    /// The agent that opened the conversation, when the opening named it.
+    pub fn initiator(&self) -> Option<&AgentId> {
+        self.initiator.as_ref()
+    }
+
     /// The initiator's latest message (the request, the CFP, the accepted proposal, ...).
     pub fn latest(&self) -> &AclMessage {
         &self.latest
@@ -85,7 +95,9 @@ impl Responder {
         Ok(reply)
     }
 
-    /// Applies an initiator follow-up; returns the new state.
+    /// Applies an initiator follow-up; returns the new state. A further REQUEST of a request
+    /// stream ([`crate::Initiator::stream`]) is checked like any follow-up (same conversation,
+    /// same initiator, the stream not ended), but the replies still answer the opening.
     pub fn handle(
         &mut self,
         message: &AclMessage,
@@ -104,7 +116,9 @@ impl Responder {
             self.deadline_unix_ms = message.reply_by.map(|t| t.to_unix_ms(now_unix_ms));
         }
         self.state = state;
-        self.latest = message.clone();
+        if act != Performative::Request {
+            self.latest = message.clone();
+        }
         Ok(state)
     }
 

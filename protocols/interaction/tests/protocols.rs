@@ -670,6 +670,8 @@ fn propose_is_accepted_or_rejected() {
 fn a_request_stream_goes_on_until_the_participant_ends_it() {
     let (mut initiator, mut responders) = start(Protocol::Request, P::Request, &["control"]);
     let next = AclMessage::new(P::Request).with_content("((action x (drive :linear 0.2)))");
+    let opening_tag = responders[0].latest().reply_with.clone();
+    assert!(opening_tag.is_some());
     // Before and after the AGREE, each item is a REQUEST in the same conversation, to the
     // participant, asking no reply of its own.
     for agreed in [false, true] {
@@ -686,8 +688,26 @@ fn a_request_stream_goes_on_until_the_participant_ends_it() {
         assert_eq!(item.receivers, vec![aid("control")]);
         assert_eq!(item.reply_with, None);
         assert_eq!(item.content, next.content);
+        // The participant takes the item as its stream's (the state stays) ...
+        let state = responders[0].state();
+        assert_eq!(responders[0].handle(&item, T0 + 1), Ok(state));
+        // ... and refuses one from another agent or another conversation, changing nothing.
+        let mut stranger = item.clone();
+        stranger.sender = Some(aid("intruder"));
+        assert!(matches!(
+            responders[0].handle(&stranger, T0 + 1),
+            Err(Error::WrongSender { .. })
+        ));
+        let elsewhere = item.clone().with_conversation_id("conv-2");
+        assert!(matches!(
+            responders[0].handle(&elsewhere, T0 + 1),
+            Err(Error::WrongConversation { .. })
+        ));
+        assert_eq!(responders[0].state(), state);
     }
-    // The participant's end is still matched to the opening; then nothing more is streamed.
+    // The participant's end answers the opening, and is matched to it; then nothing more is
+    // streamed.
+    assert_eq!(responders[0].latest().reply_with, opening_tag);
     let kind = answer(&mut initiator, &mut responders[0], P::Failure, T0 + 2).unwrap();
     assert_eq!(kind, EventKind::Failed);
     assert!(initiator.is_done());

@@ -13,7 +13,7 @@ use iw_body::{
 use iw_perception::VisualConfig;
 use iw_sim::{ChairId, GhostSensors, SharedWorld, VirtualBody};
 use iw_wiring as compose;
-use iw_wiring::SharedBody;
+use iw_wiring::{Cause, SharedBody, StartError};
 use nalgebra::Isometry2;
 
 use crate::{BodyKind, FleetError};
@@ -67,9 +67,12 @@ pub(crate) fn sim_camera(
     id: ChairId,
     name: &str,
 ) -> Result<VisualConfig, FleetError> {
-    let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| FleetError::Setup {
-        container: name.to_string(),
-        reason: e.to_string(),
+    let camera = iw_sim::vo::SimCamera::new(world.clone(), id).map_err(|e| {
+        FleetError::Start(StartError {
+            container: name.to_string(),
+            what: "its camera".into(),
+            source: e.into(),
+        })
     })?;
     Ok(compose::camera::visual_config(camera))
 }
@@ -98,9 +101,12 @@ pub(crate) fn body_for(
     t_world_body: Isometry2<f64>,
     faults: SensorFaults,
 ) -> Result<(SharedBody, Option<BoardEmulator>), FleetError> {
-    let setup = |reason: String| FleetError::Setup {
-        container: name.to_string(),
-        reason,
+    let setup = |what: &str, source: Cause| {
+        FleetError::Start(StartError {
+            container: name.to_string(),
+            what: what.into(),
+            source,
+        })
     };
     if kind == BodyKind::Virtual {
         return Ok((
@@ -110,9 +116,9 @@ pub(crate) fn body_for(
     }
     let geometry = WheelGeometry::default();
     let board = BoardEmulator::spawn(geometry, compose::CONTROL_PERIOD.as_nanos() as u64)
-        .map_err(|e| setup(e.to_string()))?;
+        .map_err(|e| setup("its board emulator", e.into()))?;
     let serial = SerialBody::open(board.port_name(), 115_200, Duration::from_secs(2))
-        .map_err(|e| setup(e.to_string()))?;
+        .map_err(|e| setup("its serial body", e.into()))?;
     let odometry = Odometry::new(geometry, t_world_body);
     let ghost = GhostSensors::new(world.clone(), id);
     let body = if kind == BodyKind::Mixed {

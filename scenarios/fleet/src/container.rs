@@ -12,7 +12,7 @@ use iw_door::RefusalLog;
 use iw_interface::{Display, InputQueue};
 use iw_sim::ChairId;
 use iw_wiring as compose;
-use iw_wiring::SharedDesk;
+use iw_wiring::{Cause, SharedDesk, StartError};
 
 use crate::{BodyKind, FleetError, LockstepNetwork, SensorFaults};
 
@@ -21,19 +21,22 @@ pub(crate) fn bus_for(
     clock: &Clock,
     container: &str,
 ) -> Result<Arc<Bus>, FleetError> {
-    let setup = |reason: String| FleetError::Setup {
-        container: container.to_string(),
-        reason,
+    let setup = |what: &str, source: Cause| {
+        FleetError::Start(StartError {
+            container: container.to_string(),
+            what: what.into(),
+            source,
+        })
     };
     let transport = network
         .endpoint(container)
-        .map_err(|e| setup(e.to_string()))?;
+        .map_err(|e| setup("its network endpoint", e.into()))?;
     let config = BusConfig {
         tick: Duration::from_millis(1),
         ..BusConfig::default()
     };
     let bus = Bus::start(Stack::new(), Arc::new(transport), clock.clone(), config)
-        .map_err(|e| setup(e.to_string()))?;
+        .map_err(|e| setup("the bus", e.into()))?;
     Ok(Arc::new(bus))
 }
 

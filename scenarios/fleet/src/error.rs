@@ -1,6 +1,6 @@
 //! What can go wrong composing or driving a fleet.
 
-use iw_wiring::WiringError;
+use iw_wiring::{StartError, WiringError};
 
 /// What went wrong composing or driving a fleet.
 #[derive(Debug, thiserror::Error)]
@@ -34,6 +34,16 @@ pub enum FleetError {
         /// Why.
         reason: String,
     },
+    /// A part of a container (its bus, an agent, a chair's body or camera) could not start.
+    #[error(transparent)]
+    Start(#[from] StartError),
+    /// Composing a container's agents failed otherwise.
+    #[error("{source}")]
+    Wiring {
+        /// What the wiring said.
+        #[source]
+        source: WiringError,
+    },
     /// The simulator refused (unknown door, door blocked).
     #[error("simulator: {source}")]
     Sim {
@@ -54,9 +64,8 @@ impl From<WiringError> for FleetError {
         match e {
             WiringError::Setup { container, reason } => FleetError::Setup { container, reason },
             WiringError::Plan { reason } => FleetError::Plan { reason },
-            other => FleetError::Plan {
-                reason: other.to_string(),
-            },
+            WiringError::Start(e) => FleetError::Start(e),
+            source => FleetError::Wiring { source },
         }
     }
 }

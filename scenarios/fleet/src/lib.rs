@@ -60,7 +60,7 @@ pub use iw_wiring::{BodyKind, Console, Desk, GoalEvent, SERVICES, SharedDesk, pl
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
@@ -73,7 +73,7 @@ use iw_ontology::wheelchair::Pose;
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SharedWorld, World};
 use nalgebra::{Isometry2, Point2};
 
-use compose::{Building, ServiceConfig, desk};
+use compose::{Building, ServiceConfig, StartError, desk};
 /// The interface agent's raw device readings, for [`Fleet::inputs`].
 pub use iw_interface::RawInput;
 pub use network::{Exchange, LockstepNetwork, LockstepTransport};
@@ -237,9 +237,12 @@ impl Fleet {
         let service_agents = compose::service_agents(&service_config, &building, Box::new(doors))?;
         let add_err = |container: &str| {
             let container = container.to_string();
-            move |e: iw_agent::AgentError| FleetError::Setup {
-                container: container.clone(),
-                reason: e.to_string(),
+            move |e: iw_agent::AgentError| {
+                FleetError::Start(StartError {
+                    container: container.clone(),
+                    what: "an agent".into(),
+                    source: e.into(),
+                })
             }
         };
         for (aid, agent) in service_agents.agents {
@@ -429,22 +432,24 @@ impl Fleet {
 
     /// Fails (or restores) every sensor read of `chair`.
     pub fn set_sensor_failure(&mut self, chair: &str, failed: bool) -> Result<(), FleetError> {
-        let i = self.index(chair)?;
-        self.chairs[i]
-            .faults
-            .failed
-            .store(failed, Ordering::Release);
-        Ok(())
+        self.set_fault(chair, |f| &f.failed, failed)
     }
 
     /// Blinds (or restores) `chair`'s laser: it returns no ranges while the wheels, sonars and
     /// camera read on.
     pub fn set_laser_blind(&mut self, chair: &str, blind: bool) -> Result<(), FleetError> {
+        self.set_fault(chair, |f| &f.laser_blind, blind)
+    }
+
+    /// Sets (or clears) the fault `which` picks of `chair`'s sensors.
+    fn set_fault(
+        &self,
+        chair: &str,
+        which: impl FnOnce(&SensorFaults) -> &AtomicBool,
+        on: bool,
+    ) -> Result<(), FleetError> {
         let i = self.index(chair)?;
-        self.chairs[i]
-            .faults
-            .laser_blind
-            .store(blind, Ordering::Release);
+        which(&self.chairs[i].faults).store(on, Ordering::Release);
         Ok(())
     }
 
@@ -544,9 +549,12 @@ impl Fleet {
     /// Records in the logger agent's log, read back from its file.
     pub fn messages_logged(&self) -> Result<u64, FleetError> {
         let records = iw_logger::read_records(&self.log.path, iw_logger::DEFAULT_MAX_RECORD_LEN)
-            .map_err(|e| FleetError::Setup {
-                container: SERVICES.into(),
-                reason: format!("reading the log: {e}"),
+            .map_err(|e| {
+                FleetError::Start(StartError {
+                    container: SERVICES.into(),
+                    what: "reading the log".into(),
+                    source: e.into(),
+                })
             })?;
         Ok(records.len() as u64)
     }

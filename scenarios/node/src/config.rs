@@ -292,17 +292,17 @@ pub struct HttpMtpSection {
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
-        toml::from_str(text).map_err(|e| NodeError::Config {
+        toml::from_str(text).map_err(|e: toml::de::Error| NodeError::Setting {
             file: file.into(),
-            reason: e.to_string(),
+            source: e.into(),
         })
     }
 
     /// Reads and parses a configuration file.
     pub fn load(path: &Path) -> Result<SpawnConfig, NodeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| NodeError::Config {
+        let text = std::fs::read_to_string(path).map_err(|e| NodeError::Setting {
             file: path.display().to_string(),
-            reason: e.to_string(),
+            source: e.into(),
         })?;
         SpawnConfig::parse(&text, &path.display().to_string())
     }
@@ -358,9 +358,9 @@ impl SpawnConfig {
         self.security
             .layers
             .parse::<iw_bus::LayerSet>()
-            .map_err(|e| NodeError::Config {
+            .map_err(|e| NodeError::Setting {
                 file: "security.layers".into(),
-                reason: e.to_string(),
+                source: e.into(),
             })?;
         let d = &self.dashboard;
         if !d.listen.is_empty() {
@@ -371,7 +371,13 @@ impl SpawnConfig {
                 );
             }
             match d.listen.parse::<std::net::SocketAddr>() {
-                Err(e) => return bad("dashboard.listen", format!("`{}`: {e}", d.listen)),
+                Err(e) => {
+                    return Err(NodeError::Value {
+                        key: "dashboard.listen".into(),
+                        what: format!("`{}`", d.listen),
+                        source: e.into(),
+                    });
+                }
                 Ok(addr) if !addr.ip().is_loopback() && d.token.is_empty() => {
                     return bad(
                         "dashboard.token",
@@ -393,7 +399,11 @@ impl SpawnConfig {
                 );
             }
             if let Err(e) = mtp.parse::<std::net::SocketAddr>() {
-                return bad("mtp.http.listen", format!("`{mtp}`: {e}"));
+                return Err(NodeError::Value {
+                    key: "mtp.http.listen".into(),
+                    what: format!("`{mtp}`"),
+                    source: e.into(),
+                });
             }
         }
         if let crate::Role::Chair { .. } = role {

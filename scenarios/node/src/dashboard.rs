@@ -174,22 +174,23 @@ impl LiveDashboard {
         if section.listen.is_empty() {
             return Ok(None);
         }
-        let bind: SocketAddr = section.listen.parse().map_err(|e| NodeError::Config {
-            file: "dashboard.listen".into(),
-            reason: format!("`{}` is not `ip:port`: {e}", section.listen),
+        let bind: SocketAddr = section.listen.parse().map_err(|e| NodeError::Value {
+            key: "dashboard.listen".into(),
+            what: format!("`{}` is not `ip:port`", section.listen),
+            source: Box::new(e),
         })?;
         let token = (!section.token.is_empty()).then(|| section.token.clone());
         let server = Dashboard::start(
             DashboardConfig { bind, token },
             &iw_wiring::view::map_view(&building.map),
         )
-        .map_err(|e| NodeError::Config {
+        .map_err(|e| NodeError::Setting {
             file: if bind.ip().is_loopback() {
                 "dashboard.listen".into()
             } else {
                 "dashboard.token".into()
             },
-            reason: e.to_string(),
+            source: e.into(),
         })?;
         Ok(Some(LiveDashboard {
             server,

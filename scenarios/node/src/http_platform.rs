@@ -13,6 +13,7 @@ use iw_acl::{AclMessage, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_ams_df::{Ams, Df, WhitePages};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
+use iw_sl::{ActionOp, ActionOperand, Content, ContentExpression, Formula, Level};
 
 use iw_mtp_http::{Error, Gateway, GatewayConfig};
 
@@ -123,9 +124,11 @@ impl Drop for HttpPlatform {
     }
 }
 
-/// The echo agent of the JADE captures, for interoperability tests: REQUEST gets AGREE then
-/// INFORM `((done <content>))`, QUERY-REF gets INFORM `(echo "<content>")`. At setup it
-/// registers service `echo-service` of type `wheelchair-echo` with the platform's DF.
+/// The echo agent of the JADE captures, for interoperability tests: REQUEST `((action …))` gets
+/// AGREE then INFORM `((done (action …)))` (JADE's echo wraps the whole content tuple,
+/// `((done ((action …))))`, which is not SL), another REQUEST NOT-UNDERSTOOD; QUERY-REF gets
+/// INFORM `(echo "<content>")`, as JADE's. At setup it registers service `echo-service` of type
+/// `wheelchair-echo` with the platform's DF.
 #[derive(Debug, Default)]
 pub struct Echo;
 
@@ -141,12 +144,18 @@ impl Agent for Echo {
         let content = message.content_text().unwrap_or_default().to_owned();
         let reply = message.create_reply();
         let replies = match message.performative {
-            Performative::Request => vec![
-                reply.clone().with_performative(Performative::Agree),
-                reply
-                    .with_performative(Performative::Inform)
-                    .with_content(format!("((done {content}))")),
-            ],
+            Performative::Request => match done(&content) {
+                Ok(done) => vec![
+                    reply.clone().with_performative(Performative::Agree),
+                    reply
+                        .with_performative(Performative::Inform)
+                        .with_content(done.to_string()),
+                ],
+                Err(why) => {
+                    let _ = ctx.not_understood(&message, &why);
+                    Vec::new()
+                }
+            },
             Performative::QueryRef => {
                 let quoted = content.replace('\\', "\\\\").replace('"', "\\\"");
                 vec![
@@ -160,5 +169,18 @@ impl Agent for Echo {
         for reply in replies {
             let _ = ctx.send(reply);
         }
+    }
+}
+
+/// `((done α))` for a request `(α)` that is one action.
+fn done(request: &str) -> Result<Content, String> {
+    let content = iw_sl::parse(request, Level::Full).map_err(|e| e.to_string())?;
+    match <[ContentExpression; 1]>::try_from(content.expressions) {
+        Ok([ContentExpression::Action(action)]) => Ok(Content::single(Formula::ActionCondition {
+            op: ActionOp::Done,
+            action: Box::new(ActionOperand::Expression(action)),
+            condition: None,
+        })),
+        _ => Err("the echo agent does requests of one action: ((action agent act))".into()),
     }
 }

@@ -109,7 +109,14 @@ impl Role {
     }
 }
 
+/// The error underneath a [`NodeError`]: what the file system, a parser, the bus or an agent
+/// said, kept whole so a caller can walk the chain or downcast it.
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
 /// What went wrong starting or running a container.
+///
+/// A variant with a `source` says it in its message too (`… : <source>`), as the scenario and
+/// simulator errors do: a caller printing only the message loses nothing.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum NodeError {
@@ -120,6 +127,27 @@ pub enum NodeError {
         file: String,
         /// Why.
         reason: String,
+    },
+    /// A configuration file or key that cannot be read, parsed or used (`file` is the file or
+    /// the key).
+    #[error("configuration {file}: {source}")]
+    Setting {
+        /// The file, or the key as `section.key`.
+        file: String,
+        /// What the reader, parser or service said.
+        #[source]
+        source: Cause,
+    },
+    /// A configuration value that cannot be used (`what`: the value, or what was done with it).
+    #[error("configuration {key}: {what}: {source}")]
+    Value {
+        /// The key as `section.key`.
+        key: String,
+        /// The value, or what was done with it, e.g. `` `a:b` `` or `binding 0.0.0.0:1`.
+        what: String,
+        /// What the parser or the service said.
+        #[source]
+        source: Cause,
     },
     /// A command-line value that is wrong.
     #[error("{flag} `{value}`: {reason}")]
@@ -132,12 +160,13 @@ pub enum NodeError {
         reason: String,
     },
     /// The identity key file cannot be read, written or used.
-    #[error("identity key {path}: {reason}")]
+    #[error("identity key {path}: {source}")]
     Key {
         /// The file.
         path: String,
-        /// Why.
-        reason: String,
+        /// What the file system or the key parser said.
+        #[source]
+        source: Cause,
     },
     /// The control group key file cannot be read or is not 64 hex digits.
     #[error("control key {path}: {reason}")]
@@ -147,7 +176,7 @@ pub enum NodeError {
         /// Why.
         reason: String,
     },
-    /// A transport address that cannot be bound or derived.
+    /// A transport address that cannot be derived.
     #[error("transport address `{addr}`: {reason}")]
     Transport {
         /// The address.
@@ -155,13 +184,25 @@ pub enum NodeError {
         /// Why.
         reason: String,
     },
-    /// The body cannot be opened.
-    #[error("body: {reason}")]
-    Body {
-        /// Why.
-        reason: String,
+    /// A transport that cannot be bound or opened.
+    #[error("transport address `{addr}`: {source}")]
+    Bind {
+        /// The address.
+        addr: String,
+        /// What the transport said.
+        #[source]
+        source: iw_bus::transport::TransportError,
     },
-    /// The map cannot be loaded or lacks a place.
+    /// The body cannot be opened (`what`: the part, e.g. the serial port).
+    #[error("body: {what}: {source}")]
+    Body {
+        /// What was being opened or checked.
+        what: String,
+        /// What the body driver or the simulator said.
+        #[source]
+        source: Cause,
+    },
+    /// The map lacks a place a goal names.
     #[error("map {map}: {reason}")]
     Map {
         /// The map file (or `embedded sample building`).
@@ -169,7 +210,27 @@ pub enum NodeError {
         /// Why.
         reason: String,
     },
-    /// The bus, an agent or the container could not start.
+    /// A goal's place is not on the map's free space.
+    #[error("map {map}: goal of {chair}: {source}")]
+    Goal {
+        /// The map file (or `embedded sample building`).
+        map: String,
+        /// The chair the goal is for.
+        chair: String,
+        /// What the planner said.
+        #[source]
+        source: iw_wiring::WiringError,
+    },
+    /// The map cannot be loaded, or its building cannot be planned on.
+    #[error("map {map}: {source}")]
+    MapLoad {
+        /// The map file (or `embedded sample building`).
+        map: String,
+        /// What the map reader or the planner said.
+        #[source]
+        source: Cause,
+    },
+    /// The container refused to go on (its control plane's verdict, e.g. a duplicate id).
     #[error("container `{container}`: {reason}")]
     Setup {
         /// The container.
@@ -177,4 +238,7 @@ pub enum NodeError {
         /// Why.
         reason: String,
     },
+    /// A part of the container (its bus, an agent, its control plane) could not start.
+    #[error(transparent)]
+    Start(#[from] iw_wiring::StartError),
 }

@@ -36,19 +36,20 @@ impl HttpMtp {
         if listen.is_empty() {
             return Ok(None);
         }
-        let bad = |reason: String| NodeError::Config {
-            file: "mtp.http.listen".into(),
-            reason,
+        let bad = |what: String, source: crate::Cause| NodeError::Value {
+            key: "mtp.http.listen".into(),
+            what,
+            source,
         };
         let bind: SocketAddr = listen
             .parse()
-            .map_err(|e| bad(format!("`{listen}`: {e}")))?;
+            .map_err(|e| bad(format!("`{listen}`"), Box::new(e)))?;
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("mtp-http")
             .enable_all()
             .build()
-            .map_err(|e| bad(format!("starting its runtime: {e}")))?;
+            .map_err(|e| bad("starting its runtime".into(), e.into()))?;
         let platform = platform.clone();
         let config = GatewayConfig {
             bind,
@@ -57,7 +58,7 @@ impl HttpMtp {
         };
         let gateway = runtime
             .block_on(Gateway::start(config, bus))
-            .map_err(|e| bad(format!("binding {bind}: {e}")))?;
+            .map_err(|e| bad(format!("binding {bind}"), e.into()))?;
         Ok(Some(HttpMtp {
             gateway,
             _runtime: runtime,

@@ -21,13 +21,13 @@ use iw_transport_shm::ShmTransport;
 use iw_wiring::world_link::{
     BodyRoster, WorldAgent, WorldBody, WorldDoors, WorldGhost, body_endpoint, world_agent,
 };
-use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk};
+use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk, StartError};
 use nalgebra::{Isometry2, Vector2};
 
 use crate::BodyKind;
 use crate::config::{SpawnConfig, TransportKind};
 use crate::probe::{AgreeProbe, SharedProbe, Timed};
-use crate::{Event, NodeError, Role, SERVICES};
+use crate::{Cause, Event, NodeError, Role, SERVICES};
 
 mod admin;
 pub use admin::{AdminCommand, MAX_ADMIN_LINE};
@@ -75,9 +75,9 @@ pub fn control_addr(kind: TransportKind, addr: &str) -> Result<String, NodeError
 }
 
 fn open_transport(kind: TransportKind, addr: &str) -> Result<Arc<dyn FrameTransport>, NodeError> {
-    let bad = |e: iw_bus::transport::TransportError| NodeError::Transport {
+    let bad = |source| NodeError::Bind {
         addr: addr.into(),
-        reason: e.to_string(),
+        source,
     };
     Ok(match kind {
         TransportKind::Udp => Arc::new(UdpTransport::bind(addr).map_err(bad)?),
@@ -89,19 +89,19 @@ fn open_transport(kind: TransportKind, addr: &str) -> Result<Arc<dyn FrameTransp
 /// Writes a new Ed25519 identity to `path` (PKCS#8, mode 0600, fsynced); refuses to overwrite.
 pub fn write_identity(path: &Path) -> Result<PublicKey, NodeError> {
     use std::io::Write;
-    let bad = |reason: String| NodeError::Key {
+    let bad = |source: Cause| NodeError::Key {
         path: path.display().to_string(),
-        reason,
+        source,
     };
-    let identity = Identity::generate().map_err(|e| bad(e.to_string()))?;
+    let identity = Identity::generate().map_err(|e| bad(e.into()))?;
     let mut options = std::fs::OpenOptions::new();
     options.write(true).create_new(true);
     #[cfg(unix)]
     std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-    let mut file = options.open(path).map_err(|e| bad(e.to_string()))?;
+    let mut file = options.open(path).map_err(|e| bad(e.into()))?;
     file.write_all(identity.pkcs8())
         .and_then(|()| file.sync_all())
-        .map_err(|e| bad(e.to_string()))?;
+        .map_err(|e| bad(e.into()))?;
     Ok(identity.public_key())
 }
 
@@ -110,15 +110,15 @@ fn load_identity(path: &str) -> Result<Identity, NodeError> {
         tracing::warn!("no security.identity_key: using a fresh key for this run only");
         return Identity::generate().map_err(|e| NodeError::Key {
             path: "<generated>".into(),
-            reason: e.to_string(),
+            source: e.into(),
         });
     }
-    let bad = |reason: String| NodeError::Key {
+    let bad = |source: Cause| NodeError::Key {
         path: path.into(),
-        reason,
+        source,
     };
-    let pkcs8 = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
-    Identity::from_pkcs8(&pkcs8).map_err(|e| bad(e.to_string()))
+    let pkcs8 = std::fs::read(path).map_err(|e| bad(e.into()))?;
+    Identity::from_pkcs8(&pkcs8).map_err(|e| bad(e.into()))
 }
 
 /// The group key that guards container control traffic, read from `path` (64 hex digits);
@@ -152,9 +152,9 @@ fn load_roster(path: &str) -> Result<Option<Arc<Roster>>, NodeError> {
 }
 
 fn roster_error(e: iw_container::ContainerError) -> NodeError {
-    NodeError::Config {
+    NodeError::Setting {
         file: "security.roster".into(),
-        reason: e.to_string(),
+        source: e.into(),
     }
 }
 
@@ -194,30 +194,32 @@ pub fn write_roster(
     }
     let shown = roster.display().to_string();
     let roster_text = Roster::new(&shown, pins).map_err(roster_error)?;
-    let bad = |reason: String| NodeError::Config {
+    let bad = |e: std::io::Error| NodeError::Setting {
         file: shown.clone(),
-        reason,
+        source: e.into(),
     };
     // written beside and renamed over, so a reader never sees half a roster
     let part = roster.with_extension("part");
-    let mut file = std::fs::File::create(&part).map_err(|e| bad(e.to_string()))?;
+    let mut file = std::fs::File::create(&part).map_err(bad)?;
     file.write_all(roster_text.to_string().as_bytes())
         .and_then(|()| file.sync_all())
         .and_then(|()| std::fs::rename(&part, roster))
-        .map_err(|e| bad(e.to_string()))?;
+        .map_err(bad)?;
     Ok(roster_text)
 }
 
 fn load_map(path: &str) -> Result<Map, NodeError> {
     if path.is_empty() {
-        return Map::parse(SAMPLE_BUILDING, "sample-building.map").map_err(|e| NodeError::Map {
-            map: "embedded sample building".into(),
-            reason: e.to_string(),
+        return Map::parse(SAMPLE_BUILDING, "sample-building.map").map_err(|e| {
+            NodeError::MapLoad {
+                map: "embedded sample building".into(),
+                source: e.into(),
+            }
         });
     }
-    Map::load(path).map_err(|e| NodeError::Map {
+    Map::load(path).map_err(|e| NodeError::MapLoad {
         map: path.into(),
-        reason: e.to_string(),
+        source: e.into(),
     })
 }
 
@@ -272,9 +274,9 @@ fn building(config: &SpawnConfig) -> Result<Building, NodeError> {
     } else {
         &config.world.map
     };
-    Building::from_map(load_map(&config.world.map)?).map_err(|e| NodeError::Map {
+    Building::from_map(load_map(&config.world.map)?).map_err(|e| NodeError::MapLoad {
         map: map_name.into(),
-        reason: e.to_string(),
+        source: e.into(),
     })
 }
 
@@ -300,7 +302,8 @@ struct DriveWatch {
 /// control periods; the control agent takes the newest frame and refuses one older than this.
 fn off_the_control_path(serial: SerialBody) -> Result<BodyWorker, NodeError> {
     BodyWorker::start(serial, Duration::from_millis(STALE_FRAME_MS)).map_err(|e| NodeError::Body {
-        reason: e.to_string(),
+        what: "its I/O thread".into(),
+        source: e.into(),
     })
 }
 
@@ -330,7 +333,8 @@ fn refuse_an_obstructed_start(
     let mut scratch = World::new(load_map(&config.world.map)?, config.world.seed);
     let id = scratch.add_chair(ChairSpec::default(), *t_world_body, ChairKind::Simulated);
     let obstruction = scratch.obstruction(id).map_err(|e| NodeError::Body {
-        reason: e.to_string(),
+        what: "its start pose".into(),
+        source: e.into(),
     })?;
     match obstruction {
         Some(what) => Err(NodeError::Config {
@@ -348,10 +352,12 @@ fn refuse_an_obstructed_start(
 /// Chair `name`'s agents over its body: a virtual body lives in the world container; a real
 /// (serial) or mixed one reports its pose there, and a mixed one senses the world's obstacles.
 fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<ChairParts, NodeError> {
-    let body_err = |reason: String| NodeError::Body { reason };
-    let link_err = |e: iw_wiring::WiringError| NodeError::Setup {
-        container: name.into(),
-        reason: e.to_string(),
+    let link_err = |e: iw_wiring::WiringError| {
+        NodeError::Start(StartError {
+            container: name.into(),
+            what: "its world link".into(),
+            source: e.into(),
+        })
     };
     let [x, y, heading_deg] = config.body.start;
     let t_world_body = Isometry2::new(Vector2::new(x, y), heading_deg.to_radians());
@@ -361,7 +367,10 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
             config.body.baud,
             Duration::from_millis(config.body.timeout_ms),
         )
-        .map_err(|e| body_err(format!("serial port `{}`: {e}", config.body.port)))
+        .map_err(|e| NodeError::Body {
+            what: format!("serial port `{}`", config.body.port),
+            source: e.into(),
+        })
     };
     refuse_an_obstructed_start(config, &t_world_body)?;
     let building = building(config)?;
@@ -403,9 +412,12 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
         visual,
         Recognizer::new(iw_wiring::INPUT_MAX_GAP_MS),
     )
-    .map_err(|e| NodeError::Setup {
-        container: name.into(),
-        reason: e.to_string(),
+    .map_err(|e| {
+        NodeError::Start(StartError {
+            container: name.into(),
+            what: "its agents".into(),
+            source: e.into(),
+        })
     })?;
     Ok(ChairParts {
         agents: parts.agents,
@@ -480,9 +492,10 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
                     g.chair, g.place
                 ),
             })?;
-            building.place_at(point).map_err(|e| NodeError::Map {
+            building.place_at(point).map_err(|source| NodeError::Goal {
                 map: map_name.into(),
-                reason: format!("goal of {}: {e}", g.chair),
+                chair: g.chair.clone(),
+                source,
             })?
         };
         waiting.push((g.chair.clone(), place));
@@ -516,10 +529,11 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
         doors = dashboard.watch_doors(doors, door_ids);
     }
     let parts = iw_wiring::service_agents(&service_config, &building, doors).map_err(|e| {
-        NodeError::Setup {
+        NodeError::Start(StartError {
             container: SERVICES.into(),
-            reason: e.to_string(),
-        }
+            what: "its agents".into(),
+            source: e.into(),
+        })
     })?;
     let probe = SharedProbe::default();
     let agents: Vec<_> = parts
@@ -628,17 +642,20 @@ impl Runtime {
     ) -> Result<Runtime, NodeError> {
         config.validate(role)?;
         let name = role.name().to_string();
-        let setup = |reason: String| NodeError::Setup {
-            container: name.clone(),
-            reason,
+        let setup = |what: &str, source: Cause| {
+            NodeError::Start(StartError {
+                container: name.clone(),
+                what: what.into(),
+                source,
+            })
         };
         let layers: LayerSet = config
             .security
             .layers
             .parse()
-            .map_err(|e: iw_bus::BusError| NodeError::Config {
+            .map_err(|e: iw_bus::BusError| NodeError::Setting {
                 file: "security.layers".into(),
-                reason: e.to_string(),
+                source: e.into(),
             })?;
         let identity = Arc::new(load_identity(&config.security.identity_key)?);
         let control_key = load_control_key(&config.security.control_key)?;
@@ -676,7 +693,7 @@ impl Runtime {
         let stack = platform.stack(&node, &StackConfig::with_layers(layers));
         let clock = Clock::system();
         let bus = Bus::start(stack, bus_transport, clock.clone(), BusConfig::default())
-            .map_err(|e| setup(e.to_string()))?;
+            .map_err(|e| setup("the bus", e.into()))?;
         let bus = Arc::new(bus);
         let (agents, body, drive, services, world) = match role {
             Role::Chair { name } => {
@@ -727,7 +744,8 @@ impl Runtime {
         }
         let agent_names: Vec<String> = agents.iter().map(|(aid, _)| aid.name.clone()).collect();
         for (aid, agent) in agents {
-            host.add(aid, agent).map_err(|e| setup(e.to_string()))?;
+            let what = format!("agent `{}`", aid.name);
+            host.add(aid, agent).map_err(|e| setup(&what, e.into()))?;
         }
 
         let incarnation = std::time::SystemTime::now()
@@ -763,7 +781,7 @@ impl Runtime {
                     key,
                     clock.clone(),
                 )
-                .map_err(|e| setup(e.to_string()))?,
+                .map_err(|e| setup("the control guard", e.into()))?,
             )),
             None => None,
         };
@@ -778,7 +796,7 @@ impl Runtime {
             clock,
             CONTROL_TICK,
         )
-        .map_err(|e| setup(e.to_string()))?;
+        .map_err(|e| setup("its control plane", e.into()))?;
         // a closed receiver only means nobody is listening to reports
         let _ = events.send(Event::Ready {
             container: name.clone(),

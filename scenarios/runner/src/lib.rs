@@ -71,6 +71,17 @@ pub enum ScenarioError {
         /// Why.
         reason: String,
     },
+    /// The simulator refused an entry (e.g. a chair it cannot place).
+    #[error("{path}: {entry}: {source}")]
+    World {
+        /// The file.
+        path: String,
+        /// The entry, e.g. `chair[1]`.
+        entry: String,
+        /// What the simulator said.
+        #[source]
+        source: iw_sim::SimError,
+    },
     /// The map could not be loaded.
     #[error("{path}: map: {source}")]
     Map {

@@ -230,7 +230,11 @@ impl Scenario {
             );
             let obstruction = world
                 .obstruction(id)
-                .map_err(|e| self.invalid(format!("chair[{i}]"), e.to_string()))?;
+                .map_err(|source| ScenarioError::World {
+                    path: self.source.display().to_string(),
+                    entry: format!("chair[{i}]"),
+                    source,
+                })?;
             if let Some(what) = obstruction {
                 let what = match what {
                     iw_sim::Owner::Chair(j) => {

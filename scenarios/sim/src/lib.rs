@@ -86,6 +86,16 @@ pub enum SimError {
         /// Why.
         reason: String,
     },
+    /// An image file (occupancy map, texture, rendered frame) cannot be read or written.
+    #[error("image `{path}`: {source}")]
+    ImageFile {
+        /// The path.
+        path: String,
+        /// What the image codec or the OS said (boxed: it is large, and this error is returned
+        /// often).
+        #[source]
+        source: Box<image::ImageError>,
+    },
     /// A chair id that this world never handed out.
     #[error("no chair {id} (the world has {count})")]
     NoSuchChair {

@@ -266,9 +266,9 @@ impl Map {
     /// between solid and free pixels, merged into straight runs).
     pub fn from_occupancy_png(path: &Path, resolution_m: f64) -> Result<Self, SimError> {
         let img = image::open(path)
-            .map_err(|e| SimError::Image {
+            .map_err(|e| SimError::ImageFile {
                 path: path.display().to_string(),
-                reason: e.to_string(),
+                source: Box::new(e),
             })?
             .to_luma8();
         let (w, h) = (img.width() as usize, img.height() as usize);

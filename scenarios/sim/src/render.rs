@@ -45,9 +45,9 @@ pub struct RgbdFrame {
 impl RgbdFrame {
     /// Writes the colour image and the 16-bit depth image as PNGs (the TUM RGB-D layout).
     pub fn save(&self, rgb_path: &Path, depth_path: &Path) -> Result<(), SimError> {
-        let err = |path: &Path, e: image::ImageError| SimError::Image {
+        let err = |path: &Path, e| SimError::ImageFile {
             path: path.display().to_string(),
-            reason: e.to_string(),
+            source: Box::new(e),
         };
         self.rgb.save(rgb_path).map_err(|e| err(rgb_path, e))?;
         self.depth.save(depth_path).map_err(|e| err(depth_path, e))
@@ -82,9 +82,9 @@ impl TextureSet {
             .map(|p| {
                 image::open(p)
                     .map(|i| i.to_rgb8())
-                    .map_err(|e| SimError::Image {
+                    .map_err(|e| SimError::ImageFile {
                         path: p.display().to_string(),
-                        reason: e.to_string(),
+                        source: Box::new(e),
                     })
             })
             .collect::<Result<Vec<_>, _>>()?;

@@ -12,8 +12,8 @@ use iw_sim::{ChairKind, ChairSpec, Map, SharedWorld, World};
 use iw_vo::{CameraSource, Intrinsics, VoError};
 use nalgebra::{Isometry2, Matrix3, Vector3};
 
-use crate::WiringError;
 use crate::world_link::TruePose;
+use crate::{StartError, WiringError};
 
 /// The perception agent's visual odometry over `camera`: LSAC-SURF keyframe odometry. A frame's
 /// motion is trusted to 1 cm and 0.5 mrad: at 20 frames/s that lets the camera take out the
@@ -52,9 +52,12 @@ pub fn mirror_camera(
     start: Isometry2<f64>,
     truth: TruePose,
 ) -> Result<VisualConfig, WiringError> {
-    let setup = |e: iw_sim::SimError| WiringError::Setup {
-        container: chair.into(),
-        reason: format!("camera: {e}"),
+    let setup = |e: iw_sim::SimError| {
+        WiringError::Start(StartError {
+            container: chair.into(),
+            what: "camera".into(),
+            source: e.into(),
+        })
     };
     let mut world = World::new(map, 0);
     let id = world.add_chair(ChairSpec::default(), start, ChairKind::Tracked);

@@ -29,7 +29,7 @@ use iw_bus::Bus;
 use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage, LandmarkStop,
 };
-use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
+use iw_cognitive::{Domain, GridError, NarrowPassage, OccupancyGrid};
 pub use iw_control::SharedDriveStatus;
 use iw_control::{ControlAgent, ControlConfig, LaserMount};
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
@@ -72,7 +72,27 @@ pub enum BodyKind {
     Mixed,
 }
 
+/// The error underneath a [`WiringError`] (an agent's, the bus's, the simulator's), kept whole.
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// A part of a container that could not start: which container, which part, and why. The
+/// wiring, the fleet and a container process all say it so.
+#[derive(Debug, thiserror::Error)]
+#[error("container `{container}`: {what}: {source}")]
+pub struct StartError {
+    /// The container.
+    pub container: String,
+    /// The part, e.g. `the bus` or `the control agent`.
+    pub what: String,
+    /// What it said.
+    #[source]
+    pub source: Cause,
+}
+
 /// What went wrong composing a container's agents.
+///
+/// A variant with a `source` says it in its message too (`… : <source>`): a caller printing only
+/// the message loses nothing.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum WiringError {
@@ -84,11 +104,30 @@ pub enum WiringError {
         /// Why.
         reason: String,
     },
+    /// A part of a container (an agent, its link to the world) could not be set up.
+    #[error(transparent)]
+    Start(#[from] StartError),
     /// The building cannot be planned on, or a place is unknown.
     #[error("cannot plan: {reason}")]
     Plan {
         /// Why.
         reason: String,
+    },
+    /// The building cannot be derived from the map (`what`: the part, e.g. its domain).
+    #[error("cannot plan: {what}: {source}")]
+    Building {
+        /// The part that failed.
+        what: &'static str,
+        /// What it said.
+        #[source]
+        source: Cause,
+    },
+    /// The building's occupancy grid cannot be built from the map.
+    #[error("cannot plan: {source}")]
+    Grid {
+        /// What the grid said.
+        #[from]
+        source: GridError,
     },
 }
 
@@ -230,14 +269,17 @@ impl Building {
     /// with every door closed; a door joins two places of its own in front of it, one on each
     /// side. Places named `landmark...` are landmarks (relocalisation points), not destinations.
     pub fn from_map(map: Map) -> Result<Self, WiringError> {
-        let plan_err = |reason: String| WiringError::Plan { reason };
-        let domain = Domain::parse(BUILDING_DOMAIN)
-            .map_err(|e| plan_err(format!("building domain: {e}")))?;
+        let domain = Domain::parse(BUILDING_DOMAIN).map_err(|e| WiringError::Building {
+            what: "building domain",
+            source: e.into(),
+        })?;
         let grid = plan::raster(&map, |_| false)?;
-        let localization = Arc::new(
-            iw_sim::localization::localization_map(&map)
-                .map_err(|e| plan_err(format!("cannot localize on the map: {e}")))?,
-        );
+        let localization = Arc::new(iw_sim::localization::localization_map(&map).map_err(|e| {
+            WiringError::Building {
+                what: "cannot localize on the map",
+                source: e.into(),
+            }
+        })?);
         let rooms = Rooms::of(&map)?;
         let mut places = BTreeMap::new();
         let mut landmarks = Vec::new();
@@ -302,10 +344,12 @@ impl Building {
                     let (a, b) = (format!("{name}-side-1"), format!("{name}-side-2"));
                     for (side, point) in [(&a, p), (&b, q)] {
                         if places.insert(side.clone(), point).is_some() {
-                            return Err(plan_err(format!(
-                                "place `{side}` clashes with the planner's name for a side of door `{}`",
-                                door.id
-                            )));
+                            return Err(WiringError::Plan {
+                                reason: format!(
+                                    "place `{side}` clashes with the planner's name for a side of door `{}`",
+                                    door.id
+                                ),
+                            });
                         }
                         approaches.insert(side.clone());
                     }
@@ -445,11 +489,13 @@ fn carve_lanes(
         }
     }
     let origin = grid.centre(0, 0) - Vector2::repeat(plan::RESOLUTION_M / 2.0);
-    OccupancyGrid::new(width, height, plan::RESOLUTION_M, origin, occupied).map_err(|e| {
-        WiringError::Plan {
-            reason: e.to_string(),
-        }
-    })
+    Ok(OccupancyGrid::new(
+        width,
+        height,
+        plan::RESOLUTION_M,
+        origin,
+        occupied,
+    )?)
 }
 
 /// The centre of the free cell of `grid` nearest to `p`, within 0.3 m: the doorway's middle may
@@ -596,9 +642,12 @@ pub fn chair_agents(
     visual: Option<VisualConfig>,
     recognizer: Recognizer<iw_interface::Command>,
 ) -> Result<ChairAgents, WiringError> {
-    let setup = |reason: String| WiringError::Setup {
-        container: name.to_string(),
-        reason,
+    let setup = |what: &str, source: Cause| {
+        WiringError::Start(StartError {
+            container: name.to_string(),
+            what: what.into(),
+            source,
+        })
     };
     let start = Pose2 {
         x: t_world_body.translation.x,
@@ -617,15 +666,15 @@ pub fn chair_agents(
         Some((start, perception_config.start_covariance)),
     );
     let perception = PerceptionAgent::new(perception_config, Box::new(body.clone()), visual)
-        .map_err(|e| setup(e.to_string()))?
+        .map_err(|e| setup("the perception agent", e.into()))?
         .with_localizer(localizer);
-    let mut control_config =
-        ControlConfig::prototype(Some(perception_id.clone())).map_err(|e| setup(e.to_string()))?;
+    let mut control_config = ControlConfig::prototype(Some(perception_id.clone()))
+        .map_err(|e| setup("the control agent's configuration", e.into()))?;
     // Indoors the chair turns on the spot before it drives, so its long front does not sweep
     // into door posts when it lines up with a doorway.
     control_config.tactical.turn_in_place_rad = TURN_IN_PLACE_RAD;
     if let Some(wait) = body.outage {
-        control_config.body_fault_ms = u64::try_from(wait.as_millis()).unwrap_or(u64::MAX);
+        control_config.body_fault = wait;
     }
     // the simulated chair's laser (a body without one reads no ranges, and adds no points)
     control_config.laser = ChairSpec::default().laser.map(|l| LaserMount {
@@ -633,8 +682,8 @@ pub fn chair_agents(
         fov_rad: l.fov_deg.to_radians(),
         max_range_m: l.max_range_m,
     });
-    let control =
-        ControlAgent::new(control_config, Box::new(body)).map_err(|e| setup(e.to_string()))?;
+    let control = ControlAgent::new(control_config, Box::new(body))
+        .map_err(|e| setup("the control agent", e.into()))?;
     let (plan, start_place) = building.with_start(name, t_world_body)?;
     let cognitive = CognitiveAgent::new(CognitiveConfig {
         chair: name.to_string(),
@@ -652,7 +701,7 @@ pub fn chair_agents(
         uncertainty_m2: building.landmark_uncertainty_m2,
         max_states: 20_000,
     })
-    .map_err(|e| setup(e.to_string()))?;
+    .map_err(|e| setup("the cognitive agent", e.into()))?;
     let inputs = InputQueue::default();
     let display = Arc::new(Mutex::new(Display::default()));
     let drive_status = control.drive_status();
@@ -766,7 +815,13 @@ pub fn service_agents(
         policy: config.sync,
         sync_period: Duration::from_millis(500),
     })
-    .map_err(|e| setup(format!("log {}: {e}", config.log_path.display())))?;
+    .map_err(|e| {
+        WiringError::Start(StartError {
+            container: SERVICES.into(),
+            what: format!("log {}", config.log_path.display()),
+            source: e.into(),
+        })
+    })?;
     let watcher = WatcherAgent::new(WatcherConfig {
         passages: building
             .plan
@@ -777,7 +832,13 @@ pub fn service_agents(
         lease: config.lease,
         period: Duration::from_millis(100),
     })
-    .map_err(|e| setup(e.to_string()))?;
+    .map_err(|e| {
+        WiringError::Start(StartError {
+            container: SERVICES.into(),
+            what: "the watcher agent".into(),
+            source: e.into(),
+        })
+    })?;
     let assistant = AssistantAgent::new(AssistantConfig {
         chairs: config
             .chairs

@@ -43,9 +43,11 @@ pub fn raster(map: &Map, closed: impl Fn(&str) -> bool) -> Result<OccupancyGrid,
     for door in map.doors.iter().filter(|d| closed(&d.id)) {
         segment(door.a, door.b);
     }
-    OccupancyGrid::new(width, height, RESOLUTION_M, origin, occupied).map_err(|source| {
-        WiringError::Plan {
-            reason: source.to_string(),
-        }
-    })
+    Ok(OccupancyGrid::new(
+        width,
+        height,
+        RESOLUTION_M,
+        origin,
+        occupied,
+    )?)
 }

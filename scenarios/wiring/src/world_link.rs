@@ -47,7 +47,7 @@ use iw_ontology::world::{BodyFrame, BodyLink, WorldContent};
 use iw_sim::{ChairId, ChairKind, ChairSpec, SharedWorld};
 use nalgebra::{Isometry2, Matrix3, Vector2};
 
-use crate::{WiringError, agent_id};
+use crate::{StartError, WiringError, agent_id};
 
 /// The world container's name.
 pub const WORLD: &str = "world";
@@ -134,12 +134,13 @@ impl WorldLink {
         link: BodyLink,
         t_world_body: Isometry2<f64>,
     ) -> Result<WorldLink, WiringError> {
-        let mailbox = bus
-            .register(&body_endpoint(chair).name)
-            .map_err(|e| WiringError::Setup {
+        let mailbox = bus.register(&body_endpoint(chair).name).map_err(|e| {
+            WiringError::Start(StartError {
                 container: chair.into(),
-                reason: format!("world link endpoint: {e}"),
-            })?;
+                what: "world link endpoint".into(),
+                source: e.into(),
+            })
+        })?;
         Ok(WorldLink {
             bus,
             mailbox,
@@ -489,12 +490,14 @@ impl WorldAgent {
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
-    fn on_body(&mut self, now: Time, content: WorldContent) -> Result<(), String> {
+    fn on_body(&mut self, now: Time, content: WorldContent) -> Result<(), Refused> {
         match content {
             WorldContent::Attach { chair, link, pose } => {
                 if let Some(body) = self.bodies.get_mut(&chair) {
                     if body.link != link {
-                        return Err(format!("chair `{chair}` is attached with another link"));
+                        return Err(Refused::Link(format!(
+                            "chair `{chair}` is attached with another link"
+                        )));
                     }
                     body.last_heard = now;
                     return Ok(());
@@ -528,9 +531,12 @@ impl WorldAgent {
                 left_mps,
                 right_mps,
             } => {
-                let body = self.bodies.get_mut(&chair).ok_or("not attached")?;
+                let body = self
+                    .bodies
+                    .get_mut(&chair)
+                    .ok_or_else(|| Refused::Link("not attached".into()))?;
                 if body.link != BodyLink::Simulated {
-                    return Err("a tracked body is placed, not driven".into());
+                    return Err(Refused::Link("a tracked body is placed, not driven".into()));
                 }
                 body.last_heard = now;
                 body.commanded = true;
@@ -543,20 +549,25 @@ impl WorldAgent {
                             right_mps,
                         },
                     )
-                    .map_err(|e| e.to_string())
+                    .map_err(Refused::World)
             }
             WorldContent::BodyPose { chair, pose } => {
-                let body = self.bodies.get_mut(&chair).ok_or("not attached")?;
+                let body = self
+                    .bodies
+                    .get_mut(&chair)
+                    .ok_or_else(|| Refused::Link("not attached".into()))?;
                 if body.link != BodyLink::Tracked {
-                    return Err("a simulated body is driven, not placed".into());
+                    return Err(Refused::Link(
+                        "a simulated body is driven, not placed".into(),
+                    ));
                 }
                 body.last_heard = now;
                 let id = body.id;
                 self.lock()
                     .place(id, pose.t_map_base())
-                    .map_err(|e| e.to_string())
+                    .map_err(Refused::World)
             }
-            _ => Err("not something a body sends".into()),
+            _ => Err(Refused::Link("not something a body sends".into())),
         }
     }
 
@@ -627,6 +638,17 @@ impl WorldAgent {
     }
 }
 
+/// Why the world agent did not act on a body's or the door agent's message (it is logged).
+#[derive(Debug, thiserror::Error)]
+enum Refused {
+    /// The message does not fit the sender or the body's link.
+    #[error("{0}")]
+    Link(String),
+    /// The simulator refused it (an unknown chair or door, a blocked door).
+    #[error("the simulator: {0}")]
+    World(#[source] iw_sim::SimError),
+}
+
 impl Agent for WorldAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let sender = message
@@ -643,9 +665,12 @@ impl Agent for WorldAgent {
         };
         if let WorldContent::Door { door, open } = &content {
             let answer = if sender != self.door_agent.name {
-                Err(format!("only {} moves doors", self.door_agent.name))
+                Err(Refused::Link(format!(
+                    "only {} moves doors",
+                    self.door_agent.name
+                )))
             } else {
-                self.lock().set_door(door, *open).map_err(|e| e.to_string())
+                self.lock().set_door(door, *open).map_err(Refused::World)
             };
             if let Err(reason) = answer {
                 tracing::warn!(%door, %reason, "door not moved");

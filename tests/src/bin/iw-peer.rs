@@ -8,10 +8,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::{Context, bail};
+use hex::FromHex;
 use iw_bus::transport::PeerAddr;
 use iw_bus::{Bus, BusConfig, Clock};
 use iw_stack::{Platform, StackConfig};
-use iw_tests::peer::{Report, hex, unhex32};
+use iw_tests::peer::Report;
 use iw_tests::{acl, number_of};
 use iw_transport_net::UdpTransport;
 
@@ -36,7 +37,7 @@ fn try_main() -> anyhow::Result<()> {
     writeln!(
         stdout.lock(),
         "READY {addr} {}",
-        hex(&node.identity.public_key())
+        hex::encode(node.identity.public_key())
     )?;
 
     let mut lines = std::io::stdin().lock().lines();
@@ -48,7 +49,7 @@ fn try_main() -> anyhow::Result<()> {
     if *cmd != "PEER" {
         bail!("expected PEER, got `{peer_line}`");
     }
-    let key_a = unhex32(key).with_context(|| format!("bad key `{key}`"))?;
+    let key_a = <[u8; 32]>::from_hex(key).with_context(|| format!("bad key `{key}`"))?;
     platform.register("a", key_a);
 
     let mut cfg = StackConfig::default();

@@ -168,7 +168,7 @@ mod tests {
     use super::*;
 
     fn drive() -> DiffDrive {
-        DiffDrive::new(0.56, 1.2, 1.0).unwrap()
+        DiffDrive::new(iw_body::TRACK_M, 1.2, 1.0).unwrap()
     }
 
     #[test]

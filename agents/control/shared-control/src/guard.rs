@@ -39,7 +39,7 @@ pub struct ArcGuardParams {
     /// layer ramps each wheel on its own, so a chair changing speed and turn rate together
     /// changes both more slowly than either alone).
     pub wheel_decel_mps2: f64,
-    /// Distance between the drive wheels, m (the prototype's 0.56).
+    /// Distance between the drive wheels, m (the prototype's [`iw_body::TRACK_M`]).
     pub track_m: f64,
     /// Time the measured speed persists before the wheels follow a new command (one control
     /// period of actuation delay), s (0.05; only with [`Motion`]).
@@ -72,7 +72,7 @@ impl Default for ArcGuardParams {
         Self {
             margin_m: 0.05,
             wheel_decel_mps2: 1.0,
-            track_m: iw_body::WheelGeometry::default().track_m,
+            track_m: iw_body::TRACK_M,
             latency_s: 0.05,
             reaction_s: 0.3,
             sample_s: 0.05,

@@ -196,7 +196,7 @@ mod tests {
     /// is told their noise levels.
     fn run(seed: u64) -> (f64, f64, f64) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let track = 0.56;
+        let track = iw_body::TRACK_M;
         let alpha = [0.01, 0.002, 0.0005, 0.0005];
         let vo_noise = Matrix3::from_diagonal(&Vector3::new(
             0.02f64.powi(2),
@@ -285,7 +285,7 @@ mod tests {
         let mut f =
             OdometryFusion::new(Pose2::default(), Matrix3::zeros(), [0.01, 0.01, 0.01, 0.01]);
         for _ in 0..10 {
-            f.predict(&OdometryStep::from_wheels(0.1, 0.12, 0.56));
+            f.predict(&OdometryStep::from_wheels(0.1, 0.12, iw_body::TRACK_M));
         }
         let before = f.covariance().trace();
         let motion = Pose2::default().between(&f.pose());

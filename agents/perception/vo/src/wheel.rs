@@ -69,13 +69,14 @@ pub struct DiffDriveParams {
 }
 
 impl Default for DiffDriveParams {
-    /// A powered wheelchair: 0.175 m wheels 0.56 m apart, 36 864 ticks per revolution, and noise
-    /// of a few percent of the motion.
+    /// The chair's nominal drive geometry ([`WheelGeometry`]'s default), and noise of a few
+    /// percent of the motion.
     fn default() -> Self {
+        let geometry = WheelGeometry::default();
         DiffDriveParams {
-            wheel_radius_m: 0.175,
-            track_m: 0.56,
-            ticks_per_rev: 36_864.0,
+            wheel_radius_m: geometry.wheel_radius_m,
+            track_m: geometry.track_m,
+            ticks_per_rev: geometry.ticks_per_rev,
             alpha: [0.01, 0.002, 0.01, 0.002],
         }
     }

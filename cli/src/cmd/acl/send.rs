@@ -12,6 +12,7 @@ use std::time::Duration;
 use anyhow::Context;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
+use iw_interaction::Protocol;
 use iw_mtp_http::{Gateway, GatewayConfig};
 
 /// Platform name of the command's reply endpoint.
@@ -62,9 +63,9 @@ pub fn ends_conversation(protocol: Option<&str>, reply: Performative) -> bool {
     ) {
         return true;
     }
-    match protocol.map(str::to_ascii_lowercase).as_deref() {
-        Some("fipa-subscribe") => false,
-        Some("fipa-request" | "fipa-request-when" | "fipa-query") => {
+    match protocol.and_then(|p| p.parse::<Protocol>().ok()) {
+        Some(Protocol::Subscribe) => false,
+        Some(Protocol::Request | Protocol::RequestWhen | Protocol::Query) => {
             matches!(
                 reply,
                 Performative::Inform | Performative::InformIf | Performative::InformRef

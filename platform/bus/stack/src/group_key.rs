@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use hex::FromHex;
 use iw_layer_security::PreSharedKey;
 use ring::rand::{SecureRandom, SystemRandom};
 
@@ -27,7 +28,7 @@ pub fn write_group_key(path: &Path) -> Result<(), GroupKeyError> {
     SystemRandom::new()
         .fill(&mut key)
         .map_err(|_| bad("the system random number generator failed".into()))?;
-    let mut text: String = key.iter().map(|b| format!("{b:02x}")).collect();
+    let mut text = hex::encode(key);
     text.push('\n');
     let mut options = std::fs::OpenOptions::new();
     options.write(true).create_new(true);
@@ -53,18 +54,14 @@ pub fn read_group_key(path: &Path) -> Result<PreSharedKey, GroupKeyError> {
         )));
     }
     let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-    let hex = text.trim();
-    if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+    let digits = text.trim();
+    if digits.len() != 64 {
         return Err(bad(format!(
             "expected 64 hex digits, found {} characters",
-            hex.chars().count()
+            digits.chars().count()
         )));
     }
-    let mut key: PreSharedKey = [0; 32];
-    for (i, byte) in key.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|e| bad(e.to_string()))?;
-    }
-    Ok(key)
+    PreSharedKey::from_hex(digits).map_err(|e| bad(format!("not 64 hex digits: {e}")))
 }
 
 #[cfg(test)]
