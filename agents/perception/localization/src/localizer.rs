@@ -197,7 +197,8 @@ impl Localizer {
             start.unwrap_or((Pose2::default(), Matrix3::identity() * UNKNOWN_VAR));
         Localizer {
             map,
-            fusion: OdometryFusion::new(pose, covariance, config.alpha).with_bias(config.wheel_bias),
+            fusion: OdometryFusion::new(pose, covariance, config.alpha)
+                .with_bias(config.wheel_bias),
             status: if start.is_some() {
                 Status::Tracking
             } else {

@@ -697,8 +697,8 @@ pub fn blind_run(
         wheel_bias: iw_vo::WheelBias::NONE,
         ..modelled.clone()
     };
-    let mut localizers = [modelled, unmodelled]
-        .map(|c| Localizer::new(lmap.clone(), c, Some((start, start_cov))));
+    let mut localizers =
+        [modelled, unmodelled].map(|c| Localizer::new(lmap.clone(), c, Some((start, start_cov))));
     let first = lock(&s.world).sensors(s.id)?.clone();
     wheels.update(first.left_ticks, first.right_ticks);
     let per_second = (1.0 / config.dt_s).round().max(1.0) as usize;

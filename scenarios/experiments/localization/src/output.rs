@@ -210,12 +210,17 @@ impl Summary {
             blind: crate::BLIND_LEARN_M
                 .iter()
                 .map(|&learn_m| {
-                    let runs: Vec<&crate::BlindRun> =
-                        report.blind.iter().filter(|b| b.learn_m == learn_m).collect();
+                    let runs: Vec<&crate::BlindRun> = report
+                        .blind
+                        .iter()
+                        .filter(|b| b.learn_m == learn_m)
+                        .collect();
                     BlindSummary {
                         learn_m,
                         runs: runs.len(),
-                        modelled: blind_stats(&runs.iter().map(|b| &b.modelled).collect::<Vec<_>>()),
+                        modelled: blind_stats(
+                            &runs.iter().map(|b| &b.modelled).collect::<Vec<_>>(),
+                        ),
                         unmodelled: blind_stats(
                             &runs.iter().map(|b| &b.unmodelled).collect::<Vec<_>>(),
                         ),
