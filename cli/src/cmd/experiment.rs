@@ -50,6 +50,9 @@ pub struct LocalizationArgs {
     /// Global localization runs (unknown start).
     #[arg(long, default_value_t = 50)]
     global_runs: usize,
+    /// Blind runs (laser silent for 10 m, after 0 and after 30 m with it; one seed each).
+    #[arg(long, default_value_t = 20)]
+    blind_runs: usize,
     /// Visual odometry on every this many 50 ms periods (0: none).
     #[arg(long, default_value_t = 2)]
     vo_every: usize,
@@ -156,8 +159,8 @@ fn localization(args: LocalizationArgs) -> anyhow::Result<ExitCode> {
         args.minutes
     );
     anyhow::ensure!(
-        args.seeds > 0 || args.global_runs > 0,
-        "--seeds and --global-runs are both 0: nothing to run"
+        args.seeds > 0 || args.global_runs > 0 || args.blind_runs > 0,
+        "--seeds, --global-runs and --blind-runs are all 0: nothing to run"
     );
     let map = match &args.map {
         Some(path) => Map::load(path).with_context(|| format!("loading map {}", path.display()))?,
@@ -168,16 +171,19 @@ fn localization(args: LocalizationArgs) -> anyhow::Result<ExitCode> {
         minutes: args.minutes,
         seeds: args.seeds,
         global_runs: args.global_runs,
+        blind_runs: args.blind_runs,
         vo_every: args.vo_every,
         seed: args.seed,
         movers: !args.no_movers,
         ..exp::Config::default()
     };
-    let total = (args.minutes.ceil() as u64) * args.seeds as u64 + args.global_runs as u64;
+    let total = (args.minutes.ceil() as u64) * args.seeds as u64
+        + args.global_runs as u64
+        + (args.blind_runs * exp::BLIND_LEARN_M.len()) as u64;
     let bar = indicatif::ProgressBar::new(total);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} (simulated minutes + global runs) ({elapsed}, eta {eta})",
+            "{bar:40} {pos}/{len} (simulated minutes + global and blind runs) ({elapsed}, eta {eta})",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
@@ -209,6 +215,23 @@ fn localization(args: LocalizationArgs) -> anyhow::Result<ExitCode> {
             .map_or("-".into(), |d| format!("{d:.2}")),
         s.global.falsely_confident
     );
+    for b in &s.blind {
+        let line = |name: &str, m: &exp::BlindStats| {
+            println!(
+                "blind {:.0} m after {:.0} m with the laser, {name:<11}: error median {:.1} cm (max {:.1}), 2 sigma median {:.1} cm, within 2 sigma {}/{}, position NEES inside 95 % {:.2}",
+                exp::BLIND_M,
+                b.learn_m,
+                m.median_error_m * 100.0,
+                m.max_error_m * 100.0,
+                m.median_two_sigma_m * 100.0,
+                m.within_two_sigma,
+                b.runs,
+                m.inside_rate
+            )
+        };
+        line("bias states", &b.modelled);
+        line("without", &b.unmodelled);
+    }
     println!("wrote {}", args.out.join("summary.json").display());
     Ok(ExitCode::SUCCESS)
 }

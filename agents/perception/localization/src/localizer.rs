@@ -11,7 +11,7 @@ use crate::global::{GlobalConfig, GlobalLocalizer};
 use crate::map::LocalizationMap;
 use crate::matcher::{MatcherConfig, inlier_fraction, match_scan};
 use crate::scan::{LaserGeometry, ReadingCount, ScanPoint, SonarGeometry};
-use iw_vo::{OdometryFusion, OdometryStep, Pose2, wrap_angle};
+use iw_vo::{OdometryFusion, OdometryStep, Pose2, WheelBias, wrap_angle};
 
 /// When a search may say it has found the pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,6 +52,10 @@ pub struct LocalizerConfig {
     pub landmark_sigma: (f64, f64),
     /// Motion model of the odometry (Thrun's alphas), as in [`iw_vo::DiffDriveParams`].
     pub alpha: [f64; 4],
+    /// The wheels' systematic error, estimated in the filter while scans and landmarks observe
+    /// it and held while they do not, so the covariance grows as fast as the error when the
+    /// chair dead-reckons.
+    pub wheel_bias: WheelBias,
 }
 
 impl LocalizerConfig {
@@ -77,6 +81,7 @@ impl LocalizerConfig {
             drop_after: 10,
             landmark_sigma: (0.05, 1f64.to_radians()),
             alpha,
+            wheel_bias: WheelBias::WHEELCHAIR,
         }
     }
 }
@@ -192,7 +197,8 @@ impl Localizer {
             start.unwrap_or((Pose2::default(), Matrix3::identity() * UNKNOWN_VAR));
         Localizer {
             map,
-            fusion: OdometryFusion::new(pose, covariance, config.alpha),
+            fusion: OdometryFusion::new(pose, covariance, config.alpha)
+                .with_bias(config.wheel_bias),
             status: if start.is_some() {
                 Status::Tracking
             } else {
@@ -244,6 +250,12 @@ impl Localizer {
     /// Searches started so far (a start without a pose counts, and every time the chair got lost).
     pub fn searches(&self) -> u64 {
         self.searches
+    }
+
+    /// The estimated wheel bias (scale error, heading drift in rad/m) and their standard
+    /// deviations.
+    pub fn wheel_bias(&self) -> ([f64; 2], [f64; 2]) {
+        self.fusion.bias()
     }
 
     /// Whether the laser and the sonars are currently dropped.

@@ -7,7 +7,7 @@
 //! correlates both; then the clone is replaced by the current pose. Feeding a drifting visual pose
 //! as an absolute measurement would count the same information twice; this does not.
 
-use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix3x2, Matrix3x6, SMatrix, SVector, Vector3};
 
 use crate::wheel::{OdometryStep, Pose2, wrap_angle};
 
@@ -26,32 +26,103 @@ pub fn planar_motion(
     )
 }
 
-/// EKF over (clone pose, current pose).
+/// The systematic part of wheel odometry's error, carried in the filter's state: a distance
+/// scale error (tyres compress, wheels slip more than they grip back) and a heading drift per
+/// metre (the two wheels' radii differ). Random motion noise alone grows the covariance with the
+/// square root of the distance while a bias grows the error with the distance itself, so a
+/// filter without these states is overconfident as soon as it dead-reckons for a while. Both are
+/// estimated while absolute updates (scans, landmarks) or visual odometry observe the motion,
+/// and held, with their remaining uncertainty, while they do not.
+///
+/// Measured travel is corrected as `trans' = trans (1 + scale)` and each half turn as
+/// `rot' = rot (1 + scale) + heading trans / 2`; the translation an unequal pair of wheels makes
+/// while turning on the spot is left to the motion model's noise.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct WheelBias {
+    /// Prior standard deviation of the distance scale error (a fraction, zero mean).
+    pub scale_sigma: f64,
+    /// Prior standard deviation of the heading drift, rad per metre driven.
+    pub heading_sigma_rad_per_m: f64,
+    /// How fast the scale error may wander: standard deviation added per square root of a metre
+    /// driven.
+    pub scale_walk: f64,
+    /// How fast the heading drift may wander, rad/m per square root of a metre driven.
+    pub heading_walk_rad_per_m: f64,
+}
+
+impl WheelBias {
+    /// No bias states: the plain odometry motion model.
+    pub const NONE: WheelBias = WheelBias {
+        scale_sigma: 0.0,
+        heading_sigma_rad_per_m: 0.0,
+        scale_walk: 0.0,
+        heading_walk_rad_per_m: 0.0,
+    };
+
+    /// A powered wheelchair's pneumatic tyres: each wheel's effective radius a few percent under
+    /// the nominal one, and up to a few percent apart (0.5-3 % per wheel in the simulator,
+    /// plus about 1 % slip): 3 % of scale and 0.03 rad/m of heading drift (1.7 degrees a metre;
+    /// a 1.7 % radius difference on a 0.56 m track) at one standard deviation, each wandering
+    /// by 0.1 % (0.001 rad/m) per square root of a metre as slip varies with the floor and the
+    /// acceleration.
+    pub const WHEELCHAIR: WheelBias = WheelBias {
+        scale_sigma: 0.03,
+        heading_sigma_rad_per_m: 0.02,
+        scale_walk: 0.0002,
+        heading_walk_rad_per_m: 0.0002,
+    };
+}
+
+/// Size of the state: clone pose, current pose, wheel scale error, heading drift.
+const N: usize = 8;
+type StateMatrix = SMatrix<f64, N, N>;
+/// Index of the scale error (the heading drift follows it).
+const BIAS: usize = 6;
+
+/// EKF over (clone pose, current pose, [`WheelBias`] states).
 #[derive(Debug, Clone)]
 pub struct OdometryFusion {
     clone: Pose2,
     current: Pose2,
-    covariance: Matrix6<f64>,
+    /// Scale error and heading drift (rad/m).
+    bias: [f64; 2],
+    covariance: StateMatrix,
     alpha: [f64; 4],
+    walk: [f64; 2],
 }
 
-fn to_vec(a: &Pose2, b: &Pose2) -> Vector6<f64> {
-    Vector6::new(a.x, a.y, a.theta, b.x, b.y, b.theta)
+fn to_vec(a: &Pose2, b: &Pose2, bias: &[f64; 2]) -> SVector<f64, N> {
+    SVector::<f64, N>::from_column_slice(&[a.x, a.y, a.theta, b.x, b.y, b.theta, bias[0], bias[1]])
 }
 
 impl OdometryFusion {
-    /// Starts at `pose` with `covariance`; wheel steps use the motion model `alpha`.
+    /// Starts at `pose` with `covariance`; wheel steps use the motion model `alpha`, with no
+    /// bias states ([`WheelBias::NONE`]; see [`Self::with_bias`]).
     pub fn new(pose: Pose2, covariance: Matrix3<f64>, alpha: [f64; 4]) -> Self {
-        let mut p = Matrix6::zeros();
+        let mut p = StateMatrix::zeros();
         for (r, c) in [(0, 0), (0, 3), (3, 0), (3, 3)] {
             p.fixed_view_mut::<3, 3>(r, c).copy_from(&covariance);
         }
         OdometryFusion {
             clone: pose,
             current: pose,
+            bias: [0.0; 2],
             covariance: p,
             alpha,
+            walk: [0.0; 2],
         }
+    }
+
+    /// Estimates the wheels' systematic error as `bias` describes (zero mean, its standard
+    /// deviations as the prior), replacing any estimate so far.
+    pub fn with_bias(mut self, bias: WheelBias) -> Self {
+        self.bias = [0.0; 2];
+        self.covariance.fixed_view_mut::<2, N>(BIAS, 0).fill(0.0);
+        self.covariance.fixed_view_mut::<N, 2>(0, BIAS).fill(0.0);
+        self.covariance[(BIAS, BIAS)] = bias.scale_sigma.powi(2);
+        self.covariance[(BIAS + 1, BIAS + 1)] = bias.heading_sigma_rad_per_m.powi(2);
+        self.walk = [bias.scale_walk, bias.heading_walk_rad_per_m];
+        self
     }
 
     /// The fused current pose.
@@ -64,15 +135,47 @@ impl OdometryFusion {
         self.covariance.fixed_view::<3, 3>(3, 3).into_owned()
     }
 
-    /// Prediction with one wheel odometry step.
+    /// The estimated wheel bias: scale error and heading drift (rad/m), with their standard
+    /// deviations.
+    pub fn bias(&self) -> ([f64; 2], [f64; 2]) {
+        (
+            self.bias,
+            [
+                self.covariance[(BIAS, BIAS)].max(0.0).sqrt(),
+                self.covariance[(BIAS + 1, BIAS + 1)].max(0.0).sqrt(),
+            ],
+        )
+    }
+
+    /// Prediction with one wheel odometry step, corrected by the estimated bias.
     pub fn predict(&mut self, step: &OdometryStep) {
-        let next = self.current.compose(&step.as_delta());
-        let (g, v) = step.jacobians(self.current.theta);
-        let mut f = Matrix6::identity();
+        let [scale, heading] = self.bias;
+        let half_drift = 0.5 * heading * step.trans;
+        let corrected = OdometryStep {
+            rot1: step.rot1 * (1.0 + scale) + half_drift,
+            trans: step.trans * (1.0 + scale),
+            rot2: step.rot2 * (1.0 + scale) + half_drift,
+        };
+        let next = self.current.compose(&corrected.as_delta());
+        let (g, v) = corrected.jacobians(self.current.theta);
+        // d(rot1, trans, rot2) / d(scale, heading)
+        let d_step = Matrix3x2::new(
+            step.rot1,
+            0.5 * step.trans,
+            step.trans,
+            0.0,
+            step.rot2,
+            0.5 * step.trans,
+        );
+        let mut f = StateMatrix::identity();
         f.fixed_view_mut::<3, 3>(3, 3).copy_from(&g);
-        let mut q = Matrix6::zeros();
+        f.fixed_view_mut::<3, 2>(3, BIAS).copy_from(&(v * d_step));
+        let mut q = StateMatrix::zeros();
         q.fixed_view_mut::<3, 3>(3, 3)
             .copy_from(&(v * step.covariance(&self.alpha) * v.transpose()));
+        let metres = step.trans.abs();
+        q[(BIAS, BIAS)] = self.walk[0].powi(2) * metres;
+        q[(BIAS + 1, BIAS + 1)] = self.walk[1].powi(2) * metres;
         self.covariance = f * self.covariance * f.transpose() + q;
         self.current = next;
     }
@@ -85,7 +188,8 @@ impl OdometryFusion {
         let predicted = self.clone.between(&self.current);
         let (s, c) = self.clone.theta.sin_cos();
         let (dx, dy) = (self.current.x - self.clone.x, self.current.y - self.clone.y);
-        let h = Matrix3x6::new(
+        let mut h = SMatrix::<f64, 3, N>::zeros();
+        h.fixed_view_mut::<3, 6>(0, 0).copy_from(&Matrix3x6::new(
             -c,
             -s,
             -s * dx + c * dy,
@@ -104,7 +208,7 @@ impl OdometryFusion {
             0.0,
             0.0,
             1.0,
-        );
+        ));
         let innovation = Vector3::new(
             motion.x - predicted.x,
             motion.y - predicted.y,
@@ -116,17 +220,34 @@ impl OdometryFusion {
             .filter(|s_inv| (innovation.transpose() * s_inv * innovation)[0] <= VISUAL_GATE_CHI2);
         let fused = s_inv.is_some();
         if let Some(s_inv) = s_inv {
-            let k: SMatrix<f64, 6, 3> = self.covariance * h.transpose() * s_inv;
-            let x = to_vec(&self.clone, &self.current) + k * innovation;
-            self.clone = Pose2::new(x[0], x[1], x[2]);
-            self.current = Pose2::new(x[3], x[4], x[5]);
-            // Joseph form keeps the covariance symmetric positive semi-definite.
-            let i_kh = Matrix6::identity() - k * h;
-            self.covariance = i_kh * self.covariance * i_kh.transpose() + k * noise * k.transpose();
+            self.correct(&h, &innovation, &s_inv, noise);
         }
-        let current_cov = self.covariance();
-        *self = OdometryFusion::new(self.current, current_cov, self.alpha);
+        // the clone becomes a copy of the current pose, correlated with everything as it is
+        let mut t = StateMatrix::identity();
+        t.fixed_view_mut::<3, 3>(0, 0).fill(0.0);
+        t.fixed_view_mut::<3, 3>(0, 3).fill_with_identity();
+        self.covariance = t * self.covariance * t.transpose();
+        self.clone = self.current;
         fused
+    }
+
+    /// Applies a Kalman correction: `h` the measurement Jacobian, `s_inv` the innovation
+    /// covariance's inverse. Joseph form keeps the covariance symmetric positive semi-definite.
+    fn correct<const M: usize>(
+        &mut self,
+        h: &SMatrix<f64, M, N>,
+        innovation: &SVector<f64, M>,
+        s_inv: &SMatrix<f64, M, M>,
+        noise: &SMatrix<f64, M, M>,
+    ) {
+        let k: SMatrix<f64, N, M> = self.covariance * h.transpose() * s_inv;
+        let x = to_vec(&self.clone, &self.current, &self.bias) + k * innovation;
+        self.clone = Pose2::new(x[0], x[1], x[2]);
+        self.current = Pose2::new(x[3], x[4], x[5]);
+        self.bias = [x[6], x[7]];
+        let i_kh = StateMatrix::identity() - k * h;
+        self.covariance = i_kh * self.covariance * i_kh.transpose() + k * noise * k.transpose();
+        self.covariance = (self.covariance + self.covariance.transpose()) * 0.5;
     }
 }
 
@@ -143,27 +264,28 @@ impl OdometryFusion {
         noise: &SMatrix<f64, M, M>,
         gate_chi2: f64,
     ) -> Option<(f64, bool)> {
-        let mut h6 = SMatrix::<f64, M, 6>::zeros();
-        h6.fixed_view_mut::<M, 3>(0, 3).copy_from(h);
-        let s_inv = (h6 * self.covariance * h6.transpose() + noise).try_inverse()?;
+        let mut h_full = SMatrix::<f64, M, N>::zeros();
+        h_full.fixed_view_mut::<M, 3>(0, 3).copy_from(h);
+        let s_inv = (h_full * self.covariance * h_full.transpose() + noise).try_inverse()?;
         let nis = (innovation.transpose() * s_inv * innovation)[0];
         if !(nis.is_finite() && nis <= gate_chi2) {
             return Some((nis, false));
         }
-        let k: SMatrix<f64, 6, M> = self.covariance * h6.transpose() * s_inv;
-        let x = to_vec(&self.clone, &self.current) + k * innovation;
-        self.clone = Pose2::new(x[0], x[1], x[2]);
-        self.current = Pose2::new(x[3], x[4], x[5]);
-        let i_kh = Matrix6::identity() - k * h6;
-        self.covariance = i_kh * self.covariance * i_kh.transpose() + k * noise * k.transpose();
-        self.covariance = (self.covariance + self.covariance.transpose()) * 0.5;
+        self.correct(&h_full, innovation, &s_inv, noise);
         Some((nis, true))
     }
 
-    /// Restarts the filter at `pose` with `covariance` (a relocalisation), keeping the motion
-    /// model.
+    /// Restarts the pose at `pose` with `covariance` (a relocalisation), keeping the motion
+    /// model and what is known of the wheels' bias (a property of the wheels, not of the pose).
     pub fn reset(&mut self, pose: Pose2, covariance: Matrix3<f64>) {
+        let bias_cov = self.covariance.fixed_view::<2, 2>(BIAS, BIAS).into_owned();
+        let (bias, walk) = (self.bias, self.walk);
         *self = OdometryFusion::new(pose, covariance, self.alpha);
+        self.bias = bias;
+        self.walk = walk;
+        self.covariance
+            .fixed_view_mut::<2, 2>(BIAS, BIAS)
+            .copy_from(&bias_cov);
     }
 }
 

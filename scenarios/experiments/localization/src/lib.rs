@@ -21,6 +21,9 @@
 //!   sonars. Converged: the localizer first says it tracks within 5 m of driving, and its pose
 //!   is then within 10 cm and 3 degrees. A run that reports tracking while more than 30 cm off,
 //!   at any time of its drive, counts as falsely confident.
+//! - Blind runs ([`Config::blind_runs`] seeds, each after every [`BLIND_LEARN_M`]): the laser
+//!   goes silent for [`BLIND_M`] and the localizer dead-reckons; its error then against its
+//!   covariance, with the wheel bias in the filter's state and without.
 #![warn(missing_docs)]
 
 mod output;
@@ -42,7 +45,7 @@ use nalgebra::{Isometry2, Matrix3, Point2, Vector3};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-pub use output::{ErrorStats, GlobalSummary, Summary, write_outputs};
+pub use output::{BlindStats, BlindSummary, ErrorStats, GlobalSummary, Summary, write_outputs};
 
 const SAMPLE_BUILDING: &str = include_str!("../../../maps/sample-building.map");
 
@@ -92,6 +95,8 @@ pub struct Config {
     pub seeds: usize,
     /// Global localization runs (seeds `seed .. seed + global_runs`).
     pub global_runs: usize,
+    /// Blind runs (seeds `seed .. seed + blind_runs`, each with every [`BLIND_LEARN_M`]).
+    pub blind_runs: usize,
     /// How far each global run drives, m (convergence must come within 5 m; the rest checks
     /// that it never claims a wrong pose).
     pub global_drive_m: f64,
@@ -109,12 +114,14 @@ pub struct Config {
 }
 
 impl Default for Config {
-    /// 30 minutes, 1 drive, 50 global runs of 12 m, VO at 10 Hz, 0.5 m/s, 50 ms, movers.
+    /// 30 minutes, 1 drive, 50 global runs of 12 m, 20 blind runs, VO at 10 Hz, 0.5 m/s, 50 ms,
+    /// movers.
     fn default() -> Self {
         Config {
             minutes: 30.0,
             seeds: 1,
             global_runs: 50,
+            blind_runs: 20,
             global_drive_m: 12.0,
             vo_every: 2,
             speed_mps: 0.5,
@@ -194,6 +201,8 @@ pub struct Report {
     pub drives: Vec<Drive>,
     /// Global runs.
     pub global: Vec<GlobalRun>,
+    /// Blind runs ([`BLIND_LEARN_M`] each seed).
+    pub blind: Vec<BlindRun>,
     /// Map name.
     pub map: String,
     /// Route driven.
@@ -209,6 +218,8 @@ pub enum Progress {
     DriveSeconds(f64),
     /// One global run finished.
     GlobalRun,
+    /// One blind run finished.
+    BlindRun,
 }
 
 /// The route to drive: the map's first closed route.
@@ -628,6 +639,132 @@ pub fn kidnap_run(
     Ok(run)
 }
 
+/// Where a blind localizer ended up: its error and what its covariance said.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BlindEnd {
+    /// Position error when the blind stretch ends, m.
+    pub error_m: f64,
+    /// Twice the standard deviation along the covariance's longest x-y axis then, m.
+    pub two_sigma_m: f64,
+    /// Trace of the x-y covariance then, m² (what the cognitive agent compares with its
+    /// landmark threshold).
+    pub trace_m2: f64,
+    /// Share of the once-a-second samples of the blind stretch whose position NEES (2 degrees of
+    /// freedom) is under its 95 % bound, [`POSITION_NEES_95`].
+    pub inside_rate: f64,
+}
+
+/// One blind run: the chair tracks with its laser for `learn_m`, then the laser is silent for
+/// [`BLIND_M`] (wheels and sonars read on; no VO, no landmarks). Two localizers see the same
+/// readings: the default one, which estimates the wheels' bias ([`iw_vo::WheelBias`]), and one
+/// without the bias states (the motion model's random noise only).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BlindRun {
+    /// Seed.
+    pub seed: u64,
+    /// Metres driven with the laser before it went silent.
+    pub learn_m: f64,
+    /// With the bias states.
+    pub modelled: BlindEnd,
+    /// Without them.
+    pub unmodelled: BlindEnd,
+}
+
+/// How far a blind run drives without its laser, m: about a corridor's length.
+pub const BLIND_M: f64 = 10.0;
+
+/// The 95 % bound of a chi-square with 2 degrees of freedom.
+pub const POSITION_NEES_95: f64 = 5.991;
+
+/// Runs one blind case from a random point of the route (see [`BlindRun`]).
+pub fn blind_run(
+    map: &Map,
+    lmap: &Arc<LocalizationMap>,
+    config: &Config,
+    seed: u64,
+    learn_m: f64,
+) -> Result<BlindRun, ExperimentError> {
+    let route = tour(map)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0xB11D);
+    let fraction: f64 = rng.random();
+    let mut s = setup(map, route, fraction, config, seed);
+    let params = drive_params(&s.spec);
+    let start = pose2(&lock(&s.world).pose(s.id)?);
+    let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
+    let mut wheels = WheelOdometry::new(params, start);
+    let modelled = localizer_config(&s.spec);
+    let unmodelled = iw_localization::LocalizerConfig {
+        wheel_bias: iw_vo::WheelBias::NONE,
+        ..modelled.clone()
+    };
+    let mut localizers =
+        [modelled, unmodelled].map(|c| Localizer::new(lmap.clone(), c, Some((start, start_cov))));
+    let first = lock(&s.world).sensors(s.id)?.clone();
+    wheels.update(first.left_ticks, first.right_ticks);
+    let per_second = (1.0 / config.dt_s).round().max(1.0) as usize;
+    let mut inside = [0usize; 2];
+    let mut samples = 0usize;
+    let max_periods = ((learn_m + BLIND_M) / config.speed_mps * 4.0 / config.dt_s) as usize;
+    let mut truth = start;
+    for k in 1..=max_periods {
+        step_world(&mut s, config.dt_s)?;
+        let (sensed, distance_m) = {
+            let w = lock(&s.world);
+            truth = pose2(&w.pose(s.id)?);
+            (w.sensors(s.id)?.clone(), w.distance_m(s.id)?)
+        };
+        let blind = distance_m >= learn_m;
+        let laser: &[f64] = if blind { &[] } else { &sensed.laser_m };
+        let step = wheels.update(sensed.left_ticks, sensed.right_ticks);
+        for l in &mut localizers {
+            if let Some(step) = &step {
+                l.predict(step);
+            }
+            l.update_ranges(laser, &sensed.sonar_m);
+        }
+        if blind && k % per_second == 0 {
+            samples += 1;
+            for (n, l) in inside.iter_mut().zip(&localizers) {
+                *n += usize::from(position_nees(l, &truth) <= POSITION_NEES_95);
+            }
+        }
+        if distance_m >= learn_m + BLIND_M {
+            break;
+        }
+    }
+    let end = |l: &Localizer, inside: usize| {
+        let c = l.covariance().fixed_view::<2, 2>(0, 0).into_owned();
+        let largest = c.symmetric_eigenvalues().max().max(0.0);
+        BlindEnd {
+            error_m: position_error(&l.pose(), &truth),
+            two_sigma_m: 2.0 * largest.sqrt(),
+            trace_m2: c.trace(),
+            inside_rate: inside as f64 / samples.max(1) as f64,
+        }
+    };
+    Ok(BlindRun {
+        seed,
+        learn_m,
+        modelled: end(&localizers[0], inside[0]),
+        unmodelled: end(&localizers[1], inside[1]),
+    })
+}
+
+/// NEES of the localizer's x-y position against `truth`.
+fn position_nees(l: &Localizer, truth: &Pose2) -> f64 {
+    let p = l.pose();
+    let e = nalgebra::Vector2::new(p.x - truth.x, p.y - truth.y);
+    l.covariance()
+        .fixed_view::<2, 2>(0, 0)
+        .into_owned()
+        .try_inverse()
+        .map_or(f64::INFINITY, |inv| (e.transpose() * inv * e)[0])
+}
+
+/// Metres driven with the laser before a blind run's laser goes silent: none (the bias is only
+/// the prior) and a lap of the sample building's corridor and rooms (the bias observed).
+pub const BLIND_LEARN_M: [f64; 2] = [0.0, 30.0];
+
 /// Runs the tracking drives and the global runs (in parallel, deterministic per seed).
 pub fn run(
     map: &Map,
@@ -648,9 +785,19 @@ pub fn run(
             run
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let blind = (0..config.blind_runs as u64)
+        .into_par_iter()
+        .flat_map_iter(|i| BLIND_LEARN_M.map(|learn_m| (i, learn_m)))
+        .map(|(i, learn_m)| {
+            let run = blind_run(map, &lmap, config, config.seed + i, learn_m);
+            progress(Progress::BlindRun);
+            run
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(Report {
         drives,
         global,
+        blind,
         map: map.name.clone(),
         route,
         config: config.clone(),

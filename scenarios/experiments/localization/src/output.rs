@@ -36,6 +36,51 @@ pub struct GlobalSummary {
     pub max_tracking_error_m: f64,
 }
 
+/// Blind runs of one estimator after the same distance with the laser.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BlindStats {
+    /// Median position error when the blind stretch ends, m.
+    pub median_error_m: f64,
+    /// Largest of those errors, m.
+    pub max_error_m: f64,
+    /// Median of twice the standard deviation along the longest x-y axis then, m.
+    pub median_two_sigma_m: f64,
+    /// Median trace of the x-y covariance then, m².
+    pub median_trace_m2: f64,
+    /// Runs whose end error was within that 2 sigma.
+    pub within_two_sigma: usize,
+    /// Mean share of the once-a-second position NEES samples under the 95 % bound.
+    pub inside_rate: f64,
+}
+
+/// The blind runs after one distance with the laser.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BlindSummary {
+    /// Metres driven with the laser before it went silent.
+    pub learn_m: f64,
+    /// Runs.
+    pub runs: usize,
+    /// The localizer as shipped: wheel bias in its state.
+    pub modelled: BlindStats,
+    /// The same without the bias states.
+    pub unmodelled: BlindStats,
+}
+
+fn blind_stats(runs: &[&crate::BlindEnd]) -> BlindStats {
+    let of = |f: fn(&crate::BlindEnd) -> f64| {
+        let mut v: Vec<f64> = runs.iter().map(|r| f(r)).collect();
+        percentile(&mut v, 0.5)
+    };
+    BlindStats {
+        median_error_m: of(|r| r.error_m),
+        max_error_m: runs.iter().map(|r| r.error_m).fold(0.0, f64::max),
+        median_two_sigma_m: of(|r| r.two_sigma_m),
+        median_trace_m2: of(|r| r.trace_m2),
+        within_two_sigma: runs.iter().filter(|r| r.error_m <= r.two_sigma_m).count(),
+        inside_rate: runs.iter().map(|r| r.inside_rate).sum::<f64>() / runs.len().max(1) as f64,
+    }
+}
+
 /// The contract shape of `summary.json`, plus details.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Summary {
@@ -70,6 +115,11 @@ pub struct Summary {
     pub searches: u64,
     /// Global runs, each.
     pub global_runs: Vec<crate::GlobalRun>,
+    /// Blind runs: the laser silent for [`crate::BLIND_M`] after each of
+    /// [`crate::BLIND_LEARN_M`]; with and without the wheel bias in the filter's state.
+    pub blind: Vec<BlindSummary>,
+    /// Blind runs, each.
+    pub blind_runs: Vec<crate::BlindRun>,
     /// Map driven.
     pub map: String,
     /// Configuration.
@@ -157,6 +207,28 @@ impl Summary {
             collisions: report.drives.iter().map(|d| d.collisions).sum(),
             searches: report.drives.iter().map(|d| d.searches).sum(),
             global_runs: report.global.clone(),
+            blind: crate::BLIND_LEARN_M
+                .iter()
+                .map(|&learn_m| {
+                    let runs: Vec<&crate::BlindRun> = report
+                        .blind
+                        .iter()
+                        .filter(|b| b.learn_m == learn_m)
+                        .collect();
+                    BlindSummary {
+                        learn_m,
+                        runs: runs.len(),
+                        modelled: blind_stats(
+                            &runs.iter().map(|b| &b.modelled).collect::<Vec<_>>(),
+                        ),
+                        unmodelled: blind_stats(
+                            &runs.iter().map(|b| &b.unmodelled).collect::<Vec<_>>(),
+                        ),
+                    }
+                })
+                .filter(|b| b.runs > 0)
+                .collect(),
+            blind_runs: report.blind.clone(),
             map: report.map.clone(),
             config: report.config.clone(),
         }

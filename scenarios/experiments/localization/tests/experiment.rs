@@ -11,6 +11,7 @@ fn a_short_drive_stays_localized_and_writes_the_summary() {
         seeds: 1,
         global_runs: 2,
         global_drive_m: 6.0,
+        blind_runs: 1,
         vo_every: 0,
         ..Config::default()
     };
@@ -27,6 +28,7 @@ fn a_short_drive_stays_localized_and_writes_the_summary() {
         "localized",
         "global",
         "nees_pass_rate",
+        "blind",
     ] {
         assert!(json.get(key).is_some(), "summary.json lacks `{key}`");
     }
@@ -65,7 +67,7 @@ fn a_map_without_a_closed_route_is_refused() {
 fn a_kidnapped_chair_notices_and_finds_itself_again() {
     let map = sample_building().unwrap();
     let lmap = std::sync::Arc::new(iw_sim::localization::localization_map(&map).unwrap());
-    let config = iw_localization_experiment::Config {
+    let config = Config {
         vo_every: 0,
         ..Config::default()
     };
