@@ -6,6 +6,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::AgentHost;
 use iw_agent::gateway::{GatewayHandle, gateway};
+use iw_body::TRACK_M;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
 use iw_control::{ControlAgent, ControlConfig, LaserMount};
@@ -452,7 +453,7 @@ fn a_wall_on_the_right_stops_a_spin_into_it_and_leaves_driving_along_it_alone() 
     }
     let wheels = rig.last_wheels();
     assert!(
-        wheels.left_mps - wheels.right_mps < 0.8 * 0.56 * 0.5,
+        wheels.left_mps - wheels.right_mps < 0.8 * TRACK_M * 0.5,
         "the spin into the wall must be held back: {wheels:?}"
     );
 }
@@ -495,7 +496,7 @@ fn spinning_towards_a_wall_beside_the_chair_is_held_back() {
         rig.run(100);
     }
     let wheels = rig.last_wheels();
-    let clockwise_radps = (wheels.left_mps - wheels.right_mps) / 0.56;
+    let clockwise_radps = (wheels.left_mps - wheels.right_mps) / TRACK_M;
     assert!(
         clockwise_radps <= 0.4,
         "the chair still spins clockwise into the wall: {wheels:?}"

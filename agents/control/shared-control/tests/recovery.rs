@@ -4,6 +4,7 @@
 //! (each wheel ramping at 1 m/s^2) and gives the guard every wall point within reach, with the
 //! chair's motion, each 50 ms period.
 
+use iw_body::TRACK_M;
 use iw_body::layout::Footprint;
 use iw_shared_control::{
     ArcGuard, ArcGuardParams, Motion, SharedController, SharedInput, VelocityCommand,
@@ -11,7 +12,6 @@ use iw_shared_control::{
 use nalgebra::{Isometry2, Point2, Vector2};
 
 const PERIOD_S: f64 = 0.05;
-const TRACK_M: f64 = 0.56;
 /// Half the passage's width, m (0.95 m between the seats and the wall).
 const HALF_PASSAGE_M: f64 = 0.475;
 

@@ -7,6 +7,7 @@
 use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use iw_body::TRACK_M;
 use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, SonarGeometry, Status};
 use iw_vo::{OdometryFusion, OdometryStep, Pose2};
 use nalgebra::Matrix3;
@@ -31,7 +32,7 @@ fn bench(c: &mut Criterion) {
         Some(sonar),
         [0.01, 0.002, 0.01, 0.002],
     );
-    let step = OdometryStep::from_wheels(0.0, 0.0, 0.56);
+    let step = OdometryStep::from_wheels(0.0, 0.0, TRACK_M);
     let mut group = c.benchmark_group("localize");
     group
         .sample_size(20)
@@ -56,7 +57,7 @@ fn bench(c: &mut Criterion) {
     // restarted whenever it finds the pose, so every sample is a searching period (the grid
     // search, choosing hypotheses, updating them).
     // The same room driven in a loop; the scans are cast before timing.
-    let moving = OdometryStep::from_wheels(0.025, 0.026, 0.56);
+    let moving = OdometryStep::from_wheels(0.025, 0.026, TRACK_M);
     let mut truth = Pose2::new(1.5, 1.5, 0.3);
     let drive: Vec<Vec<f64>> = (0..400u64)
         .map(|k| {

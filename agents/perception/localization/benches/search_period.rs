@@ -9,6 +9,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use iw_body::TRACK_M;
 use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, Status};
 use iw_vo::{OdometryStep, Pose2};
 use nalgebra::Matrix3;
@@ -70,9 +71,9 @@ fn main() {
                 || !(0.5..7.5).contains(&ahead.y)
                 || (ahead.x > 3.5 && ahead.y > 3.5);
             let step = if blocked {
-                OdometryStep::from_wheels(-0.01, 0.01, 0.56)
+                OdometryStep::from_wheels(-0.01, 0.01, TRACK_M)
             } else {
-                OdometryStep::from_wheels(0.025, 0.025, 0.56)
+                OdometryStep::from_wheels(0.025, 0.025, TRACK_M)
             };
             truth = truth.compose(&step.as_delta());
             let ranges = common::scan(&common::room(), &truth, 0.01, run * 1000 + k);

@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use iw_body::TRACK_M;
 use iw_localization::{
     GlobalConfig, GlobalLocalizer, LocalizationMap, Localizer, LocalizerConfig, MatcherConfig,
     ScanOutcome, SonarGeometry, Status, UNOBSERVED_VAR, match_scan,
@@ -88,7 +89,7 @@ fn a_blank_corridor_leaves_its_axis_unobserved() {
     let mut pose = truth;
     let mut last_along = 0.0;
     for k in 0..100 {
-        let step = OdometryStep::from_wheels(0.05, 0.05, 0.56);
+        let step = OdometryStep::from_wheels(0.05, 0.05, TRACK_M);
         pose = pose.compose(&step.as_delta());
         loc.predict(&step);
         loc.update_ranges(&scan(&corridor, &pose, 0.01, k), &[]);
@@ -126,9 +127,9 @@ fn drive(loc: &mut Localizer, garbage_from: Option<usize>) -> (f64, f64) {
         } else {
             (0.02, 0.03)
         };
-        let true_step = OdometryStep::from_wheels(l, r, 0.56);
+        let true_step = OdometryStep::from_wheels(l, r, TRACK_M);
         truth = truth.compose(&true_step.as_delta());
-        loc.predict(&OdometryStep::from_wheels(l * 1.03, r * 0.99, 0.56));
+        loc.predict(&OdometryStep::from_wheels(l * 1.03, r * 0.99, TRACK_M));
         let mut ranges = scan(&world, &truth, 0.01, k as u64);
         if garbage_from.is_some_and(|g| k >= g) {
             ranges.iter_mut().for_each(|r| *r = f64::NAN);
@@ -189,7 +190,7 @@ fn a_chair_with_no_start_finds_itself_while_driving() {
         } else {
             (0.015, 0.025)
         };
-        let step = OdometryStep::from_wheels(l, r, 0.56);
+        let step = OdometryStep::from_wheels(l, r, TRACK_M);
         truth = truth.compose(&step.as_delta());
         loc.predict(&step);
         loc.update_ranges(&scan(&world, &truth, 0.01, k), &[]);
@@ -221,7 +222,7 @@ fn sonars_alone_are_not_matched_and_the_pose_is_predicted_only() {
     );
     let mut odometry = start;
     for k in 0..200usize {
-        let step = OdometryStep::from_wheels(0.02, 0.021, 0.56);
+        let step = OdometryStep::from_wheels(0.02, 0.021, TRACK_M);
         odometry = odometry.compose(&step.as_delta());
         loc.predict(&step);
         // echoes that fit no pose on the map: matched, they would pull the pose or start a search
@@ -258,7 +259,7 @@ fn twin_rooms_stay_candidates_until_a_scan_tells_them_apart() {
     let mut truth = Pose2::new(9.0, 1.5, std::f64::consts::PI);
     let mut found_at_x = None;
     for k in 0..360u64 {
-        let step = OdometryStep::from_wheels(0.02, 0.02, 0.56);
+        let step = OdometryStep::from_wheels(0.02, 0.02, TRACK_M);
         if truth.x > 2.5 {
             truth = truth.compose(&step.as_delta());
             loc.predict(&step);
