@@ -177,6 +177,51 @@ pub struct Drive {
     pub searches: u64,
 }
 
+/// How well a chair knows a start it was given: 1 cm and 0.6° at one standard deviation.
+fn known_start_cov() -> Matrix3<f64> {
+    Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4))
+}
+
+/// A chair set down at a random point of the route, as [`set_down`] leaves it.
+struct SetDown {
+    s: Setup,
+    /// Where on the route it was set down, as a fraction of the route's length.
+    fraction: f64,
+    /// Its true start pose.
+    start: Pose2,
+    /// Wheel odometry that has read the first sensor frame.
+    wheels: WheelOdometry,
+}
+
+/// Sets a chair down at a random point of the route, drawn from `seed ^ salt` so that each kind
+/// of run starts somewhere else. Its wheel odometry starts at the true pose when `known_start`,
+/// at the origin otherwise (a chair that does not know where it is).
+fn set_down(
+    map: &Map,
+    config: &Config,
+    seed: u64,
+    salt: u64,
+    known_start: bool,
+) -> Result<SetDown, ExperimentError> {
+    let route = tour(map)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ salt);
+    let fraction: f64 = rng.random();
+    let s = setup(map, route, fraction, config, seed);
+    let start = pose2(&lock(&s.world).pose(s.id)?);
+    let mut wheels = WheelOdometry::new(
+        drive_params(&s.spec),
+        if known_start { start } else { Pose2::default() },
+    );
+    let first = lock(&s.world).sensors(s.id)?.clone();
+    wheels.update(first.left_ticks, first.right_ticks);
+    Ok(SetDown {
+        s,
+        fraction,
+        start,
+        wheels,
+    })
+}
+
 /// One global localization run.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct GlobalRun {
@@ -376,7 +421,7 @@ pub fn drive(
     let mut s = setup(map, route, 0.0, config, seed);
     let params = drive_params(&s.spec);
     let start = pose2(&lock(&s.world).pose(s.id)?);
-    let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
+    let start_cov = known_start_cov();
     let mut wheels = WheelOdometry::new(params, start);
     let mut fusion = OdometryFusion::new(start, start_cov, params.alpha);
     let mut localizer = Localizer::new(
@@ -494,15 +539,10 @@ pub fn global_run(
     config: &Config,
     seed: u64,
 ) -> Result<GlobalRun, ExperimentError> {
-    let route = tour(map)?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5EED);
-    let fraction: f64 = rng.random();
-    let mut s = setup(map, route, fraction, config, seed);
-    let params = drive_params(&s.spec);
-    let mut wheels = WheelOdometry::new(params, Pose2::default());
+    let SetDown {
+        mut s, mut wheels, ..
+    } = set_down(map, config, seed, 0x5EED, false)?;
     let mut localizer = Localizer::new(lmap.clone(), localizer_config(&s.spec), None);
-    let first = lock(&s.world).sensors(s.id)?.clone();
-    wheels.update(first.left_ticks, first.right_ticks);
     let mut run = GlobalRun {
         seed,
         distance_m: None,
@@ -572,21 +612,18 @@ pub fn kidnap_run(
     config: &Config,
     seed: u64,
 ) -> Result<KidnapRun, ExperimentError> {
+    let SetDown {
+        mut s,
+        fraction,
+        start,
+        mut wheels,
+    } = set_down(map, config, seed, 0x0C4A1, true)?;
     let route = tour(map)?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x0C4A1);
-    let fraction: f64 = rng.random();
-    let mut s = setup(map, route, fraction, config, seed);
-    let params = drive_params(&s.spec);
-    let start = pose2(&lock(&s.world).pose(s.id)?);
-    let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
-    let mut wheels = WheelOdometry::new(params, start);
     let mut localizer = Localizer::new(
         lmap.clone(),
         localizer_config(&s.spec),
-        Some((start, start_cov)),
+        Some((start, known_start_cov())),
     );
-    let first = lock(&s.world).sensors(s.id)?.clone();
-    wheels.update(first.left_ticks, first.right_ticks);
     let mut run = KidnapRun {
         seed,
         carried_m: 0.0,
@@ -684,23 +721,19 @@ pub fn blind_run(
     seed: u64,
     learn_m: f64,
 ) -> Result<BlindRun, ExperimentError> {
-    let route = tour(map)?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0xB11D);
-    let fraction: f64 = rng.random();
-    let mut s = setup(map, route, fraction, config, seed);
-    let params = drive_params(&s.spec);
-    let start = pose2(&lock(&s.world).pose(s.id)?);
-    let start_cov = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
-    let mut wheels = WheelOdometry::new(params, start);
+    let SetDown {
+        mut s,
+        start,
+        mut wheels,
+        ..
+    } = set_down(map, config, seed, 0xB11D, true)?;
     let modelled = localizer_config(&s.spec);
     let unmodelled = iw_localization::LocalizerConfig {
         wheel_bias: iw_vo::WheelBias::NONE,
         ..modelled.clone()
     };
-    let mut localizers =
-        [modelled, unmodelled].map(|c| Localizer::new(lmap.clone(), c, Some((start, start_cov))));
-    let first = lock(&s.world).sensors(s.id)?.clone();
-    wheels.update(first.left_ticks, first.right_ticks);
+    let mut localizers = [modelled, unmodelled]
+        .map(|c| Localizer::new(lmap.clone(), c, Some((start, known_start_cov()))));
     let per_second = (1.0 / config.dt_s).round().max(1.0) as usize;
     let mut inside = [0usize; 2];
     let mut samples = 0usize;
