@@ -35,10 +35,8 @@ impl Default for MatcherConfig {
             iterations: 12,
             kernel_m: 0.05,
             inlier_m: 0.1,
-            // 3 and a floor of 1 mm and 0.03 degrees: with 10 and 1 cm / 0.3 degrees the
-            // tracking NEES averaged under 1 (the covariance several times the squared error)
-            inflation: 3.0,
-            floor: (0.001f64.powi(2), 0.03f64.to_radians().powi(2)),
+            inflation: 10.0,
+            floor: (0.01f64.powi(2), 0.3f64.to_radians().powi(2)),
             unobserved_var: 0.25,
             min_points: 12,
         }
