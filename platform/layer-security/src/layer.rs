@@ -112,10 +112,11 @@ impl SealInfo {
     }
 }
 
-struct SendSession {
-    id: [u8; SID_LEN],
-    key: LessSafeKey,
-    counter: u64,
+/// A session agreed for sending: the data plane's and the control channel's alike.
+pub(crate) struct SendSession {
+    pub(crate) id: [u8; SID_LEN],
+    pub(crate) key: LessSafeKey,
+    pub(crate) counter: u64,
 }
 
 struct PskSend {
@@ -124,13 +125,17 @@ struct PskSend {
     counter: u64,
 }
 
-struct Pending {
-    id: [u8; SID_LEN],
+/// A session being agreed, on the initiator's side, with what waits for it (`Q`: an envelope
+/// here, a control frame in [`crate::peer`]).
+pub(crate) struct Agreeing<Q> {
+    pub(crate) id: [u8; SID_LEN],
     /// The initiator's Noise state after the hello; `None` once a reply used it up.
-    noise: Option<HandshakeState>,
-    queued: VecDeque<Envelope>,
-    started: Time,
+    pub(crate) noise: Option<HandshakeState>,
+    pub(crate) queued: VecDeque<Q>,
+    pub(crate) started: Time,
 }
+
+type Pending = Agreeing<Envelope>;
 
 /// Per (sender, receiver) state. Entries are only ever made for local senders or for peers
 /// that authenticated (a signed key agreement, a pre-shared key), so a fast unkeyed hash is

@@ -30,12 +30,11 @@ use std::time::Duration;
 use iw_bus::{Reason, Time};
 use ring::aead::{Aad, LessSafeKey, Nonce};
 use ring::rand::{SecureRandom, SystemRandom};
-use snow::HandshakeState;
 
 use crate::identity::{Identity, PublicKey, verify};
 use crate::layer::{
-    HELLO, NOISE_MAX, NOISE_PARAMS, REKEY, REPLY, SID_LEN, hello_binding, noise, noise_err,
-    nonce_bytes, prologue, reply_binding, split_key,
+    Agreeing, HELLO, NOISE_MAX, NOISE_PARAMS, REKEY, REPLY, SID_LEN, SendSession, hello_binding,
+    noise, noise_err, nonce_bytes, prologue, reply_binding, split_key,
 };
 use crate::{SecurityConfig, SecurityError};
 
@@ -70,24 +69,10 @@ pub struct Opened {
     pub frame: Vec<u8>,
 }
 
-struct Agreed {
-    id: [u8; SID_LEN],
-    key: LessSafeKey,
-    counter: u64,
-}
-
-struct Agreeing {
-    id: [u8; SID_LEN],
-    /// The initiator's Noise state after the hello; `None` once a reply used it up.
-    noise: Option<HandshakeState>,
-    queued: VecDeque<Vec<u8>>,
-    started: Time,
-}
-
 /// Boxed: a Noise state is large, and a hundred peers each hold one or the other.
 enum Outbound {
-    Agreeing(Box<Agreeing>),
-    Agreed(Box<Agreed>),
+    Agreeing(Box<Agreeing<Vec<u8>>>),
+    Agreed(Box<SendSession>),
 }
 
 struct Inbound {
@@ -425,7 +410,7 @@ impl PeerSessions {
         )?;
         let key = split_key(&mut hs).map_err(|_| Reason::BadHandshake)?;
         let queued = std::mem::take(&mut pending.queued);
-        let mut session = Agreed {
+        let mut session = SendSession {
             id,
             key,
             counter: 0,
@@ -481,7 +466,7 @@ fn queue(queued: &mut VecDeque<Vec<u8>>, frame: &[u8], max: usize) {
     }
 }
 
-fn seal_data(session: &mut Agreed, frame: &[u8]) -> Result<Vec<u8>, SecurityError> {
+fn seal_data(session: &mut SendSession, frame: &[u8]) -> Result<Vec<u8>, SecurityError> {
     let counter = session.counter;
     session.counter += 1;
     let mut out = Vec::with_capacity(DATA_HEAD + frame.len() + TAG_LEN);
