@@ -4,6 +4,8 @@
 
 use iw_features::experiment::{Relight, repeatability};
 use iw_features::{DetectorConfig, DetectorKind, MatchConfig, detect, match_features};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 #[test]
 fn detectors_on_a_shared_photo() {
@@ -72,17 +74,11 @@ fn lsac_surf_nt_does_not_promote_noise_in_the_dark() {
         return;
     };
     let img = image::open(&path).expect("shared photo decodes").to_rgb8();
-    // Deterministic Gaussian noise: sum of 12 xorshift uniforms, minus 6.
-    let mut state = 0x2545_f491_u32;
-    let mut uniform = || {
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        f64::from(state) / f64::from(u32::MAX)
-    };
+    // Deterministic Gaussian noise from a seeded stream.
+    let mut rng = ChaCha8Rng::seed_from_u64(0x2545_f491);
     let mut dark = img.clone();
     for px in dark.pixels_mut() {
-        let n: f64 = (0..12).map(|_| uniform()).sum::<f64>() - 6.0;
+        let n = iw_stats::standard_normal(&mut rng);
         // One noise sample per pixel (a gray sensor): the channels stay equal.
         for c in px.0.iter_mut() {
             *c = (f64::from(*c) / 8.0 + 2.0 * n).round().clamp(0.0, 255.0) as u8;
