@@ -477,30 +477,26 @@ mod tests {
             err.contains("security.control_key") && err.contains("--insecure-dev"),
             "{err}"
         );
-        let mut config = SpawnConfig::default();
-        config.security.insecure_dev = true;
-        config.container.lease_ms = 10;
-        let err = config
-            .validate(&crate::Role::Services)
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("container.lease_ms"), "{err}");
-        let mut config = SpawnConfig::default();
-        config.security.insecure_dev = true;
-        config.body.kind = BodyKind::Real;
-        let err = config
-            .validate(&crate::Role::Chair { name: "c".into() })
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("body.port"), "{err}");
-        let mut config = SpawnConfig::default();
-        config.security.insecure_dev = true;
-        config.body.reattach_wait_ms = 0;
-        let err = config
-            .validate(&crate::Role::Chair { name: "c".into() })
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("body.reattach_wait_ms"), "{err}");
+        // A development config with one edit is refused for `role`, naming `key`.
+        let refused = |edit: fn(&mut SpawnConfig), role: crate::Role, key: &str| {
+            let mut config = SpawnConfig::default();
+            config.security.insecure_dev = true;
+            edit(&mut config);
+            let err = config.validate(&role).unwrap_err().to_string();
+            assert!(err.contains(key), "{err}");
+        };
+        let chair = || crate::Role::Chair { name: "c".into() };
+        refused(
+            |c| c.container.lease_ms = 10,
+            crate::Role::Services,
+            "container.lease_ms",
+        );
+        refused(|c| c.body.kind = BodyKind::Real, chair(), "body.port");
+        refused(
+            |c| c.body.reattach_wait_ms = 0,
+            chair(),
+            "body.reattach_wait_ms",
+        );
         let mut config = SpawnConfig::default();
         config.security.insecure_dev = true;
         for (listen, token, role, key) in [
