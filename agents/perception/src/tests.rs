@@ -103,7 +103,13 @@ fn agent(gate: Option<Receiver<()>>) -> (PerceptionAgent, Arc<AtomicUsize>, Arc<
         source: Box::new(camera),
         vo,
         t_base_camera: Isometry3::identity(),
-        motion_noise: Matrix3::identity() * 1e-4,
+        motion_noise: iw_vo::VisualNoise {
+            floor_m: 0.01,
+            floor_rad: 0.01,
+            per_metre: 0.0,
+            rad_per_rad: 0.0,
+            rad_per_metre: 0.0,
+        },
     };
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
     let body = Still {

@@ -73,6 +73,36 @@ impl WheelBias {
     };
 }
 
+/// The noise of one visual-odometry motion between two frames, growing with the motion: a
+/// frame-to-frame estimate errs by a part of the distance and of the turn it measures (depth
+/// noise, the feature matches' spread), however often frames come. A fixed covariance per frame
+/// says a chair that the camera follows at 20 frames/s knows its heading 20 times better than at
+/// 1 frame/s over the same drive, which made the fused covariance far smaller than the error
+/// whenever only the wheels and the camera measured the motion.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VisualNoise {
+    /// Standard deviation of x and y for any motion, m.
+    pub floor_m: f64,
+    /// Standard deviation of the heading for any motion, rad.
+    pub floor_rad: f64,
+    /// Standard deviation of x and y per metre of the motion.
+    pub per_metre: f64,
+    /// Standard deviation of the heading per radian turned.
+    pub rad_per_rad: f64,
+    /// Standard deviation of the heading per metre driven, rad/m.
+    pub rad_per_metre: f64,
+}
+
+impl VisualNoise {
+    /// The covariance of `motion` (x, y, theta), m² and rad².
+    pub fn covariance(&self, motion: &Pose2) -> Matrix3<f64> {
+        let d = motion.x.hypot(motion.y);
+        let xy = self.floor_m + self.per_metre * d;
+        let theta = self.floor_rad + self.rad_per_rad * motion.theta.abs() + self.rad_per_metre * d;
+        Matrix3::from_diagonal(&Vector3::new(xy * xy, xy * xy, theta * theta))
+    }
+}
+
 /// Size of the state: clone pose, current pose, wheel scale error, heading drift.
 const N: usize = 8;
 type StateMatrix = SMatrix<f64, N, N>;
