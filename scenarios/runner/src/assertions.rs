@@ -94,6 +94,7 @@ pub fn check(
                 }
                 Assertion::LandmarkVisited {
                     chair,
+                    from_s,
                     by_s,
                     within_m,
                 } => match landmark_stops(scenario) {
@@ -104,10 +105,12 @@ pub fn check(
                                 chair: c,
                                 pose,
                                 ..
-                            } if c == chair && *time_s <= by_s + EPS => stops
-                                .iter()
-                                .find(|s| (pose[0] - s[0]).hypot(pose[1] - s[1]) <= *within_m)
-                                .map(|s| (*time_s, *s)),
+                            } if c == chair && *time_s >= from_s - EPS && *time_s <= by_s + EPS => {
+                                stops
+                                    .iter()
+                                    .find(|s| (pose[0] - s[0]).hypot(pose[1] - s[1]) <= *within_m)
+                                    .map(|s| (*time_s, *s))
+                            }
                             _ => None,
                         });
                         match visit {
@@ -120,7 +123,10 @@ pub fn check(
                             ),
                             None => (
                                 false,
-                                format!("at none of {} landmark stops by {by_s} s", stops.len()),
+                                format!(
+                                    "at none of {} landmark stops from {from_s} s to {by_s} s",
+                                    stops.len()
+                                ),
                             ),
                         }
                     }

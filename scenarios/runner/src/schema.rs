@@ -198,11 +198,14 @@ pub enum Assertion {
         door: String,
     },
     /// The chair came within `within_m` (default 0.5 m) of one of the points where a chair
-    /// stops to read a landmark's marker (the cognitive agent's landmark stops) by `by_s`: it
-    /// detoured past a landmark.
+    /// stops to read a landmark's marker (the cognitive agent's landmark stops) between `from_s`
+    /// (default 0) and `by_s`: it detoured past a landmark.
     LandmarkVisited {
         /// The chair.
         chair: String,
+        /// Not before, s.
+        #[serde(default)]
+        from_s: f64,
         /// Deadline, s.
         by_s: f64,
         /// Tolerance, m.

@@ -202,11 +202,17 @@ impl Scenario {
                 }
                 Assertion::LandmarkVisited {
                     chair: c,
+                    from_s,
                     by_s,
                     within_m,
                 } => {
                     chair(entry.clone(), c)?;
+                    time(entry.clone(), *from_s)?;
                     time(entry.clone(), *by_s)?;
+                    if from_s > by_s {
+                        return Err(self
+                            .invalid(entry, format!("from_s {from_s} s is after by_s {by_s} s")));
+                    }
                     if !positive(*within_m) {
                         return Err(
                             self.invalid(entry, format!("within_m {within_m} must be positive"))

@@ -69,9 +69,10 @@ fn assertion() -> impl Strategy<Value = Assertion> {
             within_m
         }),
         (name(), time()).prop_map(|(chair, by_s)| Assertion::GoalFailed { chair, by_s }),
-        (name(), time(), 0.01..5.0f64).prop_map(|(chair, by_s, within_m)| {
+        (name(), time(), time(), 0.01..5.0f64).prop_map(|(chair, from_s, by_s, within_m)| {
             Assertion::LandmarkVisited {
                 chair,
+                from_s,
                 by_s,
                 within_m,
             }

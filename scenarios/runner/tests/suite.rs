@@ -135,9 +135,18 @@ fn a_blinded_laser_and_a_landmark_visit_are_checked_naming_the_entry() {
         "fault[0]",
         "nobody",
     );
-    refused(text.replace("for_s = 5.0", "for_s = -1.0"), "fault[0]", "-1");
+    refused(
+        text.replace("for_s = 5.0", "for_s = -1.0"),
+        "fault[0]",
+        "-1",
+    );
     refused(text.replace("at_s = 1.0", "at_s = 99.0"), "fault[0]", "99");
     refused(text.replace("by_s = 20", "by_s = 21"), "assert[0]", "21");
+    refused(
+        text.replace("by_s = 20", "from_s = 15.0\nby_s = 10"),
+        "assert[0]",
+        "after by_s",
+    );
     refused(
         text.replace("by_s = 20", "by_s = 20\nwithin_m = 0.0"),
         "assert[0]",
@@ -145,12 +154,13 @@ fn a_blinded_laser_and_a_landmark_visit_are_checked_naming_the_entry() {
     );
     // a map without a landmark cannot be visited
     let bare = std::env::temp_dir().join(format!("iw-bare-{}.map", std::process::id()));
-    let map_text: String = std::fs::read_to_string(scenarios_dir().join("maps/sample-building.map"))
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with("landmark"))
-        .map(|l| format!("{l}\n"))
-        .collect();
+    let map_text: String =
+        std::fs::read_to_string(scenarios_dir().join("maps/sample-building.map"))
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with("landmark"))
+            .map(|l| format!("{l}\n"))
+            .collect();
     std::fs::write(&bare, map_text).unwrap();
     let bare_scenario = iw_scenario::Scenario::parse(
         &text.replace("maps/sample-building.map", &bare.display().to_string()),
@@ -162,14 +172,19 @@ fn a_blinded_laser_and_a_landmark_visit_are_checked_naming_the_entry() {
         .unwrap_err()
         .to_string();
     std::fs::remove_file(&bare).unwrap();
-    assert!(err.contains("assert[0]") && err.contains("no landmark"), "{err}");
+    assert!(
+        err.contains("assert[0]") && err.contains("no landmark"),
+        "{err}"
+    );
     // not across processes: the world container takes no such command
     let err = scenario
         .validate_for(&map, iw_scenario::Mode::Processes)
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("fault[0]") && err.contains("laser-blind") && err.contains("without --processes"),
+        err.contains("fault[0]")
+            && err.contains("laser-blind")
+            && err.contains("without --processes"),
         "{err}"
     );
 }
