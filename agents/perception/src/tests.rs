@@ -10,7 +10,7 @@ use iw_acl::AgentId;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_features::DetectorKind;
 use iw_vo::{CameraSource, DepthImage, Intrinsics, Pipeline, Pose2, RgbdFrame, VoConfig, VoError};
-use nalgebra::{Isometry3, Matrix3};
+use nalgebra::Isometry3;
 
 use crate::{PerceptionAgent, PerceptionConfig, VisualConfig};
 
