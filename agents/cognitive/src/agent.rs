@@ -1,6 +1,6 @@
 //! The cognitive agent: takes a global goal, plans intermediate objectives (places and doors)
 //! with the PDDL planner, paths with A*, and has the control and door agents carry them out;
-//! re-plans when a door is refused or a path is blocked, and detours past the nearest landmark
+//! re-plans when a door is refused or a path is blocked, and detours past a landmark
 //! when the pose uncertainty grows past a threshold (thesis 3.8).
 //!
 //! # Messages
@@ -32,9 +32,13 @@
 //!   goes on, its own guard keeping it safe.
 //!
 //! Landmarks: before a motion step, and whenever a pose arrives during one, if the trace of the
-//! pose's x-y covariance exceeds [`CognitiveConfig::uncertainty_m2`] above its value at the last
-//! landmark visit, the step is re-issued via the nearest landmark ([`LandmarkStop`]: on the
-//! marker's axis, so the camera faces it on the way in).
+//! pose's x-y covariance exceeds [`CognitiveConfig::uncertainty_m2`] above its lowest since the
+//! last landmark visit, the step is re-issued via the landmark on the way (the shortest detour
+//! to the step's place; [`LandmarkStop`]: on the marker's axis, so the camera faces it on the
+//! way in). The same happens once when the
+//! perception agent says it dropped the laser (INFORM `((sensor-health agent (sensor-state
+//! :sensor laser :use dropped ...)))` in the pose subscription): the chair dead-reckons from
+//! then on, and a landmark is what can still reset its error.
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
@@ -43,7 +47,7 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, SensorState, SensorUse, WheelchairAction, WheelchairContent};
 use nalgebra::Point2;
 
 use crate::passage::{Leg, NarrowPassage, legs, touched};
@@ -169,7 +173,8 @@ struct Motion {
     from: String,
     to: String,
     door: Option<String>,
-    via_landmark: bool,
+    /// The landmark stop it goes past first, until the chair has been there.
+    landmark: Option<Point2<f64>>,
 }
 
 /// The plan step that waits for another agent's answer (one at a time).
@@ -199,6 +204,9 @@ pub struct CognitiveAgent {
     uncertainty_at_landmark_m2: f64,
     /// Whether the last pose said the chair knows where it is (true until a pose says not).
     localized: bool,
+    /// The laser was dropped and no landmark has been visited since: the next motion (or the
+    /// one under way) goes past a landmark.
+    landmark_owed: bool,
     open_doors: BTreeSet<String>,
     locked_doors: BTreeSet<String>,
     blocked: BTreeSet<(String, String)>,
@@ -256,6 +264,7 @@ impl CognitiveAgent {
             t_map_base: None,
             uncertainty_m2: 0.0,
             localized: true,
+            landmark_owed: false,
             uncertainty_at_landmark_m2: 0.0,
             open_doors: BTreeSet::new(),
             locked_doors: BTreeSet::new(),
@@ -388,24 +397,20 @@ impl CognitiveAgent {
             self.finish(ctx, Err(format!("place `{to}` has no position")));
             return;
         };
+        let doorway = door
+            .as_ref()
+            .and_then(|d| map.doors.iter().find(|p| &p.name == d))
+            .map(|d| d.at);
+        let via_landmark = self.landmark_owed || self.too_uncertain();
+        let landmark = via_landmark
+            .then(|| self.landmark_on_the_way(here, doorway.unwrap_or(target)))
+            .flatten();
         let mut stops = Vec::new();
-        let via_landmark =
-            self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
-        if via_landmark
-            && let Some(landmark) = map
-                .landmarks
-                .iter()
-                .min_by(|a, b| (a.at - here).norm().total_cmp(&(b.at - here).norm()))
-        {
+        if let Some(landmark) = landmark {
             stops.extend(landmark.from);
             stops.push(landmark.at);
         }
-        if let Some(d) = door
-            .as_ref()
-            .and_then(|d| map.doors.iter().find(|p| &p.name == d))
-        {
-            stops.push(d.at);
-        }
+        stops.extend(doorway);
         stops.push(target);
         let mut waypoints = Vec::new();
         let mut start = here;
@@ -429,7 +434,7 @@ impl CognitiveAgent {
             from,
             to,
             door,
-            via_landmark,
+            landmark: landmark.map(|l| l.at),
         };
         if self.config.watcher.is_none() {
             self.legs = VecDeque::from([Leg::Drive(waypoints)]);
@@ -455,14 +460,37 @@ impl CognitiveAgent {
         self.next_leg(ctx, motion);
     }
 
+    /// The landmark whose detour from `here` to `next` (the doorway or the place the chair drives
+    /// to) is shortest on the grid (coming in on
+    /// its marker's axis): the one on the way, not merely the nearest, which may lie behind the
+    /// chair, so that the next detour would send it back there again and again.
+    fn landmark_on_the_way(&self, here: Point2<f64>, next: Point2<f64>) -> Option<LandmarkStop> {
+        let length = |from: Point2<f64>, to: Point2<f64>| {
+            self.grid.astar(from, to).ok().map(|path| path.length_m)
+        };
+        self.config
+            .map
+            .landmarks
+            .iter()
+            .filter_map(|l| {
+                let approach = l.from.unwrap_or(l.at);
+                let detour =
+                    length(here, approach)? + (l.at - approach).norm() + length(l.at, next)?;
+                Some((detour, *l))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, l)| l)
+    }
+
     /// Starts the next leg of `motion`, or completes the motion step when none is left.
     fn next_leg(&mut self, ctx: &mut Context<'_>, motion: Motion) {
         loop {
             match self.legs.pop_front() {
                 None => {
                     self.place = motion.to;
-                    if motion.via_landmark {
-                        self.uncertainty_at_landmark_m2 = self.uncertainty_m2;
+                    if motion.landmark.is_some() {
+                        // driven past it without a pose there: what it did is what it did
+                        self.landmark_visited();
                     }
                     if let Some(door) = motion.door {
                         // The door closes behind the chair.
@@ -768,22 +796,75 @@ impl CognitiveAgent {
         self.t_map_base = Some(here);
         tracing::trace!(chair = %self.config.chair, t_s = ctx.now().0 as f64 * 1e-9, x_m, y_m, "pose");
         self.release_reached(ctx, |at| (at - here).norm() <= RELEASE_RADIUS_M);
-        let was_below =
-            self.uncertainty_m2 - self.uncertainty_at_landmark_m2 <= self.config.uncertainty_m2;
+        let was_below = !self.too_uncertain();
         self.uncertainty_m2 = uncertainty_m2;
-        let now_above =
-            self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2;
+        // the uncertainty counts from its lowest since the last landmark (a marker's reading
+        // lowers it on the way in, and at the stop)
+        self.uncertainty_at_landmark_m2 = self.uncertainty_at_landmark_m2.min(uncertainty_m2);
+        let at_landmark = self.pending.iter().find_map(|(id, waiting)| match waiting {
+            Waiting::Drive { motion } => motion
+                .landmark
+                .filter(|at| (at - here).norm() <= RELEASE_RADIUS_M)
+                .map(|_| id.to_string()),
+            _ => None,
+        });
+        if let Some(id) = at_landmark {
+            if let Some(Waiting::Drive { motion }) = self.pending.get_mut(&id) {
+                motion.landmark = None;
+            }
+            self.landmark_visited();
+        }
+        if was_below && self.too_uncertain() {
+            tracing::info!(chair = %self.config.chair, uncertainty_m2, "pose too uncertain");
+            self.detour(ctx);
+        }
+    }
+
+    /// Whether the uncertainty grew past [`CognitiveConfig::uncertainty_m2`] since the last
+    /// landmark.
+    fn too_uncertain(&self) -> bool {
+        self.uncertainty_m2 - self.uncertainty_at_landmark_m2 > self.config.uncertainty_m2
+    }
+
+    /// The chair got to a landmark's stop: the uncertainty counts from here (and from lower,
+    /// once the marker is read), and a dropped laser's debt is paid.
+    fn landmark_visited(&mut self) {
+        self.uncertainty_at_landmark_m2 = self.uncertainty_m2;
+        self.landmark_owed = false;
+    }
+
+    /// Re-issues the drive under way via a landmark, unless it goes past one already
+    /// (or the map has none).
+    fn detour(&mut self, ctx: &mut Context<'_>) {
         let driving = self.pending.iter().find_map(|(_, waiting)| match waiting {
-            Waiting::Drive { motion } if !motion.via_landmark => Some(motion.clone()),
+            Waiting::Drive { motion } if motion.landmark.is_none() => Some(motion.clone()),
             _ => None,
         });
         if let Some(Motion { from, to, door, .. }) = driving
-            && was_below
-            && now_above
             && !self.config.map.landmarks.is_empty()
         {
-            tracing::info!(chair = %self.config.chair, uncertainty_m2, "pose too uncertain; detouring via a landmark");
+            tracing::info!(chair = %self.config.chair, "detouring via a landmark");
             self.motion(ctx, from, to, door);
+        }
+    }
+
+    /// The perception agent dropped a range sensor or took it back: a silent laser owes the
+    /// chair a landmark visit, starting with the drive under way.
+    fn on_sensor(&mut self, ctx: &mut Context<'_>, state: SensorState) {
+        if state.sensor != "laser" {
+            return;
+        }
+        match state.usage {
+            SensorUse::Dropped if !self.landmark_owed => {
+                tracing::warn!(chair = %self.config.chair, reason = %state.reason, "the laser was dropped: the chair dead-reckons");
+                self.landmark_owed = true;
+                self.detour(ctx);
+            }
+            SensorUse::Dropped => {}
+            SensorUse::InUse => {
+                tracing::info!(chair = %self.config.chair, "the laser is back");
+                self.landmark_owed = false;
+            }
         }
     }
 }
@@ -857,6 +938,9 @@ impl Agent for CognitiveAgent {
                         }
                         let trace = pose.covariance[(0, 0)] + pose.covariance[(1, 1)];
                         self.on_pose(ctx, pose.x_m, pose.y_m, trace)
+                    }
+                    Ok(WheelchairContent::Inform(Fact::Sensor { state, .. })) => {
+                        self.on_sensor(ctx, state)
                     }
                     Ok(_) => {}
                     Err(err) => tracing::debug!(error = %err, "ignored a pose notification"),

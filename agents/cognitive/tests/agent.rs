@@ -12,7 +12,9 @@ use iw_cognitive::agent::{
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{
+    Fact, Pose, SensorState, SensorUse, WheelchairAction, WheelchairContent,
+};
 use nalgebra::{Matrix3, Point2};
 
 type Log = Arc<Mutex<Vec<AclMessage>>>;
@@ -336,6 +338,108 @@ fn growing_uncertainty_routes_the_chair_past_the_nearest_landmark() {
         "nearest landmark first, from its approach point: {detour:?}"
     );
     assert!(!waypoints(&action_of(&control[0])).contains(&(2.0, 2.0)));
+}
+
+/// Whether `request` to the control agent goes past the test map's nearest landmark, coming
+/// in on the marker's axis (its approach point, then the landmark).
+fn via_the_landmark(request: &AclMessage) -> bool {
+    let points = waypoints(&action_of(request));
+    let at = |p: (f64, f64)| points.iter().position(|q| *q == p);
+    matches!((at((3.0, 2.0)), at((2.0, 2.0))), (Some(a), Some(b)) if a < b)
+}
+
+fn laser(usage: SensorUse) -> Fact {
+    Fact::Sensor {
+        agent: AgentId::new("chair1"),
+        state: SensorState {
+            sensor: "laser".into(),
+            usage,
+            reason: "silent: no readings".into(),
+        },
+    }
+}
+
+fn pose_at(x_m: f64, y_m: f64, var: f64) -> Fact {
+    Fact::AtPose {
+        agent: AgentId::new("chair1"),
+        pose: Pose {
+            x_m,
+            y_m,
+            theta_rad: 0.0,
+            covariance: Matrix3::from_diagonal_element(var),
+        },
+    }
+}
+
+#[test]
+fn a_silent_laser_routes_the_chair_past_a_landmark_once() {
+    // The control agent agrees and never finishes, so the motion stays pending.
+    let mut rig = rig(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]),
+    );
+    rig.goal("b");
+    rig.run(10);
+    rig.pose(pose_at(2.5, 4.0, 0.0001));
+    rig.run(10);
+    rig.pose(laser(SensorUse::InUse));
+    rig.run(10);
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        1,
+        "a laser in use: no detour"
+    );
+    rig.pose(laser(SensorUse::Dropped));
+    rig.run(10);
+    {
+        let control = rig.control.lock().unwrap();
+        assert_eq!(control.len(), 2, "re-issued via a landmark");
+        assert!(
+            via_the_landmark(&control[1]),
+            "{:?}",
+            waypoints(&action_of(&control[1]))
+        );
+        assert!(!via_the_landmark(&control[0]));
+    }
+    // told again (a new subscription, a repeat): the chair is on its way already
+    rig.pose(laser(SensorUse::Dropped));
+    rig.run(10);
+    assert_eq!(rig.control.lock().unwrap().len(), 2);
+}
+
+#[test]
+fn past_its_landmark_a_chair_detours_again_when_the_uncertainty_grows_again() {
+    let mut rig = rig(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]),
+    );
+    rig.goal("b");
+    rig.run(10);
+    rig.pose(pose_at(2.5, 4.0, 1.0));
+    rig.run(10);
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        2,
+        "re-issued via a landmark"
+    );
+    // at the landmark the marker is read: the uncertainty drops, and counts from there
+    rig.pose(pose_at(2.1, 2.0, 0.3));
+    rig.run(5);
+    rig.pose(pose_at(2.2, 2.1, 0.01));
+    rig.run(5);
+    // the same drive goes on; 0.5 m² more than at the landmark is past the threshold
+    rig.pose(pose_at(4.0, 3.0, 0.2));
+    rig.run(10);
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        2,
+        "0.38 m² more: no detour"
+    );
+    rig.pose(pose_at(4.5, 3.0, 0.3));
+    rig.run(10);
+    let control = rig.control.lock().unwrap();
+    assert_eq!(control.len(), 3, "0.58 m² more: via a landmark again");
+    assert!(via_the_landmark(&control[2]));
 }
 
 #[test]

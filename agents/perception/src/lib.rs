@@ -33,6 +33,12 @@
 //!   c00 .. c22))))` in the subscription's conversation. A subscription whose content names
 //!   `sensor-reading` also gets `((sensor-reading CHAIR (sonar-reading :ranges (sequence ...))))`
 //!   (no echo reads as the sonar's maximum range, [`PerceptionConfig::sonar_max_m`]).
+//! - With a map, whenever the localizer drops the laser (silent, or garbage: see
+//!   [`iw_localization::LocalizerConfig::drop_after`]) or takes it back, every subscriber
+//!   gets an INFORM `((sensor-health (agent-identifier :name CHAIR) (sensor-state :sensor laser
+//!   :use dropped :reason "silent: no readings")))` (`:use in-use` when it is back), and a new
+//!   subscriber gets it at once while the laser is dropped: a chair that dead-reckons should be
+//!   routed past a landmark.
 //! - CANCEL in the conversation of a subscription: ends it, INFORM `((done ...))` is not sent
 //!   (FIPA allows silence); other performatives get NOT-UNDERSTOOD. Each subscription is its
 //!   conversation's `iw_agent::Responder`: the notifications answer it, a CANCEL ends only it.
@@ -49,9 +55,12 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context, Responder};
 use iw_body::Body;
 use iw_localization::{Localizer, Status};
-use iw_ontology::wheelchair::{Fact, Pose, SensorReading, WheelchairContent};
+use iw_ontology::wheelchair::{
+    Fact, Pose, SensorReading, SensorState, SensorUse, WheelchairContent,
+};
 use iw_vo::{
-    CameraSource, DiffDriveParams, OdometryFusion, Pose2, VoConfig, WheelOdometry, planar_motion,
+    CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualNoise, VoConfig, WheelBias,
+    WheelOdometry, planar_motion,
 };
 use nalgebra::{Isometry3, Matrix3};
 use vision::{VisionResult, VisionWorker, WheelHistory};
@@ -90,8 +99,8 @@ pub struct VisualConfig {
     pub vo: VoConfig,
     /// Maps camera coordinates into the base frame.
     pub t_base_camera: Isometry3<f64>,
-    /// Covariance of one frame-to-frame planar motion (x, y, theta), m² and rad².
-    pub motion_noise: Matrix3<f64>,
+    /// The noise of one frame-to-frame planar motion (x, y, theta), growing with the motion.
+    pub motion_noise: VisualNoise,
 }
 
 /// Who the perception agent is and how it estimates.
@@ -101,6 +110,9 @@ pub struct PerceptionConfig {
     pub chair: AgentId,
     /// Drive geometry and motion-model noise.
     pub drive: DiffDriveParams,
+    /// The wheels' systematic error, estimated by the odometry filter (without a map) while
+    /// visual odometry observes the motion.
+    pub wheel_bias: WheelBias,
     /// Where the chair starts in the map frame.
     pub start: Pose2,
     /// Covariance of the start pose.
@@ -119,6 +131,7 @@ impl PerceptionConfig {
         PerceptionConfig {
             chair,
             drive: DiffDriveParams::default(),
+            wheel_bias: WheelBias::WHEELCHAIR,
             start,
             start_covariance: Matrix3::from_diagonal(&nalgebra::Vector3::new(1e-4, 1e-4, 1e-4)),
             period: Duration::from_millis(50),
@@ -137,7 +150,7 @@ struct Subscription {
 struct Visual {
     worker: VisionWorker,
     t_base_camera: Isometry3<f64>,
-    motion_noise: Matrix3<f64>,
+    motion_noise: VisualNoise,
     /// Wheel odometry pose when the filters last took a visual motion (their clone).
     wheel_at_clone: Pose2,
     /// Results fused and not fused (frames that failed or could not be placed in time).
@@ -159,6 +172,10 @@ pub struct PerceptionAgent {
     last_sonar_m: Vec<f64>,
     localizer: Option<Localizer>,
     history: WheelHistory,
+    /// Why the localizer dropped the laser, as last told to the subscribers (`None`: in use).
+    laser_dropped: Option<&'static str>,
+    /// The laser's use changed since the subscribers were last told.
+    laser_news: bool,
 }
 
 impl PerceptionAgent {
@@ -201,7 +218,8 @@ impl PerceptionAgent {
             .transpose()?;
         Ok(PerceptionAgent {
             wheels: WheelOdometry::new(config.drive, config.start),
-            fusion: OdometryFusion::new(config.start, config.start_covariance, config.drive.alpha),
+            fusion: OdometryFusion::new(config.start, config.start_covariance, config.drive.alpha)
+                .with_bias(config.wheel_bias),
             config,
             body,
             visual,
@@ -210,6 +228,8 @@ impl PerceptionAgent {
             last_sonar_m: Vec::new(),
             localizer: None,
             history: WheelHistory::default(),
+            laser_dropped: None,
+            laser_news: false,
         })
     }
 
@@ -274,6 +294,10 @@ impl PerceptionAgent {
                     l.update_ranges(&frame.laser_m, &frame.sonar_m);
                     if l.status() != before {
                         tracing::info!(chair = %self.config.chair.name, status = ?l.status(), "localization status changed");
+                    }
+                    if l.laser_dropped() != self.laser_dropped {
+                        self.laser_dropped = l.laser_dropped();
+                        self.laser_news = true;
                     }
                 }
                 self.last_sonar_m = frame
@@ -350,16 +374,41 @@ impl PerceptionAgent {
                 &at_current,
                 &now,
             );
-            if !self.fusion.update_visual(&motion, &visual.motion_noise) {
+            let noise = visual.motion_noise.covariance(&motion);
+            if !self.fusion.update_visual(&motion, &noise) {
                 tracing::debug!(chair = %self.config.chair.name, "visual motion outside the gate: not fused");
             }
             if let Some(l) = self.localizer.as_mut() {
-                l.update_visual(&motion, &visual.motion_noise);
+                l.update_visual(&motion, &noise);
             }
             visual.wheel_at_clone = now;
             visual.fused += 1;
         }
         visual.worker.request();
+    }
+
+    /// The laser's use as the ontology says it.
+    fn laser_state(&self) -> WheelchairContent {
+        WheelchairContent::Inform(Fact::Sensor {
+            agent: self.config.chair.clone(),
+            state: SensorState {
+                sensor: "laser".into(),
+                usage: match self.laser_dropped {
+                    Some(_) => SensorUse::Dropped,
+                    None => SensorUse::InUse,
+                },
+                reason: self.laser_dropped.unwrap_or_default().into(),
+            },
+        })
+    }
+
+    /// Tells every subscriber that the laser was dropped or taken back.
+    fn tell_laser(&mut self, ctx: &mut Context<'_>) {
+        self.laser_news = false;
+        let state = self.laser_state();
+        for sub in &mut self.subscribers {
+            let _ = ctx.answer(&mut sub.responder, Performative::Inform, &state);
+        }
     }
 
     fn publish(&mut self, ctx: &mut Context<'_>) {
@@ -409,6 +458,9 @@ impl Agent for PerceptionAgent {
                     s.responder.conversation_id() != responder.conversation_id()
                         || s.responder.initiator() != responder.initiator()
                 });
+                if self.laser_dropped.is_some() {
+                    let _ = ctx.answer(&mut responder, Performative::Inform, &self.laser_state());
+                }
                 self.subscribers.push(Subscription {
                     responder,
                     readings,
@@ -431,6 +483,9 @@ impl Agent for PerceptionAgent {
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
         self.sense();
+        if self.laser_news {
+            self.tell_laser(ctx);
+        }
         self.ticks += 1;
         if self
             .ticks

@@ -10,7 +10,7 @@ use iw_acl::AgentId;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_features::DetectorKind;
 use iw_vo::{CameraSource, DepthImage, Intrinsics, Pipeline, Pose2, RgbdFrame, VoConfig, VoError};
-use nalgebra::{Isometry3, Matrix3};
+use nalgebra::Isometry3;
 
 use crate::{PerceptionAgent, PerceptionConfig, VisualConfig};
 
@@ -103,7 +103,13 @@ fn agent(gate: Option<Receiver<()>>) -> (PerceptionAgent, Arc<AtomicUsize>, Arc<
         source: Box::new(camera),
         vo,
         t_base_camera: Isometry3::identity(),
-        motion_noise: Matrix3::identity() * 1e-4,
+        motion_noise: iw_vo::VisualNoise {
+            floor_m: 0.01,
+            floor_rad: 0.01,
+            per_metre: 0.0,
+            rad_per_rad: 0.0,
+            rad_per_metre: 0.0,
+        },
     };
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
     let body = Still {

@@ -370,6 +370,57 @@ word_enum! {
     }
 }
 
+word_enum! {
+    /// Whether a chair's range sensor feeds its pose estimate.
+    pub enum SensorUse {
+        /// `in-use`
+        InUse => "in-use",
+        /// `dropped`: silent, garbage or contradicting the map; the pose goes on without it.
+        Dropped => "dropped",
+    }
+}
+
+/// A chair's range sensor as its perception agent uses it.
+///
+/// SL: `(sensor-state :sensor laser :use dropped :reason "silent: no readings")`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SensorState {
+    /// The sensor: `laser` or `sonar`.
+    pub sensor: String,
+    /// In use or dropped.
+    pub usage: SensorUse,
+    /// Why it was dropped, for a person to read (empty when in use).
+    pub reason: String,
+}
+
+impl Concept for SensorState {
+    fn to_term(&self) -> Term {
+        FrameBuilder::new("sensor-state")
+            .text("sensor", Some(&self.sensor))
+            .term("use", Term::string(self.usage.name()))
+            .text(
+                "reason",
+                (!self.reason.is_empty()).then_some(self.reason.as_str()),
+            )
+            .build()
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        let f = Frame::read(term, "sensor-state")?;
+        Ok(Self {
+            sensor: f.required_text("sensor")?,
+            usage: word_value(
+                f.require("use")?,
+                "sensor-state",
+                "use",
+                SensorUse::from_word,
+                "expected in-use or dropped",
+            )?,
+            reason: f.text("reason")?.unwrap_or_default(),
+        })
+    }
+}
+
 /// Facts agents inform each other of.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -387,6 +438,15 @@ pub enum Fact {
         agent: AgentId,
         /// What its sensor read.
         reading: SensorReading,
+    },
+    /// `(sensor-health agent (sensor-state ...))`: the perception agent of `agent`'s chair
+    /// dropped a range sensor from its pose, or took it back. A chair whose laser went silent
+    /// dead-reckons, so its cognitive agent routes it past a landmark.
+    Sensor {
+        /// The wheelchair's agent.
+        agent: AgentId,
+        /// The sensor and its use.
+        state: SensorState,
     },
     /// `(door-state d1 open)`.
     Door {
@@ -429,6 +489,9 @@ impl Fact {
             Self::Reading { agent, reading } => {
                 ("sensor-reading", vec![agent.to_term(), reading.to_term()])
             }
+            Self::Sensor { agent, state } => {
+                ("sensor-health", vec![agent.to_term(), state.to_term()])
+            }
             Self::Door { door, state } => (
                 "door-state",
                 vec![Term::string(door.as_str()), Term::string(state.name())],
@@ -457,8 +520,9 @@ impl Fact {
 
     fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
         let bad = || OntologyError::UnexpectedTerm {
-            expected: "(at-pose agent pose), (sensor-reading agent reading), (door-state door state), \
-                       (drive-applied agent (drive ...)), (error-message reason) or (body-fault reason)",
+            expected: "(at-pose agent pose), (sensor-reading agent reading), (sensor-health agent \
+                       (sensor-state ...)), (door-state door state), (drive-applied agent \
+                       (drive ...)), (error-message reason) or (body-fault reason)",
             found: formula.to_string(),
         };
         let Formula::Atomic { predicate, args } = formula else {
@@ -489,6 +553,10 @@ impl Fact {
             "sensor-reading" => Ok(Self::Reading {
                 agent: AgentId::from_term(first)?,
                 reading: SensorReading::from_term(second)?,
+            }),
+            "sensor-health" => Ok(Self::Sensor {
+                agent: AgentId::from_term(first)?,
+                state: SensorState::from_term(second)?,
             }),
             "drive-applied" => match WheelchairAction::from_term(second)? {
                 WheelchairAction::Drive {

@@ -3,7 +3,8 @@
 
 use iw_acl::AgentId;
 use iw_ontology::wheelchair::{
-    DoorState, Fact, Pose, SensorReading, WheelchairAction, WheelchairContent,
+    DoorState, Fact, Pose, SensorReading, SensorState, SensorUse, WheelchairAction,
+    WheelchairContent,
 };
 use iw_ontology::{Concept, OntologyError};
 use nalgebra::Matrix3;
@@ -99,6 +100,20 @@ fn fact() -> impl Strategy<Value = Fact> {
             ]
         )
             .prop_map(|(door, state)| Fact::Door { door, state }),
+        (
+            agent(),
+            name(),
+            prop_oneof![Just(SensorUse::InUse), Just(SensorUse::Dropped)],
+            "[ -~]{0,40}"
+        )
+            .prop_map(|(agent, sensor, usage, reason)| Fact::Sensor {
+                agent,
+                state: SensorState {
+                    sensor,
+                    usage,
+                    reason,
+                },
+            }),
         "[ -~]{0,40}".prop_map(|reason| Fact::ErrorMessage { reason }),
         "[ -~]{0,40}".prop_map(|reason| Fact::BodyFault { reason }),
         (agent(), finite(), finite()).prop_map(|(agent, linear_mps, angular_radps)| {
@@ -279,6 +294,28 @@ fn facts_read_as_documented() {
         state: DoorState::Open,
     });
     assert_eq!(door.to_content().to_string(), "((door-state d1 open))");
+    let laser = WheelchairContent::Inform(Fact::Sensor {
+        agent: AgentId::new("chair1"),
+        state: SensorState {
+            sensor: "laser".into(),
+            usage: SensorUse::Dropped,
+            reason: "silent: no readings".into(),
+        },
+    });
+    let text = laser.to_content().to_string();
+    assert_eq!(
+        text,
+        r#"((sensor-health (agent-identifier :name chair1) (sensor-state :sensor laser :use dropped :reason "silent: no readings")))"#
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(laser));
+    let e = WheelchairContent::parse(
+        "((sensor-health (agent-identifier :name c) (sensor-state :sensor laser :use broken)))",
+    )
+    .unwrap_err();
+    assert!(
+        matches!(e, OntologyError::BadValue { slot: "use", ref value, .. } if value == "broken"),
+        "{e}"
+    );
     let pose = WheelchairContent::parse(
         "((at-pose (agent-identifier :name wheelchair1@P) (pose :x 1 :y -2.5 :theta 0.5 \
          :covariance (sequence 0.01 0 0 0 0.01 0 0 0 0.002))))",

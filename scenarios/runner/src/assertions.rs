@@ -92,6 +92,46 @@ pub fn check(
                         format!("highest speed afterwards {fastest:.3} m/s"),
                     )
                 }
+                Assertion::LandmarkVisited {
+                    chair,
+                    from_s,
+                    by_s,
+                    within_m,
+                } => match landmark_stops(scenario) {
+                    Ok(stops) => {
+                        let visit = seen.iter().find_map(|o| match o {
+                            Observation::Body {
+                                time_s,
+                                chair: c,
+                                pose,
+                                ..
+                            } if c == chair && *time_s >= from_s - EPS && *time_s <= by_s + EPS => {
+                                stops
+                                    .iter()
+                                    .find(|s| (pose[0] - s[0]).hypot(pose[1] - s[1]) <= *within_m)
+                                    .map(|s| (*time_s, *s))
+                            }
+                            _ => None,
+                        });
+                        match visit {
+                            Some((t, s)) => (
+                                true,
+                                format!(
+                                    "at the landmark stop ({:.2}, {:.2}) at {t:.2} s",
+                                    s[0], s[1]
+                                ),
+                            ),
+                            None => (
+                                false,
+                                format!(
+                                    "at none of {} landmark stops from {from_s} s to {by_s} s",
+                                    stops.len()
+                                ),
+                            ),
+                        }
+                    }
+                    Err(why) => (false, format!("no landmark stops: {why}")),
+                },
                 Assertion::MessagesDropped { at_least } => (
                     totals.dropped >= *at_least,
                     format!("{} dropped", totals.dropped),
@@ -146,6 +186,19 @@ pub fn check(
             }
         })
         .collect()
+}
+
+/// Where the chairs stop to read a landmark's marker on the scenario's map, as their cognitive
+/// agents plan it.
+fn landmark_stops(scenario: &Scenario) -> Result<Vec<[f64; 2]>, String> {
+    let map = scenario.load_map().map_err(|e| e.to_string())?;
+    let building = iw_fleet::compose::Building::from_map(map).map_err(|e| e.to_string())?;
+    Ok(building
+        .plan
+        .landmarks
+        .iter()
+        .map(|l| [l.at.x, l.at.y])
+        .collect())
 }
 
 /// When `chair` was first within `within_m` of the goal it had been given last.

@@ -126,6 +126,7 @@ pub fn run_with_progress(
                             container, agent, ..
                         } => fleet.kill_agent(container, agent),
                         Fault::SensorFailure { chair, .. } => fleet.set_sensor_failure(chair, true),
+                        Fault::LaserBlind { chair, .. } => fleet.set_laser_blind(chair, true),
                         Fault::JammedDoor { door, .. } => fleet.jam_door(door),
                         Fault::KillContainer { .. } => {
                             return Err(scenario.invalid(
@@ -140,6 +141,12 @@ pub fn run_with_progress(
                 Cue::LinkUp(container) => {
                     fleet.set_link(container, true).map_err(fleet_err(now_s))?;
                     format!("link {container} restored")
+                }
+                Cue::LaserBack(chair) => {
+                    fleet
+                        .set_laser_blind(chair, false)
+                        .map_err(fleet_err(now_s))?;
+                    format!("laser of {chair} restored")
                 }
                 Cue::SensorsBack(chair) => {
                     fleet

@@ -20,6 +20,8 @@ pub enum Cue<'a> {
     LinkUp(&'a str),
     /// A sensor fault ends.
     SensorsBack(&'a str),
+    /// A blinded laser sees again.
+    LaserBack(&'a str),
 }
 
 /// Adds a place for every goal given as a point that is not already (within 0.5 m) a place of
@@ -69,6 +71,11 @@ pub fn schedule<'a>(
                 chair,
                 for_s: Some(d),
             } => schedule.push((at_s + d, Cue::SensorsBack(chair))),
+            Fault::LaserBlind {
+                at_s,
+                chair,
+                for_s: Some(d),
+            } => schedule.push((at_s + d, Cue::LaserBack(chair))),
             _ => {}
         }
     }

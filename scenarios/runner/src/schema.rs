@@ -100,6 +100,18 @@ pub enum Fault {
         #[serde(default)]
         for_s: Option<f64>,
     },
+    /// A chair's laser returns nothing from `at_s` for `for_s` (forever if absent), as if
+    /// covered, while its wheels, sonars and camera read on: its localizer drops the laser and
+    /// dead-reckons. In process only (the world container takes no such command yet).
+    LaserBlind {
+        /// When, s.
+        at_s: f64,
+        /// The chair.
+        chair: String,
+        /// Duration, s.
+        #[serde(default)]
+        for_s: Option<f64>,
+    },
     /// A door closes and stays closed.
     JammedDoor {
         /// When, s.
@@ -125,6 +137,7 @@ impl Fault {
             Fault::LinkLoss { at_s, .. }
             | Fault::KillAgent { at_s, .. }
             | Fault::SensorFailure { at_s, .. }
+            | Fault::LaserBlind { at_s, .. }
             | Fault::JammedDoor { at_s, .. }
             | Fault::KillContainer { at_s, .. } => *at_s,
         }
@@ -183,6 +196,21 @@ pub enum Assertion {
     DoorFailed {
         /// The door id.
         door: String,
+    },
+    /// The chair came within `within_m` (default 0.5 m) of one of the points where a chair
+    /// stops to read a landmark's marker (the cognitive agent's landmark stops) between `from_s`
+    /// (default 0) and `by_s`: it detoured past a landmark.
+    LandmarkVisited {
+        /// The chair.
+        chair: String,
+        /// Not before, s.
+        #[serde(default)]
+        from_s: f64,
+        /// Deadline, s.
+        by_s: f64,
+        /// Tolerance, m.
+        #[serde(default = "half_metre")]
+        within_m: f64,
     },
     /// Every message the agents sent is in the logger agent's log (counted against the traffic
     /// at the end, once in-flight messages are delivered).

@@ -9,7 +9,7 @@ use crate::schema::{Assertion, ChairEntry, Fault, GoalEntry, Scenario};
 
 impl Scenario {
     /// [`Scenario::validate`], and refuses what `mode` cannot play: a killed container in one
-    /// process; sensor failures, jammed doors and door commands across processes (their world
+    /// process; sensor failures, blinded lasers, jammed doors and door commands across processes (their world
     /// container takes no such commands yet).
     pub fn validate_for(&self, map: &Map, mode: Mode) -> Result<(), ScenarioError> {
         self.validate(map)?;
@@ -33,6 +33,9 @@ impl Scenario {
                 }
                 (Mode::Processes, Fault::SensorFailure { .. }) => {
                     return unsupported(entry, "a sensor failure (sensor-failure)");
+                }
+                (Mode::Processes, Fault::LaserBlind { .. }) => {
+                    return unsupported(entry, "a blinded laser (laser-blind)");
                 }
                 (Mode::Processes, Fault::JammedDoor { .. }) => {
                     return unsupported(entry, "a jammed door (jammed-door)");
@@ -160,6 +163,9 @@ impl Scenario {
                 Fault::KillAgent { container: c, .. } => container(entry, c)?,
                 Fault::SensorFailure {
                     chair: c, for_s, ..
+                }
+                | Fault::LaserBlind {
+                    chair: c, for_s, ..
                 } => {
                     chair(entry.clone(), c)?;
                     if let Some(d) = for_s {
@@ -192,6 +198,31 @@ impl Scenario {
                     }
                     if !self.goals.iter().any(|g| &g.chair == c) {
                         return Err(self.invalid(entry, format!("chair `{c}` is given no goal")));
+                    }
+                }
+                Assertion::LandmarkVisited {
+                    chair: c,
+                    from_s,
+                    by_s,
+                    within_m,
+                } => {
+                    chair(entry.clone(), c)?;
+                    time(entry.clone(), *from_s)?;
+                    time(entry.clone(), *by_s)?;
+                    if from_s > by_s {
+                        return Err(self
+                            .invalid(entry, format!("from_s {from_s} s is after by_s {by_s} s")));
+                    }
+                    if !positive(*within_m) {
+                        return Err(
+                            self.invalid(entry, format!("within_m {within_m} must be positive"))
+                        );
+                    }
+                    if map.landmarks.is_empty() {
+                        return Err(self.invalid(
+                            entry,
+                            "the map has no landmark (a `landmark` statement) to visit",
+                        ));
                     }
                 }
                 Assertion::GoalFailed { chair: c, by_s } => {

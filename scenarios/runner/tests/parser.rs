@@ -54,6 +54,8 @@ fn fault() -> impl Strategy<Value = Fault> {
         }),
         (time(), name(), proptest::option::of(time()))
             .prop_map(|(at_s, chair, for_s)| Fault::SensorFailure { at_s, chair, for_s }),
+        (time(), name(), proptest::option::of(time()))
+            .prop_map(|(at_s, chair, for_s)| Fault::LaserBlind { at_s, chair, for_s }),
         (time(), name()).prop_map(|(at_s, door)| Fault::JammedDoor { at_s, door }),
     ]
 }
@@ -67,6 +69,14 @@ fn assertion() -> impl Strategy<Value = Assertion> {
             within_m
         }),
         (name(), time()).prop_map(|(chair, by_s)| Assertion::GoalFailed { chair, by_s }),
+        (name(), time(), time(), 0.01..5.0f64).prop_map(|(chair, from_s, by_s, within_m)| {
+            Assertion::LandmarkVisited {
+                chair,
+                from_s,
+                by_s,
+                within_m,
+            }
+        }),
         (name(), time()).prop_map(|(chair, from_s)| Assertion::Stopped { chair, from_s }),
         any::<u64>().prop_map(|at_least| Assertion::MessagesDropped {
             at_least: at_least >> 1

@@ -114,3 +114,77 @@ fn what_a_mode_cannot_play_is_refused_naming_the_entry() {
         "{err}"
     );
 }
+
+#[test]
+fn a_blinded_laser_and_a_landmark_visit_are_checked_naming_the_entry() {
+    let path = scenarios_dir().join("blind.toml");
+    let text = "name = \"x\"\nmap = \"maps/sample-building.map\"\nduration_s = 20\n[[chair]]\nname = \"c\"\nstart = \"entrance\"\n[[goal]]\nat_s = 0.5\nchair = \"c\"\nplace = \"office\"\n[[fault]]\nkind = \"laser-blind\"\nat_s = 1.0\nchair = \"c\"\nfor_s = 5.0\n[[assert]]\nkind = \"landmark-visited\"\nchair = \"c\"\nby_s = 20\n";
+    let scenario = iw_scenario::Scenario::parse(text, &path).unwrap();
+    let map = scenario.load_map().unwrap();
+    scenario.validate(&map).unwrap();
+    let refused = |text: String, entry: &str, says: &str| {
+        let err = iw_scenario::Scenario::parse(&text, &path)
+            .unwrap()
+            .validate(&map)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(entry) && err.contains(says), "{err}");
+    };
+    refused(
+        text.replace("chair = \"c\"\nfor_s", "chair = \"nobody\"\nfor_s"),
+        "fault[0]",
+        "nobody",
+    );
+    refused(
+        text.replace("for_s = 5.0", "for_s = -1.0"),
+        "fault[0]",
+        "-1",
+    );
+    refused(text.replace("at_s = 1.0", "at_s = 99.0"), "fault[0]", "99");
+    refused(text.replace("by_s = 20", "by_s = 21"), "assert[0]", "21");
+    refused(
+        text.replace("by_s = 20", "from_s = 15.0\nby_s = 10"),
+        "assert[0]",
+        "after by_s",
+    );
+    refused(
+        text.replace("by_s = 20", "by_s = 20\nwithin_m = 0.0"),
+        "assert[0]",
+        "within_m",
+    );
+    // a map without a landmark cannot be visited
+    let bare = std::env::temp_dir().join(format!("iw-bare-{}.map", std::process::id()));
+    let map_text: String =
+        std::fs::read_to_string(scenarios_dir().join("maps/sample-building.map"))
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with("landmark"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+    std::fs::write(&bare, map_text).unwrap();
+    let bare_scenario = iw_scenario::Scenario::parse(
+        &text.replace("maps/sample-building.map", &bare.display().to_string()),
+        &path,
+    )
+    .unwrap();
+    let err = bare_scenario
+        .validate(&bare_scenario.load_map().unwrap())
+        .unwrap_err()
+        .to_string();
+    std::fs::remove_file(&bare).unwrap();
+    assert!(
+        err.contains("assert[0]") && err.contains("no landmark"),
+        "{err}"
+    );
+    // not across processes: the world container takes no such command
+    let err = scenario
+        .validate_for(&map, iw_scenario::Mode::Processes)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("fault[0]")
+            && err.contains("laser-blind")
+            && err.contains("without --processes"),
+        "{err}"
+    );
+}

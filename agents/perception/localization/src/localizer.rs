@@ -122,17 +122,20 @@ struct Health {
     bad_in_row: u32,
     good_in_row: u32,
     dropped: bool,
+    /// Why it was dropped, while it is.
+    reason: Option<&'static str>,
 }
 
 impl Health {
     /// Records one scan; returns whether the sensor may be used for it.
-    fn observe(&mut self, name: &str, problem: Option<&str>, drop_after: u32) -> bool {
+    fn observe(&mut self, name: &str, problem: Option<&'static str>, drop_after: u32) -> bool {
         match problem {
             Some(why) => {
                 self.good_in_row = 0;
                 self.bad_in_row = self.bad_in_row.saturating_add(1);
                 if !self.dropped && self.bad_in_row >= drop_after {
                     self.dropped = true;
+                    self.reason = Some(why);
                     tracing::warn!(
                         sensor = name,
                         reason = why,
@@ -146,6 +149,7 @@ impl Health {
                 self.good_in_row = self.good_in_row.saturating_add(1);
                 if self.dropped && self.good_in_row >= drop_after {
                     self.dropped = false;
+                    self.reason = None;
                     tracing::warn!(sensor = name, "range sensor back in localization");
                 }
                 !self.dropped
@@ -261,6 +265,11 @@ impl Localizer {
     /// Whether the laser and the sonars are currently dropped.
     pub fn dropped(&self) -> (bool, bool) {
         (self.laser.dropped, self.sonar.dropped)
+    }
+
+    /// Why the laser is dropped, while it is (see [`LocalizerConfig::drop_after`]).
+    pub fn laser_dropped(&self) -> Option<&'static str> {
+        self.laser.reason
     }
 
     /// Predicts with one wheel odometry step.

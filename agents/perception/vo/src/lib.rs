@@ -38,7 +38,7 @@ mod wheel;
 
 pub use camera::{Distortion, Intrinsics};
 pub use error::VoError;
-pub use fusion::{OdometryFusion, WheelBias, planar_motion};
+pub use fusion::{OdometryFusion, VisualNoise, WheelBias, planar_motion};
 pub use geometry::{RansacParams, RigidFit, ransac_rigid, umeyama};
 pub use odometry::{FrameStats, KeyframeParams, Pipeline, VisualOdometry, VoConfig};
 pub use source::{CameraSource, DepthImage, RgbdFrame, TumReplay, load_pair};

@@ -649,7 +649,9 @@ pub fn run_processes(
                             &serde_json::json!({ "admin": "kill-agent", "agent": agent }),
                         )?,
                         Fault::KillContainer { container, .. } => d.kill(container)?,
-                        Fault::SensorFailure { .. } | Fault::JammedDoor { .. } => {
+                        Fault::SensorFailure { .. }
+                        | Fault::LaserBlind { .. }
+                        | Fault::JammedDoor { .. } => {
                             return Err(
                                 scenario.invalid("fault", "cannot be played across processes")
                             );
@@ -663,7 +665,7 @@ pub fn run_processes(
                     }
                     format!("link {container} restored")
                 }
-                Cue::Door(_) | Cue::SensorsBack(_) => {
+                Cue::Door(_) | Cue::SensorsBack(_) | Cue::LaserBack(_) => {
                     return Err(scenario.invalid("door", "cannot be played across processes"));
                 }
             };
