@@ -182,7 +182,10 @@ mod tests {
         // Half the light, four times the noise unit (the division by `a` doubles sigma_w).
         assert!((floor.unit([20.0; 3]) / floor.unit([40.0; 3]) - 4.0).abs() < 1e-4);
         // Below the LSAC divisor's floor the model stops growing, as the working image does.
-        assert_eq!(floor.unit([1.0; 3]), floor.unit([config.lsac_min_average; 3]));
+        assert_eq!(
+            floor.unit([1.0; 3]),
+            floor.unit([config.lsac_min_average; 3])
+        );
     }
 
     #[test]

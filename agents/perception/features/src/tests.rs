@@ -22,11 +22,6 @@ fn gaussian(x: f32, y: f32, cx: f32, cy: f32, sigma: f32) -> f32 {
 
 /// Deterministic random blobs: textured enough for hundreds of keypoints.
 fn texture(width: u32, height: u32, seed: u64) -> RgbImage {
-    texture_of_contrast(width, height, seed, 80.0)
-}
-
-/// [`texture`] with blob amplitudes up to `amplitude` (8-bit units) on a gray of 90.
-fn texture_of_contrast(width: u32, height: u32, seed: u64, amplitude: f32) -> RgbImage {
     let mut state = seed;
     let mut next = || {
         state = state
@@ -38,7 +33,7 @@ fn texture_of_contrast(width: u32, height: u32, seed: u64, amplitude: f32) -> Rg
         .map(|_| {
             let (cx, cy) = (next() * width as f32, next() * height as f32);
             let sigma = 1.2 + next() * 3.5;
-            let amp = (2.0 * next() - 1.0) * amplitude;
+            let amp = next() * 160.0 - 80.0;
             (cx, cy, sigma, amp, [next(), next(), next()])
         })
         .collect();
@@ -242,60 +237,8 @@ fn invalid_config_is_an_error_naming_the_field() {
 
 mod properties {
     use proptest::prelude::*;
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
 
     use super::*;
-
-    /// `image` as a camera would see it with `gain` of the light: shot noise (0.25 DN^2 per DN)
-    /// and read noise `read` DN, one sample per pixel (a gray sensor), rounded to 8 bits.
-    fn darkened(image: &RgbImage, gain: f32, read: f32, seed: u64) -> RgbImage {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut out = image.clone();
-        for px in out.pixels_mut() {
-            let n = iw_stats::standard_normal(&mut rng) as f32;
-            for c in px.0.iter_mut() {
-                let signal = f32::from(*c) * gain;
-                let noisy = signal + n * (0.25 * signal + read * read).sqrt();
-                *c = noisy.round().clamp(0.0, 255.0) as u8;
-            }
-        }
-        out
-    }
-
-    /// LSAC-SURF-NT's keypoints below its cap (the detector's own count, not the cap's).
-    fn uncapped_count(image: &RgbImage) -> f32 {
-        let mut config = DetectorConfig::for_kind(DetectorKind::LsacSurfNt);
-        config.max_keypoints = Some(usize::MAX);
-        detect(DetectorKind::LsacSurfNt, image, &config).unwrap().keypoints.len() as f32
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(12))]
-        /// Issue 22: as the light falls to 1/8 with shot and read noise, LSAC-SURF-NT's count
-        /// stays within +-30 % of full light, whatever the scene's contrast. The detector before
-        /// the contrast-normalised threshold (a fixed base threshold of 10, noise factor 11)
-        /// fails this: a low-contrast scene gains keypoints from noise, or loses them to the
-        /// fixed threshold.
-        #[test]
-        fn lsac_surf_nt_keeps_its_count_as_the_light_falls(
-            seed in any::<u64>(),
-            stops in 1.0f32..3.0,
-            read in 1.0f32..2.0,
-            amplitude in 30.0f32..80.0,
-        ) {
-            let light = texture_of_contrast(256, 256, seed, amplitude);
-            let dark = darkened(&light, 2f32.powf(-stops), read, seed ^ 0x5eed);
-            let (before, after) = (uncapped_count(&light), uncapped_count(&dark));
-            prop_assert!(before > 100.0, "{before} keypoints in full light");
-            let ratio = after / before;
-            prop_assert!(
-                (0.7..=1.3).contains(&ratio),
-                "gain 1/{:.1}, read {read:.1}, amplitude {amplitude:.0}: {before} -> {after} ({ratio:.2})",
-                2f32.powf(stops)
-            );
-        }
-    }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]
