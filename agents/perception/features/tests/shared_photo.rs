@@ -157,7 +157,7 @@ proptest! {
     /// Issue 22: as the light on a photograph falls to 1/4 with shot and read noise,
     /// LSAC-SURF-NT's uncapped count stays within +-30 % of full light. The detector before
     /// the contrast-normalised threshold (base threshold 10, noise factor 11) fails it: brick
-    /// at 1/2 and 1/4 gave 2.0-3.1x its full-light count (measured through `intellwheels
+    /// at 1/2 and 1/4 gave 2.0-3.6x its full-light count (measured through `intellwheels
     /// features`). Not held further down: at 1/8 brick gains 32-45 % (see the results page).
     #[test]
     fn lsac_surf_nt_keeps_its_count_as_a_photograph_darkens(
