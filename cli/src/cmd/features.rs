@@ -39,6 +39,9 @@ pub struct Args {
     /// Override the noise-aware threshold's factor (see `DetectorConfig::noise_factor`; 0: off).
     #[arg(long)]
     noise_factor: Option<f32>,
+    /// Override the contrast-normalised threshold (see `DetectorConfig::contrast_threshold`; 0: off).
+    #[arg(long)]
+    contrast_threshold: Option<f32>,
     /// Keep at most this many keypoints, in the detector's ranking order (see `DetectorConfig::max_keypoints`).
     #[arg(long)]
     max_keypoints: Option<usize>,
@@ -72,6 +75,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(k) = args.noise_factor {
         config.noise_factor = k;
+    }
+    if let Some(c) = args.contrast_threshold {
+        config.contrast_threshold = c;
     }
     if args.max_keypoints.is_some() {
         config.max_keypoints = args.max_keypoints;

@@ -156,6 +156,37 @@ impl ScaleSpace {
     }
 }
 
+impl ScaleSpace {
+    /// The image's contrast scale: the `quantile` of the positive responses of the finest
+    /// tested layer (octave 0, level 1) over its valid window, every second sample. A change of
+    /// contrast `c` (a haze, a weaker light the LSAC division leaves partly in) scales every
+    /// response by `c^2`, and this figure with it, so a threshold relative to it keeps the same
+    /// keypoints. 0 when the layer has no positive response.
+    pub(crate) fn contrast(&self, quantile: f32) -> f32 {
+        let Some(layer) = self.layers.get(1) else {
+            return 0.0;
+        };
+        if layer.first_col > layer.last_col || layer.first_row > layer.last_row {
+            return 0.0;
+        }
+        let mut positive: Vec<f32> = (layer.first_row..=layer.last_row)
+            .step_by(2)
+            .flat_map(|r| {
+                layer.responses[r * layer.cols + layer.first_col..=r * layer.cols + layer.last_col]
+                    .iter()
+                    .step_by(2)
+                    .copied()
+            })
+            .filter(|&v| v > 0.0)
+            .collect();
+        if positive.is_empty() {
+            return 0.0;
+        }
+        let at = ((positive.len() - 1) as f32 * quantile.clamp(0.0, 1.0)).round() as usize;
+        *positive.select_nth_unstable_by(at, f32::total_cmp).1
+    }
+}
+
 /// The layer of an earlier octave this layer subsamples, if any: octave `o`, level `l` uses
 /// the filter of octave `o - 1`, level `2 l + 1` at twice its step (Bay et al. reuse these).
 fn source_of(octave: usize, level: usize, levels: usize) -> Option<usize> {

@@ -54,6 +54,14 @@ impl GrayImage32 {
         }
     }
 
+    /// Channel `c` (0 red, 1 green, 2 blue) of an RGB image.
+    pub(crate) fn channel_into(&mut self, image: &image::RgbImage, c: usize) {
+        self.resize(image.width() as usize, image.height() as usize);
+        for (out, px) in self.data.iter_mut().zip(image.pixels()) {
+            *out = f32::from(px.0[c]);
+        }
+    }
+
     /// Luma (0.299 R + 0.587 G + 0.114 B, ITU-R BT.601, as OpenCV's gray) of an RGB image.
     pub fn luma_into(&mut self, image: &image::RgbImage) {
         self.resize(image.width() as usize, image.height() as usize);

@@ -43,7 +43,7 @@ pub mod sequence;
 mod simd;
 mod working;
 
-pub use config::{DetectorConfig, LsacSpace, MatchConfig};
+pub use config::{CONTRAST_QUANTILE, DetectorConfig, LsacSpace, MatchConfig};
 pub use image32::GrayImage32;
 pub use integral::IntegralImage;
 pub use matching::match_features;
@@ -63,7 +63,9 @@ pub enum DetectorKind {
     /// LSAC-SURF with a noise-aware threshold (not in the thesis): the local average division
     /// amplifies sensor noise where the image is dark, so a keypoint must also stand above what
     /// the image's own noise gives in its region, and the strongest by signal-to-noise are kept
-    /// (see [`DetectorConfig::noise_factor`]); of those, [`DetectorConfig::max_keypoints`] are
+    /// (see [`DetectorConfig::noise_factor`]), and above a threshold relative to the image's own
+    /// contrast, so the count below the cap follows the structure, not the contrast
+    /// ([`DetectorConfig::contrast_threshold`]); of those, [`DetectorConfig::max_keypoints`] are
     /// kept, so the count does not follow the light. Detected on the doubled image ([`DetectorConfig::upsample`]); the kept ones are
     /// ranked toward fine scales and spaced 2 px apart
     /// ([`DetectorConfig::rank_size_exponent`], [`DetectorConfig::min_separation_px`]).
@@ -194,8 +196,9 @@ pub struct Detector {
     scratch: working::Scratch,
     /// The doubled input ([`DetectorConfig::upsample`]).
     doubled: working::Planes,
-    /// The input's luma, where the noise model measures the camera's noise.
-    input_gray: GrayImage32,
+    /// One plane of the input (a channel, or the luma), where the noise model measures the
+    /// camera's noise.
+    input_plane: GrayImage32,
     layers: hessian::ScaleSpace,
 }
 
@@ -228,17 +231,21 @@ impl Detector {
         self.layers
             .compute(self.scratch.working(kind), normalise, config);
         let mut keypoints = extrema::find(&self.layers, config);
+        // Contrast-normalised threshold (LSAC-SURF-NT): relative to the image's own responses.
+        if config.contrast_threshold > 0.0 {
+            let floor = config.contrast_threshold * self.layers.contrast(CONTRAST_QUANTILE);
+            keypoints.retain(|kp| kp.response > floor);
+        }
         // The noise model (LSAC-SURF-NT): drop responses noise could give in their region, and
         // rank the rest by signal-to-noise (the weights) rather than by the bare response.
         let weights = if config.noise_factor > 0.0 && kind.is_lsac() {
-            self.input_gray.luma_into(image);
-            let floor = noise::NoiseFloor::measure(&self.input_gray, config);
+            let floor = noise::NoiseFloor::measure(image, &mut self.input_plane, config);
             let mut weights = Vec::with_capacity(keypoints.len());
             keypoints.retain(|kp| {
-                let average = self.scratch.local_average_at(kp.x, kp.y, config);
-                let keep = kp.response > floor.threshold(kp, average);
+                let unit = floor.unit(self.scratch.local_averages_at(kp.x, kp.y, config));
+                let keep = kp.response > floor.threshold(kp, unit);
                 if keep {
-                    weights.push(1.0 / floor.unit(average));
+                    weights.push(1.0 / unit);
                 }
                 keep
             });

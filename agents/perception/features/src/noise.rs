@@ -9,6 +9,11 @@
 //! Model: the input's noise `sigma` (8-bit units) is signal-independent (read noise and
 //! rounding: the regime where dim light is noisy), so in the working image it is
 //! `sigma_w(a) = 255 sigma / (2 a)`, per region through the local average `a` at the keypoint.
+//! In the per-channel space (the default) the working image is the luma of `I_k / (2 a_k)`, so
+//! each channel's noise is estimated on its own and carried through its own average:
+//! `sigma_w^2 = sum_k (w_k 255 sigma_k / (2 a_k))^2`. A gain on one channel (a change of
+//! illuminant colour, LCC) scales `sigma_k` and `a_k` together and leaves the model as the
+//! working image: unchanged; the luma's noise over the luma's average would not be.
 //! For a filter of side `L` (lobe `l = L / 3`) white noise of variance `s^2` gives
 //! `var(Dxx) = s^2 v(L)`, `v(L) = 6 l (2 l - 1) / L^4` (unit box weights 1, -2, 1 over
 //! `(2 l - 1) x l` cells each, normalised by the area `L^2`), and the determinant of noise scales
@@ -21,8 +26,8 @@
 //! the 8-bit rounding noise `1 / sqrt(12)`. Assumption (the thesis is silent): noise is white;
 //! demosaicing and JPEG correlate it, which the factor absorbs.
 
-use crate::image32::GrayImage32;
-use crate::{DetectorConfig, Keypoint};
+use crate::image32::{GrayImage32, LUMA_WEIGHTS};
+use crate::{DetectorConfig, Keypoint, LsacSpace};
 
 /// Rounding noise of an 8-bit image, 8-bit units: the least noise an 8-bit input can carry.
 const ROUNDING_SIGMA: f32 = 0.288_675_13;
@@ -37,37 +42,60 @@ fn white_noise_variance(size: f32) -> f32 {
 
 /// The noise model of one image.
 pub(crate) struct NoiseFloor {
-    /// The input's noise, 8-bit units.
-    sigma: f32,
+    /// Luma weight and noise (8-bit units) of each channel the working image divides by its own
+    /// local average (the gray space: the gray image, weight 1, then two empty terms).
+    terms: [(f32, f32); 3],
     factor: f32,
     base: f32,
     min_average: f32,
 }
 
 impl NoiseFloor {
-    /// Estimates the noise of `gray` (the input's luma, input pixels) for `config` (whose
-    /// `noise_factor` is > 0).
-    pub(crate) fn measure(gray: &GrayImage32, config: &DetectorConfig) -> Self {
+    /// Estimates the noise of `image` for `config` (whose `noise_factor` is > 0); `plane` is
+    /// scratch.
+    pub(crate) fn measure(
+        image: &image::RgbImage,
+        plane: &mut GrayImage32,
+        config: &DetectorConfig,
+    ) -> Self {
+        let tile = config.noise_tile_px;
+        let terms = if config.lsac_space == LsacSpace::PerChannel {
+            std::array::from_fn(|c| {
+                plane.channel_into(image, c);
+                (LUMA_WEIGHTS[c], estimate_sigma(plane, tile))
+            })
+        } else {
+            plane.luma_into(image);
+            [(1.0, estimate_sigma(plane, tile)), (0.0, 0.0), (0.0, 0.0)]
+        };
         NoiseFloor {
-            sigma: estimate_sigma(gray, config.noise_tile_px),
+            terms,
             factor: config.noise_factor,
             base: config.threshold,
             min_average: config.lsac_min_average,
         }
     }
 
-    /// The determinant that noise alone gives at the 9x9 filter where the local average is
-    /// `average` (the noise unit of that region).
-    pub(crate) fn unit(&self, average: f32) -> f32 {
-        let sigma_w = 255.0 * self.sigma / (2.0 * average.max(self.min_average));
-        sigma_w * sigma_w * white_noise_variance(9.0)
+    /// The determinant that noise alone gives at the 9x9 filter where the local averages are
+    /// `averages` (per channel, as `Scratch::local_averages_at` gives them): the noise unit of
+    /// that region.
+    pub(crate) fn unit(&self, averages: [f32; 3]) -> f32 {
+        let variance: f32 = self
+            .terms
+            .iter()
+            .zip(averages)
+            .map(|(&(weight, sigma), average)| {
+                (weight * 255.0 * sigma / (2.0 * average.max(self.min_average))).powi(2)
+            })
+            .sum();
+        variance * white_noise_variance(9.0)
     }
 
-    /// The response `kp` must exceed where the local average is `average`: the base threshold or
+    /// The response `kp` must exceed where the noise unit is `unit`: the base threshold or
     /// `noise_factor` noise units at its filter size, whichever is higher.
-    pub(crate) fn threshold(&self, kp: &Keypoint, average: f32) -> f32 {
+    pub(crate) fn threshold(&self, kp: &Keypoint, unit: f32) -> f32 {
         let at_size = white_noise_variance(kp.size.max(9.0)) / white_noise_variance(9.0);
-        self.base.max(self.factor * self.unit(average) * at_size)
+        self.base.max(self.factor * unit * at_size)
     }
 }
 
@@ -146,15 +174,45 @@ mod tests {
     fn the_floor_rises_where_the_region_is_dark() {
         let config = DetectorConfig::for_kind(crate::DetectorKind::LsacSurfNt);
         let floor = NoiseFloor {
-            sigma: 2.0,
+            terms: [(1.0, 2.0), (0.0, 0.0), (0.0, 0.0)],
             factor: 10.0,
             base: 0.0,
             min_average: 4.0,
         };
         // Half the light, four times the noise unit (the division by `a` doubles sigma_w).
-        assert!((floor.unit(20.0) / floor.unit(40.0) - 4.0).abs() < 1e-4);
+        assert!((floor.unit([20.0; 3]) / floor.unit([40.0; 3]) - 4.0).abs() < 1e-4);
         // Below the LSAC divisor's floor the model stops growing, as the working image does.
-        assert_eq!(floor.unit(1.0), floor.unit(config.lsac_min_average));
+        assert_eq!(
+            floor.unit([1.0; 3]),
+            floor.unit([config.lsac_min_average; 3])
+        );
+    }
+
+    #[test]
+    fn a_gain_on_one_channel_leaves_the_per_channel_unit_unchanged() {
+        let floor = |sigmas: [f32; 3]| NoiseFloor {
+            terms: std::array::from_fn(|c| (LUMA_WEIGHTS[c], sigmas[c])),
+            factor: 10.0,
+            base: 0.0,
+            min_average: 4.0,
+        };
+        let (sigmas, averages) = ([1.5, 2.0, 0.8], [60.0, 90.0, 30.0]);
+        // Red and green at 0.3 (LCC): their noise and their averages scale together.
+        let gain = [0.3, 0.3, 1.0];
+        let relit = floor(std::array::from_fn(|c| sigmas[c] * gain[c]));
+        let before = floor(sigmas).unit(averages);
+        let after = relit.unit(std::array::from_fn(|c| averages[c] * gain[c]));
+        assert!((after / before - 1.0).abs() < 1e-5, "{before} -> {after}");
+        // The luma model (one sigma over the luma average) is not invariant to it.
+        let luma = |g: [f32; 3]| {
+            let a: f32 = (0..3).map(|c| LUMA_WEIGHTS[c] * averages[c] * g[c]).sum();
+            let s: f32 = (0..3)
+                .map(|c| (LUMA_WEIGHTS[c] * sigmas[c] * g[c]).powi(2))
+                .sum::<f32>()
+                .sqrt();
+            (s / a).powi(2)
+        };
+        assert!((luma(gain) / luma([1.0; 3]) - 1.0).abs() > 0.05);
     }
 
     #[test]

@@ -261,9 +261,10 @@ impl Scratch {
         self.lsac_integral.compute(&self.lsac, false);
     }
 
-    /// The local average (luma of the per-channel averages, or the gray one) at working-image
-    /// point `(x, y)`, as the LSAC division used it there; needs `prepare` with an LSAC kind.
-    pub(crate) fn local_average_at(&self, x: f32, y: f32, config: &DetectorConfig) -> f32 {
+    /// The local averages at working-image point `(x, y)` that the LSAC division used there:
+    /// red, green and blue (per-channel space), or the gray one three times (gray space);
+    /// needs `prepare` with an LSAC kind.
+    pub(crate) fn local_averages_at(&self, x: f32, y: f32, config: &DetectorConfig) -> [f32; 3] {
         let (w, h) = (self.lsac.width(), self.lsac.height());
         let (x, y) = (
             (x.round().max(0.0) as usize).min(w.saturating_sub(1)),
@@ -271,13 +272,11 @@ impl Scratch {
         );
         let radii = nested_radii(config.lsac_radius_px);
         match config.lsac_space {
-            LsacSpace::Gray => local_average(&self.gray_integral, x, y, &radii),
+            LsacSpace::Gray => [local_average(&self.gray_integral, x, y, &radii); 3],
             LsacSpace::PerChannel => self
                 .channel_integrals
-                .iter()
-                .zip(LUMA_WEIGHTS)
-                .map(|(ii, weight)| weight * local_average(ii, x, y, &radii))
-                .sum(),
+                .each_ref()
+                .map(|ii| local_average(ii, x, y, &radii)),
         }
     }
 
