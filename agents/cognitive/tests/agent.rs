@@ -353,7 +353,7 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
             }
         }),
         Box::new(|m| {
-            if m.performative == Performative::Request {
+            if m.performative == Performative::Subscribe {
                 agree_then(m, Performative::Inform)
             } else {
                 Vec::new()
@@ -394,7 +394,7 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
     };
     assert_eq!(
         asked(&rig),
-        [(Performative::Request, pass.clone())],
+        [(Performative::Subscribe, pass.clone())],
         "granted, not yet released"
     );
     // A pose 0.8 m past the gap: the chair is clear of it.
@@ -412,7 +412,7 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
     assert_eq!(
         asked(&rig),
         [
-            (Performative::Request, pass.clone()),
+            (Performative::Subscribe, pass.clone()),
             (Performative::Cancel, pass)
         ]
     );
@@ -424,13 +424,71 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
 }
 
 #[test]
+fn a_grant_taken_back_ends_the_subscription_and_is_not_released_again() {
+    // The watcher grants, then takes the grant back at once (its lease ran out): a FAILURE in
+    // the subscription, which fipa-subscribe allows after a notification.
+    let mut drives = 0;
+    let mut rig = rig_with_watcher(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(move |m| {
+            drives += 1;
+            if drives == 1 {
+                agree_then(m, Performative::Inform)
+            } else {
+                vec![m.create_reply().with_performative(Performative::Agree)]
+            }
+        }),
+        Box::new(|m| {
+            if m.performative != Performative::Subscribe {
+                return Vec::new();
+            }
+            let mut answers = agree_then(m, Performative::Inform);
+            answers.push(
+                WheelchairContent::error("lease expired")
+                    .fill(m.create_reply().with_performative(Performative::Failure)),
+            );
+            answers
+        }),
+    );
+    rig.goal("b");
+    rig.run(20);
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        2,
+        "drove through on the grant"
+    );
+    rig.pose(Fact::AtPose {
+        agent: AgentId::new("chair1"),
+        pose: Pose {
+            x_m: 6.7,
+            y_m: 5.0,
+            theta_rad: 0.0,
+            covariance: Matrix3::zeros(),
+        },
+    });
+    rig.run(5);
+    let watcher: Vec<_> = rig
+        .watcher
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|m| m.performative)
+        .collect();
+    assert_eq!(
+        watcher,
+        [Performative::Subscribe],
+        "a grant the watcher ended is not cancelled"
+    );
+}
+
+#[test]
 fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
     // The watcher agrees and never grants: the chair waits at the gap for `pass_wait` (5 s).
     let mut rig = rig_with_watcher(
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(|m| {
-            if m.performative == Performative::Request {
+            if m.performative == Performative::Subscribe {
                 vec![m.create_reply().with_performative(Performative::Agree)]
             } else {
                 Vec::new()
@@ -455,7 +513,7 @@ fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
         .collect();
     assert_eq!(
         watcher,
-        [Performative::Request, Performative::Cancel],
+        [Performative::Subscribe, Performative::Cancel],
         "left the queue"
     );
     let answers: Vec<_> = rig

@@ -206,6 +206,15 @@ impl<T> Initiated<T> {
         self.open.remove(id).map(|(_, data)| data)
     }
 
+    /// Moves conversation `id`, its protocol state kept, into `to` with `data`, and returns its
+    /// data here: a subscription that outlives the step that opened it (a passage asked for,
+    /// then held). `None`, and nothing moves, when `id` is not open here.
+    pub fn hand_over<U>(&mut self, id: &str, to: &mut Initiated<U>, data: U) -> Option<T> {
+        let (initiator, old) = self.open.remove(id)?;
+        to.open.insert(id.to_owned(), (initiator, data));
+        Some(old)
+    }
+
     /// The data of conversation `id`.
     pub fn get(&self, id: &str) -> Option<&T> {
         self.open.get(id).map(|(_, data)| data)
