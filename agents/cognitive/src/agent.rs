@@ -45,7 +45,7 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, Subscription, Topic, WheelchairAction, WheelchairContent};
 use nalgebra::Point2;
 
 use crate::passage::{Leg, NarrowPassage, legs, touched};
@@ -790,12 +790,11 @@ impl CognitiveAgent {
 impl Agent for CognitiveAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
         if let Some(perception) = self.config.perception.clone() {
-            let subscribe = AclMessage::new(Performative::Subscribe)
-                .with_receiver(perception)
-                .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
-                .with_language("fipa-sl0")
-                .with_conversation_id(format!("pose-{}", ctx.name()))
-                .with_content("((at-pose ?agent ?pose))");
+            let subscribe = Subscription::to([Topic::AtPose]).fill(
+                AclMessage::new(Performative::Subscribe)
+                    .with_receiver(perception)
+                    .with_conversation_id(format!("pose-{}", ctx.name())),
+            );
             if let Err(err) = self.poses.open(ctx, Protocol::Subscribe, subscribe, ()) {
                 tracing::warn!(error = %err, "could not subscribe to the chair's pose");
             }

@@ -6,7 +6,7 @@ use iw_sl::{Content, Level};
 
 use crate::error::OntologyError;
 use crate::fipa::ManagementContent;
-use crate::wheelchair::WheelchairContent;
+use crate::wheelchair::{Subscription, WheelchairContent};
 
 /// A content type of one ontology.
 pub trait OntologyContent: Sized {
@@ -98,5 +98,21 @@ impl OntologyContent for crate::world::WorldContent {
 
     fn from_content(content: &Content) -> Result<Self, OntologyError> {
         crate::world::WorldContent::from_content(content)
+    }
+}
+
+impl OntologyContent for Subscription {
+    const ONTOLOGY: &'static str = crate::wheelchair::ONTOLOGY;
+
+    fn level(&self) -> Level {
+        WheelchairContent::LEVEL
+    }
+
+    fn to_content(&self) -> Content {
+        Subscription::to_content(self)
+    }
+
+    fn from_content(content: &Content) -> Result<Self, OntologyError> {
+        Subscription::from_content(content)
     }
 }
