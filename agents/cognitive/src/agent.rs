@@ -24,12 +24,14 @@
 //!   state machines (`iw_agent::conversation`): an answer out of protocol changes nothing.
 //! - Sent to the watcher agent, when [`CognitiveConfig::watcher`] is set and a motion crosses one
 //!   of the map's narrow passages: the chair first drives to [`crate::passage::WAIT_BACK_M`]
-//!   before the passage and stops, REQUESTs `((action W (pass :passage P :direction D)))`, drives
-//!   through on INFORM done, and CANCELs in that conversation once a pose shows it clear (it
-//!   does not stop there). REFUSE or
-//!   NOT-UNDERSTOOD (the passage is not watched), or no AGREE within [`PASS_ANSWER_TIMEOUT`]
-//!   (the watcher is unreachable), or no grant within [`CognitiveConfig::pass_wait`]: the chair
-//!   goes on, its own guard keeping it safe.
+//!   before the passage and stops, SUBSCRIBEs (`fipa-subscribe`: the grant is a subscription,
+//!   see the watcher's crate) to `((action W (pass :passage P :direction D)))`, drives through
+//!   on the INFORM done that notifies the grant, and CANCELs that subscription once a pose shows
+//!   it clear (it does not stop there). A FAILURE in a held subscription (its lease ran out)
+//!   ends the grant. REFUSE or NOT-UNDERSTOOD (the passage is not watched), or no AGREE within
+//!   [`PASS_ANSWER_TIMEOUT`] (the watcher is unreachable), or no grant within
+//!   [`CognitiveConfig::pass_wait`]: the chair leaves the queue (CANCEL) and goes on, its own
+//!   guard keeping it safe.
 //!
 //! Landmarks: before a motion step, and whenever a pose arrives during one, if the trace of the
 //! pose's x-y covariance exceeds [`CognitiveConfig::uncertainty_m2`] above its lowest since the
@@ -47,7 +49,9 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, SensorState, SensorUse, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{
+    Fact, SensorState, SensorUse, Subscription, Topic, WheelchairAction, WheelchairContent,
+};
 use nalgebra::Point2;
 
 use crate::passage::{Leg, NarrowPassage, legs, touched};
@@ -184,11 +188,10 @@ enum Waiting {
     Door { door: String },
     /// The control agent driving a leg of `motion`.
     Drive { motion: Motion },
-    /// The watcher's grant of `passage` for `motion`, asked at `asked_ns` (bus time).
+    /// The watcher's grant of `passage` for `motion`, subscribed to at `asked_ns` (bus time).
     Pass {
         motion: Motion,
         passage: String,
-        direction: &'static str,
         asked_ns: u64,
         agreed: bool,
     },
@@ -217,8 +220,8 @@ pub struct CognitiveAgent {
     poses: Initiated<()>,
     /// What is left of the motion step under way.
     legs: VecDeque<Leg>,
-    /// Passages granted to this chair: passage -> (conversation, direction).
-    held: BTreeMap<String, (String, &'static str)>,
+    /// Passages granted to this chair (by name), each a live subscription with the watcher.
+    held: Initiated<String>,
     /// Passages to let go when the chair gets to a point of the drive under way.
     releases: Vec<(String, Point2<f64>)>,
     conversations: u64,
@@ -273,7 +276,7 @@ impl CognitiveAgent {
             pending: Initiated::new(),
             poses: Initiated::new(),
             legs: VecDeque::new(),
-            held: BTreeMap::new(),
+            held: Initiated::new(),
             releases: Vec::new(),
             conversations: 0,
         })
@@ -446,14 +449,14 @@ impl CognitiveAgent {
         let touched = touched(&path, &self.config.map.passages);
         let stale: Vec<String> = self
             .held
-            .keys()
-            .filter(|p| !touched.contains(p.as_str()))
-            .cloned()
+            .iter()
+            .filter(|(_, held)| !touched.contains(held.as_str()))
+            .map(|(_, held)| held.clone())
             .collect();
         for passage in stale {
             self.release(ctx, &passage);
         }
-        let held = self.held.keys().cloned().collect();
+        let held = self.held.iter().map(|(_, held)| held.clone()).collect();
         self.releases.clear();
         self.legs = legs(&path, &self.config.map.passages, &held).into();
         tracing::debug!(chair = %self.config.chair, legs = ?self.legs, "motion legs");
@@ -496,7 +499,7 @@ impl CognitiveAgent {
                         // The door closes behind the chair.
                         self.open_doors.remove(&door);
                     }
-                    self.abandon();
+                    self.abandon(ctx);
                     self.advance(ctx);
                     return;
                 }
@@ -542,7 +545,6 @@ impl CognitiveAgent {
                     let waiting = Waiting::Pass {
                         motion,
                         passage,
-                        direction,
                         asked_ns: ctx.now().0,
                         agreed: false,
                     };
@@ -565,38 +567,18 @@ impl CognitiveAgent {
         }
     }
 
-    /// Lets the watcher know the chair is out of `passage` (if it holds it).
+    /// Lets the watcher know the chair is out of `passage` (if it holds it): CANCEL of its
+    /// subscription. The confirmation is not waited for.
     fn release(&mut self, ctx: &mut Context<'_>, passage: &str) {
-        let (Some((conversation, direction)), Some(watcher)) =
-            (self.held.remove(passage), self.config.watcher.clone())
+        let Some(id) = self
+            .held
+            .iter()
+            .find(|(_, held)| *held == passage)
+            .map(|(id, _)| id.to_string())
         else {
             return;
         };
-        self.cancel_pass(ctx, watcher, passage, direction, &conversation);
-    }
-
-    /// CANCEL of the pass request in `conversation`: releases a grant or leaves the queue.
-    fn cancel_pass(
-        &self,
-        ctx: &mut Context<'_>,
-        watcher: AgentId,
-        passage: &str,
-        direction: &str,
-        conversation: &str,
-    ) {
-        let action = WheelchairAction::Pass {
-            passage: passage.to_string(),
-            direction: direction.to_string(),
-        };
-        let content = WheelchairContent::Request {
-            actor: watcher.clone(),
-            action,
-        };
-        let cancel = AclMessage::new(Performative::Cancel)
-            .with_receiver(watcher)
-            .with_protocol(Protocol::Request.fipa_name())
-            .with_conversation_id(conversation);
-        let _ = ctx.send(content.fill(cancel));
+        cancel(ctx, &mut self.held, &id);
     }
 
     /// Asks `to` to do `action` as the plan's step under way, in a fresh conversation; the step
@@ -608,44 +590,47 @@ impl CognitiveAgent {
         action: WheelchairAction,
         waiting: Waiting,
     ) {
-        self.abandon();
+        self.abandon(ctx);
         let content = WheelchairContent::Request {
             actor: to.clone(),
             action,
         };
+        // A grant outlives its answer (held, then released or taken back): a subscription.
+        let (act, protocol) = match waiting {
+            Waiting::Pass { .. } => (Performative::Subscribe, Protocol::Subscribe),
+            _ => (Performative::Request, Protocol::Request),
+        };
         let conversation = self.conversation();
         let message = content.fill(
-            AclMessage::new(Performative::Request)
+            AclMessage::new(act)
                 .with_receiver(to)
                 .with_conversation_id(conversation),
         );
-        if let Err(err) = self.pending.open(ctx, Protocol::Request, message, waiting) {
+        if let Err(err) = self.pending.open(ctx, protocol, message, waiting) {
             self.finish(ctx, Err(format!("could not ask for the next step: {err}")));
         }
     }
 
-    /// Forgets the step under way, if any; returns its conversation and what it waited for.
-    fn abandon(&mut self) -> Option<(String, Waiting)> {
-        let id = self.pending.iter().next().map(|(id, _)| id.to_string())?;
-        let waiting = self.pending.forget(&id)?;
-        Some((id, waiting))
+    /// Forgets the step under way, if any (its late answers are then not ours); a passage
+    /// waited for is cancelled, so the chair leaves the watcher's queue.
+    fn abandon(&mut self, ctx: &mut Context<'_>) {
+        let Some((id, waiting)) = self.pending.iter().next() else {
+            return;
+        };
+        let id = id.to_string();
+        if matches!(waiting, Waiting::Pass { .. }) {
+            cancel(ctx, &mut self.pending, &id);
+        } else {
+            self.pending.forget(&id);
+        }
     }
 
     /// Answers the goal's requester and forgets the goal.
     fn finish(&mut self, ctx: &mut Context<'_>, outcome: Result<(), String>) {
-        if let Some((
-            conversation,
-            Waiting::Pass {
-                passage, direction, ..
-            },
-        )) = self.abandon()
-            && let Some(watcher) = self.config.watcher.clone()
-        {
-            self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
-        }
+        self.abandon(ctx);
         self.legs.clear();
         self.releases.clear();
-        let held: Vec<String> = self.held.keys().cloned().collect();
+        let held: Vec<String> = self.held.iter().map(|(_, held)| held.clone()).collect();
         for passage in held {
             self.release(ctx, &passage);
         }
@@ -722,12 +707,15 @@ impl CognitiveAgent {
     fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let performative = message.performative;
-        let (kind, waiting) = match self.pending.handle(ctx, message) {
-            None if performative == Performative::Failure => {
-                // A grant taken back (its lease ran out) while the chair is still on its way.
-                self.held.retain(|_, (c, _)| *c != conversation);
-                return;
+        if let Some(answer) = self.held.handle(ctx, message) {
+            // Only a FAILURE (the lease ran out while the chair is still on its way) can end a
+            // held grant from the watcher's side; the chair lets go by itself otherwise.
+            if let Ok(Progress::Ended(event, passage)) = answer {
+                tracing::warn!(chair = %self.config.chair, %passage, kind = ?event.kind, "the watcher took the passage back");
             }
+            return;
+        }
+        let (kind, waiting) = match self.pending.handle(ctx, message) {
             None => {
                 tracing::debug!(%conversation, "answer to an abandoned step");
                 return;
@@ -736,10 +724,8 @@ impl CognitiveAgent {
                 tracing::debug!(error = %err, "out-of-protocol answer; ignored");
                 return;
             }
-            Some(Ok(Progress::Continues(_))) => {
-                if let Some(Waiting::Pass { agreed, .. }) = self.pending.get_mut(&conversation) {
-                    *agreed = true;
-                }
+            Some(Ok(Progress::Continues(event))) => {
+                self.on_pass_progress(ctx, &conversation, event.kind);
                 return;
             }
             Some(Ok(Progress::Ended(event, waiting))) => (event.kind, waiting),
@@ -773,22 +759,37 @@ impl CognitiveAgent {
                 self.replan(ctx);
             }
             Waiting::Pass {
-                motion,
-                passage,
-                direction,
-                ..
-            } if done => {
-                tracing::info!(chair = %self.config.chair, passage = %passage, "passage granted");
-                self.held.insert(passage, (conversation, direction));
-                self.next_leg(ctx, motion);
-            }
-            Waiting::Pass {
                 motion, passage, ..
             } => {
                 tracing::warn!(passage = %passage, answer = %performative, "the watcher does not keep this passage; going on");
                 self.next_leg(ctx, motion);
             }
         }
+    }
+
+    /// An AGREE or a notification in the subscription of the passage waited for: the chair is
+    /// queued, or granted the passage, which is then held (its subscription kept) as it drives
+    /// through.
+    fn on_pass_progress(&mut self, ctx: &mut Context<'_>, conversation: &str, kind: EventKind) {
+        let Some(Waiting::Pass {
+            passage, agreed, ..
+        }) = self.pending.get_mut(conversation)
+        else {
+            return;
+        };
+        if kind != EventKind::Notified {
+            *agreed = true;
+            return;
+        }
+        let passage = passage.clone();
+        let Some(Waiting::Pass { motion, .. }) =
+            self.pending
+                .hand_over(conversation, &mut self.held, passage.clone())
+        else {
+            return;
+        };
+        tracing::info!(chair = %self.config.chair, passage = %passage, "passage granted");
+        self.next_leg(ctx, motion);
     }
 
     fn on_pose(&mut self, ctx: &mut Context<'_>, x_m: f64, y_m: f64, uncertainty_m2: f64) {
@@ -872,12 +873,11 @@ impl CognitiveAgent {
 impl Agent for CognitiveAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
         if let Some(perception) = self.config.perception.clone() {
-            let subscribe = AclMessage::new(Performative::Subscribe)
-                .with_receiver(perception)
-                .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
-                .with_language("fipa-sl0")
-                .with_conversation_id(format!("pose-{}", ctx.name()))
-                .with_content("((at-pose ?agent ?pose))");
+            let subscribe = Subscription::to([Topic::AtPose]).fill(
+                AclMessage::new(Performative::Subscribe)
+                    .with_receiver(perception)
+                    .with_conversation_id(format!("pose-{}", ctx.name())),
+            );
             if let Err(err) = self.poses.open(ctx, Protocol::Subscribe, subscribe, ()) {
                 tracing::warn!(error = %err, "could not subscribe to the chair's pose");
             }
@@ -893,20 +893,16 @@ impl Agent for CognitiveAgent {
 
     /// Gives up waiting for a watcher that does not answer or does not grant in time.
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let Some((
-            conversation,
-            Waiting::Pass {
-                motion,
-                passage,
-                direction,
-                asked_ns,
-                agreed,
-            },
-        )) = self
+        let Some(Waiting::Pass {
+            motion,
+            passage,
+            asked_ns,
+            agreed,
+        }) = self
             .pending
             .iter()
             .next()
-            .map(|(id, waiting)| (id.to_string(), waiting.clone()))
+            .map(|(_, waiting)| waiting.clone())
         else {
             return;
         };
@@ -915,10 +911,7 @@ impl Agent for CognitiveAgent {
             return;
         }
         tracing::warn!(chair = %self.config.chair, passage = %passage, agreed, waited_s = waited.as_secs_f64(), "no grant from the watcher; going on");
-        self.abandon();
-        if let Some(watcher) = self.config.watcher.clone() {
-            self.cancel_pass(ctx, watcher, &passage, direction, &conversation);
-        }
+        self.abandon(ctx);
         self.next_leg(ctx, motion);
     }
 
@@ -980,4 +973,13 @@ impl Agent for CognitiveAgent {
             }
         }
     }
+}
+
+/// CANCEL of subscription `id` (a passage released, or given up while queued), then forgets
+/// it: the watcher's confirmation is not waited for.
+fn cancel<T>(ctx: &mut Context<'_>, conversations: &mut Initiated<T>, id: &str) {
+    if let Err(err) = conversations.cancel(ctx, id) {
+        tracing::warn!(error = %err, conversation = id, "could not cancel the passage");
+    }
+    conversations.forget(id);
 }

@@ -211,6 +211,11 @@ impl Rig {
         );
         self.perception.1.lock().unwrap().push(notification);
     }
+    /// What the cognitive agent sent the watcher, in order.
+    fn watcher_acts(&self) -> Vec<Performative> {
+        let sent = self.watcher.lock().unwrap();
+        sent.iter().map(|m| m.performative).collect()
+    }
     fn run(&mut self, steps: usize) {
         for _ in 0..steps {
             self.host.step(self.clock.now());
@@ -442,9 +447,9 @@ fn past_its_landmark_a_chair_detours_again_when_the_uncertainty_grows_again() {
     assert!(via_the_landmark(&control[2]));
 }
 
-#[test]
-fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
-    // The control agent finishes the drive to the wait point, then keeps driving.
+/// A rig whose goal `b` lies through the gap, the watcher answering with `watcher`: the
+/// control agent finishes the drive to the wait point, then keeps driving.
+fn through_the_gap(watcher: Script) -> Rig {
     let mut drives = 0;
     let mut rig = rig_with_watcher(
         Box::new(|m| agree_then(m, Performative::Inform)),
@@ -456,16 +461,36 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
                 vec![m.create_reply().with_performative(Performative::Agree)]
             }
         }),
-        Box::new(|m| {
-            if m.performative == Performative::Request {
-                agree_then(m, Performative::Inform)
-            } else {
-                Vec::new()
-            }
-        }),
+        watcher,
     );
     rig.goal("b");
     rig.run(20);
+    rig
+}
+
+/// A pose 0.8 m past the gap: the chair is clear of it.
+fn clear_of_the_gap(rig: &mut Rig) {
+    rig.pose(Fact::AtPose {
+        agent: AgentId::new("chair1"),
+        pose: Pose {
+            x_m: 6.7,
+            y_m: 5.0,
+            theta_rad: 0.0,
+            covariance: Matrix3::zeros(),
+        },
+    });
+    rig.run(5);
+}
+
+#[test]
+fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
+    let mut rig = through_the_gap(Box::new(|m| {
+        if m.performative == Performative::Subscribe {
+            agree_then(m, Performative::Inform)
+        } else {
+            Vec::new()
+        }
+    }));
     let control: Vec<_> = rig
         .control
         .lock()
@@ -498,25 +523,14 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
     };
     assert_eq!(
         asked(&rig),
-        [(Performative::Request, pass.clone())],
+        [(Performative::Subscribe, pass.clone())],
         "granted, not yet released"
     );
-    // A pose 0.8 m past the gap: the chair is clear of it.
-    let pose = Fact::AtPose {
-        agent: AgentId::new("chair1"),
-        pose: Pose {
-            x_m: 6.7,
-            y_m: 5.0,
-            theta_rad: 0.0,
-            covariance: Matrix3::zeros(),
-        },
-    };
-    rig.pose(pose);
-    rig.run(5);
+    clear_of_the_gap(&mut rig);
     assert_eq!(
         asked(&rig),
         [
-            (Performative::Request, pass.clone()),
+            (Performative::Subscribe, pass.clone()),
             (Performative::Cancel, pass)
         ]
     );
@@ -528,13 +542,41 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
 }
 
 #[test]
+fn a_grant_taken_back_ends_the_subscription_and_is_not_released_again() {
+    // The watcher grants, then takes the grant back at once (its lease ran out): a FAILURE in
+    // the subscription, which fipa-subscribe allows after a notification.
+    let mut rig = through_the_gap(Box::new(|m| {
+        if m.performative != Performative::Subscribe {
+            return Vec::new();
+        }
+        let mut answers = agree_then(m, Performative::Inform);
+        answers.push(
+            WheelchairContent::error("lease expired")
+                .fill(m.create_reply().with_performative(Performative::Failure)),
+        );
+        answers
+    }));
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        2,
+        "drove through on the grant"
+    );
+    clear_of_the_gap(&mut rig);
+    assert_eq!(
+        rig.watcher_acts(),
+        [Performative::Subscribe],
+        "a grant the watcher ended is not cancelled"
+    );
+}
+
+#[test]
 fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
     // The watcher agrees and never grants: the chair waits at the gap for `pass_wait` (5 s).
     let mut rig = rig_with_watcher(
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(|m| {
-            if m.performative == Performative::Request {
+            if m.performative == Performative::Subscribe {
                 vec![m.create_reply().with_performative(Performative::Agree)]
             } else {
                 Vec::new()
@@ -550,16 +592,9 @@ fn a_silent_watcher_is_given_up_on_and_the_chair_goes_on() {
     );
     rig.run(300);
     assert_eq!(rig.control.lock().unwrap().len(), 2, "gone on after 5 s");
-    let watcher: Vec<_> = rig
-        .watcher
-        .lock()
-        .unwrap()
-        .iter()
-        .map(|m| m.performative)
-        .collect();
     assert_eq!(
-        watcher,
-        [Performative::Request, Performative::Cancel],
+        rig.watcher_acts(),
+        [Performative::Subscribe, Performative::Cancel],
         "left the queue"
     );
     let answers: Vec<_> = rig

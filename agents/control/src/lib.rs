@@ -68,7 +68,7 @@ use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Respond
 use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelGeometry};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, Subscription, Topic, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
 use iw_shared_control::tactical::{
     Action, ActionSequence, SequenceStatus, Side, TacticalInput, TacticalParams,
@@ -77,7 +77,6 @@ use iw_shared_control::{
     ArcGuard, ArcGuardParams, SensorMount, SharedController, SharedInput, VelocityCommand,
     WheelMotion,
 };
-use iw_sl::Level;
 use nalgebra::{Isometry2, Point2};
 
 /// A configuration the control layers refuse.
@@ -527,10 +526,7 @@ impl ControlAgent {
         let Some(mut responder) = ctx.accept(&message) else {
             return;
         };
-        if !message
-            .content_text()
-            .is_some_and(|t| t.contains("drive-applied"))
-        {
+        if !Subscription::from_message(&message).is_ok_and(|s| s.wants(Topic::DriveApplied)) {
             let _ = ctx.answer_error(
                 &mut responder,
                 Performative::Refuse,
@@ -741,12 +737,11 @@ impl TermString for WheelchairAction {
 impl Agent for ControlAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
         if let Some(perception) = self.config.perception.clone() {
-            let subscribe = AclMessage::new(Performative::Subscribe)
-                .with_receiver(perception)
-                .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
-                .with_language(Level::Sl0.language())
-                .with_conversation_id(format!("pose-{}", ctx.name()))
-                .with_content("((at-pose ?agent ?pose))");
+            let subscribe = Subscription::to([Topic::AtPose]).fill(
+                AclMessage::new(Performative::Subscribe)
+                    .with_receiver(perception)
+                    .with_conversation_id(format!("pose-{}", ctx.name())),
+            );
             if let Err(err) = self.poses.open(ctx, Protocol::Subscribe, subscribe, ()) {
                 tracing::warn!(error = %err, "could not subscribe to the chair's pose");
             }

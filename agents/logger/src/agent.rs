@@ -11,11 +11,14 @@
 //!   that is neither a copy nor a query is stored as itself, at the bus time it arrived.
 //!
 //! # Queries
-//! REQUEST with `:ontology IntellWheels-Log` and a JSON [`Query`] as content (fields `sender`,
-//! `receiver`, `agent`, `performative`, `conversation_id`, `since_ns`, `until_ns`, `contains`,
-//! all optional): INFORM with a JSON array of [`LoggedMessage`]; FAILURE
-//! `((error-message "..."))` when the log cannot be read, NOT-UNDERSTOOD for content that is not
-//! a query. A copy whose content is not ACL gets NOT-UNDERSTOOD and is not stored.
+//! `fipa-request`, answered through the protocol's state machine (`iw_agent::Responder`).
+//! REQUEST with `:ontology IntellWheels-Log`, `:language JSON` and a JSON [`Query`] as content
+//! (fields `sender`, `receiver`, `agent`, `performative`, `conversation_id`, `since_ns`,
+//! `until_ns`, `contains`, all optional): INFORM with a [`QueryAnswer`], a JSON array of
+//! [`LoggedMessage`]; FAILURE `((error-message "..."))` when the log cannot be read,
+//! NOT-UNDERSTOOD for content that is not a query. Both JSON contents are typed
+//! ([`TypedContent`]), so neither side writes content, language or ontology by hand. A copy
+//! whose content is not ACL gets NOT-UNDERSTOOD and is not stored.
 //!
 //! Durability: the store's [`SyncPolicy`]; besides, every tick and at take-down the agent syncs,
 //! so nothing acknowledged by a sync is lost on a crash (the store's recovery truncates a torn
@@ -25,12 +28,42 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
+use iw_agent::{Agent, Context, TypedContent};
+use serde::Serialize;
 
 use crate::{LogError, LogStore, LoggedMessage, Query, SyncPolicy};
 
 /// The `:ontology` of copies and queries.
 pub const LOG_ONTOLOGY: &str = "IntellWheels-Log";
+
+/// The `:language` of queries and their answers: JSON, not SL (a query selects fields of stored
+/// records; its answer is the records).
+pub const LOG_LANGUAGE: &str = "JSON";
+
+/// The INFORM content answering a [`Query`]: the messages found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct QueryAnswer(pub Vec<LoggedMessage>);
+
+/// `message` with `value` as JSON content in the log's ontology.
+fn fill_json(value: &impl Serialize, message: AclMessage) -> AclMessage {
+    message
+        // Structs of strings, integers and options always serialise.
+        .with_content(serde_json::to_string(value).unwrap_or_default())
+        .with_language(LOG_LANGUAGE)
+        .with_ontology(LOG_ONTOLOGY)
+}
+
+impl TypedContent for Query {
+    fn fill_into(&self, message: AclMessage) -> AclMessage {
+        fill_json(self, message)
+    }
+}
+
+impl TypedContent for QueryAnswer {
+    fn fill_into(&self, message: AclMessage) -> AclMessage {
+        fill_json(&self.0, message)
+    }
+}
 
 /// The user parameter of a copy that carries the time the original crossed the bus, ns.
 pub const LOGGED_NS_PARAM: &str = "X-logged-ns";
@@ -103,19 +136,17 @@ impl LoggerAgent {
                 return;
             }
         };
+        let Some(mut request) = ctx.accept(message) else {
+            return;
+        };
         let result = self
             .store
             .sync()
             .map_err(crate::QueryError::from)
             .and_then(|_| query.run(self.store.path()));
         let _ = match result {
-            Ok(found) => ctx.send(
-                message
-                    .create_reply()
-                    .with_performative(Performative::Inform)
-                    .with_content(serde_json::to_string(&found).unwrap_or_default()),
-            ),
-            Err(err) => ctx.failure(message, &err.to_string()),
+            Ok(found) => ctx.answer(&mut request, Performative::Inform, &QueryAnswer(found)),
+            Err(err) => ctx.answer_error(&mut request, Performative::Failure, &err.to_string()),
         };
     }
 }

@@ -6,10 +6,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::AgentHost;
 use iw_agent::gateway::{GatewayHandle, gateway};
+use iw_agent::{AgentHost, TypedContent};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
-use iw_logger::agent::{LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
+use iw_logger::agent::{LOG_LANGUAGE, LOG_ONTOLOGY, LoggerAgent, LoggerConfig, copy_for_logger};
 use iw_logger::{LoggedMessage, Query, SyncPolicy};
 
 fn host(config: &LoggerConfig, name: &str) -> (AgentHost, MockController, GatewayHandle) {
@@ -41,11 +41,11 @@ fn run(host: &mut AgentHost, clock: &MockController, steps: usize) {
 }
 
 fn query(q: &Query) -> AclMessage {
-    AclMessage::new(Performative::Request)
-        .with_receiver(AgentId::new("logger"))
-        .with_ontology(LOG_ONTOLOGY)
-        .with_conversation_id("q")
-        .with_content(serde_json::to_string(q).unwrap())
+    q.fill_into(
+        AclMessage::new(Performative::Request)
+            .with_receiver(AgentId::new("logger"))
+            .with_conversation_id("q"),
+    )
 }
 
 #[test]
@@ -115,6 +115,17 @@ fn every_message_survives_a_crash_and_queries_find_them() {
             Performative::NotUnderstood
         ]
     );
+    for answer in &inbox[..2] {
+        assert_eq!(
+            (
+                answer.language.as_deref(),
+                answer.ontology.as_deref(),
+                answer.protocol.as_deref()
+            ),
+            (Some(LOG_LANGUAGE), Some(LOG_ONTOLOGY), Some("fipa-request")),
+            "a typed answer in the query's conversation"
+        );
+    }
     let all: Vec<LoggedMessage> = serde_json::from_str(inbox[0].content_text().unwrap()).unwrap();
     assert_eq!(all.len(), 51, "50 copies and the carbon copy");
     for (i, m) in all.iter().take(50).enumerate() {

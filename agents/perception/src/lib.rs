@@ -56,7 +56,7 @@ use iw_agent::{Agent, Context, Responder};
 use iw_body::Body;
 use iw_localization::{Localizer, Status};
 use iw_ontology::wheelchair::{
-    Fact, Pose, SensorReading, SensorState, SensorUse, WheelchairContent,
+    Fact, Pose, SensorReading, SensorState, SensorUse, Topic, WheelchairContent,
 };
 use iw_vo::{
     CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualNoise, VoConfig, WheelBias,
@@ -435,15 +435,16 @@ impl Agent for PerceptionAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         match message.performative {
             Performative::Subscribe => {
-                let text = message.content_text().unwrap_or_default();
-                if !text.contains("at-pose") && !text.contains("sensor-reading") {
-                    let _ = ctx.not_understood(
-                        &message,
-                        "subscribe to ((at-pose ?agent ?pose)) or sensor-reading",
-                    );
+                let Some(readings) = ctx.understand(
+                    &message,
+                    "subscribe to ((at-pose ?agent ?pose)) or sensor-reading",
+                    |s: iw_ontology::wheelchair::Subscription| {
+                        (s.wants(Topic::AtPose) || s.wants(Topic::SensorReading))
+                            .then_some(s.wants(Topic::SensorReading))
+                    },
+                ) else {
                     return;
-                }
-                let readings = text.contains("sensor-reading");
+                };
                 let Some(mut responder) = ctx.accept(&message) else {
                     return;
                 };

@@ -6,28 +6,41 @@
 //!
 //! Organization: [`WatcherConfig`] (passages and lease), [`WatcherAgent::new`], [`WatcherError`].
 //!
+//! # Protocol: a grant is a subscription
+//! A grant has a life after it is given (held, then released or taken back), and fipa-request
+//! ends at its INFORM: a FAILURE "lease expired" after an INFORM done, as this agent once sent,
+//! is outside the protocol. So a chair asks with **fipa-subscribe**, whose subscription is the
+//! grant: the participant may notify with INFORM, the initiator may CANCEL (confirmed by
+//! INFORM), and the participant may end it with FAILURE at any time. Each passage asked is
+//! its own conversation, answered through `iw_agent::Responder`, so no act leaves this agent
+//! that the protocol does not allow.
+//!
 //! # Messages
-//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-request`.
-//! - REQUEST `((action (agent-identifier :name W) (pass :passage P :direction D)))`: AGREE at
-//!   once (queued), then INFORM `((done (action W (pass :passage P :direction D))))` in the same
-//!   conversation when granted. REFUSE for an unknown passage or a chair already holding or
-//!   queued for it; NOT-UNDERSTOOD for any other content.
-//! - CANCEL in the request's conversation: releases the grant (or leaves the queue).
-//! - When a lease expires the holder gets FAILURE `((error-message "lease expired"))` and the
-//!   queue moves on.
+//! All `:ontology IntellWheels-Wheelchair`, `:language fipa-sl0`, `:protocol fipa-subscribe`.
+//! - SUBSCRIBE `((action (agent-identifier :name W) (pass :passage P :direction D)))` (SL0 has
+//!   no referential expressions, so the subscription names the action it waits for): AGREE at
+//!   once, restating it (queued).
+//! - INFORM `((done (action W (pass :passage P :direction D))))`: the notification that the
+//!   passage is granted.
+//! - CANCEL in that conversation (the chair is out, or gives up waiting): releases the grant
+//!   or leaves the queue; confirmed with the same INFORM done, which ends the subscription.
+//! - FAILURE `((error-message "lease expired"))`: the grant was held past the lease; it ends
+//!   the subscription and the queue moves on.
+//! - REFUSE for an unknown passage or a chair already holding or queued for it; NOT-UNDERSTOOD
+//!   for any other content or act (a REQUEST to pass included).
 //!
 //! Guarantees: the chairs holding a passage at any time all cross it in the same direction
-//! (property-tested); grants follow request order, so a chair waiting to go one way is never
-//! overtaken by later chairs going the other way; every queued request is granted within
-//! (queue length x lease).
+//! (property-tested, with each chair checking every answer against fipa-subscribe's state
+//! machine); grants follow request order, so a chair waiting to go one way is never overtaken
+//! by later chairs going the other way; every queued request is granted within (queue length x
+//! lease).
 #![warn(missing_docs)]
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context};
-use iw_ontology::OntologyContent;
+use iw_agent::{Agent, Context, Responder};
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
 /// A configuration that cannot work.
@@ -53,12 +66,34 @@ pub struct WatcherConfig {
     pub period: Duration,
 }
 
-/// A `pass` request: the message (for the reply) and what it asks.
+/// A `pass` subscription: its conversation and what it asks.
 struct Ask {
-    request: AclMessage,
+    responder: Responder,
+    /// The agent the chair named to act (this watcher), restated in the answers.
     actor: AgentId,
     passage: String,
     direction: String,
+}
+
+impl Ask {
+    /// `((done (action W (pass ...))))`: the grant, and the confirmation of its cancel.
+    fn done(&self) -> WheelchairContent {
+        WheelchairContent::Done {
+            actor: self.actor.clone(),
+            action: self.action(),
+        }
+    }
+
+    fn action(&self) -> WheelchairAction {
+        WheelchairAction::Pass {
+            passage: self.passage.clone(),
+            direction: self.direction.clone(),
+        }
+    }
+
+    fn chair(&self) -> Option<&str> {
+        self.responder.initiator().map(|a| a.name.as_str())
+    }
 }
 
 struct Grant {
@@ -70,13 +105,14 @@ struct Grant {
 struct Passage {
     /// Chairs inside, all going one direction.
     holders: Vec<Grant>,
-    queue: VecDeque<Ask>,
+    /// Chairs waiting, first come first served.
+    queue: Vec<Ask>,
 }
 
 impl Passage {
-    fn involves(&self, chair: &Option<AgentId>) -> bool {
-        self.holders.iter().any(|g| &g.ask.request.sender == chair)
-            || self.queue.iter().any(|q| &q.request.sender == chair)
+    fn involves(&self, chair: Option<&str>) -> bool {
+        self.holders.iter().any(|g| g.ask.chair() == chair)
+            || self.queue.iter().any(|q| q.chair() == chair)
     }
 }
 
@@ -86,8 +122,22 @@ pub struct WatcherAgent {
     passages: BTreeMap<String, Passage>,
 }
 
-fn same_asker(a: &AclMessage, b: &AclMessage) -> bool {
-    a.sender == b.sender && a.conversation_id == b.conversation_id
+/// Takes out of `items` the subscriptions that `cancel` ends (its conversation and sender,
+/// allowed now by fipa-subscribe), each confirmed with INFORM done.
+fn cancelled<T>(
+    ctx: &mut Context<'_>,
+    items: &mut Vec<T>,
+    ask: impl Fn(&mut T) -> &mut Ask,
+    cancel: &AclMessage,
+) {
+    let ended: Vec<T> = items
+        .extract_if(.., |item| ctx.continues(&mut ask(item).responder, cancel))
+        .collect();
+    for mut item in ended {
+        let ask = ask(&mut item);
+        let done = ask.done();
+        let _ = ctx.answer(&mut ask.responder, Performative::Inform, &done);
+    }
 }
 
 impl WatcherAgent {
@@ -110,7 +160,7 @@ impl WatcherAgent {
     fn grant(&mut self, ctx: &mut Context<'_>) {
         let now_ns = ctx.now().0;
         for (name, passage) in &mut self.passages {
-            while let Some(head) = passage.queue.front() {
+            while let Some(head) = passage.queue.first() {
                 if passage
                     .holders
                     .first()
@@ -118,24 +168,13 @@ impl WatcherAgent {
                 {
                     break;
                 }
-                let Some(ask) = passage.queue.pop_front() else {
-                    break;
-                };
-                tracing::debug!(passage = %name, direction = %ask.direction, chair = ?ask.request.sender.as_ref().map(|s| &s.name), "granted");
-                let done = WheelchairContent::Done {
-                    actor: ask.actor.clone(),
-                    action: WheelchairAction::Pass {
-                        passage: ask.passage.clone(),
-                        direction: ask.direction.clone(),
-                    },
-                };
-                let _ = ctx.send(
-                    done.fill(
-                        ask.request
-                            .create_reply()
-                            .with_performative(Performative::Inform),
-                    ),
-                );
+                let mut ask = passage.queue.remove(0);
+                tracing::debug!(passage = %name, direction = %ask.direction, chair = ?ask.chair(), "granted");
+                let done = ask.done();
+                if let Err(err) = ctx.answer(&mut ask.responder, Performative::Inform, &done) {
+                    tracing::warn!(passage = %name, error = %err, "grant not sent; the ask is dropped");
+                    continue;
+                }
                 passage.holders.push(Grant {
                     ask,
                     since_ns: now_ns,
@@ -144,10 +183,10 @@ impl WatcherAgent {
         }
     }
 
-    fn on_request(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+    fn on_subscribe(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         let Some((actor, passage, direction)) = ctx.understand(
             &message,
-            "the watcher takes (pass :passage P :direction D) requests",
+            "the watcher takes subscriptions to ((action W (pass :passage P :direction D)))",
             |c| match c {
                 WheelchairContent::Request {
                     actor,
@@ -158,39 +197,45 @@ impl WatcherAgent {
         ) else {
             return;
         };
-        let ask = Ask {
-            request: message,
+        let Some(responder) = ctx.accept(&message) else {
+            return;
+        };
+        let mut ask = Ask {
+            responder,
             actor,
             passage,
             direction,
         };
-        let refuse = |ctx: &mut Context<'_>, why: &str| {
-            let _ = ctx.refuse(&ask.request, why);
-        };
         let Some(passage) = self.passages.get_mut(&ask.passage) else {
-            refuse(ctx, "unknown passage");
+            let _ = ctx.answer_error(&mut ask.responder, Performative::Refuse, "unknown passage");
             return;
         };
-        if passage.involves(&ask.request.sender) {
-            refuse(ctx, "already holding or queued for this passage");
+        if passage.involves(ask.chair()) {
+            let _ = ctx.answer_error(
+                &mut ask.responder,
+                Performative::Refuse,
+                "already holding or queued for this passage",
+            );
             return;
         }
-        let agree = ask
-            .request
-            .create_reply()
-            .with_performative(Performative::Agree);
-        let _ = ctx
-            .send(agree.with_content(ask.request.content_text().unwrap_or_default().to_string()));
-        passage.queue.push_back(ask);
+        let asked = WheelchairContent::Request {
+            actor: ask.actor.clone(),
+            action: ask.action(),
+        };
+        if ctx
+            .answer(&mut ask.responder, Performative::Agree, &asked)
+            .is_err()
+        {
+            return;
+        }
+        passage.queue.push(ask);
         self.grant(ctx);
     }
 
     fn on_cancel(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
         for passage in self.passages.values_mut() {
-            passage
-                .holders
-                .retain(|g| !same_asker(&g.ask.request, message));
-            passage.queue.retain(|q| !same_asker(&q.request, message));
+            cancelled(ctx, &mut passage.holders, |g| &mut g.ask, message);
+            cancelled(ctx, &mut passage.queue, |q| q, message);
         }
         self.grant(ctx);
     }
@@ -199,10 +244,13 @@ impl WatcherAgent {
 impl Agent for WatcherAgent {
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
         match message.performative {
-            Performative::Request => self.on_request(ctx, message),
+            Performative::Subscribe => self.on_subscribe(ctx, message),
             Performative::Cancel => self.on_cancel(ctx, &message),
             _ => {
-                let _ = ctx.not_understood(&message, "the watcher takes pass requests and cancels");
+                let _ = ctx.not_understood(
+                    &message,
+                    "the watcher takes SUBSCRIBE (fipa-subscribe) to pass a passage, and CANCEL",
+                );
             }
         }
     }
@@ -215,14 +263,16 @@ impl Agent for WatcherAgent {
         let now_ns = ctx.now().0;
         let lease_ns = u64::try_from(self.config.lease.as_nanos()).unwrap_or(u64::MAX);
         for (name, passage) in &mut self.passages {
-            let (expired, live): (Vec<Grant>, Vec<Grant>) = passage
+            let expired = passage
                 .holders
-                .drain(..)
-                .partition(|g| now_ns.saturating_sub(g.since_ns) >= lease_ns);
-            passage.holders = live;
-            for grant in expired {
-                tracing::warn!(passage = %name, "lease expired; the queue moves on");
-                let _ = ctx.failure(&grant.ask.request, "lease expired");
+                .extract_if(.., |g| now_ns.saturating_sub(g.since_ns) >= lease_ns);
+            for mut grant in expired {
+                tracing::warn!(passage = %name, chair = ?grant.ask.chair(), "lease expired; the queue moves on");
+                let _ = ctx.answer_error(
+                    &mut grant.ask.responder,
+                    Performative::Failure,
+                    "lease expired",
+                );
             }
         }
         self.grant(ctx);

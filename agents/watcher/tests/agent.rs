@@ -1,12 +1,13 @@
 //! The watcher alone on an in-process bus with a mock clock, driven by chairs sending real ACL.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_interaction::{Error, EventKind, Initiator, Protocol, Responder, SessionState};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 use iw_watcher::{WatcherAgent, WatcherConfig};
@@ -84,28 +85,54 @@ fn rig() -> Rig {
     }
 }
 
-/// chair `c`'s request to pass `passage` going `direction`.
-fn pass(c: usize, passage: usize, direction: &str) -> AclMessage {
+/// `act` with `((action watcher (pass :passage P :direction D)))`.
+fn asking(act: Performative, passage: &str, direction: &str) -> AclMessage {
     let action = WheelchairAction::Pass {
-        passage: PASSAGES[passage].into(),
+        passage: passage.into(),
         direction: direction.into(),
     };
     WheelchairContent::Request {
         actor: AgentId::new("watcher"),
         action,
     }
-    .fill(
-        AclMessage::new(Performative::Request)
-            .with_receiver(AgentId::new("watcher"))
-            .with_protocol("fipa-request")
-            .with_conversation_id(conversation(c, passage)),
-    )
+    .fill(AclMessage::new(act).with_receiver(AgentId::new("watcher")))
+}
+
+/// chair `c`'s subscription to pass `passage` going `direction`, in conversation `id`.
+fn pass_in(c: usize, passage: usize, direction: &str, id: &str) -> AclMessage {
+    asking(Performative::Subscribe, PASSAGES[passage], direction)
+        .with_sender(AgentId::new(format!("chair{c}")))
+        .with_protocol(Protocol::Subscribe.fipa_name())
+        .with_conversation_id(id)
+}
+
+/// chair `c`'s one subscription to pass `passage` going `direction`.
+fn pass(c: usize, passage: usize, direction: &str) -> AclMessage {
+    pass_in(c, passage, direction, &conversation(c, passage))
+}
+
+fn cancel(c: usize, passage: usize) -> AclMessage {
+    AclMessage::new(Performative::Cancel)
+        .with_receiver(AgentId::new("watcher"))
+        .with_protocol(Protocol::Subscribe.fipa_name())
+        .with_conversation_id(conversation(c, passage))
 }
 
 const DIRECTIONS: [&str; 2] = ["forward", "backward"];
 
 fn conversation(chair: usize, passage: usize) -> String {
     format!("chair{chair}-{}", PASSAGES[passage])
+}
+
+/// One subscription as its chair sees it, run on fipa-subscribe's state machine.
+struct Asked {
+    chair: usize,
+    passage: usize,
+    direction: usize,
+    initiator: Initiator,
+    /// Whether the chair cancelled it: a notification may cross the CANCEL, and the
+    /// confirmation then comes after the end.
+    cancelled: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -129,23 +156,29 @@ proptest! {
     #[test]
     fn chairs_in_a_passage_never_go_opposite_ways(ops in proptest::collection::vec(op(), 1..60)) {
         let mut rig = rig();
-        // (chair, passage) -> the direction it holds, as the chairs see it; the directions it
-        // asked for since it last cancelled; messages read so far per chair.
-        let mut holds: BTreeMap<(usize, usize), Option<usize>> = BTreeMap::new();
-        let mut asked: BTreeMap<(usize, usize), std::collections::BTreeSet<usize>> = BTreeMap::new();
+        // Every subscription by conversation id, each answer checked against fipa-subscribe as
+        // the chair's initiator runs it; which conversations hold a grant; messages read so far
+        // per chair.
+        let mut asked: BTreeMap<String, Asked> = BTreeMap::new();
+        let mut holds: BTreeSet<String> = BTreeSet::new();
         let mut read = [0usize; CHAIRS];
-        for op in ops {
+        for (n, op) in ops.into_iter().enumerate() {
             match op {
                 Op::Request(c, p, d) => {
-                    asked.entry((c, p)).or_default().insert(d);
-                    rig.chairs[c].1.lock().unwrap().push(pass(c, p, DIRECTIONS[d]));
+                    let id = format!("{}-{n}", conversation(c, p));
+                    let (initiator, opening) = Initiator::start(pass_in(c, p, DIRECTIONS[d], &id), 0).unwrap();
+                    asked.insert(id, Asked { chair: c, passage: p, direction: d, initiator, cancelled: false });
+                    rig.chairs[c].1.lock().unwrap().extend(opening);
                 }
                 Op::Cancel(c, p) => {
-                    holds.insert((c, p), None);
-                    asked.remove(&(c, p));
-                    rig.chairs[c].1.lock().unwrap().push(
-                        AclMessage::new(Performative::Cancel).with_receiver(AgentId::new("watcher")).with_conversation_id(conversation(c, p)),
-                    );
+                    // The chair's latest live subscription for the passage.
+                    let live = asked.iter_mut().rev().find(|(_, a)| a.chair == c && a.passage == p && !a.initiator.is_done());
+                    if let Some((id, a)) = live {
+                        let cancel = a.initiator.cancel("watcher").unwrap();
+                        a.cancelled = true;
+                        holds.remove(id);
+                        rig.chairs[c].1.lock().unwrap().push(cancel);
+                    }
                 }
                 Op::Wait(ms) => rig.clock.advance(Duration::from_millis(ms)),
             }
@@ -154,29 +187,89 @@ proptest! {
             for (c, (inbox, _)) in rig.chairs.iter().enumerate() {
                 let inbox = inbox.lock().unwrap();
                 for m in &inbox[read[c]..] {
-                    let p = PASSAGES.iter().position(|p| m.conversation_id.as_deref() == Some(conversation(c, 0).replace(PASSAGES[0], p).as_str())).unwrap();
-                    match m.performative {
-                        Performative::Inform => {
+                    let id = m.conversation_id.clone().unwrap_or_default();
+                    let Some(a) = asked.get_mut(&id) else {
+                        return Err(TestCaseError::fail(format!("an answer in no conversation of chair{c}: {m:?}")));
+                    };
+                    prop_assert_eq!(a.chair, c);
+                    let event = match a.initiator.handle(m, 0) {
+                        Ok(event) => event,
+                        Err(Error::OutOfProtocol { state: SessionState::Done(_), .. }) if a.cancelled => continue,
+                        Err(err) => {
+                            return Err(TestCaseError::fail(format!("the watcher broke fipa-subscribe: {err}: {m:?}")));
+                        }
+                    };
+                    match event.kind {
+                        EventKind::Notified => {
                             let Ok(WheelchairContent::Done { action: WheelchairAction::Pass { direction, .. }, .. }) = WheelchairContent::from_message(m) else {
                                 panic!("a grant is a done pass: {m:?}");
                             };
-                            let d = DIRECTIONS.iter().position(|x| *x == direction).unwrap();
-                            prop_assert!(asked.get(&(c, p)).is_some_and(|a| a.contains(&d)), "granted a direction never asked");
-                            holds.insert((c, p), Some(d));
+                            prop_assert_eq!(direction.as_str(), DIRECTIONS[a.direction], "granted a direction never asked");
+                            holds.insert(id);
                         }
-                        Performative::Failure => { holds.insert((c, p), None); }
-                        Performative::Agree | Performative::Refuse => {}
-                        other => prop_assert!(false, "unexpected {other}"),
+                        EventKind::Failed => { holds.remove(&id); }
+                        EventKind::Agreed | EventKind::Refused | EventKind::Cancelled => {}
+                        other => prop_assert!(false, "unexpected {other:?}"),
                     }
                 }
                 read[c] = inbox.len();
             }
             for (p, name) in PASSAGES.iter().enumerate() {
-                let directions: std::collections::BTreeSet<usize> = (0..CHAIRS).filter_map(|c| holds.get(&(c, p)).copied().flatten()).collect();
+                let directions: BTreeSet<usize> = holds.iter().map(|id| &asked[id]).filter(|a| a.passage == p).map(|a| a.direction).collect();
                 prop_assert!(directions.len() <= 1, "{name} held both ways");
             }
         }
     }
+}
+
+/// The decision the watcher's protocol rests on: the answers it once sent (INFORM done when
+/// granted, then FAILURE "lease expired" in the same conversation) are refused by
+/// fipa-request's state machine, while fipa-subscribe allows the grant, its release and its
+/// expiry.
+#[test]
+fn fipa_request_refuses_a_failure_after_the_grant_and_fipa_subscribe_allows_it() {
+    let open = |act, protocol: Protocol| {
+        let opening = asking(act, "door-a", "forward")
+            .with_sender(AgentId::new("chair0"))
+            .with_protocol(protocol.fipa_name())
+            .with_conversation_id("c1");
+        (
+            Responder::accept(&opening, AgentId::new("watcher"), 0).unwrap(),
+            opening,
+        )
+    };
+    let (mut request, _) = open(Performative::Request, Protocol::Request);
+    request.reply(Performative::Agree, 0).unwrap();
+    request.reply(Performative::Inform, 0).unwrap();
+    assert!(matches!(
+        request.reply(Performative::Failure, 0),
+        Err(Error::OutOfProtocol {
+            protocol: Protocol::Request,
+            state: SessionState::Done(_),
+            act: Performative::Failure,
+            ..
+        })
+    ));
+    // The lease runs out.
+    let (mut expiring, _) = open(Performative::Subscribe, Protocol::Subscribe);
+    for act in [
+        Performative::Agree,
+        Performative::Inform,
+        Performative::Failure,
+    ] {
+        expiring.reply(act, 0).unwrap();
+    }
+    assert!(expiring.state().is_done());
+    // The chair lets go.
+    let (mut released, opening) = open(Performative::Subscribe, Protocol::Subscribe);
+    released.reply(Performative::Agree, 0).unwrap();
+    released.reply(Performative::Inform, 0).unwrap();
+    let cancel = AclMessage::new(Performative::Cancel)
+        .with_sender(AgentId::new("chair0"))
+        .with_conversation_id(opening.conversation_id.unwrap());
+    released.handle(&cancel, 0).unwrap();
+    released.reply(Performative::Inform, 0).unwrap();
+    assert!(released.state().is_done());
 }
 
 #[test]
@@ -215,11 +308,7 @@ fn grants_are_fifo_one_direction_at_a_time_and_a_stuck_holder_loses_its_lease() 
         "{content}"
     );
     // chair0 releases: chair1 is next.
-    rig.chairs[0].1.lock().unwrap().push(
-        AclMessage::new(Performative::Cancel)
-            .with_receiver(AgentId::new("watcher"))
-            .with_conversation_id(conversation(0, 0)),
-    );
+    rig.chairs[0].1.lock().unwrap().push(cancel(0, 0));
     rig.host.step(rig.clock.now());
     assert_eq!(granted(&rig), [true, true, false, false]);
     // chair1 never releases: after the 2 s lease it gets FAILURE and chair2 passes.
@@ -258,7 +347,7 @@ fn chairs_going_the_same_way_follow_each_other() {
 }
 
 #[test]
-fn other_requests_are_not_understood_and_unknown_passages_refused() {
+fn requests_are_not_understood_and_unknown_passages_refused() {
     let mut rig = rig();
     let go_to = WheelchairContent::Request {
         actor: AgentId::new("watcher"),
@@ -269,16 +358,17 @@ fn other_requests_are_not_understood_and_unknown_passages_refused() {
     rig.chairs[0].1.lock().unwrap().push(
         go_to.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("watcher"))),
     );
-    let unknown = WheelchairContent::Request {
-        actor: AgentId::new("watcher"),
-        action: WheelchairAction::Pass {
-            passage: "attic".into(),
-            direction: "forward".into(),
-        },
-    };
-    rig.chairs[1].1.lock().unwrap().push(
-        unknown.fill(AclMessage::new(Performative::Request).with_receiver(AgentId::new("watcher"))),
-    );
+    rig.chairs[1]
+        .1
+        .lock()
+        .unwrap()
+        .push(asking(Performative::Subscribe, "attic", "forward"));
+    // A grant is a subscription: asking with fipa-request is not understood.
+    rig.chairs[2]
+        .1
+        .lock()
+        .unwrap()
+        .push(asking(Performative::Request, PASSAGES[0], "forward"));
     rig.host.step(rig.clock.now());
     rig.host.step(rig.clock.now());
     let answers = |c: usize| {
@@ -292,4 +382,5 @@ fn other_requests_are_not_understood_and_unknown_passages_refused() {
     };
     assert_eq!(answers(0), [Performative::NotUnderstood]);
     assert_eq!(answers(1), [Performative::Refuse]);
+    assert_eq!(answers(2), [Performative::NotUnderstood]);
 }

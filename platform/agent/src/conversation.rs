@@ -26,6 +26,21 @@ fn unix_ms(time: Time) -> i64 {
     i64::try_from(time.as_ns() / 1_000_000).unwrap_or(i64::MAX)
 }
 
+/// Content an agent answers with, typed: every ontology's SL values ([`OntologyContent`]), and
+/// the few contents that are not SL (the logger's JSON log-query result), which name their own
+/// `:language`. Filling sets `:content`, `:language` and `:ontology` together, so no agent
+/// writes them by hand.
+pub trait TypedContent {
+    /// `message` carrying this content, its language and its ontology.
+    fn fill_into(&self, message: AclMessage) -> AclMessage;
+}
+
+impl<C: OntologyContent> TypedContent for C {
+    fn fill_into(&self, message: AclMessage) -> AclMessage {
+        self.fill(message)
+    }
+}
+
 /// Whether `act` answers a conversation (AGREE, REFUSE, INFORM, FAILURE, NOT-UNDERSTOOD) rather
 /// than opening one. An agent does not answer a stray answer: NOT-UNDERSTOOD back to a stray
 /// NOT-UNDERSTOOD would never end.
@@ -206,6 +221,15 @@ impl<T> Initiated<T> {
         self.open.remove(id).map(|(_, data)| data)
     }
 
+    /// Moves conversation `id`, its protocol state kept, into `to` with `data`, and returns its
+    /// data here: a subscription that outlives the step that opened it (a passage asked for,
+    /// then held). `None`, and nothing moves, when `id` is not open here.
+    pub fn hand_over<U>(&mut self, id: &str, to: &mut Initiated<U>, data: U) -> Option<T> {
+        let (initiator, old) = self.open.remove(id)?;
+        to.open.insert(id.to_owned(), (initiator, data));
+        Some(old)
+    }
+
     /// The data of conversation `id`.
     pub fn get(&self, id: &str) -> Option<&T> {
         self.open.get(id).map(|(_, data)| data)
@@ -272,14 +296,14 @@ impl Context<'_> {
 
     /// Sends `act` in `responder`'s conversation, with `content` (its ontology and language
     /// set), if the protocol allows `act` now; otherwise nothing is sent and the error says why.
-    pub fn answer<C: OntologyContent>(
+    pub fn answer<C: TypedContent>(
         &mut self,
         responder: &mut Responder,
         act: Performative,
         content: &C,
     ) -> Result<(), AgentError> {
         let reply = self.reply_in(responder, act)?;
-        self.send(content.fill(reply))
+        self.send(content.fill_into(reply))
     }
 
     /// [`Context::answer`] with no content: an AGREE that restates nothing.

@@ -40,7 +40,7 @@ use iw_ontology::wheelchair::WheelchairContent;
 
 pub mod conversation;
 pub mod gateway;
-pub use conversation::{Initiated, Progress};
+pub use conversation::{Initiated, Progress, TypedContent};
 pub use gateway::{GatewayAgent, GatewayHandle};
 pub use iw_interaction::{EventKind, Protocol, Responder};
 

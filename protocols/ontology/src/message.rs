@@ -6,7 +6,8 @@ use iw_sl::{Content, Level};
 
 use crate::error::OntologyError;
 use crate::fipa::ManagementContent;
-use crate::wheelchair::WheelchairContent;
+use crate::wheelchair::{Subscription, WheelchairContent};
+use crate::world::WorldContent;
 
 /// A content type of one ontology.
 pub trait OntologyContent: Sized {
@@ -53,50 +54,36 @@ pub trait OntologyContent: Sized {
     }
 }
 
-impl OntologyContent for ManagementContent {
-    const ONTOLOGY: &'static str = crate::fipa::ONTOLOGY;
+/// [`OntologyContent`] for a type with inherent `to_content` / `from_content`, in `$ontology`,
+/// at the level `$level` gives for a value `$v`.
+macro_rules! sl_content {
+    ($type:ty, $ontology:expr, |$v:ident| $level:expr) => {
+        impl OntologyContent for $type {
+            const ONTOLOGY: &'static str = $ontology;
 
-    fn level(&self) -> Level {
-        ManagementContent::level(self)
-    }
+            fn level(&self) -> Level {
+                let $v = self;
+                $level
+            }
 
-    fn to_content(&self) -> Content {
-        ManagementContent::to_content(self)
-    }
+            fn to_content(&self) -> Content {
+                <$type>::to_content(self)
+            }
 
-    fn from_content(content: &Content) -> Result<Self, OntologyError> {
-        ManagementContent::from_content(content)
-    }
+            fn from_content(content: &Content) -> Result<Self, OntologyError> {
+                <$type>::from_content(content)
+            }
+        }
+    };
 }
 
-impl OntologyContent for WheelchairContent {
-    const ONTOLOGY: &'static str = crate::wheelchair::ONTOLOGY;
-
-    fn level(&self) -> Level {
-        Self::LEVEL
-    }
-
-    fn to_content(&self) -> Content {
-        WheelchairContent::to_content(self)
-    }
-
-    fn from_content(content: &Content) -> Result<Self, OntologyError> {
-        WheelchairContent::from_content(content)
-    }
-}
-
-impl OntologyContent for crate::world::WorldContent {
-    const ONTOLOGY: &'static str = crate::world::ONTOLOGY;
-
-    fn level(&self) -> Level {
-        Self::LEVEL
-    }
-
-    fn to_content(&self) -> Content {
-        crate::world::WorldContent::to_content(self)
-    }
-
-    fn from_content(content: &Content) -> Result<Self, OntologyError> {
-        crate::world::WorldContent::from_content(content)
-    }
-}
+sl_content!(ManagementContent, crate::fipa::ONTOLOGY, |v| v.level());
+sl_content!(WheelchairContent, crate::wheelchair::ONTOLOGY, |_v| {
+    WheelchairContent::LEVEL
+});
+sl_content!(Subscription, crate::wheelchair::ONTOLOGY, |_v| {
+    WheelchairContent::LEVEL
+});
+sl_content!(WorldContent, crate::world::ONTOLOGY, |_v| {
+    WorldContent::LEVEL
+});

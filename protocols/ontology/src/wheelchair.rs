@@ -584,6 +584,93 @@ impl Fact {
     }
 }
 
+word_enum! {
+    /// A kind of fact a chair's agents notify their subscribers of.
+    pub enum Topic {
+        /// `(at-pose ?agent ?pose)`, from the perception agent.
+        AtPose => "at-pose",
+        /// `(sensor-reading ?agent ?reading)`, from the perception agent.
+        SensorReading => "sensor-reading",
+        /// `(drive-applied ?agent ?command)`, from the control agent.
+        DriveApplied => "drive-applied",
+    }
+}
+
+impl Topic {
+    /// The pattern's variables: the agent, then the fact's value.
+    fn variables(self) -> [&'static str; 2] {
+        match self {
+            Self::AtPose => ["agent", "pose"],
+            Self::SensorReading => ["agent", "reading"],
+            Self::DriveApplied => ["agent", "command"],
+        }
+    }
+}
+
+/// SUBSCRIBE content (fipa-subscribe): the facts wanted, one pattern each,
+/// `((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))`. A pattern may name its agent
+/// instead of `?agent`; any two arguments are read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Subscription {
+    /// The facts wanted, in the order written.
+    pub topics: Vec<Topic>,
+}
+
+impl Subscription {
+    /// A subscription to `topics`.
+    pub fn to(topics: impl IntoIterator<Item = Topic>) -> Self {
+        Self {
+            topics: topics.into_iter().collect(),
+        }
+    }
+
+    /// Whether `topic` is among those wanted.
+    pub fn wants(&self, topic: Topic) -> bool {
+        self.topics.contains(&topic)
+    }
+
+    /// As SL content.
+    pub fn to_content(&self) -> Content {
+        Content {
+            expressions: self
+                .topics
+                .iter()
+                .map(|t| {
+                    ContentExpression::Formula(Formula::Atomic {
+                        predicate: t.name().into(),
+                        args: t.variables().map(Term::variable).into(),
+                    })
+                })
+                .collect(),
+        }
+    }
+
+    /// Reads SL content: one or more patterns, each of a [`Topic`].
+    pub fn from_content(content: &Content) -> Result<Self, OntologyError> {
+        let bad = || OntologyError::UnexpectedContent {
+            expected: "patterns (at-pose ?agent ?pose), (sensor-reading ?agent ?reading) or \
+                       (drive-applied ?agent ?command)",
+            found: content.to_string(),
+        };
+        let topics = content
+            .expressions
+            .iter()
+            .map(|e| match e {
+                ContentExpression::Formula(Formula::Atomic { predicate, args })
+                    if args.len() == 2 =>
+                {
+                    Topic::from_word(predicate).ok_or_else(bad)
+                }
+                _ => Err(bad()),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        if topics.is_empty() {
+            return Err(bad());
+        }
+        Ok(Self { topics })
+    }
+}
+
 /// The content forms of wheelchair conversations (all within `fipa-sl0`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]

@@ -396,3 +396,47 @@ fn a_drive_reads_only_with_finite_speeds() {
         );
     }
 }
+
+#[test]
+fn subscriptions_read_and_write_as_documented() {
+    use iw_ontology::wheelchair::{Subscription, Topic};
+    let read =
+        |text: &str| iw_sl::parse(text, iw_sl::Level::Sl0).map(|c| Subscription::from_content(&c));
+    let both = Subscription::to([Topic::AtPose, Topic::SensorReading]);
+    assert_eq!(
+        both.to_content().to_string(),
+        "((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))"
+    );
+    assert_eq!(
+        Subscription::to([Topic::DriveApplied])
+            .to_content()
+            .to_string(),
+        "((drive-applied ?agent ?command))"
+    );
+    for topics in [
+        vec![Topic::AtPose],
+        vec![Topic::AtPose, Topic::SensorReading],
+        vec![Topic::DriveApplied],
+    ] {
+        let s = Subscription::to(topics);
+        assert_eq!(read(&s.to_content().to_string()).unwrap(), Ok(s));
+    }
+    // A pattern may name its agent.
+    let named = read("((AT-POSE (agent-identifier :name c@P) ?pose))")
+        .unwrap()
+        .unwrap();
+    assert!(named.wants(Topic::AtPose) && !named.wants(Topic::SensorReading));
+    for wrong in [
+        "((battery-level ?agent ?x))",
+        "((at-pose ?pose))",
+        "((action (agent-identifier :name c@P) (stop)))",
+    ] {
+        assert!(
+            matches!(
+                read(wrong).unwrap(),
+                Err(OntologyError::UnexpectedContent { .. })
+            ),
+            "{wrong}"
+        );
+    }
+}

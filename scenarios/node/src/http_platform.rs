@@ -13,7 +13,7 @@ use iw_acl::{AclMessage, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_ams_df::{Ams, Df, WhitePages};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
-use iw_sl::{ActionOp, ActionOperand, Content, ContentExpression, Formula, Level};
+use iw_sl::{ActionOp, ActionOperand, Content, ContentExpression, Formula, Level, Term};
 
 use iw_mtp_http::{Error, Gateway, GatewayConfig};
 
@@ -127,7 +127,9 @@ impl Drop for HttpPlatform {
 /// The echo agent of the JADE captures, for interoperability tests: REQUEST `((action …))` gets
 /// AGREE then INFORM `((done (action …)))` (JADE's echo wraps the whole content tuple,
 /// `((done ((action …))))`, which is not SL), another REQUEST NOT-UNDERSTOOD; QUERY-REF gets
-/// INFORM `(echo "<content>")`, as JADE's. At setup it registers service `echo-service` of type
+/// INFORM `(echo "<content>")`, as JADE's: an SL term (not SL content, which would be enclosed
+/// in parentheses), built through the SL types. A query that is one bare word comes back
+/// unquoted, `(echo word)`, the same term JADE writes quoted. At setup it registers service `echo-service` of type
 /// `wheelchair-echo` with the platform's DF.
 #[derive(Debug, Default)]
 pub struct Echo;
@@ -156,20 +158,22 @@ impl Agent for Echo {
                     Vec::new()
                 }
             },
-            Performative::QueryRef => {
-                let quoted = content.replace('\\', "\\\\").replace('"', "\\\"");
-                vec![
-                    reply
-                        .with_performative(Performative::Inform)
-                        .with_content(format!("(echo \"{quoted}\")")),
-                ]
-            }
+            Performative::QueryRef => vec![
+                reply
+                    .with_performative(Performative::Inform)
+                    .with_content(echoed(content).to_string()),
+            ],
             _ => Vec::new(),
         };
         for reply in replies {
             let _ = ctx.send(reply);
         }
     }
+}
+
+/// `(echo "<query>")`: the echo's answer to a query, the query text as an SL string.
+fn echoed(query: String) -> Term {
+    Term::positional("echo", vec![Term::string(query)])
 }
 
 /// `((done α))` for a request `(α)` that is one action.
@@ -182,5 +186,40 @@ fn done(request: &str) -> Result<Content, String> {
             condition: None,
         })),
         _ => Err("the echo agent does requests of one action: ((action agent act))".into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use iw_sl::Constant;
+
+    use super::*;
+
+    #[test]
+    fn the_echo_of_a_query_reads_back_as_the_query() {
+        for query in [
+            "((iota ?x (battery-level wheelchair1 ?x)))",
+            "a \"quoted\" word \\ and a backslash",
+            "bare-word",
+            "ends in a backslash \\",
+        ] {
+            let echo = echoed(query.to_owned()).to_string();
+            // As the one proposition of SL content, `(echo "…")` is an atomic formula.
+            let content = iw_sl::parse(&format!("({echo})"), Level::Full).unwrap();
+            let [ContentExpression::Formula(Formula::Atomic { predicate, args })] =
+                content.expressions.as_slice()
+            else {
+                panic!("not one proposition: {echo}");
+            };
+            assert_eq!(predicate, "echo");
+            let text = match args.as_slice() {
+                [Term::Constant { value }] => match value {
+                    Constant::String(s) | Constant::ByteString(s) => s.as_str(),
+                    other => panic!("{other:?}"),
+                },
+                other => panic!("{other:?}"),
+            };
+            assert_eq!(text, query, "{echo}");
+        }
     }
 }

@@ -14,7 +14,9 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context, Initiated, Progress, Protocol};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, SensorReading, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{
+    Fact, SensorReading, Subscription, Topic, WheelchairAction, WheelchairContent,
+};
 
 /// An answer the console received about one goal.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -196,22 +198,17 @@ impl Agent for Console {
             .retain(|c| watch.contains(c) && !again.contains(c));
         let me = ctx.name().to_string();
         for chair in watch.difference(&self.subscribed.clone()) {
-            let subscribe = |to: &str, conversation: &str, content: &str| {
-                AclMessage::new(Performative::Subscribe)
-                    .with_receiver(AgentId::new(format!("{to}@{chair}")))
-                    .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
-                    .with_language("fipa-sl0")
-                    .with_conversation_id(format!("{conversation}-{chair}-{me}"))
-                    .with_content(content)
+            let subscribe = |to: &str, conversation: &str, topics: &[Topic]| {
+                Subscription::to(topics.iter().copied()).fill(
+                    AclMessage::new(Performative::Subscribe)
+                        .with_receiver(AgentId::new(format!("{to}@{chair}")))
+                        .with_conversation_id(format!("{conversation}-{chair}-{me}")),
+                )
             };
             let poses = if screen {
-                subscribe(
-                    "perception",
-                    "pose",
-                    "((at-pose ?agent ?pose) (sensor-reading ?agent ?reading))",
-                )
+                subscribe("perception", "pose", &[Topic::AtPose, Topic::SensorReading])
             } else {
-                subscribe("perception", "pose", "((at-pose ?agent ?pose))")
+                subscribe("perception", "pose", &[Topic::AtPose])
             };
             let opened = self
                 .subscriptions
@@ -219,8 +216,7 @@ impl Agent for Console {
             if opened.is_ok() {
                 self.subscribed.insert(chair.clone());
                 if screen {
-                    let applied =
-                        subscribe("control", "applied", "((drive-applied ?agent ?command))");
+                    let applied = subscribe("control", "applied", &[Topic::DriveApplied]);
                     if let Err(err) =
                         self.subscriptions
                             .open(ctx, Protocol::Subscribe, applied, chair.clone())

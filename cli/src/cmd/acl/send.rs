@@ -143,7 +143,7 @@ async fn converse(args: &SendArgs, performative: Performative) -> anyhow::Result
             let subscribed = args
                 .protocol
                 .as_deref()
-                .is_some_and(|p| p.eq_ignore_ascii_case("fipa-subscribe"));
+                .is_some_and(|p| matches!(p.parse(), Ok(Protocol::Subscribe)));
             if subscribed && replies > 0 {
                 return Ok(ExitCode::SUCCESS);
             }
