@@ -156,10 +156,22 @@ pub enum BodyError {
         /// What went wrong.
         reason: String,
     },
-    /// The virtual side (simulator) failed; the message says why.
+    /// The virtual side failed with nothing underneath to pass on (an injected fault, a
+    /// world link gone silent); the message says why.
     #[error("virtual body: {reason}")]
     Virtual {
         /// What went wrong.
         reason: String,
+    },
+    /// The world a virtual body lives in refused a read or a command: the simulator (no such
+    /// chair), or the bus to the world's container. The world's error is kept whole as the
+    /// source; this crate does not know its type (the simulator sits above the agents).
+    #[error("virtual body: {what}: {source}")]
+    World {
+        /// Which part refused, e.g. `world unreachable`.
+        what: &'static str,
+        /// What it said.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
     },
 }

@@ -119,7 +119,7 @@ impl Deployment<'_> {
     }
 
     fn failed(&self, container: &str, reason: impl Into<String>) -> ScenarioError {
-        let stderr = self
+        let last_words = self
             .containers
             .iter()
             .find(|c| c.name == container)
@@ -132,11 +132,8 @@ impl Deployment<'_> {
         ScenarioError::Container {
             path: self.path(),
             container: container.into(),
-            reason: if stderr.is_empty() {
-                reason.into()
-            } else {
-                format!("{}; its last words:\n{stderr}", reason.into())
-            },
+            reason: reason.into(),
+            last_words,
         }
     }
 
@@ -549,7 +546,11 @@ pub fn run_processes(
                 iw_fleet::compose::CONTROL_PERIOD,
                 Some(BOARD_WATCHDOG),
             )
-            .map_err(|e| d.failed(&c.name, format!("emulating its board: {e}")))?;
+            .map_err(|source| ScenarioError::Board {
+                path: d.path(),
+                container: c.name.clone(),
+                source,
+            })?;
             let kind = if c.body == BodyKind::Mixed {
                 "mixed"
             } else {
