@@ -485,6 +485,44 @@ mod tests {
     }
 
     #[test]
+    fn periods_are_durations_under_their_millisecond_keys() {
+        let text = "[container]\nheartbeat_ms = 40\nlease_ms = 900\nstep_ms = 25\n\
+                    shutdown_grace_ms = 0\n[body]\ntimeout_ms = 150\nreattach_wait_ms = 3000\n\
+                    [services]\npose_report_ms = 100\n";
+        let config = SpawnConfig::parse(text, "t.toml").unwrap();
+        let ms = Duration::from_millis;
+        let c = &config.container;
+        assert_eq!(
+            (c.heartbeat, c.lease, c.step, c.shutdown_grace),
+            (ms(40), ms(900), ms(25), ms(0))
+        );
+        assert_eq!(
+            (config.body.timeout, config.body.reattach_wait),
+            (ms(150), ms(3000))
+        );
+        assert_eq!(config.services.pose_report, ms(100));
+        // written back under the same keys, as integers
+        let again = toml::to_string(&config).unwrap();
+        for line in [
+            "heartbeat_ms = 40",
+            "lease_ms = 900",
+            "reattach_wait_ms = 3000",
+        ] {
+            assert!(again.contains(line), "{again}");
+        }
+        // a value that is no count of milliseconds is refused naming the key and the file
+        for bad in ["lease_ms = -1", "lease_ms = 2.5", "lease_ms = \"long\""] {
+            let err = SpawnConfig::parse(&format!("[container]\n{bad}\n"), "t.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("t.toml") && err.contains("lease_ms"),
+                "{bad}: {err}"
+            );
+        }
+    }
+
+    #[test]
     fn a_body_kind_reads_as_the_spawn_config_and_the_scenario_spell_it() {
         for (text, kind) in [
             ("virtual", BodyKind::Virtual),

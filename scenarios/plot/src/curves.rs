@@ -124,4 +124,34 @@ mod tests {
         assert_eq!(&bytes[1..4], b"PNG");
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    #[test]
+    fn a_png_that_cannot_be_written_keeps_plotters_error() {
+        use plotters::drawing::DrawingAreaErrorKind;
+        use plotters::prelude::DrawingBackend;
+        use std::error::Error;
+        type BitmapError = <BitMapBackend<'static> as DrawingBackend>::ErrorType;
+
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("no-such-dir").join("curves.png");
+        let panel = CurvePanel {
+            y_label: "y".into(),
+            curves: vec![Curve {
+                name: "c".into(),
+                points: vec![(1.0, 1.0)],
+            }],
+            level: None,
+        };
+        let err = plot_curves(&path, "t", "x", &[panel]).unwrap_err();
+        let cause = err
+            .source()
+            .and_then(|s| s.downcast_ref::<DrawingAreaErrorKind<BitmapError>>())
+            .unwrap_or_else(|| panic!("no plotters error under `{err}`"));
+        let text = err.to_string();
+        assert!(
+            text.starts_with(&format!("drawing {}: ", path.display()))
+                && text.ends_with(&cause.to_string()),
+            "{text}"
+        );
+    }
 }
