@@ -130,10 +130,7 @@ fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
     }
     iw_stack::read_group_key(Path::new(path))
         .map(Some)
-        .map_err(|e| NodeError::ControlKey {
-            path: e.path,
-            reason: e.reason,
-        })
+        .map_err(NodeError::ControlKey)
 }
 
 /// The deployment's roster from `path`; `None` when none is configured (the weaker mode, said
@@ -1268,11 +1265,12 @@ mod tests {
             );
         }
         let missing = dir.path().join("missing.key");
-        assert!(
-            load_control_key(missing.to_str().unwrap())
-                .unwrap_err()
-                .to_string()
-                .contains("missing.key")
-        );
+        let err = load_control_key(missing.to_str().unwrap()).unwrap_err();
+        assert!(err.to_string().contains("missing.key"), "{err}");
+        // the OS's error is kept under the message
+        let io = std::error::Error::source(&err)
+            .and_then(|s| s.downcast_ref::<std::io::Error>())
+            .unwrap_or_else(|| panic!("no io::Error under `{err}`"));
+        assert_eq!(io.kind(), std::io::ErrorKind::NotFound);
     }
 }

@@ -607,7 +607,7 @@ pub fn run_processes(
     let mut seen = Vec::new();
     let first_event = d.events.len();
     let duration = Duration::from_secs_f64(scenario.duration_s);
-    let steps = (scenario.duration_s * 1000.0 / scenario.step_ms as f64).ceil() as u64;
+    let steps = (scenario.duration_s * 1000.0 / scenario.step.as_millis() as f64).ceil() as u64;
     let mut next = 0;
     loop {
         let now_s = t0.elapsed().as_secs_f64();
@@ -672,7 +672,7 @@ pub fn run_processes(
         }
         let elapsed = t0.elapsed();
         progress(
-            (elapsed.as_secs_f64() * 1000.0 / scenario.step_ms as f64) as u64,
+            (elapsed.as_millis() / scenario.step.as_millis().max(1)) as u64,
             steps,
         );
         if elapsed >= duration {
