@@ -2,24 +2,13 @@
 //! a root rustls refuses and a failed TLS handshake each hand over the error underneath as
 //! `source()`, and the message still ends with it.
 
-use std::error::Error as _;
-
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_mtp_http::{Error, MtpClient, envelope, tls, wire};
+use iw_testdata::cause;
 use tokio::io::AsyncWriteExt;
 use tokio::net::TcpListener;
 use tokio_rustls::rustls;
 use tokio_rustls::rustls::pki_types::CertificateDer;
-
-/// The `T` under `err`, checking the message ends with it.
-fn cause<T: std::error::Error + 'static>(err: &Error) -> &T {
-    let cause = err
-        .source()
-        .and_then(|s| s.downcast_ref::<T>())
-        .unwrap_or_else(|| panic!("no {} under `{err}`", std::any::type_name::<T>()));
-    assert!(err.to_string().ends_with(&cause.to_string()), "{err}");
-    cause
-}
 
 #[test]
 fn a_request_head_that_is_not_utf8_keeps_the_decoding_error() {

@@ -2,23 +2,12 @@
 //! error, a detector that refuses its configuration keeps the detector's, each as `source()`
 //! and at the end of the message.
 
-use std::error::Error;
-
 use iw_features::{DetectorKind, FeatureError};
+use iw_testdata::cause;
 use iw_vo::{
     DepthImage, FramePair, Intrinsics, Pipeline, RgbdFrame, VisualOdometry, VoConfig, VoError,
     load_pair,
 };
-
-/// The `T` under `err`, checking the message ends with it.
-fn cause<T: Error + 'static>(err: &VoError) -> &T {
-    let cause = err
-        .source()
-        .and_then(|s| s.downcast_ref::<T>())
-        .unwrap_or_else(|| panic!("no {} under `{err}`", std::any::type_name::<T>()));
-    assert!(err.to_string().ends_with(&cause.to_string()), "{err}");
-    cause
-}
 
 #[test]
 fn an_image_that_does_not_decode_keeps_the_decoders_error() {
