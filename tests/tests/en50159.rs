@@ -437,8 +437,8 @@ fn masquerade_container_without_the_group_key_cannot_join_or_inject_gal_entries(
     let start =
         |id: u64, transport: Arc<dyn FrameTransport>, seeds: Vec<PeerAddr>, agent: AgentEntry| {
             let config = ContainerConfig {
-                heartbeat_ms: 20,
-                lease_ms: 200,
+                heartbeat: Duration::from_millis(20),
+                lease: Duration::from_millis(200),
                 ..ContainerConfig::new(ContainerId(id), transport.local_addr().clone(), seeds)
             };
             let mut container = Container::new(config);

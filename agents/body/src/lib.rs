@@ -150,16 +150,43 @@ pub enum BodyError {
         /// The wire limit.
         limit_mps: f64,
     },
-    /// The I/O thread of a [`BodyWorker`] reported a failure, or its frame is stale.
+    /// The I/O thread of a [`BodyWorker`] has no frame yet, or its frame is stale.
     #[error("body i/o: {reason}")]
     Worker {
         /// What went wrong.
         reason: String,
     },
-    /// The virtual side (simulator) failed; the message says why.
+    /// The body behind a [`BodyWorker`] failed a read or a command: its error, shared because
+    /// the worker reports one failed read on every `read` until the next read.
+    #[error("body i/o: {source}")]
+    Link {
+        /// What the body said.
+        #[source]
+        source: std::sync::Arc<BodyError>,
+    },
+    /// The I/O thread of a [`BodyWorker`] could not be started.
+    #[error("body i/o: starting the body i/o thread: {source}")]
+    Thread {
+        /// What the system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The virtual side failed with nothing underneath to pass on (an injected fault, a
+    /// world link gone silent); the message says why.
     #[error("virtual body: {reason}")]
     Virtual {
         /// What went wrong.
         reason: String,
+    },
+    /// The world a virtual body lives in refused a read or a command: the simulator (no such
+    /// chair), or the bus to the world's container. The world's error is kept whole as the
+    /// source; this crate does not know its type (the simulator sits above the agents).
+    #[error("virtual body: {what}: {source}")]
+    World {
+        /// Which part refused, e.g. `world unreachable`.
+        what: &'static str,
+        /// What it said.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
     },
 }

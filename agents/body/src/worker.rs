@@ -18,11 +18,11 @@ const FAILED_READ_PAUSE: Duration = Duration::from_millis(10);
 #[derive(Default)]
 struct Slots {
     /// The newest frame and when it arrived, or why the last read failed.
-    frame: Option<(Result<SensorFrame, String>, Instant)>,
+    frame: Option<(Result<SensorFrame, Arc<BodyError>>, Instant)>,
     /// The newest command not yet sent.
     command: Option<WheelSpeeds>,
     /// Why the last command sent failed, until reported.
-    command_error: Option<String>,
+    command_error: Option<BodyError>,
     stop: bool,
 }
 
@@ -56,9 +56,9 @@ impl BodyWorker {
                         && let Err(err) = body.command(speeds)
                     {
                         let mut s = slots.lock().unwrap_or_else(PoisonError::into_inner);
-                        s.command_error = Some(err.to_string());
+                        s.command_error = Some(err);
                     }
-                    let frame = body.read().map_err(|e| e.to_string());
+                    let frame = body.read().map_err(Arc::new);
                     let failed = frame.is_err();
                     slots.lock().unwrap_or_else(PoisonError::into_inner).frame =
                         Some((frame, Instant::now()));
@@ -70,9 +70,7 @@ impl BodyWorker {
                 // Last words: the wheels are stopped whatever was pending.
                 let _ = body.stop();
             })
-            .map_err(|e| BodyError::Worker {
-                reason: format!("starting the body i/o thread: {e}"),
-            })?;
+            .map_err(|source| BodyError::Thread { source })?;
         Ok(BodyWorker {
             shared,
             max_age,
@@ -102,8 +100,8 @@ impl Body for BodyWorker {
                 ),
             }),
             Some((Ok(frame), _)) => Ok(frame.clone()),
-            Some((Err(reason), _)) => Err(BodyError::Worker {
-                reason: reason.clone(),
+            Some((Err(source), _)) => Err(BodyError::Link {
+                source: source.clone(),
             }),
         }
     }
@@ -114,7 +112,9 @@ impl Body for BodyWorker {
         let mut slots = self.slots();
         slots.command = Some(speeds);
         match slots.command_error.take() {
-            Some(reason) => Err(BodyError::Worker { reason }),
+            Some(err) => Err(BodyError::Link {
+                source: Arc::new(err),
+            }),
             None => Ok(()),
         }
     }
@@ -218,6 +218,14 @@ mod tests {
             match worker.command(WheelSpeeds::STOP) {
                 Err(e) => {
                     assert!(e.to_string().contains("board refused"), "{e}");
+                    // the body's own error is kept, not its text
+                    let inner = std::error::Error::source(&e)
+                        .and_then(|s| s.downcast_ref::<Arc<BodyError>>())
+                        .unwrap_or_else(|| panic!("no body error under `{e}`"));
+                    assert!(
+                        matches!(&**inner, BodyError::Worker { reason } if reason == "board refused"),
+                        "{inner}"
+                    );
                     break;
                 }
                 Ok(()) if Instant::now() < deadline => std::thread::yield_now(),

@@ -32,13 +32,53 @@ use iw_agent::{Agent, Context, Responder};
 use iw_ontology::wheelchair::{DoorState, Fact, WheelchairAction, WheelchairContent};
 
 /// A door that could not be moved.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("door `{door}` could not be moved: {reason}")]
+///
+/// It reaches the requester as the text of a FAILURE's `error-message` (SL content carries
+/// no typed errors), so its message ends with the cause's; up to that boundary the cause is
+/// kept whole as [`std::error::Error::source`], for the composer's logs and tests.
+#[derive(Debug, thiserror::Error)]
+#[error("door `{door}` could not be moved: {reason}{}", cause_text(.source))]
 pub struct ActuatorFault {
     /// The door.
     pub door: String,
-    /// Why (jammed, no power, unknown to the world).
+    /// Why (jammed, no power, unknown to the world, world unreachable).
     pub reason: String,
+    /// The error underneath, when something below the actuator failed (the bus to the world,
+    /// the simulator).
+    #[source]
+    pub source: Option<Box<dyn std::error::Error + Send + Sync + 'static>>,
+}
+
+impl ActuatorFault {
+    /// A fault with nothing underneath (a jammed door, a door the world does not have).
+    pub fn new(door: &str, reason: impl Into<String>) -> Self {
+        ActuatorFault {
+            door: door.to_string(),
+            reason: reason.into(),
+            source: None,
+        }
+    }
+
+    /// A fault caused by `source` (e.g. the bus refusing the message to the world).
+    pub fn caused(
+        door: &str,
+        reason: impl Into<String>,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        ActuatorFault {
+            door: door.to_string(),
+            reason: reason.into(),
+            source: Some(Box::new(source)),
+        }
+    }
+}
+
+/// `: <cause>` when there is one, so the message alone loses nothing.
+fn cause_text(source: &Option<Box<dyn std::error::Error + Send + Sync + 'static>>) -> String {
+    source
+        .as_ref()
+        .map(|e| format!(": {e}"))
+        .unwrap_or_default()
 }
 
 /// What moves doors.

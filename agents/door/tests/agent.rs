@@ -18,10 +18,7 @@ struct World(Moves);
 impl DoorActuator for World {
     fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
         if door == "jammed" {
-            return Err(ActuatorFault {
-                door: door.into(),
-                reason: "jammed".into(),
-            });
+            return Err(ActuatorFault::new(door, "jammed"));
         }
         self.0.lock().unwrap().push((door.into(), open));
         Ok(())

@@ -33,21 +33,22 @@ impl LoggedMessage {
 
     /// Decodes a stored record; a record that is not a logged message is reported with its seq.
     pub fn from_record(record: &Record) -> Result<Self, EntryError> {
-        serde_json::from_slice(&record.payload).map_err(|e| EntryError {
+        serde_json::from_slice(&record.payload).map_err(|source| EntryError {
             seq: record.seq,
-            reason: e.to_string(),
+            source,
         })
     }
 }
 
 /// A stored record that does not hold a [`LoggedMessage`].
 #[derive(Debug, thiserror::Error)]
-#[error("log record {seq} is not a logged message: {reason}")]
+#[error("log record {seq} is not a logged message: {source}")]
 pub struct EntryError {
     /// The record's sequence number.
     pub seq: u64,
-    /// The decoder's message.
-    pub reason: String,
+    /// What the JSON decoder said.
+    #[source]
+    pub source: serde_json::Error,
 }
 
 /// Selects logged messages; every field that is set must match.

@@ -82,10 +82,11 @@ pub enum PerceptionError {
         value: f64,
     },
     /// The vision worker thread could not be started.
-    #[error("cannot start the vision worker: {reason}")]
+    #[error("cannot start the vision worker: {source}")]
     Vision {
-        /// Why.
-        reason: String,
+        /// What the system said.
+        #[source]
+        source: std::io::Error,
     },
 }
 
@@ -204,9 +205,7 @@ impl PerceptionAgent {
                         v.vo,
                         v.t_base_camera,
                     )
-                    .map_err(|e| PerceptionError::Vision {
-                        reason: e.to_string(),
-                    })?,
+                    .map_err(|source| PerceptionError::Vision { source })?,
                     t_base_camera: v.t_base_camera,
                     motion_noise: v.motion_noise,
                     wheel_at_clone: config.start,
@@ -326,9 +325,9 @@ impl PerceptionAgent {
                     motion,
                     markers,
                 } => (time_ns, motion, markers),
-                VisionResult::Failed { reason } => {
+                VisionResult::Failed(error) => {
                     visual.unused += 1;
-                    tracing::warn!(chair = %self.config.chair.name, %reason, "no visual update");
+                    tracing::warn!(chair = %self.config.chair.name, %error, "no visual update: camera frame unavailable");
                     continue;
                 }
                 VisionResult::Ended => {

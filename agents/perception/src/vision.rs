@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
 
 use iw_localization::markers_in;
-use iw_vo::{CameraSource, Pose2, VisualOdometry, VoConfig};
+use iw_vo::{CameraSource, Pose2, VisualOdometry, VoConfig, VoError};
 use nalgebra::{Isometry3, Point2};
 
 /// What the worker made of one requested frame.
@@ -23,8 +23,8 @@ pub(crate) enum VisionResult {
         /// Markers seen: id, and the marker's centre in the base frame at capture, m.
         markers: Vec<(u8, Point2<f64>)>,
     },
-    /// The camera gave no frame.
-    Failed { reason: String },
+    /// The camera gave no frame: what it said.
+    Failed(VoError),
     /// The source has no more frames (a replay's end): no more requests.
     Ended,
 }
@@ -58,9 +58,7 @@ impl VisionWorker {
                 while requested.recv().is_ok() {
                     let result = match source.next_frame() {
                         None => VisionResult::Ended,
-                        Some(Err(err)) => VisionResult::Failed {
-                            reason: format!("camera frame unavailable: {err}"),
-                        },
+                        Some(Err(err)) => VisionResult::Failed(err),
                         Some(Ok(frame)) => {
                             let time_ns = (frame.timestamp_s.max(0.0) * 1e9).round() as u64;
                             let motion = match vo.process(&frame) {

@@ -125,8 +125,8 @@ pub fn run(command: Command) -> anyhow::Result<ExitCode> {
             let settings = super::bench_fleet::Settings {
                 idle,
                 timeout,
-                heartbeat_ms,
-                lease_ms,
+                heartbeat: Duration::from_millis(heartbeat_ms),
+                lease: Duration::from_millis(lease_ms),
             };
             super::bench_fleet::run(&chairs, &settings, json, plot.as_deref())?;
             Ok(ExitCode::SUCCESS)

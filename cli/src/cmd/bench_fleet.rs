@@ -48,17 +48,19 @@ pub struct Settings {
     /// Longest run.
     pub timeout: Duration,
     /// container.heartbeat_ms of every container.
-    pub heartbeat_ms: u64,
+    pub heartbeat: Duration,
     /// container.lease_ms of every container.
-    pub lease_ms: u64,
+    pub lease: Duration,
 }
 
 /// What one run measured (the JSON object: these keys and no others).
 #[derive(Debug, serde::Serialize)]
 pub struct FleetRow {
     chairs: usize,
-    heartbeat_ms: u64,
-    lease_ms: u64,
+    #[serde(rename = "heartbeat_ms", serialize_with = "iw_node::millis::serialize")]
+    heartbeat: Duration,
+    #[serde(rename = "lease_ms", serialize_with = "iw_node::millis::serialize")]
+    lease: Duration,
     /// Every container: services, world and the chairs.
     containers: usize,
     /// From the first chair's launch until the last chair reported `ready`, s.
@@ -642,8 +644,8 @@ pub fn measure(chairs: usize, settings: &Settings) -> anyhow::Result<FleetRow> {
     let expired = run.procs.log_lines("lease expired");
     Ok(FleetRow {
         chairs,
-        heartbeat_ms: settings.heartbeat_ms,
-        lease_ms: settings.lease_ms,
+        heartbeat: settings.heartbeat,
+        lease: settings.lease,
         containers,
         launch_s: round2(launch.as_secs_f64()),
         converged_s: round2(converged.as_secs_f64()),
@@ -690,8 +692,8 @@ fn write_config(
         path,
         format!(
             "[container]\nheartbeat_ms = {}\nlease_ms = {}\n[world]\nmap = {map:?}\n[services]\ngoals = [{goals}]\nlog = {log:?}\n",
-            settings.heartbeat_ms,
-            settings.lease_ms,
+            settings.heartbeat.as_millis(),
+            settings.lease.as_millis(),
             map = map.display().to_string(),
             log = log.display().to_string(),
         ),
@@ -712,7 +714,9 @@ pub fn run(
         writeln!(
             out,
             "heartbeat {} ms, lease {} ms, idle window {:?}",
-            settings.heartbeat_ms, settings.lease_ms, settings.idle
+            settings.heartbeat.as_millis(),
+            settings.lease.as_millis(),
+            settings.idle
         )?;
         writeln!(
             out,

@@ -39,6 +39,16 @@ pub enum TransportError {
         /// Why.
         reason: String,
     },
+    /// A peer address that does not resolve: not `host:port`, or a host name the resolver
+    /// does not know.
+    #[error("unknown or malformed peer address `{addr}`: expected `host:port`: {source}")]
+    Unresolved {
+        /// The address as given.
+        addr: String,
+        /// What the resolver said.
+        #[source]
+        source: std::io::Error,
+    },
     /// The endpoint was closed.
     #[error("transport closed")]
     Closed,
@@ -51,13 +61,21 @@ pub enum TransportError {
         #[source]
         source: std::io::Error,
     },
-    /// An error of the underlying middleware (iceoryx2), as text.
-    #[error("{context}: {message}")]
+    /// An error of the underlying middleware (iceoryx2) or of a wrapping layer's codec, kept
+    /// whole (its type is the middleware's, which this crate does not name).
+    #[error("{context}: {source}")]
     Middleware {
         /// What was being done.
         context: String,
-        /// The middleware's message.
-        message: String,
+        /// What the middleware said.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
+    },
+    /// The bus's layers would not let a frame out (a verdict, not an error underneath).
+    #[error("{context}: refused by the layers")]
+    Refused {
+        /// What was being done.
+        context: String,
     },
 }
 

@@ -23,7 +23,7 @@
 //!   heartbeats after the last change; after a partition heals they converge the same way.
 //! - Cost grows with the containers one hears, not with their square: a container heartbeats to
 //!   its seeds and to whoever heartbeats to it (chairs greet the services, so the leader hears
-//!   N and a chair one), every `heartbeat_ms` while the lists differ and every fifth of the
+//!   N and a chair one), every `heartbeat` while the lists differ and every fifth of the
 //!   lease once they agree. A list travels as the parts the follower lacks, at most 32 KiB a
 //!   frame, so no GAL is too big for a datagram.
 //! - A malformed control frame is refused with its length and reason, never a panic.

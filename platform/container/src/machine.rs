@@ -106,11 +106,12 @@ pub struct ContainerConfig {
     pub addr: PeerAddr,
     /// Other containers' addresses to greet (the ids are learnt from their heartbeats).
     pub seeds: Vec<PeerAddr>,
-    /// Heartbeat period while the lists settle, ms (default 50). Once they agree a container
+    /// Heartbeat period while the lists settle (default 50 ms). Once they agree a container
     /// heartbeats every [`ContainerConfig::idle_heartbeat`] instead.
-    pub heartbeat_ms: u64,
-    /// A container not heard for this long is taken for dead, ms (default 250; several heartbeats).
-    pub lease_ms: u64,
+    pub heartbeat: Duration,
+    /// A container not heard for this long is taken for dead (default 250 ms; several
+    /// heartbeats).
+    pub lease: Duration,
     /// The deployment's pinned identities (default none: ids are bound to keys first come,
     /// first served, the weaker mode). With a roster, a frame speaks for an id only under that
     /// id's pinned key, an id it does not list is nobody's, list entries must be named for
@@ -128,16 +129,16 @@ impl ContainerConfig {
             key: [0; 32],
             addr,
             seeds,
-            heartbeat_ms: 50,
-            lease_ms: 250,
+            heartbeat: Duration::from_millis(50),
+            lease: Duration::from_millis(250),
             roster: None,
         }
     }
 
     /// The heartbeat period once the lists agree: a fifth of the lease (five heartbeats per
-    /// lease, as the defaults' 50/250), never shorter than `heartbeat_ms`.
+    /// lease, as the defaults' 50/250 ms), never shorter than `heartbeat`.
     pub fn idle_heartbeat(&self) -> Duration {
-        Duration::from_millis((self.lease_ms / 5).max(self.heartbeat_ms))
+        (self.lease / 5).max(self.heartbeat)
     }
 }
 
@@ -182,7 +183,7 @@ struct Peer {
 /// Cost: a container heartbeats to its seeds and to the peers that heartbeat to it, so where
 /// chairs greet the services only (every deployment of this repository) the leader hears N
 /// containers and each chair one. A list goes as a delta: the parts the follower's heartbeat
-/// shows it lacks, at most 32 KiB a frame. Heartbeats go every `heartbeat_ms` while anything
+/// shows it lacks, at most 32 KiB a frame. Heartbeats go every `heartbeat` while anything
 /// differs and every [`ContainerConfig::idle_heartbeat`] once the lists agree; a change (a new
 /// peer, a list taken) is told at the next tick.
 ///
@@ -305,7 +306,7 @@ impl Container {
     /// When [`Container::on_tick`] next has something to do: the next heartbeat, or the
     /// earliest lease to expire. Until then a tick only costs its wake-up.
     pub fn next_due(&self) -> Time {
-        let lease = Duration::from_millis(self.config.lease_ms);
+        let lease = self.config.lease;
         self.peers
             .values()
             .map(|p| p.last_heard.plus(lease))
@@ -501,7 +502,7 @@ impl Container {
                 if !self.vetting.believes_duplicate(claim(id), now) {
                     // Under a roster only a holder of this container's own identity can hold
                     // its id: greet the named holder, which, if it is one, answers itself.
-                    let period = Duration::from_millis(self.config.heartbeat_ms);
+                    let period = self.config.heartbeat;
                     if self.vetting.probe_due(now, period) {
                         out.push(Outgoing {
                             to: holder,
@@ -516,7 +517,9 @@ impl Container {
                 // says: then our answer, which says so, makes the holder refuse however late it
                 // comes; in a near tie we are the one who refuses.
                 let uptime_ms = self.uptime_ms(now);
-                let elder = holder_uptime_ms.saturating_add(self.config.lease_ms) > uptime_ms;
+                let elder = Duration::from_millis(holder_uptime_ms)
+                    .saturating_add(self.config.lease)
+                    > Duration::from_millis(uptime_ms);
                 if *from != holder || elder {
                     let reason = format!(
                         "container id {} is already held by a live container at {holder} (incarnation {holder_incarnation}, up {holder_uptime_ms} ms), as {from} reports; this one ({}, incarnation {}, up {uptime_ms} ms) refuses to run",
@@ -574,7 +577,7 @@ impl Container {
                 self.uptime_ms(now),
             ),
         };
-        let lease = Duration::from_millis(self.config.lease_ms);
+        let lease = self.config.lease;
         let due = self
             .duplicate_warned
             .get(&id)
@@ -597,7 +600,7 @@ impl Container {
     /// Expires leases, re-elects, and sends heartbeats when due.
     pub fn on_tick(&mut self, now: Time) -> Vec<Outgoing> {
         self.started.get_or_insert(now);
-        let lease = Duration::from_millis(self.config.lease_ms);
+        let lease = self.config.lease;
         let before = self.peers.len();
         self.peers.retain(|id, p| {
             let alive = now.since(p.last_heard) < lease;
@@ -618,7 +621,7 @@ impl Container {
             let period = if self.settled() {
                 self.config.idle_heartbeat()
             } else {
-                Duration::from_millis(self.config.heartbeat_ms)
+                self.config.heartbeat
             };
             self.next_heartbeat = now.plus(period);
             self.last_heartbeat = now;
@@ -680,9 +683,7 @@ impl Container {
     /// of it at the next tick.
     fn changed(&mut self) {
         self.revision += 1;
-        let soon = self
-            .last_heartbeat
-            .plus(Duration::from_millis(self.config.heartbeat_ms));
+        let soon = self.last_heartbeat.plus(self.config.heartbeat);
         if soon < self.next_heartbeat {
             self.next_heartbeat = soon;
         }
@@ -713,7 +714,7 @@ impl Container {
         versions: &VersionVector,
         out: &mut Vec<Outgoing>,
     ) {
-        let repeat = Duration::from_millis(2 * self.config.heartbeat_ms);
+        let repeat = 2 * self.config.heartbeat;
         let leading = self.leader == self.config.id;
         let Some(peer) = self.peers.get_mut(&id) else {
             return;

@@ -229,8 +229,8 @@ mod tests {
             let addr = transport.local_addr().clone();
             let identity = Identity::generate().unwrap();
             let mut config = ContainerConfig::new(ContainerId(id), addr.clone(), seeds.to_vec());
-            config.heartbeat_ms = 50;
-            config.lease_ms = lease_ms;
+            config.heartbeat = Duration::from_millis(50);
+            config.lease = Duration::from_millis(lease_ms);
             let mut container = Container::new(config);
             container.set_key(identity.public_key());
             container.register(AgentEntry {

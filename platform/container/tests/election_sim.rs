@@ -609,7 +609,7 @@ fn a_tick_before_next_due_does_nothing_and_one_at_it_does() {
     net.run(Duration::from_secs(2));
     let now = net.now;
     let settings = config(1, addr(1), Vec::new());
-    let lease = Duration::from_millis(settings.lease_ms);
+    let lease = settings.lease;
     let node = net.node(1);
     let due = node.next_due();
     assert!(due > now, "something overdue after a tick: {due} at {now}");

@@ -33,8 +33,8 @@ fn start(
     let addr = transport.local_addr().clone();
     let mut config = ContainerConfig::new(ContainerId(id), addr.clone(), seeds.to_vec());
     config.incarnation = incarnation;
-    config.heartbeat_ms = 20;
-    config.lease_ms = 150;
+    config.heartbeat = Duration::from_millis(20);
+    config.lease = Duration::from_millis(150);
     let mut container = Container::new(config);
     let identity = Arc::new(iw_layer_security::Identity::generate().unwrap());
     for a in agents {

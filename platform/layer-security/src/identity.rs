@@ -41,9 +41,9 @@ impl Identity {
 
     /// The identity stored as a PKCS#8 document (as [`Identity::pkcs8`] wrote it).
     pub fn from_pkcs8(pkcs8: &[u8]) -> Result<Identity, SecurityError> {
-        let pair = Ed25519KeyPair::from_pkcs8(pkcs8).map_err(|e| SecurityError::BadKey {
+        let pair = Ed25519KeyPair::from_pkcs8(pkcs8).map_err(|source| SecurityError::BadKey {
             what: "Ed25519 PKCS#8 document",
-            reason: e.to_string(),
+            source,
         })?;
         let mut public = [0u8; 32];
         public.copy_from_slice(pair.public_key().as_ref());

@@ -116,12 +116,13 @@ pub enum SecurityError {
     #[error("key derivation or cipher setup failed")]
     KeyDerivation,
     /// A stored key does not parse.
-    #[error("bad {what}: {reason}")]
+    #[error("bad {what}: {source}")]
     BadKey {
         /// What was being read.
         what: &'static str,
-        /// Why it was refused.
-        reason: String,
+        /// Why ring refused it.
+        #[source]
+        source: ring::error::KeyRejected,
     },
 }
 

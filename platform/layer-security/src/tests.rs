@@ -431,3 +431,18 @@ fn a_man_in_the_middle_swapping_static_keys_is_refused_both_ways() {
     assert_eq!(got.len(), 1);
     assert_eq!(got[0].payload, msg(1).payload);
 }
+
+#[test]
+fn a_key_ring_refuses_keeps_rings_error() {
+    let err = match Identity::from_pkcs8(b"not a PKCS#8 document") {
+        Err(err) => err,
+        Ok(_) => panic!("garbage taken for a key"),
+    };
+    let rejected = std::error::Error::source(&err)
+        .and_then(|s| s.downcast_ref::<ring::error::KeyRejected>())
+        .unwrap_or_else(|| panic!("no KeyRejected under `{err}`"));
+    assert_eq!(
+        err.to_string(),
+        format!("bad Ed25519 PKCS#8 document: {rejected}")
+    );
+}

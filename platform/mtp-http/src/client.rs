@@ -134,16 +134,18 @@ impl MtpClient {
             address: target.to_string(),
             reason: "https:// needs a client with trusted roots (MtpClient::with_tls)".into(),
         })?;
-        let name = ServerName::try_from(target.host.clone()).map_err(|e| Error::Address {
-            address: target.to_string(),
-            reason: format!("not a TLS server name: {e}"),
-        })?;
+        let name =
+            ServerName::try_from(target.host.clone()).map_err(|source| Error::ServerName {
+                address: target.to_string(),
+                source,
+            })?;
         let handshake = TlsConnector::from(config).connect(name, tcp);
         let tls = tokio::time::timeout(ANSWER_TIMEOUT, handshake)
             .await
             .map_err(|_| timeout(&peer))?
-            .map_err(|e| Error::Tls {
-                reason: format!("handshake with {peer}: {e}"),
+            .map_err(|source| Error::Handshake {
+                peer: peer.to_string(),
+                source,
             })?;
         Ok(Box::new(tls))
     }

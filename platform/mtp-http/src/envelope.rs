@@ -156,8 +156,9 @@ pub fn parse_envelope_date(raw: &str) -> Result<FipaDateTime, Error> {
     } else {
         raw.to_owned()
     };
-    FipaDateTime::from_str(&fipa_text).map_err(|e| Error::Envelope {
-        reason: format!("date {raw:?} is neither FIPA nor JADE form: {e}"),
+    FipaDateTime::from_str(&fipa_text).map_err(|source| Error::Date {
+        raw: raw.to_owned(),
+        source,
     })
 }
 

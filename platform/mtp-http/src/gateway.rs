@@ -155,18 +155,17 @@ impl Gateway {
                 ),
             });
         }
-        let mailbox = self
-            .bus
-            .register(&aid.name)
-            .map_err(|e| Error::Unreachable {
+        let mailbox = self.bus.register(&aid.name).map_err(|e| match e {
+            BusError::AgentExists { .. } => Error::Unreachable {
                 agent: aid.name.clone(),
-                reason: match e {
-                    BusError::AgentExists { .. } => {
-                        "the name is a local agent's; a foreign agent cannot take it".into()
-                    }
-                    other => other.to_string(),
-                },
-            })?;
+                reason: "the name is a local agent's; a foreign agent cannot take it".into(),
+            },
+            other => Error::Attach {
+                agent: aid.name.clone(),
+                what: "registering its proxy on the bus",
+                source: Box::new(other),
+            },
+        })?;
         foreign.insert(aid.name.clone(), aid.clone());
         drop(foreign);
         if let Some(admit) = &self.admit {

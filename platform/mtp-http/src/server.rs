@@ -79,8 +79,9 @@ impl MtpServer {
                                     Ok(Ok(tls)) => {
                                         serve_connection(Box::new(tls), &peer, &sink).await
                                     }
-                                    Ok(Err(e)) => Err(Error::Tls {
-                                        reason: format!("handshake with {peer}: {e}"),
+                                    Ok(Err(source)) => Err(Error::Handshake {
+                                        peer: peer.to_string(),
+                                        source,
                                     }),
                                     Err(_) => Err(Error::Timeout {
                                         peer: peer.to_string(),
@@ -221,8 +222,9 @@ pub fn decode(head: &wire::RequestHead, body: &[u8]) -> Result<Delivery, Error> 
     })?;
     let boundary = wire::boundary_of(content_type)?;
     let (envelope_bytes, payload) = wire::split_multipart(body, boundary)?;
-    let envelope_text = std::str::from_utf8(envelope_bytes).map_err(|e| Error::Envelope {
-        reason: format!("not UTF-8: {e}"),
+    let envelope_text = std::str::from_utf8(envelope_bytes).map_err(|source| Error::Utf8 {
+        what: "envelope",
+        source,
     })?;
     let envelope = Envelope::from_xml(envelope_text)?;
     if let Some(rep) = envelope.acl_representation.as_deref()
@@ -241,8 +243,9 @@ pub fn decode(head: &wire::RequestHead, body: &[u8]) -> Result<Delivery, Error> 
             "payload-length differs from the payload"
         );
     }
-    let payload = std::str::from_utf8(payload).map_err(|e| Error::Http {
-        reason: format!("ACL payload is not UTF-8: {e}"),
+    let payload = std::str::from_utf8(payload).map_err(|source| Error::Utf8 {
+        what: "ACL payload",
+        source,
     })?;
     let message = parse_with(payload, &ParseOptions::jade())?;
     Ok(Delivery { envelope, message })

@@ -23,10 +23,8 @@ fn provider() -> Arc<rustls::crypto::CryptoProvider> {
     Arc::new(rustls::crypto::ring::default_provider())
 }
 
-fn tls_error(what: &str, error: rustls::Error) -> Error {
-    Error::Tls {
-        reason: format!("{what}: {error}"),
-    }
+fn tls_error(what: &'static str, source: rustls::Error) -> Error {
+    Error::Tls { what, source }
 }
 
 /// A server configuration presenting `chain` (leaf first) signed by `key`.

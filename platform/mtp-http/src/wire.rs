@@ -51,8 +51,10 @@ pub fn find_head_end(buf: &[u8]) -> Result<Option<usize>, Error> {
 
 /// Parses a request head (the bytes up to and including the blank line).
 pub fn parse_request_head(head: &[u8]) -> Result<RequestHead, Error> {
-    let text = std::str::from_utf8(head)
-        .map_err(|e| http_error(format!("request head is not UTF-8: {e}")))?;
+    let text = std::str::from_utf8(head).map_err(|source| Error::Utf8 {
+        what: "request head",
+        source,
+    })?;
     let mut lines = text.split("\r\n");
     let request_line = lines.next().unwrap_or("");
     let mut parts = request_line.split(' ');

@@ -61,6 +61,13 @@ pub enum NetError {
         /// What was wrong.
         reason: String,
     },
+    /// A connection's hello frame whose address is not UTF-8.
+    #[error("bad hello on a TCP connection: the address is not UTF-8: {source}")]
+    HelloNotUtf8 {
+        /// Where the decoding stopped.
+        #[source]
+        source: std::string::FromUtf8Error,
+    },
     /// An impairment probability outside `0..=1`.
     #[error("impairment probability `{name}` = {value} is outside 0..=1")]
     BadProbability {

@@ -106,9 +106,9 @@ impl TcpTransport {
         let mut hello = Vec::new();
         self.codec
             .encode(FrameKind::Hello, self.local.0.as_bytes(), &mut hello)
-            .map_err(|e| TransportError::BadAddress {
-                addr: self.local.0.clone(),
-                reason: e.to_string(),
+            .map_err(|e| TransportError::Middleware {
+                context: format!("encoding the hello of {}", self.local),
+                source: Box::new(e),
             })?;
         stream.write_all(&hello).map_err(io("greeting"))?;
         Ok(stream)
@@ -274,9 +274,8 @@ fn read_connection(
             })?;
         match (h.kind, &from) {
             (FrameKind::Hello, None) if h.len <= MAX_HELLO_LEN => {
-                let addr = String::from_utf8(payload).map_err(|e| NetError::BadHello {
-                    reason: e.to_string(),
-                })?;
+                let addr = String::from_utf8(payload)
+                    .map_err(|source| NetError::HelloNotUtf8 { source })?;
                 from = Some(PeerAddr(addr));
             }
             (FrameKind::Hello, _) => {

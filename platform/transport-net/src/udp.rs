@@ -68,20 +68,19 @@ impl Resolved {
             return Ok(*addr);
         }
         self.lookups.fetch_add(1, Ordering::Relaxed);
-        let bad = |reason: String| TransportError::BadAddress {
-            addr: to.0.clone(),
-            reason,
-        };
         let all: Vec<SocketAddr> =
             to.0.to_socket_addrs()
-                .map_err(|e| bad(format!("expected `host:port`: {e}")))?
+                .map_err(|source| TransportError::Unresolved {
+                    addr: to.0.clone(),
+                    source,
+                })?
                 .collect();
         let addr = all
             .iter()
             .find(|a| a.is_ipv4() == ipv4)
             .or(all.first())
             .copied()
-            .ok_or_else(|| bad("the host name resolves to no address".into()))?;
+            .ok_or_else(|| no_address(to))?;
         if cache.len() >= RESOLVE_CACHE_MAX {
             cache.clear();
         }
@@ -187,14 +186,19 @@ pub(crate) fn resolve(to: &PeerAddr) -> Result<SocketAddr, TransportError> {
     }
     let mut addrs =
         to.0.to_socket_addrs()
-            .map_err(|e| TransportError::BadAddress {
+            .map_err(|source| TransportError::Unresolved {
                 addr: to.0.clone(),
-                reason: format!("expected `host:port`: {e}"),
+                source,
             })?;
-    addrs.next().ok_or_else(|| TransportError::BadAddress {
+    addrs.next().ok_or_else(|| no_address(to))
+}
+
+/// A host name that resolves, but to no address.
+fn no_address(to: &PeerAddr) -> TransportError {
+    TransportError::BadAddress {
         addr: to.0.clone(),
         reason: "the host name resolves to no address".into(),
-    })
+    }
 }
 
 impl FrameTransport for UdpTransport {
@@ -352,7 +356,13 @@ mod tests {
         let a = UdpTransport::bind("127.0.0.1:0").unwrap();
         let err = a.send(&PeerAddr("no-port-here".into()), b"x").unwrap_err();
         assert!(
-            matches!(err, TransportError::BadAddress { ref addr, .. } if addr == "no-port-here")
+            matches!(err, TransportError::Unresolved { ref addr, .. } if addr == "no-port-here"),
+            "{err}"
         );
+        // the resolver's own error is kept
+        let io = std::error::Error::source(&err)
+            .and_then(|s| s.downcast_ref::<std::io::Error>())
+            .unwrap_or_else(|| panic!("no io::Error under `{err}`"));
+        assert!(err.to_string().ends_with(&io.to_string()), "{err}");
     }
 }

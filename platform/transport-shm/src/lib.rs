@@ -56,6 +56,15 @@ pub enum ShmError {
         /// Why.
         reason: String,
     },
+    /// An address iceoryx2 refuses as a service name.
+    #[error("shared-memory address `{addr}` is unusable: {source}")]
+    ServiceName {
+        /// The address as given.
+        addr: String,
+        /// What iceoryx2 said.
+        #[source]
+        source: iceoryx2::service::service_name::ServiceNameError,
+    },
     /// A received sample whose sender header is cut short or not UTF-8.
     #[error("malformed sample of {len} bytes: {reason}")]
     MalformedSample {
@@ -72,7 +81,7 @@ impl From<ShmError> for TransportError {
             ShmError::BadAddress { addr, reason } => TransportError::BadAddress { addr, reason },
             other => TransportError::Middleware {
                 context: "shared-memory transport".into(),
-                message: other.to_string(),
+                source: Box::new(other),
             },
         }
     }
@@ -81,18 +90,18 @@ impl From<ShmError> for TransportError {
 /// How [`ShmTransport::recv_timeout`] waits for a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PollPolicy {
-    /// How long to poll with `yield_now` between checks before sleeping, µs.
-    pub yield_phase_us: u64,
-    /// Sleep between checks after the yield phase, µs.
-    pub sleep_us: u64,
+    /// How long to poll with `yield_now` between checks before sleeping.
+    pub yield_phase: Duration,
+    /// Sleep between checks after the yield phase (at least 1 µs).
+    pub sleep: Duration,
 }
 
 impl Default for PollPolicy {
     /// Yield for 2 ms (latency of a few µs while traffic flows), then check every 50 µs.
     fn default() -> Self {
         Self {
-            yield_phase_us: 2_000,
-            sleep_us: 50,
+            yield_phase: Duration::from_millis(2),
+            sleep: Duration::from_micros(50),
         }
     }
 }
@@ -122,8 +131,13 @@ impl std::fmt::Debug for ShmTransport {
     }
 }
 
-fn middleware(context: String) -> impl FnOnce(String) -> TransportError {
-    move |message| TransportError::Middleware { context, message }
+fn middleware<E: std::error::Error + Send + Sync + 'static>(
+    context: String,
+) -> impl FnOnce(E) -> TransportError {
+    move |e| TransportError::Middleware {
+        context,
+        source: Box::new(e),
+    }
 }
 
 impl ShmTransport {
@@ -145,15 +159,16 @@ impl ShmTransport {
             .config(&Config::default())
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Svc>()
-            .map_err(|e| {
-                middleware(format!("creating the iceoryx2 node for `{addr}`"))(format!("{e:?}"))
-            })?;
+            .map_err(middleware(format!(
+                "creating the iceoryx2 node for `{addr}`"
+            )))?;
         // Leftovers of crashed processes would otherwise block reopening their services.
         let _ = node.try_cleanup_dead_nodes();
         let service = open_inbox(&node, &service_name)?;
-        let inbox = service.subscriber_builder().create().map_err(|e| {
-            middleware(format!("subscribing to the inbox of `{addr}`"))(format!("{e:?}"))
-        })?;
+        let inbox = service
+            .subscriber_builder()
+            .create()
+            .map_err(middleware(format!("subscribing to the inbox of `{addr}`")))?;
         Ok(Self {
             node,
             local: PeerAddr(addr.to_owned()),
@@ -172,7 +187,7 @@ impl ShmTransport {
             .initial_max_slice_len(INITIAL_SLICE_LEN)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
-            .map_err(|e| middleware(format!("publishing to `{to}`"))(format!("{e:?}")))?;
+            .map_err(middleware(format!("publishing to `{to}`")))?;
         Ok(Outbox {
             publisher,
             scratch: Vec::with_capacity(INITIAL_SLICE_LEN),
@@ -181,9 +196,10 @@ impl ShmTransport {
 
     fn try_receive(&self) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         loop {
-            let sample = self.inbox.receive().map_err(|e| {
-                middleware(format!("receiving on `{}`", self.local))(format!("{e:?}"))
-            })?;
+            let sample = self
+                .inbox
+                .receive()
+                .map_err(middleware(format!("receiving on `{}`", self.local)))?;
             let Some(sample) = sample else {
                 return Ok(None);
             };
@@ -239,7 +255,10 @@ fn inbox_service_name(addr: &str) -> Result<ServiceName, ShmError> {
             "only letters, digits, `-`, `_`, `.` and `/` are allowed",
         ));
     }
-    ServiceName::new(&format!("{SERVICE_PREFIX}{addr}")).map_err(|e| bad(&format!("{e:?}")))
+    ServiceName::new(&format!("{SERVICE_PREFIX}{addr}")).map_err(|source| ShmError::ServiceName {
+        addr: addr.to_owned(),
+        source,
+    })
 }
 
 fn open_inbox(
@@ -256,7 +275,7 @@ fn open_inbox(
         .max_subscribers(4)
         .history_size(0)
         .open_or_create()
-        .map_err(|e| middleware(format!("opening the iceoryx2 service `{name}`"))(format!("{e:?}")))
+        .map_err(middleware(format!("opening the iceoryx2 service `{name}`")))
 }
 
 impl FrameTransport for ShmTransport {
@@ -294,15 +313,14 @@ impl FrameTransport for ShmTransport {
         let sample = outbox
             .publisher
             .loan_slice_uninit(outbox.scratch.len())
-            .map_err(|e| {
-                middleware(format!("loaning a {}-byte sample for `{to}`", frame.len()))(format!(
-                    "{e:?}"
-                ))
-            })?;
+            .map_err(middleware(format!(
+                "loaning a {}-byte sample for `{to}`",
+                frame.len()
+            )))?;
         sample
             .write_from_slice(&outbox.scratch)
             .send()
-            .map_err(|e| middleware(format!("publishing to `{to}`"))(format!("{e:?}")))?;
+            .map_err(middleware(format!("publishing to `{to}`")))?;
         Ok(())
     }
 
@@ -311,8 +329,8 @@ impl FrameTransport for ShmTransport {
         timeout: Duration,
     ) -> Result<Option<(PeerAddr, Vec<u8>)>, TransportError> {
         let start = Instant::now();
-        let yield_phase = Duration::from_micros(self.poll.yield_phase_us);
-        let sleep = Duration::from_micros(self.poll.sleep_us.max(1));
+        let yield_phase = self.poll.yield_phase;
+        let sleep = self.poll.sleep.max(Duration::from_micros(1));
         loop {
             if let Some(got) = self.try_receive()? {
                 return Ok(Some(got));

@@ -81,15 +81,16 @@ pub enum Error {
         reason: String,
     },
     /// Content announced as Base64 (`:X-JADE-Encoding Base64`) does not decode.
-    #[error("content announced as Base64 does not decode: {reason} (content starts `{start}`)")]
+    #[error("content announced as Base64 does not decode: {source} (content starts `{start}`)")]
     InvalidBase64 {
-        /// The decoder's reason.
-        reason: String,
+        /// What the decoder said.
+        #[source]
+        source: base64::DecodeError,
         /// The first characters of the content.
         start: String,
     },
     /// A parameter value of the right shape but wrong content (a bad date, bad Base64).
-    #[error("line {line}, column {column}: invalid `:{param}` value: {reason}")]
+    #[error("line {line}, column {column}: invalid `:{param}` value: {source}")]
     InvalidValue {
         /// 1-based line of the value.
         line: u32,
@@ -97,8 +98,9 @@ pub enum Error {
         column: u32,
         /// The parameter.
         param: String,
-        /// Why it is invalid.
-        reason: String,
+        /// Why it is invalid: the date's or the Base64 decoder's error.
+        #[source]
+        source: Box<Error>,
     },
     /// A JSON message whose content fields contradict each other.
     #[error("inconsistent message content: {reason}")]

@@ -17,10 +17,6 @@ pub(crate) struct WorldDoors {
 
 impl DoorActuator for WorldDoors {
     fn set(&mut self, door: &str, open: bool) -> Result<(), ActuatorFault> {
-        let fault = |reason: String| ActuatorFault {
-            door: door.to_string(),
-            reason,
-        };
         let id = compose::map_door(&self.ids, door)?;
         if self
             .jammed
@@ -28,12 +24,12 @@ impl DoorActuator for WorldDoors {
             .unwrap_or_else(PoisonError::into_inner)
             .contains(id)
         {
-            return Err(fault("jammed".into()));
+            return Err(ActuatorFault::new(door, "jammed"));
         }
         self.world
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .set_door(id, open)
-            .map_err(|e| fault(e.to_string()))
+            .map_err(|e| ActuatorFault::caused(door, "the simulator refused", e))
     }
 }

@@ -2,6 +2,7 @@
 //! overridden by command-line flags.
 
 use std::path::Path;
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
@@ -38,28 +39,33 @@ pub struct ContainerSection {
     /// Lowest id leads the Global Agent List; 0 derives it from the name (services 1, chairs
     /// 1000 and up).
     pub id: u64,
-    /// Heartbeat period between containers, ms.
-    pub heartbeat_ms: u64,
-    /// A container not heard for this long is taken for gone, ms.
-    pub lease_ms: u64,
-    /// Agent step period (real time), ms.
-    pub step_ms: u64,
-    /// On SIGTERM, how long the deregistration is given to reach the leader, ms.
-    pub shutdown_grace_ms: u64,
+    /// Heartbeat period between containers (key `heartbeat_ms`).
+    #[serde(rename = "heartbeat_ms", with = "millis")]
+    pub heartbeat: Duration,
+    /// A container not heard for this long is taken for gone (key `lease_ms`).
+    #[serde(rename = "lease_ms", with = "millis")]
+    pub lease: Duration,
+    /// Agent step period, real time (key `step_ms`).
+    #[serde(rename = "step_ms", with = "millis")]
+    pub step: Duration,
+    /// On SIGTERM, how long the deregistration is given to reach the leader (key
+    /// `shutdown_grace_ms`).
+    #[serde(rename = "shutdown_grace_ms", with = "millis")]
+    pub shutdown_grace: Duration,
 }
 
 impl Default for ContainerSection {
     fn default() -> Self {
         ContainerSection {
             id: 0,
-            heartbeat_ms: 50,
+            heartbeat: Duration::from_millis(50),
             // 20 heartbeats: a container process on a loaded host (a CI runner, a chair's
             // computer busy with vision) misses 250 ms windows, and each miss drops its agents
             // from every GAL. Safety does not wait on the lease: the wheel and world-link
             // watchdogs stop a chair within 500 ms.
-            lease_ms: 1000,
-            step_ms: 20,
-            shutdown_grace_ms: 300,
+            lease: Duration::from_millis(1000),
+            step: Duration::from_millis(20),
+            shutdown_grace: Duration::from_millis(300),
         }
     }
 }
@@ -191,8 +197,9 @@ pub struct BodySection {
     pub port: String,
     /// Serial line speed, baud.
     pub baud: u32,
-    /// Longest wait for a board reply, ms.
-    pub timeout_ms: u64,
+    /// Longest wait for a board reply (key `timeout_ms`).
+    #[serde(rename = "timeout_ms", with = "millis")]
+    pub timeout: Duration,
     /// Where the chair starts in the map frame: x (m), y (m), heading (deg).
     pub start: [f64; 3],
     /// A virtual body's perception agent also runs LSAC-SURF RGB-D visual odometry on a camera
@@ -200,9 +207,11 @@ pub struct BodySection {
     /// renders it), fused with the wheels; costs a render and a detection per control period.
     pub visual_odometry: bool,
     /// How long a virtual body's task waits, wheels stopped, for its world link to come back
-    /// before it fails with the link's reason, ms (`iw_wiring::world_link::REATTACH_WAIT` by
-    /// default: a world restart with room for a loaded host).
-    pub reattach_wait_ms: u64,
+    /// before it fails with the link's reason (key `reattach_wait_ms`;
+    /// `iw_wiring::world_link::REATTACH_WAIT` by default: a world restart with room for a
+    /// loaded host).
+    #[serde(rename = "reattach_wait_ms", with = "millis")]
+    pub reattach_wait: Duration,
 }
 
 impl Default for BodySection {
@@ -211,11 +220,10 @@ impl Default for BodySection {
             kind: BodyKind::Virtual,
             port: String::new(),
             baud: 115_200,
-            timeout_ms: 200,
+            timeout: Duration::from_millis(200),
             start: [1.0, 6.0, 0.0],
             visual_odometry: false,
-            reattach_wait_ms: u64::try_from(iw_wiring::world_link::REATTACH_WAIT.as_millis())
-                .unwrap_or(u64::MAX),
+            reattach_wait: iw_wiring::world_link::REATTACH_WAIT,
         }
     }
 }
@@ -244,8 +252,9 @@ pub struct ServicesSection {
     pub restricted: std::collections::BTreeMap<String, Vec<String>>,
     /// The logger agent's log file; empty: a fresh file in the temporary directory.
     pub log: String,
-    /// How often a chair's pose is reported on stdout, ms.
-    pub pose_report_ms: u64,
+    /// How often a chair's pose is reported on stdout (key `pose_report_ms`).
+    #[serde(rename = "pose_report_ms", with = "millis")]
+    pub pose_report: Duration,
 }
 
 impl Default for ServicesSection {
@@ -255,7 +264,7 @@ impl Default for ServicesSection {
             goals: Vec::new(),
             restricted: std::collections::BTreeMap::new(),
             log: String::new(),
-            pose_report_ms: 1000,
+            pose_report: Duration::from_millis(1000),
         }
     }
 }
@@ -289,6 +298,25 @@ pub struct HttpMtpSection {
     pub listen: String,
 }
 
+/// Serde for a [`Duration`] written as whole milliseconds: the files keep their `*_ms` keys and
+/// integers (`heartbeat_ms = 50`), the code holds a `Duration`. A value that is not a
+/// non-negative integer is refused by the parser, which names the key, the line and the file.
+pub mod millis {
+    use std::time::Duration;
+
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// Writes `d` as whole milliseconds (saturating at `u64::MAX`).
+    pub fn serialize<S: Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u64(u64::try_from(d.as_millis()).unwrap_or(u64::MAX))
+    }
+
+    /// Reads whole milliseconds.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Duration, D::Error> {
+        u64::deserialize(d).map(Duration::from_millis)
+    }
+}
+
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
@@ -317,19 +345,23 @@ impl SpawnConfig {
         };
         let c = &self.container;
         for (key, value) in [
-            ("container.heartbeat_ms", c.heartbeat_ms),
-            ("container.step_ms", c.step_ms),
+            ("container.heartbeat_ms", c.heartbeat),
+            ("container.step_ms", c.step),
         ] {
-            if value == 0 || value > 10_000 {
-                return bad(key, format!("{value} ms is outside 1..=10000"));
+            if value.is_zero() || value > Duration::from_secs(10) {
+                return bad(
+                    key,
+                    format!("{} ms is outside 1..=10000", value.as_millis()),
+                );
             }
         }
-        if c.lease_ms <= c.heartbeat_ms {
+        if c.lease <= c.heartbeat {
             return bad(
                 "container.lease_ms",
                 format!(
                     "{} ms must exceed the heartbeat period ({} ms)",
-                    c.lease_ms, c.heartbeat_ms
+                    c.lease.as_millis(),
+                    c.heartbeat.as_millis()
                 ),
             );
         }
@@ -419,11 +451,11 @@ impl SpawnConfig {
             if self.body.start.iter().any(|v| !v.is_finite()) {
                 return bad("body.start", format!("{:?} is not finite", self.body.start));
             }
-            let wait = self.body.reattach_wait_ms;
-            if wait == 0 || wait > 600_000 {
+            let wait = self.body.reattach_wait;
+            if wait.is_zero() || wait > Duration::from_secs(600) {
                 return bad(
                     "body.reattach_wait_ms",
-                    format!("{wait} ms is outside 1..=600000"),
+                    format!("{} ms is outside 1..=600000", wait.as_millis()),
                 );
             }
         }
@@ -450,6 +482,44 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("wooden"), "{err}");
+    }
+
+    #[test]
+    fn periods_are_durations_under_their_millisecond_keys() {
+        let text = "[container]\nheartbeat_ms = 40\nlease_ms = 900\nstep_ms = 25\n\
+                    shutdown_grace_ms = 0\n[body]\ntimeout_ms = 150\nreattach_wait_ms = 3000\n\
+                    [services]\npose_report_ms = 100\n";
+        let config = SpawnConfig::parse(text, "t.toml").unwrap();
+        let ms = Duration::from_millis;
+        let c = &config.container;
+        assert_eq!(
+            (c.heartbeat, c.lease, c.step, c.shutdown_grace),
+            (ms(40), ms(900), ms(25), ms(0))
+        );
+        assert_eq!(
+            (config.body.timeout, config.body.reattach_wait),
+            (ms(150), ms(3000))
+        );
+        assert_eq!(config.services.pose_report, ms(100));
+        // written back under the same keys, as integers
+        let again = toml::to_string(&config).unwrap();
+        for line in [
+            "heartbeat_ms = 40",
+            "lease_ms = 900",
+            "reattach_wait_ms = 3000",
+        ] {
+            assert!(again.contains(line), "{again}");
+        }
+        // a value that is no count of milliseconds is refused naming the key and the file
+        for bad in ["lease_ms = -1", "lease_ms = 2.5", "lease_ms = \"long\""] {
+            let err = SpawnConfig::parse(&format!("[container]\n{bad}\n"), "t.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("t.toml") && err.contains("lease_ms"),
+                "{bad}: {err}"
+            );
+        }
     }
 
     #[test]
@@ -487,13 +557,13 @@ mod tests {
         };
         let chair = || crate::Role::Chair { name: "c".into() };
         refused(
-            |c| c.container.lease_ms = 10,
+            |c| c.container.lease = Duration::from_millis(10),
             crate::Role::Services,
             "container.lease_ms",
         );
         refused(|c| c.body.kind = BodyKind::Real, chair(), "body.port");
         refused(
-            |c| c.body.reattach_wait_ms = 0,
+            |c| c.body.reattach_wait = Duration::ZERO,
             chair(),
             "body.reattach_wait_ms",
         );

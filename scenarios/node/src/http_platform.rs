@@ -46,9 +46,10 @@ impl HttpPlatform {
         let network = InProcNetwork::new();
         let transport = network
             .endpoint(&config.platform)
-            .map_err(|e| Error::Unreachable {
+            .map_err(|e| Error::Attach {
                 agent: config.platform.clone(),
-                reason: format!("in-process transport: {e}"),
+                what: "in-process transport",
+                source: Box::new(e),
             })?;
         let bus = Bus::start(
             Stack::new(),
@@ -56,9 +57,10 @@ impl HttpPlatform {
             Clock::system(),
             BusConfig::default(),
         )
-        .map_err(|e| Error::Unreachable {
+        .map_err(|e| Error::Attach {
             agent: config.platform.clone(),
-            reason: e.to_string(),
+            what: "starting its bus",
+            source: Box::new(e),
         })?;
         let bus = Arc::new(bus);
         let gateway = Gateway::start(config, bus.clone()).await?;
@@ -72,9 +74,10 @@ impl HttpPlatform {
             let aid = gateway.aid(&local);
             pages
                 .host(&mut host, aid, agent)
-                .map_err(|e| Error::Unreachable {
+                .map_err(|e| Error::Attach {
                     agent: local,
-                    reason: e.to_string(),
+                    what: "hosting it on the bus",
+                    source: Box::new(e),
                 })?;
         }
         let stop = Arc::new(AtomicBool::new(false));

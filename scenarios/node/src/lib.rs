@@ -62,6 +62,7 @@ mod runtime;
 pub use config::{
     BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection, MtpSection,
     SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection, WorldSection,
+    millis,
 };
 pub use event::Event;
 pub use runtime::{
@@ -168,14 +169,10 @@ pub enum NodeError {
         #[source]
         source: Cause,
     },
-    /// The control group key file cannot be read or is not 64 hex digits.
-    #[error("control key {path}: {reason}")]
-    ControlKey {
-        /// The file.
-        path: String,
-        /// Why.
-        reason: String,
-    },
+    /// The control group key file cannot be read or is not 64 hex digits (its message names
+    /// the file; its source is the OS's or the hex decoder's error).
+    #[error(transparent)]
+    ControlKey(#[from] iw_stack::GroupKeyError),
     /// A transport address that cannot be derived.
     #[error("transport address `{addr}`: {reason}")]
     Transport {

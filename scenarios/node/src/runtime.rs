@@ -130,10 +130,7 @@ fn load_control_key(path: &str) -> Result<Option<[u8; 32]>, NodeError> {
     }
     iw_stack::read_group_key(Path::new(path))
         .map(Some)
-        .map_err(|e| NodeError::ControlKey {
-            path: e.path,
-            reason: e.reason,
-        })
+        .map_err(NodeError::ControlKey)
 }
 
 /// The deployment's roster from `path`; `None` when none is configured (the weaker mode, said
@@ -362,14 +359,11 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
     let [x, y, heading_deg] = config.body.start;
     let t_world_body = Isometry2::new(Vector2::new(x, y), heading_deg.to_radians());
     let serial = || {
-        SerialBody::open(
-            &config.body.port,
-            config.body.baud,
-            Duration::from_millis(config.body.timeout_ms),
-        )
-        .map_err(|e| NodeError::Body {
-            what: format!("serial port `{}`", config.body.port),
-            source: e.into(),
+        SerialBody::open(&config.body.port, config.body.baud, config.body.timeout).map_err(|e| {
+            NodeError::Body {
+                what: format!("serial port `{}`", config.body.port),
+                source: e.into(),
+            }
         })
     };
     refuse_an_obstructed_start(config, &t_world_body)?;
@@ -391,7 +385,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
                     .map_err(link_err)?,
                 );
             }
-            SharedBody::new(body).outages(Duration::from_millis(config.body.reattach_wait_ms))
+            SharedBody::new(body).outages(config.body.reattach_wait)
         }
         BodyKind::Real | BodyKind::Mixed => {
             let senses = config.body.kind == BodyKind::Mixed;
@@ -753,8 +747,8 @@ impl Runtime {
             .map_or(0, |d| d.as_secs() as u32);
         let container_config = ContainerConfig {
             incarnation,
-            heartbeat_ms: config.container.heartbeat_ms,
-            lease_ms: config.container.lease_ms,
+            heartbeat: config.container.heartbeat,
+            lease: config.container.lease,
             roster,
             ..ContainerConfig::new(ContainerId(id), PeerAddr(control_listen), seeds)
         };
@@ -839,10 +833,10 @@ impl Runtime {
         })
     }
 
-    /// Steps the agents every `container.step_ms` of real time until `stop` is set, then shuts
+    /// Steps the agents every `container.step` of real time until `stop` is set, then shuts
     /// down cleanly. Fails, after shutting down, if another live container holds this one's id.
     pub fn run(mut self, stop: &AtomicBool) -> Result<(), NodeError> {
-        let period = Duration::from_millis(self.config.container.step_ms);
+        let period = self.config.container.step;
         let clock = self.host.bus().clock().clone();
         let mut reported = (iw_bus::Counters::default(), iw_bus::Counters::default());
         let mut next_report = clock.now();
@@ -982,12 +976,12 @@ impl Runtime {
         watch.driving = driving;
     }
 
-    /// World only: reports every body every `services.pose_report_ms`.
+    /// World only: reports every body every `services.pose_report`.
     fn report_bodies(&mut self, now: Time) {
         let Some(reports) = &mut self.world else {
             return;
         };
-        let every = Duration::from_millis(self.config.services.pose_report_ms);
+        let every = self.config.services.pose_report;
         if reports.last.is_some_and(|last| now < last.plus(every)) {
             return;
         }
@@ -1122,7 +1116,7 @@ impl Runtime {
                 round_trip_ms,
             });
         }
-        let every = Duration::from_millis(self.config.services.pose_report_ms);
+        let every = self.config.services.pose_report;
         for (chair, [x_m, y_m, theta_rad]) in &desk.poses {
             let due = services
                 .last_pose_report
@@ -1196,7 +1190,7 @@ impl Runtime {
             }
         }
         if self.services.is_some() {
-            let period = Duration::from_millis(self.config.container.step_ms);
+            let period = self.config.container.step;
             for _ in 0..LOGGER_DRAIN_STEPS {
                 std::thread::sleep(period);
                 self.host.step(clock.now());
@@ -1216,9 +1210,7 @@ impl Runtime {
                 }
             });
             // The leader asks for the new list with its next heartbeat; give it that long.
-            std::thread::sleep(Duration::from_millis(
-                self.config.container.shutdown_grace_ms,
-            ));
+            std::thread::sleep(self.config.container.shutdown_grace);
             container.stop();
         }
         let _ = self.events.send(Event::Stopped {
@@ -1273,11 +1265,12 @@ mod tests {
             );
         }
         let missing = dir.path().join("missing.key");
-        assert!(
-            load_control_key(missing.to_str().unwrap())
-                .unwrap_err()
-                .to_string()
-                .contains("missing.key")
-        );
+        let err = load_control_key(missing.to_str().unwrap()).unwrap_err();
+        assert!(err.to_string().contains("missing.key"), "{err}");
+        // the OS's error is kept under the message
+        let io = std::error::Error::source(&err)
+            .and_then(|s| s.downcast_ref::<std::io::Error>())
+            .unwrap_or_else(|| panic!("no io::Error under `{err}`"));
+        assert_eq!(io.kind(), std::io::ErrorKind::NotFound);
     }
 }

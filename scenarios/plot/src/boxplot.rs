@@ -55,13 +55,11 @@ pub fn plot_boxes(
     panels: &[BoxPanel],
 ) -> Result<(), PlotError> {
     crate::register_fonts();
-    let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
+    let err = |e| PlotError::draw(path, e);
     let width = 500 * panels.len().max(1) as u32;
     let root = BitMapBackend::new(path, (width, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root
-        .titled(title, ("sans-serif", 24))
-        .map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, ("sans-serif", 24)).map_err(err)?;
     for (panel, area) in panels
         .iter()
         .zip(root.split_evenly((1, panels.len().max(1))).iter())
@@ -74,7 +72,7 @@ pub fn plot_boxes(
             .x_label_area_size(35)
             .y_label_area_size(55)
             .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), y_range.clone())
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
         chart
             .configure_mesh()
             .disable_x_mesh()
@@ -90,7 +88,7 @@ pub fn plot_boxes(
             .y_desc(y_label)
             .label_style(("sans-serif", 14))
             .draw()
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
         for (i, series) in panel.boxes.iter().enumerate() {
             let Some([min, q1, median, q3, max]) = five_numbers(&series.values) else {
                 continue;
@@ -103,13 +101,13 @@ pub fn plot_boxes(
                     [(l, q1), (r, q3)],
                     colour.mix(0.25).filled(),
                 )))
-                .map_err(|e| err(&e))?;
+                .map_err(err)?;
             chart
                 .draw_series(std::iter::once(Rectangle::new(
                     [(l, q1), (r, q3)],
                     colour.stroke_width(2),
                 )))
-                .map_err(|e| err(&e))?;
+                .map_err(err)?;
             let lines = [
                 vec![(l, median), (r, median)],
                 vec![(x, q3), (x, max)],
@@ -123,11 +121,11 @@ pub fn plot_boxes(
                         line,
                         colour.stroke_width(2),
                     )))
-                    .map_err(|e| err(&e))?;
+                    .map_err(err)?;
             }
         }
     }
-    root.present().map_err(|e| err(&e))?;
+    root.present().map_err(err)?;
     Ok(())
 }
 

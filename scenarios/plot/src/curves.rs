@@ -37,13 +37,11 @@ pub fn plot_curves(
     panels: &[CurvePanel],
 ) -> Result<(), PlotError> {
     crate::register_fonts();
-    let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
+    let err = |e| PlotError::draw(path, e);
     let rows = panels.len().div_ceil(2).max(1);
     let root = BitMapBackend::new(path, (1200, 450 * rows as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root
-        .titled(title, ("sans-serif", 24))
-        .map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, ("sans-serif", 24)).map_err(err)?;
     let areas = root.split_evenly((rows, 2));
     for (panel, area) in panels.iter().zip(&areas) {
         let points = || panel.curves.iter().flat_map(|c| c.points.iter());
@@ -58,14 +56,14 @@ pub fn plot_curves(
             .x_label_area_size(35)
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..x_max * 1.05, 0.0..y_max * 1.1)
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
         chart
             .configure_mesh()
             .x_desc(x_label)
             .y_desc(&panel.y_label)
             .label_style(("sans-serif", 13))
             .draw()
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
         if let Some((label, target)) = &panel.level {
             let target = *target;
             chart
@@ -75,7 +73,7 @@ pub fn plot_curves(
                     4,
                     ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(2),
                 ))
-                .map_err(|e| err(&e))?
+                .map_err(err)?
                 .label(label.clone())
                 .legend(line_key(RGBColor(120, 120, 120)));
         }
@@ -86,7 +84,7 @@ pub fn plot_curves(
                     curve.points.iter().copied(),
                     colour.stroke_width(2),
                 ))
-                .map_err(|e| err(&e))?
+                .map_err(err)?
                 .label(curve.name.clone())
                 .legend(line_key(colour));
             chart
@@ -96,11 +94,11 @@ pub fn plot_curves(
                         .iter()
                         .map(|&p| Circle::new(p, 4, colour.filled())),
                 )
-                .map_err(|e| err(&e))?;
+                .map_err(err)?;
         }
         draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, path)?;
     }
-    root.present().map_err(|e| err(&e))?;
+    root.present().map_err(err)?;
     Ok(())
 }
 
@@ -125,5 +123,35 @@ mod tests {
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_png_that_cannot_be_written_keeps_plotters_error() {
+        use plotters::drawing::DrawingAreaErrorKind;
+        use plotters::prelude::DrawingBackend;
+        use std::error::Error;
+        type BitmapError = <BitMapBackend<'static> as DrawingBackend>::ErrorType;
+
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("no-such-dir").join("curves.png");
+        let panel = CurvePanel {
+            y_label: "y".into(),
+            curves: vec![Curve {
+                name: "c".into(),
+                points: vec![(1.0, 1.0)],
+            }],
+            level: None,
+        };
+        let err = plot_curves(&path, "t", "x", &[panel]).unwrap_err();
+        let cause = err
+            .source()
+            .and_then(|s| s.downcast_ref::<DrawingAreaErrorKind<BitmapError>>())
+            .unwrap_or_else(|| panic!("no plotters error under `{err}`"));
+        let text = err.to_string();
+        assert!(
+            text.starts_with(&format!("drawing {}: ", path.display()))
+                && text.ends_with(&cause.to_string()),
+            "{text}"
+        );
     }
 }

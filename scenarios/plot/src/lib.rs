@@ -40,6 +40,7 @@ pub(crate) fn draw_legend<'a, DB, CT>(
 ) -> Result<(), PlotError>
 where
     DB: plotters::prelude::DrawingBackend + 'a,
+    DB::ErrorType: 'static,
     CT: plotters::coord::CoordTranslate,
 {
     use plotters::prelude::{BLACK, Color, WHITE};
@@ -66,21 +67,26 @@ pub(crate) fn line_key(
 #[non_exhaustive]
 pub enum PlotError {
     /// The drawing backend failed (usually writing the PNG).
-    #[error("drawing {path}: {message}")]
+    #[error("drawing {path}: {source}")]
     Draw {
         /// Output file.
         path: String,
-        /// Backend message.
-        message: String,
+        /// What plotters said (a `DrawingAreaErrorKind` of the backend's error), kept whole;
+        /// boxed because its type names the backend.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
     },
 }
 
 impl PlotError {
-    /// Wraps any drawing error with the file it was drawing.
-    pub fn draw(path: &std::path::Path, err: impl std::fmt::Display) -> Self {
+    /// Wraps a drawing error with the file it was drawing.
+    pub fn draw(
+        path: &std::path::Path,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
         PlotError::Draw {
             path: path.display().to_string(),
-            message: err.to_string(),
+            source: Box::new(source),
         }
     }
 }

@@ -58,7 +58,7 @@ const COLOURS: [RGBColor; 8] = [
 /// Draws `figure` into a 1200 px wide PNG at `path`, equal scales on both axes.
 pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
     crate::register_fonts();
-    let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
+    let err = |e| PlotError::draw(path, e);
     let all = figure
         .map
         .iter()
@@ -82,14 +82,14 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
     let aspect = (y_range.end - y_range.start) / (x_range.end - x_range.start);
     let height_px = ((width_px as f64 - 90.0) * aspect + 130.0).clamp(300.0, 2400.0) as u32;
     let root = BitMapBackend::new(path, (width_px, height_px)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(err)?;
     let mut chart = ChartBuilder::on(&root)
         .margin(15)
         .caption(&figure.title, ("sans-serif", 24))
         .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(x_range, y_range)
-        .map_err(|e| err(&e))?;
+        .map_err(err)?;
     chart
         .configure_mesh()
         .disable_mesh()
@@ -97,7 +97,7 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
         .y_desc("y (m)")
         .label_style(("sans-serif", 14))
         .draw()
-        .map_err(|e| err(&e))?;
+        .map_err(err)?;
     let furniture = RGBColor(200, 200, 200);
     for outline in &figure.map {
         if outline.filled {
@@ -106,14 +106,14 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
                     outline.points.clone(),
                     furniture.filled(),
                 )))
-                .map_err(|e| err(&e))?;
+                .map_err(err)?;
         } else {
             chart
                 .draw_series(std::iter::once(PathElement::new(
                     outline.points.clone(),
                     BLACK.stroke_width(3),
                 )))
-                .map_err(|e| err(&e))?;
+                .map_err(err)?;
         }
     }
     if !figure.route.is_empty() {
@@ -124,7 +124,7 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
         let grey = RGBColor(150, 150, 150);
         chart
             .draw_series(DashedLineSeries::new(route, 6, 6, grey.stroke_width(2)))
-            .map_err(|e| err(&e))?
+            .map_err(err)?
             .label("circuit")
             .legend(line_key(grey.stroke_width(2)));
     }
@@ -135,7 +135,7 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
                 series.points.iter().copied(),
                 colour.mix(0.85).stroke_width(2),
             ))
-            .map_err(|e| err(&e))?
+            .map_err(err)?
             .label(series.label.clone())
             .legend(line_key(colour.stroke_width(3)));
     }
@@ -147,12 +147,12 @@ pub fn plot_paths(path: &Path, figure: &PathFigure) -> Result<(), PlotError> {
                     .iter()
                     .map(|&p| Cross::new(p, 7, RED.stroke_width(3))),
             )
-            .map_err(|e| err(&e))?
+            .map_err(err)?
             .label(figure.marker_label.clone())
             .legend(|(x, y)| Cross::new((x + 10, y), 6, RED.stroke_width(3)));
     }
     draw_legend(&mut chart, SeriesLabelPosition::UpperRight, path)?;
-    root.present().map_err(|e| err(&e))?;
+    root.present().map_err(err)?;
     Ok(())
 }
 

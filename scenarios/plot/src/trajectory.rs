@@ -42,12 +42,10 @@ pub fn plot_trajectories(
     trajectories: &[Trajectory],
 ) -> Result<(), PlotError> {
     crate::register_fonts();
-    let err = |e: &dyn std::fmt::Display| PlotError::draw(path, e);
+    let err = |e| PlotError::draw(path, e);
     let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root
-        .titled(title, ("sans-serif", 24))
-        .map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, ("sans-serif", 24)).map_err(err)?;
     let panels = root.split_evenly((2, 2));
     let t0 = trajectories
         .iter()
@@ -65,14 +63,14 @@ pub fn plot_trajectories(
             .x_label_area_size(35)
             .y_label_area_size(55)
             .build_cartesian_2d(time_range.clone(), range(all().map(|s| s.1[axis])))
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
         chart
             .configure_mesh()
             .x_desc("time (s)")
             .y_desc(format!("{label} (m)"))
             .label_style(("sans-serif", 13))
             .draw()
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
         for (i, t) in trajectories.iter().enumerate() {
             let colour = COLOURS[i % COLOURS.len()];
             chart
@@ -80,7 +78,7 @@ pub fn plot_trajectories(
                     t.samples.iter().map(|s| (s.0 - t0, s.1[axis])),
                     colour.stroke_width(2),
                 ))
-                .map_err(|e| err(&e))?
+                .map_err(err)?
                 .label(t.name.clone())
                 .legend(line_key(colour.stroke_width(2)));
         }
@@ -98,14 +96,14 @@ pub fn plot_trajectories(
         .x_label_area_size(35)
         .y_label_area_size(55)
         .build_cartesian_2d((mx - half)..(mx + half), (my - half)..(my + half))
-        .map_err(|e| err(&e))?;
+        .map_err(err)?;
     chart
         .configure_mesh()
         .x_desc("x (m)")
         .y_desc("y (m)")
         .label_style(("sans-serif", 13))
         .draw()
-        .map_err(|e| err(&e))?;
+        .map_err(err)?;
     for (i, t) in trajectories.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         chart
@@ -113,9 +111,9 @@ pub fn plot_trajectories(
                 t.samples.iter().map(|s| (s.1[0], s.1[1])),
                 colour.stroke_width(2),
             ))
-            .map_err(|e| err(&e))?;
+            .map_err(err)?;
     }
-    root.present().map_err(|e| err(&e))
+    root.present().map_err(err)
 }
 
 #[cfg(test)]

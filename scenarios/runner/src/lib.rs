@@ -113,15 +113,28 @@ pub enum ScenarioError {
         source: std::io::Error,
     },
     /// A container process misbehaved: it exited, or did not get ready or join in time
-    /// (across processes).
-    #[error("{path}: container `{container}`: {reason}")]
+    /// (across processes). No error value is underneath: what the process said is its stderr.
+    #[error("{path}: container `{container}`: {reason}{}", last_words_text(.last_words))]
     Container {
         /// The scenario file.
         path: String,
         /// The container.
         container: String,
-        /// What happened, with the container's last words.
+        /// What happened.
         reason: String,
+        /// The last lines the container wrote to stderr (empty: none).
+        last_words: String,
+    },
+    /// The board emulator of a real or mixed chair could not be started (across processes).
+    #[error("{path}: container `{container}`: emulating its board: {source}")]
+    Board {
+        /// The scenario file.
+        path: String,
+        /// The chair's container.
+        container: String,
+        /// What the emulator said.
+        #[source]
+        source: iw_body::BodyError,
     },
     /// The logger agent's log could not be read after a run across processes.
     #[error("{path}: the logger agent's log: {source}")]
@@ -131,4 +144,13 @@ pub enum ScenarioError {
         /// What the log reader said.
         source: iw_logger::LogError,
     },
+}
+
+/// `; its last words:` and the lines, when the container wrote any.
+fn last_words_text(lines: &str) -> String {
+    if lines.is_empty() {
+        String::new()
+    } else {
+        format!("; its last words:\n{lines}")
+    }
 }

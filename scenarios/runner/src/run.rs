@@ -1,8 +1,6 @@
 //! In process: the scenario over an [`iw_fleet::Fleet`] in simulated time (mock clock, fixed
 //! step, faster than real time), deterministic.
 
-use std::time::Duration;
-
 use iw_fleet::{ChairConfig, Fleet, FleetError, FleetOptions};
 
 use crate::ScenarioError;
@@ -68,8 +66,8 @@ pub fn run_with_progress(
     };
     let mut fleet =
         Fleet::with_options(map, scenario.seed, &configs, options).map_err(fleet_err(0.0))?;
-    let dt = Duration::from_millis(scenario.step_ms);
-    let steps = (scenario.duration_s * 1000.0 / scenario.step_ms as f64).ceil() as u64;
+    let dt = scenario.step;
+    let steps = (scenario.duration_s * 1000.0 / dt.as_millis() as f64).ceil() as u64;
     let mut timeline = Vec::new();
     let mut seen = Vec::new();
     let mut next = 0;

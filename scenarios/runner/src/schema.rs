@@ -2,6 +2,7 @@
 //! `docs/scenario-format.md`).
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use iw_fleet::BodyKind;
 use iw_sim::Map;
@@ -237,9 +238,9 @@ pub struct Scenario {
     pub seed: u64,
     /// Simulated length, s.
     pub duration_s: f64,
-    /// Fixed step, ms.
-    #[serde(default = "default_step_ms")]
-    pub step_ms: u64,
+    /// Fixed step (key `step_ms`, whole milliseconds).
+    #[serde(rename = "step_ms", default = "default_step", with = "iw_node::millis")]
+    pub step: Duration,
     /// Virtual chairs' perception agents run RGB-D visual odometry on the rendered camera.
     #[serde(default)]
     pub visual_odometry: bool,
@@ -266,8 +267,8 @@ pub struct Scenario {
     pub source: PathBuf,
 }
 
-fn default_step_ms() -> u64 {
-    50
+fn default_step() -> Duration {
+    Duration::from_millis(50)
 }
 
 impl Scenario {

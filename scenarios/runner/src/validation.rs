@@ -1,5 +1,7 @@
 //! Checks a scenario against its map, and against what the mode it runs in can do.
 
+use std::time::Duration;
+
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
 
@@ -58,10 +60,10 @@ impl Scenario {
                 format!("{} is not in (0, 3600] s", self.duration_s),
             ));
         }
-        if self.step_ms == 0 || self.step_ms > 1000 {
+        if self.step.is_zero() || self.step > Duration::from_secs(1) {
             return Err(self.invalid(
                 "step_ms",
-                format!("{} is not in [1, 1000] ms", self.step_ms),
+                format!("{} is not in [1, 1000] ms", self.step.as_millis()),
             ));
         }
         if self.chairs.is_empty() {

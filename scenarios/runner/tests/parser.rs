@@ -108,7 +108,7 @@ prop_compose! {
             map: "maps/sample-building.map".into(),
             seed,
             duration_s,
-            step_ms,
+            step: std::time::Duration::from_millis(step_ms),
             visual_odometry,
             chairs,
             goals: goals.into_iter().map(|(at_s, chair, place, xy)| GoalEntry { at_s, chair, place, xy }).collect(),

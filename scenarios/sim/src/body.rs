@@ -24,8 +24,9 @@ pub(crate) fn lock(world: &SharedWorld) -> MutexGuard<'_, World> {
 }
 
 fn virtual_err(e: crate::SimError) -> BodyError {
-    BodyError::Virtual {
-        reason: e.to_string(),
+    BodyError::World {
+        what: "the simulator",
+        source: Box::new(e),
     }
 }
 

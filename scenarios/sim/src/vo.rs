@@ -100,9 +100,9 @@ impl CameraSource for SimCamera {
         Some(
             self.render()
                 .map(|f| vo_frame(&f))
-                .map_err(|e| VoError::Image {
-                    path: format!("simulated camera of chair {}", self.id.0),
-                    reason: e.to_string(),
+                .map_err(|e| VoError::Camera {
+                    camera: format!("simulated camera of chair {}", self.id.0),
+                    source: Box::new(e),
                 }),
         )
     }

@@ -107,9 +107,9 @@ impl CameraSource for Mirror {
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .place(self.id, pose);
         if let Err(e) = placed {
-            return Some(Err(VoError::Image {
-                path: "mirrored camera".into(),
-                reason: e.to_string(),
+            return Some(Err(VoError::Camera {
+                camera: "mirrored camera".into(),
+                source: Box::new(e),
             }));
         }
         // Stamped with the body's time at that pose (the local world's clock never runs), so

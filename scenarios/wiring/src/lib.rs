@@ -215,10 +215,8 @@ pub fn map_door<'a>(
     ids: &'a BTreeMap<String, String>,
     door: &str,
 ) -> Result<&'a String, ActuatorFault> {
-    ids.get(door).ok_or_else(|| ActuatorFault {
-        door: door.to_string(),
-        reason: "not a door of the map".into(),
-    })
+    ids.get(door)
+        .ok_or_else(|| ActuatorFault::new(door, "not a door of the map"))
 }
 
 /// Which agents of other containers `container` must route to, as (agent, its container):

@@ -39,7 +39,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, Context};
 use iw_body::{BodyError, SONAR_COUNT, SensorFrame, VirtualSensors, WheelSpeeds};
-use iw_bus::{Bus, Mailbox, Time};
+use iw_bus::{Bus, BusError, Mailbox, Time};
 use iw_door::{ActuatorFault, DoorActuator};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::Pose;
@@ -94,8 +94,12 @@ fn pose_of(t_world_body: &Isometry2<f64>) -> Pose {
     }
 }
 
-fn link_err(reason: String) -> BodyError {
-    BodyError::Virtual { reason }
+/// The bus could not carry a message to the world: the bus's error stays the source.
+fn unreachable(e: BusError) -> BodyError {
+    BodyError::World {
+        what: "world unreachable",
+        source: Box::new(e),
+    }
 }
 
 /// One chair's end of the world link: its mailbox, the last frame and the attach state.
@@ -157,7 +161,7 @@ impl WorldLink {
         })
     }
 
-    fn send(&mut self, content: &WorldContent) -> Result<(), String> {
+    fn send(&mut self, content: &WorldContent) -> Result<(), BusError> {
         let world = world_agent();
         let message = content.fill(
             AclMessage::new(Performative::Inform)
@@ -179,7 +183,7 @@ impl WorldLink {
                     tracing::warn!(chair = %self.chair, error = %e, "world unreachable");
                 }
                 self.failing = true;
-                Err(format!("world unreachable: {e}"))
+                Err(e)
             }
         }
     }
@@ -264,10 +268,12 @@ impl WorldLink {
                 Some((_, at)) => format!("for {} ms", now.since(*at).as_millis()),
                 None => "yet".to_string(),
             };
-            return Err(link_err(format!(
-                "no sensor frame from the world {silent}: link down, attaching again every {} ms",
-                ATTACH_EVERY.as_millis()
-            )));
+            return Err(BodyError::Virtual {
+                reason: format!(
+                    "no sensor frame from the world {silent}: link down, attaching again every {} ms",
+                    ATTACH_EVERY.as_millis()
+                ),
+            });
         }
         let (frame, at) = self.latest.as_ref().expect("fresh implies a frame");
         let mut sonar_m = [None; SONAR_COUNT];
@@ -335,7 +341,7 @@ impl iw_body::Body for WorldBody {
             Err(_) if speeds == WheelSpeeds::STOP && !self.0.fresh(self.0.bus.clock().now()) => {
                 Ok(())
             }
-            sent => sent.map_err(link_err),
+            sent => sent.map_err(unreachable),
         }
     }
 }
@@ -377,7 +383,7 @@ impl VirtualSensors for WorldGhost {
             self.link.poll();
             return Ok(SensorFrame::empty(time_ns));
         }
-        sent.map_err(link_err)?;
+        sent.map_err(unreachable)?;
         self.link.frame()
     }
 }
@@ -423,10 +429,7 @@ impl DoorActuator for WorldDoors {
                 iw_acl::codec::print(&message).into_bytes(),
             )
             .map(drop)
-            .map_err(|e| ActuatorFault {
-                door: door.to_string(),
-                reason: format!("world unreachable: {e}"),
-            })
+            .map_err(|e| ActuatorFault::caused(door, "world unreachable", e))
     }
 }
 

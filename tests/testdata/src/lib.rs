@@ -39,3 +39,17 @@ pub fn skip(test: &str, why: &str) {
     use std::io::Write;
     let _ = writeln!(std::io::stderr().lock(), "SKIP {test}: {why}");
 }
+
+/// The cause of `err` as a `T`: its `source()`, downcast. Panics (for tests) when there is
+/// none of that type, or when `err`'s message does not end with the cause's, which the
+/// project's errors say too (`… : <cause>`).
+pub fn cause<'a, T: std::error::Error + 'static>(
+    err: &'a (dyn std::error::Error + 'static),
+) -> &'a T {
+    let cause = err
+        .source()
+        .and_then(|s| s.downcast_ref::<T>())
+        .unwrap_or_else(|| panic!("no {} under `{err}`", std::any::type_name::<T>()));
+    assert!(err.to_string().ends_with(&cause.to_string()), "{err}");
+    cause
+}

@@ -126,7 +126,7 @@ fn config(control_key: Option<&str>, peers: &[String]) -> SpawnConfig {
     }
     c.transport.peers = peers.to_vec();
     // A lease no scheduling stall on a loaded machine outlasts: a `left` here is an attack's.
-    c.container.lease_ms = 3000;
+    c.container.lease = Duration::from_millis(3000);
     c
 }
 

@@ -35,13 +35,32 @@ pub enum VoError {
         #[source]
         source: std::io::Error,
     },
-    /// An image could not be decoded or has the wrong pixel format or size.
+    /// An image has the wrong pixel format or size.
     #[error("image {path}: {reason}")]
     Image {
         /// Image file.
         path: String,
-        /// Decoder message or format mismatch (e.g. "depth must be 16-bit grey, got Rgb8").
+        /// The mismatch (e.g. "depth must be 16-bit grey, got Rgb8").
         reason: String,
+    },
+    /// An image file could not be decoded.
+    #[error("image {path}: {source}")]
+    Decode {
+        /// Image file.
+        path: String,
+        /// What the decoder said.
+        #[source]
+        source: image::ImageError,
+    },
+    /// A camera that is not a file (the simulator's, a mirrored one) could not give a frame.
+    /// Its error is kept whole; this crate does not know its type (the simulator sits above).
+    #[error("camera {camera}: {source}")]
+    Camera {
+        /// Which camera, e.g. `simulated camera of chair 0`.
+        camera: String,
+        /// What it said.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
     },
     /// rgb.txt and depth.txt have no pair of timestamps closer than the limit.
     #[error("{dir}: no rgb/depth pair is closer than {max_dt_s} s (check rgb.txt and depth.txt)")]
@@ -66,10 +85,11 @@ pub enum VoError {
         needed: usize,
     },
     /// The feature detector refused its configuration.
-    #[error("feature detector: {reason}")]
+    #[error("feature detector: {source}")]
     Detector {
-        /// The detector's message.
-        reason: String,
+        /// What the detector said.
+        #[from]
+        source: iw_features::FeatureError,
     },
     /// Two trajectories share no timestamps within the association limit.
     #[error(

@@ -233,16 +233,11 @@ impl VisualOdometry {
 
     fn observe(&mut self, frame: &RgbdFrame, stats: &mut FrameStats) -> Result<Observed, VoError> {
         let started = Instant::now();
-        let features = self
-            .detector
-            .detect(
-                self.config.detector,
-                &frame.rgb,
-                &self.config.detector_config,
-            )
-            .map_err(|e| VoError::Detector {
-                reason: e.to_string(),
-            })?;
+        let features = self.detector.detect(
+            self.config.detector,
+            &frame.rgb,
+            &self.config.detector_config,
+        )?;
         stats.detect_ms = started.elapsed().as_secs_f64() * 1e3;
         let k = &self.intrinsics;
         let normalised: Vec<Point2<f64>> = features

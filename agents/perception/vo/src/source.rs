@@ -50,9 +50,9 @@ pub fn load_pair(pair: &FramePair) -> Result<RgbdFrame, VoError> {
             .with_guessed_format()
             .map_err(|e| VoError::io(path, e))?
             .decode()
-            .map_err(|e| VoError::Image {
+            .map_err(|source| VoError::Decode {
                 path: path.display().to_string(),
-                reason: e.to_string(),
+                source,
             })
     };
     let rgb = open(&pair.rgb)?.into_rgb8();

@@ -9,51 +9,82 @@ use ring::rand::{SecureRandom, SystemRandom};
 
 /// A group key file that cannot be written or read, or does not hold a key.
 #[derive(Debug, thiserror::Error)]
-#[error("control key {path}: {reason}")]
-pub struct GroupKeyError {
-    /// The file.
-    pub path: String,
-    /// Why.
-    pub reason: String,
+#[non_exhaustive]
+pub enum GroupKeyError {
+    /// The file holds no key (too long, too short), or no random key could be drawn.
+    #[error("control key {path}: {reason}")]
+    Invalid {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+    /// The file could not be written, read or synced.
+    #[error("control key {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What the system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// 64 characters, but not hex digits.
+    #[error("control key {path}: not 64 hex digits: {source}")]
+    Hex {
+        /// The file.
+        path: String,
+        /// What the hex decoder said.
+        #[source]
+        source: hex::FromHexError,
+    },
 }
 
 /// Writes a fresh random group key to `path` (mode 0600, fsynced); refuses to overwrite a file.
 pub fn write_group_key(path: &Path) -> Result<(), GroupKeyError> {
     use std::io::Write;
-    let bad = |reason: String| GroupKeyError {
-        path: path.display().to_string(),
-        reason,
+    let file_name = || path.display().to_string();
+    let io = |source| GroupKeyError::Io {
+        path: file_name(),
+        source,
     };
     let mut key: PreSharedKey = [0; 32];
     SystemRandom::new()
         .fill(&mut key)
-        .map_err(|_| bad("the system random number generator failed".into()))?;
+        .map_err(|_| GroupKeyError::Invalid {
+            path: file_name(),
+            reason: "the system random number generator failed".into(),
+        })?;
     let mut text = hex::encode(key);
     text.push('\n');
     let mut options = std::fs::OpenOptions::new();
     options.write(true).create_new(true);
     #[cfg(unix)]
     std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-    let mut file = options.open(path).map_err(|e| bad(e.to_string()))?;
+    let mut file = options.open(path).map_err(io)?;
     file.write_all(text.as_bytes())
         .and_then(|()| file.sync_all())
-        .map_err(|e| bad(e.to_string()))
+        .map_err(io)
 }
 
 /// Reads the group key in `path`: 64 hex digits, surrounding white space ignored.
 pub fn read_group_key(path: &Path) -> Result<PreSharedKey, GroupKeyError> {
-    let bad = |reason: String| GroupKeyError {
-        path: path.display().to_string(),
+    let file_name = || path.display().to_string();
+    let io = |source| GroupKeyError::Io {
+        path: file_name(),
+        source,
+    };
+    let bad = |reason: String| GroupKeyError::Invalid {
+        path: file_name(),
         reason,
     };
-    let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
+    let meta = std::fs::metadata(path).map_err(io)?;
     if meta.len() > 1024 {
         return Err(bad(format!(
             "{} bytes; a key file holds 64 hex digits",
             meta.len()
         )));
     }
-    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+    let text = std::fs::read_to_string(path).map_err(io)?;
     let digits = text.trim();
     if digits.len() != 64 {
         return Err(bad(format!(
@@ -61,7 +92,10 @@ pub fn read_group_key(path: &Path) -> Result<PreSharedKey, GroupKeyError> {
             digits.chars().count()
         )));
     }
-    PreSharedKey::from_hex(digits).map_err(|e| bad(format!("not 64 hex digits: {e}")))
+    PreSharedKey::from_hex(digits).map_err(|source| GroupKeyError::Hex {
+        path: file_name(),
+        source,
+    })
 }
 
 #[cfg(test)]
@@ -81,11 +115,28 @@ mod tests {
             let mode = std::fs::metadata(&path).unwrap().permissions().mode();
             assert_eq!(mode & 0o777, 0o600);
         }
-        let err = write_group_key(&path).unwrap_err().to_string();
-        assert!(err.contains("control.key"), "{err}");
+        let err = write_group_key(&path).unwrap_err();
+        assert!(err.to_string().contains("control.key"), "{err}");
+        // the OS's refusal is kept, not only its text
+        let io = std::error::Error::source(&err)
+            .and_then(|s| s.downcast_ref::<std::io::Error>())
+            .unwrap_or_else(|| panic!("no io::Error under `{err}`"));
+        assert_eq!(io.kind(), std::io::ErrorKind::AlreadyExists);
         assert_eq!(read_group_key(&path).unwrap(), key, "unchanged");
         let other = dir.path().join("other.key");
         write_group_key(&other).unwrap();
         assert_ne!(read_group_key(&other).unwrap(), key);
+    }
+
+    #[test]
+    fn a_key_of_64_non_hex_characters_keeps_the_hex_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("control.key");
+        std::fs::write(&path, "z".repeat(64)).unwrap();
+        let err = read_group_key(&path).unwrap_err();
+        let hex = std::error::Error::source(&err)
+            .and_then(|s| s.downcast_ref::<hex::FromHexError>())
+            .unwrap_or_else(|| panic!("no hex error under `{err}`"));
+        assert!(err.to_string().ends_with(&hex.to_string()), "{err}");
     }
 }

@@ -100,9 +100,8 @@ impl FrameTransport for GuardedTransport {
                 Verdict::Pass => env,
                 // Nothing is held back in pre-shared-key mode; a refusal is a layer failure.
                 Verdict::Drop(_) | Verdict::Consumed => {
-                    return Err(TransportError::Middleware {
+                    return Err(TransportError::Refused {
                         context: format!("guarding a control frame for {to}"),
-                        message: "refused by the layers".into(),
                     });
                 }
             }
@@ -112,7 +111,7 @@ impl FrameTransport for GuardedTransport {
             .encode_to_vec(&sealed)
             .map_err(|e| TransportError::Middleware {
                 context: format!("encoding a control frame for {to}"),
-                message: e.to_string(),
+                source: Box::new(e),
             })?;
         self.inner.send(to, &bytes)
     }

@@ -109,7 +109,7 @@ impl PrintOptions {
 pub(crate) fn decode_base64(text: &str) -> Result<Vec<u8>, Error> {
     STANDARD
         .decode(text.trim())
-        .map_err(|err| base64_error(&err, text))
+        .map_err(|err| base64_error(err, text))
 }
 
 /// Whether [`decode_base64`] would succeed, with its error if not; up to 1 KiB of decoded
@@ -123,14 +123,14 @@ pub(crate) fn check_base64(text: &str) -> Result<(), Error> {
     }
     match STANDARD.decode_slice(trimmed, &mut buffer) {
         Ok(_) => Ok(()),
-        Err(DecodeSliceError::DecodeError(err)) => Err(base64_error(&err, text)),
+        Err(DecodeSliceError::DecodeError(err)) => Err(base64_error(err, text)),
         Err(DecodeSliceError::OutputSliceTooSmall) => decode_base64(text).map(drop),
     }
 }
 
-fn base64_error(err: &base64::DecodeError, text: &str) -> Error {
+fn base64_error(source: base64::DecodeError, text: &str) -> Error {
     Error::InvalidBase64 {
-        reason: err.to_string(),
+        source,
         start: text.chars().take(24).collect(),
     }
 }

@@ -386,13 +386,13 @@ impl<'a> Parser<'a> {
         }
     }
 
-    fn invalid_value(&self, token: &Token<'_>, param: &str, reason: String) -> Error {
+    fn invalid_value(&self, token: &Token<'_>, param: &str, source: Error) -> Error {
         let (line, column) = self.position(token.start);
         Error::InvalidValue {
             line,
             column,
             param: param.to_owned(),
-            reason,
+            source: Box::new(source),
         }
     }
 
@@ -640,7 +640,7 @@ impl<'a> Parser<'a> {
                     let text = self.text_value(&value)?.into_cow();
                     let deadline = text
                         .parse::<FipaDateTime>()
-                        .map_err(|err| self.invalid_value(&value, name, err.to_string()))?;
+                        .map_err(|err| self.invalid_value(&value, name, err))?;
                     builder.reply_by(&mut message, deadline);
                 }
                 Param::Language
@@ -666,7 +666,7 @@ impl<'a> Parser<'a> {
             if let Some((token, text)) = text_content {
                 builder
                     .base64_content(&mut message, text)
-                    .map_err(|err| self.invalid_value(&token, "content", err.to_string()))?;
+                    .map_err(|err| self.invalid_value(&token, "content", err))?;
             }
         }
         Ok(message)
@@ -1100,6 +1100,22 @@ mod tests {
             parse("(INFORM :X-JADE-Encoding Base64 :content \"***\")"),
             Err(Error::InvalidValue { .. })
         ));
+    }
+
+    #[test]
+    fn a_value_that_does_not_decode_keeps_the_decoders_error() {
+        use std::error::Error as _;
+        let err = parse("(INFORM :X-JADE-Encoding Base64 :content \"***\")").unwrap_err();
+        let inner = err
+            .source()
+            .and_then(|s| s.downcast_ref::<Box<Error>>())
+            .unwrap_or_else(|| panic!("no value error under `{err}`"));
+        assert!(matches!(**inner, Error::InvalidBase64 { .. }), "{inner}");
+        let base64 = inner
+            .source()
+            .and_then(|s| s.downcast_ref::<base64::DecodeError>())
+            .unwrap_or_else(|| panic!("no Base64 error under `{inner}`"));
+        assert!(err.to_string().contains(&base64.to_string()), "{err}");
     }
 
     #[test]

@@ -346,7 +346,7 @@ type Curve = (&'static str, RGBColor, Vec<(f64, f64)>);
 
 fn plot_errors(path: &Path, drive: &crate::Drive) -> Result<(), ExperimentError> {
     iw_plot::register_fonts();
-    let err = |e: &dyn std::fmt::Display| iw_plot::PlotError::draw(path, e);
+    let err = |e| iw_plot::PlotError::draw(path, e);
     let error =
         |a: &iw_vo::Pose2, b: &iw_vo::Pose2| ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt();
     let mut curves: Vec<Curve> = vec![
@@ -371,7 +371,7 @@ fn plot_errors(path: &Path, drive: &crate::Drive) -> Result<(), ExperimentError>
         .map_or(1.0, |s| s.time_s / 60.0)
         .max(1e-3);
     let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(err)?;
     let (upper, lower) = root.split_vertically(400);
     for (area, log, title) in [
         (&upper, false, "position error, all estimators (m)"),
@@ -395,7 +395,7 @@ fn plot_errors(path: &Path, drive: &crate::Drive) -> Result<(), ExperimentError>
                     .configure_mesh()
                     .x_desc("time (min)")
                     .draw()
-                    .map_err(|e| err(&e))?;
+                    .map_err(err)?;
                 for (label, colour, points) in &curves {
                     let colour = *colour;
                     chart
@@ -403,7 +403,7 @@ fn plot_errors(path: &Path, drive: &crate::Drive) -> Result<(), ExperimentError>
                             points.iter().map(|&(t, e)| (t, e.max(1e-4))),
                             colour.stroke_width(2),
                         ))
-                        .map_err(|e| err(&e))?
+                        .map_err(err)?
                         .label(*label)
                         .legend(move |(x, y)| {
                             PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
@@ -415,23 +415,23 @@ fn plot_errors(path: &Path, drive: &crate::Drive) -> Result<(), ExperimentError>
                     .border_style(BLACK)
                     .position(SeriesLabelPosition::UpperLeft)
                     .draw()
-                    .map_err(|e| err(&e))?;
+                    .map_err(err)?;
             }};
         }
         if log {
             draw!(
                 builder
                     .build_cartesian_2d(0.0..t_max, (1e-3..y_max).log_scale())
-                    .map_err(|e| err(&e))?
+                    .map_err(err)?
             );
         } else {
             draw!(
                 builder
                     .build_cartesian_2d(0.0..t_max, 0.0..y_max)
-                    .map_err(|e| err(&e))?
+                    .map_err(err)?
             );
         }
     }
-    root.present().map_err(|e| err(&e))?;
+    root.present().map_err(err)?;
     Ok(())
 }

@@ -380,7 +380,7 @@ pub(crate) fn bar_chart(
     series: &[(String, Vec<f64>)],
 ) -> Result<(), ExperimentError> {
     iw_plot::register_fonts();
-    let err = |e: &dyn std::fmt::Display| iw_plot::PlotError::draw(path, e);
+    let err = |e| iw_plot::PlotError::draw(path, e);
     let colours = [
         RED,
         BLUE,
@@ -397,14 +397,14 @@ pub(crate) fn bar_chart(
         .fold(0.0, f64::max)
         .max(1.0);
     let root = BitMapBackend::new(path, (1100, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(err)?;
     let mut chart = ChartBuilder::on(&root)
         .margin(15)
         .caption(caption, ("sans-serif", 18))
         .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(0.0..categories.len().max(1) as f64, 0.0..top * 1.15)
-        .map_err(|e| err(&e))?;
+        .map_err(err)?;
     chart
         .configure_mesh()
         .disable_x_mesh()
@@ -421,7 +421,7 @@ pub(crate) fn bar_chart(
         })
         .label_style(("sans-serif", 13))
         .draw()
-        .map_err(|e| err(&e))?;
+        .map_err(err)?;
     let width = 0.8 / series.len().max(1) as f64;
     for (k, (label, values)) in series.iter().enumerate() {
         let colour = colours[k % colours.len()];
@@ -430,7 +430,7 @@ pub(crate) fn bar_chart(
                 let x0 = d as f64 + 0.1 + width * k as f64;
                 Rectangle::new([(x0, 0.0), (x0 + width * 0.9, c)], colour.filled())
             }))
-            .map_err(|e| err(&e))?
+            .map_err(err)?
             .label(label.clone())
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], colour.filled()));
     }
@@ -440,7 +440,7 @@ pub(crate) fn bar_chart(
         .border_style(BLACK)
         .label_font(("sans-serif", 13))
         .draw()
-        .map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))?;
+        .map_err(err)?;
+    root.present().map_err(err)?;
     Ok(())
 }

@@ -119,7 +119,7 @@ impl Deployment<'_> {
     }
 
     fn failed(&self, container: &str, reason: impl Into<String>) -> ScenarioError {
-        let stderr = self
+        let last_words = self
             .containers
             .iter()
             .find(|c| c.name == container)
@@ -132,11 +132,8 @@ impl Deployment<'_> {
         ScenarioError::Container {
             path: self.path(),
             container: container.into(),
-            reason: if stderr.is_empty() {
-                reason.into()
-            } else {
-                format!("{}; its last words:\n{stderr}", reason.into())
-            },
+            reason: reason.into(),
+            last_words,
         }
     }
 
@@ -549,7 +546,11 @@ pub fn run_processes(
                 iw_fleet::compose::CONTROL_PERIOD,
                 Some(BOARD_WATCHDOG),
             )
-            .map_err(|e| d.failed(&c.name, format!("emulating its board: {e}")))?;
+            .map_err(|source| ScenarioError::Board {
+                path: d.path(),
+                container: c.name.clone(),
+                source,
+            })?;
             let kind = if c.body == BodyKind::Mixed {
                 "mixed"
             } else {
@@ -606,7 +607,7 @@ pub fn run_processes(
     let mut seen = Vec::new();
     let first_event = d.events.len();
     let duration = Duration::from_secs_f64(scenario.duration_s);
-    let steps = (scenario.duration_s * 1000.0 / scenario.step_ms as f64).ceil() as u64;
+    let steps = (scenario.duration_s * 1000.0 / scenario.step.as_millis() as f64).ceil() as u64;
     let mut next = 0;
     loop {
         let now_s = t0.elapsed().as_secs_f64();
@@ -673,7 +674,7 @@ pub fn run_processes(
         }
         let elapsed = t0.elapsed();
         progress(
-            (elapsed.as_secs_f64() * 1000.0 / scenario.step_ms as f64) as u64,
+            (elapsed.as_millis() / scenario.step.as_millis().max(1)) as u64,
             steps,
         );
         if elapsed >= duration {
