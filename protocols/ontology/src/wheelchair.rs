@@ -370,6 +370,40 @@ word_enum! {
     }
 }
 
+/// A goal a chair's cognitive agent is carrying out, as it answers a query for its current
+/// goal: where to, and the conversation it will answer (who asked, under which id), so that
+/// whoever asks can tell a goal it follows from one nobody follows any more.
+///
+/// SL: `(goal :place P :requester (agent-identifier ...) :conversation "id")`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GoalInFlight {
+    /// The place of the map the chair is going to.
+    pub place: String,
+    /// Who gave the goal: the agent the outcome is answered to.
+    pub requester: AgentId,
+    /// The conversation the outcome is answered in.
+    pub conversation: String,
+}
+
+impl Concept for GoalInFlight {
+    fn to_term(&self) -> Term {
+        FrameBuilder::new("goal")
+            .text("place", Some(&self.place))
+            .term("requester", self.requester.to_term())
+            .text("conversation", Some(&self.conversation))
+            .build()
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        let f = Frame::read(term, "goal")?;
+        Ok(Self {
+            place: f.required_text("place")?,
+            requester: AgentId::from_term(f.require("requester")?)?,
+            conversation: f.required_text("conversation")?,
+        })
+    }
+}
+
 /// Facts agents inform each other of.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -418,6 +452,15 @@ pub enum Fact {
         /// The reason, for a person to read.
         reason: String,
     },
+    /// `(current-goal agent (set (goal ...)))`: the goal `agent` (a chair's cognitive agent) is
+    /// carrying out; the set is empty when it has none. The answer to
+    /// [`WheelchairContent::GoalQuery`].
+    CurrentGoal {
+        /// The cognitive agent.
+        agent: AgentId,
+        /// Its goal under way, if any.
+        goal: Option<GoalInFlight>,
+    },
 }
 
 impl Fact {
@@ -429,6 +472,13 @@ impl Fact {
             Self::Reading { agent, reading } => {
                 ("sensor-reading", vec![agent.to_term(), reading.to_term()])
             }
+            Self::CurrentGoal { agent, goal } => (
+                "current-goal",
+                vec![
+                    agent.to_term(),
+                    Term::set(goal.iter().map(Concept::to_term).collect()),
+                ],
+            ),
             Self::Door { door, state } => (
                 "door-state",
                 vec![Term::string(door.as_str()), Term::string(state.name())],
@@ -458,7 +508,8 @@ impl Fact {
     fn from_formula(formula: &Formula) -> Result<Self, OntologyError> {
         let bad = || OntologyError::UnexpectedTerm {
             expected: "(at-pose agent pose), (sensor-reading agent reading), (door-state door state), \
-                       (drive-applied agent (drive ...)), (error-message reason) or (body-fault reason)",
+                       (drive-applied agent (drive ...)), (current-goal agent (set goal...)), \
+                       (error-message reason) or (body-fault reason)",
             found: formula.to_string(),
         };
         let Formula::Atomic { predicate, args } = formula else {
@@ -490,6 +541,24 @@ impl Fact {
                 agent: AgentId::from_term(first)?,
                 reading: SensorReading::from_term(second)?,
             }),
+            "current-goal" => {
+                let goals = match second.collection() {
+                    Some((_, [])) => None,
+                    Some((_, [goal])) => Some(GoalInFlight::from_term(goal)?),
+                    _ => {
+                        return Err(OntologyError::BadValue {
+                            concept: "current-goal",
+                            slot: "goal",
+                            value: shown(second),
+                            reason: "expected a set of at most one goal",
+                        });
+                    }
+                };
+                Ok(Self::CurrentGoal {
+                    agent: AgentId::from_term(first)?,
+                    goal: goals,
+                })
+            }
             "drive-applied" => match WheelchairAction::from_term(second)? {
                 WheelchairAction::Drive {
                     linear_mps,
@@ -536,6 +605,12 @@ pub enum WheelchairContent {
     },
     /// INFORM: `(fact)`.
     Inform(Fact),
+    /// QUERY-REF for the goal `agent` (a chair's cognitive agent) is carrying out:
+    /// `((current-goal agent ?goal))`, answered INFORM [`Fact::CurrentGoal`].
+    GoalQuery {
+        /// The cognitive agent asked.
+        agent: AgentId,
+    },
 }
 
 impl WheelchairContent {
@@ -580,6 +655,10 @@ impl WheelchairContent {
                 condition: None,
             }),
             Self::Inform(fact) => Content::single(fact.to_formula()),
+            Self::GoalQuery { agent } => Content::single(Formula::Atomic {
+                predicate: "current-goal".into(),
+                args: vec![agent.to_term(), Term::variable(GOAL_VARIABLE)],
+            }),
         }
     }
 
@@ -616,15 +695,28 @@ impl WheelchairContent {
                 }
                 ActionOperand::Meta(_) => Err(unexpected(content)),
             },
+            [
+                ContentExpression::Formula(Formula::Atomic { predicate, args }),
+            ] if predicate.eq_ignore_ascii_case("current-goal")
+                && matches!(args.as_slice(), [_, Term::Variable { .. }]) =>
+            {
+                Ok(Self::GoalQuery {
+                    agent: AgentId::from_term(&args[0])?,
+                })
+            }
             [ContentExpression::Formula(f)] => Fact::from_formula(f).map(Self::Inform),
             _ => Err(unexpected(content)),
         }
     }
 }
 
+/// The variable a [`WheelchairContent::GoalQuery`] asks for.
+const GOAL_VARIABLE: &str = "goal";
+
 fn unexpected(content: &Content) -> OntologyError {
     OntologyError::UnexpectedContent {
-        expected: "((action actor act)), ((done (action actor act))) or a wheelchair fact",
+        expected: "((action actor act)), ((done (action actor act))), ((current-goal agent ?goal)) \
+                   or a wheelchair fact",
         found: content.to_string(),
     }
 }

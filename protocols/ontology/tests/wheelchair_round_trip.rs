@@ -3,7 +3,7 @@
 
 use iw_acl::AgentId;
 use iw_ontology::wheelchair::{
-    DoorState, Fact, Pose, SensorReading, WheelchairAction, WheelchairContent,
+    DoorState, Fact, GoalInFlight, Pose, SensorReading, WheelchairAction, WheelchairContent,
 };
 use iw_ontology::{Concept, OntologyError};
 use nalgebra::Matrix3;
@@ -108,6 +108,16 @@ fn fact() -> impl Strategy<Value = Fact> {
                 angular_radps,
             }
         }),
+        (agent(), prop::option::of((name(), agent(), name()))).prop_map(|(agent, goal)| {
+            Fact::CurrentGoal {
+                agent,
+                goal: goal.map(|(place, requester, conversation)| GoalInFlight {
+                    place,
+                    requester,
+                    conversation,
+                }),
+            }
+        }),
     ]
 }
 
@@ -117,6 +127,7 @@ fn content() -> impl Strategy<Value = WheelchairContent> {
             .prop_map(|(actor, action)| WheelchairContent::Request { actor, action }),
         (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Done { actor, action }),
         fact().prop_map(WheelchairContent::Inform),
+        agent().prop_map(|agent| WheelchairContent::GoalQuery { agent }),
     ]
 }
 
@@ -293,6 +304,48 @@ fn facts_read_as_documented() {
     assert!(
         (p.x - (1.0 + 0.5f64.cos())).abs() < 1e-12 && (p.y - (-2.5 + 0.5f64.sin())).abs() < 1e-12
     );
+}
+
+/// A chair's cognitive agent is asked for its goal with a QUERY-REF and answers the goal it
+/// carries out (or an empty set), all in SL0 as the door agent's query is.
+#[test]
+fn goal_queries_and_answers_read_as_documented() {
+    let cognitive = AgentId::new("cognitive@chair-a");
+    let query = WheelchairContent::GoalQuery {
+        agent: cognitive.clone(),
+    };
+    let text = query.to_content().to_string();
+    assert_eq!(
+        text,
+        "((current-goal (agent-identifier :name cognitive@chair-a) ?goal))"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(query));
+    let busy = WheelchairContent::Inform(Fact::CurrentGoal {
+        agent: cognitive.clone(),
+        goal: Some(GoalInFlight {
+            place: "dining-hall".into(),
+            requester: AgentId::new("assistant@services"),
+            conversation: "assistant@services-c2".into(),
+        }),
+    });
+    let text = busy.to_content().to_string();
+    assert_eq!(
+        text,
+        "((current-goal (agent-identifier :name cognitive@chair-a) (set (goal :place \
+         dining-hall :requester (agent-identifier :name assistant@services) :conversation \
+         assistant@services-c2))))"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(busy));
+    let idle = WheelchairContent::Inform(Fact::CurrentGoal {
+        agent: cognitive,
+        goal: None,
+    });
+    assert_eq!(WheelchairContent::parse(&idle.to_content().to_string()), Ok(idle));
+    let two = "((current-goal (agent-identifier :name c@P) (set (goal :place a :requester \
+               (agent-identifier :name r@P) :conversation x) (goal :place b :requester \
+               (agent-identifier :name r@P) :conversation y))))";
+    let e = WheelchairContent::parse(two).unwrap_err().to_string();
+    assert!(e.contains("at most one goal"), "{e}");
 }
 
 #[test]
