@@ -9,6 +9,11 @@
 //!   interface or assistant agent. Answer: AGREE (REFUSE for a place not on the map), then INFORM
 //!   `((done (action ME (go-to :place P))))` on arrival or FAILURE `((error-message "..."))` when
 //!   no route is left. A newer goal replaces the running one (the old one gets FAILURE).
+//! - Understood: QUERY-REF `((current-goal ME ?goal))` (`fipa-query`) from anyone. Answer: INFORM
+//!   `((current-goal ME (set (goal :place P :requester R :conversation C))))`, the goal under way
+//!   and the conversation it will be answered in, or an empty set when there is none; a query
+//!   about another agent is refused. The services ask this when a chair joins them, so a goal
+//!   whose requester they no longer know (they restarted) is given again or failed, not lost.
 //! - Understood: INFORM `((at-pose agent (pose ...)))` from the perception agent, subscribed at
 //!   setup with SUBSCRIBE `((at-pose ?agent ?pose))` (`fipa-subscribe`) when
 //!   [`CognitiveConfig::perception`] is set.
@@ -43,7 +48,7 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, GoalInFlight, WheelchairAction, WheelchairContent};
 use nalgebra::Point2;
 
 use crate::passage::{Leg, NarrowPassage, legs, touched};
@@ -691,6 +696,43 @@ impl CognitiveAgent {
         self.replan(ctx);
     }
 
+    /// Answers a query for the goal under way (its place, requester and conversation).
+    fn on_query(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
+        let agent = match WheelchairContent::from_message(message) {
+            Ok(WheelchairContent::GoalQuery { agent }) => agent,
+            Ok(_) => {
+                let _ = ctx.refuse(message, "the cognitive agent answers queries for its goal");
+                return;
+            }
+            Err(err) => {
+                let _ = ctx.not_understood(message, &err.to_string());
+                return;
+            }
+        };
+        let Some(mut query) = ctx.accept(message) else {
+            return;
+        };
+        if agent.name != ctx.name() {
+            let why = format!("{} knows its own goal only, not {}'s", ctx.name(), agent.name);
+            let _ = ctx.answer_error(&mut query, Performative::Refuse, &why);
+            return;
+        }
+        let goal = self.goal.as_ref().and_then(|g| {
+            Some(GoalInFlight {
+                place: g.place.clone(),
+                requester: g.responder.initiator()?.clone(),
+                conversation: g.responder.conversation_id().to_string(),
+            })
+        });
+        let answer = WheelchairContent::Inform(Fact::CurrentGoal {
+            agent: ctx.aid().clone(),
+            goal,
+        });
+        if let Err(err) = ctx.answer(&mut query, Performative::Inform, &answer) {
+            tracing::warn!(chair = %self.config.chair, error = %err, "could not answer a goal query");
+        }
+    }
+
     fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let performative = message.performative;
@@ -887,11 +929,12 @@ impl Agent for CognitiveAgent {
                     let _ = ctx.not_understood(&message, &err.to_string());
                 }
             },
+            Performative::QueryRef => self.on_query(ctx, &message),
             act if answers_a_conversation(act) => self.on_answer(ctx, &message),
             _ => {
                 let _ = ctx.not_understood(
                     &message,
-                    "the cognitive agent takes go-to requests, poses and answers",
+                    "the cognitive agent takes go-to requests, goal queries, poses and answers",
                 );
             }
         }
