@@ -37,10 +37,7 @@ fn a_goal_the_services_did_not_follow_ends_reached_or_failed_with_a_reason_after
             "[services]\nchairs = [\"chair-g\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"
         ),
     );
-    let services_launch = net
-        .services()
-        .key(&net.key("services"))
-        .config(&config);
+    let services_launch = net.services().key(&net.key("services")).config(&config);
     let mut services = services_launch.spawn();
     let serving = services.wait_for("the HTTP MTP served", |e| {
         is(e, "serving", "service", "mtp-http")
@@ -57,13 +54,25 @@ fn a_goal_the_services_did_not_follow_ends_reached_or_failed_with_a_reason_after
     // The foreign goal: the services forward it but follow no conversation of theirs for it.
     let _peer = Peer(
         Command::new(env!("CARGO_BIN_EXE_intellwheels"))
-            .args(["acl", "send", "--to", "assistant@services", "--address", &url])
+            .args([
+                "acl",
+                "send",
+                "--to",
+                "assistant@services",
+                "--address",
+                &url,
+            ])
             .args(["--performative", "request", "--protocol", "fipa-request"])
             .args([
                 "--content",
                 "((action (agent-identifier :name chair-g) (go-to :place dining-hall)))",
             ])
-            .args(["--language", "fipa-sl0", "--ontology", "IntellWheels-Wheelchair"])
+            .args([
+                "--language",
+                "fipa-sl0",
+                "--ontology",
+                "IntellWheels-Wheelchair",
+            ])
             .args(["--timeout", "300"])
             .stdout(Stdio::null())
             .spawn()
@@ -75,7 +84,10 @@ fn a_goal_the_services_did_not_follow_ends_reached_or_failed_with_a_reason_after
     });
     services.drain();
     assert!(
-        !services.seen.iter().any(|e| is(e, "goal", "chair", "chair-g")),
+        !services
+            .seen
+            .iter()
+            .any(|e| is(e, "goal", "chair", "chair-g")),
         "the services were to know nothing of the foreign goal: {:?}",
         services.seen
     );
@@ -86,43 +98,57 @@ fn a_goal_the_services_did_not_follow_ends_reached_or_failed_with_a_reason_after
         is(e, "joined", "agent", "cognitive@chair-g")
     });
 
-    // The restarted services learn the goal from the chair: its old conversation is reported
-    // failed with the reason and who gave it, and the goal is given again.
+    // The restarted services learn the goal from the chair, with who gave it: either it is
+    // still under way (its old conversation is reported failed with the reason and the goal is
+    // given again), or it ended while they could not hear it (reported with its outcome; the
+    // chair's world link can drop while its lists follow the new services).
     let learned = services.wait_for("the goal in flight learned from chair-g", |e| {
         is(e, "goal", "chair", "chair-g") && e["requester"].is_string()
     });
     let learned_s = killed.elapsed().as_secs_f64();
-    assert_eq!(learned["performative"], "FAILURE", "{learned}");
     assert_eq!(learned["place"], "dining-hall", "{learned}");
     assert_eq!(learned["requester"], "assistant@services", "{learned}");
-    let why = learned["reason"].as_str().unwrap_or_default();
-    assert!(
-        why.contains("chair-g was going to dining-hall") && why.contains("given again"),
-        "{learned}"
-    );
-    // And it ends: reached, or failed with a reason, in the services' events.
-    let end = services.wait_for("the goal's end", |e| {
-        is(e, "goal", "chair", "chair-g")
-            && e["requester"].is_null()
-            && e["performative"] != "AGREE"
-    });
-    let end_s = killed.elapsed().as_secs_f64();
     let reason = |e: &Value| e["reason"].as_str().unwrap_or_default().to_string();
+    let given_again = reason(&learned).contains("given again");
+    if given_again {
+        assert_eq!(learned["performative"], "FAILURE", "{learned}");
+        assert!(
+            reason(&learned).contains("chair-g was going to dining-hall"),
+            "{learned}"
+        );
+    }
+    // And it ends: reached, or failed with a reason, in the services' events.
+    let end = if given_again {
+        let end = services.wait_for("the goal's end", |e| {
+            is(e, "goal", "chair", "chair-g")
+                && e["requester"].is_null()
+                && e["performative"] != "AGREE"
+        });
+        assert_ne!(end["conversation"], learned["conversation"], "{end}");
+        end
+    } else {
+        learned.clone()
+    };
+    let end_s = killed.elapsed().as_secs_f64();
     assert!(
-        end["performative"] == "INFORM" || !reason(&end).is_empty(),
-        "a goal failed without a reason: {end}"
+        end["performative"] == "INFORM"
+            || (end["performative"] == "FAILURE" && !reason(&end).is_empty()),
+        "a goal that did not end reached or failed with a reason: {end}"
     );
-    assert_ne!(end["conversation"], learned["conversation"], "{end}");
     if end["performative"] == "INFORM" {
         world.wait_for("chair-g's body at the dining hall", |e| {
             is(e, "body", "chair", "chair-g")
-                && (e["x_m"].as_f64().unwrap() - 15.0).hypot(e["y_m"].as_f64().unwrap() - 8.2)
-                    < 1.0
+                && (e["x_m"].as_f64().unwrap() - 15.0).hypot(e["y_m"].as_f64().unwrap() - 8.2) < 1.0
         });
     }
     eprintln!(
-        "chair-g: the restarted services learned its goal {learned_s:.1} s after the kill; \
+        "chair-g: the restarted services learned its goal {learned_s:.1} s after the kill ({}); \
          the goal ended {} {end_s:.1} s after the kill ({})",
+        if given_again {
+            "given again"
+        } else {
+            "ended meanwhile"
+        },
         end["performative"],
         reason(&end)
     );

@@ -11,9 +11,11 @@
 //!   no route is left. A newer goal replaces the running one (the old one gets FAILURE).
 //! - Understood: QUERY-REF `((current-goal ME ?goal))` (`fipa-query`) from anyone. Answer: INFORM
 //!   `((current-goal ME (set (goal :place P :requester R :conversation C))))`, the goal under way
-//!   and the conversation it will be answered in, or an empty set when there is none; a query
-//!   about another agent is refused. The services ask this when a chair joins them, so a goal
-//!   whose requester they no longer know (they restarted) is given again or failed, not lost.
+//!   and the conversation it will be answered in, and the last goal that ended with its
+//!   `:outcome` (told once: its answer may have gone to a requester that is gone); an empty set
+//!   when there is neither. A query about another agent is refused. The services ask this when
+//!   a chair joins them, so a goal whose requester they no longer know (they restarted) is given
+//!   again, failed or reported ended, not lost.
 //! - Understood: INFORM `((at-pose agent (pose ...)))` from the perception agent, subscribed at
 //!   setup with SUBSCRIBE `((at-pose ?agent ?pose))` (`fipa-subscribe`) when
 //!   [`CognitiveConfig::perception`] is set.
@@ -208,6 +210,8 @@ pub struct CognitiveAgent {
     locked_doors: BTreeSet<String>,
     blocked: BTreeSet<(String, String)>,
     goal: Option<Goal>,
+    /// The last goal that ended (not replaced), until a goal query tells it.
+    ended: Option<GoalInFlight>,
     /// The request of the step under way (at most one; a new step abandons the last).
     pending: Initiated<Waiting>,
     /// The pose subscription to the perception agent.
@@ -266,6 +270,7 @@ impl CognitiveAgent {
             locked_doors: BTreeSet::new(),
             blocked: BTreeSet::new(),
             goal: None,
+            ended: None,
             pending: Initiated::new(),
             poses: Initiated::new(),
             legs: VecDeque::new(),
@@ -629,6 +634,13 @@ impl CognitiveAgent {
         let Some(mut goal) = self.goal.take() else {
             return;
         };
+        // A replaced goal's story goes on in the newer one; any other end is kept to be told.
+        if outcome.as_ref().err().is_none_or(|why| why != REPLACED) {
+            self.ended = in_flight(&goal).map(|g| GoalInFlight {
+                outcome: Some(outcome.clone()),
+                ..g
+            });
+        }
         let answered = match outcome {
             Ok(()) => {
                 let done = WheelchairContent::Done {
@@ -670,7 +682,7 @@ impl CognitiveAgent {
             let _ = ctx.answer_error(&mut responder, Performative::Refuse, &why);
             return;
         }
-        self.finish(ctx, Err("replaced by a newer goal".into()));
+        self.finish(ctx, Err(REPLACED.into()));
         let request = WheelchairContent::Request {
             actor: actor.clone(),
             action: WheelchairAction::GoTo {
@@ -713,23 +725,24 @@ impl CognitiveAgent {
             return;
         };
         if agent.name != ctx.name() {
-            let why = format!("{} knows its own goal only, not {}'s", ctx.name(), agent.name);
+            let why = format!(
+                "{} knows its own goal only, not {}'s",
+                ctx.name(),
+                agent.name
+            );
             let _ = ctx.answer_error(&mut query, Performative::Refuse, &why);
             return;
         }
-        let goal = self.goal.as_ref().and_then(|g| {
-            Some(GoalInFlight {
-                place: g.place.clone(),
-                requester: g.responder.initiator()?.clone(),
-                conversation: g.responder.conversation_id().to_string(),
-            })
-        });
         let answer = WheelchairContent::Inform(Fact::CurrentGoal {
             agent: ctx.aid().clone(),
-            goal,
+            goal: self.goal.as_ref().and_then(in_flight),
+            ended: self.ended.clone(),
         });
-        if let Err(err) = ctx.answer(&mut query, Performative::Inform, &answer) {
-            tracing::warn!(chair = %self.config.chair, error = %err, "could not answer a goal query");
+        match ctx.answer(&mut query, Performative::Inform, &answer) {
+            Ok(()) => self.ended = None,
+            Err(err) => {
+                tracing::warn!(chair = %self.config.chair, error = %err, "could not answer a goal query")
+            }
         }
     }
 
@@ -828,6 +841,19 @@ impl CognitiveAgent {
             self.motion(ctx, from, to, door);
         }
     }
+}
+
+/// Why a goal ends when a newer one comes.
+const REPLACED: &str = "replaced by a newer goal";
+
+/// `goal` as a goal query tells it (under way).
+fn in_flight(goal: &Goal) -> Option<GoalInFlight> {
+    Some(GoalInFlight {
+        place: goal.place.clone(),
+        requester: goal.responder.initiator()?.clone(),
+        conversation: goal.responder.conversation_id().to_string(),
+        outcome: None,
+    })
 }
 
 impl Agent for CognitiveAgent {

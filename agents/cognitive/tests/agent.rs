@@ -538,15 +538,20 @@ fn answered_in(rig: &Rig, conversation: &str) -> Vec<AclMessage> {
         .collect()
 }
 
-fn current_goal(m: &AclMessage) -> Option<GoalInFlight> {
+/// The goal under way and the ended one an answer tells.
+fn told(m: &AclMessage) -> (Option<GoalInFlight>, Option<GoalInFlight>) {
     assert_eq!(m.performative, Performative::Inform, "{m:?}");
     match WheelchairContent::from_message(m).unwrap() {
-        WheelchairContent::Inform(Fact::CurrentGoal { agent, goal }) => {
+        WheelchairContent::Inform(Fact::CurrentGoal { agent, goal, ended }) => {
             assert_eq!(agent.name, "cognitive");
-            goal
+            (goal, ended)
         }
         other => panic!("not a current goal: {other:?}"),
     }
+}
+
+fn current_goal(m: &AclMessage) -> Option<GoalInFlight> {
+    told(m).0
 }
 
 #[test]
@@ -572,11 +577,17 @@ fn a_goal_query_is_answered_with_the_goal_under_way_its_requester_and_conversati
             place: "c".into(),
             requester: AgentId::new("user"),
             conversation: "goal-1".into(),
+            outcome: None,
         })
     );
     let other = answered_in(&rig, "q-other");
     assert_eq!(other.len(), 1, "{other:?}");
-    assert_eq!(other[0].performative, Performative::Refuse, "{:?}", other[0]);
+    assert_eq!(
+        other[0].performative,
+        Performative::Refuse,
+        "{:?}",
+        other[0]
+    );
 
     // A query that is not one is not understood, and the goal runs on.
     let bad = AclMessage::new(Performative::QueryRef)
@@ -594,4 +605,35 @@ fn a_goal_query_is_answered_with_the_goal_under_way_its_requester_and_conversati
     rig.run(20);
     let still = answered_in(&rig, "q-still");
     assert_eq!(current_goal(&still[0]).map(|g| g.place), Some("c".into()));
+}
+
+/// A goal that ended (its answer may have gone to a requester that is gone) is told, with its
+/// outcome, by the next goal query only.
+#[test]
+fn a_goal_that_ended_is_told_once_with_its_outcome() {
+    let mut rig = rig(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(body_fault),
+    );
+    rig.goal("c");
+    rig.run(600);
+    ask_goal(&rig, "cognitive", "q-1");
+    ask_goal(&rig, "cognitive", "q-2");
+    rig.run(20);
+    let (goal, ended) = told(&answered_in(&rig, "q-1")[0]);
+    assert_eq!(goal, None);
+    let ended = ended.expect("the failed goal is told");
+    assert_eq!(
+        (ended.place.as_str(), ended.conversation.as_str()),
+        ("c", "goal-1")
+    );
+    let Some(Err(why)) = &ended.outcome else {
+        panic!("{ended:?}")
+    };
+    assert!(why.contains("body failed"), "{why}");
+    assert_eq!(
+        told(&answered_in(&rig, "q-2")[0]),
+        (None, None),
+        "told once"
+    );
 }

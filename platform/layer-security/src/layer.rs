@@ -155,10 +155,7 @@ impl SendSession {
     pub(crate) fn sealed_recently(&self, counter: u64, tag: &[u8]) -> bool {
         let recent = counter < self.counter && self.counter - counter <= REKEY_WINDOW;
         let kept = &self.tags[(counter % REKEY_WINDOW) as usize];
-        let differ = kept
-            .iter()
-            .zip(tag)
-            .fold(0u8, |acc, (a, b)| acc | (a ^ b));
+        let differ = kept.iter().zip(tag).fold(0u8, |acc, (a, b)| acc | (a ^ b));
         recent && tag.len() == TAG_LEN && differ == 0
     }
 }
@@ -896,8 +893,12 @@ impl SecurityLayer {
                 nested_get(&self.recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == sid));
             let Some((_, key)) = session else {
                 // Names the session and the frame (nonce, tag): see `on_rekey`.
-                let payload = [&[REKEY][..], &env.payload[..body], &env.payload[len - TAG_LEN..]]
-                    .concat();
+                let payload = [
+                    &[REKEY][..],
+                    &env.payload[..body],
+                    &env.payload[len - TAG_LEN..],
+                ]
+                .concat();
                 let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
                 let rekey = self.handshake_env(&r, &s, payload, now);
                 self.outbox.push_back(rekey);

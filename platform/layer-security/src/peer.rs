@@ -35,8 +35,7 @@ use ring::rand::{SecureRandom, SystemRandom};
 use crate::identity::{Identity, PublicKey, verify};
 use crate::layer::{
     Agreeing, HELLO, NOISE_MAX, NOISE_PARAMS, REKEY, REPLY, SID_LEN, SendSession, TAG_LEN,
-    hello_binding,
-    noise, noise_err, nonce_bytes, prologue, reply_binding, split_key,
+    hello_binding, noise, noise_err, nonce_bytes, prologue, reply_binding, split_key,
 };
 use crate::{SecurityConfig, SecurityError};
 
@@ -254,9 +253,20 @@ impl PeerSessions {
         back: &mut Vec<Vec<u8>>,
     ) -> Result<Opened, Reason> {
         let Some(session) = self.recv.get_mut(id) else {
-            if let Some(tag) = datagram.len().checked_sub(TAG_LEN).filter(|&t| t >= DATA_HEAD) {
+            if let Some(tag) = datagram
+                .len()
+                .checked_sub(TAG_LEN)
+                .filter(|&t| t >= DATA_HEAD)
+            {
                 // names the session and echoes the frame: see `on_rekey`
-                back.push([&head(REKEY, id)[..], &datagram[HEAD..DATA_HEAD], &datagram[tag..]].concat());
+                back.push(
+                    [
+                        &head(REKEY, id)[..],
+                        &datagram[HEAD..DATA_HEAD],
+                        &datagram[tag..],
+                    ]
+                    .concat(),
+                );
             }
             return Err(Reason::UnknownSession);
         };
@@ -656,8 +666,14 @@ mod tests {
         assert_eq!(next[0][MAGIC.len()], DATA, "the session was kept");
         // the genuine request (from the receiver that lost it) echoes the frame
         let (mut b, _) = sessions();
-        assert_eq!(b.open("a", &frame, T, &mut back), Err(Reason::UnknownSession));
-        assert_eq!(back.last().map(Vec::as_slice), Some(&rekey(&[counter, tag])[..]));
+        assert_eq!(
+            b.open("a", &frame, T, &mut back),
+            Err(Reason::UnknownSession)
+        );
+        assert_eq!(
+            back.last().map(Vec::as_slice),
+            Some(&rekey(&[counter, tag])[..])
+        );
         let genuine = back.pop().unwrap();
         a.open("b", &genuine, T, &mut back).unwrap();
         let again = a.seal("b", b"four", T).unwrap();

@@ -476,5 +476,9 @@ fn a_forged_rekey_request_naming_the_session_is_refused_and_the_session_kept() {
     let mut genuine = rekey(&[sid, &nonce_of(second), &tag_of(second)]);
     assert_eq!(n.a.inbound(&mut genuine, Time::ZERO), Verdict::Consumed);
     let mut m = msg(4);
-    assert_eq!(n.a.outbound(&mut m, Time::ZERO), Verdict::Consumed, "queued for a new key");
+    assert_eq!(
+        n.a.outbound(&mut m, Time::ZERO),
+        Verdict::Consumed,
+        "queued for a new key"
+    );
 }

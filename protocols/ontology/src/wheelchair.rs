@@ -374,7 +374,8 @@ word_enum! {
 /// goal: where to, and the conversation it will answer (who asked, under which id), so that
 /// whoever asks can tell a goal it follows from one nobody follows any more.
 ///
-/// SL: `(goal :place P :requester (agent-identifier ...) :conversation "id")`.
+/// SL: `(goal :place P :requester (agent-identifier ...) :conversation "id")`, with
+/// `:outcome reached` or `:outcome failed :reason "why"` once it ended.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GoalInFlight {
     /// The place of the map the chair is going to.
@@ -383,23 +384,48 @@ pub struct GoalInFlight {
     pub requester: AgentId,
     /// The conversation the outcome is answered in.
     pub conversation: String,
+    /// How it ended, for a goal that did: `Ok` reached, `Err` failed with the reason.
+    pub outcome: Option<Result<(), String>>,
 }
 
 impl Concept for GoalInFlight {
     fn to_term(&self) -> Term {
+        let (outcome, reason) = match &self.outcome {
+            None => (None, None),
+            Some(Ok(())) => (Some("reached"), None),
+            Some(Err(why)) => (Some("failed"), Some(why.as_str())),
+        };
         FrameBuilder::new("goal")
             .text("place", Some(&self.place))
             .term("requester", self.requester.to_term())
             .text("conversation", Some(&self.conversation))
+            .text("outcome", outcome)
+            .text("reason", reason)
             .build()
     }
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         let f = Frame::read(term, "goal")?;
+        let outcome = match f.text("outcome")?.as_deref() {
+            None => None,
+            Some(w) if w.eq_ignore_ascii_case("reached") => Some(Ok(())),
+            Some(w) if w.eq_ignore_ascii_case("failed") => {
+                Some(Err(f.text("reason")?.unwrap_or_default()))
+            }
+            Some(_) => {
+                return Err(OntologyError::BadValue {
+                    concept: "goal",
+                    slot: "outcome",
+                    value: f.get("outcome").map(shown).unwrap_or_default(),
+                    reason: "expected reached or failed",
+                });
+            }
+        };
         Ok(Self {
             place: f.required_text("place")?,
             requester: AgentId::from_term(f.require("requester")?)?,
             conversation: f.required_text("conversation")?,
+            outcome,
         })
     }
 }
@@ -452,14 +478,17 @@ pub enum Fact {
         /// The reason, for a person to read.
         reason: String,
     },
-    /// `(current-goal agent (set (goal ...)))`: the goal `agent` (a chair's cognitive agent) is
-    /// carrying out; the set is empty when it has none. The answer to
-    /// [`WheelchairContent::GoalQuery`].
+    /// `(current-goal agent (set (goal ...) ...))`: the goal `agent` (a chair's cognitive
+    /// agent) is carrying out, and the last one that ended and was not told yet (with its
+    /// `:outcome`: its answer may have gone where no one hears it any more); the set is empty
+    /// when it has neither. The answer to [`WheelchairContent::GoalQuery`].
     CurrentGoal {
         /// The cognitive agent.
         agent: AgentId,
-        /// Its goal under way, if any.
+        /// Its goal under way, if any (no outcome).
         goal: Option<GoalInFlight>,
+        /// The last goal that ended, not told before (with its outcome).
+        ended: Option<GoalInFlight>,
     },
 }
 
@@ -472,11 +501,11 @@ impl Fact {
             Self::Reading { agent, reading } => {
                 ("sensor-reading", vec![agent.to_term(), reading.to_term()])
             }
-            Self::CurrentGoal { agent, goal } => (
+            Self::CurrentGoal { agent, goal, ended } => (
                 "current-goal",
                 vec![
                     agent.to_term(),
-                    Term::set(goal.iter().map(Concept::to_term).collect()),
+                    Term::set(goal.iter().chain(ended).map(Concept::to_term).collect()),
                 ],
             ),
             Self::Door { door, state } => (
@@ -542,21 +571,29 @@ impl Fact {
                 reading: SensorReading::from_term(second)?,
             }),
             "current-goal" => {
-                let goals = match second.collection() {
-                    Some((_, [])) => None,
-                    Some((_, [goal])) => Some(GoalInFlight::from_term(goal)?),
-                    _ => {
-                        return Err(OntologyError::BadValue {
-                            concept: "current-goal",
-                            slot: "goal",
-                            value: shown(second),
-                            reason: "expected a set of at most one goal",
-                        });
-                    }
+                let bad = || OntologyError::BadValue {
+                    concept: "current-goal",
+                    slot: "goal",
+                    value: shown(second),
+                    reason: "expected a set of at most one goal under way and one ended",
                 };
+                let items = second.collection().ok_or_else(bad)?.1;
+                let (mut goal, mut ended) = (None, None);
+                for item in items {
+                    let g = GoalInFlight::from_term(item)?;
+                    let slot = if g.outcome.is_some() {
+                        &mut ended
+                    } else {
+                        &mut goal
+                    };
+                    if slot.replace(g).is_some() {
+                        return Err(bad());
+                    }
+                }
                 Ok(Self::CurrentGoal {
                     agent: AgentId::from_term(first)?,
-                    goal: goals,
+                    goal,
+                    ended,
                 })
             }
             "drive-applied" => match WheelchairAction::from_term(second)? {
@@ -695,10 +732,9 @@ impl WheelchairContent {
                 }
                 ActionOperand::Meta(_) => Err(unexpected(content)),
             },
-            [
-                ContentExpression::Formula(Formula::Atomic { predicate, args }),
-            ] if predicate.eq_ignore_ascii_case("current-goal")
-                && matches!(args.as_slice(), [_, Term::Variable { .. }]) =>
+            [ContentExpression::Formula(Formula::Atomic { predicate, args })]
+                if predicate.eq_ignore_ascii_case("current-goal")
+                    && matches!(args.as_slice(), [_, Term::Variable { .. }]) =>
             {
                 Ok(Self::GoalQuery {
                     agent: AgentId::from_term(&args[0])?,

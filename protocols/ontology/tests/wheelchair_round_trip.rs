@@ -108,16 +108,31 @@ fn fact() -> impl Strategy<Value = Fact> {
                 angular_radps,
             }
         }),
-        (agent(), prop::option::of((name(), agent(), name()))).prop_map(|(agent, goal)| {
-            Fact::CurrentGoal {
+        (
+            agent(),
+            prop::option::of((name(), agent(), name())),
+            prop::option::of((
+                name(),
+                agent(),
+                name(),
+                prop::result::maybe_ok(Just(()), "[ -~]{0,40}")
+            )),
+        )
+            .prop_map(|(agent, goal, ended)| Fact::CurrentGoal {
                 agent,
                 goal: goal.map(|(place, requester, conversation)| GoalInFlight {
                     place,
                     requester,
                     conversation,
+                    outcome: None,
                 }),
-            }
-        }),
+                ended: ended.map(|(place, requester, conversation, outcome)| GoalInFlight {
+                    place,
+                    requester,
+                    conversation,
+                    outcome: Some(outcome),
+                }),
+            }),
     ]
 }
 
@@ -326,7 +341,9 @@ fn goal_queries_and_answers_read_as_documented() {
             place: "dining-hall".into(),
             requester: AgentId::new("assistant@services"),
             conversation: "assistant@services-c2".into(),
+            outcome: None,
         }),
+        ended: None,
     });
     let text = busy.to_content().to_string();
     assert_eq!(
@@ -337,15 +354,36 @@ fn goal_queries_and_answers_read_as_documented() {
     );
     assert_eq!(WheelchairContent::parse(&text), Ok(busy));
     let idle = WheelchairContent::Inform(Fact::CurrentGoal {
+        agent: cognitive.clone(),
+        goal: None,
+        ended: None,
+    });
+    assert_eq!(
+        WheelchairContent::parse(&idle.to_content().to_string()),
+        Ok(idle)
+    );
+    // A goal that ended and was not told yet travels with its outcome.
+    let ended = WheelchairContent::Inform(Fact::CurrentGoal {
         agent: cognitive,
         goal: None,
+        ended: Some(GoalInFlight {
+            place: "therapy".into(),
+            requester: AgentId::new("interface@chair-a"),
+            conversation: "c9".into(),
+            outcome: Some(Err("no route to therapy".into())),
+        }),
     });
-    assert_eq!(WheelchairContent::parse(&idle.to_content().to_string()), Ok(idle));
+    let text = ended.to_content().to_string();
+    assert!(
+        text.contains(":outcome failed :reason \"no route to therapy\""),
+        "{text}"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(ended));
     let two = "((current-goal (agent-identifier :name c@P) (set (goal :place a :requester \
                (agent-identifier :name r@P) :conversation x) (goal :place b :requester \
                (agent-identifier :name r@P) :conversation y))))";
     let e = WheelchairContent::parse(two).unwrap_err().to_string();
-    assert!(e.contains("at most one goal"), "{e}");
+    assert!(e.contains("at most one goal under way"), "{e}");
 }
 
 #[test]

@@ -1065,7 +1065,7 @@ impl Runtime {
         let assistant = iw_wiring::agent_id("assistant", SERVICES).name;
         for (chair, answer) in answers {
             let present = chairs.contains(&chair);
-            if let Some(event) = services.take_goal_answer(chair, answer, present, &assistant) {
+            for event in services.take_goal_answer(chair, answer, present, &assistant) {
                 let _ = self.events.send(event);
             }
         }

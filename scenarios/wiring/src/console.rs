@@ -26,8 +26,14 @@ pub const GOAL_QUERY_WAIT: Duration = Duration::from_secs(10);
 /// What a chair's cognitive agent said when asked for the goal it is carrying out.
 #[derive(Debug, Clone, PartialEq)]
 pub enum GoalAnswer {
-    /// Its goal under way, if it has one.
-    Told(Option<GoalInFlight>),
+    /// Its goal under way, and the last that ended and was not told before (with its
+    /// outcome), each if it has one.
+    Told {
+        /// Under way.
+        goal: Option<GoalInFlight>,
+        /// Ended.
+        ended: Option<GoalInFlight>,
+    },
     /// No answer within [`GOAL_QUERY_WAIT`] (it may not reach this container yet).
     Silent,
     /// An answer that tells nothing (a refusal, not understood, unreadable): why.
@@ -172,9 +178,12 @@ impl Agent for Console {
             match answer {
                 Ok(Progress::Ended(event, chair)) => {
                     let told = match (event.kind, WheelchairContent::from_message(&message)) {
-                        (EventKind::Informed, Ok(WheelchairContent::Inform(Fact::CurrentGoal { goal, .. }))) => {
-                            GoalAnswer::Told(goal)
-                        }
+                        (
+                            EventKind::Informed,
+                            Ok(WheelchairContent::Inform(Fact::CurrentGoal {
+                                goal, ended, ..
+                            })),
+                        ) => GoalAnswer::Told { goal, ended },
                         (_, content) => GoalAnswer::Unusable(format!(
                             "{} {}",
                             message.performative,
@@ -334,7 +343,10 @@ impl Console {
                     i64::try_from(by_ms).unwrap_or(i64::MAX),
                 )),
         );
-        if let Err(err) = self.queries.open(ctx, Protocol::Query, query, chair.clone()) {
+        if let Err(err) = self
+            .queries
+            .open(ctx, Protocol::Query, query, chair.clone())
+        {
             let why = format!("the query could not be sent: {err}");
             desk(&self.desk)
                 .current_goals

@@ -1,9 +1,10 @@
 //! Goals in flight the services do not follow: when a chair joins (after a restart of the
-//! services, or of the chair's link), its cognitive agent is asked for the goal it carries out.
-//! A goal given by an earlier life of the services, through the assistant by a foreign platform,
-//! or at the chair itself would otherwise end where no one here hears it: it is given again by
-//! the services (who then follow it) or, when their own goal for the chair replaces it,
-//! reported failed. Either way a `goal` event says which, with the reason.
+//! services, or of the chair's link), its cognitive agent is asked for the goal it carries out
+//! and the last one that ended. A goal given by an earlier life of the services, through the
+//! assistant by a foreign platform, or at the chair itself would otherwise end where no one here
+//! hears it: one under way is given again by the services (who then follow it) or, when their
+//! own goal for the chair replaces it, reported failed; one that ended meanwhile is reported
+//! with its outcome. Each time a `goal` event says which, with the reason and the requester.
 
 use iw_ontology::wheelchair::GoalInFlight;
 use iw_wiring::GoalAnswer;
@@ -25,6 +26,8 @@ pub(super) enum Verdict {
     /// No one here follows it: reported failed in its old conversation, with the reason, and
     /// given again by the services.
     GivenAgain(Event),
+    /// It ended where no one here heard it: reported with its outcome.
+    Ended(Event),
 }
 
 /// Judges `chair`'s goal under way: `ours` whether the services have a goal given or waiting
@@ -39,6 +42,25 @@ pub(super) fn judge(chair: &str, goal: GoalInFlight, ours: bool, assistant: &str
         "{chair} was going to {} for {requester} (conversation {})",
         goal.place, goal.conversation
     );
+    if let Some(outcome) = goal.outcome {
+        let (performative, reason) = match outcome {
+            Ok(()) => ("INFORM", None),
+            Err(why) => (
+                "FAILURE",
+                Some(format!(
+                    "{was}; it failed where these services did not hear it: {why}"
+                )),
+            ),
+        };
+        return Verdict::Ended(Event::Goal {
+            chair: chair.to_string(),
+            place: goal.place,
+            conversation: goal.conversation,
+            performative: performative.into(),
+            reason,
+            requester: Some(requester),
+        });
+    }
     let (reason, verdict): (_, fn(Event) -> Verdict) = if ours {
         (
             format!("{was}; the services' own goal for {chair} replaces it"),
@@ -69,20 +91,20 @@ impl ServiceDesk {
         self.given.values().any(|(c, _)| c == chair) || self.waiting.iter().any(|(c, _)| c == chair)
     }
 
-    /// Takes `chair`'s answer to the query for its goal: the event to report, if any; a goal no
-    /// one follows is put among the waiting goals, and a silent chair still `present` is asked
-    /// again (up to [`GOAL_QUERY_ATTEMPTS`] times).
+    /// Takes `chair`'s answer to the query for its goal: the events to report; a goal under way
+    /// no one follows is put among the waiting goals, and a silent chair still `present` is
+    /// asked again (up to [`GOAL_QUERY_ATTEMPTS`] times).
     pub(super) fn take_goal_answer(
         &mut self,
         chair: String,
         answer: GoalAnswer,
         present: bool,
         assistant: &str,
-    ) -> Option<Event> {
-        let goal = match answer {
-            GoalAnswer::Told(goal) => {
+    ) -> Vec<Event> {
+        let goals = match answer {
+            GoalAnswer::Told { goal, ended } => {
                 self.goal_asked.remove(&chair);
-                goal?
+                ended.into_iter().chain(goal)
             }
             GoalAnswer::Silent if present => {
                 let asked = self.goal_asked.entry(chair.clone()).or_insert(1);
@@ -92,25 +114,29 @@ impl ServiceDesk {
                 } else {
                     tracing::warn!(%chair, attempts = *asked, "the chair never said which goal it carries out: a goal given to it past these services is not followed");
                 }
-                return None;
+                return Vec::new();
             }
-            GoalAnswer::Silent => return None,
+            GoalAnswer::Silent => return Vec::new(),
             GoalAnswer::Unusable(why) => {
                 tracing::warn!(%chair, %why, "the chair could not say which goal it carries out: a goal given to it past these services is not followed");
-                return None;
+                return Vec::new();
             }
         };
-        let ours = self.has_goal_for(&chair);
-        match judge(&chair, goal, ours, assistant) {
-            Verdict::Followed => None,
-            Verdict::Replaced(event) => Some(event),
-            Verdict::GivenAgain(event) => {
-                if let Event::Goal { place, .. } = &event {
-                    self.waiting.push((chair, place.clone()));
+        let mut events = Vec::new();
+        for goal in goals {
+            let ours = self.has_goal_for(&chair);
+            match judge(&chair, goal, ours, assistant) {
+                Verdict::Followed => {}
+                Verdict::Replaced(event) | Verdict::Ended(event) => events.push(event),
+                Verdict::GivenAgain(event) => {
+                    if let Event::Goal { place, .. } = &event {
+                        self.waiting.push((chair.clone(), place.clone()));
+                    }
+                    events.push(event);
                 }
-                Some(event)
             }
         }
+        events
     }
 }
 
@@ -124,6 +150,7 @@ mod tests {
             place: "dining-hall".into(),
             requester: AgentId::new(requester),
             conversation: "c-7".into(),
+            outcome: None,
         }
     }
 
@@ -162,7 +189,11 @@ mod tests {
             unreachable!()
         };
         assert_eq!(
-            (performative.as_str(), requester.as_deref(), conversation.as_str()),
+            (
+                performative.as_str(),
+                requester.as_deref(),
+                conversation.as_str()
+            ),
             ("FAILURE", Some(assistant), "c-7")
         );
         // The chair's own interface gave it, and the services have a goal for the chair.
@@ -171,5 +202,34 @@ mod tests {
         assert!(reason(&replaced).contains("replaces it"));
         let again = judge("chair-a", goal("interface@chair-a"), false, assistant);
         assert!(matches!(again, Verdict::GivenAgain(_)), "{again:?}");
+        // One that ended where no one here heard it is reported with its outcome.
+        let failed = GoalInFlight {
+            outcome: Some(Err("the chair's body failed".into())),
+            ..goal(assistant)
+        };
+        let ended = judge("chair-a", failed, false, assistant);
+        let Verdict::Ended(Event::Goal {
+            performative,
+            reason,
+            ..
+        }) = &ended
+        else {
+            panic!("{ended:?}")
+        };
+        assert_eq!(performative, "FAILURE");
+        assert!(
+            reason
+                .as_deref()
+                .unwrap()
+                .ends_with("the chair's body failed")
+        );
+        let reached = GoalInFlight {
+            outcome: Some(Ok(())),
+            ..goal(assistant)
+        };
+        assert!(matches!(
+            judge("chair-a", reached, false, assistant),
+            Verdict::Ended(Event::Goal { ref performative, .. }) if performative == "INFORM"
+        ));
     }
 }
