@@ -735,8 +735,8 @@ impl CognitiveAgent {
         }
         let answer = WheelchairContent::Inform(Fact::CurrentGoal {
             agent: ctx.aid().clone(),
-            goal: self.goal.as_ref().and_then(in_flight),
-            ended: self.ended.clone(),
+            goal: self.goal.as_ref().and_then(in_flight).map(Box::new),
+            ended: self.ended.clone().map(Box::new),
         });
         match ctx.answer(&mut query, Performative::Inform, &answer) {
             Ok(()) => self.ended = None,

@@ -544,7 +544,7 @@ fn told(m: &AclMessage) -> (Option<GoalInFlight>, Option<GoalInFlight>) {
     match WheelchairContent::from_message(m).unwrap() {
         WheelchairContent::Inform(Fact::CurrentGoal { agent, goal, ended }) => {
             assert_eq!(agent.name, "cognitive");
-            (goal, ended)
+            (goal.map(|g| *g), ended.map(|g| *g))
         }
         other => panic!("not a current goal: {other:?}"),
     }

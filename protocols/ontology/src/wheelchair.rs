@@ -486,9 +486,9 @@ pub enum Fact {
         /// The cognitive agent.
         agent: AgentId,
         /// Its goal under way, if any (no outcome).
-        goal: Option<GoalInFlight>,
+        goal: Option<Box<GoalInFlight>>,
         /// The last goal that ended, not told before (with its outcome).
-        ended: Option<GoalInFlight>,
+        ended: Option<Box<GoalInFlight>>,
     },
 }
 
@@ -505,7 +505,7 @@ impl Fact {
                 "current-goal",
                 vec![
                     agent.to_term(),
-                    Term::set(goal.iter().chain(ended).map(Concept::to_term).collect()),
+                    Term::set(goal.iter().chain(ended).map(|g| g.to_term()).collect()),
                 ],
             ),
             Self::Door { door, state } => (
@@ -586,7 +586,7 @@ impl Fact {
                     } else {
                         &mut goal
                     };
-                    if slot.replace(g).is_some() {
+                    if slot.replace(Box::new(g)).is_some() {
                         return Err(bad());
                     }
                 }

@@ -120,17 +120,21 @@ fn fact() -> impl Strategy<Value = Fact> {
         )
             .prop_map(|(agent, goal, ended)| Fact::CurrentGoal {
                 agent,
-                goal: goal.map(|(place, requester, conversation)| GoalInFlight {
-                    place,
-                    requester,
-                    conversation,
-                    outcome: None,
+                goal: goal.map(|(place, requester, conversation)| {
+                    Box::new(GoalInFlight {
+                        place,
+                        requester,
+                        conversation,
+                        outcome: None,
+                    })
                 }),
-                ended: ended.map(|(place, requester, conversation, outcome)| GoalInFlight {
-                    place,
-                    requester,
-                    conversation,
-                    outcome: Some(outcome),
+                ended: ended.map(|(place, requester, conversation, outcome)| {
+                    Box::new(GoalInFlight {
+                        place,
+                        requester,
+                        conversation,
+                        outcome: Some(outcome),
+                    })
                 }),
             }),
     ]
@@ -337,12 +341,12 @@ fn goal_queries_and_answers_read_as_documented() {
     assert_eq!(WheelchairContent::parse(&text), Ok(query));
     let busy = WheelchairContent::Inform(Fact::CurrentGoal {
         agent: cognitive.clone(),
-        goal: Some(GoalInFlight {
+        goal: Some(Box::new(GoalInFlight {
             place: "dining-hall".into(),
             requester: AgentId::new("assistant@services"),
             conversation: "assistant@services-c2".into(),
             outcome: None,
-        }),
+        })),
         ended: None,
     });
     let text = busy.to_content().to_string();
@@ -366,12 +370,12 @@ fn goal_queries_and_answers_read_as_documented() {
     let ended = WheelchairContent::Inform(Fact::CurrentGoal {
         agent: cognitive,
         goal: None,
-        ended: Some(GoalInFlight {
+        ended: Some(Box::new(GoalInFlight {
             place: "therapy".into(),
             requester: AgentId::new("interface@chair-a"),
             conversation: "c9".into(),
             outcome: Some(Err("no route to therapy".into())),
-        }),
+        })),
     });
     let text = ended.to_content().to_string();
     assert!(

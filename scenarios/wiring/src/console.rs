@@ -30,9 +30,9 @@ pub enum GoalAnswer {
     /// outcome), each if it has one.
     Told {
         /// Under way.
-        goal: Option<GoalInFlight>,
+        goal: Option<Box<GoalInFlight>>,
         /// Ended.
-        ended: Option<GoalInFlight>,
+        ended: Option<Box<GoalInFlight>>,
     },
     /// No answer within [`GOAL_QUERY_WAIT`] (it may not reach this container yet).
     Silent,

@@ -125,7 +125,7 @@ impl ServiceDesk {
         let mut events = Vec::new();
         for goal in goals {
             let ours = self.has_goal_for(&chair);
-            match judge(&chair, goal, ours, assistant) {
+            match judge(&chair, *goal, ours, assistant) {
                 Verdict::Followed => {}
                 Verdict::Replaced(event) | Verdict::Ended(event) => events.push(event),
                 Verdict::GivenAgain(event) => {
