@@ -13,7 +13,9 @@
 //!   FAILURE relayed in the staff's conversation. Non go-to actions are refused.
 //! - To the cognitive agent: REQUEST `((action COGNITIVE (go-to :place P)))` in a fresh
 //!   conversation; its AGREE is absorbed, and its REFUSE relayed to staff as a FAILURE with the
-//!   same reason (the assistant has already agreed, so fipa-request allows no REFUSE).
+//!   same reason (the assistant has already agreed, so fipa-request allows no REFUSE). The id
+//!   (`ME-T-N`) carries the time the assistant started, so the answer to a goal forwarded by an
+//!   earlier life of the assistant (its container restarted) is never taken for one of its own.
 //! - At setup, to its platform's DF (`df@PLATFORM`, `:ontology FIPA-Agent-Management`): a
 //!   registration of service [`SERVICE_NAME`] of type [`SERVICE_TYPE`], so other platforms'
 //!   agents (JADE's) find it with a DF search; the DF's answers are absorbed.
@@ -48,6 +50,9 @@ pub struct AssistantAgent {
     forwarded: Initiated<Responder>,
     /// The registration with the platform's DF.
     registration: Initiated<()>,
+    /// When this life of the assistant started (ms of the bus clock), and the goals forwarded
+    /// since: the forwards' conversation ids.
+    life: (u64, u64),
 }
 
 impl AssistantAgent {
@@ -57,6 +62,7 @@ impl AssistantAgent {
             config,
             forwarded: Initiated::new(),
             registration: Initiated::new(),
+            life: (0, 0),
         }
     }
 
@@ -100,7 +106,13 @@ impl AssistantAgent {
                 place: place.clone(),
             },
         };
-        let forward = goal.fill(AclMessage::new(Performative::Request).with_receiver(cognitive));
+        self.life.1 += 1;
+        let conversation = format!("{}-{}-{}", ctx.name(), self.life.0, self.life.1);
+        let forward = goal.fill(
+            AclMessage::new(Performative::Request)
+                .with_receiver(cognitive)
+                .with_conversation_id(conversation),
+        );
         let agreed = WheelchairContent::Request {
             actor: AgentId::new(chair),
             action: WheelchairAction::GoTo { place },
@@ -154,6 +166,7 @@ impl AssistantAgent {
 
 impl Agent for AssistantAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
+        self.life.0 = ctx.now().as_ns() / 1_000_000;
         let Some(request) = ctx.df_registration(SERVICE_NAME, SERVICE_TYPE) else {
             return;
         };

@@ -160,6 +160,12 @@ fn staff_goals_reach_the_chairs_cognitive_agent_and_outcomes_come_back() {
         1,
         "only the staff goal for a known chair is forwarded"
     );
+    // In a conversation named after the assistant's start (1 s on the mock clock): an
+    // answer to what an earlier life of it forwarded is not taken for this one's.
+    assert_eq!(
+        forwarded[0].conversation_id.as_deref(),
+        Some("assistant-1000-1")
+    );
     assert_eq!(
         WheelchairContent::from_message(&forwarded[0]).unwrap(),
         WheelchairContent::Request {

@@ -9,6 +9,13 @@
 //!   interface or assistant agent. Answer: AGREE (REFUSE for a place not on the map), then INFORM
 //!   `((done (action ME (go-to :place P))))` on arrival or FAILURE `((error-message "..."))` when
 //!   no route is left. A newer goal replaces the running one (the old one gets FAILURE).
+//! - Understood: QUERY-REF `((current-goal ME ?goal))` (`fipa-query`) from anyone. Answer: INFORM
+//!   `((current-goal ME (set (goal :place P :requester R :conversation C))))`, the goal under way
+//!   and the conversation it will be answered in, and the last goal that ended with its
+//!   `:outcome` (told once: its answer may have gone to a requester that is gone); an empty set
+//!   when there is neither. A query about another agent is refused. The services ask this when
+//!   a chair joins them, so a goal whose requester they no longer know (they restarted) is given
+//!   again, failed or reported ended, not lost.
 //! - Understood: INFORM `((at-pose agent (pose ...)))` from the perception agent, subscribed at
 //!   setup with SUBSCRIBE `((at-pose ?agent ?pose))` (`fipa-subscribe`) when
 //!   [`CognitiveConfig::perception`] is set.
@@ -50,7 +57,8 @@ use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{
-    Fact, SensorState, SensorUse, Subscription, Topic, WheelchairAction, WheelchairContent,
+    Fact, GoalInFlight, SensorState, SensorUse, Subscription, Topic, WheelchairAction,
+    WheelchairContent,
 };
 use nalgebra::Point2;
 
@@ -214,6 +222,8 @@ pub struct CognitiveAgent {
     locked_doors: BTreeSet<String>,
     blocked: BTreeSet<(String, String)>,
     goal: Option<Goal>,
+    /// The last goal that ended (not replaced), until a goal query tells it.
+    ended: Option<GoalInFlight>,
     /// The request of the step under way (at most one; a new step abandons the last).
     pending: Initiated<Waiting>,
     /// The pose subscription to the perception agent.
@@ -273,6 +283,7 @@ impl CognitiveAgent {
             locked_doors: BTreeSet::new(),
             blocked: BTreeSet::new(),
             goal: None,
+            ended: None,
             pending: Initiated::new(),
             poses: Initiated::new(),
             legs: VecDeque::new(),
@@ -637,6 +648,13 @@ impl CognitiveAgent {
         let Some(mut goal) = self.goal.take() else {
             return;
         };
+        // A replaced goal's story goes on in the newer one; any other end is kept to be told.
+        if outcome.as_ref().err().is_none_or(|why| why != REPLACED) {
+            self.ended = in_flight(&goal).map(|g| GoalInFlight {
+                outcome: Some(outcome.clone()),
+                ..g
+            });
+        }
         let answered = match outcome {
             Ok(()) => {
                 let done = WheelchairContent::Done {
@@ -678,7 +696,7 @@ impl CognitiveAgent {
             let _ = ctx.answer_error(&mut responder, Performative::Refuse, &why);
             return;
         }
-        self.finish(ctx, Err("replaced by a newer goal".into()));
+        self.finish(ctx, Err(REPLACED.into()));
         let request = WheelchairContent::Request {
             actor: actor.clone(),
             action: WheelchairAction::GoTo {
@@ -702,6 +720,44 @@ impl CognitiveAgent {
             next: 0,
         });
         self.replan(ctx);
+    }
+
+    /// Answers a query for the goal under way (its place, requester and conversation).
+    fn on_query(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
+        let agent = match WheelchairContent::from_message(message) {
+            Ok(WheelchairContent::GoalQuery { agent }) => agent,
+            Ok(_) => {
+                let _ = ctx.refuse(message, "the cognitive agent answers queries for its goal");
+                return;
+            }
+            Err(err) => {
+                let _ = ctx.not_understood(message, &err.to_string());
+                return;
+            }
+        };
+        let Some(mut query) = ctx.accept(message) else {
+            return;
+        };
+        if agent.name != ctx.name() {
+            let why = format!(
+                "{} knows its own goal only, not {}'s",
+                ctx.name(),
+                agent.name
+            );
+            let _ = ctx.answer_error(&mut query, Performative::Refuse, &why);
+            return;
+        }
+        let answer = WheelchairContent::Inform(Fact::CurrentGoal {
+            agent: ctx.aid().clone(),
+            goal: self.goal.as_ref().and_then(in_flight).map(Box::new),
+            ended: self.ended.clone().map(Box::new),
+        });
+        match ctx.answer(&mut query, Performative::Inform, &answer) {
+            Ok(()) => self.ended = None,
+            Err(err) => {
+                tracing::warn!(chair = %self.config.chair, error = %err, "could not answer a goal query")
+            }
+        }
     }
 
     fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
@@ -870,6 +926,19 @@ impl CognitiveAgent {
     }
 }
 
+/// Why a goal ends when a newer one comes.
+const REPLACED: &str = "replaced by a newer goal";
+
+/// `goal` as a goal query tells it (under way).
+fn in_flight(goal: &Goal) -> Option<GoalInFlight> {
+    Some(GoalInFlight {
+        place: goal.place.clone(),
+        requester: goal.responder.initiator()?.clone(),
+        conversation: goal.responder.conversation_id().to_string(),
+        outcome: None,
+    })
+}
+
 impl Agent for CognitiveAgent {
     fn setup(&mut self, ctx: &mut Context<'_>) {
         if let Some(perception) = self.config.perception.clone() {
@@ -964,11 +1033,12 @@ impl Agent for CognitiveAgent {
                     let _ = ctx.not_understood(&message, &err.to_string());
                 }
             },
+            Performative::QueryRef => self.on_query(ctx, &message),
             act if answers_a_conversation(act) => self.on_answer(ctx, &message),
             _ => {
                 let _ = ctx.not_understood(
                     &message,
-                    "the cognitive agent takes go-to requests, poses and answers",
+                    "the cognitive agent takes go-to requests, goal queries, poses and answers",
                 );
             }
         }

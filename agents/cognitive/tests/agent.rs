@@ -13,7 +13,7 @@ use iw_cognitive::agent::{
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{
-    Fact, Pose, SensorState, SensorUse, WheelchairAction, WheelchairContent,
+    Fact, GoalInFlight, Pose, SensorState, SensorUse, WheelchairAction, WheelchairContent,
 };
 use nalgebra::{Matrix3, Point2};
 
@@ -650,4 +650,129 @@ fn a_body_fault_fails_the_goal_at_once_with_the_body_reason_and_no_re_plan() {
     );
     assert_eq!(rig.control.lock().unwrap().len(), 1, "not asked again");
     assert_eq!(rig.door.lock().unwrap().len(), 1, "not re-planned");
+}
+
+/// The user asks the cognitive agent what it is doing, as the services do when a chair joins.
+fn ask_goal(rig: &Rig, about: &str, conversation: &str) {
+    let query = WheelchairContent::GoalQuery {
+        agent: AgentId::new(about),
+    }
+    .fill(
+        AclMessage::new(Performative::QueryRef)
+            .with_receiver(AgentId::new("cognitive"))
+            .with_conversation_id(conversation),
+    );
+    rig.user.1.lock().unwrap().push(query);
+}
+
+/// The user's answers in conversation `conversation`.
+fn answered_in(rig: &Rig, conversation: &str) -> Vec<AclMessage> {
+    rig.user
+        .0
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|m| m.conversation_id.as_deref() == Some(conversation))
+        .cloned()
+        .collect()
+}
+
+/// The goal under way and the ended one an answer tells.
+fn told(m: &AclMessage) -> (Option<GoalInFlight>, Option<GoalInFlight>) {
+    assert_eq!(m.performative, Performative::Inform, "{m:?}");
+    match WheelchairContent::from_message(m).unwrap() {
+        WheelchairContent::Inform(Fact::CurrentGoal { agent, goal, ended }) => {
+            assert_eq!(agent.name, "cognitive");
+            (goal.map(|g| *g), ended.map(|g| *g))
+        }
+        other => panic!("not a current goal: {other:?}"),
+    }
+}
+
+fn current_goal(m: &AclMessage) -> Option<GoalInFlight> {
+    told(m).0
+}
+
+#[test]
+fn a_goal_query_is_answered_with_the_goal_under_way_its_requester_and_conversation() {
+    // The door agent never answers: the goal stays under way.
+    let mut rig = rig(Box::new(|_| Vec::new()), Box::new(|_| Vec::new()));
+    ask_goal(&rig, "cognitive", "q-idle");
+    rig.run(20);
+    let idle = answered_in(&rig, "q-idle");
+    assert_eq!(idle.len(), 1, "{idle:?}");
+    assert_eq!(current_goal(&idle[0]), None);
+
+    rig.goal("c");
+    rig.run(20);
+    ask_goal(&rig, "cognitive", "q-busy");
+    ask_goal(&rig, "cognitive@elsewhere", "q-other");
+    rig.run(20);
+    let busy = answered_in(&rig, "q-busy");
+    assert_eq!(busy.len(), 1, "{busy:?}");
+    assert_eq!(
+        current_goal(&busy[0]),
+        Some(GoalInFlight {
+            place: "c".into(),
+            requester: AgentId::new("user"),
+            conversation: "goal-1".into(),
+            outcome: None,
+        })
+    );
+    let other = answered_in(&rig, "q-other");
+    assert_eq!(other.len(), 1, "{other:?}");
+    assert_eq!(
+        other[0].performative,
+        Performative::Refuse,
+        "{:?}",
+        other[0]
+    );
+
+    // A query that is not one is not understood, and the goal runs on.
+    let bad = AclMessage::new(Performative::QueryRef)
+        .with_receiver(AgentId::new("cognitive"))
+        .with_conversation_id("q-bad")
+        .with_ontology(iw_ontology::wheelchair::ONTOLOGY)
+        .with_language("fipa-sl0")
+        .with_content("((current-goal");
+    rig.user.1.lock().unwrap().push(bad);
+    rig.run(20);
+    let bad = answered_in(&rig, "q-bad");
+    assert_eq!(bad.len(), 1, "{bad:?}");
+    assert_eq!(bad[0].performative, Performative::NotUnderstood);
+    ask_goal(&rig, "cognitive", "q-still");
+    rig.run(20);
+    let still = answered_in(&rig, "q-still");
+    assert_eq!(current_goal(&still[0]).map(|g| g.place), Some("c".into()));
+}
+
+/// A goal that ended (its answer may have gone to a requester that is gone) is told, with its
+/// outcome, by the next goal query only.
+#[test]
+fn a_goal_that_ended_is_told_once_with_its_outcome() {
+    let mut rig = rig(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(body_fault),
+    );
+    rig.goal("c");
+    rig.run(600);
+    ask_goal(&rig, "cognitive", "q-1");
+    ask_goal(&rig, "cognitive", "q-2");
+    rig.run(20);
+    let (goal, ended) = told(&answered_in(&rig, "q-1")[0]);
+    assert_eq!(goal, None);
+    let ended = ended.expect("the failed goal is told");
+    assert_eq!(
+        (ended.place.as_str(), ended.conversation.as_str()),
+        ("c", "goal-1")
+    );
+    let Some(Err(why)) = &ended.outcome else {
+        panic!("{ended:?}")
+    };
+    assert!(why.contains("body failed"), "{why}");
+    assert_eq!(
+        told(&answered_in(&rig, "q-2")[0]),
+        (None, None),
+        "told once"
+    );
 }

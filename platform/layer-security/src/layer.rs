@@ -20,8 +20,8 @@ use crate::identity::{Identity, KeyDirectory, signed_bytes, verify};
 pub(crate) const SID_LEN: usize = 8;
 /// Session salt length (pre-shared mode), bytes.
 const SALT_LEN: usize = 16;
-const NONCE_LEN: usize = 12;
-const TAG_LEN: usize = 16;
+pub(crate) const NONCE_LEN: usize = 12;
+pub(crate) const TAG_LEN: usize = 16;
 pub(crate) const HELLO: u8 = 1;
 pub(crate) const REPLY: u8 = 2;
 pub(crate) const REKEY: u8 = 3;
@@ -112,11 +112,52 @@ impl SealInfo {
     }
 }
 
+/// Frames a re-key request may point at: the last this many a send session sealed.
+pub(crate) const REKEY_WINDOW: u64 = 64;
+
 /// A session agreed for sending: the data plane's and the control channel's alike.
 pub(crate) struct SendSession {
     pub(crate) id: [u8; SID_LEN],
     pub(crate) key: LessSafeKey,
-    pub(crate) counter: u64,
+    counter: u64,
+    /// The tags of the last [`REKEY_WINDOW`] frames sealed, by counter modulo the window: a
+    /// re-key request must echo one (with its counter), which only someone who saw that frame
+    /// can; the session id alone, in clear in every frame, is not enough.
+    tags: Box<[[u8; TAG_LEN]; REKEY_WINDOW as usize]>,
+}
+
+impl SendSession {
+    pub(crate) fn new(id: [u8; SID_LEN], key: LessSafeKey) -> Self {
+        Self {
+            id,
+            key,
+            counter: 0,
+            tags: Box::new([[0; TAG_LEN]; REKEY_WINDOW as usize]),
+        }
+    }
+
+    /// The counter (nonce) of the next frame to seal.
+    pub(crate) fn next_counter(&mut self) -> u64 {
+        let counter = self.counter;
+        self.counter += 1;
+        counter
+    }
+
+    /// Remembers the tag frame `counter` was sealed with.
+    pub(crate) fn sealed(&mut self, counter: u64, tag: &[u8]) {
+        if let Ok(tag) = tag.try_into() {
+            self.tags[(counter % REKEY_WINDOW) as usize] = tag;
+        }
+    }
+
+    /// Whether `tag` is the one frame `counter`, among the last [`REKEY_WINDOW`] sealed, was
+    /// sealed with (compared in constant time).
+    pub(crate) fn sealed_recently(&self, counter: u64, tag: &[u8]) -> bool {
+        let recent = counter < self.counter && self.counter - counter <= REKEY_WINDOW;
+        let kept = &self.tags[(counter % REKEY_WINDOW) as usize];
+        let differ = kept.iter().zip(tag).fold(0u8, |acc, (a, b)| acc | (a ^ b));
+        recent && tag.len() == TAG_LEN && differ == 0
+    }
 }
 
 struct PskSend {
@@ -489,8 +530,8 @@ impl SecurityLayer {
             env,
             Flags::NONE,
         );
-        let nonce = nonce_bytes(sess.counter);
-        sess.counter += 1;
+        let counter = sess.next_counter();
+        let nonce = nonce_bytes(counter);
         let key = &sess.key;
         let aad = &self.aad[..];
         env.payload = sealed_payload(&sess.id, &nonce, &env.payload, sig.as_ref(), |in_out| {
@@ -505,6 +546,8 @@ impl SecurityLayer {
                 .try_into()
                 .map_err(|_| SecurityError::KeyDerivation)
         })?;
+        let tag_at = env.payload.len() - TAG_LEN;
+        sess.sealed(counter, &env.payload[tag_at..]);
         Ok(true)
     }
 
@@ -687,11 +730,7 @@ impl SecurityLayer {
         let Some(p) = nested(&mut self.pending, &a, &b).take() else {
             return Ok(Verdict::Drop(Reason::BadHandshake));
         };
-        *nested(&mut self.send, &a, &b) = Some(SendSession {
-            id,
-            key,
-            counter: 0,
-        });
+        *nested(&mut self.send, &a, &b) = Some(SendSession::new(id, key));
         for mut queued in p.queued {
             if !self.seal_pk(&mut queued)? {
                 return Err(SecurityError::KeyDerivation);
@@ -702,19 +741,29 @@ impl SecurityLayer {
     }
 
     fn on_rekey(&mut self, env: &Envelope) -> Verdict {
-        // Sent by a receiver that lost the session (restart). Unauthenticated by necessity, but
-        // it must name a session we hold, which only someone who saw our frames knows; the
-        // worst a forger achieves then is an extra agreement.
+        // Sent by a receiver that lost the session (restart), so it cannot be sealed; it is
+        // bound to the session instead: it names it and echoes the nonce and tag of one of its
+        // last frames, which only someone who saw that frame knows. One naming the session
+        // without such a frame is refused (and counted); the worst a forger on the path
+        // achieves is an extra agreement.
         let (b, a) = (env.header.sender.as_str(), env.header.receiver.as_str());
-        if env.payload.len() != 1 + SID_LEN {
+        if env.payload.len() != 1 + SID_LEN + NONCE_LEN + TAG_LEN {
             return Verdict::Drop(Reason::BadHandshake);
         }
-        let id = &env.payload[1..];
-        let current = nested_get(&self.send, a, b)
+        let (id, rest) = env.payload[1..].split_at(SID_LEN);
+        let (nonce, tag) = rest.split_at(NONCE_LEN);
+        let mut counter = [0u8; 8];
+        counter.copy_from_slice(&nonce[NONCE_LEN - 8..]);
+        let counter = u64::from_be_bytes(counter);
+        let Some(session) = nested_get(&self.send, a, b)
             .and_then(Option::as_ref)
-            .is_some_and(|s| s.id[..] == *id);
-        if !current {
-            return Verdict::Consumed; // a repeat for a session already retired
+            .filter(|s| s.id[..] == *id)
+        else {
+            // a repeat for a session already retired, or one of an earlier life of ours
+            return Verdict::Consumed;
+        };
+        if !session.sealed_recently(counter, tag) {
+            return Verdict::Drop(Reason::BadHandshake);
         }
         // A restart loses every session: retire those of all our agents towards `b`.
         for sessions in self.send.values_mut() {
@@ -843,7 +892,13 @@ impl SecurityLayer {
             let session =
                 nested_get(&self.recv, s, r).and_then(|q| q.iter().find(|(id, _)| *id == sid));
             let Some((_, key)) = session else {
-                let payload = [&[REKEY][..], &sid].concat();
+                // Names the session and the frame (nonce, tag): see `on_rekey`.
+                let payload = [
+                    &[REKEY][..],
+                    &env.payload[..body],
+                    &env.payload[len - TAG_LEN..],
+                ]
+                .concat();
                 let (s, r) = (env.header.sender.clone(), env.header.receiver.clone());
                 let rekey = self.handshake_env(&r, &s, payload, now);
                 self.outbox.push_back(rekey);

@@ -69,6 +69,7 @@
 //! | pin a route with a huge list generation | followers mirror the leader's list, the leader takes each container's part as its container says (`iw_container`) |
 //! | holding the group key, list agents under her own container that carry another container's key | every list entry must carry the key of the container whose part it is in: the signer's for its own list, the bound key at a follower (`iw_container`) |
 //! | holding the group key, with a deployment roster (`security.roster`): claim an id nobody holds (a low one to lead), a listed id under her own key, or another container's agent names; stop a container with a forged `Duplicate` | pinning: the roster pins each id to one key and one name in advance; a frame speaks for an id only under its pinned key (an unlisted id is nobody's), a container's part carries only `ROLE@NAME` for its pinned name, and a `Duplicate` is believed only under the receiver's own pinned key; a container whose key is not pinned for its id refuses to start (`iw_container::Roster`) |
+//! | make a sender drop its session and agree another (a forged re-key request), knowing the session id from a log or an old capture | the request must echo the nonce and tag of one of the last 64 frames sealed under the current session; otherwise refused as `bad_handshake` and counted (here, [`PeerSessions`]) |
 //! | flood | size caps and rate-limited warnings per reason; rejections counted per kind |
 //!
 //! Not defended: an attacker holding an agent's or a container's identity key (she is that
@@ -82,11 +83,19 @@
 //! exposed, but a listener can link an agent's handshakes while the layer lives.
 //!
 //! The control channel's sessions ([`PeerSessions`]) are re-agreed the same way, without taking
-//! frames back: a restarted receiver answers a frame of a session it lost with a re-key request,
-//! its sender agrees a new session at its next frame, and heartbeats repeat.
+//! frames back: a restarted receiver answers a frame of a session it lost with a re-key request
+//! (bound to the session as below: the frame's counter and tag echoed), its sender agrees a new
+//! session at its next frame, and heartbeats repeat.
 //!
-//! A receiver that restarts loses its sessions; it answers the next sealed frame with an
-//! unauthenticated re-key request naming the session. The sender retires every session towards
+//! A receiver that restarts loses its sessions; it answers the next sealed frame with a re-key
+//! request. It cannot seal it (it lost the key), so the request is bound to the session
+//! instead: it names the session and echoes the nonce and tag of the frame it could not open,
+//! and the sender takes it only if that is one of the last 64 frames it sealed under its current
+//! session towards that receiver. The session id alone (in clear in every frame, in logs) is no
+//! longer enough: a request that names the current session without such a frame is refused as
+//! `bad_handshake` and counted. One naming a session the sender no longer holds (a repeat, an
+//! earlier life's) changes nothing. An attacker on the path who sees the frames can still ask
+//! for an extra agreement (she can also just drop frames). The sender retires every session towards
 //! that receiver, takes back the frames still held for it below (the communication layer's
 //! retransmission copies, see `iw_bus::Layer::reclaim`), opens them with the retired key and
 //! queues them for a new key agreement: they are delivered under the new session, not

@@ -11,7 +11,8 @@
 //! Datagrams: `IWN1`, a kind byte, the session id (8 bytes), then
 //! - hello: the time it was stamped (8, big-endian ns) and Noise's first message;
 //! - reply: Noise's second message;
-//! - re-key: nothing (a receiver that does not hold the session names it);
+//! - re-key: the counter and tag of the frame the receiver could not open (a receiver that
+//!   does not hold the session names it, and proves it saw one of its last frames);
 //! - data: the frame counter (8, big-endian, the AES-256-GCM nonce) and the sealed frame, with
 //!   everything before it as associated data.
 //!
@@ -33,8 +34,8 @@ use ring::rand::{SecureRandom, SystemRandom};
 
 use crate::identity::{Identity, PublicKey, verify};
 use crate::layer::{
-    Agreeing, HELLO, NOISE_MAX, NOISE_PARAMS, REKEY, REPLY, SID_LEN, SendSession, hello_binding,
-    noise, noise_err, nonce_bytes, prologue, reply_binding, split_key,
+    Agreeing, HELLO, NOISE_MAX, NOISE_PARAMS, REKEY, REPLY, SID_LEN, SendSession, TAG_LEN,
+    hello_binding, noise, noise_err, nonce_bytes, prologue, reply_binding, split_key,
 };
 use crate::{SecurityConfig, SecurityError};
 
@@ -44,7 +45,6 @@ const DATA: u8 = 4;
 const HEAD: usize = MAGIC.len() + 1 + SID_LEN;
 /// Magic, kind, session id, counter: a data frame's associated data.
 const DATA_HEAD: usize = HEAD + 8;
-const TAG_LEN: usize = 16;
 /// The handshake payload: the identity's public key and its signature.
 const BINDING_LEN: usize = 32 + 64;
 /// The names the handshake bindings carry for both ends: a control session is between
@@ -213,27 +213,36 @@ impl PeerSessions {
             DATA => self.on_data(from, &id, datagram, back).map(Some),
             HELLO => self.on_hello(from, id, body, now, back).map(|()| None),
             REPLY => self.on_reply(id, body, back).map(|()| None),
-            REKEY if body.is_empty() => {
-                self.on_rekey(&id);
-                Ok(None)
-            }
+            REKEY => self.on_rekey(&id, body).map(|()| None),
             _ => Err(Reason::BadHandshake),
         }
     }
 
-    /// Forgets the session towards `peer` (if it was agreed under `id`): the next frame for it
-    /// starts a new agreement. Asked by a receiver that lost it; unauthenticated by necessity,
-    /// but it must name the session, which only someone who saw its frames knows.
-    fn on_rekey(&mut self, id: &[u8; SID_LEN]) {
-        let peer = self
-            .send
-            .iter()
-            .find(|(_, s)| matches!(s, Outbound::Agreed(a) if a.id == *id))
-            .map(|(p, _)| p.clone());
-        if let Some(peer) = peer {
-            tracing::info!(%peer, "control peer lost our session (restarted?): agreeing a new one");
-            self.send.remove(&peer);
+    /// Forgets the session agreed under `id` (if it is one of ours): the next frame for its
+    /// peer starts a new agreement. Asked by a receiver that lost it, so it cannot be sealed;
+    /// it is bound to the session instead: `body` echoes the counter and tag of one of the last
+    /// [`crate::layer::REKEY_WINDOW`] frames sealed under it, which only someone who saw that
+    /// frame knows. Naming the session without such a frame is refused; a session not ours
+    /// (an earlier life's, one already forgotten) changes nothing.
+    fn on_rekey(&mut self, id: &[u8; SID_LEN], body: &[u8]) -> Result<(), Reason> {
+        if body.len() != 8 + TAG_LEN {
+            return Err(Reason::BadHandshake);
         }
+        let (counter, tag) = body.split_at(8);
+        let mut c = [0u8; 8];
+        c.copy_from_slice(counter);
+        let Some((peer, session)) = self.send.iter().find_map(|(p, s)| match s {
+            Outbound::Agreed(a) if a.id == *id => Some((p.clone(), a)),
+            _ => None,
+        }) else {
+            return Ok(());
+        };
+        if !session.sealed_recently(u64::from_be_bytes(c), tag) {
+            return Err(Reason::BadHandshake);
+        }
+        tracing::info!(%peer, "control peer lost our session (restarted?): agreeing a new one");
+        self.send.remove(&peer);
+        Ok(())
     }
 
     fn on_data(
@@ -244,7 +253,21 @@ impl PeerSessions {
         back: &mut Vec<Vec<u8>>,
     ) -> Result<Opened, Reason> {
         let Some(session) = self.recv.get_mut(id) else {
-            back.push(head(REKEY, id).to_vec());
+            if let Some(tag) = datagram
+                .len()
+                .checked_sub(TAG_LEN)
+                .filter(|&t| t >= DATA_HEAD)
+            {
+                // names the session and echoes the frame: see `on_rekey`
+                back.push(
+                    [
+                        &head(REKEY, id)[..],
+                        &datagram[HEAD..DATA_HEAD],
+                        &datagram[tag..],
+                    ]
+                    .concat(),
+                );
+            }
             return Err(Reason::UnknownSession);
         };
         if datagram.len() < DATA_HEAD + TAG_LEN {
@@ -410,11 +433,7 @@ impl PeerSessions {
         )?;
         let key = split_key(&mut hs).map_err(|_| Reason::BadHandshake)?;
         let queued = std::mem::take(&mut pending.queued);
-        let mut session = SendSession {
-            id,
-            key,
-            counter: 0,
-        };
+        let mut session = SendSession::new(id, key);
         for frame in queued {
             back.push(seal_data(&mut session, &frame).map_err(|_| Reason::BadHandshake)?);
         }
@@ -467,8 +486,7 @@ fn queue(queued: &mut VecDeque<Vec<u8>>, frame: &[u8], max: usize) {
 }
 
 fn seal_data(session: &mut SendSession, frame: &[u8]) -> Result<Vec<u8>, SecurityError> {
-    let counter = session.counter;
-    session.counter += 1;
+    let counter = session.next_counter();
     let mut out = Vec::with_capacity(DATA_HEAD + frame.len() + TAG_LEN);
     out.extend_from_slice(&head(DATA, &session.id));
     out.extend_from_slice(&counter.to_be_bytes());
@@ -482,6 +500,7 @@ fn seal_data(session: &mut SendSession, frame: &[u8]) -> Result<Vec<u8>, Securit
             body,
         )
         .map_err(|_| SecurityError::KeyDerivation)?;
+    session.sealed(counter, tag.as_ref());
     out.extend_from_slice(tag.as_ref());
     Ok(out)
 }
@@ -616,6 +635,49 @@ mod tests {
         assert_eq!(again[0][MAGIC.len()], HELLO, "a new agreement");
         let opened = exchange(&mut a, &mut b, "a", again, T);
         assert_eq!(opened[0].as_ref().unwrap().frame, b"three");
+    }
+
+    /// A re-key request naming the session (in clear in every frame) is refused unless it
+    /// echoes the counter and tag of one of the session's last frames; the session is kept.
+    #[test]
+    fn a_forged_rekey_request_is_refused_and_the_session_kept() {
+        let (mut a, _) = sessions();
+        let (mut b, _) = sessions();
+        let hello = a.seal("b", b"one", T).unwrap();
+        exchange(&mut a, &mut b, "a", hello, T);
+        let frame = a.seal("b", b"two", T).unwrap().remove(0);
+        let id: [u8; SID_LEN] = frame[MAGIC.len() + 1..HEAD].try_into().unwrap();
+        let counter = &frame[HEAD..DATA_HEAD];
+        let tag = &frame[frame.len() - TAG_LEN..];
+        let rekey = |parts: &[&[u8]]| [&head(REKEY, &id)[..], &parts.concat()].concat();
+        let mut back = Vec::new();
+        for (what, forged) in [
+            ("the session id alone", rekey(&[])),
+            ("a made-up tag", rekey(&[counter, &[7u8; TAG_LEN]])),
+            ("another counter", rekey(&[&9u64.to_be_bytes(), tag])),
+        ] {
+            assert_eq!(
+                a.open("b", &forged, T, &mut back),
+                Err(Reason::BadHandshake),
+                "{what}"
+            );
+        }
+        let next = a.seal("b", b"three", T).unwrap();
+        assert_eq!(next[0][MAGIC.len()], DATA, "the session was kept");
+        // the genuine request (from the receiver that lost it) echoes the frame
+        let (mut b, _) = sessions();
+        assert_eq!(
+            b.open("a", &frame, T, &mut back),
+            Err(Reason::UnknownSession)
+        );
+        assert_eq!(
+            back.last().map(Vec::as_slice),
+            Some(&rekey(&[counter, tag])[..])
+        );
+        let genuine = back.pop().unwrap();
+        a.open("b", &genuine, T, &mut back).unwrap();
+        let again = a.seal("b", b"four", T).unwrap();
+        assert_eq!(again[0][MAGIC.len()], HELLO, "a new agreement");
     }
 
     #[test]

@@ -4,6 +4,7 @@ use std::sync::Arc;
 use iw_bus::{Envelope, FrameCodec, Layer, MsgId, Reason, Time, Verdict};
 
 use super::*;
+use crate::layer::{NONCE_LEN, REKEY, SID_LEN, TAG_LEN};
 
 struct Net {
     a: SecurityLayer,
@@ -444,5 +445,55 @@ fn a_key_ring_refuses_keeps_rings_error() {
     assert_eq!(
         err.to_string(),
         format!("bad Ed25519 PKCS#8 document: {rejected}")
+    );
+}
+
+/// A re-key request must name the session and echo the nonce and tag of one of its last frames:
+/// one naming the current session (in clear in every frame) without such a frame is refused as
+/// a bad handshake, which the bus counts, and the session is kept. The genuine one, from a
+/// receiver that lost the session, still re-keys (`receiver_restart_recovers_with_rekey`).
+#[test]
+fn a_forged_rekey_request_naming_the_session_is_refused_and_the_session_kept() {
+    let mut n = net(SecurityConfig::default(), SecurityConfig::default());
+    let (got, wire) = send(&mut n.a, &mut n.b, [msg(1), msg(2)]);
+    assert_eq!(got.len(), 2);
+    let (first, second) = (&wire[0].payload, &wire[1].payload);
+    let sid = &first[..SID_LEN];
+    let tag_of = |p: &Vec<u8>| p[p.len() - TAG_LEN..].to_vec();
+    let rekey = |parts: &[&[u8]]| {
+        let payload = [&[REKEY][..], &parts.concat()].concat();
+        let mut e = Envelope::new(MsgId(99), "b", "a", payload);
+        e.header.flags = iw_bus::Flags::HANDSHAKE;
+        e
+    };
+    let nonce_of = |p: &Vec<u8>| p[SID_LEN..SID_LEN + NONCE_LEN].to_vec();
+    for (what, mut forged) in [
+        ("the session id alone", rekey(&[sid])),
+        (
+            "a made-up tag",
+            rekey(&[sid, &nonce_of(first), &[7u8; TAG_LEN]]),
+        ),
+        (
+            "one frame's nonce with another's tag",
+            rekey(&[sid, &nonce_of(first), &tag_of(second)]),
+        ),
+    ] {
+        assert_eq!(
+            n.a.inbound(&mut forged, Time::ZERO),
+            Verdict::Drop(Reason::BadHandshake),
+            "{what}"
+        );
+    }
+    let (got, wire) = send(&mut n.a, &mut n.b, [msg(3)]);
+    assert_eq!(got.len(), 1, "the session was kept");
+    assert_eq!(&wire[0].payload[..SID_LEN], sid, "under the same session");
+    // The genuine echo of a recent frame is taken: the next frame waits for a new agreement.
+    let mut genuine = rekey(&[sid, &nonce_of(second), &tag_of(second)]);
+    assert_eq!(n.a.inbound(&mut genuine, Time::ZERO), Verdict::Consumed);
+    let mut m = msg(4);
+    assert_eq!(
+        n.a.outbound(&mut m, Time::ZERO),
+        Verdict::Consumed,
+        "queued for a new key"
     );
 }

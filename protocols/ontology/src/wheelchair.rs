@@ -421,6 +421,66 @@ impl Concept for SensorState {
     }
 }
 
+/// A goal a chair's cognitive agent is carrying out, as it answers a query for its current
+/// goal: where to, and the conversation it will answer (who asked, under which id), so that
+/// whoever asks can tell a goal it follows from one nobody follows any more.
+///
+/// SL: `(goal :place P :requester (agent-identifier ...) :conversation "id")`, with
+/// `:outcome reached` or `:outcome failed :reason "why"` once it ended.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GoalInFlight {
+    /// The place of the map the chair is going to.
+    pub place: String,
+    /// Who gave the goal: the agent the outcome is answered to.
+    pub requester: AgentId,
+    /// The conversation the outcome is answered in.
+    pub conversation: String,
+    /// How it ended, for a goal that did: `Ok` reached, `Err` failed with the reason.
+    pub outcome: Option<Result<(), String>>,
+}
+
+impl Concept for GoalInFlight {
+    fn to_term(&self) -> Term {
+        let (outcome, reason) = match &self.outcome {
+            None => (None, None),
+            Some(Ok(())) => (Some("reached"), None),
+            Some(Err(why)) => (Some("failed"), Some(why.as_str())),
+        };
+        FrameBuilder::new("goal")
+            .text("place", Some(&self.place))
+            .term("requester", self.requester.to_term())
+            .text("conversation", Some(&self.conversation))
+            .text("outcome", outcome)
+            .text("reason", reason)
+            .build()
+    }
+
+    fn from_term(term: &Term) -> Result<Self, OntologyError> {
+        let f = Frame::read(term, "goal")?;
+        let outcome = match f.text("outcome")?.as_deref() {
+            None => None,
+            Some(w) if w.eq_ignore_ascii_case("reached") => Some(Ok(())),
+            Some(w) if w.eq_ignore_ascii_case("failed") => {
+                Some(Err(f.text("reason")?.unwrap_or_default()))
+            }
+            Some(_) => {
+                return Err(OntologyError::BadValue {
+                    concept: "goal",
+                    slot: "outcome",
+                    value: f.get("outcome").map(shown).unwrap_or_default(),
+                    reason: "expected reached or failed",
+                });
+            }
+        };
+        Ok(Self {
+            place: f.required_text("place")?,
+            requester: AgentId::from_term(f.require("requester")?)?,
+            conversation: f.required_text("conversation")?,
+            outcome,
+        })
+    }
+}
+
 /// Facts agents inform each other of.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -478,6 +538,18 @@ pub enum Fact {
         /// The reason, for a person to read.
         reason: String,
     },
+    /// `(current-goal agent (set (goal ...) ...))`: the goal `agent` (a chair's cognitive
+    /// agent) is carrying out, and the last one that ended and was not told yet (with its
+    /// `:outcome`: its answer may have gone where no one hears it any more); the set is empty
+    /// when it has neither. The answer to [`WheelchairContent::GoalQuery`].
+    CurrentGoal {
+        /// The cognitive agent.
+        agent: AgentId,
+        /// Its goal under way, if any (no outcome).
+        goal: Option<Box<GoalInFlight>>,
+        /// The last goal that ended, not told before (with its outcome).
+        ended: Option<Box<GoalInFlight>>,
+    },
 }
 
 impl Fact {
@@ -492,6 +564,13 @@ impl Fact {
             Self::Sensor { agent, state } => {
                 ("sensor-health", vec![agent.to_term(), state.to_term()])
             }
+            Self::CurrentGoal { agent, goal, ended } => (
+                "current-goal",
+                vec![
+                    agent.to_term(),
+                    Term::set(goal.iter().chain(ended).map(|g| g.to_term()).collect()),
+                ],
+            ),
             Self::Door { door, state } => (
                 "door-state",
                 vec![Term::string(door.as_str()), Term::string(state.name())],
@@ -522,7 +601,8 @@ impl Fact {
         let bad = || OntologyError::UnexpectedTerm {
             expected: "(at-pose agent pose), (sensor-reading agent reading), (sensor-health agent \
                        (sensor-state ...)), (door-state door state), (drive-applied agent \
-                       (drive ...)), (error-message reason) or (body-fault reason)",
+                       (drive ...)), (current-goal agent (set goal...)), (error-message reason) or \
+                       (body-fault reason)",
             found: formula.to_string(),
         };
         let Formula::Atomic { predicate, args } = formula else {
@@ -558,6 +638,32 @@ impl Fact {
                 agent: AgentId::from_term(first)?,
                 state: SensorState::from_term(second)?,
             }),
+            "current-goal" => {
+                let bad = || OntologyError::BadValue {
+                    concept: "current-goal",
+                    slot: "goal",
+                    value: shown(second),
+                    reason: "expected a set of at most one goal under way and one ended",
+                };
+                let items = second.collection().ok_or_else(bad)?.1;
+                let (mut goal, mut ended) = (None, None);
+                for item in items {
+                    let g = GoalInFlight::from_term(item)?;
+                    let slot = if g.outcome.is_some() {
+                        &mut ended
+                    } else {
+                        &mut goal
+                    };
+                    if slot.replace(Box::new(g)).is_some() {
+                        return Err(bad());
+                    }
+                }
+                Ok(Self::CurrentGoal {
+                    agent: AgentId::from_term(first)?,
+                    goal,
+                    ended,
+                })
+            }
             "drive-applied" => match WheelchairAction::from_term(second)? {
                 WheelchairAction::Drive {
                     linear_mps,
@@ -691,6 +797,12 @@ pub enum WheelchairContent {
     },
     /// INFORM: `(fact)`.
     Inform(Fact),
+    /// QUERY-REF for the goal `agent` (a chair's cognitive agent) is carrying out:
+    /// `((current-goal agent ?goal))`, answered INFORM [`Fact::CurrentGoal`].
+    GoalQuery {
+        /// The cognitive agent asked.
+        agent: AgentId,
+    },
 }
 
 impl WheelchairContent {
@@ -735,6 +847,10 @@ impl WheelchairContent {
                 condition: None,
             }),
             Self::Inform(fact) => Content::single(fact.to_formula()),
+            Self::GoalQuery { agent } => Content::single(Formula::Atomic {
+                predicate: "current-goal".into(),
+                args: vec![agent.to_term(), Term::variable(GOAL_VARIABLE)],
+            }),
         }
     }
 
@@ -771,15 +887,27 @@ impl WheelchairContent {
                 }
                 ActionOperand::Meta(_) => Err(unexpected(content)),
             },
+            [ContentExpression::Formula(Formula::Atomic { predicate, args })]
+                if predicate.eq_ignore_ascii_case("current-goal")
+                    && matches!(args.as_slice(), [_, Term::Variable { .. }]) =>
+            {
+                Ok(Self::GoalQuery {
+                    agent: AgentId::from_term(&args[0])?,
+                })
+            }
             [ContentExpression::Formula(f)] => Fact::from_formula(f).map(Self::Inform),
             _ => Err(unexpected(content)),
         }
     }
 }
 
+/// The variable a [`WheelchairContent::GoalQuery`] asks for.
+const GOAL_VARIABLE: &str = "goal";
+
 fn unexpected(content: &Content) -> OntologyError {
     OntologyError::UnexpectedContent {
-        expected: "((action actor act)), ((done (action actor act))) or a wheelchair fact",
+        expected: "((action actor act)), ((done (action actor act))), ((current-goal agent ?goal)) \
+                   or a wheelchair fact",
         found: content.to_string(),
     }
 }

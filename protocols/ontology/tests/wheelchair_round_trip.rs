@@ -3,7 +3,7 @@
 
 use iw_acl::AgentId;
 use iw_ontology::wheelchair::{
-    DoorState, Fact, Pose, SensorReading, SensorState, SensorUse, WheelchairAction,
+    DoorState, Fact, GoalInFlight, Pose, SensorReading, SensorState, SensorUse, WheelchairAction,
     WheelchairContent,
 };
 use iw_ontology::{Concept, OntologyError};
@@ -123,6 +123,35 @@ fn fact() -> impl Strategy<Value = Fact> {
                 angular_radps,
             }
         }),
+        (
+            agent(),
+            prop::option::of((name(), agent(), name())),
+            prop::option::of((
+                name(),
+                agent(),
+                name(),
+                prop::result::maybe_ok(Just(()), "[ -~]{0,40}")
+            )),
+        )
+            .prop_map(|(agent, goal, ended)| Fact::CurrentGoal {
+                agent,
+                goal: goal.map(|(place, requester, conversation)| {
+                    Box::new(GoalInFlight {
+                        place,
+                        requester,
+                        conversation,
+                        outcome: None,
+                    })
+                }),
+                ended: ended.map(|(place, requester, conversation, outcome)| {
+                    Box::new(GoalInFlight {
+                        place,
+                        requester,
+                        conversation,
+                        outcome: Some(outcome),
+                    })
+                }),
+            }),
     ]
 }
 
@@ -132,6 +161,7 @@ fn content() -> impl Strategy<Value = WheelchairContent> {
             .prop_map(|(actor, action)| WheelchairContent::Request { actor, action }),
         (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Done { actor, action }),
         fact().prop_map(WheelchairContent::Inform),
+        agent().prop_map(|agent| WheelchairContent::GoalQuery { agent }),
     ]
 }
 
@@ -330,6 +360,71 @@ fn facts_read_as_documented() {
     assert!(
         (p.x - (1.0 + 0.5f64.cos())).abs() < 1e-12 && (p.y - (-2.5 + 0.5f64.sin())).abs() < 1e-12
     );
+}
+
+/// A chair's cognitive agent is asked for its goal with a QUERY-REF and answers the goal it
+/// carries out (or an empty set), all in SL0 as the door agent's query is.
+#[test]
+fn goal_queries_and_answers_read_as_documented() {
+    let cognitive = AgentId::new("cognitive@chair-a");
+    let query = WheelchairContent::GoalQuery {
+        agent: cognitive.clone(),
+    };
+    let text = query.to_content().to_string();
+    assert_eq!(
+        text,
+        "((current-goal (agent-identifier :name cognitive@chair-a) ?goal))"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(query));
+    let busy = WheelchairContent::Inform(Fact::CurrentGoal {
+        agent: cognitive.clone(),
+        goal: Some(Box::new(GoalInFlight {
+            place: "dining-hall".into(),
+            requester: AgentId::new("assistant@services"),
+            conversation: "assistant@services-c2".into(),
+            outcome: None,
+        })),
+        ended: None,
+    });
+    let text = busy.to_content().to_string();
+    assert_eq!(
+        text,
+        "((current-goal (agent-identifier :name cognitive@chair-a) (set (goal :place \
+         dining-hall :requester (agent-identifier :name assistant@services) :conversation \
+         assistant@services-c2))))"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(busy));
+    let idle = WheelchairContent::Inform(Fact::CurrentGoal {
+        agent: cognitive.clone(),
+        goal: None,
+        ended: None,
+    });
+    assert_eq!(
+        WheelchairContent::parse(&idle.to_content().to_string()),
+        Ok(idle)
+    );
+    // A goal that ended and was not told yet travels with its outcome.
+    let ended = WheelchairContent::Inform(Fact::CurrentGoal {
+        agent: cognitive,
+        goal: None,
+        ended: Some(Box::new(GoalInFlight {
+            place: "therapy".into(),
+            requester: AgentId::new("interface@chair-a"),
+            conversation: "c9".into(),
+            outcome: Some(Err("no route to therapy".into())),
+        })),
+    });
+    let text = ended.to_content().to_string();
+    assert!(
+        text.contains(":outcome failed :reason \"no route to therapy\""),
+        "{text}"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(ended));
+    let two = "((current-goal (agent-identifier :name c@P) (set (goal :place a :requester \
+               (agent-identifier :name r@P) :conversation x) (goal :place b :requester \
+               (agent-identifier :name r@P) :conversation y))))";
+    let e = WheelchairContent::parse(two).unwrap_err().to_string();
+    assert!(e.contains("at most one goal under way"), "{e}");
 }
 
 #[test]

@@ -56,6 +56,11 @@ pub enum Event {
         /// Why, for a FAILURE, REFUSE or NOT-UNDERSTOOD: the chair's `error-message` text (its
         /// content verbatim when it is not one), or what the services detected themselves.
         reason: Option<String>,
+        /// Who gave the goal, for a goal the services learned of from the chair (asked when it
+        /// joined) and did not follow: given by an earlier life of the services, or past them.
+        /// Absent for the services' own goals.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        requester: Option<String>,
     },
     /// A chair's cognitive agent agreed to a goal the assistant forwarded (services only): the
     /// REQUEST/AGREE round trip in real time, each end's wait for its agent step included.

@@ -30,6 +30,7 @@ use crate::probe::{AgreeProbe, SharedProbe, Timed};
 use crate::{Cause, Event, NodeError, Role, SERVICES};
 
 mod admin;
+mod inflight;
 pub use admin::{AdminCommand, MAX_ADMIN_LINE};
 
 /// How long the services wait for a world before giving a present chair its goal anyway (a
@@ -461,6 +462,8 @@ struct ServiceDesk {
     last_pose_report: BTreeMap<String, Time>,
     /// When each present chair's cognitive agent was first seen.
     seen_at: BTreeMap<String, Time>,
+    /// Chairs asked for their goal under way and not yet answered: how many times.
+    goal_asked: BTreeMap<String, u32>,
     /// The dashboard, when configured.
     dashboard: Option<crate::dashboard::LiveDashboard>,
     /// The assistant's REQUEST/AGREE round trips to the chairs.
@@ -564,6 +567,7 @@ fn service_parts(config: &SpawnConfig, bus: &Arc<Bus>) -> Result<(Agents, Servic
             conversations: 0,
             last_pose_report: BTreeMap::new(),
             seen_at: BTreeMap::new(),
+            goal_asked: BTreeMap::new(),
             dashboard,
             probe,
         },
@@ -1036,8 +1040,28 @@ impl Runtime {
         services
             .seen_at
             .retain(|c, _| chairs.contains(c) && !gone.contains(c.as_str()));
-        for chair in chairs {
-            services.seen_at.entry(chair).or_insert(now);
+        services.goal_asked.retain(|c, _| chairs.contains(c));
+        // A chair that joins (or joins again) is asked for the goal it carries out: one given
+        // past these services, or by their earlier life, is taken up below.
+        let joined: Vec<String> = chairs
+            .iter()
+            .filter(|c| !services.seen_at.contains_key(*c))
+            .cloned()
+            .collect();
+        for chair in &chairs {
+            services.seen_at.entry(chair.clone()).or_insert(now);
+        }
+        let answers = {
+            let mut desk = iw_wiring::desk(&services.desk);
+            desk.goal_queries.extend(joined);
+            std::mem::take(&mut desk.current_goals)
+        };
+        let assistant = iw_wiring::agent_id("assistant", SERVICES).name;
+        for (chair, answer) in answers {
+            let present = chairs.contains(&chair);
+            for event in services.take_goal_answer(chair, answer, present, &assistant) {
+                let _ = self.events.send(event);
+            }
         }
         let mut desk = iw_wiring::desk(&services.desk);
         desk.watch = installed
@@ -1055,6 +1079,7 @@ impl Runtime {
                 conversation: answer.conversation.clone(),
                 performative: answer.performative.clone(),
                 reason: answer.reason.clone(),
+                requester: None,
             });
             if answer.performative != "AGREE" {
                 // answered for good: nothing more is expected in this conversation
@@ -1087,6 +1112,7 @@ impl Runtime {
                     reason: Some(format!(
                         "{chair} left before the goal was done (its container stopped or restarted); the goal is given again when it is back"
                     )),
+                    requester: None,
                 });
                 services.waiting.push((chair, place));
             }

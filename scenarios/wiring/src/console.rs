@@ -4,19 +4,41 @@
 //! subscribes to the pose of the chairs the container puts on its watch list (a live deployment
 //! has no simulator to read them from), with a screen also to their sonar readings and to what
 //! their control agents apply while driven by hand, and relays a dashboard's drive panel to a chair's
-//! interface agent as `drive` requests (one request stream per hold). Every conversation runs
+//! interface agent as `drive` requests (one request stream per hold). It asks the chairs the
+//! container names (when they join) for the goal they are carrying out, with a QUERY-REF to
+//! their cognitive agent, so goals nobody here follows can be taken up. Every conversation runs
 //! on the interaction protocols' state machines (`iw_agent::Initiated`).
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use iw_acl::{AclMessage, AgentId, Performative};
-use iw_agent::{Agent, Context, Initiated, Progress, Protocol};
+use iw_acl::{AclMessage, AgentId, FipaDateTime, Performative};
+use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{
-    Fact, SensorReading, Subscription, Topic, WheelchairAction, WheelchairContent,
+    Fact, GoalInFlight, SensorReading, Subscription, Topic, WheelchairAction, WheelchairContent,
 };
+
+/// How long a chair has to answer a query for its goal.
+pub const GOAL_QUERY_WAIT: Duration = Duration::from_secs(10);
+
+/// What a chair's cognitive agent said when asked for the goal it is carrying out.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GoalAnswer {
+    /// Its goal under way, and the last that ended and was not told before (with its
+    /// outcome), each if it has one.
+    Told {
+        /// Under way.
+        goal: Option<Box<GoalInFlight>>,
+        /// Ended.
+        ended: Option<Box<GoalInFlight>>,
+    },
+    /// No answer within [`GOAL_QUERY_WAIT`] (it may not reach this container yet).
+    Silent,
+    /// An answer that tells nothing (a refusal, not understood, unreadable): why.
+    Unusable(String),
+}
 
 /// An answer the console received about one goal.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -68,6 +90,10 @@ pub struct Desk {
     /// What shared control last applied to each chair driven by hand: linear (m/s), angular
     /// (rad/s), and when it was told, s of the bus clock (with [`Desk::screen`]).
     pub applied: BTreeMap<String, ([f64; 2], f64)>,
+    /// Chairs whose cognitive agent the console is to ask for the goal it carries out.
+    pub goal_queries: BTreeSet<String>,
+    /// What the chairs asked answered, in arrival order.
+    pub current_goals: Vec<(String, GoalAnswer)>,
 }
 
 /// The shared desk handle.
@@ -94,6 +120,8 @@ pub struct Console {
     driving: BTreeMap<String, String>,
     /// Drive conversations started so far.
     holds: u64,
+    /// The queries for chairs' goals under way, each with its chair.
+    queries: Initiated<String>,
 }
 
 impl Console {
@@ -108,6 +136,7 @@ impl Console {
             streams: Initiated::new(),
             driving: BTreeMap::new(),
             holds: 0,
+            queries: Initiated::new(),
         }
     }
 
@@ -145,6 +174,32 @@ impl Agent for Console {
             }
             return;
         }
+        if let Some(answer) = self.queries.handle(ctx, &message) {
+            match answer {
+                Ok(Progress::Ended(event, chair)) => {
+                    let told = match (event.kind, WheelchairContent::from_message(&message)) {
+                        (
+                            EventKind::Informed,
+                            Ok(WheelchairContent::Inform(Fact::CurrentGoal {
+                                goal, ended, ..
+                            })),
+                        ) => GoalAnswer::Told { goal, ended },
+                        (_, content) => GoalAnswer::Unusable(format!(
+                            "{} {}",
+                            message.performative,
+                            content.map_or_else(
+                                |e| e.to_string(),
+                                |c| c.reason().map_or_else(|| format!("{c:?}"), str::to_string)
+                            )
+                        )),
+                    };
+                    desk(&self.desk).current_goals.push((chair, told));
+                }
+                Ok(Progress::Continues(_)) => {}
+                Err(err) => tracing::debug!(error = %err, "out-of-protocol answer to a goal query"),
+            }
+            return;
+        }
         if let Some(answer) = self.streams.handle(ctx, &message) {
             if let Ok(Progress::Ended(event, chair)) = answer {
                 // the interface agent refused or ended the hold: the next drive starts anew
@@ -179,17 +234,24 @@ impl Agent for Console {
     }
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
-        let (pending, watch, again, drives, screen) = {
+        let (pending, watch, again, drives, screen, ask) = {
             let mut desk = desk(&self.desk);
             let again = std::mem::take(&mut desk.resubscribe);
+            for (_, chair) in self.queries.expire(ctx.now()) {
+                desk.current_goals.push((chair, GoalAnswer::Silent));
+            }
             (
                 desk.outbox.drain(..).collect::<Vec<_>>(),
                 desk.watch.clone(),
                 again,
                 std::mem::take(&mut desk.drives),
                 desk.screen,
+                std::mem::take(&mut desk.goal_queries),
             )
         };
+        for chair in ask {
+            self.ask_goal(ctx, chair);
+        }
         for (chair, (linear_mps, angular_radps)) in drives {
             self.drive(ctx, &chair, linear_mps, angular_radps);
         }
@@ -259,6 +321,33 @@ impl Agent for Console {
 }
 
 impl Console {
+    /// Asks `chair`'s cognitive agent for the goal it carries out (answered by
+    /// [`GOAL_QUERY_WAIT`]); the answer goes to [`Desk::current_goals`].
+    fn ask_goal(&mut self, ctx: &mut Context<'_>, chair: String) {
+        let cognitive = AgentId::new(format!("cognitive@{chair}"));
+        let by_ms = ctx.now().as_ns() / 1_000_000 + GOAL_QUERY_WAIT.as_millis() as u64;
+        let query = WheelchairContent::GoalQuery {
+            agent: cognitive.clone(),
+        }
+        .fill(
+            AclMessage::new(Performative::QueryRef)
+                .with_receiver(cognitive)
+                .with_conversation_id(format!("goal-query-{chair}-{}-{by_ms}", ctx.name()))
+                .with_reply_by(FipaDateTime::from_unix_ms(
+                    i64::try_from(by_ms).unwrap_or(i64::MAX),
+                )),
+        );
+        if let Err(err) = self
+            .queries
+            .open(ctx, Protocol::Query, query, chair.clone())
+        {
+            let why = format!("the query could not be sent: {err}");
+            desk(&self.desk)
+                .current_goals
+                .push((chair, GoalAnswer::Unusable(why)));
+        }
+    }
+
     /// A subscription's INFORM: a chair's pose, sonar reading or what its control applied.
     fn on_notification(&self, ctx: &Context<'_>, message: &AclMessage) {
         match WheelchairContent::from_message(message) {

@@ -50,7 +50,7 @@ pub mod plan;
 pub mod view;
 pub mod world_link;
 
-pub use console::{Console, Desk, GoalEvent, SharedDesk, desk};
+pub use console::{Console, Desk, GOAL_QUERY_WAIT, GoalAnswer, GoalEvent, SharedDesk, desk};
 
 /// The service container's name.
 pub const SERVICES: &str = "services";
