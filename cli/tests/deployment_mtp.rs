@@ -28,17 +28,7 @@ fn send(args: &[&str]) -> (bool, Vec<String>) {
 #[test]
 fn a_foreign_http_agent_finds_the_assistant_in_the_df_and_gets_a_goal_done() {
     let net = Deployment::new();
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let config = net.file(
-        "services.toml",
-        &format!(
-            "[services]\nchairs = [\"chair-b\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"
-        ),
-    );
+    let (port, config) = net.http_mtp_config("chair-b");
     let mut services = net.services().config(&config).spawn();
     let serving = services.wait_for("the HTTP MTP served", |e| {
         is(e, "serving", "service", "mtp-http")

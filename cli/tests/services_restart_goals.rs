@@ -26,17 +26,7 @@ impl Drop for Peer {
 #[test]
 fn a_goal_the_services_did_not_follow_ends_reached_or_failed_with_a_reason_after_they_restart() {
     let net = Deployment::new();
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let config = net.file(
-        "services.toml",
-        &format!(
-            "[services]\nchairs = [\"chair-g\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"
-        ),
-    );
+    let (_, config) = net.http_mtp_config("chair-g");
     let services_launch = net.services().key(&net.key("services")).config(&config);
     let mut services = services_launch.spawn();
     let serving = services.wait_for("the HTTP MTP served", |e| {

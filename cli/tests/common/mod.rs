@@ -92,6 +92,23 @@ impl Deployment {
         path.display().to_string()
     }
 
+    /// A services configuration for `chair` with the FIPA HTTP MTP listening on a free loopback
+    /// port: the port and the file's path.
+    pub fn http_mtp_config(&self, chair: &str) -> (u16, String) {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let config = self.file(
+            "services.toml",
+            &format!(
+                "[services]\nchairs = [\"{chair}\"]\n\n[mtp.http]\nlisten = \"127.0.0.1:{port}\"\n"
+            ),
+        );
+        (port, config)
+    }
+
     /// The services container at the deployment's services address.
     pub fn services(&self) -> Launch {
         self.launch("services", &["--services"], &self.services_addr)

@@ -136,6 +136,15 @@ pub enum ContainerError {
         /// Why.
         reason: String,
     },
+    /// A roster file that cannot be opened or read.
+    #[error("roster {file}: {source}")]
+    RosterRead {
+        /// The file.
+        file: String,
+        /// Why it could not be read.
+        #[source]
+        source: std::io::Error,
+    },
     /// The container thread could not start.
     #[error("cannot spawn the container thread: {source}")]
     Spawn {

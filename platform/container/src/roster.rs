@@ -89,18 +89,21 @@ impl Roster {
     pub fn load(path: &Path) -> Result<Roster, ContainerError> {
         use std::io::Read;
         let source = path.display().to_string();
-        let bad = |reason: String| ContainerError::Roster {
-            file: source.clone(),
-            line: None,
-            reason,
+        let unreadable = |source| ContainerError::RosterRead {
+            file: path.display().to_string(),
+            source,
         };
-        let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+        let file = std::fs::File::open(path).map_err(unreadable)?;
         let mut text = String::new();
         file.take(MAX_ROSTER_BYTES + 1)
             .read_to_string(&mut text)
-            .map_err(|e| bad(e.to_string()))?;
+            .map_err(unreadable)?;
         if text.len() as u64 > MAX_ROSTER_BYTES {
-            return Err(bad(format!("larger than {MAX_ROSTER_BYTES} bytes")));
+            return Err(ContainerError::Roster {
+                file: source,
+                line: None,
+                reason: format!("larger than {MAX_ROSTER_BYTES} bytes"),
+            });
         }
         Roster::parse(&text, &source)
     }
@@ -325,8 +328,12 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("iw-roster-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let missing = dir.join("missing");
-        let err = Roster::load(&missing).unwrap_err().to_string();
-        assert!(err.contains("missing"), "{err}");
+        let err = Roster::load(&missing).unwrap_err();
+        assert!(err.to_string().contains("missing"), "{err}");
+        let cause = std::error::Error::source(&err)
+            .and_then(|s| s.downcast_ref::<std::io::Error>())
+            .unwrap_or_else(|| panic!("no io::Error under `{err}`"));
+        assert_eq!(cause.kind(), std::io::ErrorKind::NotFound);
         let huge = dir.join("huge");
         std::fs::write(&huge, vec![b'#'; MAX_ROSTER_BYTES as usize + 2]).unwrap();
         let err = Roster::load(&huge).unwrap_err().to_string();
