@@ -421,6 +421,16 @@ impl Concept for SensorState {
     }
 }
 
+word_enum! {
+    /// How a goal ended, as the `:outcome` slot of a [`GoalInFlight`] writes it.
+    pub enum GoalOutcome {
+        /// `reached`
+        Reached => "reached",
+        /// `failed` (the `:reason` slot says why)
+        Failed => "failed",
+    }
+}
+
 /// A goal a chair's cognitive agent is carrying out, as it answers a query for its current
 /// goal: where to, and the conversation it will answer (who asked, under which id), so that
 /// whoever asks can tell a goal it follows from one nobody follows any more.
@@ -443,8 +453,8 @@ impl Concept for GoalInFlight {
     fn to_term(&self) -> Term {
         let (outcome, reason) = match &self.outcome {
             None => (None, None),
-            Some(Ok(())) => (Some("reached"), None),
-            Some(Err(why)) => (Some("failed"), Some(why.as_str())),
+            Some(Ok(())) => (Some(GoalOutcome::Reached.name()), None),
+            Some(Err(why)) => (Some(GoalOutcome::Failed.name()), Some(why.as_str())),
         };
         FrameBuilder::new("goal")
             .text("place", Some(&self.place))
@@ -457,20 +467,20 @@ impl Concept for GoalInFlight {
 
     fn from_term(term: &Term) -> Result<Self, OntologyError> {
         let f = Frame::read(term, "goal")?;
-        let outcome = match f.text("outcome")?.as_deref() {
+        let outcome = match f.get("outcome") {
             None => None,
-            Some(w) if w.eq_ignore_ascii_case("reached") => Some(Ok(())),
-            Some(w) if w.eq_ignore_ascii_case("failed") => {
-                Some(Err(f.text("reason")?.unwrap_or_default()))
-            }
-            Some(_) => {
-                return Err(OntologyError::BadValue {
-                    concept: "goal",
-                    slot: "outcome",
-                    value: f.get("outcome").map(shown).unwrap_or_default(),
-                    reason: "expected reached or failed",
-                });
-            }
+            Some(word) => Some(
+                match word_value(
+                    word,
+                    "goal",
+                    "outcome",
+                    GoalOutcome::from_word,
+                    "expected reached or failed",
+                )? {
+                    GoalOutcome::Reached => Ok(()),
+                    GoalOutcome::Failed => Err(f.text("reason")?.unwrap_or_default()),
+                },
+            ),
         };
         Ok(Self {
             place: f.required_text("place")?,
