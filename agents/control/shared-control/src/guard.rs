@@ -25,6 +25,7 @@ use std::collections::HashMap;
 use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
 
+use crate::dock::find_lane;
 use crate::error::check_positive;
 use crate::recovery::{Plan, Recovery};
 use crate::{
@@ -68,6 +69,9 @@ pub struct ArcGuardParams {
     /// How far from where it stalled the chair is backed out, along the way it came, m (0.8;
     /// 0 never backs out).
     pub backup_m: f64,
+    /// Whether a backing out is followed by docking onto the centre line of the passage the chair
+    /// stalled at, lined up with its axis (true; needs dense points to find the passage).
+    pub dock: bool,
 }
 
 impl Default for ArcGuardParams {
@@ -84,6 +88,7 @@ impl Default for ArcGuardParams {
             memory_s: 60.0,
             stall_s: 3.0,
             backup_m: 0.8,
+            dock: true,
         }
     }
 }
@@ -159,7 +164,7 @@ impl ArcGuard {
             mounts,
             memory: Memory::default(),
             view: None,
-            recovery: Some(Recovery::default()),
+            recovery: Some(Recovery::new(footprint)),
             echoes: Vec::new(),
         })
     }
@@ -169,13 +174,18 @@ impl ArcGuard {
     /// turns it off for tasks.
     pub fn set_recovery(&mut self, on: bool) {
         if on != self.recovery.is_some() {
-            self.recovery = on.then(Recovery::default);
+            self.recovery = on.then(|| Recovery::new(self.footprint));
         }
     }
 
     /// Whether the guard is backing the chair out of a stall now.
     pub fn is_backing(&self) -> bool {
         self.recovery.as_ref().is_some_and(Recovery::is_backing)
+    }
+
+    /// Whether the guard is docking the chair onto a passage's centre line after a backing.
+    pub fn is_docking(&self) -> bool {
+        self.recovery.as_ref().is_some_and(Recovery::is_docking)
     }
 
     /// The guard, told where the dense sensor (`points_chair`) sits and its full field of view
@@ -606,11 +616,14 @@ impl ArcGuard {
             (c.linear_mps - turn).abs().max((c.linear_mps + turn).abs())
         };
         let (command, changed, held) = match recovery.plan(time, &pose, user) {
-            Plan::Back(candidates) => {
-                let points = self.backing_points(points);
-                let clear = candidates
-                    .into_iter()
-                    .find(|&c| self.is_clear_from(start.unwrap_or(c), c, &points));
+            Plan::Back(candidates) | Plan::Dock(candidates) => {
+                // Reversing is checked without the spread of the echoes the laser explains
+                // ([`Self::backing_points`]); any other command with it, as a user's is.
+                let behind = self.backing_points(points);
+                let clear = candidates.into_iter().find(|&c| {
+                    let points = if c.linear_mps < 0.0 { &behind } else { points };
+                    self.is_clear_from(start.unwrap_or(c), c, points)
+                });
                 (
                     clear.unwrap_or(VelocityCommand::STOP),
                     true,
@@ -625,7 +638,15 @@ impl ArcGuard {
         };
         if p.backup_m > 0.0 {
             let pushing = wheel_speed(user) > PUSH_WHEEL_MPS;
-            recovery.observe(time, &pose, (pushing, held), (p.stall_s, p.backup_m));
+            // The passage is found from the dense points only: a sonar echo is a range anywhere
+            // in its cone, not a place.
+            let dense = &points[self.echoes.last().map_or(0, |e| e.0.end)..];
+            let lane = |stalled: &Isometry2<f64>| {
+                p.dock
+                    .then(|| find_lane(stalled, dense, &self.footprint, p.margin_m))
+                    .flatten()
+            };
+            recovery.observe(time, &pose, (pushing, held), (p.stall_s, p.backup_m), lane);
         }
         self.recovery = Some(recovery);
         (command, changed)

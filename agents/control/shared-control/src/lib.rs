@@ -35,6 +35,7 @@
 
 pub mod basic;
 mod command;
+mod dock;
 pub mod driver;
 mod error;
 mod guard;

@@ -12,12 +12,23 @@
 //! [`crate::ArcGuardParams::backup_m`] away from where it stalled. Every command it sends still
 //! passes the guard's sweep check, so no point inside the margin comes closer; when backing
 //! would, it stops and hands the chair back. Letting go of the input (a stop) ends it at once.
+//!
+//! Backed out, the chair is where it was before it wedged, and a user who comes in the same way
+//! wedges again. So when the stall was at a passage the dense sensor saw (found then, from its
+//! points alone: [`crate::dock::find_lane`]), the backing is followed by docking
+//! ([`crate::dock::Docking`]): the chair is driven onto the passage's centre line before the
+//! entry, lined up with its axis, and handed back, so the user's own command drives it in. Each
+//! docking command passes the same sweep check as the backing's; docking ends when the chair
+//! is lined up, when the user lets go, when it has been held for [`DOCK_HELD_S`], or after
+//! [`DOCK_MAX_S`].
 
 use std::collections::VecDeque;
 
+use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2};
 
 use crate::VelocityCommand;
+use crate::dock::{Docking, Lane};
 
 /// Spacing of the remembered path, m.
 const TRAIL_STEP_M: f64 = 0.05;
@@ -43,6 +54,13 @@ const ARRIVED_M: f64 = 0.1;
 const BACK_MAX_S: f64 = 10.0;
 /// Turn rate of the reverse pursuit at most, rad/s.
 const BACK_TURN_RADPS: f64 = 0.6;
+/// How far from where it stalled a backing must have taken the chair for docking to follow, m:
+/// a backing held at once leaves no room to line up.
+const DOCK_AFTER_M: f64 = 0.3;
+/// Longest docking, s.
+const DOCK_MAX_S: f64 = 40.0;
+/// How long the sweep check may hold docking back before it gives up, s.
+const DOCK_HELD_S: f64 = 1.0;
 
 /// The hold being watched: since when, from where, and how many periods held.
 #[derive(Debug, Clone, Copy)]
@@ -61,15 +79,30 @@ struct Backing {
     path: Vec<Point2<f64>>,
     /// Index of the first path point not yet passed.
     next: usize,
+    /// Where the chair stalled (odometry frame).
+    stalled: Point2<f64>,
+    /// The passage it stalled at, if one was seen.
+    lane: Option<Lane>,
+}
+
+/// Docking under way: since when, and since when the sweep check has held it back.
+#[derive(Debug, Clone, Copy)]
+struct Dock {
+    since_ns: u64,
+    held_since_ns: Option<u64>,
+    to: Docking,
 }
 
 /// Watches for a stall and backs the chair out of it.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub(crate) struct Recovery {
     /// Recent positions, oldest first, [`TRAIL_STEP_M`] apart.
     trail: VecDeque<Point2<f64>>,
     hold: Option<Hold>,
     backing: Option<Backing>,
+    docking: Option<Dock>,
+    /// The chair's footprint, for the dock pose.
+    footprint: Footprint,
 }
 
 /// What the recovery wants this period.
@@ -80,9 +113,23 @@ pub(crate) enum Plan {
     /// Back out: try these commands, best first; the first one clear is sent, and if none is,
     /// the backing ends and the chair stops.
     Back([VelocityCommand; BACK_SCALES.len()]),
+    /// Dock: try these commands, best first; the first one clear is sent, and if none is for
+    /// [`DOCK_HELD_S`], docking ends.
+    Dock([VelocityCommand; 3]),
 }
 
 impl Recovery {
+    /// Watching a chair of `footprint`.
+    pub(crate) fn new(footprint: Footprint) -> Self {
+        Recovery {
+            trail: VecDeque::new(),
+            hold: None,
+            backing: None,
+            docking: None,
+            footprint,
+        }
+    }
+
     /// Records the pose at `time_ns` and says what to do with the `user`'s command.
     pub(crate) fn plan(
         &mut self,
@@ -91,17 +138,27 @@ impl Recovery {
         user: VelocityCommand,
     ) -> Plan {
         self.remember(pose);
+        // Letting go of the input is a stop, and the user's stop always wins.
+        let released = user.linear_mps.abs() < PUSH_MPS && user.angular_radps.abs() < PUSH_MPS;
+        if let Some(dock) = &mut self.docking {
+            let timed_out = time_ns.saturating_sub(dock.since_ns) as f64 * 1e-9 > DOCK_MAX_S;
+            match dock.to.commands(pose) {
+                Some(commands) if !released && !timed_out => return Plan::Dock(commands),
+                _ => {
+                    self.docking = None;
+                    return Plan::Pass;
+                }
+            }
+        }
         let Some(backing) = &mut self.backing else {
             return Plan::Pass;
         };
         let here = Point2::from(pose.translation.vector);
-        // Letting go of the input is a stop, and the user's stop always wins.
-        let released = user.linear_mps.abs() < PUSH_MPS && user.angular_radps.abs() < PUSH_MPS;
         let timed_out = time_ns.saturating_sub(backing.since_ns) as f64 * 1e-9 > BACK_MAX_S;
         let last = backing.path.last().copied();
         let arrived = last.is_none_or(|p| (p - here).norm() <= ARRIVED_M);
         if released || timed_out || arrived {
-            self.end(pose);
+            self.end(time_ns, pose, !released);
             return Plan::Pass;
         }
         while backing.next + 1 < backing.path.len()
@@ -120,19 +177,33 @@ impl Recovery {
     }
 
     /// Notes the period's outcome: whether the user asked for motion (`pushing`) and whether the
-    /// guard `held` most of it back (or, while backing, whether it sent nothing at all). Starts
-    /// backing out when the hold has lasted `stall_s` and a path `backup_m` long is known.
+    /// guard `held` most of it back (while backing, whether it sent nothing at all; while docking,
+    /// whether it held the docking command back). Starts backing out when the hold has lasted
+    /// `stall_s` and a path `backup_m` long is known; `lane` then gives the passage stalled at,
+    /// from the chair's pose then.
     pub(crate) fn observe(
         &mut self,
         time_ns: u64,
         pose: &Isometry2<f64>,
         (pushing, held): (bool, bool),
         (stall_s, backup_m): (f64, f64),
+        lane: impl FnOnce(&Isometry2<f64>) -> Option<Lane>,
     ) {
+        if let Some(dock) = &mut self.docking {
+            let since = match (held, dock.held_since_ns) {
+                (false, _) => None,
+                (true, since) => Some(since.unwrap_or(time_ns)),
+            };
+            dock.held_since_ns = since;
+            if since.is_some_and(|t| time_ns.saturating_sub(t) as f64 * 1e-9 >= DOCK_HELD_S) {
+                self.docking = None;
+            }
+            return;
+        }
         if self.backing.is_some() {
             if held {
-                // Backing would bring something closer: stop and give the chair back.
-                self.end(pose);
+                // Backing would bring something closer: stop, and dock from here if there is room.
+                self.end(time_ns, pose, true);
             }
             return;
         }
@@ -177,6 +248,8 @@ impl Recovery {
                 since_ns: time_ns,
                 path,
                 next: 0,
+                stalled: Point2::from(pose.translation.vector),
+                lane: lane(pose),
             });
         }
         self.hold = None;
@@ -185,6 +258,11 @@ impl Recovery {
     /// Whether the chair is being backed out.
     pub(crate) fn is_backing(&self) -> bool {
         self.backing.is_some()
+    }
+
+    /// Whether the chair is being docked onto a passage's centre line.
+    pub(crate) fn is_docking(&self) -> bool {
+        self.docking.is_some()
     }
 
     /// The remembered path back from the newest pose to the first one `backup_m` from `from`,
@@ -200,12 +278,20 @@ impl Recovery {
         None
     }
 
-    /// Ends a backing: the path from where it ended on stays, the part backed over goes.
-    fn end(&mut self, pose: &Isometry2<f64>) {
+    /// Ends a backing: the path from where it ended on stays, the part backed over goes. With
+    /// `dock`, docking follows if a passage was seen and the backing made room.
+    fn end(&mut self, time_ns: u64, pose: &Isometry2<f64>, dock: bool) {
         if let Some(b) = self.backing.take() {
             let keep = self.trail.len().saturating_sub(b.next + 1);
             self.trail.truncate(keep);
-            self.trail.push_back(Point2::from(pose.translation.vector));
+            let here = Point2::from(pose.translation.vector);
+            self.trail.push_back(here);
+            let room = (here - b.stalled).norm() >= DOCK_AFTER_M;
+            self.docking = b.lane.filter(|_| dock && room).map(|lane| Dock {
+                since_ns: time_ns,
+                held_since_ns: None,
+                to: Docking::new(&lane, &self.footprint),
+            });
         }
         self.hold = None;
     }

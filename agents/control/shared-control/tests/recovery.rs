@@ -1,8 +1,9 @@
 //! The arc guard backing a stalled chair out of a tight passage's entry, on a deterministic rig:
 //! a 0.95 m passage between a row of seats and a wall, as on the ward corridor, and a user who
-//! keeps steering for the passage's centre line. The rig moves the chair as the guard commands
-//! (each wheel ramping at 1 m/s^2) and gives the guard every wall point within reach, with the
-//! chair's motion, each 50 ms period.
+//! keeps steering for the passage's centre line, or one who only pushes straight ahead. The rig
+//! moves the chair as the guard commands (each wheel ramping at 1 m/s^2) and gives the guard every
+//! wall point within reach (as a dense sensor's points), with the chair's motion, each 50 ms
+//! period.
 
 use iw_body::TRACK_M;
 use iw_body::layout::Footprint;
@@ -55,12 +56,26 @@ struct Rig {
     /// Smallest distance from the footprint to each wall point so far, m.
     nearest: Vec<f64>,
     backed: bool,
+    docked: bool,
 }
 
 impl Rig {
     fn new(walls: Vec<Point2<f64>>, pose: Isometry2<f64>, recovery: bool) -> Self {
+        Self::with_docking(walls, pose, recovery, true)
+    }
+
+    fn with_docking(
+        walls: Vec<Point2<f64>>,
+        pose: Isometry2<f64>,
+        recovery: bool,
+        dock: bool,
+    ) -> Self {
         let fp = Footprint::PROTOTYPE;
-        let mut guard = ArcGuard::new(ArcGuardParams::default(), fp, Vec::new()).unwrap();
+        let params = ArcGuardParams {
+            dock,
+            ..ArcGuardParams::default()
+        };
+        let mut guard = ArcGuard::new(params, fp, Vec::new()).unwrap();
         guard.set_recovery(recovery);
         let inv = pose.inverse();
         let nearest = walls.iter().map(|p| distance(&fp, &(inv * p))).collect();
@@ -72,6 +87,7 @@ impl Rig {
             time_ns: 0,
             nearest,
             backed: false,
+            docked: false,
         }
     }
 
@@ -102,6 +118,7 @@ impl Rig {
             })
             .unwrap();
         self.backed |= self.guard.is_backing();
+        self.docked |= self.guard.is_docking();
         let c = out.command;
         let goal = (
             c.linear_mps - c.angular_radps * TRACK_M / 2.0,
@@ -141,15 +158,77 @@ impl Rig {
     /// Drives for `seconds` or until the chair's axle is 2.5 m into the passage; whether it got
     /// there.
     fn drive(&mut self, seconds: f64) -> bool {
+        self.drive_with(seconds, Self::user)
+    }
+
+    /// [`Self::drive`] with the user's command from `user`.
+    fn drive_with(&mut self, seconds: f64, user: impl Fn(&Self) -> VelocityCommand) -> bool {
         for _ in 0..(seconds / PERIOD_S) as usize {
             if self.pose.translation.x > 2.5 {
                 return true;
             }
-            let user = self.user();
-            self.step(user);
+            let command = user(self);
+            self.step(command);
         }
         false
     }
+
+    /// How far off the passage's centre line the axle is, m, and off its axis the heading, rad.
+    fn off_line(&self) -> (f64, f64) {
+        (
+            self.pose.translation.y.abs(),
+            self.pose.rotation.angle().abs(),
+        )
+    }
+}
+
+/// A user who only pushes straight ahead (0.3 m/s, no turn), as a head-cap user who holds the
+/// head tilted forward does: they never line the chair up themselves.
+fn straight(_: &Rig) -> VelocityCommand {
+    VelocityCommand::new(0.3, 0.0)
+}
+
+/// An approach aimed at the entry at 27 degrees: pushed straight, the chair wedges with its front
+/// right corner at the wall and its left side at the seats' corner.
+fn aimed() -> Isometry2<f64> {
+    Isometry2::new(Vector2::new(-1.6, 1.0), -30f64.to_radians())
+}
+
+#[test]
+fn a_straight_pushing_user_is_docked_onto_the_centre_line_and_drives_in() {
+    // Backing out alone retraces the straight way in, so the same push wedges the chair again,
+    // for as long as the user pushes.
+    let mut undocked = Rig::with_docking(passage(), aimed(), true, false);
+    assert!(
+        !undocked.drive_with(120.0, straight),
+        "the rig must wedge a straight-pushing user whom the guard only backs out"
+    );
+    assert!(undocked.backed && !undocked.docked);
+    // With docking, the chair is brought onto the centre line, lined up, and the same push takes
+    // it through, touching nothing.
+    let mut rig = Rig::new(passage(), aimed(), true);
+    let mut lined_up = None;
+    let mut through = false;
+    for _ in 0..(120.0 / PERIOD_S) as usize {
+        if rig.pose.translation.x > 2.5 {
+            through = true;
+            break;
+        }
+        let was_docking = rig.guard.is_docking();
+        rig.step(straight(&rig));
+        if was_docking && !rig.guard.is_docking() && lined_up.is_none() {
+            lined_up = Some(rig.off_line());
+        }
+    }
+    assert!(rig.backed && rig.docked, "it backed out and docked");
+    let (offset, angle) = lined_up.expect("docking ended");
+    assert!(
+        offset < 0.08 && angle < 0.06,
+        "docked {offset} m off the centre line, {angle} rad off the axis"
+    );
+    assert!(through, "still stuck at {:?}", rig.pose);
+    let closest = rig.nearest.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(closest > 0.0, "touched a wall: {closest}");
 }
 
 /// The start of an approach that wedges the chair: 1.4 m before the passage, 1 m towards the
