@@ -15,7 +15,9 @@
 //!
 //! A chair the guard holds while its user keeps pushing (off the centre line and at an angle at
 //! the entry of a tight passage) is backed out along the way it came, every backing command
-//! passing the same sweep check, so the user can come in again straight ([`ArcGuard::set_recovery`]).
+//! passing the same sweep check, so the user can come in again straight ([`ArcGuard::set_recovery`]);
+//! when the dense sensor saw the passage it stalled at, the backing is followed by docking onto
+//! that passage's centre line, lined up with its axis ([`ArcGuardParams::dock`]).
 //! A backing is checked without the cone-wide spread of a sonar echo that a laser point at the
 //! echo's range already explains: spread, an echo off something beside a rear corner lands behind
 //! the rear, where the chair has just been, and held every backing.
