@@ -98,7 +98,10 @@ struct Cell {
     hit_ns: u64,
 }
 
-/// Sonar evidence in the odometry frame (see the module's documentation).
+/// Sonar evidence in the odometry frame: each near echo's arc of cells, carved by every cone that
+/// looks past a cell and by the chair's own path, and recalled only where the arcs of echoes from
+/// two directions at least 15 degrees apart cross, so that a jamb seen before it fell into the
+/// gap between two side cones is still there, and a guess along an arc is not.
 #[derive(Debug, Clone)]
 pub struct EchoMemory {
     params: EchoMemoryParams,
