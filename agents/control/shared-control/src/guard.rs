@@ -11,7 +11,9 @@
 //! moment after a left command), and the dense points of the last [`ArcGuardParams::memory_s`]
 //! are remembered in the odometry frame: a front laser cannot see a door jamb once it is beside
 //! the chair's side or rear, and the side sonars' cones leave gaps there (22 cm apart, 45 degree
-//! cones: they overlap only from 27 cm out).
+//! cones: they overlap only from 27 cm out). Without dense points, the sonars' near echoes are
+//! remembered instead, where the arcs of echoes from two directions cross ([`EchoMemory`]): a
+//! jamb a side sonar saw before it fell into the gap still guards the side.
 //!
 //! A chair the guard holds while its user keeps pushing (off the centre line and at an angle at
 //! the entry of a tight passage) is backed out along the way it came, every backing command
@@ -28,6 +30,7 @@ use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
 
 use crate::dock::find_lane;
+use crate::echoes::{EchoMemory, EchoMemoryParams};
 use crate::error::check_positive;
 use crate::recovery::{Plan, Recovery};
 use crate::{
@@ -74,6 +77,9 @@ pub struct ArcGuardParams {
     /// Whether a backing out is followed by docking onto the centre line of the passage the chair
     /// stalled at, lined up with its axis (true; needs dense points to find the passage).
     pub dock: bool,
+    /// The memory of sonar echoes, used in the periods without dense points (only with
+    /// [`Motion`]).
+    pub echo_memory: EchoMemoryParams,
 }
 
 impl Default for ArcGuardParams {
@@ -91,6 +97,7 @@ impl Default for ArcGuardParams {
             stall_s: 3.0,
             backup_m: 0.8,
             dock: true,
+            echo_memory: EchoMemoryParams::default(),
         }
     }
 }
@@ -102,6 +109,7 @@ pub struct ArcGuard {
     footprint: Footprint,
     mounts: Vec<SensorMount>,
     memory: Memory,
+    echo_memory: EchoMemory,
     view: Option<DenseView>,
     recovery: Option<Recovery>,
     /// This period's sonar echoes: where their points are in the period's points, the sonar,
@@ -160,11 +168,18 @@ impl ArcGuard {
                 });
             }
         }
+        let echo_memory = EchoMemory::new(
+            params.echo_memory,
+            footprint,
+            mounts.clone(),
+            params.cone_deg,
+        )?;
         Ok(Self {
             params,
             footprint,
             mounts,
             memory: Memory::default(),
+            echo_memory,
             view: None,
             recovery: Some(Recovery::new(footprint)),
             echoes: Vec::new(),
@@ -307,9 +322,11 @@ impl ArcGuard {
             .collect()
     }
 
-    /// The obstacle points of one period in the chair frame: each sonar echo spread across the
-    /// cone at its range (a sonar reports the nearest echo anywhere in its cone), and the dense
-    /// points (with [`Motion`]: those remembered, which include this period's).
+    /// The obstacle points of one period in the chair frame: with [`Motion`] and no dense point
+    /// this period, the remembered sonar evidence ([`EchoMemory`]; where there are dense points
+    /// they are authoritative); each sonar echo spread across the cone at its range (a sonar
+    /// reports the nearest echo anywhere in its cone); and the dense points (with [`Motion`]:
+    /// those remembered, which include this period's).
     fn points(&mut self, input: &SharedInput<'_>) -> Result<Vec<Point2<f64>>, ControlError> {
         if input.sonar_m.len() != self.mounts.len() {
             return Err(ControlError::SonarCount {
@@ -321,8 +338,15 @@ impl ArcGuard {
             .points_chair
             .iter()
             .filter(|p| p.x.is_finite() && p.y.is_finite());
+        let mut points: Vec<Point2<f64>> = Vec::new();
         let dense: Vec<Point2<f64>> = match input.motion {
             Some(motion) => {
+                if dense.clone().next().is_none() {
+                    self.echo_memory.update(&motion, input.sonar_m)?;
+                    points.extend(self.echo_memory.recall(&motion.t_odom_chair));
+                } else {
+                    self.echo_memory.clear();
+                }
                 let radius = self.footprint.turning_radius_m() + MEMORY_BEYOND_REACH_M;
                 let keep = Keep {
                     radius_m: radius,
@@ -338,8 +362,7 @@ impl ArcGuard {
         };
         let half = self.params.cone_deg.to_radians() / 2.0;
         self.echoes.clear();
-        let mut points: Vec<Point2<f64>> =
-            Vec::with_capacity(input.sonar_m.len() * 5 + dense.len());
+        points.reserve(input.sonar_m.len() * 5 + dense.len());
         for (index, (mount, reading)) in self.mounts.iter().zip(input.sonar_m).enumerate() {
             let Some(d) = *reading else { continue };
             let d = crate::error::check_range("sonar", index, d)?;

@@ -15,6 +15,8 @@
 //!   our own), [`Vfh`] (VFH+), [`ArcGuard`] (the footprint swept along the commanded path,
 //!   turning in place included, from the chair's measured [`Motion`] and with the dense points it
 //!   no longer sees remembered: the control agent's policy) and [`Manual`] (pass-through).
+//! - [`EchoMemory`]: the sonars' near echoes kept in the odometry frame where their cones agree,
+//!   so the guard still sees a jamb that has fallen into the gap between two cones.
 //! - [`tactical`]: basic actions (follow line, spin, turn to angle, go to XY, follow left/right wall,
 //!   wait, stop) and [`tactical::ActionSequence`], each next action starting when the current is done.
 //! - [`basic`]: differential-drive kinematics with limits and a [`basic::Watchdog`] that stops the
@@ -37,6 +39,7 @@ pub mod basic;
 mod command;
 mod dock;
 pub mod driver;
+mod echoes;
 mod error;
 mod guard;
 mod joystick;
@@ -48,6 +51,7 @@ pub mod tactical;
 mod vfh;
 
 pub use command::{MotionIntent, VelocityCommand};
+pub use echoes::{EchoMemory, EchoMemoryParams};
 pub use error::ControlError;
 pub use guard::{ArcGuard, ArcGuardParams};
 pub use joystick::{FieldCentre, JoystickMapping, ThesisField, ThesisFieldParams};
