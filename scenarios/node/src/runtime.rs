@@ -392,14 +392,11 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
             let senses = config.body.kind == BodyKind::Mixed;
             let ghost =
                 WorldGhost::open(bus.clone(), name, t_world_body, senses).map_err(link_err)?;
-            // a mixed chair's laser is its ghost's, sensed in the world process where the chair
-            // said it was one or more periods before
             SharedBody::new(MixedBody::new(
                 off_the_control_path(serial()?)?,
                 ghost,
                 Odometry::new(WheelGeometry::default(), t_world_body),
             ))
-            .scans_behind(GHOST_SCAN_PERIODS)
         }
     };
     let parts = iw_wiring::chair_agents(
@@ -428,10 +425,6 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
         },
     })
 }
-
-/// How far a mixed chair's ghost scans trail its encoders, control periods: the localizer
-/// learned 0.8-1.4 from the innovations along the motion in `mixed-reality` run as processes.
-const GHOST_SCAN_PERIODS: f64 = 1.0;
 
 /// The world container's agent over `config`'s map.
 fn world_parts(config: &SpawnConfig) -> Result<(Agents, WorldReports), NodeError> {

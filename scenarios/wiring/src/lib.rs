@@ -562,9 +562,6 @@ pub struct SharedBody {
     inner: Arc<Mutex<Cached>>,
     /// How long the body may stay unreadable and still come back (see [`SharedBody::outages`]).
     outage: Option<Duration>,
-    /// How many control periods its range readings may be off its encoders (see
-    /// [`SharedBody::scans_behind`]).
-    scan_periods: f64,
     /// The last wheel command the body took was not a stop.
     moving: Arc<std::sync::atomic::AtomicBool>,
 }
@@ -578,7 +575,6 @@ impl SharedBody {
         SharedBody {
             inner: Arc::new(Mutex::new((Box::new(body), None))),
             outage: None,
-            scan_periods: 0.0,
             moving: Arc::default(),
         }
     }
@@ -587,16 +583,6 @@ impl SharedBody {
     /// reports of its wheels).
     pub fn moving(&self) -> bool {
         self.moving.load(std::sync::atomic::Ordering::Acquire)
-    }
-
-    /// A body whose range readings are not taken with its encoder ticks but up to about
-    /// `periods` control periods off them (a mixed chair's laser comes from its ghost in the
-    /// world process, placed where the chair reported itself a period or more before): the
-    /// localizer widens each scan's covariance along the chair's motion by that much
-    /// ([`iw_localization::ScanTime::prior`]), and learns any more it sees.
-    pub fn scans_behind(mut self, periods: f64) -> Self {
-        self.scan_periods = periods;
-        self
     }
 
     /// A body whose faults are outages of up to `wait` that it recovers from by itself (a
@@ -675,11 +661,9 @@ pub fn chair_agents(
     let perception_config = PerceptionConfig::prototype(AgentId::new(name), start);
     // The pose stays bounded by matching the laser and sonars to the map: odometry alone
     // drifts half a metre in 15 m, enough to touch a wall at a goal.
-    let mut localizer_config = iw_sim::localization::localizer_config(&ChairSpec::default());
-    localizer_config.scan_time.prior = body.scan_periods;
     let localizer = Localizer::new(
         building.localization.clone(),
-        localizer_config,
+        iw_sim::localization::localizer_config(&ChairSpec::default()),
         Some((start, perception_config.start_covariance)),
     );
     // a chair without a camera cannot read a marker: a detour past one would not reset its error

@@ -3,6 +3,7 @@
 //! a multi-hypothesis search takes over while the pose is unknown (no start, or carried
 //! elsewhere).
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
@@ -56,8 +57,6 @@ pub struct LocalizerConfig {
     /// it and held while they do not, so the covariance grows as fast as the error when the
     /// chair dead-reckons.
     pub wheel_bias: WheelBias,
-    /// How uncertain a scan's time is against the wheel odometry it is matched after.
-    pub scan_time: ScanTime,
     /// Each matched scan is fused as this many times less certain than its match says: a
     /// match's covariance is honest for one scan (the match's Laplace approximation), but
     /// consecutive scans see the same walls from nearly the same place and start from the
@@ -66,79 +65,6 @@ pub struct LocalizerConfig {
     /// error (1 + 2 Σ ρ_k over 20 to 60 scans) on the sample building's tour: 3.4-3.5 along
     /// the chair's path, 1.6-1.9 across it, 2.2-2.9 in heading.
     pub correlated_scans: f64,
-}
-
-/// How uncertain a scan's time is against the wheel odometry it is matched after, in scan
-/// periods. A scan taken a little earlier or later than the wheel step it comes with (a world
-/// process that answers a period late, a loaded host, a laser that sweeps) was taken where the
-/// chair was that much of its motion away: its covariance gets `τ² d dᵀ`, `d` the odometry's
-/// motion since the last scan (so nothing while the chair stands). `τ²` is `prior²` plus what
-/// the innovations along the motion show beyond what the filter and the match expect
-/// (innovation-based covariance matching), averaged over the last scans.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ScanTime {
-    /// Known beforehand, periods (standard deviation); 0 for scans taken with their wheel step.
-    pub prior: f64,
-    /// The estimate is taken at most this, periods (a match that is plainly wrong, as after a
-    /// kidnap, does not widen the gate without bound).
-    pub max: f64,
-    /// Weight of each scan in the running estimate (about one over the scans it remembers).
-    pub gain: f64,
-}
-
-impl Default for ScanTime {
-    /// No known uncertainty; up to 4 periods; about 2 s of memory at 20 scans a second.
-    fn default() -> Self {
-        ScanTime {
-            prior: 0.0,
-            max: 4.0,
-            gain: 0.025,
-        }
-    }
-}
-
-/// Motion between scans under which the timing estimate learns nothing (m, rad as m).
-const TIMING_MIN_MOTION: f64 = 0.002;
-
-/// The running estimate of [`ScanTime`]: averages of the excess squared innovation along the
-/// motion and of the squared motion, whose ratio is `τ²` beyond the prior.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct Timing {
-    excess: f64,
-    motion: f64,
-}
-
-impl Timing {
-    /// `τ²`, periods².
-    fn variance(&self, config: &ScanTime) -> f64 {
-        let learned = if self.motion > 0.0 {
-            (self.excess / self.motion).max(0.0)
-        } else {
-            0.0
-        };
-        (config.prior * config.prior + learned).min(config.max * config.max)
-    }
-
-    /// Learns from one match's innovation `nu` after motion `d`, with `expected` the innovation
-    /// covariance the filter and the match predict.
-    fn learn(
-        &mut self,
-        config: &ScanTime,
-        nu: &Vector3<f64>,
-        d: &Vector3<f64>,
-        expected: &Matrix3<f64>,
-    ) {
-        let len = d.norm();
-        if !(len >= TIMING_MIN_MOTION && nu.iter().all(|v| v.is_finite())) {
-            return;
-        }
-        let along = d / len;
-        let excess = nu.dot(&along).powi(2) - (along.transpose() * expected * along)[0];
-        let cap = config.max * config.max * len * len;
-        let g = config.gain;
-        self.excess += g * (excess.min(cap) - self.excess);
-        self.motion += g * (len * len - self.motion);
-    }
 }
 
 impl LocalizerConfig {
@@ -165,7 +91,6 @@ impl LocalizerConfig {
             landmark_sigma: (0.05, 1f64.to_radians()),
             alpha,
             wheel_bias: WheelBias::WHEELCHAIR,
-            scan_time: ScanTime::default(),
             correlated_scans: 3.0,
         }
     }
@@ -190,6 +115,9 @@ pub enum ScanOutcome {
     },
     /// Not fused (too few points, too few inliers, or outside the gate).
     Rejected,
+    /// Taken no later than the last scan (the same frame read again, as when a world process
+    /// has not sent the next one yet): already used, not fused again.
+    Stale,
     /// Weighed by the search (or skipped because the chair had not moved enough).
     Searched,
     /// The search found the pose: tracking again.
@@ -268,9 +196,63 @@ pub struct Localizer {
     sonar: Health,
     laser_points: Vec<ScanPoint>,
     sonar_points: Vec<ScanPoint>,
-    /// The pose after the last range update: what the wheels moved since is `d` of [`ScanTime`].
-    at_last_scan: Option<Pose2>,
-    timing: Timing,
+    /// The filter's recent past, while wheel steps come with their times.
+    history: Option<History>,
+    /// When the last scan with a time was taken.
+    last_scan_ns: Option<u64>,
+}
+
+/// Something the filter did after its last fused scan, kept to be done again when a scan taken
+/// before it is fused at its own time.
+#[derive(Debug, Clone)]
+enum Replay {
+    /// A wheel step that ended at this time.
+    Predict { time_ns: u64, step: OdometryStep },
+    /// A visual odometry motion (see [`OdometryFusion::update_visual`]).
+    Visual { motion: Pose2, noise: Matrix3<f64> },
+    /// A landmark sighting (see [`Localizer::update_landmark`]).
+    Landmark {
+        id: u32,
+        range_m: f64,
+        bearing_rad: f64,
+    },
+}
+
+/// Lag compensation: the filter as it was after the last fused scan (or as far back as is
+/// kept), and everything it did since. A scan taken at time `t` (a mixed chair's ghost answers
+/// a period or more late) is matched and fused against the state after the last wheel step
+/// that ended by `t`, and what came after is done again on top, so the wheels' motion since the
+/// scan is not mistaken for an error of the scan, nor learned as a wheel bias. The re-run is
+/// the exact EKF answer for a measurement in the past (its cross-covariance with the current
+/// state is carried by the predictions replayed after it).
+#[derive(Debug, Clone)]
+struct History {
+    base: OdometryFusion,
+    since: VecDeque<Replay>,
+}
+
+/// A scan may be fused this far in the past (ns); older ones are fused at the oldest state kept.
+const MAX_LAG_NS: u64 = 1_000_000_000;
+/// At most this many things done are kept (a bound when the wheel steps' time stands still).
+const MAX_REPLAY: usize = 128;
+
+impl Replay {
+    /// Does it again on `fusion`.
+    fn apply(&self, fusion: &mut OdometryFusion, map: &LocalizationMap, sigma: (f64, f64)) {
+        match self {
+            Replay::Predict { step, .. } => fusion.predict(step),
+            Replay::Visual { motion, noise } => {
+                fusion.update_visual(motion, noise);
+            }
+            Replay::Landmark {
+                id,
+                range_m,
+                bearing_rad,
+            } => {
+                fuse_landmark(fusion, map, sigma, *id, *range_m, *bearing_rad);
+            }
+        }
+    }
 }
 
 /// Below this inlier fraction at the predicted pose a sensor contradicts the map.
@@ -304,8 +286,8 @@ impl Localizer {
             sonar: Health::default(),
             laser_points: Vec::new(),
             sonar_points: Vec::new(),
-            at_last_scan: None,
-            timing: Timing::default(),
+            history: None,
+            last_scan_ns: None,
         }
     }
 
@@ -352,11 +334,6 @@ impl Localizer {
         self.fusion.bias()
     }
 
-    /// The scan-time standard deviation in use (prior and learned), in scan periods.
-    pub fn scan_time_sigma(&self) -> f64 {
-        self.timing.variance(&self.config.scan_time).sqrt()
-    }
-
     /// Whether the laser and the sonars are currently dropped.
     pub fn dropped(&self) -> (bool, bool) {
         (self.laser.dropped, self.sonar.dropped)
@@ -367,29 +344,145 @@ impl Localizer {
         self.laser.reason
     }
 
-    /// Predicts with one wheel odometry step.
+    /// Predicts with one wheel odometry step whose time is not known: scans are then fused
+    /// at the latest state ([`Self::update_ranges`]), and no past is kept.
     pub fn predict(&mut self, step: &OdometryStep) {
+        self.history = None;
+        self.advance(step);
+    }
+
+    /// Predicts with one wheel odometry step that ended at `time_ns` (the body's clock, the
+    /// one of [`Self::update_ranges_at`]); the recent past is kept so that a scan taken before
+    /// the latest step is fused at its own time.
+    pub fn predict_at(&mut self, time_ns: u64, step: &OdometryStep) {
+        if self.status == Status::Tracking {
+            let base = &self.fusion;
+            let history = self.history.get_or_insert_with(|| History {
+                base: base.clone(),
+                since: VecDeque::new(),
+            });
+            history.since.push_back(Replay::Predict {
+                time_ns,
+                step: *step,
+            });
+            self.forget();
+        }
+        self.advance(step);
+    }
+
+    fn advance(&mut self, step: &OdometryStep) {
         self.fusion.predict(step);
         if let Some(search) = self.search.as_mut() {
             search.predict(step);
         }
     }
 
+    /// Keeps the past to [`MAX_LAG_NS`] of wheel steps and [`MAX_REPLAY`] things done: the
+    /// oldest are done on the kept base for good.
+    fn forget(&mut self) {
+        let Some(history) = self.history.as_mut() else {
+            return;
+        };
+        let time = |r: &Replay| match r {
+            Replay::Predict { time_ns, .. } => Some(*time_ns),
+            _ => None,
+        };
+        let latest = history.since.iter().rev().find_map(time);
+        while let Some(first) = history.since.front() {
+            let old = matches!((time(first), latest), (Some(t), Some(l)) if l.saturating_sub(t) > MAX_LAG_NS);
+            if !(old || history.since.len() > MAX_REPLAY) {
+                break;
+            }
+            if let Some(done) = history.since.pop_front() {
+                done.apply(&mut history.base, &self.map, self.config.landmark_sigma);
+            }
+        }
+    }
+
+    /// Keeps `replay`, done at the latest state, for a scan fused before it later.
+    fn remember(&mut self, replay: Replay) {
+        if let Some(history) = self.history.as_mut() {
+            history.since.push_back(replay);
+            self.forget();
+        }
+    }
+
     /// Updates with visual odometry's motion since its previous frame (see
     /// [`OdometryFusion::update_visual`]).
     pub fn update_visual(&mut self, motion: &Pose2, noise: &Matrix3<f64>) -> bool {
+        self.remember(Replay::Visual {
+            motion: *motion,
+            noise: *noise,
+        });
         self.fusion.update_visual(motion, noise)
     }
 
     /// Updates with the latest laser ranges (empty: no laser reading this period) and sonar
-    /// ranges (`None`: no echo).
+    /// ranges (`None`: no echo), taken at the latest state.
     pub fn update_ranges(&mut self, laser_m: &[f64], sonar_m: &[Option<f64>]) -> ScanOutcome {
-        let outcome = self.ranges(laser_m, sonar_m);
-        self.at_last_scan = Some(self.fusion.pose());
-        outcome
+        self.ranges(None, laser_m, sonar_m)
     }
 
-    fn ranges(&mut self, laser_m: &[f64], sonar_m: &[Option<f64>]) -> ScanOutcome {
+    /// Updates with ranges taken at `time_ns` (see [`Self::predict_at`]): matched against the
+    /// pose the chair had then and fused there. A scan taken no later than the last one is
+    /// [`ScanOutcome::Stale`].
+    pub fn update_ranges_at(
+        &mut self,
+        time_ns: u64,
+        laser_m: &[f64],
+        sonar_m: &[Option<f64>],
+    ) -> ScanOutcome {
+        if self.last_scan_ns.is_some_and(|last| time_ns <= last) {
+            return ScanOutcome::Stale;
+        }
+        self.last_scan_ns = Some(time_ns);
+        self.ranges(Some(time_ns), laser_m, sonar_m)
+    }
+
+    /// The filter as it was at `time_ns` (after the last wheel step that ended by then), and
+    /// how many of the things kept were done before that; the latest state without a time.
+    fn state_at(&self, time_ns: Option<u64>) -> (OdometryFusion, usize) {
+        let (Some(t), Some(history)) = (time_ns, self.history.as_ref()) else {
+            return (self.fusion.clone(), 0);
+        };
+        let before = history
+            .since
+            .iter()
+            .position(|r| matches!(r, Replay::Predict { time_ns, .. } if *time_ns > t))
+            .unwrap_or(history.since.len());
+        if before == history.since.len() {
+            return (self.fusion.clone(), before);
+        }
+        let mut at = history.base.clone();
+        for r in history.since.range(..before) {
+            r.apply(&mut at, &self.map, self.config.landmark_sigma);
+        }
+        (at, before)
+    }
+
+    /// Takes `at`, updated at the state after `before` of the things kept, as the past, and
+    /// does what came after again on it.
+    fn commit(&mut self, at: OdometryFusion, before: usize) {
+        match self.history.as_mut() {
+            Some(history) => {
+                history.since.drain(..before.min(history.since.len()));
+                let mut now = at.clone();
+                for r in &history.since {
+                    r.apply(&mut now, &self.map, self.config.landmark_sigma);
+                }
+                history.base = at;
+                self.fusion = now;
+            }
+            None => self.fusion = at,
+        }
+    }
+
+    fn ranges(
+        &mut self,
+        time_ns: Option<u64>,
+        laser_m: &[f64],
+        sonar_m: &[Option<f64>],
+    ) -> ScanOutcome {
         self.laser_points.clear();
         self.sonar_points.clear();
         let laser_count = self
@@ -404,9 +497,10 @@ impl Localizer {
             .map(|g| g.points(sonar_m, &mut self.sonar_points));
         let mut laser_problem = laser_count.as_ref().and_then(reading_problem);
         let mut sonar_problem = sonar_count.as_ref().and_then(reading_problem);
-        if self.status == Status::Tracking {
+        let at = (self.status == Status::Tracking).then(|| self.state_at(time_ns));
+        if let Some((at, _)) = &at {
             // a sensor that contradicts the map while the other agrees is what is wrong
-            let pose = self.fusion.pose();
+            let pose = at.pose();
             let fit = |points: &[ScanPoint]| {
                 (points.len() >= 5)
                     .then(|| inlier_fraction(&self.map, points, &pose, &self.config.matcher))
@@ -434,23 +528,16 @@ impl Localizer {
         if use_sonar {
             points.extend_from_slice(&self.sonar_points);
         }
-        match self.status {
-            Status::Tracking => self.track(&points),
-            Status::Searching => self.search(&points),
+        match at {
+            Some((at, before)) => self.track(at, before, &points),
+            None => self.search(&points),
         }
     }
 
-    fn track(&mut self, points: &[ScanPoint]) -> ScanOutcome {
-        let predicted = self.fusion.pose();
-        // the wheels' motion since the last scan: how far off a scan taken a little early or
-        // late is
-        let motion = self.at_last_scan.map_or(Vector3::zeros(), |last| {
-            Vector3::new(
-                predicted.x - last.x,
-                predicted.y - last.y,
-                wrap_angle(predicted.theta - last.theta),
-            )
-        });
+    /// Matches `points` against the map from `at` (the state when they were taken, after
+    /// `before` of the things kept) and fuses the match there.
+    fn track(&mut self, mut at: OdometryFusion, before: usize, points: &[ScanPoint]) -> ScanOutcome {
+        let predicted = at.pose();
         let fused = match_scan(&self.map, points, &predicted, &self.config.matcher)
             .filter(|m| m.inlier_fraction >= self.config.min_inliers)
             .and_then(|m| {
@@ -459,25 +546,17 @@ impl Localizer {
                     m.pose.y - predicted.y,
                     wrap_angle(m.pose.theta - predicted.theta),
                 );
-                let timing =
-                    motion * motion.transpose() * self.timing.variance(&self.config.scan_time);
-                if m.observed == 3 {
-                    // learned whether or not the scan passes the gate: a timing the estimate
-                    // does not cover yet is what sends scans outside it
-                    let expected = self.covariance() + m.covariance * self.config.correlated_scans;
-                    self.timing
-                        .learn(&self.config.scan_time, &innovation, &motion, &expected);
-                }
-                self.fusion.update_current(
+                at.update_current(
                     &innovation,
                     &Matrix3::identity(),
-                    &(m.covariance * self.config.correlated_scans + timing),
+                    &(m.covariance * self.config.correlated_scans),
                     self.config.gate_chi2,
                 )
             });
         match fused {
             Some((nis, true)) => {
                 self.rejected_in_row = 0;
+                self.commit(at, before);
                 ScanOutcome::Fused { nis }
             }
             _ => {
@@ -496,6 +575,7 @@ impl Localizer {
 
     fn start_search(&mut self, points: &[ScanPoint]) {
         self.status = Status::Searching;
+        self.history = None;
         self.rejected_in_row = 0;
         self.searches += 1;
         self.search = Some(GlobalLocalizer::start(
@@ -548,29 +628,57 @@ impl Localizer {
     /// the base origin (base frame). Unknown ids, sightings while searching and sightings
     /// outside the 99.9 % gate are not fused; returns whether it was.
     pub fn update_landmark(&mut self, id: u32, range_m: f64, bearing_rad: f64) -> bool {
-        if self.status != Status::Tracking || !(range_m.is_finite() && bearing_rad.is_finite()) {
+        if self.status != Status::Tracking {
             return false;
         }
-        let Some(landmark) = self.map.landmarks().iter().find(|l| l.id == id) else {
-            return false;
-        };
-        let pose = self.fusion.pose();
-        let d = Vector2::new(landmark.pose.x - pose.x, landmark.pose.y - pose.y);
-        let q = d.norm_squared();
-        if q < 1e-6 {
-            return false;
-        }
-        let r = q.sqrt();
-        let innovation = Vector2::new(
-            range_m - r,
-            wrap_angle(bearing_rad - (d.y.atan2(d.x) - pose.theta)),
-        );
-        let h = Matrix2x3::new(-d.x / r, -d.y / r, 0.0, d.y / q, -d.x / q, -1.0);
-        let (sr, sb) = self.config.landmark_sigma;
-        let noise = Matrix2::new(sr * sr, 0.0, 0.0, sb * sb);
-        matches!(
-            self.fusion.update_current(&innovation, &h, &noise, 13.82),
-            Some((_, true))
+        self.remember(Replay::Landmark {
+            id,
+            range_m,
+            bearing_rad,
+        });
+        fuse_landmark(
+            &mut self.fusion,
+            &self.map,
+            self.config.landmark_sigma,
+            id,
+            range_m,
+            bearing_rad,
         )
     }
+}
+
+/// Fuses a landmark sighting into `fusion` (see [`Localizer::update_landmark`]); `sigma`:
+/// range and bearing standard deviations.
+fn fuse_landmark(
+    fusion: &mut OdometryFusion,
+    map: &LocalizationMap,
+    sigma: (f64, f64),
+    id: u32,
+    range_m: f64,
+    bearing_rad: f64,
+) -> bool {
+    if !(range_m.is_finite() && bearing_rad.is_finite()) {
+        return false;
+    }
+    let Some(landmark) = map.landmarks().iter().find(|l| l.id == id) else {
+        return false;
+    };
+    let pose = fusion.pose();
+    let d = Vector2::new(landmark.pose.x - pose.x, landmark.pose.y - pose.y);
+    let q = d.norm_squared();
+    if q < 1e-6 {
+        return false;
+    }
+    let r = q.sqrt();
+    let innovation = Vector2::new(
+        range_m - r,
+        wrap_angle(bearing_rad - (d.y.atan2(d.x) - pose.theta)),
+    );
+    let h = Matrix2x3::new(-d.x / r, -d.y / r, 0.0, d.y / q, -d.x / q, -1.0);
+    let (sr, sb) = sigma;
+    let noise = Matrix2::new(sr * sr, 0.0, 0.0, sb * sb);
+    matches!(
+        fusion.update_current(&innovation, &h, &noise, 13.82),
+        Some((_, true))
+    )
 }

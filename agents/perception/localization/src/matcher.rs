@@ -8,7 +8,7 @@
 //! correlation: beams on one misplaced wall, or on an object the map does not have, are not
 //! independent evidence). Directions the scan cannot see (along a blank corridor) get no
 //! information at all. When the scan was taken is not the matcher's business: the localizer
-//! adds that term ([`crate::LocalizerConfig::scan_time`]).
+//! fuses each scan at the state of its own time.
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 
