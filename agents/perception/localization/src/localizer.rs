@@ -236,7 +236,22 @@ const MAX_LAG_NS: u64 = 1_000_000_000;
 /// At most this many things done are kept (a bound when the wheel steps' time stands still).
 const MAX_REPLAY: usize = 128;
 
+impl History {
+    /// When the latest wheel step kept ended.
+    fn latest_ns(&self) -> Option<u64> {
+        self.since.iter().rev().find_map(Replay::time_ns)
+    }
+}
+
 impl Replay {
+    /// When a wheel step ended.
+    fn time_ns(&self) -> Option<u64> {
+        match self {
+            Replay::Predict { time_ns, .. } => Some(*time_ns),
+            _ => None,
+        }
+    }
+
     /// Does it again on `fusion`.
     fn apply(&self, fusion: &mut OdometryFusion, map: &LocalizationMap, sigma: (f64, f64)) {
         match self {
@@ -355,6 +370,10 @@ impl Localizer {
     /// one of [`Self::update_ranges_at`]); the recent past is kept so that a scan taken before
     /// the latest step is fused at its own time.
     pub fn predict_at(&mut self, time_ns: u64, step: &OdometryStep) {
+        if self.history.as_ref().and_then(History::latest_ns) > Some(time_ns) {
+            // the body's clock started again (a board that restarted): its past is another
+            self.history = None;
+        }
         if self.status == Status::Tracking {
             let base = &self.fusion;
             let history = self.history.get_or_insert_with(|| History {
@@ -383,13 +402,9 @@ impl Localizer {
         let Some(history) = self.history.as_mut() else {
             return;
         };
-        let time = |r: &Replay| match r {
-            Replay::Predict { time_ns, .. } => Some(*time_ns),
-            _ => None,
-        };
-        let latest = history.since.iter().rev().find_map(time);
+        let latest = history.latest_ns();
         while let Some(first) = history.since.front() {
-            let old = matches!((time(first), latest), (Some(t), Some(l)) if l.saturating_sub(t) > MAX_LAG_NS);
+            let old = matches!((first.time_ns(), latest), (Some(t), Some(l)) if l.saturating_sub(t) > MAX_LAG_NS);
             if !(old || history.since.len() > MAX_REPLAY) {
                 break;
             }
@@ -432,8 +447,11 @@ impl Localizer {
         laser_m: &[f64],
         sonar_m: &[Option<f64>],
     ) -> ScanOutcome {
-        if self.last_scan_ns.is_some_and(|last| time_ns <= last) {
-            return ScanOutcome::Stale;
+        match self.last_scan_ns {
+            // the body's clock started again: no scan before is comparable
+            Some(last) if time_ns.saturating_add(MAX_LAG_NS) < last => {}
+            Some(last) if time_ns <= last => return ScanOutcome::Stale,
+            _ => {}
         }
         self.last_scan_ns = Some(time_ns);
         self.ranges(Some(time_ns), laser_m, sonar_m)

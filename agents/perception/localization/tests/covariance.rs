@@ -209,3 +209,22 @@ fn a_late_scan_gives_the_filter_it_would_have_had_on_time() {
         ScanOutcome::Stale
     );
 }
+
+/// A body whose clock starts again (a board that restarted) keeps its scans fused: a time far
+/// behind the last scan's is a new clock, not a stale scan.
+#[test]
+fn a_body_clock_that_starts_again_keeps_the_scans_fused() {
+    let world = room();
+    let start = Pose2::new(1.5, 1.5, 0.0);
+    let config = LocalizerConfig::new(Some(laser()), None, [0.01, 0.002, 0.01, 0.002]);
+    let mut loc = Localizer::new(map(), config, Some((start, Matrix3::identity() * 1e-4)));
+    let step = OdometryStep::from_wheels(0.02, 0.02, TRACK_M);
+    let mut truth = start;
+    for (k, t) in [3_000, 3_050, 3_100, 50, 100, 150].iter().enumerate() {
+        truth = truth.compose(&step.as_delta());
+        let t = t * 1_000_000;
+        loc.predict_at(t, &step);
+        let outcome = loc.update_ranges_at(t, &scan(&world, &truth, 0.005, k as u64), &[]);
+        assert!(matches!(outcome, ScanOutcome::Fused { .. }), "{k}: {outcome:?}");
+    }
+}
