@@ -41,7 +41,11 @@ fn a_ghosts_readings_carry_the_time_of_the_pose_they_were_sensed_at() {
     let deadline = Instant::now() + Duration::from_secs(30);
     let mut k = 0;
     while stamped.len() < 60 {
-        assert!(Instant::now() < deadline, "too few frames: {}", stamped.len());
+        assert!(
+            Instant::now() < deadline,
+            "too few frames: {}",
+            stamped.len()
+        );
         host.step(clock.now());
         let time_ns = k * READ_NS;
         reported.insert(time_ns, x_at(k));

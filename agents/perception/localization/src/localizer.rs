@@ -554,7 +554,12 @@ impl Localizer {
 
     /// Matches `points` against the map from `at` (the state when they were taken, after
     /// `before` of the things kept) and fuses the match there.
-    fn track(&mut self, mut at: OdometryFusion, before: usize, points: &[ScanPoint]) -> ScanOutcome {
+    fn track(
+        &mut self,
+        mut at: OdometryFusion,
+        before: usize,
+        points: &[ScanPoint],
+    ) -> ScanOutcome {
         let predicted = at.pose();
         let fused = match_scan(&self.map, points, &predicted, &self.config.matcher)
             .filter(|m| m.inlier_fraction >= self.config.min_inliers)

@@ -156,7 +156,9 @@ fn scans_on_time_are_fused_the_same_with_their_times() {
     let (untimed, _) = drive_with_late_scans(false, |_| 0);
     assert!(worst < 0.01, "worst error {worst} m");
     let (a, b) = (timed.pose(), untimed.pose());
-    assert!((a.x - b.x).abs() < 1e-9 && (a.y - b.y).abs() < 1e-9 && (a.theta - b.theta).abs() < 1e-9);
+    assert!(
+        (a.x - b.x).abs() < 1e-9 && (a.y - b.y).abs() < 1e-9 && (a.theta - b.theta).abs() < 1e-9
+    );
     assert!((timed.covariance() - untimed.covariance()).abs().max() < 1e-12);
 }
 
@@ -167,7 +169,13 @@ fn a_late_scan_gives_the_filter_it_would_have_had_on_time() {
     let world = room();
     let start = Pose2::new(1.5, 1.5, 0.0);
     let config = LocalizerConfig::new(Some(laser()), None, [0.01, 0.002, 0.01, 0.002]);
-    let new = || Localizer::new(map(), config.clone(), Some((start, Matrix3::identity() * 1e-4)));
+    let new = || {
+        Localizer::new(
+            map(),
+            config.clone(),
+            Some((start, Matrix3::identity() * 1e-4)),
+        )
+    };
     let (mut on_time, mut late) = (new(), new());
     let step = OdometryStep::from_wheels(0.03, 0.035, TRACK_M);
     let mut truth = start;
@@ -225,6 +233,9 @@ fn a_body_clock_that_starts_again_keeps_the_scans_fused() {
         let t = t * 1_000_000;
         loc.predict_at(t, &step);
         let outcome = loc.update_ranges_at(t, &scan(&world, &truth, 0.005, k as u64), &[]);
-        assert!(matches!(outcome, ScanOutcome::Fused { .. }), "{k}: {outcome:?}");
+        assert!(
+            matches!(outcome, ScanOutcome::Fused { .. }),
+            "{k}: {outcome:?}"
+        );
     }
 }

@@ -38,4 +38,3 @@ pub fn world(network: &InProcNetwork, clock: &Clock, endpoint: &str) -> AgentHos
     host.add(world_agent(), Box::new(agent)).unwrap();
     host
 }
-
