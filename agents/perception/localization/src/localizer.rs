@@ -57,14 +57,45 @@ pub struct LocalizerConfig {
     /// it and held while they do not, so the covariance grows as fast as the error when the
     /// chair dead-reckons.
     pub wheel_bias: WheelBias,
-    /// Each matched scan is fused as this many times less certain than its match says: a
-    /// match's covariance is honest for one scan (the match's Laplace approximation), but
-    /// consecutive scans see the same walls from nearly the same place and start from the
-    /// filter's own prediction, so their errors are correlated and twenty a second are not
-    /// twenty independent measurements. 3 is the integrated autocorrelation time of the match
-    /// error (1 + 2 Σ ρ_k over 20 to 60 scans) on the sample building's tour: 3.4-3.5 along
-    /// the chair's path, 1.6-1.9 across it, 2.2-2.9 in heading.
-    pub correlated_scans: f64,
+    /// Each matched scan is fused as this many times less certain than its match says, along
+    /// the chair's heading, across it and in heading: a match's covariance is honest for one
+    /// scan (the match's Laplace approximation), but consecutive scans see the same walls from
+    /// nearly the same place and start from the filter's own prediction, so their errors are
+    /// correlated and twenty a second are not twenty independent measurements. The factors
+    /// are the integrated autocorrelation times of the match error (1 + 2 Σ ρ_k over 20 to 60
+    /// scans) on the sample building's tour: 3.4-3.5 along the chair's path, 1.6-1.9 across
+    /// it, 2.2-2.9 in heading. One factor for all three (3) over-covered the across and heading
+    /// errors and under-covered the along errors: NEES misses on both sides.
+    pub correlated_scans: CorrelatedScans,
+}
+
+/// How many scans' worth of correlated error one matched scan carries, per direction of the
+/// chair's frame (see [`LocalizerConfig::correlated_scans`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CorrelatedScans {
+    /// Along the chair's heading.
+    pub along: f64,
+    /// Across it.
+    pub across: f64,
+    /// In heading.
+    pub heading: f64,
+}
+
+impl CorrelatedScans {
+    /// `covariance` (map x, y, heading) of a match at heading `theta`, scaled by the factors in
+    /// the chair's frame.
+    fn inflate(&self, covariance: &Matrix3<f64>, theta: f64) -> Matrix3<f64> {
+        let (s, c) = theta.sin_cos();
+        // map to chair frame, then each axis by the square root of its factor, then back
+        let to_chair = Matrix3::new(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
+        let scale = Matrix3::from_diagonal(&Vector3::new(
+            self.along.sqrt(),
+            self.across.sqrt(),
+            self.heading.sqrt(),
+        ));
+        let m = to_chair.transpose() * scale * to_chair;
+        m * covariance * m.transpose()
+    }
 }
 
 impl LocalizerConfig {
@@ -91,7 +122,11 @@ impl LocalizerConfig {
             landmark_sigma: (0.05, 1f64.to_radians()),
             alpha,
             wheel_bias: WheelBias::WHEELCHAIR,
-            correlated_scans: 3.0,
+            correlated_scans: CorrelatedScans {
+                along: 3.5,
+                across: 1.8,
+                heading: 2.5,
+            },
         }
     }
 }
@@ -572,7 +607,10 @@ impl Localizer {
                 at.update_current(
                     &innovation,
                     &Matrix3::identity(),
-                    &(m.covariance * self.config.correlated_scans),
+                    &self
+                        .config
+                        .correlated_scans
+                        .inflate(&m.covariance, predicted.theta),
                     self.config.gate_chi2,
                 )
             });
@@ -704,4 +742,34 @@ fn fuse_landmark(
         fusion.update_current(&innovation, &h, &noise, 13.82),
         Some((_, true))
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn correlated_scans_inflate_along_and_across_the_chair() {
+        let factors = CorrelatedScans {
+            along: 4.0,
+            across: 2.0,
+            heading: 3.0,
+        };
+        let round = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-5));
+        let east = factors.inflate(&round, 0.0);
+        assert!(
+            (east - Matrix3::from_diagonal(&Vector3::new(4e-4, 2e-4, 3e-5)))
+                .abs()
+                .max()
+                < 1e-15
+        );
+        // facing north, the map's x is across the chair
+        let north = factors.inflate(&round, std::f64::consts::FRAC_PI_2);
+        assert!(
+            (north - Matrix3::from_diagonal(&Vector3::new(2e-4, 4e-4, 3e-5)))
+                .abs()
+                .max()
+                < 1e-15
+        );
+    }
 }
