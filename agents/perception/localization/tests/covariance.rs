@@ -201,8 +201,8 @@ fn a_late_scan_gives_the_filter_it_would_have_had_on_time() {
             on_time.update_visual(&step.as_delta(), &(Matrix3::identity() * 1e-4));
         }
     }
-    for k in 2..6 {
-        let outcome = late.update_ranges_at((k as u64 + 1) * PERIOD_NS, &scans[k], &[]);
+    for (k, ranges) in scans.iter().enumerate().skip(2) {
+        let outcome = late.update_ranges_at((k as u64 + 1) * PERIOD_NS, ranges, &[]);
         assert!(matches!(outcome, ScanOutcome::Fused { .. }), "{outcome:?}");
     }
     let (a, b) = (on_time.pose(), late.pose());
