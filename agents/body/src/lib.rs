@@ -104,6 +104,32 @@ pub trait Body {
     }
 }
 
+/// One [`BodyError`] reported more than once: a [`BodyWorker`] reports a failed read on every
+/// read until the next one. Like `anyhow::Error` it is no `Error` of its own but dereferences to
+/// the body's error, so `source()` of a [`BodyError::Link`] is that [`BodyError`].
+#[derive(Debug, Clone)]
+pub struct SharedBodyError(std::sync::Arc<BodyError>);
+
+impl From<BodyError> for SharedBodyError {
+    fn from(error: BodyError) -> Self {
+        Self(std::sync::Arc::new(error))
+    }
+}
+
+impl std::ops::Deref for SharedBodyError {
+    type Target = BodyError;
+
+    fn deref(&self) -> &BodyError {
+        &self.0
+    }
+}
+
+impl std::fmt::Display for SharedBodyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
 /// Why the body could not read or command.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -162,7 +188,7 @@ pub enum BodyError {
     Link {
         /// What the body said.
         #[source]
-        source: std::sync::Arc<BodyError>,
+        source: SharedBodyError,
     },
     /// The I/O thread of a [`BodyWorker`] could not be started.
     #[error("body i/o: starting the body i/o thread: {source}")]
