@@ -202,7 +202,7 @@ mod tests {
             .expect("the JSON decoder's error");
         assert!(json.is_syntax(), "{json}");
         assert!(
-            matches!(err, ContainerError::BadMessage { len: 17, .. }),
+            matches!(err, ContainerError::BadMessage { len: 9, .. }),
             "{err}"
         );
 
