@@ -156,13 +156,14 @@ pub enum BodyError {
     /// No complete sensor frame arrived within the timeout. The byte counts tell a silent link
     /// (0 received) from a garbled one (bytes received, skipped as noise).
     #[error(
-        "no sensor frame from `{port}` within {timeout_ms} ms ({received} bytes received, {skipped} skipped as noise)"
+        "no sensor frame from `{port}` within {} ms ({received} bytes received, {skipped} skipped as noise)",
+        timeout.as_millis()
     )]
     Timeout {
         /// Port path.
         port: String,
         /// How long we waited.
-        timeout_ms: u64,
+        timeout: std::time::Duration,
         /// Bytes read from the port during this wait.
         received: u64,
         /// Bytes the decoder discarded during this wait.
