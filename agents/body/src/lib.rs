@@ -110,6 +110,32 @@ pub trait Body {
     }
 }
 
+/// One [`BodyError`] reported more than once: a [`BodyWorker`] reports a failed read on every
+/// read until the next one. Like `anyhow::Error` it is no `Error` of its own but dereferences to
+/// the body's error, so `source()` of a [`BodyError::Link`] is that [`BodyError`].
+#[derive(Debug, Clone)]
+pub struct SharedBodyError(std::sync::Arc<BodyError>);
+
+impl From<BodyError> for SharedBodyError {
+    fn from(error: BodyError) -> Self {
+        Self(std::sync::Arc::new(error))
+    }
+}
+
+impl std::ops::Deref for SharedBodyError {
+    type Target = BodyError;
+
+    fn deref(&self) -> &BodyError {
+        &self.0
+    }
+}
+
+impl std::fmt::Display for SharedBodyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
 /// Why the body could not read or command.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -136,13 +162,14 @@ pub enum BodyError {
     /// No complete sensor frame arrived within the timeout. The byte counts tell a silent link
     /// (0 received) from a garbled one (bytes received, skipped as noise).
     #[error(
-        "no sensor frame from `{port}` within {timeout_ms} ms ({received} bytes received, {skipped} skipped as noise)"
+        "no sensor frame from `{port}` within {} ms ({received} bytes received, {skipped} skipped as noise)",
+        timeout.as_millis()
     )]
     Timeout {
         /// Port path.
         port: String,
         /// How long we waited.
-        timeout_ms: u64,
+        timeout: std::time::Duration,
         /// Bytes read from the port during this wait.
         received: u64,
         /// Bytes the decoder discarded during this wait.
@@ -168,7 +195,7 @@ pub enum BodyError {
     Link {
         /// What the body said.
         #[source]
-        source: std::sync::Arc<BodyError>,
+        source: SharedBodyError,
     },
     /// The I/O thread of a [`BodyWorker`] could not be started.
     #[error("body i/o: starting the body i/o thread: {source}")]

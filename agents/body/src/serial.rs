@@ -88,7 +88,7 @@ impl Body for SerialBody {
             if Instant::now() >= deadline {
                 return Err(BodyError::Timeout {
                     port: self.name.clone(),
-                    timeout_ms: self.timeout.as_millis() as u64,
+                    timeout: self.timeout,
                     received,
                     skipped: self.decoder.skipped_bytes() - skipped_before,
                 });

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::{Body, BodyError, SensorFrame, WheelSpeeds};
+use crate::{Body, BodyError, SensorFrame, SharedBodyError, WheelSpeeds};
 
 /// Pause after a failed read before the next.
 const FAILED_READ_PAUSE: Duration = Duration::from_millis(10);
@@ -18,7 +18,7 @@ const FAILED_READ_PAUSE: Duration = Duration::from_millis(10);
 #[derive(Default)]
 struct Slots {
     /// The newest frame and when it arrived, or why the last read failed.
-    frame: Option<(Result<SensorFrame, Arc<BodyError>>, Instant)>,
+    frame: Option<(Result<SensorFrame, SharedBodyError>, Instant)>,
     /// The newest command not yet sent.
     command: Option<WheelSpeeds>,
     /// Why the last command sent failed, until reported.
@@ -58,7 +58,7 @@ impl BodyWorker {
                         let mut s = slots.lock().unwrap_or_else(PoisonError::into_inner);
                         s.command_error = Some(err);
                     }
-                    let frame = body.read().map_err(Arc::new);
+                    let frame = body.read().map_err(SharedBodyError::from);
                     let failed = frame.is_err();
                     slots.lock().unwrap_or_else(PoisonError::into_inner).frame =
                         Some((frame, Instant::now()));
@@ -112,9 +112,7 @@ impl Body for BodyWorker {
         let mut slots = self.slots();
         slots.command = Some(speeds);
         match slots.command_error.take() {
-            Some(err) => Err(BodyError::Link {
-                source: Arc::new(err),
-            }),
+            Some(err) => Err(BodyError::Link { source: err.into() }),
             None => Ok(()),
         }
     }
@@ -220,10 +218,10 @@ mod tests {
                     assert!(e.to_string().contains("board refused"), "{e}");
                     // the body's own error is kept, not its text
                     let inner = std::error::Error::source(&e)
-                        .and_then(|s| s.downcast_ref::<Arc<BodyError>>())
+                        .and_then(|s| s.downcast_ref::<BodyError>())
                         .unwrap_or_else(|| panic!("no body error under `{e}`"));
                     assert!(
-                        matches!(&**inner, BodyError::Worker { reason } if reason == "board refused"),
+                        matches!(inner, BodyError::Worker { reason } if reason == "board refused"),
                         "{inner}"
                     );
                     break;

@@ -34,7 +34,10 @@
 //!   before the passage and stops, SUBSCRIBEs (`fipa-subscribe`: the grant is a subscription,
 //!   see the watcher's crate) to `((action W (pass :passage P :direction D)))`, drives through
 //!   on the INFORM done that notifies the grant, and CANCELs that subscription once a pose shows
-//!   it clear (it does not stop there). A FAILURE in a held subscription (its lease ran out)
+//!   it clear (it does not stop there). The passage is let go at once; the watcher's
+//!   confirmation (INFORM `((done (action W (cancel (action W (pass ...))))))`, FIPA's cancel
+//!   meta-protocol) is waited for up to [`CANCEL_CONFIRM_TIMEOUT`], and a missing or failed one
+//!   is logged. A FAILURE in a held subscription (its lease ran out)
 //!   ends the grant. REFUSE or NOT-UNDERSTOOD (the passage is not watched), or no AGREE within
 //!   [`PASS_ANSWER_TIMEOUT`] (the watcher is unreachable), or no grant within
 //!   [`CognitiveConfig::pass_wait`]: the chair leaves the queue (CANCEL) and goes on, its own
@@ -167,6 +170,10 @@ pub const RELEASE_RADIUS_M: f64 = 0.6;
 /// How long the watcher has to agree to a pass request before it is taken for unreachable.
 pub const PASS_ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
 
+/// How long the watcher's confirmation of a CANCEL is waited for before the conversation is
+/// forgotten with a warning (the chair has let the passage go already).
+pub const CANCEL_CONFIRM_TIMEOUT: Duration = Duration::from_secs(5);
+
 /// The building domain shipped with the crate.
 pub const BUILDING_DOMAIN: &str = include_str!("../domains/building.pddl");
 
@@ -205,6 +212,14 @@ enum Waiting {
     },
 }
 
+/// A passage subscription cancelled (let go, or left while queued), until the watcher confirms.
+#[derive(Debug)]
+struct Releasing {
+    passage: String,
+    /// When the CANCEL went, bus time (ns).
+    since_ns: u64,
+}
+
 /// The cognitive agent of one wheelchair.
 pub struct CognitiveAgent {
     config: CognitiveConfig,
@@ -234,6 +249,8 @@ pub struct CognitiveAgent {
     held: Initiated<String>,
     /// Passages to let go when the chair gets to a point of the drive under way.
     releases: Vec<(String, Point2<f64>)>,
+    /// Passage subscriptions cancelled, waiting for the watcher's confirmation.
+    releasing: Initiated<Releasing>,
     conversations: u64,
 }
 
@@ -289,6 +306,7 @@ impl CognitiveAgent {
             legs: VecDeque::new(),
             held: Initiated::new(),
             releases: Vec::new(),
+            releasing: Initiated::new(),
             conversations: 0,
         })
     }
@@ -579,7 +597,7 @@ impl CognitiveAgent {
     }
 
     /// Lets the watcher know the chair is out of `passage` (if it holds it): CANCEL of its
-    /// subscription. The confirmation is not waited for.
+    /// subscription, whose confirmation is then awaited in `releasing`.
     fn release(&mut self, ctx: &mut Context<'_>, passage: &str) {
         let Some(id) = self
             .held
@@ -589,7 +607,7 @@ impl CognitiveAgent {
         else {
             return;
         };
-        cancel(ctx, &mut self.held, &id);
+        cancel(ctx, &mut self.held, &mut self.releasing, &id, passage);
     }
 
     /// Asks `to` to do `action` as the plan's step under way, in a fresh conversation; the step
@@ -629,8 +647,9 @@ impl CognitiveAgent {
             return;
         };
         let id = id.to_string();
-        if matches!(waiting, Waiting::Pass { .. }) {
-            cancel(ctx, &mut self.pending, &id);
+        if let Waiting::Pass { passage, .. } = waiting {
+            let passage = passage.clone();
+            cancel(ctx, &mut self.pending, &mut self.releasing, &id, &passage);
         } else {
             self.pending.forget(&id);
         }
@@ -763,6 +782,10 @@ impl CognitiveAgent {
     fn on_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage) {
         let conversation = message.conversation_id.clone().unwrap_or_default();
         let performative = message.performative;
+        if let Some(answer) = self.releasing.handle(ctx, message) {
+            self.on_release_answer(answer, message);
+            return;
+        }
         if let Some(answer) = self.held.handle(ctx, message) {
             // Only a FAILURE (the lease ran out while the chair is still on its way) can end a
             // held grant from the watcher's side; the chair lets go by itself otherwise.
@@ -819,6 +842,38 @@ impl CognitiveAgent {
             } => {
                 tracing::warn!(passage = %passage, answer = %performative, "the watcher does not keep this passage; going on");
                 self.next_leg(ctx, motion);
+            }
+        }
+    }
+
+    /// The watcher's answer to a CANCEL of a passage: the confirmation, told by its content
+    /// from a grant that crossed the CANCEL (the watcher lets go on the CANCEL all the same),
+    /// or a FAILURE to cancel.
+    fn on_release_answer(
+        &mut self,
+        answer: Result<Progress<Releasing>, iw_agent::AgentError>,
+        message: &AclMessage,
+    ) {
+        let chair = &self.config.chair;
+        match answer {
+            Ok(Progress::Ended(event, Releasing { passage, .. })) => {
+                match (event.kind, WheelchairContent::from_message(message)) {
+                    (EventKind::Cancelled, Ok(WheelchairContent::Cancelled { .. })) => {
+                        tracing::debug!(%chair, %passage, "the watcher confirmed the release");
+                    }
+                    (EventKind::Cancelled, Ok(WheelchairContent::Done { .. })) => {
+                        tracing::debug!(%chair, %passage, "a grant crossed the release; the watcher lets go on the CANCEL");
+                    }
+                    (kind, content) => {
+                        tracing::warn!(%chair, %passage, ?kind, content = ?content.ok(), "the watcher did not confirm the release");
+                    }
+                }
+            }
+            Ok(Progress::Continues(event)) => {
+                tracing::debug!(%chair, kind = ?event.kind, "an answer while releasing a passage");
+            }
+            Err(err) => {
+                tracing::debug!(%chair, error = %err, "out-of-protocol answer to a release; ignored")
             }
         }
     }
@@ -960,8 +1015,23 @@ impl Agent for CognitiveAgent {
             .map(|_| Duration::from_millis(200))
     }
 
-    /// Gives up waiting for a watcher that does not answer or does not grant in time.
+    /// Gives up waiting for a watcher that does not answer or does not grant in time, or that
+    /// does not confirm a release.
     fn tick(&mut self, ctx: &mut Context<'_>) {
+        let now_ns = ctx.now().0;
+        let overdue: Vec<String> = self
+            .releasing
+            .iter()
+            .filter(|(_, r)| {
+                Duration::from_nanos(now_ns.saturating_sub(r.since_ns)) >= CANCEL_CONFIRM_TIMEOUT
+            })
+            .map(|(id, _)| id.to_owned())
+            .collect();
+        for id in overdue {
+            if let Some(r) = self.releasing.forget(&id) {
+                tracing::warn!(chair = %self.config.chair, passage = %r.passage, conversation = %id, "no confirmation of the release from the watcher; the passage was let go all the same");
+            }
+        }
         let Some(Waiting::Pass {
             motion,
             passage,
@@ -1045,11 +1115,23 @@ impl Agent for CognitiveAgent {
     }
 }
 
-/// CANCEL of subscription `id` (a passage released, or given up while queued), then forgets
-/// it: the watcher's confirmation is not waited for.
-fn cancel<T>(ctx: &mut Context<'_>, conversations: &mut Initiated<T>, id: &str) {
+/// CANCEL of subscription `id` (a passage released, or given up while queued); the
+/// conversation moves to `releasing`, where the watcher's confirmation ends it.
+fn cancel<T>(
+    ctx: &mut Context<'_>,
+    conversations: &mut Initiated<T>,
+    releasing: &mut Initiated<Releasing>,
+    id: &str,
+    passage: &str,
+) {
     if let Err(err) = conversations.cancel(ctx, id) {
         tracing::warn!(error = %err, conversation = id, "could not cancel the passage");
+        conversations.forget(id);
+        return;
     }
-    conversations.forget(id);
+    let waiting = Releasing {
+        passage: passage.to_owned(),
+        since_ns: ctx.now().0,
+    };
+    conversations.hand_over(id, releasing, waiting);
 }

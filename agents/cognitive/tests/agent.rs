@@ -8,7 +8,8 @@ use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
 use iw_cognitive::agent::{
-    BUILDING_DOMAIN, BuildingMap, CognitiveAgent, CognitiveConfig, DoorPassage, LandmarkStop,
+    BUILDING_DOMAIN, BuildingMap, CANCEL_CONFIRM_TIMEOUT, CognitiveAgent, CognitiveConfig,
+    DoorPassage, LandmarkStop,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_ontology::OntologyContent;
@@ -539,6 +540,82 @@ fn a_passage_is_waited_for_driven_through_and_released_once_clear() {
         watcher[0].conversation_id, watcher[1].conversation_id,
         "the cancel releases that grant"
     );
+}
+
+/// A `MakeWriter` that keeps what the agent logs, for a test to read.
+#[derive(Clone, Default)]
+struct Logged(Arc<Mutex<Vec<u8>>>);
+
+impl std::io::Write for Logged {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(bytes);
+        Ok(bytes.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for Logged {
+    type Writer = Logged;
+    fn make_writer(&'a self) -> Logged {
+        self.clone()
+    }
+}
+
+/// The chair waits for the watcher's confirmation of its CANCEL (the cancel's inform-done,
+/// FIPA's cancel meta-protocol): a confirmed release is quiet, a missing confirmation is logged
+/// once [`CANCEL_CONFIRM_TIMEOUT`] has passed; the passage is let go at once either way.
+#[test]
+fn a_release_waits_for_the_watchers_confirmation_and_a_missing_one_is_logged() {
+    for confirms in [true, false] {
+        let logged = Logged::default();
+        let subscriber = tracing_subscriber::fmt()
+            .with_max_level(tracing::Level::DEBUG)
+            .with_ansi(false)
+            .with_writer(logged.clone())
+            .finish();
+        tracing::subscriber::with_default(subscriber, || {
+            let mut rig = through_the_gap(Box::new(move |m| match m.performative {
+                Performative::Subscribe => agree_then(m, Performative::Inform),
+                Performative::Cancel if confirms => {
+                    let WheelchairContent::Request { actor, action } =
+                        WheelchairContent::from_message(m).unwrap()
+                    else {
+                        panic!("a CANCEL names the action: {m:?}");
+                    };
+                    vec![
+                        WheelchairContent::Cancelled { actor, action }
+                            .fill(m.create_reply().with_performative(Performative::Inform)),
+                    ]
+                }
+                _ => Vec::new(),
+            }));
+            clear_of_the_gap(&mut rig);
+            assert_eq!(
+                rig.watcher_acts(),
+                [Performative::Subscribe, Performative::Cancel]
+            );
+            // half the wait, then past it
+            let half = CANCEL_CONFIRM_TIMEOUT / 2;
+            rig.run((half.as_millis() / 10) as usize);
+            let text = String::from_utf8(logged.0.lock().unwrap().clone()).unwrap();
+            assert!(!text.contains("no confirmation of the release"), "{text}");
+            assert_eq!(
+                text.contains("the watcher confirmed the release"),
+                confirms,
+                "{text}"
+            );
+            rig.run((half.as_millis() / 10) as usize + 50);
+        });
+        let text = String::from_utf8(logged.0.lock().unwrap().clone()).unwrap();
+        assert_eq!(
+            text.matches("no confirmation of the release").count(),
+            usize::from(!confirms),
+            "{text}"
+        );
+        assert!(!text.contains("answer to an abandoned step"), "{text}");
+    }
 }
 
 #[test]

@@ -79,6 +79,18 @@ use iw_shared_control::{
 };
 use nalgebra::{Isometry2, Point2};
 
+/// Why a request for a tactical action is refused. It stays typed up to the bus boundary,
+/// where its message becomes the REFUSE's `(error-message "…")`.
+#[derive(Debug, thiserror::Error)]
+enum Refusal {
+    /// An action this agent does not execute (a goal to a place, a door, a passage).
+    #[error("cannot execute {}", .0.to_term_string())]
+    NotTactical(WheelchairAction),
+    /// The steps do not make an action sequence.
+    #[error(transparent)]
+    Sequence(iw_shared_control::ControlError),
+}
+
 /// A configuration the control layers refuse.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -488,16 +500,15 @@ impl ControlAgent {
             return;
         };
         let mut steps = Vec::new();
-        let sequence = self
-            .tactical_actions(&action, &mut steps)
-            .map_err(|refused| format!("cannot execute {refused}"))
-            .and_then(|()| {
-                ActionSequence::new(self.config.tactical, steps).map_err(|err| err.to_string())
-            });
+        let sequence = self.tactical_actions(&action, &mut steps).and_then(|()| {
+            ActionSequence::new(self.config.tactical, steps).map_err(Refusal::Sequence)
+        });
         let sequence = match sequence {
             Ok(sequence) => sequence,
+            // The bus boundary: the typed refusal becomes the REFUSE's `(error-message "…")`,
+            // the only form in which another agent can read it.
             Err(why) => {
-                let _ = ctx.answer_error(&mut responder, Performative::Refuse, &why);
+                let _ = ctx.answer_error(&mut responder, Performative::Refuse, &why.to_string());
                 return;
             }
         };
@@ -570,7 +581,7 @@ impl ControlAgent {
         &self,
         action: &WheelchairAction,
         out: &mut Vec<Action>,
-    ) -> Result<(), String> {
+    ) -> Result<(), Refusal> {
         match action {
             WheelchairAction::GotoXy { x_m, y_m } => out.push(Action::GoTo {
                 target: nalgebra::Point2::new(*x_m, *y_m),
@@ -599,7 +610,7 @@ impl ControlAgent {
                     self.tactical_actions(step, out)?;
                 }
             }
-            other => return Err(other.to_term_string()),
+            other => return Err(Refusal::NotTactical(other.clone())),
         }
         Ok(())
     }

@@ -38,7 +38,7 @@ fn fails(failing: &Mutex<u32>) -> Result<(), BodyError> {
     *failing -= 1;
     Err(BodyError::Timeout {
         port: "/dev/test".into(),
-        timeout_ms: 200,
+        timeout: Duration::from_millis(200),
         received: 0,
         skipped: 0,
     })

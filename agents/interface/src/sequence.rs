@@ -3,6 +3,7 @@
 //! reliably, and is then recognised in the stream of input events.
 
 use std::collections::VecDeque;
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
@@ -42,14 +43,19 @@ impl InputSequence {
     }
 }
 
-/// Longest pause between two events of one sequence by default, ms.
-pub const DEFAULT_MAX_GAP_MS: u64 = 1500;
+/// Longest pause between two events of one sequence by default.
+pub const DEFAULT_MAX_GAP: Duration = Duration::from_millis(1500);
 
-/// Splits `events` where two neighbours are more than `max_gap_ms` apart.
-fn within_gap(events: &[InputEvent], max_gap_ms: u64) -> bool {
+/// Whether `later` follows `earlier` (event times, ms) by at most `max_gap`.
+fn follows(earlier: u64, later: u64, max_gap: Duration) -> bool {
+    later >= earlier && Duration::from_millis(later - earlier) <= max_gap
+}
+
+/// Whether no two neighbours of `events` are more than `max_gap` apart.
+fn within_gap(events: &[InputEvent], max_gap: Duration) -> bool {
     events
         .windows(2)
-        .all(|w| w[1].t_ms >= w[0].t_ms && w[1].t_ms - w[0].t_ms <= max_gap_ms)
+        .all(|w| follows(w[0].t_ms, w[1].t_ms, max_gap))
 }
 
 /// Where a reliability test stands.
@@ -71,7 +77,7 @@ pub struct ReliabilityTest {
     sequence: InputSequence,
     repetitions: u32,
     required: u32,
-    max_gap_ms: u64,
+    max_gap: Duration,
     successes: u32,
     attempts: u32,
 }
@@ -82,7 +88,7 @@ impl ReliabilityTest {
         sequence: InputSequence,
         repetitions: u32,
         required: u32,
-        max_gap_ms: u64,
+        max_gap: Duration,
     ) -> Result<Self, InterfaceError> {
         if sequence.0.is_empty() || required == 0 || required > repetitions {
             return Err(InterfaceError::BadTest {
@@ -95,7 +101,7 @@ impl ReliabilityTest {
             sequence,
             repetitions,
             required,
-            max_gap_ms,
+            max_gap,
             successes: 0,
             attempts: 0,
         })
@@ -108,7 +114,7 @@ impl ReliabilityTest {
             return false;
         }
         self.attempts += 1;
-        let ok = self.sequence.matches(events) && within_gap(events, self.max_gap_ms);
+        let ok = self.sequence.matches(events) && within_gap(events, self.max_gap);
         self.successes += u32::from(ok);
         ok
     }
@@ -139,16 +145,16 @@ impl ReliabilityTest {
 pub struct Recognizer<A> {
     bindings: Vec<(InputSequence, A)>,
     buffer: VecDeque<InputEvent>,
-    max_gap_ms: u64,
+    max_gap: Duration,
 }
 
 impl<A: Clone> Recognizer<A> {
-    /// An empty recognizer; a pause longer than `max_gap_ms` starts a new sequence.
-    pub fn new(max_gap_ms: u64) -> Self {
+    /// An empty recognizer; a pause longer than `max_gap` starts a new sequence.
+    pub fn new(max_gap: Duration) -> Self {
         Recognizer {
             bindings: Vec::new(),
             buffer: VecDeque::new(),
-            max_gap_ms,
+            max_gap,
         }
     }
 
@@ -179,7 +185,7 @@ impl<A: Clone> Recognizer<A> {
     /// Feeds one event; returns the action whose sequence it completes.
     pub fn feed(&mut self, event: InputEvent) -> Option<A> {
         if let Some(last) = self.buffer.back()
-            && (event.t_ms < last.t_ms || event.t_ms - last.t_ms > self.max_gap_ms)
+            && !follows(last.t_ms, event.t_ms, self.max_gap)
         {
             self.buffer.clear();
         }
@@ -238,7 +244,7 @@ mod tests {
     }
 
     fn accepted(seq: &InputSequence) -> ReliabilityTest {
-        let mut test = ReliabilityTest::new(seq.clone(), 3, 3, DEFAULT_MAX_GAP_MS).unwrap();
+        let mut test = ReliabilityTest::new(seq.clone(), 3, 3, DEFAULT_MAX_GAP).unwrap();
         for _ in 0..3 {
             let events: Vec<_> = seq
                 .0
@@ -258,11 +264,12 @@ mod tests {
             (Device::Voice, "go".into()),
         ]);
         assert!(seq.is_mixed());
-        let mut test = ReliabilityTest::new(seq.clone(), 3, 2, 1000).unwrap();
+        let mut test =
+            ReliabilityTest::new(seq.clone(), 3, 2, Duration::from_millis(1000)).unwrap();
         assert!(!test.attempt(&[ev(Device::Gamepad, "a", 0), ev(Device::Voice, "stop", 10)]));
         assert!(!test.attempt(&[ev(Device::Gamepad, "a", 0), ev(Device::Voice, "go", 5000)]));
         assert_eq!(test.verdict(), Verdict::Rejected);
-        let mut r = Recognizer::new(1000);
+        let mut r = Recognizer::new(Duration::from_millis(1000));
         assert!(matches!(
             r.bind(&test, 1),
             Err(InterfaceError::NotReliable { .. })
@@ -292,7 +299,7 @@ mod tests {
         #[test]
         fn bound_sequence_fires_at_its_end(steps in prop::collection::vec(step(), 1..6), gaps in prop::collection::vec(0u64..1000, 6)) {
             let seq = InputSequence(steps);
-            let mut r = Recognizer::new(1000);
+            let mut r = Recognizer::new(Duration::from_millis(1000));
             r.bind(&accepted(&seq), 7u8).unwrap();
             let mut t = 0;
             for (i, (d, s)) in seq.0.iter().enumerate() {
@@ -307,7 +314,7 @@ mod tests {
         fn long_pause_breaks_a_sequence(steps in prop::collection::vec(step(), 2..6), cut in 1usize..5) {
             let seq = InputSequence(steps);
             let cut = cut.min(seq.0.len() - 1);
-            let mut r = Recognizer::new(1000);
+            let mut r = Recognizer::new(Duration::from_millis(1000));
             r.bind(&accepted(&seq), 1u8).unwrap();
             let mut fired = None;
             for (i, (d, s)) in seq.0.iter().enumerate() {
@@ -320,7 +327,7 @@ mod tests {
         /// Any stream of events never panics, and whatever fires is bound.
         #[test]
         fn arbitrary_streams_fire_only_bound_actions(stream in prop::collection::vec((step(), 0u64..3000), 0..60)) {
-            let mut r = Recognizer::new(1000);
+            let mut r = Recognizer::new(Duration::from_millis(1000));
             let a = InputSequence(vec![(Device::Gamepad, "a".into()), (Device::Voice, "b".into())]);
             r.bind(&accepted(&a), 1u8).unwrap();
             let mut t = 0;

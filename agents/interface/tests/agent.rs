@@ -9,7 +9,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
-use iw_interface::sequence::DEFAULT_MAX_GAP_MS;
+use iw_interface::sequence::DEFAULT_MAX_GAP;
 use iw_interface::{
     Command, Device, InputSequence, InterfaceAgent, InterfaceConfig, RawInput, Recognizer,
     ReliabilityTest,
@@ -34,7 +34,7 @@ impl Agent for Recorder {
 
 fn trained(steps: &[(Device, &str)]) -> ReliabilityTest {
     let seq = InputSequence(steps.iter().map(|(d, s)| (*d, s.to_string())).collect());
-    let mut test = ReliabilityTest::new(seq, 5, 4, DEFAULT_MAX_GAP_MS).unwrap();
+    let mut test = ReliabilityTest::new(seq, 5, 4, DEFAULT_MAX_GAP).unwrap();
     for attempt in 0..5u64 {
         // the user slips once: the second attempt pauses too long
         let gap = if attempt == 1 { 10_000 } else { 300 };
@@ -98,7 +98,7 @@ fn sequences_become_acl_requests() {
     )
     .unwrap();
 
-    let mut recognizer = Recognizer::new(DEFAULT_MAX_GAP_MS);
+    let mut recognizer = Recognizer::new(DEFAULT_MAX_GAP);
     recognizer
         .bind(
             &trained(&[(Device::HeadGesture, "head-up"), (Device::Voice, "kitchen")]),
@@ -222,7 +222,7 @@ fn a_held_input_streams_drive_and_release_silence_or_nan_stop_it() {
     let sink = Arc::new(Mutex::new(Vec::new()));
     host.add(AgentId::new("control@c1"), Box::new(Sink(sink.clone())))
         .unwrap();
-    let (inputs, display) = add_interface(&mut host, Recognizer::new(DEFAULT_MAX_GAP_MS));
+    let (inputs, display) = add_interface(&mut host, Recognizer::new(DEFAULT_MAX_GAP));
     let mut run = |ms: u64, reading: Option<RawInput>| {
         for _ in 0..ms / 10 {
             if let Some(r) = &reading
@@ -364,7 +364,7 @@ fn a_remote_driver_streams_through_the_interface_and_others_are_refused() {
     config.remote_drivers = vec!["staff@services".into()];
     let interface = InterfaceAgent::new(
         config,
-        Recognizer::new(DEFAULT_MAX_GAP_MS),
+        Recognizer::new(DEFAULT_MAX_GAP),
         iw_interface::InputQueue::default(),
         display.clone(),
     );

@@ -354,9 +354,9 @@ impl PerceptionAgent {
             let (previous_ns, t_previous_current) = match motion {
                 Ok(Some(m)) => m,
                 Ok(None) => continue,
-                Err(reason) => {
+                Err(error) => {
                     visual.unused += 1;
-                    tracing::warn!(chair = %self.config.chair.name, %reason, "no visual update");
+                    tracing::warn!(chair = %self.config.chair.name, %error, "no visual update: visual odometry failed on a frame");
                     continue;
                 }
             };

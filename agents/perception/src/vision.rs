@@ -19,7 +19,7 @@ pub(crate) enum VisionResult {
         time_ns: u64,
         /// Visual odometry: the previous tracked frame's capture time (ns) and the camera's
         /// motion from it to this one (none for the first frame), or why it failed.
-        motion: Result<Option<(u64, Isometry3<f64>)>, String>,
+        motion: Result<Option<(u64, Isometry3<f64>)>, VoError>,
         /// Markers seen: id, and the marker's centre in the base frame at capture, m.
         markers: Vec<(u8, Point2<f64>)>,
     },
@@ -61,18 +61,12 @@ impl VisionWorker {
                         Some(Err(err)) => VisionResult::Failed(err),
                         Some(Ok(frame)) => {
                             let time_ns = (frame.timestamp_s.max(0.0) * 1e9).round() as u64;
-                            let motion = match vo.process(&frame) {
-                                Ok((stamped, _)) => {
-                                    let motion = last.map(|(t, pose)| {
-                                        (t, pose.inverse() * stamped.t_world_camera)
-                                    });
-                                    last = Some((time_ns, stamped.t_world_camera));
-                                    Ok(motion)
-                                }
-                                Err(err) => {
-                                    Err(format!("visual odometry failed on a frame: {err}"))
-                                }
-                            };
+                            let motion = vo.process(&frame).map(|(stamped, _)| {
+                                let motion = last
+                                    .map(|(t, pose)| (t, pose.inverse() * stamped.t_world_camera));
+                                last = Some((time_ns, stamped.t_world_camera));
+                                motion
+                            });
                             VisionResult::Frame {
                                 time_ns,
                                 motion,

@@ -11,7 +11,8 @@
 //! ends at its INFORM: a FAILURE "lease expired" after an INFORM done, as this agent once sent,
 //! is outside the protocol. So a chair asks with **fipa-subscribe**, whose subscription is the
 //! grant: the participant may notify with INFORM, the initiator may CANCEL (confirmed by
-//! INFORM), and the participant may end it with FAILURE at any time. Each passage asked is
+//! INFORM, FIPA's cancel meta-protocol), and the participant may end it with FAILURE at any
+//! time. Each passage asked is
 //! its own conversation, answered through `iw_agent::Responder`, so no act leaves this agent
 //! that the protocol does not allow.
 //!
@@ -22,8 +23,11 @@
 //!   once, restating it (queued).
 //! - INFORM `((done (action W (pass :passage P :direction D))))`: the notification that the
 //!   passage is granted.
-//! - CANCEL in that conversation (the chair is out, or gives up waiting): releases the grant
-//!   or leaves the queue; confirmed with the same INFORM done, which ends the subscription.
+//! - CANCEL `((action W (pass :passage P :direction D)))` in that conversation (the chair is
+//!   out, or gives up waiting): releases the grant or leaves the queue; confirmed with INFORM
+//!   `((done (action W (cancel (action W (pass :passage P :direction D))))))` (the cancel
+//!   meta-protocol's inform-done), which ends the subscription. A grant and a cancel can cross
+//!   on the wire; the content tells the chair which INFORM it got.
 //! - FAILURE `((error-message "lease expired"))`: the grant was held past the lease; it ends
 //!   the subscription and the queue moves on.
 //! - REFUSE for an unknown passage or a chair already holding or queued for it; NOT-UNDERSTOOD
@@ -76,9 +80,17 @@ struct Ask {
 }
 
 impl Ask {
-    /// `((done (action W (pass ...))))`: the grant, and the confirmation of its cancel.
+    /// `((done (action W (pass ...))))`: the grant.
     fn done(&self) -> WheelchairContent {
         WheelchairContent::Done {
+            actor: self.actor.clone(),
+            action: self.action(),
+        }
+    }
+
+    /// `((done (action W (cancel (action W (pass ...))))))`: the confirmation of its cancel.
+    fn cancelled(&self) -> WheelchairContent {
+        WheelchairContent::Cancelled {
             actor: self.actor.clone(),
             action: self.action(),
         }
@@ -123,7 +135,7 @@ pub struct WatcherAgent {
 }
 
 /// Takes out of `items` the subscriptions that `cancel` ends (its conversation and sender,
-/// allowed now by fipa-subscribe), each confirmed with INFORM done.
+/// allowed now by fipa-subscribe), each confirmed with the INFORM done of the cancel.
 fn cancelled<T>(
     ctx: &mut Context<'_>,
     items: &mut Vec<T>,
@@ -135,8 +147,8 @@ fn cancelled<T>(
         .collect();
     for mut item in ended {
         let ask = ask(&mut item);
-        let done = ask.done();
-        let _ = ctx.answer(&mut ask.responder, Performative::Inform, &done);
+        let confirmation = ask.cancelled();
+        let _ = ctx.answer(&mut ask.responder, Performative::Inform, &confirmation);
     }
 }
 

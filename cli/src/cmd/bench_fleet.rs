@@ -57,9 +57,9 @@ pub struct Settings {
 #[derive(Debug, serde::Serialize)]
 pub struct FleetRow {
     chairs: usize,
-    #[serde(rename = "heartbeat_ms", serialize_with = "iw_node::millis::serialize")]
+    #[serde(rename = "heartbeat_ms", serialize_with = "iw_bus::millis::serialize")]
     heartbeat: Duration,
-    #[serde(rename = "lease_ms", serialize_with = "iw_node::millis::serialize")]
+    #[serde(rename = "lease_ms", serialize_with = "iw_bus::millis::serialize")]
     lease: Duration,
     /// Every container: services, world and the chairs.
     containers: usize,

@@ -71,8 +71,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         reorder: args.reorder,
         corrupt: args.corrupt,
         delay: args.delay,
-        delay_min_ms: args.delay_min_ms,
-        delay_max_ms: args.delay_max_ms,
+        delay_min: Duration::from_millis(args.delay_min_ms),
+        delay_max: Duration::from_millis(args.delay_max_ms),
         inject_forged: args.inject_forged,
         inject_replay: args.inject_replay,
         ..ImpairConfig::default()

@@ -14,7 +14,8 @@
 //!   blocked on its mailbox receives from the transport itself (see [`Mailbox`]).
 //! - [`InProcNetwork`], [`InProcTransport`]: the in-process transport.
 //! - [`FaultyTransport`], [`Impairments`]: a seeded fault injector for tests.
-//! - [`Time`], [`Clock`], [`MockController`]: nanosecond time and the clock handle.
+//! - [`Time`], [`Clock`], [`MockController`]: nanosecond time and the clock handle;
+//!   [`millis`]: serde for a `Duration` kept as whole milliseconds in files.
 //!
 //! # Guarantees
 //! - Decoding never panics on any input: a frame is `Ok(Some)`, `Ok(None)` (need more bytes) or
@@ -32,6 +33,7 @@ mod envelope;
 mod fault;
 mod inproc;
 mod layer;
+pub mod millis;
 mod router;
 mod time;
 pub mod transport;

@@ -95,13 +95,23 @@ impl std::fmt::Display for ContainerId {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ContainerError {
-    /// A control frame that is not a container message.
-    #[error("control frame of {len} bytes is not a container message: {reason}")]
+    /// A control frame whose body is not a container message.
+    #[error("control frame of {len} bytes is not a container message: {source}")]
     BadMessage {
         /// Frame length, bytes.
         len: usize,
-        /// Decoder's complaint.
-        reason: String,
+        /// The JSON decoder's error (with line and column).
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A control frame too short to hold its sequence number.
+    #[error(
+        "control frame of {len} bytes is shorter than its {}-byte sequence number",
+        wire::SEQ_LEN
+    )]
+    ShortFrame {
+        /// Frame length, bytes.
+        len: usize,
     },
     /// A control datagram refused by the sessions (not a session's, altered, replayed, a
     /// handshake that does not verify).
@@ -120,10 +130,11 @@ pub enum ContainerError {
         source: iw_layer_security::SecurityError,
     },
     /// A message that does not encode.
-    #[error("container message does not encode: {reason}")]
+    #[error("container message does not encode: {source}")]
     Encode {
-        /// Encoder's complaint.
-        reason: String,
+        /// The JSON encoder's error.
+        #[source]
+        source: serde_json::Error,
     },
     /// A roster file that cannot be read or is wrong, or that pins another identity for this
     /// container.
@@ -135,6 +146,19 @@ pub enum ContainerError {
         line: Option<usize>,
         /// Why.
         reason: String,
+    },
+    /// A roster line with a value that does not parse (a container id, a key).
+    #[error("roster {file} line {line}: {what}: {source}")]
+    RosterValue {
+        /// The file (or what the roster was built from).
+        file: String,
+        /// The line at fault (1-based).
+        line: usize,
+        /// Which value.
+        what: String,
+        /// The value parser's error (`ParseIntError`, `hex::FromHexError`).
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
     /// A roster file that cannot be opened or read.
     #[error("roster {file}: {source}")]

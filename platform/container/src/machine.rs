@@ -69,16 +69,14 @@ pub enum ContainerMsg {
 impl ContainerMsg {
     /// Encodes for a frame transport (JSON: control traffic is small and rare).
     pub fn encode(&self) -> Result<Vec<u8>, ContainerError> {
-        serde_json::to_vec(self).map_err(|e| ContainerError::Encode {
-            reason: e.to_string(),
-        })
+        serde_json::to_vec(self).map_err(|source| ContainerError::Encode { source })
     }
 
     /// Decodes a frame; anything else is [`ContainerError::BadMessage`].
     pub fn decode(frame: &[u8]) -> Result<Self, ContainerError> {
-        serde_json::from_slice(frame).map_err(|e| ContainerError::BadMessage {
+        serde_json::from_slice(frame).map_err(|source| ContainerError::BadMessage {
             len: frame.len(),
-            reason: e.to_string(),
+            source,
         })
     }
 }

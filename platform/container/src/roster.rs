@@ -74,10 +74,18 @@ impl Roster {
             if line.is_empty() || line.starts_with('#') {
                 continue;
             }
-            let parsed = parse_line(line).and_then(|(id, pin)| roster.add(id, pin));
-            if let Err(reason) = parsed {
-                return Err(roster.error(Some(n + 1), reason));
-            }
+            let (id, pin) = parse_line(line).map_err(|bad| match bad {
+                BadLine::Shape(reason) => roster.error(Some(n + 1), reason),
+                BadLine::Value { what, source } => ContainerError::RosterValue {
+                    file: roster.source.clone(),
+                    line: n + 1,
+                    what,
+                    source,
+                },
+            })?;
+            roster
+                .add(id, pin)
+                .map_err(|reason| roster.error(Some(n + 1), reason))?;
         }
         if roster.pins.is_empty() {
             return Err(roster.error(None, "lists no container".into()));
@@ -203,25 +211,37 @@ impl std::fmt::Display for Roster {
     }
 }
 
-fn parse_line(line: &str) -> Result<(ContainerId, Pin), String> {
+/// What is wrong with one roster line: its shape, or a value whose parser said why.
+enum BadLine {
+    Shape(String),
+    Value {
+        what: String,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}
+
+fn parse_line(line: &str) -> Result<(ContainerId, Pin), BadLine> {
     let fields: Vec<&str> = line.split_whitespace().collect();
     let [id, name, key] = fields[..] else {
-        return Err(format!(
+        return Err(BadLine::Shape(format!(
             "expected `ID NAME PUBLIC_KEY`, found {} fields",
             fields.len()
-        ));
+        )));
     };
-    let id = id
-        .parse::<u64>()
-        .map_err(|e| format!("container id `{id}`: {e}"))?;
+    let id = id.parse::<u64>().map_err(|e| BadLine::Value {
+        what: format!("container id `{id}`"),
+        source: e.into(),
+    })?;
     if key.len() != 64 {
-        return Err(format!(
+        return Err(BadLine::Shape(format!(
             "the key of `{name}` is not 64 hex digits ({} characters)",
             key.chars().count()
-        ));
+        )));
     }
-    let bytes = PublicKey::from_hex(key)
-        .map_err(|e| format!("the key of `{name}` is not 64 hex digits: {e}"))?;
+    let bytes = PublicKey::from_hex(key).map_err(|e| BadLine::Value {
+        what: format!("the key of `{name}` is not 64 hex digits"),
+        source: e.into(),
+    })?;
     Ok((
         ContainerId(id),
         Pin {
@@ -282,6 +302,27 @@ mod tests {
         assert_eq!(roster.get(ContainerId(1042)).unwrap().key, [2; 32]);
         assert!(roster.get(ContainerId(2)).is_none());
         assert_eq!(Roster::parse(&roster.to_string(), "r").unwrap(), roster);
+    }
+
+    /// A value that does not parse keeps its parser's error as the source.
+    #[test]
+    fn a_bad_value_keeps_the_parsers_error() {
+        use std::error::Error as _;
+        let err = Roster::parse(&format!("# ids\nx services {}", key(1)), "r").unwrap_err();
+        assert!(
+            matches!(err, ContainerError::RosterValue { line: 2, .. }),
+            "{err}"
+        );
+        assert!(
+            err.source()
+                .is_some_and(|s| s.is::<std::num::ParseIntError>()),
+            "{err}"
+        );
+        let err = Roster::parse(&format!("1 services {}", "g".repeat(64)), "r").unwrap_err();
+        assert!(
+            err.source().is_some_and(|s| s.is::<hex::FromHexError>()),
+            "{err}"
+        );
     }
 
     #[test]

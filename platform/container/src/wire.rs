@@ -16,7 +16,7 @@ use iw_layer_security::{Identity, PeerSessions, PublicKey, SecurityConfig};
 
 use crate::{ContainerError, ContainerMsg};
 
-const SEQ_LEN: usize = 8;
+pub(crate) const SEQ_LEN: usize = 8;
 
 /// A control message from an identity a session authenticated: whose it is, its sequence
 /// number, what it says.
@@ -71,7 +71,7 @@ impl ControlChannel {
     /// (`Ok(None)` for a handshake). What must go back to `from` (a handshake reply, messages
     /// that waited for its reply, a re-key request) is appended to `back`. A refused datagram
     /// is [`ContainerError::Refused`] with the reason; a frame that opens but is not a container
-    /// message is [`ContainerError::BadMessage`].
+    /// message is [`ContainerError::ShortFrame`] or [`ContainerError::BadMessage`].
     pub fn open(
         &mut self,
         from: &PeerAddr,
@@ -90,9 +90,8 @@ impl ControlChannel {
             return Ok(None);
         };
         let Some((seq, body)) = opened.frame.split_first_chunk::<SEQ_LEN>() else {
-            return Err(ContainerError::BadMessage {
+            return Err(ContainerError::ShortFrame {
                 len: opened.frame.len(),
-                reason: "shorter than a sequence number".into(),
             });
         };
         Ok(Some(Authenticated {
@@ -170,5 +169,49 @@ mod tests {
             .open(&a_addr, &msg.encode().unwrap(), now, &mut back)
             .unwrap_err();
         assert!(err.to_string().contains("not_sealed"), "{err}");
+    }
+
+    /// A frame that the session opens but that holds no container message keeps the JSON
+    /// decoder's error as its source; one too short for the sequence number says so.
+    #[test]
+    fn a_sealed_frame_that_is_no_message_keeps_the_decoder_error() {
+        let mut a = ControlChannel::new(Arc::new(Identity::generate().unwrap())).unwrap();
+        let mut b = ControlChannel::new(Arc::new(Identity::generate().unwrap())).unwrap();
+        let (a_addr, b_addr) = (PeerAddr("a".into()), PeerAddr("b".into()));
+        let now = Time(1);
+        let msg = ContainerMsg::Duplicate {
+            id: ContainerId(2),
+            holder: PeerAddr("h".into()),
+            holder_incarnation: 1,
+            holder_uptime_ms: 5,
+        };
+        // agree a session the ordinary way
+        let hello = a.seal(&b_addr, &msg, now).unwrap();
+        let mut back = Vec::new();
+        b.open(&a_addr, &hello[0], now, &mut back).unwrap();
+        let mut to_b = Vec::new();
+        a.open(&b_addr, &back[0], now, &mut to_b).unwrap();
+        b.open(&a_addr, &to_b[0], now, &mut back).unwrap().unwrap();
+
+        let mut seal = |frame: &[u8]| a.sessions.seal(&b_addr.0, frame, now).unwrap().remove(0);
+        let not_json = seal(&[&7u64.to_be_bytes()[..], b"{not json"].concat());
+        let err = b.open(&a_addr, &not_json, now, &mut back).unwrap_err();
+        let source = std::error::Error::source(&err).expect("a source");
+        let json = source
+            .downcast_ref::<serde_json::Error>()
+            .expect("the JSON decoder's error");
+        assert!(json.is_syntax(), "{json}");
+        assert!(
+            matches!(err, ContainerError::BadMessage { len: 9, .. }),
+            "{err}"
+        );
+
+        let short = seal(&[1, 2, 3]);
+        let err = b.open(&a_addr, &short, now, &mut back).unwrap_err();
+        assert!(
+            matches!(err, ContainerError::ShortFrame { len: 3 }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("8-byte sequence number"), "{err}");
     }
 }

@@ -10,7 +10,7 @@
 //! | `duplicate` (repetition)     | forwarded twice                                                |
 //! | `reorder` (resequencing)     | held back and released right after the next one (same way)    |
 //! | `corrupt` (corruption)       | 1 to 3 bytes XOR-ed with random non-zero bytes                 |
-//! | `delay` (delay)              | forwarded after `delay_min_ms..=delay_max_ms`                   |
+//! | `delay` (delay)              | forwarded after `delay_min..=delay_max` (whole ms)              |
 //! | `inject_forged` (insertion)  | a datagram of random bytes, same length, is sent first         |
 //! | `inject_replay` (repetition) | an earlier datagram of the same direction is sent again first  |
 //!
@@ -74,18 +74,22 @@ pub struct ImpairConfig {
     pub reorder: f64,
     /// Probability 1 to 3 bytes of a datagram are flipped.
     pub corrupt: f64,
-    /// Probability a datagram is delayed by `delay_min_ms..=delay_max_ms`.
+    /// Probability a datagram is delayed by `delay_min..=delay_max`.
     pub delay: f64,
-    /// Shortest added delay, ms.
-    pub delay_min_ms: u64,
-    /// Longest added delay, ms.
-    pub delay_max_ms: u64,
+    /// Shortest added delay (whole milliseconds; key `delay_min_ms`).
+    #[serde(rename = "delay_min_ms", with = "iw_bus::millis")]
+    pub delay_min: Duration,
+    /// Longest added delay (whole milliseconds; key `delay_max_ms`).
+    #[serde(rename = "delay_max_ms", with = "iw_bus::millis")]
+    pub delay_max: Duration,
     /// Probability a forged datagram (random bytes) is inserted before a datagram.
     pub inject_forged: f64,
     /// Probability an earlier datagram is replayed before a datagram.
     pub inject_replay: f64,
-    /// Longest a reordered datagram waits for a successor before it is released anyway, ms.
-    pub reorder_hold_ms: u64,
+    /// Longest a reordered datagram waits for a successor before it is released anyway (key
+    /// `reorder_hold_ms`).
+    #[serde(rename = "reorder_hold_ms", with = "iw_bus::millis")]
+    pub reorder_hold: Duration,
     /// Most datagrams waiting (delayed or held); beyond it new ones are dropped and counted.
     pub max_pending: usize,
 }
@@ -99,11 +103,11 @@ impl Default for ImpairConfig {
             reorder: 0.0,
             corrupt: 0.0,
             delay: 0.0,
-            delay_min_ms: 5,
-            delay_max_ms: 20,
+            delay_min: Duration::from_millis(5),
+            delay_max: Duration::from_millis(20),
             inject_forged: 0.0,
             inject_replay: 0.0,
-            reorder_hold_ms: 20,
+            reorder_hold: Duration::from_millis(20),
             max_pending: 4096,
         }
     }
@@ -126,10 +130,10 @@ impl ImpairConfig {
                 return Err(NetError::BadProbability { name, value });
             }
         }
-        if self.delay_min_ms > self.delay_max_ms {
+        if self.delay_min > self.delay_max {
             return Err(NetError::BadDelayRange {
-                min_ms: self.delay_min_ms,
-                max_ms: self.delay_max_ms,
+                min: self.delay_min,
+                max: self.delay_max,
             });
         }
         Ok(())
@@ -183,11 +187,11 @@ impl Direction {
     }
 }
 
-/// One datagram to send, after `delay_ms`.
+/// One datagram to send, after `delay`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Emit {
-    /// Added delay, ms (0 = now).
-    pub delay_ms: u64,
+    /// Added delay (zero: now).
+    pub delay: Duration,
     /// The bytes to send.
     pub bytes: Vec<u8>,
 }
@@ -225,7 +229,7 @@ impl Impairer {
             self.rng.fill(forged.as_mut_slice());
             self.stats.forged += 1;
             out.push(Emit {
-                delay_ms: 0,
+                delay: Duration::ZERO,
                 bytes: forged,
             });
         }
@@ -234,7 +238,7 @@ impl Impairer {
             if let Some(old) = self.history[side].get(pick) {
                 self.stats.replayed += 1;
                 out.push(Emit {
-                    delay_ms: 0,
+                    delay: Duration::ZERO,
                     bytes: old.clone(),
                 });
             }
@@ -260,12 +264,16 @@ impl Impairer {
             }
             self.stats.corrupted += 1;
         }
-        let delay_ms = if self.rng.random_bool(self.config.delay) {
+        let delay = if self.rng.random_bool(self.config.delay) {
             self.stats.delayed += 1;
-            self.rng
-                .random_range(self.config.delay_min_ms..=self.config.delay_max_ms)
+            // drawn in whole milliseconds, so a seed gives the same faults as it always did
+            let ms = |d: Duration| u64::try_from(d.as_millis()).unwrap_or(u64::MAX);
+            Duration::from_millis(
+                self.rng
+                    .random_range(ms(self.config.delay_min)..=ms(self.config.delay_max)),
+            )
         } else {
-            0
+            Duration::ZERO
         };
         let copies = if self.rng.random_bool(self.config.duplicate) {
             self.stats.duplicated += 1;
@@ -277,23 +285,20 @@ impl Impairer {
             // Held; a duplicate copy, if any, still goes now so repetition and resequencing mix.
             self.held[side] = Some(bytes.clone());
             if copies == 2 {
-                out.push(Emit { delay_ms, bytes });
+                out.push(Emit { delay, bytes });
             }
             return self.counted(out);
         }
         for _ in 1..copies {
             out.push(Emit {
-                delay_ms,
+                delay,
                 bytes: bytes.clone(),
             });
         }
-        out.push(Emit { delay_ms, bytes });
+        out.push(Emit { delay, bytes });
         if let Some(held) = self.held[side].take() {
             self.stats.reordered += 1;
-            out.push(Emit {
-                delay_ms,
-                bytes: held,
-            });
+            out.push(Emit { delay, bytes: held });
         }
         self.counted(out)
     }
@@ -455,7 +460,7 @@ impl Relay {
         stats: &Mutex<ImpairStats>,
     ) -> Result<(), NetError> {
         let mut buf = vec![0u8; UDP_MAX_PAYLOAD + 1];
-        let hold = Duration::from_millis(impairer.config.reorder_hold_ms);
+        let hold = impairer.config.reorder_hold;
         let max_pending = impairer.config.max_pending;
         let mut strangers = 0u64;
         let mut overflowed = 0u64;
@@ -527,12 +532,12 @@ impl Relay {
             }
             let to = self.destination(dir);
             for emit in emits {
-                if emit.delay_ms == 0 {
+                if emit.delay.is_zero() {
                     send_errors += u64::from(self.socket.send_to(&emit.bytes, to).is_err());
                 } else if self.pending.len() >= max_pending {
                     overflowed += 1;
                 } else {
-                    let due = Instant::now() + Duration::from_millis(emit.delay_ms);
+                    let due = Instant::now() + emit.delay;
                     self.pending
                         .push(Reverse((due, self.next_seq, to, emit.bytes)));
                     self.next_seq += 1;
@@ -622,7 +627,7 @@ mod tests {
             assert_eq!(
                 emits,
                 &vec![Emit {
-                    delay_ms: 0,
+                    delay: Duration::ZERO,
                     bytes: (i as u32).to_le_bytes().to_vec()
                 }]
             );
@@ -700,6 +705,25 @@ mod tests {
         assert_eq!(out, vec![b"old".to_vec(), b"new".to_vec()]);
     }
 
+    /// The configuration holds durations; its JSON keeps the `*_ms` integer keys.
+    #[test]
+    fn delays_are_durations_under_their_millisecond_keys() {
+        let config: ImpairConfig = serde_json::from_str(
+            r#"{"delay_min_ms": 7, "delay_max_ms": 9, "reorder_hold_ms": 11}"#,
+        )
+        .unwrap();
+        let ms = Duration::from_millis;
+        assert_eq!(
+            (config.delay_min, config.delay_max, config.reorder_hold),
+            (ms(7), ms(9), ms(11))
+        );
+        let written = serde_json::to_value(&config).unwrap();
+        assert_eq!(written["delay_min_ms"], 7);
+        assert_eq!(written["reorder_hold_ms"], 11);
+        let err = serde_json::from_str::<ImpairConfig>(r#"{"delay_max_ms": -1}"#).unwrap_err();
+        assert!(err.to_string().contains("invalid value"), "{err}");
+    }
+
     #[test]
     fn bad_configs_are_refused_with_the_offending_value() {
         let err = Impairer::new(ImpairConfig {
@@ -709,17 +733,15 @@ mod tests {
         .unwrap_err();
         assert!(matches!(err, NetError::BadProbability { name: "drop", value } if value == 1.5));
         let err = Impairer::new(ImpairConfig {
-            delay_min_ms: 9,
-            delay_max_ms: 3,
+            delay_min: Duration::from_millis(9),
+            delay_max: Duration::from_millis(3),
             ..Default::default()
         })
         .unwrap_err();
         assert!(matches!(
             err,
-            NetError::BadDelayRange {
-                min_ms: 9,
-                max_ms: 3
-            }
+            NetError::BadDelayRange { min, max }
+                if min == Duration::from_millis(9) && max == Duration::from_millis(3)
         ));
         let lan: SocketAddr = "192.0.2.1:9".parse().unwrap();
         let lo: SocketAddr = "127.0.0.1:9".parse().unwrap();

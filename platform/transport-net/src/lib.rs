@@ -77,12 +77,16 @@ pub enum NetError {
         value: f64,
     },
     /// An impairment delay range with min above max.
-    #[error("delay range {min_ms}..={max_ms} ms is empty: min must not exceed max")]
+    #[error(
+        "delay range {}..={} ms is empty: min must not exceed max",
+        min.as_millis(),
+        max.as_millis()
+    )]
     BadDelayRange {
-        /// Shortest delay, ms.
-        min_ms: u64,
-        /// Longest delay, ms.
-        max_ms: u64,
+        /// Shortest delay.
+        min: std::time::Duration,
+        /// Longest delay.
+        max: std::time::Duration,
     },
     /// The proxy only relays on loopback.
     #[error("address {addr} is not loopback: the impairment proxy relays on loopback only")]

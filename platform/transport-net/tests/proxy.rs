@@ -97,8 +97,8 @@ fn delayed_datagrams_arrive_late_but_arrive() {
     let b = UdpTransport::bind("127.0.0.1:0").unwrap();
     let config = ImpairConfig {
         delay: 1.0,
-        delay_min_ms: 30,
-        delay_max_ms: 30,
+        delay_min: Duration::from_millis(30),
+        delay_max: Duration::from_millis(30),
         ..Default::default()
     };
     let proxy =

@@ -141,3 +141,26 @@ fn echo_child() {
     }
     panic!("parent went quiet");
 }
+
+/// An inbox takes at most four subscribers: a fifth endpoint on the same address is refused by
+/// iceoryx2 itself, and `TransportError::Middleware` keeps iceoryx2's own error as its source.
+#[test]
+fn a_refused_endpoint_keeps_the_middlewares_error() {
+    let addr = unique("crowded");
+    let open: Vec<_> = (0..4)
+        .map(|_| ShmTransport::open(&addr).expect("four subscribers fit"))
+        .collect();
+    let err = ShmTransport::open(&addr).expect_err("a fifth subscriber is refused");
+    assert!(matches!(err, TransportError::Middleware { .. }), "{err}");
+    let source = std::error::Error::source(&err)
+        .and_then(|s| s.downcast_ref::<iceoryx2::port::subscriber::SubscriberCreateError>())
+        .unwrap_or_else(|| panic!("no iceoryx2 error under `{err}`"));
+    assert!(
+        matches!(
+            source,
+            iceoryx2::port::subscriber::SubscriberCreateError::ExceedsMaxSupportedSubscribers
+        ),
+        "{source:?}"
+    );
+    drop(open);
+}

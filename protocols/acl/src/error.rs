@@ -100,7 +100,7 @@ pub enum Error {
         param: String,
         /// Why it is invalid: the date's or the Base64 decoder's error.
         #[source]
-        source: Box<Error>,
+        source: ValueError,
     },
     /// A JSON message whose content fields contradict each other.
     #[error("inconsistent message content: {reason}")]
@@ -134,4 +134,30 @@ pub enum Error {
         /// The name given.
         name: String,
     },
+}
+
+/// The error under [`Error::InvalidValue`], boxed because it is an [`Error`] itself. It is no
+/// `std::error::Error` of its own but dereferences to the inner error (as `anyhow::Error` does),
+/// so `source()` of an [`Error::InvalidValue`] is that inner [`Error`], not a box around it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ValueError(Box<Error>);
+
+impl From<Error> for ValueError {
+    fn from(error: Error) -> Self {
+        Self(Box::new(error))
+    }
+}
+
+impl std::ops::Deref for ValueError {
+    type Target = Error;
+
+    fn deref(&self) -> &Error {
+        &self.0
+    }
+}
+
+impl std::fmt::Display for ValueError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
 }

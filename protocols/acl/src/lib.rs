@@ -34,6 +34,6 @@ mod performative;
 
 pub use agent_id::AgentId;
 pub use datetime::FipaDateTime;
-pub use error::Error;
+pub use error::{Error, ValueError};
 pub use message::{AclMessage, Content};
 pub use performative::Performative;

@@ -27,7 +27,10 @@
 //!
 //! # Known limits
 //! - Only the first answer of a round has a deadline; a result after AGREE may come any time.
-//! - In a subscription being cancelled, any INFORM counts as the cancel confirmation.
+//! - In a subscription being cancelled, any INFORM counts as the cancel confirmation: the
+//!   machine does not read content. A notification that crossed the CANCEL is told from the
+//!   confirmation by its content (the wheelchair ontology's `Cancelled`, `((done (action W
+//!   (cancel (action W act)))))`), which the agent checks.
 //! - A request stream is our extension of fipa-request (SC00026 has one REQUEST): further
 //!   REQUESTs in the conversation until the participant ends it. A FIPA participant that does
 //!   not know it answers each as a new request.

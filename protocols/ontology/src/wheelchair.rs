@@ -7,8 +7,8 @@
 
 use iw_acl::AgentId;
 use iw_sl::{
-    ActionExpression, ActionOp, ActionOperand, Collection, Content, ContentExpression, Formula,
-    Level, Term,
+    ActionExpression, ActionOp, ActionOperand, Arguments, Collection, Content, ContentExpression,
+    Formula, Level, Term,
 };
 use nalgebra::{Isometry2, Matrix3, Vector2};
 use serde::{Deserialize, Serialize};
@@ -805,6 +805,17 @@ pub enum WheelchairContent {
         /// What was done.
         action: WheelchairAction,
     },
+    /// INFORM confirming a CANCEL (FIPA's cancel meta-protocol, "inform-done" of the cancel):
+    /// `((done (action actor (cancel (action actor act)))))`: `actor` has done the cancelling
+    /// of `act`, the action the CANCEL named. Unlike [`WheelchairContent::Done`] for the same
+    /// `act` (a subscription's notification, e.g. a passage granted), it ends the subscription,
+    /// and the two can cross on the wire.
+    Cancelled {
+        /// Who cancelled (the participant that was to act).
+        actor: AgentId,
+        /// The action cancelled.
+        action: WheelchairAction,
+    },
     /// INFORM: `(fact)`.
     Inform(Fact),
     /// QUERY-REF for the goal `agent` (a chair's cognitive agent) is carrying out:
@@ -856,6 +867,20 @@ impl WheelchairContent {
                 action: Box::new(ActionOperand::Expression(action(actor, act))),
                 condition: None,
             }),
+            Self::Cancelled { actor, action: act } => {
+                let cancelled = Term::Action {
+                    action: Box::new(action(actor, act)),
+                };
+                let cancel = ActionExpression::Action {
+                    agent: actor.to_term(),
+                    act: Term::positional(CANCEL, vec![cancelled]),
+                };
+                Content::single(Formula::ActionCondition {
+                    op: ActionOp::Done,
+                    action: Box::new(ActionOperand::Expression(cancel)),
+                    condition: None,
+                })
+            }
             Self::Inform(fact) => Content::single(fact.to_formula()),
             Self::GoalQuery { agent } => Content::single(Formula::Atomic {
                 predicate: "current-goal".into(),
@@ -892,9 +917,20 @@ impl WheelchairContent {
                     condition: None,
                 }),
             ] => match action.as_ref() {
-                ActionOperand::Expression(a) => {
-                    read_action(a).map(|(actor, action)| Self::Done { actor, action })
-                }
+                ActionOperand::Expression(a) => match cancelled(a) {
+                    Some(inner) => {
+                        let (actor, action) = read_action(inner)?;
+                        match a {
+                            ActionExpression::Action { agent, .. }
+                                if AgentId::from_term(agent)? == actor =>
+                            {
+                                Ok(Self::Cancelled { actor, action })
+                            }
+                            _ => Err(unexpected(content)),
+                        }
+                    }
+                    None => read_action(a).map(|(actor, action)| Self::Done { actor, action }),
+                },
                 ActionOperand::Meta(_) => Err(unexpected(content)),
             },
             [ContentExpression::Formula(Formula::Atomic { predicate, args })]
@@ -911,13 +947,35 @@ impl WheelchairContent {
     }
 }
 
+/// The act of a [`WheelchairContent::Cancelled`]: `(cancel (action actor act))`.
+const CANCEL: &str = "cancel";
+
+/// The action expression a `(cancel (action actor act))` act names, if `a` is one.
+fn cancelled(a: &ActionExpression) -> Option<&ActionExpression> {
+    let ActionExpression::Action {
+        act: Term::Functional { symbol, args },
+        ..
+    } = a
+    else {
+        return None;
+    };
+    match args {
+        Arguments::Positional(args) if symbol.eq_ignore_ascii_case(CANCEL) => match args.as_slice()
+        {
+            [Term::Action { action }] => Some(action),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
 /// The variable a [`WheelchairContent::GoalQuery`] asks for.
 const GOAL_VARIABLE: &str = "goal";
 
 fn unexpected(content: &Content) -> OntologyError {
     OntologyError::UnexpectedContent {
-        expected: "((action actor act)), ((done (action actor act))), ((current-goal agent ?goal)) \
-                   or a wheelchair fact",
+        expected: "((action actor act)), ((done (action actor act))), ((done (action actor \
+                   (cancel (action actor act))))), ((current-goal agent ?goal)) or a wheelchair fact",
         found: content.to_string(),
     }
 }

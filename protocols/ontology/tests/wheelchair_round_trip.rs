@@ -160,6 +160,8 @@ fn content() -> impl Strategy<Value = WheelchairContent> {
         (agent(), action())
             .prop_map(|(actor, action)| WheelchairContent::Request { actor, action }),
         (agent(), action()).prop_map(|(actor, action)| WheelchairContent::Done { actor, action }),
+        (agent(), action())
+            .prop_map(|(actor, action)| WheelchairContent::Cancelled { actor, action }),
         fact().prop_map(WheelchairContent::Inform),
         agent().prop_map(|agent| WheelchairContent::GoalQuery { agent }),
     ]
@@ -534,4 +536,33 @@ fn subscriptions_read_and_write_as_documented() {
             "{wrong}"
         );
     }
+}
+
+/// The confirmation of a CANCEL reads back as itself, never as the notification of the action
+/// it cancels; one whose two actors differ is refused.
+#[test]
+fn a_cancel_confirmation_is_not_a_done_action() {
+    let pass = WheelchairAction::Pass {
+        passage: "d1".into(),
+        direction: "forward".into(),
+    };
+    let watcher = AgentId::new("watcher");
+    let confirmation = WheelchairContent::Cancelled {
+        actor: watcher.clone(),
+        action: pass.clone(),
+    };
+    let text = confirmation.to_content().to_string();
+    assert_eq!(
+        text,
+        "((done (action (agent-identifier :name watcher) (cancel (action (agent-identifier :name \
+         watcher) (pass :passage d1 :direction forward))))))"
+    );
+    assert_eq!(WheelchairContent::parse(&text), Ok(confirmation));
+    let grant = WheelchairContent::Done {
+        actor: watcher,
+        action: pass,
+    };
+    assert_ne!(grant.to_content().to_string(), text);
+    let mixed = text.replacen("name watcher)", "name other)", 1);
+    assert!(WheelchairContent::parse(&mixed).is_err(), "{mixed}");
 }

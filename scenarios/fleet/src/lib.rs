@@ -275,7 +275,7 @@ impl Fleet {
                 &building,
                 body,
                 visual,
-                Recognizer::new(compose::INPUT_MAX_GAP_MS),
+                Recognizer::new(iw_interface::sequence::DEFAULT_MAX_GAP),
             )?;
             let mut host = AgentHost::new(bus_for(&network, &clock, name)?);
             for (aid, agent) in agents.agents {

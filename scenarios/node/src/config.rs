@@ -40,17 +40,17 @@ pub struct ContainerSection {
     /// 1000 and up).
     pub id: u64,
     /// Heartbeat period between containers (key `heartbeat_ms`).
-    #[serde(rename = "heartbeat_ms", with = "millis")]
+    #[serde(rename = "heartbeat_ms", with = "iw_bus::millis")]
     pub heartbeat: Duration,
     /// A container not heard for this long is taken for gone (key `lease_ms`).
-    #[serde(rename = "lease_ms", with = "millis")]
+    #[serde(rename = "lease_ms", with = "iw_bus::millis")]
     pub lease: Duration,
     /// Agent step period, real time (key `step_ms`).
-    #[serde(rename = "step_ms", with = "millis")]
+    #[serde(rename = "step_ms", with = "iw_bus::millis")]
     pub step: Duration,
     /// On SIGTERM, how long the deregistration is given to reach the leader (key
     /// `shutdown_grace_ms`).
-    #[serde(rename = "shutdown_grace_ms", with = "millis")]
+    #[serde(rename = "shutdown_grace_ms", with = "iw_bus::millis")]
     pub shutdown_grace: Duration,
 }
 
@@ -198,7 +198,7 @@ pub struct BodySection {
     /// Serial line speed, baud.
     pub baud: u32,
     /// Longest wait for a board reply (key `timeout_ms`).
-    #[serde(rename = "timeout_ms", with = "millis")]
+    #[serde(rename = "timeout_ms", with = "iw_bus::millis")]
     pub timeout: Duration,
     /// Where the chair starts in the map frame: x (m), y (m), heading (deg).
     pub start: [f64; 3],
@@ -210,7 +210,7 @@ pub struct BodySection {
     /// before it fails with the link's reason (key `reattach_wait_ms`;
     /// `iw_wiring::world_link::REATTACH_WAIT` by default: a world restart with room for a
     /// loaded host).
-    #[serde(rename = "reattach_wait_ms", with = "millis")]
+    #[serde(rename = "reattach_wait_ms", with = "iw_bus::millis")]
     pub reattach_wait: Duration,
 }
 
@@ -253,7 +253,7 @@ pub struct ServicesSection {
     /// The logger agent's log file; empty: a fresh file in the temporary directory.
     pub log: String,
     /// How often a chair's pose is reported on stdout (key `pose_report_ms`).
-    #[serde(rename = "pose_report_ms", with = "millis")]
+    #[serde(rename = "pose_report_ms", with = "iw_bus::millis")]
     pub pose_report: Duration,
 }
 
@@ -296,25 +296,6 @@ pub struct MtpSection {
 pub struct HttpMtpSection {
     /// Where the gateway listens, `ip:port`; empty: no gateway.
     pub listen: String,
-}
-
-/// Serde for a [`Duration`] written as whole milliseconds: the files keep their `*_ms` keys and
-/// integers (`heartbeat_ms = 50`), the code holds a `Duration`. A value that is not a
-/// non-negative integer is refused by the parser, which names the key, the line and the file.
-pub mod millis {
-    use std::time::Duration;
-
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    /// Writes `d` as whole milliseconds (saturating at `u64::MAX`).
-    pub fn serialize<S: Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_u64(u64::try_from(d.as_millis()).unwrap_or(u64::MAX))
-    }
-
-    /// Reads whole milliseconds.
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Duration, D::Error> {
-        u64::deserialize(d).map(Duration::from_millis)
-    }
 }
 
 impl SpawnConfig {

@@ -156,8 +156,10 @@ impl Agent for Echo {
                         .with_performative(Performative::Inform)
                         .with_content(done.to_string()),
                 ],
+                // The bus boundary: the typed refusal becomes the NOT-UNDERSTOOD's reason, the
+                // text the other platform reads (`(error-message "…")`).
                 Err(why) => {
-                    let _ = ctx.not_understood(&message, &why);
+                    let _ = ctx.not_understood(&message, &why.to_string());
                     Vec::new()
                 }
             },
@@ -179,16 +181,27 @@ fn echoed(query: String) -> Term {
     Term::positional("echo", vec![Term::string(query)])
 }
 
+/// Why the echo does not do a request; sent as the NOT-UNDERSTOOD's reason.
+#[derive(Debug, thiserror::Error)]
+enum NotDone {
+    /// The content is not SL (the parser's message is the reason).
+    #[error(transparent)]
+    Sl(#[from] iw_sl::SlError),
+    /// SL, but not one action.
+    #[error("the echo agent does requests of one action: ((action agent act))")]
+    NotOneAction,
+}
+
 /// `((done α))` for a request `(α)` that is one action.
-fn done(request: &str) -> Result<Content, String> {
-    let content = iw_sl::parse(request, Level::Full).map_err(|e| e.to_string())?;
+fn done(request: &str) -> Result<Content, NotDone> {
+    let content = iw_sl::parse(request, Level::Full)?;
     match <[ContentExpression; 1]>::try_from(content.expressions) {
         Ok([ContentExpression::Action(action)]) => Ok(Content::single(Formula::ActionCondition {
             op: ActionOp::Done,
             action: Box::new(ActionOperand::Expression(action)),
             condition: None,
         })),
-        _ => Err("the echo agent does requests of one action: ((action agent act))".into()),
+        _ => Err(NotDone::NotOneAction),
     }
 }
 

@@ -62,7 +62,6 @@ mod runtime;
 pub use config::{
     BodySection, ContainerSection, DashboardSection, GoalSpec, HttpMtpSection, MtpSection,
     SecuritySection, ServicesSection, SpawnConfig, TransportKind, TransportSection, WorldSection,
-    millis,
 };
 pub use event::Event;
 pub use runtime::{

@@ -405,7 +405,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
         &building,
         body.clone(),
         visual,
-        Recognizer::new(iw_wiring::INPUT_MAX_GAP_MS),
+        Recognizer::new(iw_interface::sequence::DEFAULT_MAX_GAP),
     )
     .map_err(|e| {
         NodeError::Start(StartError {

@@ -376,3 +376,34 @@ async fn platforms_talk_over_tls() {
         "{refused}"
     );
 }
+
+/// An agent that cannot be put on the platform's bus (its name is the AMS's) stops the start
+/// with `Error::Attach`, whose source is the host's own error (the bus refusing the name).
+#[tokio::test]
+async fn an_agent_that_cannot_be_hosted_keeps_the_hosts_error() {
+    let echo: Box<dyn iw_agent::Agent> = Box::new(Echo);
+    let err = HttpPlatform::start(
+        GatewayConfig::new("Clash"),
+        vec![("ams".into(), echo)],
+        STEP,
+    )
+    .await
+    .unwrap_err();
+    assert!(
+        matches!(&err, iw_mtp_http::Error::Attach { agent, what: "hosting it on the bus", .. } if agent == "ams"),
+        "{err}"
+    );
+    let host = std::error::Error::source(&err)
+        .and_then(|s| s.downcast_ref::<iw_agent::AgentError>())
+        .unwrap_or_else(|| panic!("no host error under `{err}`"));
+    assert!(
+        matches!(
+            host,
+            iw_agent::AgentError::Bus {
+                source: iw_bus::BusError::AgentExists { .. },
+                ..
+            }
+        ),
+        "{host}"
+    );
+}

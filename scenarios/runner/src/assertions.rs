@@ -3,6 +3,7 @@
 
 use iw_acl::Performative;
 
+use crate::ScenarioError;
 use crate::observe::{Observation, Totals, door_answers};
 use crate::report::{ChairSummary, Outcome};
 use crate::schema::{Assertion, Scenario};
@@ -190,9 +191,14 @@ pub fn check(
 
 /// Where the chairs stop to read a landmark's marker on the scenario's map, as their cognitive
 /// agents plan it.
-fn landmark_stops(scenario: &Scenario) -> Result<Vec<[f64; 2]>, String> {
-    let map = scenario.load_map().map_err(|e| e.to_string())?;
-    let building = iw_fleet::compose::Building::from_map(map).map_err(|e| e.to_string())?;
+fn landmark_stops(scenario: &Scenario) -> Result<Vec<[f64; 2]>, ScenarioError> {
+    let building =
+        iw_fleet::compose::Building::from_map(scenario.load_map()?).map_err(|source| {
+            ScenarioError::Plan {
+                path: scenario.source.display().to_string(),
+                source,
+            }
+        })?;
     Ok(building
         .plan
         .landmarks

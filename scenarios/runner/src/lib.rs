@@ -90,6 +90,15 @@ pub enum ScenarioError {
         /// The simulator's error.
         source: iw_sim::SimError,
     },
+    /// The map loads but does not make a building plan (its places, doors and landmarks).
+    #[error("{path}: map: {source}")]
+    Plan {
+        /// The scenario file.
+        path: String,
+        /// What the building plan said.
+        #[source]
+        source: iw_fleet::compose::WiringError,
+    },
     /// The fleet refused during the run.
     #[error("{path}: at {time_s:.2} s: {source}")]
     Fleet {

@@ -239,7 +239,7 @@ pub struct Scenario {
     /// Simulated length, s.
     pub duration_s: f64,
     /// Fixed step (key `step_ms`, whole milliseconds).
-    #[serde(rename = "step_ms", default = "default_step", with = "iw_node::millis")]
+    #[serde(rename = "step_ms", default = "default_step", with = "iw_bus::millis")]
     pub step: Duration,
     /// Virtual chairs' perception agents run RGB-D visual odometry on the rendered camera.
     #[serde(default)]

@@ -147,3 +147,29 @@ proptest::proptest! {
         }
     }
 }
+
+/// A camera whose chair the world no longer has (the world was set up again without it) gives
+/// `VoError::Camera`, with the simulator's own refusal as its source.
+#[test]
+fn a_camera_whose_chair_is_gone_keeps_the_simulators_error() {
+    let map = sample_building();
+    let mut world = World::new(map.clone(), 1);
+    let id = world.add_chair(
+        ChairSpec::default(),
+        facing(&map.landmarks[0], 1.5),
+        ChairKind::Simulated,
+    );
+    let world = shared(world);
+    let mut camera = SimCamera::new(world.clone(), id).unwrap();
+    assert!(camera.next_frame().unwrap().is_ok());
+    *world.lock().unwrap() = World::new(map, 1);
+    let err = camera.next_frame().unwrap().unwrap_err();
+    assert!(matches!(err, iw_vo::VoError::Camera { .. }), "{err}");
+    let source = std::error::Error::source(&err)
+        .and_then(|s| s.downcast_ref::<iw_sim::SimError>())
+        .unwrap_or_else(|| panic!("no simulator error under `{err}`"));
+    assert!(
+        matches!(source, iw_sim::SimError::NoSuchChair { id: 0, count: 0 }),
+        "{source}"
+    );
+}

@@ -173,9 +173,6 @@ pub const TURN_IN_PLACE_RAD: f64 = 0.3;
 /// The control and sensing period of a chair's agents (a real board advances this per read).
 pub const CONTROL_PERIOD: Duration = Duration::from_millis(50);
 
-/// The longest pause inside one input sequence of the interface agent, ms.
-pub const INPUT_MAX_GAP_MS: u64 = 1500;
-
 /// An agent's name in a container: `ROLE@CONTAINER`.
 pub fn agent_id(role: &str, container: &str) -> AgentId {
     AgentId::new(format!("{role}@{container}"))

@@ -392,7 +392,7 @@ impl<'a> Parser<'a> {
             line,
             column,
             param: param.to_owned(),
-            source: Box::new(source),
+            source: source.into(),
         }
     }
 
@@ -1108,9 +1108,9 @@ mod tests {
         let err = parse("(INFORM :X-JADE-Encoding Base64 :content \"***\")").unwrap_err();
         let inner = err
             .source()
-            .and_then(|s| s.downcast_ref::<Box<Error>>())
+            .and_then(|s| s.downcast_ref::<Error>())
             .unwrap_or_else(|| panic!("no value error under `{err}`"));
-        assert!(matches!(**inner, Error::InvalidBase64 { .. }), "{inner}");
+        assert!(matches!(inner, Error::InvalidBase64 { .. }), "{inner}");
         let base64 = inner
             .source()
             .and_then(|s| s.downcast_ref::<base64::DecodeError>())
