@@ -249,8 +249,13 @@ fn accept_loop(
                     .peer_addr()
                     .map(|a| a.to_string())
                     .unwrap_or_default();
+                // `accepted` holds a clone: only a shutdown closes the connection for the peer.
+                let closer = stream.try_clone();
                 if let Err(e) = read_connection(stream, codec, &tx) {
                     tracing::debug!(%peer, error = %e, "TCP connection closed");
+                }
+                if let Ok(closer) = closer {
+                    let _ = closer.shutdown(Shutdown::Both);
                 }
                 reader.readers.fetch_sub(1, Ordering::Relaxed);
             });
