@@ -358,12 +358,36 @@ pub fn read_records(path: &Path, max_record_len: u32) -> Result<Vec<Record>, Log
 /// Reads the log at `path` without opening it for writing (for queries and replay while the
 /// logger agent runs), skipping and reporting each damaged region: after an invalid record it
 /// resynchronises on the next complete, checksummed record whose sequence number is not behind.
+///
+/// Only a regular file is opened (a FIFO would block the open, a device never end), and its
+/// magic is checked before the rest is read, so a large file that is not a log is refused at
+/// once. A log is then read whole: memory follows the log's size.
 pub fn read_log(path: &Path, max_record_len: u32) -> Result<LogRead, LogError> {
-    let bytes = std::fs::read(path).map_err(|source| LogError::Io {
-        path: path.to_path_buf(),
-        context: "reading the log",
-        source,
-    })?;
+    let io = |context: &'static str| {
+        move |source| LogError::Io {
+            path: path.to_path_buf(),
+            context,
+            source,
+        }
+    };
+    if !std::fs::metadata(path)
+        .map_err(io("reading the log"))?
+        .is_file()
+    {
+        return Err(io("reading the log")(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a folder, FIFO or device is refused)",
+        )));
+    }
+    let mut file = File::open(path).map_err(io("opening the log"))?;
+    let mut bytes = Vec::new();
+    (&mut file)
+        .take(FILE_HEADER_LEN)
+        .read_to_end(&mut bytes)
+        .map_err(io("reading the log's header"))?;
+    check_magic(&mut &bytes[..], path)?;
+    file.read_to_end(&mut bytes)
+        .map_err(io("reading the log"))?;
     parse_log(&bytes, path, max_record_len)
 }
 
@@ -651,6 +675,20 @@ fn sync_parent_dir(path: &Path) -> std::io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_device_or_folder_is_refused_and_a_large_non_log_is_refused_from_its_header() {
+        let dir = tempfile::tempdir().unwrap();
+        for path in [Path::new("/dev/zero"), dir.path()] {
+            let err = read_log(path, DEFAULT_MAX_RECORD_LEN).unwrap_err();
+            assert!(err.to_string().contains("not a regular file"), "{err}");
+        }
+        // 1 GiB of holes: refused from its first 16 bytes, not read whole first.
+        let big = dir.path().join("big.bin");
+        File::create(&big).unwrap().set_len(1 << 30).unwrap();
+        let err = read_log(&big, DEFAULT_MAX_RECORD_LEN).unwrap_err();
+        assert!(matches!(err, LogError::NotALog { .. }), "{err}");
+    }
     use proptest::prelude::*;
 
     fn log_with(dir: &Path, payloads: &[&[u8]]) -> PathBuf {

@@ -45,13 +45,13 @@ pub struct LocalizationArgs {
     #[arg(long, default_value_t = 30.0)]
     minutes: f64,
     /// Tracking drives (one seed each).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::flags::at_most(10_000))]
     seeds: usize,
     /// Global localization runs (unknown start).
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, value_parser = super::flags::at_most(100_000))]
     global_runs: usize,
     /// Blind runs (laser silent for 10 m, after 0 and after 30 m with it; one seed each).
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = 20, value_parser = super::flags::at_most(100_000))]
     blind_runs: usize,
     /// Visual odometry on every this many 50 ms periods (0: none).
     #[arg(long, default_value_t = 2)]
@@ -236,12 +236,26 @@ fn localization(args: LocalizationArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Fastest `--speed` accepted, m/s: far above a wheelchair's, and a NaN or 1e300 speed was run.
+const MAX_SPEED_MPS: f64 = 10.0;
+
 fn odometry(args: OdometryArgs) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(args.frames >= 2, "--frames must be at least 2");
     anyhow::ensure!(
-        args.speed.is_finite() && args.speed > 0.0,
-        "--speed must be positive, got {}",
+        args.speed.is_finite() && args.speed > 0.0 && args.speed <= MAX_SPEED_MPS,
+        "--speed must lie in (0, {MAX_SPEED_MPS}] m/s, got {}",
         args.speed
+    );
+    if let Some(factor) = args.threshold_scale {
+        anyhow::ensure!(
+            factor.is_finite() && factor > 0.0,
+            "--threshold-scale must be a positive, finite factor, got {factor}"
+        );
+    }
+    anyhow::ensure!(
+        args.light.is_finite() && args.light >= 0.0,
+        "--light must be a finite level from 0 (dark) up, got {}",
+        args.light
     );
     anyhow::ensure!(!args.detectors.is_empty(), "--detectors names none");
     let map = match &args.map {

@@ -62,8 +62,16 @@ struct JsonKeypoint {
     class: FeatureClass,
 }
 
-/// Reads an image as 8-bit RGB, saying which file failed and why.
+/// Reads an image as 8-bit RGB, saying which file failed and why. Only a regular file is
+/// opened (a FIFO blocks the open); the decoder's own limits bound what a header may ask for.
 pub fn load_rgb(path: &Path) -> anyhow::Result<RgbImage> {
+    let meta =
+        std::fs::metadata(path).with_context(|| format!("reading image {}", path.display()))?;
+    anyhow::ensure!(
+        meta.is_file(),
+        "reading image {}: not a regular file (a folder, FIFO or device is refused)",
+        path.display()
+    );
     let img = image::open(path).with_context(|| format!("reading image {}", path.display()))?;
     Ok(img.to_rgb8())
 }

@@ -67,6 +67,12 @@ pub fn count(max: u64) -> clap::builder::RangedU64ValueParser<usize> {
     clap::builder::RangedU64ValueParser::<usize>::new().range(1..=max)
 }
 
+/// A count from 0 to `max` (`--seeds`, `--global-runs`, ...: 0 skips that part); a count past
+/// `max` overflowed the progress total's arithmetic.
+pub fn at_most(max: u64) -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(0..=max)
+}
+
 /// Most worker threads a flag accepts: more only thrashes two to a few dozen cores and can
 /// exhaust the process's thread limit.
 pub const MAX_THREADS: usize = 64;
@@ -105,6 +111,18 @@ mod tests {
         let parse = |text: &str| count(1000).parse_ref(&cmd, None, std::ffi::OsStr::new(text));
         assert_eq!(parse("8").unwrap(), 8);
         for bad in ["0", "1001", "18446744073709551615", "-1"] {
+            assert!(parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn at_most_takes_zero_and_names_its_range() {
+        use clap::builder::TypedValueParser;
+        let cmd = clap::Command::new("t");
+        let parse = |text: &str| at_most(10).parse_ref(&cmd, None, std::ffi::OsStr::new(text));
+        assert_eq!(parse("0").unwrap(), 0);
+        assert_eq!(parse("10").unwrap(), 10);
+        for bad in ["11", "18446744073709551615", "-1"] {
             assert!(parse(bad).is_err(), "{bad}");
         }
     }

@@ -101,6 +101,14 @@ impl Roster {
             file: path.display().to_string(),
             source,
         };
+        // Before the open: opening a FIFO for reading blocks until something writes to it.
+        if !std::fs::metadata(path).map_err(unreadable)?.is_file() {
+            return Err(ContainerError::Roster {
+                file: source,
+                line: None,
+                reason: "not a regular file (a folder, FIFO or device is refused)".into(),
+            });
+        }
         let file = std::fs::File::open(path).map_err(unreadable)?;
         let mut text = String::new();
         file.take(MAX_ROSTER_BYTES + 1)
@@ -379,6 +387,34 @@ mod tests {
         std::fs::write(&huge, vec![b'#'; MAX_ROSTER_BYTES as usize + 2]).unwrap();
         let err = Roster::load(&huge).unwrap_err().to_string();
         assert!(err.contains("larger than"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_fifo_or_a_folder_is_refused_not_waited_on() {
+        let dir = std::env::temp_dir().join(format!("iw-roster-fifo-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("roster.fifo");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        let mut paths = vec![dir.clone()];
+        if made.is_ok_and(|s| s.success()) {
+            paths.push(fifo);
+        } else {
+            println!("SKIP: mkfifo is not available; only the folder was tried");
+        }
+        for path in paths {
+            // On a thread: before the check, opening the FIFO blocked for good.
+            let (tx, rx) = std::sync::mpsc::channel();
+            let p = path.clone();
+            std::thread::spawn(move || {
+                tx.send(Roster::load(&p).map(|_| ()).map_err(|e| e.to_string()))
+            });
+            let got = rx.recv_timeout(std::time::Duration::from_secs(20));
+            let err = got
+                .unwrap_or_else(|_| panic!("{}: still waiting", path.display()))
+                .unwrap_err();
+            assert!(err.contains("not a regular file"), "{err}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -31,9 +31,10 @@
 //!   answers) get `400 Bad Request` and a logged reason.
 //! - The client writes an absolute-form request line, a quoted boundary after ` ;`, CRLF line
 //!   endings, an exact `payload-length` and no `payload-encoding`.
-//! - Servers bind where told; [`GatewayConfig::new`] binds [`server::LOOPBACK`]. Silent
-//!   connections are closed after [`server::IDLE_TIMEOUT`]; the client gives up after
-//!   [`client::ANSWER_TIMEOUT`].
+//! - Servers bind where told; [`GatewayConfig::new`] binds [`server::LOOPBACK`]. The server
+//!   holds at most [`server::ServerLimits`]' connections (in total and per source address) and
+//!   closes one whose handshake or next request is not whole within its timeout (a slow trickle
+//!   included); the client gives up after [`client::ANSWER_TIMEOUT`].
 //! - A foreign agent cannot take a local agent's name: its messages are refused.
 #![warn(missing_docs)]
 
@@ -51,4 +52,4 @@ pub use envelope::Envelope;
 pub use error::Error;
 pub use gateway::{Gateway, GatewayConfig};
 pub use mts::delivery_failure;
-pub use server::{Delivery, MtpServer};
+pub use server::{Delivery, MtpServer, ServerLimits};

@@ -1,8 +1,9 @@
 //! The receiving side: an HTTP/1.1 server on tokio that accepts FIPA MTP posts.
 
-use std::net::SocketAddr;
-use std::sync::Arc;
-use std::time::Duration;
+use std::collections::HashMap;
+use std::net::{IpAddr, SocketAddr};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 use iw_acl::AclMessage;
 use iw_acl::codec::{ParseOptions, parse_with};
@@ -21,9 +22,29 @@ use crate::{Error, wire};
 pub const LOOPBACK: SocketAddr =
     SocketAddr::new(std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST), 0);
 
-/// Longest a connection may stay silent (in a handshake, a request, or between kept-alive
-/// requests) before the server closes it, so idle or stalled peers cannot pile up.
-pub const IDLE_TIMEOUT: Duration = Duration::from_secs(30);
+/// What peers may hold of the server. Without them a flood of connections, or a peer trickling
+/// a request a byte at a time (each byte restarting a silence timer), holds descriptors and up to
+/// [`wire::MAX_BODY_LEN`] of memory per connection without bound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ServerLimits {
+    /// Connections served at once; more are closed at accept.
+    pub max_connections: usize,
+    /// Connections one source address may hold at once, so one peer cannot take every slot.
+    pub max_per_source: usize,
+    /// Longest a TLS handshake, or one request (head and body, counted from when the server
+    /// starts waiting for it, so also the longest a kept-alive connection idles), may take.
+    pub request_timeout: Duration,
+}
+
+impl Default for ServerLimits {
+    fn default() -> Self {
+        Self {
+            max_connections: 256,
+            max_per_source: 32,
+            request_timeout: Duration::from_secs(30),
+        }
+    }
+}
 
 /// One message received: its transport envelope and the parsed ACL payload.
 #[derive(Clone, Debug)]
@@ -44,11 +65,21 @@ pub struct MtpServer {
 
 impl MtpServer {
     /// Binds `addr` and hands every accepted message to `sink`; serves `https://` when given a
-    /// TLS configuration (see [`crate::tls::server_config`]).
+    /// TLS configuration (see [`crate::tls::server_config`]). Under the default [`ServerLimits`].
     pub async fn bind(
         addr: SocketAddr,
         tls: Option<Arc<ServerConfig>>,
         sink: mpsc::Sender<Delivery>,
+    ) -> Result<Self, Error> {
+        Self::bind_with_limits(addr, tls, sink, ServerLimits::default()).await
+    }
+
+    /// [`MtpServer::bind`] under `limits`.
+    pub async fn bind_with_limits(
+        addr: SocketAddr,
+        tls: Option<Arc<ServerConfig>>,
+        sink: mpsc::Sender<Delivery>,
+        limits: ServerLimits,
     ) -> Result<Self, Error> {
         let listener = TcpListener::bind(addr).await.map_err(|source| Error::Io {
             peer: addr.to_string(),
@@ -60,41 +91,57 @@ impl MtpServer {
         })?;
         let secure = tls.is_some();
         let acceptor = tls.map(TlsAcceptor::from);
+        let slots = Arc::new(Slots::new(limits));
         let task = tokio::spawn(async move {
             loop {
                 match listener.accept().await {
                     Ok((stream, peer)) => {
+                        let slot = match slots.take(peer.ip()) {
+                            Ok(slot) => slot,
+                            Err(why) => {
+                                slots.warn(why, &peer, &"connection closed at accept");
+                                continue;
+                            }
+                        };
                         let sink = sink.clone();
                         let acceptor = acceptor.clone();
                         tokio::spawn(async move {
                             let _ = stream.set_nodelay(true);
+                            let timeout = limits.request_timeout;
                             let served = match acceptor {
-                                None => serve_connection(Box::new(stream), &peer, &sink).await,
-                                Some(acceptor) => match tokio::time::timeout(
-                                    IDLE_TIMEOUT,
-                                    acceptor.accept(stream),
-                                )
-                                .await
-                                {
-                                    Ok(Ok(tls)) => {
-                                        serve_connection(Box::new(tls), &peer, &sink).await
+                                None => {
+                                    serve_connection(Box::new(stream), &peer, &sink, timeout).await
+                                }
+                                Some(acceptor) => {
+                                    match tokio::time::timeout(timeout, acceptor.accept(stream))
+                                        .await
+                                    {
+                                        Ok(Ok(tls)) => {
+                                            serve_connection(Box::new(tls), &peer, &sink, timeout)
+                                                .await
+                                        }
+                                        Ok(Err(source)) => Err(Error::Handshake {
+                                            peer: peer.to_string(),
+                                            source,
+                                        }),
+                                        Err(_) => Err(Error::Timeout {
+                                            peer: peer.to_string(),
+                                            seconds: timeout.as_secs(),
+                                        }),
                                     }
-                                    Ok(Err(source)) => Err(Error::Handshake {
-                                        peer: peer.to_string(),
-                                        source,
-                                    }),
-                                    Err(_) => Err(Error::Timeout {
-                                        peer: peer.to_string(),
-                                        seconds: IDLE_TIMEOUT.as_secs(),
-                                    }),
-                                },
+                                }
                             };
                             if let Err(e) = served {
-                                tracing::warn!(%peer, error = %e, "HTTP MTP connection closed");
+                                slot.slots.warn("connection closed on an error", &peer, &e);
                             }
+                            drop(slot);
                         });
                     }
-                    Err(e) => tracing::warn!(error = %e, "HTTP MTP accept failed"),
+                    Err(e) => {
+                        // Out of descriptors (EMFILE): back off instead of spinning.
+                        tracing::warn!(error = %e, "HTTP MTP accept failed");
+                        tokio::time::sleep(Duration::from_millis(50)).await;
+                    }
                 }
             }
         });
@@ -123,11 +170,88 @@ impl Drop for MtpServer {
     }
 }
 
-/// Serves requests on one connection until the peer closes, asks to, or stays silent too long.
+/// Connections held, in total and per source, under [`ServerLimits`]; and the rate-limited
+/// warnings about refused and failed ones (one per kind per 10 s, with the count held back).
+struct Slots {
+    limits: ServerLimits,
+    held: Mutex<(usize, HashMap<IpAddr, usize>)>,
+    warnings: Mutex<iw_bus::WarnEvery<&'static str>>,
+    started: Instant,
+}
+
+/// One connection's hold on [`Slots`], given back when dropped.
+struct Slot {
+    slots: Arc<Slots>,
+    source: IpAddr,
+}
+
+impl Slots {
+    fn new(limits: ServerLimits) -> Self {
+        Self {
+            limits,
+            held: Mutex::new((0, HashMap::new())),
+            warnings: Mutex::new(iw_bus::WarnEvery::new(Duration::from_secs(10))),
+            started: Instant::now(),
+        }
+    }
+
+    /// A slot for a connection from `source`, or why there is none.
+    fn take(self: &Arc<Self>, source: IpAddr) -> Result<Slot, &'static str> {
+        let mut held = self.held.lock().unwrap_or_else(PoisonError::into_inner);
+        let (total, per_source) = &mut *held;
+        if *total >= self.limits.max_connections {
+            return Err("connection cap reached");
+        }
+        let of_source = per_source.entry(source).or_default();
+        if *of_source >= self.limits.max_per_source {
+            return Err("source over its connection cap");
+        }
+        *of_source += 1;
+        *total += 1;
+        Ok(Slot {
+            slots: Arc::clone(self),
+            source,
+        })
+    }
+
+    fn warn(&self, kind: &'static str, peer: &SocketAddr, error: &dyn std::fmt::Display) {
+        let now = iw_bus::Time::from_ns(iw_bus::duration_ns(self.started.elapsed()));
+        let admitted = self
+            .warnings
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .admit(kind, now);
+        if let Some(held_back) = admitted {
+            tracing::warn!(%peer, %error, held_back, "HTTP MTP: {kind}");
+        }
+    }
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        let mut held = self
+            .slots
+            .held
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let (total, per_source) = &mut *held;
+        *total -= 1;
+        if let Some(n) = per_source.get_mut(&self.source) {
+            *n -= 1;
+            if *n == 0 {
+                per_source.remove(&self.source);
+            }
+        }
+    }
+}
+
+/// Serves requests on one connection until the peer closes, asks to, or takes longer than
+/// `timeout` to send a whole request.
 async fn serve_connection(
     mut stream: BoxedIo,
     peer: &SocketAddr,
     sink: &mpsc::Sender<Delivery>,
+    timeout: Duration,
 ) -> Result<(), Error> {
     let io = |source| Error::Io {
         peer: peer.to_string(),
@@ -135,13 +259,18 @@ async fn serve_connection(
     };
     let mut buf = Vec::with_capacity(4096);
     loop {
+        let by = (tokio::time::Instant::now() + timeout, timeout);
         let head_end = loop {
             match wire::find_head_end(&buf) {
                 Ok(Some(end)) => break end,
                 Ok(None) => {}
                 Err(e) => return reject(&mut stream, e).await,
             }
-            if read_more(&mut stream, &mut buf, peer).await.map_err(io)? == 0 {
+            if read_more(&mut stream, &mut buf, peer, by)
+                .await
+                .map_err(io)?
+                == 0
+            {
                 return Ok(());
             }
         };
@@ -150,7 +279,11 @@ async fn serve_connection(
             Err(e) => return reject(&mut stream, e).await,
         };
         while buf.len() < head_end + head.content_length {
-            if read_more(&mut stream, &mut buf, peer).await.map_err(io)? == 0 {
+            if read_more(&mut stream, &mut buf, peer, by)
+                .await
+                .map_err(io)?
+                == 0
+            {
                 return Err(Error::Http {
                     reason: format!(
                         "body ends after {} of {} bytes",
@@ -182,19 +315,24 @@ async fn serve_connection(
     }
 }
 
-/// Reads what the peer sent next; a silence longer than [`IDLE_TIMEOUT`] is a timeout error.
+/// Reads what the peer sent next; the request not being whole by `by` (its deadline and the
+/// timeout it came from) is a timeout error.
 async fn read_more(
     stream: &mut BoxedIo,
     buf: &mut Vec<u8>,
     peer: &SocketAddr,
+    (deadline, timeout): (tokio::time::Instant, Duration),
 ) -> std::io::Result<usize> {
     let mut chunk = [0u8; 8192];
-    let n = tokio::time::timeout(IDLE_TIMEOUT, stream.read(&mut chunk))
+    let n = tokio::time::timeout_at(deadline, stream.read(&mut chunk))
         .await
         .map_err(|_| {
             std::io::Error::new(
                 std::io::ErrorKind::TimedOut,
-                format!("{peer} silent for {} s", IDLE_TIMEOUT.as_secs()),
+                format!(
+                    "{peer} sent no whole request within {:.1} s",
+                    timeout.as_secs_f64()
+                ),
             )
         })??;
     buf.extend_from_slice(&chunk[..n]);

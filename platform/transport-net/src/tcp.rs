@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
@@ -23,6 +23,12 @@ const INBOX_CAPACITY: usize = 1024;
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
 /// Longest a hello frame (a listening address) may be, bytes.
 const MAX_HELLO_LEN: usize = 256;
+/// Time an accepted connection has to send its hello: a connector sends it at once, so a silent
+/// or trickling peer is cut instead of holding a reader thread forever.
+pub const HELLO_TIMEOUT: Duration = Duration::from_secs(5);
+/// Inbound connections read at once (one thread each); more are closed at accept, so a flood
+/// of connections cannot exhaust threads or descriptors.
+pub const MAX_INBOUND: usize = 256;
 
 type Inbound = (PeerAddr, Vec<u8>);
 
@@ -48,6 +54,8 @@ struct Shared {
     stop: AtomicBool,
     /// Clones of accepted streams, shut down on drop so their reader threads end.
     accepted: Mutex<Vec<TcpStream>>,
+    /// Reader threads running (at most [`MAX_INBOUND`]).
+    readers: AtomicUsize,
 }
 
 impl TcpTransport {
@@ -71,6 +79,7 @@ impl TcpTransport {
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
             accepted: Mutex::new(Vec::new()),
+            readers: AtomicUsize::new(0),
         });
         let acceptor = {
             let shared = Arc::clone(&shared);
@@ -213,6 +222,11 @@ fn accept_loop(
                 continue;
             }
         };
+        if shared.readers.load(Ordering::Relaxed) >= MAX_INBOUND {
+            tracing::debug!("TCP connection closed at accept: {MAX_INBOUND} already read");
+            drop(stream);
+            continue;
+        }
         let _ = stream.set_nodelay(true);
         match stream.try_clone() {
             Ok(clone) => {
@@ -226,6 +240,8 @@ fn accept_loop(
             Err(e) => tracing::warn!(error = %e, "cannot track an accepted TCP connection"),
         }
         let tx = tx.clone();
+        shared.readers.fetch_add(1, Ordering::Relaxed);
+        let reader = Arc::clone(&shared);
         let spawned = std::thread::Builder::new()
             .name("iw-tcp-read".into())
             .spawn(move || {
@@ -233,11 +249,18 @@ fn accept_loop(
                     .peer_addr()
                     .map(|a| a.to_string())
                     .unwrap_or_default();
+                // `accepted` holds a clone: only a shutdown closes the connection for the peer.
+                let closer = stream.try_clone();
                 if let Err(e) = read_connection(stream, codec, &tx) {
                     tracing::debug!(%peer, error = %e, "TCP connection closed");
                 }
+                if let Ok(closer) = closer {
+                    let _ = closer.shutdown(Shutdown::Both);
+                }
+                reader.readers.fetch_sub(1, Ordering::Relaxed);
             });
         if let Err(e) = spawned {
+            shared.readers.fetch_sub(1, Ordering::Relaxed);
             tracing::warn!(error = %e, "cannot spawn a TCP reader thread");
         }
     }
@@ -251,6 +274,13 @@ fn read_connection(
 ) -> Result<(), NetError> {
     let mut from: Option<PeerAddr> = None;
     let mut header = [0u8; HEADER_LEN];
+    // Until the hello is in; a read past the deadline fails (WouldBlock or TimedOut).
+    stream
+        .set_read_timeout(Some(HELLO_TIMEOUT))
+        .map_err(|source| NetError::Io {
+            context: "setting the hello timeout".into(),
+            source,
+        })?;
     loop {
         match stream.read_exact(&mut header) {
             Ok(()) => {}
@@ -265,6 +295,15 @@ fn read_connection(
         let Some(h) = codec.decode_header(&header)? else {
             return Ok(());
         };
+        if from.is_none() && h.len > MAX_HELLO_LEN {
+            // Refused before its payload is allocated.
+            return Err(NetError::BadHello {
+                reason: format!(
+                    "a {}-byte first frame (a hello is at most {MAX_HELLO_LEN})",
+                    h.len
+                ),
+            });
+        }
         let mut payload = vec![0u8; h.len];
         stream
             .read_exact(&mut payload)
@@ -277,6 +316,12 @@ fn read_connection(
                 let addr = String::from_utf8(payload)
                     .map_err(|source| NetError::HelloNotUtf8 { source })?;
                 from = Some(PeerAddr(addr));
+                stream
+                    .set_read_timeout(None)
+                    .map_err(|source| NetError::Io {
+                        context: "clearing the hello timeout".into(),
+                        source,
+                    })?;
             }
             (FrameKind::Hello, _) => {
                 return Err(NetError::BadHello {
@@ -356,6 +401,63 @@ mod tests {
                 .unwrap()
                 .is_none()
         );
+    }
+
+    /// Whether the transport closed `raw` within `within` (EOF or a reset).
+    fn closed_within(raw: &mut TcpStream, within: Duration) -> bool {
+        raw.set_read_timeout(Some(within)).unwrap();
+        match raw.read(&mut [0u8; 16]) {
+            Ok(n) => n == 0,
+            Err(e) => !matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            ),
+        }
+    }
+
+    /// A raw connection that has sent its hello, as a connector would.
+    fn greeted(to: &str) -> TcpStream {
+        let mut raw = TcpStream::connect(to).unwrap();
+        let mut hello = Vec::new();
+        FrameCodec::new(TCP_DEFAULT_MAX_FRAME)
+            .encode(FrameKind::Hello, b"127.0.0.1:9", &mut hello)
+            .unwrap();
+        raw.write_all(&hello).unwrap();
+        raw
+    }
+
+    #[test]
+    fn a_connection_silent_before_its_hello_is_cut() {
+        let t = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let mut silent = TcpStream::connect(t.local_addr().0.as_str()).unwrap();
+        assert!(
+            closed_within(&mut silent, HELLO_TIMEOUT * 4),
+            "a peer that never sends its hello holds a reader thread"
+        );
+    }
+
+    #[test]
+    fn a_flood_of_connections_is_capped_and_a_peer_is_served_once_it_ends() {
+        let t = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let addr = t.local_addr().0.clone();
+        let flood: Vec<TcpStream> = (0..MAX_INBOUND).map(|_| greeted(&addr)).collect();
+        let mut over = greeted(&addr);
+        assert!(
+            closed_within(&mut over, HELLO_TIMEOUT * 4),
+            "connection {} was accepted and read",
+            MAX_INBOUND + 1
+        );
+        drop(flood);
+        let a = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let mut got = None;
+        for _ in 0..100 {
+            let _ = a.send(t.local_addr(), b"after the flood");
+            if let Some(frame) = t.recv_timeout(Duration::from_millis(100)).unwrap() {
+                got = Some(frame.1);
+                break;
+            }
+        }
+        assert_eq!(got.as_deref(), Some(&b"after the flood"[..]));
     }
 
     #[test]

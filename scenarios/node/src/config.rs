@@ -298,6 +298,10 @@ pub struct HttpMtpSection {
     pub listen: String,
 }
 
+/// Largest configuration file [`SpawnConfig::load`] reads, bytes (deploy/default.toml is a few
+/// KiB; a FIFO or `/dev/zero` given as `--config` hung or ate memory before this cap).
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
 impl SpawnConfig {
     /// Parses a configuration; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<SpawnConfig, NodeError> {
@@ -307,12 +311,13 @@ impl SpawnConfig {
         })
     }
 
-    /// Reads and parses a configuration file.
+    /// Reads (a regular file of at most [`MAX_CONFIG_BYTES`]) and parses a configuration file.
     pub fn load(path: &Path) -> Result<SpawnConfig, NodeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| NodeError::Setting {
-            file: path.display().to_string(),
-            source: e.into(),
-        })?;
+        let text =
+            iw_sim::file::read_text(path, MAX_CONFIG_BYTES).map_err(|e| NodeError::Setting {
+                file: path.display().to_string(),
+                source: e.into(),
+            })?;
         SpawnConfig::parse(&text, &path.display().to_string())
     }
 

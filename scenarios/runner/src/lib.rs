@@ -39,7 +39,10 @@ pub use observe::{Observation, Totals};
 pub use process::{ProcessOptions, run_processes};
 pub use report::{ChairSummary, Mode, Outcome, Report};
 pub use run::{run, run_with_progress};
-pub use schema::{Assertion, ChairEntry, DoorEntry, Fault, GoalEntry, RestrictedEntry, Scenario};
+pub use schema::{
+    Assertion, ChairEntry, DoorEntry, Fault, GoalEntry, MAX_SCENARIO_BYTES, RestrictedEntry,
+    Scenario,
+};
 
 /// What went wrong loading or running a scenario (not an assertion failing: that is a report).
 #[derive(Debug, thiserror::Error)]

@@ -271,13 +271,19 @@ fn default_step() -> Duration {
     Duration::from_millis(50)
 }
 
+/// Largest scenario file [`Scenario::load`] reads, bytes (a scenario is a page of TOML; a 2 GB
+/// file made the TOML parser ask for 14 GB).
+pub const MAX_SCENARIO_BYTES: u64 = 4 << 20;
+
 impl Scenario {
-    /// Reads and parses `path`.
+    /// Reads (a regular file of at most [`MAX_SCENARIO_BYTES`]) and parses `path`.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ScenarioError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            path: path.display().to_string(),
-            source,
+        let text = iw_sim::file::read_text(path, MAX_SCENARIO_BYTES).map_err(|source| {
+            ScenarioError::Io {
+                path: path.display().to_string(),
+                source,
+            }
         })?;
         Self::parse(&text, path)
     }

@@ -23,7 +23,8 @@
 //! - Never tunnels: motion is split in substeps of at most 2 cm of footprint travel, and a
 //!   footprint cannot pass a segment between substeps; contacts stop the chair and are counted
 //!   once per contact.
-//! - Map errors name `file:line` and the reason; no input panics the parser.
+//! - Map errors name `file:line` and the reason; no input panics the parser. A map file is read
+//!   only if it is a regular file of at most [`MAX_MAP_BYTES`] ([`file::read_text`]).
 //!
 //! # Known limits
 //! - Sonars and the laser see every obstacle whatever its height; sonar specular reflection and
@@ -38,6 +39,7 @@
 
 mod body;
 mod chair;
+pub mod file;
 mod geom;
 #[cfg(feature = "localization")]
 pub mod localization;
@@ -52,7 +54,9 @@ pub use chair::{
     CameraModel, ChairSpec, EncoderModel, LaserModel, SonarModel, SonarMount, sonar_layout,
 };
 pub use geom::Owner;
-pub use map::{Area, Door, Furniture, Map, Marker, NarrowPassage, Place, Route, Start};
+pub use map::{
+    Area, Door, Furniture, MAX_MAP_BYTES, Map, Marker, NarrowPassage, Place, Route, Start,
+};
 pub use render::{RgbdFrame, TUM_DEPTH_PER_M, TextureSet, optical_pose};
 pub use world::{ChairId, ChairKind, Hit, World, step};
 

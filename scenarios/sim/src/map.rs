@@ -112,6 +112,9 @@ pub struct Route {
     pub closed: bool,
 }
 
+/// Largest map file [`Map::load`] reads, bytes: a building of thousands of walls is well below.
+pub const MAX_MAP_BYTES: u64 = 16 << 20;
+
 /// A 2D world description. Build it with [`Map::parse`], [`Map::load`] or
 /// [`Map::from_occupancy_png`].
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -150,7 +153,7 @@ impl Map {
         {
             return Self::from_occupancy_png(path, 0.05);
         }
-        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+        let text = crate::file::read_text(path, MAX_MAP_BYTES).map_err(|source| SimError::Io {
             path: path.display().to_string(),
             source,
         })?;
@@ -265,7 +268,11 @@ impl Map {
     /// pixel, image bottom-left at the world origin. Solid regions become wall outlines (edges
     /// between solid and free pixels, merged into straight runs).
     pub fn from_occupancy_png(path: &Path, resolution_m: f64) -> Result<Self, SimError> {
-        let img = image::open(path)
+        let bytes = crate::file::read_file(path, MAX_MAP_BYTES).map_err(|source| SimError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
             .map_err(|e| SimError::ImageFile {
                 path: path.display().to_string(),
                 source: Box::new(e),

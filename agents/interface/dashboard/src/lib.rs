@@ -20,7 +20,9 @@
 mod server;
 mod state;
 
-pub use server::{ConnectionLimits, Dashboard, DashboardConfig, DashboardError};
+pub use server::{
+    ACTIONS_BURST, ACTIONS_PER_S, ConnectionLimits, Dashboard, DashboardConfig, DashboardError,
+};
 pub use state::{
     ChairDisplay, ChairView, ContainerView, DoorView, DriveInput, FeatureView, MapView,
     MessageView, PageAction, PassageView, PlaceView, State, round_cm,

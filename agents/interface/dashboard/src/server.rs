@@ -23,6 +23,14 @@ const INDEX_HTML: &str = include_str!("../static/index.html");
 /// Longest action the page may send, bytes; longer frames are refused.
 const MAX_ACTION_BYTES: usize = 4096;
 
+/// Actions one page may send at once after a quiet spell, and per second sustained. A page
+/// sends a drive input per pointer move (60-120 Hz) and every 100 ms while held; more is a
+/// flood, each action of which becomes a bus message. Over it, actions are dropped and the page
+/// told so.
+pub const ACTIONS_BURST: f64 = 200.0;
+/// See [`ACTIONS_BURST`].
+pub const ACTIONS_PER_S: f64 = 100.0;
+
 /// Errors of the dashboard server.
 #[derive(Debug, thiserror::Error)]
 pub enum DashboardError {
@@ -380,6 +388,8 @@ async fn websocket(Extract(s): Extract<Shared>, upgrade: WebSocketUpgrade) -> Re
 /// One page: frames out as they are published, actions in.
 async fn session(mut socket: WebSocket, s: Shared) {
     let mut frames = s.frames.clone();
+    let mut budget = (ACTIONS_BURST, Instant::now());
+    let mut dropped = 0u64;
     let first = frames.borrow_and_update().clone();
     if socket
         .send(Message::Text(first.to_string().into()))
@@ -402,6 +412,23 @@ async fn session(mut socket: WebSocket, s: Shared) {
             incoming = socket.recv() => {
                 let Some(Ok(message)) = incoming else { break };
                 let Message::Text(text) = message else { continue };
+                let now = Instant::now();
+                let tokens = ACTIONS_BURST.min(budget.0 + now.duration_since(budget.1).as_secs_f64() * ACTIONS_PER_S);
+                if tokens < 1.0 {
+                    budget = (tokens, now);
+                    dropped += 1;
+                    // Told once per 100 dropped, so the replies are no flood of their own.
+                    if dropped % 100 == 1 {
+                        let reply = serde_json::json!({ "error": format!(
+                            "too many actions: more than {ACTIONS_PER_S} per second; {dropped} dropped"
+                        ) });
+                        if socket.send(Message::Text(reply.to_string().into())).await.is_err() {
+                            break;
+                        }
+                    }
+                    continue;
+                }
+                budget = (tokens - 1.0, now);
                 match serde_json::from_str::<PageAction>(&text) {
                     Ok(action) => {
                         let sent = s.actions.lock().unwrap_or_else(PoisonError::into_inner).send(action);

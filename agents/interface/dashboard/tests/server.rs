@@ -132,6 +132,51 @@ fn frames_go_out_and_actions_come_back_over_the_websocket() {
     assert_eq!(dashboard.try_action(), None);
 }
 
+#[test]
+fn a_flood_of_actions_from_one_page_is_cut_to_the_rate_and_the_page_told() {
+    let dashboard =
+        Dashboard::start(DashboardConfig::default(), &MapView::default()).expect("start");
+    let (mut socket, _) =
+        tungstenite::connect(format!("ws://{}/ws", dashboard.addr())).expect("websocket");
+    #[allow(irrefutable_let_patterns)]
+    if let tungstenite::stream::MaybeTlsStream::Plain(s) = socket.get_mut() {
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    }
+    let _first = socket.read().expect("first frame");
+    let started = std::time::Instant::now();
+    let sent = 5000;
+    for _ in 0..sent {
+        socket
+            .send(tungstenite::Message::text(r#"{"do":"step"}"#))
+            .unwrap();
+    }
+    let error = loop {
+        let text = socket
+            .read()
+            .expect("reply")
+            .into_text()
+            .unwrap()
+            .to_string();
+        if text.contains("error") {
+            break text;
+        }
+    };
+    assert!(error.contains("too many actions"), "{error}");
+    std::thread::sleep(Duration::from_millis(500));
+    let mut taken = 0;
+    while dashboard.try_action().is_some() {
+        taken += 1;
+    }
+    // Measured after the drain: whatever the server took meanwhile is within this allowance.
+    let elapsed = started.elapsed().as_secs_f64();
+    let allowed = iw_dashboard::ACTIONS_BURST + iw_dashboard::ACTIONS_PER_S * elapsed;
+    assert!(
+        (taken as f64) <= allowed + 1.0,
+        "{taken} of {sent} actions taken in {elapsed:.2} s; at most {allowed:.0} allowed"
+    );
+    assert!(taken >= 1, "actions within the rate still pass");
+}
+
 fn chair(i: usize) -> ChairView {
     let f = i as f32;
     ChairView {

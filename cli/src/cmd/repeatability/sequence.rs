@@ -60,16 +60,8 @@ fn image_index(path: &Path) -> Option<usize> {
 }
 
 fn read_homography(path: &Path) -> anyhow::Result<Homography> {
-    let meta = std::fs::metadata(path)
-        .with_context(|| format!("missing homography {}", path.display()))?;
-    if meta.len() > MAX_TEXT_BYTES as u64 {
-        anyhow::bail!(
-            "homography {}: {} bytes, at most {MAX_TEXT_BYTES} expected for a 3x3 matrix",
-            path.display(),
-            meta.len()
-        );
-    }
-    let text = std::fs::read_to_string(path)
+    // A regular file of at most a 3x3 matrix's text: a FIFO or device is refused, not read.
+    let text = iw_sim::file::read_text(path, MAX_TEXT_BYTES as u64)
         .with_context(|| format!("reading homography {}", path.display()))?;
     Homography::parse(&text).with_context(|| format!("homography {}", path.display()))
 }
@@ -404,7 +396,28 @@ mod tests {
         std::fs::remove_file(dir.path().join("H1to3p")).unwrap();
         let e = error_of(dir.path());
         assert!(
-            e.contains("missing homography") && e.contains("H1to3p"),
+            e.contains("reading homography") && e.contains("H1to3p"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_device_or_folder_as_a_homography_is_refused_unread() {
+        let dir = sequence_dir();
+        let h = dir.path().join("H1to2p");
+        std::fs::remove_file(&h).unwrap();
+        // `/dev/zero` never ends: it was read until memory ran out.
+        std::os::unix::fs::symlink("/dev/zero", &h).unwrap();
+        let e = error_of(dir.path());
+        assert!(
+            e.contains("H1to2p") && e.contains("not a regular file"),
+            "{e}"
+        );
+        std::fs::remove_file(&h).unwrap();
+        std::fs::create_dir(&h).unwrap();
+        let e = error_of(dir.path());
+        assert!(
+            e.contains("H1to2p") && e.contains("not a regular file"),
             "{e}"
         );
     }

@@ -77,14 +77,27 @@ pub fn read_group_key(path: &Path) -> Result<PreSharedKey, GroupKeyError> {
         path: file_name(),
         reason,
     };
+    // A FIFO would block the open and a device (`/dev/zero`) never end: both are refused, and
+    // no more than the cap is read even if the file grows meanwhile.
+    const MAX_KEY_FILE: u64 = 1024;
     let meta = std::fs::metadata(path).map_err(io)?;
-    if meta.len() > 1024 {
+    if !meta.is_file() {
+        return Err(bad(
+            "not a regular file (a FIFO or device is refused)".into()
+        ));
+    }
+    if meta.len() > MAX_KEY_FILE {
         return Err(bad(format!(
             "{} bytes; a key file holds 64 hex digits",
             meta.len()
         )));
     }
-    let text = std::fs::read_to_string(path).map_err(io)?;
+    let mut text = String::new();
+    std::io::Read::read_to_string(
+        &mut std::io::Read::take(std::fs::File::open(path).map_err(io)?, MAX_KEY_FILE),
+        &mut text,
+    )
+    .map_err(io)?;
     let digits = text.trim();
     if digits.len() != 64 {
         return Err(bad(format!(
@@ -138,5 +151,18 @@ mod tests {
             .and_then(|s| s.downcast_ref::<hex::FromHexError>())
             .unwrap_or_else(|| panic!("no hex error under `{err}`"));
         assert!(err.to_string().ends_with(&hex.to_string()), "{err}");
+    }
+
+    #[test]
+    fn a_device_or_a_folder_as_the_key_file_is_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        for path in [Path::new("/dev/zero"), dir.path()] {
+            let err = read_group_key(path).unwrap_err();
+            assert!(
+                matches!(&err, GroupKeyError::Invalid { reason, .. } if reason.contains("not a regular file")),
+                "{}: {err}",
+                path.display()
+            );
+        }
     }
 }
