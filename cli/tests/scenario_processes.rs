@@ -103,6 +103,14 @@ fn restricted_door_passes_across_processes() {
     passes("restricted-door");
 }
 
+/// chair1's laser blinded by the world container (the runner's admin line to it) 5 s into the
+/// drive: its perception agent drops the laser and says so, the chair detours past a landmark
+/// whose marker its own camera reads, and it still reaches the dining hall without contact.
+#[test]
+fn laser_blind_passes_across_processes() {
+    passes("laser-blind");
+}
+
 /// The watcher killed inside the services process (`kill-agent` over the admin channel): the
 /// chair waits out the pass timeout and goes on.
 #[test]

@@ -1,6 +1,7 @@
 //! `intellwheels spawn --admin-stdin`: the parent's admin path. Lines that are not commands, or
-//! too long, are refused with an `admin` event and the container runs on; a command is carried
-//! out; closing stdin (the parent gone) stops the container cleanly.
+//! too long, are refused with an `admin` event and the container runs on, as is a command for
+//! another role (a blinded laser outside the world); a command is carried out; closing stdin
+//! (the parent gone) stops the container cleanly.
 
 mod common;
 
@@ -48,6 +49,11 @@ fn bad_admin_lines_are_refused_and_a_closed_stdin_stops_the_container() {
     writeln!(stdin, "{}", "x".repeat(10_000)).unwrap();
     writeln!(
         stdin,
+        "{{\"admin\": \"laser-blind\", \"chair\": \"chair1\", \"blind\": true}}"
+    )
+    .unwrap();
+    writeln!(
+        stdin,
         "{{\"admin\": \"kill-agent\", \"agent\": \"watcher\"}}"
     )
     .unwrap();
@@ -70,6 +76,15 @@ fn bad_admin_lines_are_refused_and_a_closed_stdin_stops_the_container() {
     assert!(
         long["error"].as_str().unwrap().contains("longer than"),
         "{long}"
+    );
+    let laser = next("a laser-blind refused outside the world", &admin);
+    assert_eq!(laser["done"], "laser-blind chair1 true", "{laser}");
+    assert!(
+        laser["error"]
+            .as_str()
+            .unwrap()
+            .contains("only the world container"),
+        "{laser}"
     );
     let killed = next("the watcher killed", &admin);
     assert_eq!(killed["done"], "kill-agent watcher@services", "{killed}");

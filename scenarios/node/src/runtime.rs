@@ -19,7 +19,8 @@ use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
 use iw_transport_net::{TcpTransport, UdpTransport};
 use iw_transport_shm::ShmTransport;
 use iw_wiring::world_link::{
-    BodyRoster, WorldAgent, WorldBody, WorldDoors, WorldGhost, body_endpoint, world_agent,
+    BlindLasers, BodyRoster, WorldAgent, WorldBody, WorldDoors, WorldGhost, body_endpoint,
+    world_agent,
 };
 use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk, StartError};
 use nalgebra::{Isometry2, Vector2};
@@ -436,15 +437,18 @@ fn world_parts(config: &SpawnConfig) -> Result<(Agents, WorldReports), NodeError
     let reports = WorldReports {
         world,
         roster,
+        blind: agent.blind_lasers(),
         last: None,
     };
     Ok((vec![(world_agent(), Box::new(agent))], reports))
 }
 
-/// What the world runtime reports from: the world, its bodies, the last report.
+/// What the world runtime reports from: the world, its bodies, the last report; and the chairs
+/// whose laser it blinds (an admin command).
 struct WorldReports {
     world: iw_sim::SharedWorld,
     roster: BodyRoster,
+    blind: BlindLasers,
     last: Option<Time>,
 }
 

@@ -11,7 +11,7 @@ use crate::schema::{Assertion, ChairEntry, Fault, GoalEntry, Scenario};
 
 impl Scenario {
     /// [`Scenario::validate`], and refuses what `mode` cannot play: a killed container in one
-    /// process; sensor failures, blinded lasers, jammed doors and door commands across processes (their world
+    /// process; sensor failures, jammed doors and door commands across processes (their world
     /// container takes no such commands yet).
     pub fn validate_for(&self, map: &Map, mode: Mode) -> Result<(), ScenarioError> {
         self.validate(map)?;
@@ -35,9 +35,6 @@ impl Scenario {
                 }
                 (Mode::Processes, Fault::SensorFailure { .. }) => {
                     return unsupported(entry, "a sensor failure (sensor-failure)");
-                }
-                (Mode::Processes, Fault::LaserBlind { .. }) => {
-                    return unsupported(entry, "a blinded laser (laser-blind)");
                 }
                 (Mode::Processes, Fault::JammedDoor { .. }) => {
                     return unsupported(entry, "a jammed door (jammed-door)");

@@ -9,7 +9,9 @@
 //!   readings there (other chairs, virtual obstacles, doors); a real chair's ghost only reports.
 //! - The door agent moves the world's doors through [`WorldDoors`].
 //!
-//! Faults: a simulated body the world hears no wheel command from for [`WORLD_WATCHDOG`] is
+//! Faults: a body whose laser the world blinds ([`WorldAgent::blind_lasers`], a scenario's
+//! `laser-blind` played across processes) gets frames with no laser ranges while the rest reads
+//! on, as a covered laser gives them. A simulated body the world hears no wheel command from for [`WORLD_WATCHDOG`] is
 //! stopped there; a body that hears no frame for [`LINK_TIMEOUT`] fails its reads (the control
 //! agent stops the chair) and asks to attach again every [`ATTACH_EVERY`], where it last was, so
 //! chairs re-attach to a restarted world; encoder ticks continue across the restart. A virtual
@@ -32,7 +34,7 @@
 //! came or how loaded the host is. The chairs' own agents still run on their own clocks: a
 //! deployment's agents are not made reproducible by this.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -483,6 +485,10 @@ impl DoorActuator for WorldDoors {
 /// The bodies in the world by chair name, shared with whoever reports on the world.
 pub type BodyRoster = Arc<std::sync::Mutex<BTreeMap<String, ChairId>>>;
 
+/// The chairs whose laser the world blinds: their frames carry no laser ranges (a covered or
+/// broken laser; the encoders and sonars read on). Shared with whoever plays the fault.
+pub type BlindLasers = Arc<std::sync::Mutex<BTreeSet<String>>>;
+
 /// One body in the world.
 struct Attached {
     id: ChairId,
@@ -500,6 +506,7 @@ pub struct WorldAgent {
     world: SharedWorld,
     bodies: BTreeMap<String, Attached>,
     roster: BodyRoster,
+    blind: BlindLasers,
     last_step: Option<Time>,
     door_agent: AgentId,
     lockstep: bool,
@@ -512,6 +519,7 @@ impl WorldAgent {
             world,
             bodies: BTreeMap::new(),
             roster: BodyRoster::default(),
+            blind: BlindLasers::default(),
             last_step: None,
             door_agent,
             lockstep: false,
@@ -642,6 +650,11 @@ impl WorldAgent {
         } else {
             WORLD_WATCHDOG
         };
+        let blind = self
+            .blind
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone();
         let frames: Vec<(String, BodyFrame)> = {
             let mut world = self.lock();
             for body in self.bodies.values() {
@@ -666,7 +679,11 @@ impl WorldAgent {
                             left_ticks: sensed.left_ticks,
                             right_ticks: sensed.right_ticks,
                             sonar_m: sensed.sonar_m.to_vec(),
-                            laser_m: sensed.laser_m.clone(),
+                            laser_m: if blind.contains(chair) {
+                                Vec::new()
+                            } else {
+                                sensed.laser_m.clone()
+                            },
                             pose: pose_of(&pose),
                         },
                     ))
@@ -685,6 +702,12 @@ impl WorldAgent {
     /// The world and its bodies by chair, for reports.
     pub fn reports(&self) -> (SharedWorld, BodyRoster) {
         (self.world.clone(), self.roster.clone())
+    }
+
+    /// The chairs whose laser is blind: add a chair to blind its laser from the next frame on,
+    /// remove it to give the laser back.
+    pub fn blind_lasers(&self) -> BlindLasers {
+        self.blind.clone()
     }
 }
 
@@ -798,6 +821,7 @@ mod tests {
         let mut host = AgentHost::new(world_bus);
         let agent = WorldAgent::new(world.clone(), agent_id("door", "services"));
         let (_, roster) = agent.reports();
+        let blind = agent.blind_lasers();
         host.add(world_agent(), Box::new(agent)).unwrap();
         let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
         let mut body = WorldBody::open(chair_bus, "c1", start).unwrap();
@@ -831,6 +855,25 @@ mod tests {
             "{:?}",
             frame.laser_m
         );
+        // a blinded laser: the frames come on (encoders and sonars), with no ranges, until the
+        // laser is given back
+        let blinded = |host: &mut AgentHost, body: &mut WorldBody, on: bool| {
+            let sent_at = std::time::Instant::now();
+            loop {
+                host.step(clock.now());
+                std::thread::sleep(Duration::from_millis(10));
+                let frame = body.read().unwrap();
+                if frame.laser_m.is_empty() == on {
+                    return frame;
+                }
+                assert!(sent_at.elapsed() < Duration::from_secs(20), "never {on}");
+            }
+        };
+        blind.lock().unwrap().insert("c1".into());
+        let frame = blinded(&mut host, &mut body, true);
+        assert!(frame.sonar_m.iter().any(Option::is_some), "{frame:?}");
+        blind.lock().unwrap().remove("c1");
+        assert_eq!(blinded(&mut host, &mut body, false).laser_m.len(), beams);
         // no more commands: the world's watchdog stops the body
         for _ in 0..60 {
             host.step(clock.now());

@@ -38,8 +38,8 @@ use iw_sim::localization::{drive_params, localization_map, localizer_config};
 use iw_sim::vo::{SimCamera, sim_vo_config};
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, Route, SharedWorld, World};
 use iw_vo::{
-    CameraSource, OdometryFusion, Pipeline, Pose2, VisualOdometry, WheelOdometry, planar_motion,
-    wrap_angle,
+    CameraSource, OdometryFusion, Pipeline, Pose2, VisualOdometry, WheelBias, WheelOdometry,
+    planar_motion, wrap_angle,
 };
 use nalgebra::{Isometry2, Matrix3, Point2, Vector3};
 use rand::{Rng, SeedableRng};
@@ -143,7 +143,7 @@ pub struct Sample {
     pub wheel: Pose2,
     /// Visual odometry chained from the start.
     pub vo: Pose2,
-    /// EKF of wheel and visual odometry.
+    /// EKF of wheel and visual odometry, with the wheels' bias in its state.
     pub fused: Pose2,
     /// The map-based localizer.
     pub localized: Pose2,
@@ -423,7 +423,10 @@ pub fn drive(
     let start = pose2(&lock(&s.world).pose(s.id)?);
     let start_cov = known_start_cov();
     let mut wheels = WheelOdometry::new(params, start);
-    let mut fusion = OdometryFusion::new(start, start_cov, params.alpha);
+    // the wheel + VO baseline with the wheels' bias in its state, as the perception agent's
+    // filter without a map has it: like for like with `localized`, whose filter has it too
+    let mut fusion =
+        OdometryFusion::new(start, start_cov, params.alpha).with_bias(WheelBias::WHEELCHAIR);
     let mut localizer = Localizer::new(
         lmap.clone(),
         localizer_config(&s.spec),
@@ -693,7 +696,7 @@ pub struct BlindEnd {
 
 /// One blind run: the chair tracks with its laser for `learn_m`, then the laser is silent for
 /// [`BLIND_M`] (wheels and sonars read on; no VO, no landmarks). Two localizers see the same
-/// readings: the default one, which estimates the wheels' bias ([`iw_vo::WheelBias`]), and one
+/// readings: the default one, which estimates the wheels' bias ([`WheelBias`]), and one
 /// without the bias states (the motion model's random noise only).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct BlindRun {
@@ -729,7 +732,7 @@ pub fn blind_run(
     } = set_down(map, config, seed, 0xB11D, true)?;
     let modelled = localizer_config(&s.spec);
     let unmodelled = iw_localization::LocalizerConfig {
-        wheel_bias: iw_vo::WheelBias::NONE,
+        wheel_bias: WheelBias::NONE,
         ..modelled.clone()
     };
     let mut localizers = [modelled, unmodelled]

@@ -1,6 +1,6 @@
 //! The admin path: commands the parent process gives a running container on its stdin
 //! (`intellwheels spawn --admin-stdin`), one JSON object per line. The scenario runner plays a
-//! scenario's goals and agent faults through it.
+//! scenario's goals, agent faults and blinded lasers through it.
 //!
 //! It is not a network path: only the process holding the pipe (the parent that started the
 //! container) can write to it, so nothing on the bus or the control channel can reach it.
@@ -34,6 +34,14 @@ pub enum AdminCommand {
     KillAgent {
         /// The agent's role.
         agent: String,
+    },
+    /// World only: blinds chair `chair`'s laser (`blind`: its frames carry no ranges, the
+    /// encoders and sonars read on) or gives it back.
+    LaserBlind {
+        /// A chair whose body is in this world.
+        chair: String,
+        /// Blind, or seeing again.
+        blind: bool,
     },
 }
 
@@ -86,6 +94,10 @@ impl Runtime {
                         None => (done, Some("only the services container gives goals".into())),
                     }
                 }
+                Ok(AdminCommand::LaserBlind { chair, blind }) => {
+                    let done = format!("laser-blind {chair} {blind}");
+                    (done, self.blind_laser(&chair, blind).err())
+                }
                 Ok(AdminCommand::KillAgent { agent }) => {
                     let name = iw_wiring::agent_id(&agent, &self.name).name;
                     let removed = self.host.remove(&name, now);
@@ -101,5 +113,30 @@ impl Runtime {
                 error,
             });
         }
+    }
+
+    /// Blinds (or gives back) the laser of `chair`'s body in this world.
+    fn blind_laser(&self, chair: &str, blind: bool) -> Result<(), String> {
+        let Some(world) = &self.world else {
+            return Err("only the world container blinds a laser".into());
+        };
+        let attached = world
+            .roster
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .contains_key(chair);
+        if !attached {
+            return Err(format!("no body of chair `{chair}` in this world"));
+        }
+        let mut lasers = world
+            .blind
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if blind {
+            lasers.insert(chair.to_string());
+        } else {
+            lasers.remove(chair);
+        }
+        Ok(())
     }
 }

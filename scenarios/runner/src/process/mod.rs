@@ -10,7 +10,9 @@
 //!   which drops what a cut-off container sends or is sent;
 //! - `kill-agent`: the container removes the agent (its admin path, `--admin-stdin`: only this
 //!   process holds the pipe);
-//! - `kill-container`: SIGKILL to the container process.
+//! - `kill-container`: SIGKILL to the container process;
+//! - `laser-blind`: the world container blinds the chair's laser in the frames it sends (its
+//!   admin path) and gives it back at the end of `for_s`.
 //!
 //! A real or mixed chair's interface board is emulated on a pty in this process (with its
 //! hardware watchdog), as the board of a real chair would be beside its computer.
@@ -265,6 +267,14 @@ impl Deployment<'_> {
         writeln!(stdin, "{json}")
             .and_then(|()| stdin.flush())
             .map_err(err)
+    }
+
+    /// Blinds chair `chair`'s laser in the world (or gives it back).
+    fn blind_laser(&mut self, chair: &str, blind: bool) -> Result<(), ScenarioError> {
+        self.admin(
+            WORLD,
+            &serde_json::json!({ "admin": "laser-blind", "chair": chair, "blind": blind }),
+        )
     }
 
     /// SIGKILL to container `name`.
@@ -650,9 +660,8 @@ pub fn run_processes(
                             &serde_json::json!({ "admin": "kill-agent", "agent": agent }),
                         )?,
                         Fault::KillContainer { container, .. } => d.kill(container)?,
-                        Fault::SensorFailure { .. }
-                        | Fault::LaserBlind { .. }
-                        | Fault::JammedDoor { .. } => {
+                        Fault::LaserBlind { chair, .. } => d.blind_laser(chair, true)?,
+                        Fault::SensorFailure { .. } | Fault::JammedDoor { .. } => {
                             return Err(
                                 scenario.invalid("fault", "cannot be played across processes")
                             );
@@ -666,7 +675,11 @@ pub fn run_processes(
                     }
                     format!("link {container} restored")
                 }
-                Cue::Door(_) | Cue::SensorsBack(_) | Cue::LaserBack(_) => {
+                Cue::LaserBack(chair) => {
+                    d.blind_laser(chair, false)?;
+                    format!("laser of {chair} back")
+                }
+                Cue::Door(_) | Cue::SensorsBack(_) => {
                     return Err(scenario.invalid("door", "cannot be played across processes"));
                 }
             };

@@ -1,0 +1,123 @@
+//! A map with nothing to match along a long corridor (issue 19, bad input): the laser sees only
+//! the two parallel walls, so the localizer learns the chair's heading and its place across the
+//! corridor from them but nothing along it. The estimate degrades gracefully: its covariance
+//! grows along the corridor's axis (and only there), the error stays inside it, the pose does
+//! not jump, and once the trace passes the deployment's default threshold the cognitive agent
+//! detours into the alcove whose wall carries a landmark, where the marker resets the error.
+
+use iw_sim::Map;
+use nalgebra::{Isometry2, Vector2};
+
+mod common;
+use common::{Drive, Sample, THRESHOLD_M2, covered, detour, print, stops};
+
+/// A 2 m wide corridor, 40 m long, with a 2.5 m wide alcove on its south side at x = 28 whose
+/// back wall carries landmark 1, and the goal near the east end. From the west end the laser
+/// (10 m reach) sees no wall across the corridor's axis until it nears the alcove's opening, about
+/// 8 m before it (measured: the along-axis error is corrected at x = 13 m with the opening at
+/// 20.75 m), so the first 18 m are blank; blind along the axis, the trace passes the default
+/// threshold after about 12 m.
+const CORRIDOR: &str = "\
+name blank corridor
+wall_height 2.7
+wall 0 5 26.75 5
+wall 29.25 5 40 5
+wall 0 7 40 7
+wall 0 5 0 7
+wall 40 5 40 7
+wall 26.75 5 26.75 1 29.25 1 29.25 5
+landmark 1 28.0 1.0 90
+place west-end 1.0 6.0
+place east-end 38.0 6.0
+";
+
+/// Longest drive, s.
+const MAX_S: f64 = 85.0;
+
+/// Largest change of the error from one period to the next while nothing but the corridor's
+/// walls is matched, m: what the published pose's lag (one publication, 0.1 s, at most a few
+/// centimetres at walking speed) leaves; a match sliding along the corridor would move more.
+const LAG_M: f64 = 0.05;
+
+#[test]
+fn a_blank_corridor_grows_the_covariance_along_its_axis_and_the_chair_detours_to_a_landmark() {
+    let map = Map::parse(CORRIDOR, "blank corridor").unwrap();
+    let (samples, fleet) = Drive {
+        map: &map,
+        seed: 3,
+        start: Isometry2::new(Vector2::new(1.0, 6.0), 0.0),
+        place: "east-end",
+        blind: false,
+        threshold_m2: None,
+        max_s: MAX_S,
+    }
+    .run();
+    print("corridor", &samples);
+    let stops = stops(&fleet);
+    assert_eq!(stops.len(), 1, "the alcove's landmark is a stop: {stops:?}");
+    let d = detour(&samples, &stops, THRESHOLD_M2);
+    println!("{d:#?}");
+    let blank = &samples[..d.crossed_at];
+
+    // the uncertainty is along the corridor: x's standard deviation several times y's
+    let c = d.crossed.covariance;
+    assert!(
+        c[(0, 0)] > 9.0 * c[(1, 1)],
+        "the covariance did not grow along the axis: {c}"
+    );
+    // across it the walls keep the chair within a few centimetres
+    let worst_across = blank.iter().map(|s| s.error().y.abs()).fold(0.0, f64::max);
+    assert!(
+        worst_across < 0.05,
+        "{worst_across:.3} m off across the corridor"
+    );
+    // honest: the error within 2 sqrt(trace) (98 % if consistent; room for the camera rate)
+    let cover = covered(blank);
+    assert!(
+        cover >= 0.9,
+        "error within 2 sigma on {:.0} % of the periods",
+        cover * 100.0
+    );
+    // no jump: the error changes smoothly while only the corridor's walls are matched
+    let jump = largest_jump(blank);
+    println!(
+        "blank stretch to x = {:.2} m: error within 2 sigma {:.0} %, largest change of the error \
+         between periods {jump:.3} m, largest error across {worst_across:.3} m",
+        d.crossed.truth.x,
+        cover * 100.0
+    );
+    assert!(
+        jump < LAG_M,
+        "the estimate jumped by {jump:.3} m in the blank corridor"
+    );
+    // and a correction (the alcove's walls, the marker) moves it towards the truth, not away
+    for w in samples.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        assert!(
+            b.error_m() <= a.error_m() + LAG_M,
+            "the estimate moved {:.3} m away from the truth at {:.1} s",
+            b.error_m() - a.error_m(),
+            b.t_s
+        );
+    }
+    // the detour: into the alcove (off the way to the east end), where the marker resets it
+    assert!(
+        d.arrived.truth.y < 4.0,
+        "the stop is in the alcove: {:?}",
+        d.arrived
+    );
+    assert!(
+        d.after.trace_m2() < d.crossed.trace_m2() / 2.0 && d.after.error_m() < 0.05,
+        "the marker did not reset the estimate: crossed {:?}, after {:?}",
+        d.crossed,
+        d.after
+    );
+}
+
+/// The largest change of the error vector from one period to the next, m.
+fn largest_jump(samples: &[Sample]) -> f64 {
+    samples
+        .windows(2)
+        .map(|w| (w[1].error() - w[0].error()).norm())
+        .fold(0.0, f64::max)
+}
