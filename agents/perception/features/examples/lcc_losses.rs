@@ -9,7 +9,7 @@
 //! (DIR: the photographs, e.g. the skimage folder of the shared data). Same relighting and
 //! protocol as `intellwheels repeatability --images`, `lsac-surf-nt` only.
 
-use iw_features::experiment::{Relight, Summary, correspondences};
+use iw_features::experiment::{Collection, Relight, Summary, correspondences};
 use iw_features::{Detector, DetectorConfig, DetectorKind, Keypoint};
 use rayon::prelude::*;
 
@@ -49,26 +49,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     files.sort();
     let config = DetectorConfig::for_kind(DetectorKind::LsacSurfNt);
     let cap = config.max_keypoints.ok_or("lsac-surf-nt has no cap")?;
-    let mut changes = Vec::new();
-    if wanted("lic") {
-        for a in [
-            1.0 / 2.0,
-            1.0 / 1.5,
-            1.0 / 1.2,
-            1.0 / 1.1,
-            1.1,
-            1.2,
-            1.5,
-            2.0,
-        ] {
-            changes.push(("lic", Relight::Intensity(a)));
-        }
-    }
-    if wanted("lcc") {
-        for a in [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9] {
-            changes.push(("lcc", Relight::Colour(a)));
-        }
-    }
+    let changes: Vec<(&str, Relight)> = [Collection::Lic, Collection::Lcc]
+        .into_iter()
+        .filter(|c| wanted(c.name()))
+        .flat_map(|c| c.changes().into_iter().map(move |r| (c.name(), r)))
+        .collect();
     let rows: Vec<Row> = files
         .par_iter()
         .flat_map_iter(|file| {
