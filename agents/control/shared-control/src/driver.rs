@@ -22,6 +22,19 @@
 //!   lateral axis proportional with a dead zone). The thesis's text calls the cap a proportional
 //!   controller (3.3.1); the three levels are the project's reading, not the text's.
 //!
+//! That is the default model, [`DriverModel::PerPeriod`]: its misjudgement is drawn afresh every
+//! period, so by an obstacle the head cap's forward step flickers (about 3 switches a second,
+//! traced on the cluttered circuits), and a driver being backed out by the guard lets go as soon
+//! as the wish drops below the first step. [`DriverModel::Steady`] (`--driver-model steady`) is
+//! a steadier person: each bearing's misjudgement is an Ornstein-Uhlenbeck process (the same
+//! deviation, correlation time 0.3-0.7 s, about a reaction time), a head-cap step changes only
+//! when the wish leaves its band by [`STEP_MARGIN`] after a least dwell of 0.42-0.78 s (the
+//! lateral dead zone has the same margin), and while the chair backs against their input they
+//! keep it for 1.05-1.95 s before letting go. It is not re-calibrated: on seeds 1-8 of the office
+//! circuit its manual drivers have 2.5 collisions per lap (the default: 1.75), and the guarded
+//! policy finishes fewer laps on the cluttered circuits with it, so it stays an option
+//! (docs/results/shared-control.md).
+//!
 //! Every person is a [`DriverProfile`] drawn from a seed around a personal `skill` in [0, 1]:
 //! skill shortens the delay and lowers perception noise and tremor. Inputs and outputs are 2-D
 //! input vectors (x forward, y left, each in [-1, 1]); [`crate::JoystickMapping`] turns them
