@@ -795,8 +795,8 @@ mod tests {
         assert!(forward < 0.15, "{forward}");
     }
 
-    /// Forward-step changes per second of a head-cap driver rolling slowly towards something
-    /// half a metre ahead (between stopping and slowing), over 30 s.
+    /// Forward-step changes per second of a head-cap driver rolling slowly with things 0.25-0.3 m
+    /// away ahead and on both sides (between stopping and slowing), over 30 s.
     fn cap_switches_per_s(seed: u64, model: DriverModel) -> f64 {
         let mut d = SeeingDriver::new(
             DriverProfile::from_seed(seed),
