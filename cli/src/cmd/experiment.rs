@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use iw_features::{DetectorConfig, DetectorKind};
 use iw_shared_control_experiment::{
-    Config, InputDevice, Mode, Sensors, Summary, office_circuit, sweep, sweep_trials,
+    Config, DriverModel, InputDevice, Mode, Sensors, Summary, office_circuit, sweep, sweep_trials,
     write_outputs, write_sweep,
 };
 use iw_sim::vo::{TrialConfig, TrialPoint, run_trial, sim_vo_config, waypoints_ahead};
@@ -135,6 +135,11 @@ pub struct SharedControlArgs {
     /// The drivers' input device.
     #[arg(long, default_value = "head-cap", value_parser = ["head-cap", "joystick"])]
     device: String,
+    /// How the simulated drivers' judgement moves in time: `per-period` (a fresh misjudgement
+    /// every period) or `steady` (misjudgement correlated over a reaction time, head-cap steps
+    /// with hysteresis, input kept while the guard backs the chair out).
+    #[arg(long, default_value = "per-period", value_parser = ["per-period", "steady"])]
+    driver_model: String,
     /// What VFH+ and the guarded policy see (the thesis's field always uses the sonars).
     #[arg(long, default_value = "sonars-laser", value_parser = ["sonars", "sonars-laser"])]
     sensors: String,
@@ -358,6 +363,10 @@ fn shared_control(args: SharedControlArgs) -> anyhow::Result<ExitCode> {
         device: match args.device.as_str() {
             "joystick" => InputDevice::Joystick,
             _ => InputDevice::HeadCap,
+        },
+        driver_model: match args.driver_model.as_str() {
+            "steady" => DriverModel::Steady,
+            _ => DriverModel::PerPeriod,
         },
         sensors: match args.sensors.as_str() {
             "sonars" => Sensors::Sonars,

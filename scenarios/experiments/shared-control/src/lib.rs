@@ -28,7 +28,7 @@ mod clearance;
 mod output;
 mod sweep;
 
-pub use iw_shared_control::driver::InputDevice;
+pub use iw_shared_control::driver::{DriverModel, InputDevice};
 pub use output::{ModeSummary, Summary, write_outputs};
 pub use sweep::{SweepRow, Variant, sweep, sweep_trials, variants, write_sweep};
 
@@ -169,6 +169,8 @@ pub struct Config {
     pub watchdog_ns: u64,
     /// The drivers' input device (the thesis's volunteers used the head cap).
     pub device: InputDevice,
+    /// How the drivers' judgement moves in time.
+    pub driver_model: DriverModel,
     /// What VFH+ and the guarded policy see.
     pub sensors: Sensors,
     /// The `shared` paradigm's constants and open assumptions.
@@ -187,6 +189,7 @@ impl Default for Config {
             near_m: 0.8,
             watchdog_ns: 300_000_000,
             device: InputDevice::HeadCap,
+            driver_model: DriverModel::default(),
             sensors: Sensors::SonarsLaser,
             field: ThesisFieldParams::default(),
         }
@@ -394,7 +397,8 @@ pub fn run_trial(
     let mut wheels = (mode == Mode::Guarded).then(|| WheelMotion::new(spec.geometry));
     let mapping = config.field.mapping;
     let mut person =
-        SeeingDriver::new(DriverProfile::from_seed(seed), config.device, circuit, seed);
+        SeeingDriver::new(DriverProfile::from_seed(seed), config.device, circuit, seed)
+            .with_model(config.driver_model);
     let obstacles = clearance::Obstacles::from_map(map);
     let period_ns = (config.period_s * 1e9).round() as u64;
     let record_every = ((0.25 / config.period_s).round() as u64).max(1);
