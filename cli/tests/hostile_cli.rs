@@ -6,10 +6,8 @@
 
 mod common;
 
-use std::io::Read;
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 /// Address space each run may take: a regression reading `/dev/zero` fails here instead of
 /// taking the machine's memory.
@@ -18,7 +16,7 @@ const MAX_VIRTUAL_KIB: u64 = 4 << 20;
 /// Runs the binary with `args` under [`MAX_VIRTUAL_KIB`], killed at [`common::LIMIT`]:
 /// (finished in time, exit code, stderr).
 fn run(args: &[&str]) -> (bool, Option<i32>, String) {
-    let mut child = Command::new("sh")
+    let child = Command::new("sh")
         .arg("-c")
         .arg(format!("ulimit -v {MAX_VIRTUAL_KIB} && exec \"$0\" \"$@\""))
         .arg(env!("CARGO_BIN_EXE_intellwheels"))
@@ -28,26 +26,8 @@ fn run(args: &[&str]) -> (bool, Option<i32>, String) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut stderr = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = stderr.read_to_string(&mut text);
-        text
-    });
-    let started = Instant::now();
-    let (finished, code) = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break (true, status.code());
-        }
-        if started.elapsed() > common::LIMIT {
-            // SIGKILL: a spawn blocked in an open ignores the SIGTERM it stops on.
-            let _ = child.kill();
-            let _ = child.wait();
-            break (false, None);
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    (finished, code, reader.join().unwrap())
+    let (status, stderr) = common::exit_within(child);
+    (status.is_some(), status.and_then(|s| s.code()), stderr)
 }
 
 /// The hostile inputs that exist on this machine: (label, path).

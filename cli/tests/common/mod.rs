@@ -236,33 +236,43 @@ impl Launch {
 
     /// Runs it to its exit (killed after LIMIT); its success and stderr.
     pub fn run_to_exit(&self) -> (bool, String) {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
+        let child = Command::new(env!("CARGO_BIN_EXE_intellwheels"))
             .arg("spawn")
             .args(self.args())
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        let mut stderr = child.stderr.take().unwrap();
-        let reader = std::thread::spawn(move || {
-            let mut text = String::new();
-            let _ = stderr.read_to_string(&mut text);
-            text
-        });
-        let start = Instant::now();
-        let status = loop {
-            if let Some(status) = child.try_wait().unwrap() {
-                break status;
-            }
-            if start.elapsed() > LIMIT {
-                let _ = child.kill();
-                let _ = child.wait();
-                panic!("{} still running after {LIMIT:?}", self.label);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        (status.success(), reader.join().unwrap())
+        match exit_within(child) {
+            (Some(status), stderr) => (status.success(), stderr),
+            (None, _) => panic!("{} still running after {LIMIT:?}", self.label),
+        }
     }
+}
+
+/// Waits for `child` (spawned with its stderr piped) to exit, killing it with SIGKILL at
+/// [`LIMIT`] (a process blocked in an open ignores SIGTERM): its exit status if it ended in
+/// time, and its stderr.
+pub fn exit_within(mut child: Child) -> (Option<std::process::ExitStatus>, String) {
+    let mut stderr = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr.read_to_string(&mut text);
+        text
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break Some(status);
+        }
+        if start.elapsed() > LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    (status, reader.join().unwrap())
 }
 
 /// A running container and its stdout events.
