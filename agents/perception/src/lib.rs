@@ -284,15 +284,13 @@ impl PerceptionAgent {
                 if let Some(step) = self.wheels.update(frame.left_ticks, frame.right_ticks) {
                     self.fusion.predict(&step);
                     if let Some(l) = self.localizer.as_mut() {
-                        l.predict_at(frame.time_ns, &step);
+                        l.predict(&step);
                     }
                 }
                 self.history.record(frame.time_ns, self.wheels.pose());
                 if let Some(l) = self.localizer.as_mut() {
                     let before = l.status();
-                    // fused at the pose of the ranges' own time (a mixed chair's ghost
-                    // answers from where the chair was a period or more before)
-                    l.update_ranges_at(frame.ranges_time_ns, &frame.laser_m, &frame.sonar_m);
+                    l.update_ranges(&frame.laser_m, &frame.sonar_m);
                     if l.status() != before {
                         tracing::info!(chair = %self.config.chair.name, status = ?l.status(), "localization status changed");
                     }

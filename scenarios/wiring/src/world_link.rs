@@ -289,8 +289,6 @@ impl WorldLink {
             right_ticks: frame.right_ticks,
             sonar_m,
             laser_m: frame.laser_m.clone(),
-            // the world steps and senses a simulated body together
-            ranges_time_ns: at.0,
         })
     }
 }
@@ -352,25 +350,10 @@ impl iw_body::Body for WorldBody {
 
 /// A real chair's ghost in the world: reports the chair's pose; `senses` (mixed reality) also
 /// returns the virtual readings there, and fails while the world is unreachable.
-///
-/// The world senses the ghost where it was last placed, at its next step, and the answer
-/// comes back a message later: the readings a read returns were taken where the chair was one
-/// or more reads before (about one period in `mixed-reality` run as processes, varying with
-/// the load). The world's frame carries the pose it sensed at, so the ghost finds the read that
-/// reported that pose and stamps the readings with its time ([`SensorFrame::ranges_time_ns`]).
 pub struct WorldGhost {
     link: WorldLink,
     senses: bool,
-    /// The last reports: the caller's time and the pose sent then, oldest first.
-    reported: std::collections::VecDeque<(u64, Isometry2<f64>)>,
 }
-
-/// Reports a ghost remembers to stamp its readings: 2 s of reads at 20 a second.
-const GHOST_REPORTS: usize = 40;
-
-/// A world frame's pose matches a report within this (m, rad): the pose goes out and comes
-/// back as decimal text of the same doubles, so only the rotation's round trip differs.
-const SAME_POSE: f64 = 1e-6;
 
 impl WorldGhost {
     /// The ghost of real chair `chair` on `bus`; `senses`: a mixed chair.
@@ -381,22 +364,7 @@ impl WorldGhost {
         senses: bool,
     ) -> Result<WorldGhost, WiringError> {
         let link = WorldLink::open(bus, chair, BodyLink::Tracked, t_world_body)?;
-        Ok(WorldGhost {
-            link,
-            senses,
-            reported: std::collections::VecDeque::with_capacity(GHOST_REPORTS),
-        })
-    }
-
-    /// When (the caller's time) the ghost was reported where the world sensed it: the latest
-    /// report of that pose (a chair that stands reports it many times; the latest is the
-    /// shortest lag), `None` when none of the remembered reports placed it there.
-    fn reported_at(&self, sensed: &Isometry2<f64>) -> Option<u64> {
-        self.reported.iter().rev().find_map(|(time_ns, pose)| {
-            let apart = (pose.translation.vector - sensed.translation.vector).norm();
-            let turned = pose.rotation.angle_to(&sensed.rotation).abs();
-            (apart <= SAME_POSE && turned <= SAME_POSE).then_some(*time_ns)
-        })
+        Ok(WorldGhost { link, senses })
     }
 }
 
@@ -418,22 +386,7 @@ impl VirtualSensors for WorldGhost {
             return Ok(SensorFrame::empty(time_ns));
         }
         sent.map_err(unreachable)?;
-        if self.reported.len() == GHOST_REPORTS {
-            self.reported.pop_front();
-        }
-        self.reported.push_back((time_ns, t_world_body));
-        let frame = self.link.frame()?;
-        let sensed = self.link.latest.as_ref().map(|(f, _)| f.pose.t_map_base());
-        // a pose none of the remembered reports placed (a restarted world that attached the
-        // ghost where it last was, a world more than GHOST_REPORTS reads behind): taken as now
-        let ranges_time_ns = sensed
-            .and_then(|pose| self.reported_at(&pose))
-            .unwrap_or(time_ns);
-        Ok(SensorFrame {
-            time_ns,
-            ranges_time_ns,
-            ..frame
-        })
+        self.link.frame()
     }
 }
 

@@ -36,7 +36,7 @@ mod matcher;
 mod scan;
 
 pub use global::{GlobalConfig, GlobalLocalizer};
-pub use localizer::{Confidence, CorrelatedScans, Localizer, LocalizerConfig, ScanOutcome, Status};
+pub use localizer::{Confidence, Localizer, LocalizerConfig, ScanOutcome, Status};
 pub use map::{Landmark, LocalizationMap, Nearest};
 pub use marker::{MARKER_CELLS, MarkerSighting, detect_markers, marker_cell_dark, markers_in};
 pub use matcher::{MatcherConfig, ScanMatch, UNOBSERVED_VAR, inlier_fraction, match_scan};
