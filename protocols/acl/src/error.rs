@@ -136,9 +136,9 @@ pub enum Error {
     },
 }
 
-/// The error under [`Error::InvalidValue`], boxed because it is an [`Error`] itself. It is no
+/// The error under [`Error::InvalidValue`], boxed because it is an [`enum@Error`] itself. It is no
 /// `std::error::Error` of its own but dereferences to the inner error (as `anyhow::Error` does),
-/// so `source()` of an [`Error::InvalidValue`] is that inner [`Error`], not a box around it.
+/// so `source()` of an [`Error::InvalidValue`] is that inner [`enum@Error`], not a box around it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ValueError(Box<Error>);
 

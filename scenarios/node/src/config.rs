@@ -311,7 +311,7 @@ impl SpawnConfig {
         })
     }
 
-    /// Reads (a regular file of at most [`MAX_CONFIG_BYTES`]) and parses a configuration file.
+    /// Reads (a regular file of at most `MAX_CONFIG_BYTES`, 1 MiB) and parses a configuration file.
     pub fn load(path: &Path) -> Result<SpawnConfig, NodeError> {
         let text =
             iw_sim::file::read_text(path, MAX_CONFIG_BYTES).map_err(|e| NodeError::Setting {
