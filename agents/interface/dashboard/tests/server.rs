@@ -70,8 +70,12 @@ fn loopback_serves_without_token() {
     assert!(map.contains(r#""name":"b""#));
 }
 
-#[test]
-fn frames_go_out_and_actions_come_back_over_the_websocket() {
+/// A dashboard on an empty map and one page on its websocket, past the first frame (reads time
+/// out after 10 s, so a test cannot hang).
+fn page() -> (
+    Dashboard,
+    tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
+) {
     let dashboard =
         Dashboard::start(DashboardConfig::default(), &MapView::default()).expect("start");
     let (mut socket, _) =
@@ -81,6 +85,12 @@ fn frames_go_out_and_actions_come_back_over_the_websocket() {
         s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     }
     let _first = socket.read().expect("first frame");
+    (dashboard, socket)
+}
+
+#[test]
+fn frames_go_out_and_actions_come_back_over_the_websocket() {
+    let (dashboard, mut socket) = page();
     let state = State {
         t: 1.5,
         chairs: vec![chair(0)],
@@ -134,15 +144,7 @@ fn frames_go_out_and_actions_come_back_over_the_websocket() {
 
 #[test]
 fn a_flood_of_actions_from_one_page_is_cut_to_the_rate_and_the_page_told() {
-    let dashboard =
-        Dashboard::start(DashboardConfig::default(), &MapView::default()).expect("start");
-    let (mut socket, _) =
-        tungstenite::connect(format!("ws://{}/ws", dashboard.addr())).expect("websocket");
-    #[allow(irrefutable_let_patterns)]
-    if let tungstenite::stream::MaybeTlsStream::Plain(s) = socket.get_mut() {
-        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    }
-    let _first = socket.read().expect("first frame");
+    let (dashboard, mut socket) = page();
     let started = std::time::Instant::now();
     let sent = 5000;
     for _ in 0..sent {
