@@ -70,12 +70,12 @@ fn loopback_serves_without_token() {
     assert!(map.contains(r#""name":"b""#));
 }
 
+/// A page's websocket.
+type Socket = tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>;
+
 /// A dashboard on an empty map and one page on its websocket, past the first frame (reads time
 /// out after 10 s, so a test cannot hang).
-fn page() -> (
-    Dashboard,
-    tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
-) {
+fn page() -> (Dashboard, Socket) {
     let dashboard =
         Dashboard::start(DashboardConfig::default(), &MapView::default()).expect("start");
     let (mut socket, _) =
@@ -86,6 +86,21 @@ fn page() -> (
     }
     let _first = socket.read().expect("first frame");
     (dashboard, socket)
+}
+
+/// The first message on `socket` that reports an error (frames before it are skipped).
+fn first_error(socket: &mut Socket) -> String {
+    loop {
+        let text = socket
+            .read()
+            .expect("reply")
+            .into_text()
+            .expect("text")
+            .to_string();
+        if text.contains("error") {
+            return text;
+        }
+    }
 }
 
 #[test]
@@ -119,17 +134,7 @@ fn frames_go_out_and_actions_come_back_over_the_websocket() {
     socket
         .send(tungstenite::Message::text(r#"{"do":"self-destruct"}"#))
         .unwrap();
-    let error = loop {
-        let text = socket
-            .read()
-            .expect("reply")
-            .into_text()
-            .expect("text")
-            .to_string();
-        if text.contains("error") {
-            break text;
-        }
-    };
+    let error = first_error(&mut socket);
     assert!(error.contains("not understood"), "{error}");
     assert_eq!(
         dashboard.try_action(),
@@ -152,17 +157,7 @@ fn a_flood_of_actions_from_one_page_is_cut_to_the_rate_and_the_page_told() {
             .send(tungstenite::Message::text(r#"{"do":"step"}"#))
             .unwrap();
     }
-    let error = loop {
-        let text = socket
-            .read()
-            .expect("reply")
-            .into_text()
-            .unwrap()
-            .to_string();
-        if text.contains("error") {
-            break text;
-        }
-    };
+    let error = first_error(&mut socket);
     assert!(error.contains("too many actions"), "{error}");
     std::thread::sleep(Duration::from_millis(500));
     let mut taken = 0;
