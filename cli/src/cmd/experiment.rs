@@ -135,10 +135,10 @@ pub struct SharedControlArgs {
     /// The drivers' input device.
     #[arg(long, default_value = "head-cap", value_parser = ["head-cap", "joystick"])]
     device: String,
-    /// How the simulated drivers' judgement moves in time: `per-period` (a fresh misjudgement
-    /// every period) or `steady` (misjudgement correlated over a reaction time, head-cap steps
-    /// with hysteresis, input kept while the guard backs the chair out).
-    #[arg(long, default_value = "per-period", value_parser = ["per-period", "steady"])]
+    /// How the simulated drivers' judgement moves in time: `steady` (the default: a smaller
+    /// misjudgement correlated over a reaction time, head-cap steps with hysteresis) or
+    /// `per-period` (a fresh misjudgement every period, the model before the calibration).
+    #[arg(long, default_value = "steady", value_parser = ["per-period", "steady"])]
     driver_model: String,
     /// What VFH+ and the guarded policy see (the thesis's field always uses the sonars).
     #[arg(long, default_value = "sonars-laser", value_parser = ["sonars", "sonars-laser"])]
