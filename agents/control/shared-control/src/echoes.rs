@@ -14,7 +14,8 @@
 //! - each echo nearer than [`EchoMemoryParams::near_m`] adds a hit to every cell on its arc;
 //! - each reading takes [`FREE_WEIGHT`] hits from every remembered cell its cone has looked
 //!   through (nearer than its range by [`FREE_GAP_M`]; no echo at all looks through the whole
-//!   cone), and a cell left with none is dropped;
+//!   cone), and a cell left with none is dropped; a cell beside the chair's side where arcs
+//!   cross loses only [`CROSSED_FREE_WEIGHT`] (a sonar misses a thin edge seen end-on);
 //! - a cell the chair's body covered on its recent path is not an obstacle: nothing stood where
 //!   the chair drove (this is what clears the arcs a rear corner sonar throws behind the chair
 //!   while it passes a door, which held every backing when every near echo was remembered).
@@ -73,6 +74,13 @@ const HIT_CAP: u8 = 6;
 /// Hits taken from a cell by one reading that looked through it: one contrary reading outweighs
 /// one hit, so a cell guessed once from an arc goes at the first cone that sees past it.
 const FREE_WEIGHT: u8 = 2;
+/// Hits taken from a cell beside the chair's side where arcs cross by one reading that looked
+/// through it. Two echoes from two directions placed it, and a sonar misses a thin edge seen
+/// end-on (its rays run along it): the side sonar passing a fire door's jamb read 0.66 m twice
+/// with the jamb 11 cm off its axis, which cleared the jamb from the memory, and the chair's side
+/// was swung into it (ward corridor, seed 4). Ahead of the front the full weight stays: a
+/// crossing guessed there, where no cone looks again, stopped the chair where nothing stood.
+const CROSSED_FREE_WEIGHT: u8 = 1;
 /// How much nearer than a reading a cell's centre must be for the reading to look through it, m:
 /// four standard deviations of the 1 cm range noise plus half a cell's diagonal.
 const FREE_GAP_M: f64 = 0.04 + CELL_M * std::f64::consts::FRAC_1_SQRT_2;
@@ -233,9 +241,14 @@ impl EchoMemory {
                     q.y.atan2(q.x).abs() <= half && q.coords.norm() < *free_to
                 })
                 .count();
+            let weight = if cell.crossed && beside(&fp, &at) {
+                CROSSED_FREE_WEIGHT
+            } else {
+                FREE_WEIGHT
+            };
             let taken = u8::try_from(looked)
                 .unwrap_or(u8::MAX)
-                .saturating_mul(FREE_WEIGHT);
+                .saturating_mul(weight);
             cell.hits = cell.hits.saturating_sub(taken);
             let moved = cell.hit_from.inverse() * pose;
             let net = moved.translation.vector.norm() + moved.rotation.angle().abs() * corner_m;
@@ -250,6 +263,16 @@ impl EchoMemory {
     /// Forgets everything (a dense sensor has taken over).
     pub fn clear(&mut self) {
         self.cells.clear();
+    }
+
+    /// How many cells are remembered (crossed or not): the memory's fill.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Whether no cell is remembered.
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
     }
 
     /// The remembered obstacle points (the centres of the cells where arcs cross), in the frame
@@ -308,6 +331,11 @@ fn cell_of(p: &Point2<f64>) -> (i64, i64) {
 /// The centre of a grid cell (odometry frame).
 fn centre((i, j): (i64, i64)) -> Point2<f64> {
     Point2::new((i as f64 + 0.5) * CELL_M, (j as f64 + 0.5) * CELL_M)
+}
+
+/// Whether `p` (chair frame) lies beside the footprint's sides (between its front and rear).
+fn beside(fp: &Footprint, p: &Point2<f64>) -> bool {
+    p.x < fp.front_m && p.x > -fp.rear_m
 }
 
 /// Whether `p` (chair frame) lies inside the footprint shrunk by `inset`.
@@ -600,6 +628,57 @@ mod tests {
             guarded(&mut g, spin, (now.0 + 50_000_000, pose), &sonar, &far),
             guarded(&mut guard(), spin, (now.0 + 50_000_000, pose), &sonar, &far),
         );
+    }
+
+    #[test]
+    fn an_edge_running_into_the_front_blind_zone_holds_a_turn_into_it() {
+        // A desk's edge 20 cm ahead of the front, from beyond the right side to 9 cm right of the
+        // centre line: the front right sonar S1 sees it, no sonar sees the part in the blind zone
+        // between the two front cones. The chair is driving forward turning left, away from the
+        // echo (ward corridor, seed 6); the front edge would sweep into the unseen part.
+        let desk: Vec<Point2<f64>> = (0..=70)
+            .map(|k| Point2::new(FP.front_m + 0.2, -0.8 + k as f64 * 0.01))
+            .collect();
+        let pose = Isometry2::identity();
+        let sonar = sonars(&pose, &desk);
+        assert!(sonar[0].is_some_and(|d| d < 0.25), "S1 sees it: {sonar:?}");
+        assert!(sonar[15].is_none(), "S16 does not: {sonar:?}");
+        let moving = VelocityCommand::new(0.3, 0.5);
+        let user = VelocityCommand::new(0.4, 0.7);
+        let params = |front_gap_m| crate::ArcGuardParams {
+            front_gap_m,
+            ..crate::ArcGuardParams::default()
+        };
+        let step = |front_gap_m, dense: &[Point2<f64>]| {
+            use crate::SharedController;
+            let mut g =
+                crate::ArcGuard::new(params(front_gap_m), FP, FP.sonar_mounts().to_vec()).unwrap();
+            g.step(&crate::SharedInput {
+                user,
+                speed_mps: moving.linear_mps,
+                sonar_m: &sonar,
+                points_chair: dense,
+                motion: Some(Motion {
+                    time_ns: 0,
+                    t_odom_chair: pose,
+                    twist: moving,
+                }),
+            })
+            .unwrap()
+            .command
+        };
+        let check = guard();
+        for (front_gap_m, safe) in [(0.0, false), (0.25, true)] {
+            let command = step(front_gap_m, &[]);
+            assert_eq!(
+                check.is_clear_from(moving, command, &desk),
+                safe,
+                "front_gap_m {front_gap_m}: {command:?}"
+            );
+        }
+        // With dense points the laser sees the zone: nothing is laid across it.
+        let far = [Point2::new(3.0, 0.0)];
+        assert_eq!(step(0.25, &far), step(0.0, &far));
     }
 
     #[test]
