@@ -14,8 +14,8 @@
 //!
 //! Every kind of dependency counts (normal, build and dev), except a dev-dependency on an
 //! internal test helper under `tests/` that itself depends on nothing of ours (the test-data
-//! locator `tests/testdata`, the benches' clock `tests/bench-clock`): it cannot carry a layer
-//! upwards.
+//! locator `tests/testdata`, the benches' clock `tests/bench-clock`, the raw connections of
+//! `tests/net-probe`): it cannot carry a layer upwards.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -105,30 +105,8 @@ pub trait Body {
 }
 
 /// One [`BodyError`] reported more than once: a [`BodyWorker`] reports a failed read on every
-/// read until the next one. Like `anyhow::Error` it is no `Error` of its own but dereferences to
-/// the body's error, so `source()` of a [`BodyError::Link`] is that [`BodyError`].
-#[derive(Debug, Clone)]
-pub struct SharedBodyError(std::sync::Arc<BodyError>);
-
-impl From<BodyError> for SharedBodyError {
-    fn from(error: BodyError) -> Self {
-        Self(std::sync::Arc::new(error))
-    }
-}
-
-impl std::ops::Deref for SharedBodyError {
-    type Target = BodyError;
-
-    fn deref(&self) -> &BodyError {
-        &self.0
-    }
-}
-
-impl std::fmt::Display for SharedBodyError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        self.0.fmt(f)
-    }
-}
+/// read until the next one. `source()` of a [`BodyError::Link`] is that [`BodyError`].
+pub type SharedBodyError = iw_cause::Cause<BodyError>;
 
 /// Why the body could not read or command.
 #[derive(Debug, thiserror::Error)]

@@ -2,40 +2,17 @@
 //! total while other peers are still served, and a request trickled a byte at a time is cut at
 //! the request timeout, not kept alive by every byte.
 
-use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::net::SocketAddr;
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_mtp_http::{MtpClient, MtpServer, ServerLimits};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpSocket, TcpStream};
+use iw_net_probe::{closed_within, connect_from, loopback};
+use tokio::io::AsyncWriteExt;
 use tokio::sync::mpsc;
 
 /// Generous bound for what must happen on a loaded machine; never the expected time.
 const PATIENCE: Duration = Duration::from_secs(20);
-
-fn loopback(last: u8) -> IpAddr {
-    IpAddr::V4(Ipv4Addr::new(127, 0, 0, last))
-}
-
-async fn connect_from(source: IpAddr, to: SocketAddr) -> TcpStream {
-    let socket = TcpSocket::new_v4().unwrap();
-    socket.bind(SocketAddr::new(source, 0)).unwrap();
-    socket.connect(to).await.unwrap()
-}
-
-/// Whether the server closed `stream` (EOF or a reset) within `within`.
-async fn closed_within(stream: &mut TcpStream, within: Duration) -> bool {
-    let mut buf = [0u8; 512];
-    let deadline = tokio::time::Instant::now() + within;
-    loop {
-        match tokio::time::timeout_at(deadline, stream.read(&mut buf)).await {
-            Err(_) => return false,
-            Ok(Ok(0) | Err(_)) => return true,
-            Ok(Ok(_)) => {}
-        }
-    }
-}
 
 async fn server(limits: ServerLimits) -> (MtpServer, mpsc::Receiver<iw_mtp_http::Delivery>) {
     let (tx, rx) = mpsc::channel(16);
@@ -64,10 +41,10 @@ async fn held_connections_are_capped_per_source_and_in_total_and_others_are_serv
     let to = server.local_addr();
     // One source holds its two connections, silent.
     let mut held = vec![
-        connect_from(loopback(2), to).await,
-        connect_from(loopback(2), to).await,
+        connect_from(loopback(2), to).await.unwrap(),
+        connect_from(loopback(2), to).await.unwrap(),
     ];
-    let mut third = connect_from(loopback(2), to).await;
+    let mut third = connect_from(loopback(2), to).await.unwrap();
     assert!(
         closed_within(&mut third, PATIENCE).await,
         "a source's third connection is closed at accept"
@@ -79,8 +56,8 @@ async fn held_connections_are_capped_per_source_and_in_total_and_others_are_serv
         );
     }
     // Another source takes the last slot; a fourth source then finds the cap reached.
-    held.push(connect_from(loopback(3), to).await);
-    let mut over = connect_from(loopback(4), to).await;
+    held.push(connect_from(loopback(3), to).await.unwrap());
+    let mut over = connect_from(loopback(4), to).await.unwrap();
     assert!(
         closed_within(&mut over, PATIENCE).await,
         "a connection over the total cap is closed at accept"
@@ -115,7 +92,9 @@ async fn a_request_trickled_a_byte_at_a_time_is_cut_at_the_request_timeout() {
         ..ServerLimits::default()
     };
     let (server, _rx) = server(limits).await;
-    let mut stream = connect_from(loopback(5), server.local_addr()).await;
+    let mut stream = connect_from(loopback(5), server.local_addr())
+        .await
+        .unwrap();
     let head = b"POST /acc HTTP/1.1\r\nHost: x\r\nX-Slow: ".repeat(100);
     let started = std::time::Instant::now();
     let mut cut = false;

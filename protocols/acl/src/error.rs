@@ -136,28 +136,6 @@ pub enum Error {
     },
 }
 
-/// The error under [`Error::InvalidValue`], boxed because it is an [`enum@Error`] itself. It is no
-/// `std::error::Error` of its own but dereferences to the inner error (as `anyhow::Error` does),
-/// so `source()` of an [`Error::InvalidValue`] is that inner [`enum@Error`], not a box around it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ValueError(Box<Error>);
-
-impl From<Error> for ValueError {
-    fn from(error: Error) -> Self {
-        Self(Box::new(error))
-    }
-}
-
-impl std::ops::Deref for ValueError {
-    type Target = Error;
-
-    fn deref(&self) -> &Error {
-        &self.0
-    }
-}
-
-impl std::fmt::Display for ValueError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        self.0.fmt(f)
-    }
-}
+/// The error under [`Error::InvalidValue`], kept behind a pointer because it is an
+/// [`enum@Error`] itself; `source()` of an [`Error::InvalidValue`] is that inner [`enum@Error`].
+pub type ValueError = iw_cause::Cause<Error>;

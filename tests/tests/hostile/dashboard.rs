@@ -3,12 +3,12 @@
 //! the server's descriptors stay bounded, and a client with the token from another address is
 //! still served.
 
-use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::net::{IpAddr, SocketAddr};
 use std::time::{Duration, Instant};
 
 use iw_dashboard::{ConnectionLimits, Dashboard, DashboardConfig, MapView};
+use iw_net_probe::{closed_within, connect_from, loopback};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpSocket, TcpStream};
 
 const TOKEN: &str = "hostile-suite-token";
 
@@ -29,18 +29,6 @@ fn start() -> Dashboard {
         ..DashboardConfig::default()
     };
     Dashboard::start_with_limits(config, &MapView::default(), limits()).expect("start dashboard")
-}
-
-fn loopback(last: u8) -> IpAddr {
-    IpAddr::V4(Ipv4Addr::new(127, 0, 0, last))
-}
-
-async fn connect_from(source: IpAddr, to: SocketAddr) -> std::io::Result<TcpStream> {
-    let socket = TcpSocket::new_v4()?;
-    socket.bind(SocketAddr::new(source, 0))?;
-    tokio::time::timeout(Duration::from_secs(3), socket.connect(to))
-        .await
-        .map_err(|_| std::io::Error::from(std::io::ErrorKind::TimedOut))?
 }
 
 /// One complete GET from `source`; the reply, or what went wrong.
@@ -105,20 +93,6 @@ fn server_side_sockets(port: u16) -> usize {
                 && fields.get(9).is_some_and(|inode| inodes.contains(*inode))
         })
         .count()
-}
-
-/// Whether the server has closed `stream` within `within` (EOF, a reset or a refused write).
-async fn closed_within(stream: &mut TcpStream, within: Duration) -> bool {
-    let mut buf = [0u8; 512];
-    let deadline = tokio::time::Instant::now() + within;
-    loop {
-        match tokio::time::timeout_at(deadline, stream.read(&mut buf)).await {
-            Err(_) => return false,
-            Ok(Ok(0) | Err(_)) => return true,
-            // A 408 or similar before the close: keep reading to the end.
-            Ok(Ok(_)) => {}
-        }
-    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

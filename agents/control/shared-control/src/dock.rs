@@ -216,20 +216,15 @@ impl Docking {
     }
 }
 
+/// The wall sampler the recovery rig test uses too.
+#[cfg(test)]
+#[path = "../tests/support/walls.rs"]
+mod walls;
+
 #[cfg(test)]
 mod tests {
+    use super::walls::segment;
     use super::*;
-
-    /// Points every 2 cm from `a` to `b`.
-    fn segment(a: (f64, f64), b: (f64, f64)) -> Vec<Point2<f64>> {
-        let n = (((b.0 - a.0).hypot(b.1 - a.1)) / 0.02).ceil() as usize;
-        (0..=n)
-            .map(|k| {
-                let t = k as f64 / n as f64;
-                Point2::new(a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1))
-            })
-            .collect()
-    }
 
     #[test]
     fn the_lane_is_the_passages_centre_line_and_axis_seen_from_a_chair_at_an_angle() {

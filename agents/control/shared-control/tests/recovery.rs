@@ -12,20 +12,13 @@ use iw_shared_control::{
 };
 use nalgebra::{Isometry2, Point2, Vector2};
 
+#[path = "support/walls.rs"]
+mod walls;
+use walls::segment;
+
 const PERIOD_S: f64 = 0.05;
 /// Half the passage's width, m (0.95 m between the seats and the wall).
 const HALF_PASSAGE_M: f64 = 0.475;
-
-/// Points every 2 cm from `a` to `b`.
-fn segment(a: (f64, f64), b: (f64, f64)) -> Vec<Point2<f64>> {
-    let n = (((b.0 - a.0).hypot(b.1 - a.1)) / 0.02).ceil() as usize;
-    (0..=n)
-        .map(|k| {
-            let t = k as f64 / n as f64;
-            Point2::new(a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1))
-        })
-        .collect()
-}
 
 /// The passage runs along +x from x = 0 to 3 m, centred on y = 0. The wall on its right goes on
 /// along the approach; the seats on its left start at x = 0, and the corridor before them is 2 m

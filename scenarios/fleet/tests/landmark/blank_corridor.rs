@@ -8,8 +8,7 @@
 use iw_sim::Map;
 use nalgebra::{Isometry2, Vector2};
 
-mod common;
-use common::{Drive, Sample, THRESHOLD_M2, covered, detour, print, stops};
+use crate::common::{Drive, Sample, THRESHOLD_M2, covered, detour, print, stops};
 
 /// A 2 m wide corridor, 40 m long, with a 2.5 m wide alcove on its south side at x = 28 whose
 /// back wall carries landmark 1, and the goal near the east end. From the west end the laser
