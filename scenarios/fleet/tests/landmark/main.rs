@@ -92,9 +92,11 @@ fn one_seed(map: &Map, seed: u64) -> Result<String, String> {
             "the covariance did not drop at the landmark: {summary}"
         ));
     }
+    // against the no-detour drive's expected error (its covariance), not its error: that is one
+    // random draw (4-26 cm across runs), once as low as 3.8 cm beside a reset error of 1.9 cm
     if !(after.error_m() < 0.05
         && after.error_m() < d.peak_m / 2.0
-        && after.error_m() < plain.error_m() / 3.0)
+        && after.error_m() < plain.trace_m2().sqrt() / 3.0)
     {
         return Err(format!("the error was not reset: {summary}"));
     }
