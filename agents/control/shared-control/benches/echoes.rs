@@ -14,6 +14,10 @@ use iw_shared_control::{
 };
 use nalgebra::{Isometry2, Point2, Vector2};
 
+#[path = "../tests/support/sonars.rs"]
+mod sonar_rig;
+use sonar_rig::sonars;
+
 const FP: Footprint = Footprint::PROTOTYPE;
 const PERIOD_NS: u64 = 50_000_000;
 /// Periods driven before the measured one: 3 s, 1.5 m, more than the memory keeps.
@@ -35,25 +39,6 @@ fn world() -> Vec<Point2<f64>> {
     w.extend((0..=10).map(|k| Point2::new(1.2 + k as f64 * 0.01, jamb)));
     w.extend((0..15).map(|k| Point2::new(1.2, jamb + k as f64 * 0.01)));
     w
-}
-
-/// What the 16 sonars read at `pose` among `world`: the nearest point in each 45 degree cone,
-/// 5 cm to 3 m.
-fn sonars(pose: &Isometry2<f64>, world: &[Point2<f64>]) -> Vec<Option<f64>> {
-    let half = 22.5f64.to_radians();
-    FP.sonar_mounts()
-        .iter()
-        .map(|mount| {
-            let inv = (pose * mount).inverse();
-            world
-                .iter()
-                .map(|p| inv * p)
-                .filter(|q| q.y.atan2(q.x).abs() <= half)
-                .map(|q| q.coords.norm().max(0.05))
-                .filter(|&r| r <= 3.0)
-                .min_by(f64::total_cmp)
-        })
-        .collect()
 }
 
 /// The periods of the drive: time, pose, readings.

@@ -343,8 +343,14 @@ fn inside(fp: &Footprint, inset: f64, p: &Point2<f64>) -> bool {
     p.x < fp.front_m - inset && p.x > -fp.rear_m + inset && p.y.abs() < fp.half_width_m - inset
 }
 
+/// The sonar reader the bench uses too.
+#[cfg(test)]
+#[path = "../tests/support/sonars.rs"]
+mod sonar_rig;
+
 #[cfg(test)]
 mod tests {
+    use super::sonar_rig::sonars;
     use super::*;
     use crate::VelocityCommand;
 
@@ -358,25 +364,6 @@ mod tests {
             45.0,
         )
         .unwrap()
-    }
-
-    /// The readings of the prototype's sonars at `pose` (odometry frame) among obstacle points
-    /// `world`: the nearest point inside each continuous 45 degree cone, within 3 m.
-    fn sonars(pose: &Isometry2<f64>, world: &[Point2<f64>]) -> Vec<Option<f64>> {
-        let half = 22.5f64.to_radians();
-        FP.sonar_mounts()
-            .iter()
-            .map(|mount| {
-                let inv = (pose * mount).inverse();
-                world
-                    .iter()
-                    .map(|p| inv * p)
-                    .filter(|q| q.y.atan2(q.x).abs() <= half)
-                    .map(|q| q.coords.norm().max(0.05))
-                    .filter(|&r| r <= 3.0)
-                    .min_by(f64::total_cmp)
-            })
-            .collect()
     }
 
     fn at(time_ns: u64, pose: Isometry2<f64>) -> Motion {
