@@ -1,6 +1,7 @@
 //! `intellwheels spawn --admin-stdin`: the parent's admin path. Lines that are not commands, or
 //! too long, are refused with an `admin` event and the container runs on, as is a command for
-//! another role (a blinded laser outside the world); a command is carried out; closing stdin
+//! another role (a blinded laser or a failed sensor outside the world); a command is carried
+//! out; closing stdin
 //! (the parent gone) stops the container cleanly.
 
 mod common;
@@ -52,6 +53,13 @@ fn bad_admin_lines_are_refused_and_a_closed_stdin_stops_the_container() {
         "{{\"admin\": \"laser-blind\", \"chair\": \"chair1\", \"blind\": true}}"
     )
     .unwrap();
+    let failure = |sensor: &str| {
+        format!(
+            "{{\"admin\": \"sensor-failure\", \"chair\": \"chair1\", \"sensor\": \"{sensor}\", \"failed\": true}}"
+        )
+    };
+    writeln!(stdin, "{}", failure("sonars")).unwrap();
+    writeln!(stdin, "{}", failure("camera")).unwrap();
     writeln!(
         stdin,
         "{{\"admin\": \"kill-agent\", \"agent\": \"watcher\"}}"
@@ -85,6 +93,21 @@ fn bad_admin_lines_are_refused_and_a_closed_stdin_stops_the_container() {
             .unwrap()
             .contains("only the world container"),
         "{laser}"
+    );
+    let sonars = next("a sensor-failure refused outside the world", &admin);
+    assert_eq!(
+        sonars["done"], "sensor-failure chair1 sonars true",
+        "{sonars}"
+    );
+    assert_eq!(
+        sonars["error"], "only the world container fails a sensor",
+        "{sonars}"
+    );
+    let camera = next("an unknown sensor refused", &admin);
+    let why = camera["error"].as_str().unwrap();
+    assert!(
+        why.contains("not an admin command") && why.contains("camera"),
+        "{camera}"
     );
     let killed = next("the watcher killed", &admin);
     assert_eq!(killed["done"], "kill-agent watcher@services", "{killed}");

@@ -83,9 +83,9 @@ pub struct Args {
     /// chair joins; repeatable (services.goals).
     #[arg(long = "goal", value_name = "CHAIR:PLACE")]
     goals: Vec<String>,
-    /// Take admin commands (JSON lines: a goal, a killed agent) on stdin from the parent
-    /// process, and stop when stdin closes (the parent is gone). The scenario runner's
-    /// `--processes` mode drives its containers this way.
+    /// Take admin commands (JSON lines: a goal, a killed agent, a blinded laser, a failed
+    /// sensor) on stdin from the parent process, and stop when stdin closes (the parent is
+    /// gone). The scenario runner's `--processes` mode drives its containers this way.
     #[arg(long)]
     admin_stdin: bool,
 }

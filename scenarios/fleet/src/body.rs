@@ -13,6 +13,7 @@ use iw_body::{
 use iw_perception::VisualConfig;
 use iw_sim::{ChairId, GhostSensors, SharedWorld, VirtualBody};
 use iw_wiring as compose;
+use iw_wiring::world_link::FrameFaults;
 use iw_wiring::{Cause, SharedBody, StartError};
 use nalgebra::Isometry2;
 
@@ -26,6 +27,22 @@ pub struct SensorFaults {
     /// The laser returns no ranges (covered or broken) while the rest reads on: the localizer
     /// can no longer match the map and dead-reckons.
     pub laser_blind: Arc<AtomicBool>,
+    /// The laser returns garbage while the rest reads on
+    /// ([`iw_wiring::world_link::FrameFaults`], as a world container sends it).
+    pub laser_garbage: Arc<AtomicBool>,
+    /// The sonars return garbage while the rest reads on.
+    pub sonar_garbage: Arc<AtomicBool>,
+}
+
+impl SensorFaults {
+    /// The faults of the readings now, as a world container applies them to its frames.
+    fn frame(&self) -> FrameFaults {
+        FrameFaults {
+            laser_blind: self.laser_blind.load(Ordering::Acquire),
+            laser_garbage: self.laser_garbage.load(Ordering::Acquire),
+            sonar_garbage: self.sonar_garbage.load(Ordering::Acquire),
+        }
+    }
 }
 
 /// A [`Body`] whose sensors can be failed on purpose ([`SensorFaults`]).
@@ -49,9 +66,9 @@ impl<B: Body> Body for FaultyBody<B> {
             });
         }
         let mut frame = self.inner.read()?;
-        if self.faults.laser_blind.load(Ordering::Acquire) {
-            frame.laser_m.clear();
-        }
+        self.faults
+            .frame()
+            .apply(&mut frame.laser_m, &mut frame.sonar_m);
         Ok(frame)
     }
 

@@ -47,7 +47,11 @@ pub fn apply(
             )))
         }
         PageAction::Fault { chair, failed } => {
-            fleet.set_sensor_failure(chair, *failed)?;
+            fleet.set_sensor_failure(
+                chair,
+                crate::compose::world_link::FailedSensor::All,
+                *failed,
+            )?;
             Ok(Some(format!(
                 "{chair}: sensors {}",
                 if *failed { "failed" } else { "restored" }

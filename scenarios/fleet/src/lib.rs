@@ -73,6 +73,7 @@ use iw_ontology::wheelchair::Pose;
 use iw_sim::{ChairId, ChairKind, ChairSpec, Map, SharedWorld, World};
 use nalgebra::{Isometry2, Point2};
 
+use compose::world_link::FailedSensor;
 use compose::{Building, ServiceConfig, StartError, desk};
 /// The interface agent's raw device readings, for [`Fleet::inputs`].
 pub use iw_interface::RawInput;
@@ -430,9 +431,19 @@ impl Fleet {
         }
     }
 
-    /// Fails (or restores) every sensor read of `chair`.
-    pub fn set_sensor_failure(&mut self, chair: &str, failed: bool) -> Result<(), FleetError> {
-        self.set_fault(chair, |f| &f.failed, failed)
+    /// Fails (or restores) `sensor` of `chair`: every read (`All`), or the laser's or the
+    /// sonars' readings (garbage).
+    pub fn set_sensor_failure(
+        &mut self,
+        chair: &str,
+        sensor: FailedSensor,
+        failed: bool,
+    ) -> Result<(), FleetError> {
+        match sensor {
+            FailedSensor::All => self.set_fault(chair, |f| &f.failed, failed),
+            FailedSensor::Laser => self.set_fault(chair, |f| &f.laser_garbage, failed),
+            FailedSensor::Sonars => self.set_fault(chair, |f| &f.sonar_garbage, failed),
+        }
     }
 
     /// Blinds (or restores) `chair`'s laser: it returns no ranges while the wheels, sonars and

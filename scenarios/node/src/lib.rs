@@ -21,7 +21,8 @@
 //!   agents on an in-process bus behind an HTTP MTP gateway in one call, and
 //!   [`Echo`](http_platform::Echo), the echo agent of the JADE captures.
 //! - [`AdminCommand`]: what the parent process may ask of a running container on its stdin
-//!   (`--admin-stdin`: a goal, a killed agent, a blinded laser); not reachable from the network.
+//!   (`--admin-stdin`: a goal, a killed agent, a blinded laser, a failed sensor); not reachable
+//!   from the network.
 //! - [`write_identity`]: a new identity key file; [`write_roster`]: a deployment's identity
 //!   keys and the roster that pins them (`security.roster`).
 //!

@@ -19,7 +19,7 @@ use iw_stack::{GuardedTransport, Identity, Platform, PublicKey, StackConfig};
 use iw_transport_net::{TcpTransport, UdpTransport};
 use iw_transport_shm::ShmTransport;
 use iw_wiring::world_link::{
-    BlindLasers, BodyRoster, WorldAgent, WorldBody, WorldDoors, WorldGhost, body_endpoint,
+    BodyRoster, WorldAgent, WorldBody, WorldDoors, WorldFaults, WorldGhost, body_endpoint,
     world_agent,
 };
 use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk, StartError};
@@ -437,18 +437,18 @@ fn world_parts(config: &SpawnConfig) -> Result<(Agents, WorldReports), NodeError
     let reports = WorldReports {
         world,
         roster,
-        blind: agent.blind_lasers(),
+        faults: agent.sensor_faults(),
         last: None,
     };
     Ok((vec![(world_agent(), Box::new(agent))], reports))
 }
 
-/// What the world runtime reports from: the world, its bodies, the last report; and the chairs
-/// whose laser it blinds (an admin command).
+/// What the world runtime reports from: the world, its bodies, the last report; and the faults
+/// it plays in its bodies' frames (admin commands).
 struct WorldReports {
     world: iw_sim::SharedWorld,
     roster: BodyRoster,
-    blind: BlindLasers,
+    faults: WorldFaults,
     last: Option<Time>,
 }
 

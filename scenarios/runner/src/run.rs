@@ -123,7 +123,9 @@ pub fn run_with_progress(
                         Fault::KillAgent {
                             container, agent, ..
                         } => fleet.kill_agent(container, agent),
-                        Fault::SensorFailure { chair, .. } => fleet.set_sensor_failure(chair, true),
+                        Fault::SensorFailure { chair, sensor, .. } => {
+                            fleet.set_sensor_failure(chair, *sensor, true)
+                        }
                         Fault::LaserBlind { chair, .. } => fleet.set_laser_blind(chair, true),
                         Fault::JammedDoor { door, .. } => fleet.jam_door(door),
                         Fault::KillContainer { .. } => {
@@ -146,11 +148,11 @@ pub fn run_with_progress(
                         .map_err(fleet_err(now_s))?;
                     format!("laser of {chair} restored")
                 }
-                Cue::SensorsBack(chair) => {
+                Cue::SensorsBack(chair, sensor) => {
                     fleet
-                        .set_sensor_failure(chair, false)
+                        .set_sensor_failure(chair, *sensor, false)
                         .map_err(fleet_err(now_s))?;
-                    format!("sensors of {chair} restored")
+                    format!("sensor {sensor} of {chair} restored")
                 }
             };
             timeline.push(format!("{now_s:7.2} s: {line}"));

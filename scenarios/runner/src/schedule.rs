@@ -1,6 +1,7 @@
 //! The scenario's goals, door commands and faults as one time-ordered list of cues, the same
 //! for both modes.
 
+use iw_fleet::compose::world_link::FailedSensor;
 use iw_sim::Map;
 use nalgebra::Point2;
 
@@ -19,7 +20,7 @@ pub enum Cue<'a> {
     /// A link fault ends.
     LinkUp(&'a str),
     /// A sensor fault ends.
-    SensorsBack(&'a str),
+    SensorsBack(&'a str, FailedSensor),
     /// A blinded laser sees again.
     LaserBack(&'a str),
 }
@@ -69,8 +70,9 @@ pub fn schedule<'a>(
             Fault::SensorFailure {
                 at_s,
                 chair,
+                sensor,
                 for_s: Some(d),
-            } => schedule.push((at_s + d, Cue::SensorsBack(chair))),
+            } => schedule.push((at_s + d, Cue::SensorsBack(chair, *sensor))),
             Fault::LaserBlind {
                 at_s,
                 chair,

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use iw_fleet::BodyKind;
+use iw_fleet::compose::world_link::FailedSensor;
 use iw_sim::Map;
 use serde::{Deserialize, Serialize};
 
@@ -91,19 +92,24 @@ pub enum Fault {
         /// `door`, `logger`, `watcher`, `assistant`, `staff` in `services`.
         agent: String,
     },
-    /// Every sensor read of a chair fails from `at_s` for `for_s` (forever if absent).
+    /// A chair's sensor fails from `at_s` for `for_s` (forever if absent): every body read
+    /// (`sensor = "all"`, the default; in process only), or the laser's or the sonars'
+    /// readings, which come as garbage while the rest reads on.
     SensorFailure {
         /// When, s.
         at_s: f64,
         /// The chair.
         chair: String,
+        /// Which sensor.
+        #[serde(default)]
+        sensor: FailedSensor,
         /// Duration, s.
         #[serde(default)]
         for_s: Option<f64>,
     },
     /// A chair's laser returns nothing from `at_s` for `for_s` (forever if absent), as if
     /// covered, while its wheels, sonars and camera read on: its localizer drops the laser and
-    /// dead-reckons. In process only (the world container takes no such command yet).
+    /// dead-reckons.
     LaserBlind {
         /// When, s.
         at_s: f64,

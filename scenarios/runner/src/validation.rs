@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use iw_fleet::compose::world_link::FailedSensor;
 use iw_sim::Map;
 use nalgebra::{Isometry2, Point2, Vector2};
 
@@ -11,8 +12,9 @@ use crate::schema::{Assertion, ChairEntry, Fault, GoalEntry, Scenario};
 
 impl Scenario {
     /// [`Scenario::validate`], and refuses what `mode` cannot play: a killed container in one
-    /// process; sensor failures, jammed doors and door commands across processes (their world
-    /// container takes no such commands yet).
+    /// process; a failure of every body read, jammed doors and door commands across processes
+    /// (their world container takes no such commands: a world that sends a chair nothing is an
+    /// outage the chair waits out, not a failed sensor).
     pub fn validate_for(&self, map: &Map, mode: Mode) -> Result<(), ScenarioError> {
         self.validate(map)?;
         let unsupported = |entry: String, what: &str| {
@@ -33,8 +35,18 @@ impl Scenario {
                 (Mode::InProcess, Fault::KillContainer { .. }) => {
                     return unsupported(entry, "a killed container (kill-container)");
                 }
-                (Mode::Processes, Fault::SensorFailure { .. }) => {
-                    return unsupported(entry, "a sensor failure (sensor-failure)");
+                (
+                    Mode::Processes,
+                    Fault::SensorFailure {
+                        sensor: FailedSensor::All,
+                        ..
+                    },
+                ) => {
+                    return unsupported(
+                        entry,
+                        "a failure of every body read (sensor-failure with sensor `all`, the \
+                         default; `laser` and `sonars` can be played there)",
+                    );
                 }
                 (Mode::Processes, Fault::JammedDoor { .. }) => {
                     return unsupported(entry, "a jammed door (jammed-door)");

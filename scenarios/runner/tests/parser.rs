@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use iw_fleet::BodyKind;
+use iw_fleet::compose::world_link::FailedSensor;
 use iw_scenario::{Assertion, ChairEntry, DoorEntry, Fault, GoalEntry, RestrictedEntry, Scenario};
 use iw_sim::Map;
 use proptest::prelude::*;
@@ -52,8 +53,22 @@ fn fault() -> impl Strategy<Value = Fault> {
             container,
             agent
         }),
-        (time(), name(), proptest::option::of(time()))
-            .prop_map(|(at_s, chair, for_s)| Fault::SensorFailure { at_s, chair, for_s }),
+        (
+            time(),
+            name(),
+            prop_oneof![
+                Just(FailedSensor::All),
+                Just(FailedSensor::Laser),
+                Just(FailedSensor::Sonars)
+            ],
+            proptest::option::of(time())
+        )
+            .prop_map(|(at_s, chair, sensor, for_s)| Fault::SensorFailure {
+                at_s,
+                chair,
+                sensor,
+                for_s
+            }),
         (time(), name(), proptest::option::of(time()))
             .prop_map(|(at_s, chair, for_s)| Fault::LaserBlind { at_s, chair, for_s }),
         (time(), name()).prop_map(|(at_s, door)| Fault::JammedDoor { at_s, door }),

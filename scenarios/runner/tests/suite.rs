@@ -110,9 +110,33 @@ fn what_a_mode_cannot_play_is_refused_naming_the_entry() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("fault[0]") && err.contains("without --processes"),
+        err.contains("fault[0]") && err.contains("without --processes") && err.contains("`all`"),
         "{err}"
     );
+    // the laser's or the sonars' garbage is played by the world container, in either mode
+    for sensor in ["laser", "sonars"] {
+        let text = std::fs::read_to_string(scenarios_dir().join("sensor-failure.toml"))
+            .unwrap()
+            .replace(
+                "kind = \"sensor-failure\"",
+                &format!("kind = \"sensor-failure\"\nsensor = \"{sensor}\""),
+            );
+        let one = iw_scenario::Scenario::parse(&text, &path).unwrap();
+        one.validate_for(&map, iw_scenario::Mode::Processes)
+            .unwrap();
+        one.validate_for(&map, iw_scenario::Mode::InProcess)
+            .unwrap();
+    }
+    let camera = std::fs::read_to_string(scenarios_dir().join("sensor-failure.toml"))
+        .unwrap()
+        .replace(
+            "kind = \"sensor-failure\"",
+            "kind = \"sensor-failure\"\nsensor = \"camera\"",
+        );
+    let err = iw_scenario::Scenario::parse(&camera, &path)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("camera"), "{err}");
 }
 
 #[test]

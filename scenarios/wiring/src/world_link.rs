@@ -9,9 +9,10 @@
 //!   readings there (other chairs, virtual obstacles, doors); a real chair's ghost only reports.
 //! - The door agent moves the world's doors through [`WorldDoors`].
 //!
-//! Faults: a body whose laser the world blinds ([`WorldAgent::blind_lasers`], a scenario's
-//! `laser-blind` played across processes) gets frames with no laser ranges while the rest reads
-//! on, as a covered laser gives them. A simulated body the world hears no wheel command from for [`WORLD_WATCHDOG`] is
+//! Faults: a body whose laser the world blinds or whose laser or sonars it fails
+//! ([`WorldAgent::sensor_faults`], a scenario's `laser-blind` and `sensor-failure` played across
+//! processes) gets frames with no laser ranges, or garbage for that sensor's readings, while the
+//! rest reads on, as a covered or broken sensor gives them. A simulated body the world hears no wheel command from for [`WORLD_WATCHDOG`] is
 //! stopped there; a body that hears no frame for [`LINK_TIMEOUT`] fails its reads (the control
 //! agent stops the chair) and asks to attach again every [`ATTACH_EVERY`], where it last was, so
 //! chairs re-attach to a restarted world; encoder ticks continue across the restart. A virtual
@@ -34,7 +35,7 @@
 //! came or how loaded the host is. The chairs' own agents still run on their own clocks: a
 //! deployment's agents are not made reproducible by this.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -438,9 +439,91 @@ impl DoorActuator for WorldDoors {
 /// The bodies in the world by chair name, shared with whoever reports on the world.
 pub type BodyRoster = Arc<std::sync::Mutex<BTreeMap<String, ChairId>>>;
 
-/// The chairs whose laser the world blinds: their frames carry no laser ranges (a covered or
-/// broken laser; the encoders and sonars read on). Shared with whoever plays the fault.
-pub type BlindLasers = Arc<std::sync::Mutex<BTreeSet<String>>>;
+/// A sensor a scenario's `sensor-failure` fails.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    PartialOrd,
+    Ord,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum FailedSensor {
+    /// Every read of the body fails. No frame can say so: across processes a world that sends a
+    /// chair nothing is an outage the chair waits out, so only an in-process body plays it.
+    #[default]
+    All,
+    /// The laser returns garbage: every beam at [`GARBAGE_RANGE_M`].
+    Laser,
+    /// The sonars return garbage: every transducer at [`GARBAGE_RANGE_M`].
+    Sonars,
+}
+
+impl std::fmt::Display for FailedSensor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FailedSensor::All => "all",
+            FailedSensor::Laser => "laser",
+            FailedSensor::Sonars => "sonars",
+        })
+    }
+}
+
+/// What a failed range sensor returns for every reading: past any range the chair's sensors
+/// read (a scanner's error codes lie above 65.5 m), so the localizer counts it as garbage, and
+/// finite, so it crosses the world link as a reading does.
+pub const GARBAGE_RANGE_M: f64 = 65.533;
+
+/// What is wrong with a chair's range sensors: the same faults in process (the fleet's body
+/// wrapper) and in the frames a world container sends.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FrameFaults {
+    /// The laser returns no ranges (covered).
+    pub laser_blind: bool,
+    /// The laser returns garbage.
+    pub laser_garbage: bool,
+    /// The sonars return garbage.
+    pub sonar_garbage: bool,
+}
+
+impl FrameFaults {
+    /// Whether nothing is wrong.
+    pub fn none(&self) -> bool {
+        *self == FrameFaults::default()
+    }
+
+    /// Sets (`on`) or clears the garbage of `sensor` (`All` is not a frame fault: ignored).
+    pub fn set_garbage(&mut self, sensor: FailedSensor, on: bool) {
+        match sensor {
+            FailedSensor::All => {}
+            FailedSensor::Laser => self.laser_garbage = on,
+            FailedSensor::Sonars => self.sonar_garbage = on,
+        }
+    }
+
+    /// Applies the faults to one frame's readings (a blind laser gives nothing, garbage or not).
+    pub fn apply(&self, laser_m: &mut Vec<f64>, sonar_m: &mut [Option<f64>]) {
+        if self.laser_garbage {
+            laser_m.fill(GARBAGE_RANGE_M);
+        }
+        if self.sonar_garbage {
+            sonar_m.fill(Some(GARBAGE_RANGE_M));
+        }
+        if self.laser_blind {
+            laser_m.clear();
+        }
+    }
+}
+
+/// The faults of the chairs' sensors the world plays in the frames it sends, by chair (a chair
+/// with none is absent). Shared with whoever plays them (a scenario's `laser-blind` and
+/// `sensor-failure` across processes).
+pub type WorldFaults = Arc<std::sync::Mutex<BTreeMap<String, FrameFaults>>>;
 
 /// One body in the world.
 struct Attached {
@@ -459,7 +542,7 @@ pub struct WorldAgent {
     world: SharedWorld,
     bodies: BTreeMap<String, Attached>,
     roster: BodyRoster,
-    blind: BlindLasers,
+    faults: WorldFaults,
     last_step: Option<Time>,
     door_agent: AgentId,
     lockstep: bool,
@@ -472,7 +555,7 @@ impl WorldAgent {
             world,
             bodies: BTreeMap::new(),
             roster: BodyRoster::default(),
-            blind: BlindLasers::default(),
+            faults: WorldFaults::default(),
             last_step: None,
             door_agent,
             lockstep: false,
@@ -603,8 +686,8 @@ impl WorldAgent {
         } else {
             WORLD_WATCHDOG
         };
-        let blind = self
-            .blind
+        let faults = self
+            .faults
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .clone();
@@ -625,18 +708,19 @@ impl WorldAgent {
                 .filter_map(|(chair, body)| {
                     let sensed = world.sensors(body.id).ok()?;
                     let pose = world.pose(body.id).ok()?;
+                    let mut sonar_m = sensed.sonar_m.to_vec();
+                    let mut laser_m = sensed.laser_m.clone();
+                    if let Some(f) = faults.get(chair) {
+                        f.apply(&mut laser_m, &mut sonar_m);
+                    }
                     Some((
                         chair.clone(),
                         BodyFrame {
                             time_ns: sensed.time_ns,
                             left_ticks: sensed.left_ticks,
                             right_ticks: sensed.right_ticks,
-                            sonar_m: sensed.sonar_m.to_vec(),
-                            laser_m: if blind.contains(chair) {
-                                Vec::new()
-                            } else {
-                                sensed.laser_m.clone()
-                            },
+                            sonar_m,
+                            laser_m,
                             pose: pose_of(&pose),
                         },
                     ))
@@ -657,10 +741,10 @@ impl WorldAgent {
         (self.world.clone(), self.roster.clone())
     }
 
-    /// The chairs whose laser is blind: add a chair to blind its laser from the next frame on,
-    /// remove it to give the laser back.
-    pub fn blind_lasers(&self) -> BlindLasers {
-        self.blind.clone()
+    /// The faults of the chairs' sensors: what is set for a chair applies from its next frame
+    /// on.
+    pub fn sensor_faults(&self) -> WorldFaults {
+        self.faults.clone()
     }
 }
 
@@ -774,7 +858,7 @@ mod tests {
         let mut host = AgentHost::new(world_bus);
         let agent = WorldAgent::new(world.clone(), agent_id("door", "services"));
         let (_, roster) = agent.reports();
-        let blind = agent.blind_lasers();
+        let faults = agent.sensor_faults();
         host.add(world_agent(), Box::new(agent)).unwrap();
         let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
         let mut body = WorldBody::open(chair_bus, "c1", start).unwrap();
@@ -808,25 +892,69 @@ mod tests {
             "{:?}",
             frame.laser_m
         );
-        // a blinded laser: the frames come on (encoders and sonars), with no ranges, until the
-        // laser is given back
-        let blinded = |host: &mut AgentHost, body: &mut WorldBody, on: bool| {
+        // the first frame (over the link) that `wanted` takes
+        let until = |host: &mut AgentHost,
+                     body: &mut WorldBody,
+                     what: &str,
+                     wanted: &dyn Fn(&SensorFrame) -> bool| {
             let sent_at = std::time::Instant::now();
             loop {
                 host.step(clock.now());
                 std::thread::sleep(Duration::from_millis(10));
                 let frame = body.read().unwrap();
-                if frame.laser_m.is_empty() == on {
+                if wanted(&frame) {
                     return frame;
                 }
-                assert!(sent_at.elapsed() < Duration::from_secs(20), "never {on}");
+                assert!(sent_at.elapsed() < Duration::from_secs(20), "never {what}");
             }
         };
-        blind.lock().unwrap().insert("c1".into());
-        let frame = blinded(&mut host, &mut body, true);
+        let set = |f: FrameFaults| {
+            let mut faults = faults.lock().unwrap();
+            if f.none() {
+                faults.remove("c1");
+            } else {
+                faults.insert("c1".into(), f);
+            }
+        };
+        // a blinded laser: the frames come on (encoders and sonars), with no ranges, until the
+        // laser is given back
+        set(FrameFaults {
+            laser_blind: true,
+            ..FrameFaults::default()
+        });
+        let frame = until(&mut host, &mut body, "blind", &|f| f.laser_m.is_empty());
         assert!(frame.sonar_m.iter().any(Option::is_some), "{frame:?}");
-        blind.lock().unwrap().remove("c1");
-        assert_eq!(blinded(&mut host, &mut body, false).laser_m.len(), beams);
+        set(FrameFaults::default());
+        let frame = until(&mut host, &mut body, "seeing", &|f| !f.laser_m.is_empty());
+        assert_eq!(frame.laser_m.len(), beams);
+        // a failed laser, then failed sonars: every reading of that sensor is garbage (past any
+        // range, yet a number the link carries), the other sensor reads on
+        let garbage = |r: f64| r == GARBAGE_RANGE_M;
+        set(FrameFaults {
+            laser_garbage: true,
+            ..FrameFaults::default()
+        });
+        let frame = until(&mut host, &mut body, "laser garbage", &|f| {
+            f.laser_m.first().is_some_and(|r| garbage(*r))
+        });
+        assert_eq!(frame.laser_m.len(), beams);
+        assert!(frame.laser_m.iter().all(|r| garbage(*r)), "{frame:?}");
+        assert!(
+            frame.sonar_m.iter().flatten().all(|r| *r < 3.5),
+            "{frame:?}"
+        );
+        set(FrameFaults {
+            sonar_garbage: true,
+            ..FrameFaults::default()
+        });
+        let frame = until(&mut host, &mut body, "sonar garbage", &|f| {
+            f.sonar_m.iter().all(|r| r.is_some_and(garbage))
+        });
+        assert!(frame.laser_m.iter().any(|r| *r < 5.0), "{frame:?}");
+        set(FrameFaults::default());
+        until(&mut host, &mut body, "sonars back", &|f| {
+            !f.sonar_m.iter().flatten().any(|r| garbage(*r))
+        });
         // no more commands: the world's watchdog stops the body
         for _ in 0..60 {
             host.step(clock.now());

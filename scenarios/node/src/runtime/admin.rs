@@ -1,14 +1,16 @@
 //! The admin path: commands the parent process gives a running container on its stdin
 //! (`intellwheels spawn --admin-stdin`), one JSON object per line. The scenario runner plays a
-//! scenario's goals, agent faults and blinded lasers through it.
+//! scenario's goals, agent faults, blinded lasers and failed sensors through it.
 //!
 //! It is not a network path: only the process holding the pipe (the parent that started the
 //! container) can write to it, so nothing on the bus or the control channel can reach it.
 
 use std::collections::BTreeMap;
+use std::sync::PoisonError;
 use std::sync::mpsc::Receiver;
 
 use iw_bus::Time;
+use iw_wiring::world_link::{BodyRoster, FailedSensor, FrameFaults, WorldFaults};
 use serde::Deserialize;
 
 use super::Runtime;
@@ -42,6 +44,17 @@ pub enum AdminCommand {
         chair: String,
         /// Blind, or seeing again.
         blind: bool,
+    },
+    /// World only: fails chair `chair`'s `sensor` (`failed`: its frames carry garbage for that
+    /// sensor's readings, the rest reads on) or restores it. `all` is refused: no frame says
+    /// that every read fails (a world that sends nothing is an outage the chair waits out).
+    SensorFailure {
+        /// A chair whose body is in this world.
+        chair: String,
+        /// `laser` or `sonars`.
+        sensor: FailedSensor,
+        /// Failed, or restored.
+        failed: bool,
     },
 }
 
@@ -96,7 +109,20 @@ impl Runtime {
                 }
                 Ok(AdminCommand::LaserBlind { chair, blind }) => {
                     let done = format!("laser-blind {chair} {blind}");
-                    (done, self.blind_laser(&chair, blind).err())
+                    let world = self.world.as_ref().map(|w| (&w.roster, &w.faults));
+                    let set = frame_fault(world, &chair, "blinds a laser", |f| {
+                        f.laser_blind = blind;
+                    });
+                    (done, set.err())
+                }
+                Ok(AdminCommand::SensorFailure {
+                    chair,
+                    sensor,
+                    failed,
+                }) => {
+                    let done = format!("sensor-failure {chair} {sensor} {failed}");
+                    let world = self.world.as_ref().map(|w| (&w.roster, &w.faults));
+                    (done, fail_sensor(world, &chair, sensor, failed).err())
                 }
                 Ok(AdminCommand::KillAgent { agent }) => {
                     let name = iw_wiring::agent_id(&agent, &self.name).name;
@@ -114,29 +140,104 @@ impl Runtime {
             });
         }
     }
+}
 
-    /// Blinds (or gives back) the laser of `chair`'s body in this world.
-    fn blind_laser(&self, chair: &str, blind: bool) -> Result<(), String> {
-        let Some(world) = &self.world else {
-            return Err("only the world container blinds a laser".into());
+/// A world's bodies and the faults it plays in their frames (`None`: not the world container).
+type WorldSide<'a> = Option<(&'a BodyRoster, &'a WorldFaults)>;
+
+/// Fails (or restores) `sensor` of `chair`'s body in this world.
+fn fail_sensor(
+    world: WorldSide<'_>,
+    chair: &str,
+    sensor: FailedSensor,
+    failed: bool,
+) -> Result<(), String> {
+    if sensor == FailedSensor::All {
+        return Err(
+            "a failure of every read (`all`) cannot be sent in a frame: a chair whose \
+             world sends nothing waits it out as an outage; fail `laser` or `sonars`"
+                .into(),
+        );
+    }
+    frame_fault(world, chair, "fails a sensor", |f| {
+        f.set_garbage(sensor, failed)
+    })
+}
+
+/// Changes the faults of `chair`'s frames with `change`, if this is the world (`what` it does,
+/// for the refusal elsewhere) and `chair` has a body in it.
+fn frame_fault(
+    world: WorldSide<'_>,
+    chair: &str,
+    what: &str,
+    change: impl FnOnce(&mut FrameFaults),
+) -> Result<(), String> {
+    let Some((roster, faults)) = world else {
+        return Err(format!("only the world container {what}"));
+    };
+    let attached = roster
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .contains_key(chair);
+    if !attached {
+        return Err(format!("no body of chair `{chair}` in this world"));
+    }
+    let mut faults = faults.lock().unwrap_or_else(PoisonError::into_inner);
+    let mut now = faults.get(chair).copied().unwrap_or_default();
+    change(&mut now);
+    if now.none() {
+        faults.remove(chair);
+    } else {
+        faults.insert(chair.to_string(), now);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The world's side of `laser-blind` and `sensor-failure`: a chair's faults are set and
+    /// cleared one by one; every refusal says why.
+    #[test]
+    fn the_world_fails_a_chairs_sensors_and_refuses_with_the_reason() {
+        let roster = BodyRoster::default();
+        let faults = WorldFaults::default();
+        roster
+            .lock()
+            .unwrap()
+            .insert("chair1".into(), iw_sim::ChairId(0));
+        let side = Some((&roster, &faults));
+        let of = |chair: &str| faults.lock().unwrap().get(chair).copied();
+
+        fail_sensor(side, "chair1", FailedSensor::Laser, true).unwrap();
+        let laser = FrameFaults {
+            laser_garbage: true,
+            ..FrameFaults::default()
         };
-        let attached = world
-            .roster
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .contains_key(chair);
-        if !attached {
-            return Err(format!("no body of chair `{chair}` in this world"));
-        }
-        let mut lasers = world
-            .blind
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        if blind {
-            lasers.insert(chair.to_string());
-        } else {
-            lasers.remove(chair);
-        }
-        Ok(())
+        assert_eq!(of("chair1"), Some(laser));
+        frame_fault(side, "chair1", "blinds a laser", |f| f.laser_blind = true).unwrap();
+        fail_sensor(side, "chair1", FailedSensor::Sonars, true).unwrap();
+        fail_sensor(side, "chair1", FailedSensor::Laser, false).unwrap();
+        assert_eq!(
+            of("chair1"),
+            Some(FrameFaults {
+                laser_blind: true,
+                sonar_garbage: true,
+                ..FrameFaults::default()
+            })
+        );
+        fail_sensor(side, "chair1", FailedSensor::Sonars, false).unwrap();
+        frame_fault(side, "chair1", "blinds a laser", |f| f.laser_blind = false).unwrap();
+        assert_eq!(of("chair1"), None, "a chair with no fault left is dropped");
+
+        // refused, each with its reason, and nothing changed
+        let all = fail_sensor(side, "chair1", FailedSensor::All, true).unwrap_err();
+        assert!(all.contains("`all`") && all.contains("outage"), "{all}");
+        let nobody = fail_sensor(side, "chair9", FailedSensor::Laser, true).unwrap_err();
+        assert_eq!(nobody, "no body of chair `chair9` in this world");
+        let elsewhere = fail_sensor(None, "chair1", FailedSensor::Laser, true).unwrap_err();
+        assert_eq!(elsewhere, "only the world container fails a sensor");
+        assert!(faults.lock().unwrap().is_empty());
     }
 }

@@ -12,13 +12,15 @@
 //!   process holds the pipe);
 //! - `kill-container`: SIGKILL to the container process;
 //! - `laser-blind`: the world container blinds the chair's laser in the frames it sends (its
-//!   admin path) and gives it back at the end of `for_s`.
+//!   admin path) and gives it back at the end of `for_s`;
+//! - `sensor-failure` of the `laser` or the `sonars`: the world container sends garbage for
+//!   that sensor's readings (its admin path) and restores them at the end of `for_s`.
 //!
 //! A real or mixed chair's interface board is emulated on a pty in this process (with its
 //! hardware watchdog), as the board of a real chair would be beside its computer.
 //!
-//! Not played across processes (refused by [`Scenario::validate_for`]): sensor failures,
-//! jammed doors and door commands. With `visual_odometry`, a virtual chair's container renders
+//! Not played across processes (refused by [`Scenario::validate_for`]): a failure of every
+//! body read (`sensor-failure` with sensor `all`), jammed doors and door commands. With `visual_odometry`, a virtual chair's container renders
 //! its camera from its own copy of the map at the true pose the world sends
 //! (`iw_wiring::camera`).
 
@@ -35,6 +37,7 @@ use std::time::{Duration, Instant};
 use iw_acl::Performative;
 use iw_body::{BoardEmulator, WheelGeometry};
 use iw_fleet::BodyKind;
+use iw_fleet::compose::world_link::FailedSensor;
 use iw_node::Event;
 use iw_sim::Map;
 
@@ -274,6 +277,21 @@ impl Deployment<'_> {
         self.admin(
             WORLD,
             &serde_json::json!({ "admin": "laser-blind", "chair": chair, "blind": blind }),
+        )
+    }
+
+    /// Fails chair `chair`'s `sensor` in the world (or restores it).
+    fn fail_sensor(
+        &mut self,
+        chair: &str,
+        sensor: FailedSensor,
+        failed: bool,
+    ) -> Result<(), ScenarioError> {
+        self.admin(
+            WORLD,
+            &serde_json::json!({
+                "admin": "sensor-failure", "chair": chair, "sensor": sensor, "failed": failed
+            }),
         )
     }
 
@@ -661,6 +679,11 @@ pub fn run_processes(
                         )?,
                         Fault::KillContainer { container, .. } => d.kill(container)?,
                         Fault::LaserBlind { chair, .. } => d.blind_laser(chair, true)?,
+                        Fault::SensorFailure { chair, sensor, .. }
+                            if *sensor != FailedSensor::All =>
+                        {
+                            d.fail_sensor(chair, *sensor, true)?
+                        }
                         Fault::SensorFailure { .. } | Fault::JammedDoor { .. } => {
                             return Err(
                                 scenario.invalid("fault", "cannot be played across processes")
@@ -679,7 +702,11 @@ pub fn run_processes(
                     d.blind_laser(chair, false)?;
                     format!("laser of {chair} back")
                 }
-                Cue::Door(_) | Cue::SensorsBack(_) => {
+                Cue::SensorsBack(chair, sensor) => {
+                    d.fail_sensor(chair, *sensor, false)?;
+                    format!("sensor {sensor} of {chair} restored")
+                }
+                Cue::Door(_) => {
                     return Err(scenario.invalid("door", "cannot be played across processes"));
                 }
             };
