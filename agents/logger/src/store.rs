@@ -546,18 +546,19 @@ impl<R: Read> LogReader<R> {
             };
             let (len, _, seq) = split_header(header.try_into().unwrap_or(&[0; RECORD_HEADER_LEN]));
             // Cheap tests first: most offsets fail them without a checksum.
-            if len <= self.max_record_len && seq >= self.expected_seq {
-                if let Ok(Some(record)) = self.record_here()? {
-                    let damage = Damage {
-                        offset: start,
-                        len: self.offset - start,
-                        reason,
-                        torn_tail: false,
-                        missing_records: record.seq - self.expected_seq,
-                    };
-                    self.expected_seq = record.seq;
-                    return Ok(damage);
-                }
+            if len <= self.max_record_len
+                && seq >= self.expected_seq
+                && let Ok(Some(record)) = self.record_here()?
+            {
+                let damage = Damage {
+                    offset: start,
+                    len: self.offset - start,
+                    reason,
+                    torn_tail: false,
+                    missing_records: record.seq - self.expected_seq,
+                };
+                self.expected_seq = record.seq;
+                return Ok(damage);
             }
             self.consume(1);
         }
