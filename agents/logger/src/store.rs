@@ -1191,6 +1191,22 @@ mod tests {
         assert_eq!((damage[0].len, damage[0].missing_records), (record_len, 1));
     }
 
+    /// A log of `payloads` in `dir` and its bytes with bit `bit` of the byte at `at` (after the
+    /// file header) flipped, and that byte's offset; the file itself is left intact.
+    fn flipped_log(
+        dir: &Path,
+        payloads: &[Vec<u8>],
+        at: prop::sample::Index,
+        bit: u8,
+    ) -> (PathBuf, Vec<u8>, usize) {
+        let refs: Vec<&[u8]> = payloads.iter().map(Vec::as_slice).collect();
+        let path = log_with(dir, &refs);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let flip = FILE_HEADER_LEN as usize + at.index(bytes.len() - FILE_HEADER_LEN as usize);
+        bytes[flip] ^= 1 << bit;
+        (path, bytes, flip)
+    }
+
     /// Hands out at most `step` bytes per read, as a pipe or a slow disk may.
     struct Trickle<'a> {
         bytes: &'a [u8],
@@ -1216,11 +1232,7 @@ mod tests {
             step in 1usize..40,
         ) {
             let dir = tempfile::tempdir().unwrap();
-            let refs: Vec<&[u8]> = payloads.iter().map(Vec::as_slice).collect();
-            let path = log_with(dir.path(), &refs);
-            let mut bytes = std::fs::read(&path).unwrap();
-            let flip = FILE_HEADER_LEN as usize + at.index(bytes.len() - FILE_HEADER_LEN as usize);
-            bytes[flip] ^= 0x04;
+            let (path, bytes, _) = flipped_log(dir.path(), &payloads, at, 2);
             let whole = parse_log(&bytes, &path, 64).unwrap();
             let trickled = collect(
                 LogReader::new(Trickle { bytes: &bytes, step }, &path, 64).unwrap(),
@@ -1256,11 +1268,7 @@ mod tests {
             bit in 0u8..8,
         ) {
             let dir = tempfile::tempdir().unwrap();
-            let refs: Vec<&[u8]> = payloads.iter().map(Vec::as_slice).collect();
-            let path = log_with(dir.path(), &refs);
-            let mut bytes = std::fs::read(&path).unwrap();
-            let flip = FILE_HEADER_LEN as usize + at.index(bytes.len() - FILE_HEADER_LEN as usize);
-            bytes[flip] ^= 1 << bit;
+            let (path, bytes, flip) = flipped_log(dir.path(), &payloads, at, bit);
             std::fs::write(&path, &bytes).unwrap();
             let hit = record_offsets(&payloads).iter().rposition(|&o| o <= flip).unwrap();
             let read = read_log(&path, DEFAULT_MAX_RECORD_LEN).unwrap();
