@@ -16,18 +16,80 @@ const MAX_VIRTUAL_KIB: u64 = 4 << 20;
 /// Runs the binary with `args` under [`MAX_VIRTUAL_KIB`], killed at [`common::LIMIT`]:
 /// (finished in time, exit code, stderr).
 fn run(args: &[&str]) -> (bool, Option<i32>, String) {
+    run_under(MAX_VIRTUAL_KIB, args, Stdio::null())
+}
+
+/// [`run`] under `max_virtual_kib` of address space, its stdout to `stdout`.
+fn run_under(max_virtual_kib: u64, args: &[&str], stdout: Stdio) -> (bool, Option<i32>, String) {
     let child = Command::new("sh")
         .arg("-c")
-        .arg(format!("ulimit -v {MAX_VIRTUAL_KIB} && exec \"$0\" \"$@\""))
+        .arg(format!("ulimit -v {max_virtual_kib} && exec \"$0\" \"$@\""))
         .arg(env!("CARGO_BIN_EXE_intellwheels"))
         .args(args)
         .stdin(Stdio::null())
-        .stdout(Stdio::null())
+        .stdout(stdout)
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let (status, stderr) = common::exit_within(child);
     (status.is_some(), status.and_then(|s| s.code()), stderr)
+}
+
+/// Address space `log query` runs in below: the log queried is larger. Before the log was
+/// streamed, reading it whole failed here.
+const LOG_QUERY_VIRTUAL_KIB: u64 = 192 << 10;
+
+#[test]
+fn a_log_larger_than_the_address_space_it_is_queried_in_is_queried_in_full() {
+    use iw_logger::{LogStore, LoggedMessage, SyncPolicy};
+    const RECORDS: u64 = 800;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.iwl");
+    let mut log = LogStore::open(&path, SyncPolicy::EveryN(u32::MAX)).unwrap();
+    let filler = "x".repeat(300 << 10);
+    for i in 0..RECORDS {
+        let m = LoggedMessage {
+            time_ns: i,
+            sender: "cognitive@chair-a".into(),
+            receivers: vec!["control@chair-a".into()],
+            performative: if i % 100 == 7 { "refuse" } else { "inform" }.into(),
+            conversation_id: Some(format!("c{i}")),
+            acl: format!("(inform :content \"{filler}\")"),
+        };
+        log.append(&m.to_payload(), i).unwrap();
+    }
+    log.sync().unwrap();
+    drop(log);
+    let len = std::fs::metadata(&path).unwrap().len();
+    assert!(len > LOG_QUERY_VIRTUAL_KIB << 10, "a log of {len} bytes");
+    let out = dir.path().join("found.jsonl");
+    let log = path.to_str().unwrap();
+    let args = [
+        "log",
+        "query",
+        "--log",
+        log,
+        "--performative",
+        "refuse",
+        "--json",
+    ];
+    let stdout = Stdio::from(std::fs::File::create(&out).unwrap());
+    let (finished, code, stderr) = run_under(LOG_QUERY_VIRTUAL_KIB, &args, stdout);
+    assert!(finished, "still running: {stderr}");
+    assert_eq!(code, Some(0), "{stderr}");
+    let found: Vec<u64> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str::<LoggedMessage>(line).unwrap().time_ns)
+        .collect();
+    let want: Vec<u64> = (0..RECORDS).filter(|i| i % 100 == 7).collect();
+    assert_eq!(found, want, "every matching message, in order");
+    println!(
+        "log query: {} MiB log under a {} MiB address space: {} messages found",
+        len >> 20,
+        LOG_QUERY_VIRTUAL_KIB >> 10,
+        found.len()
+    );
 }
 
 /// The hostile inputs that exist on this machine: (label, path).

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::store::{Damage, LogError, Record};
+use crate::store::{LogError, LogItem, LogReader, Record};
 
 /// One message as the logger agent saw it on the bus.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -108,14 +108,23 @@ impl Query {
         self.select(&records)
     }
 
-    /// The matching messages of every intact record of the log at `path`, and each damaged
-    /// region read past (see [`crate::read_log`]): for tools that must show what survived.
-    pub fn run_past_damage(
-        &self,
+    /// The matching messages of every intact record of the log at `path` and each damaged region
+    /// read past (see [`crate::read_log`]), in file order, one record in memory at a time: for
+    /// tools that must show what survived of a log of any size.
+    pub fn stream<'q>(
+        &'q self,
         path: &std::path::Path,
-    ) -> Result<(Vec<LoggedMessage>, Vec<Damage>), QueryError> {
-        let read = crate::store::read_log(path, crate::store::DEFAULT_MAX_RECORD_LEN)?;
-        Ok((self.select(&read.records)?, read.damage))
+    ) -> Result<impl Iterator<Item = Result<LogItem<LoggedMessage>, QueryError>> + 'q, QueryError>
+    {
+        let reader = LogReader::open(path, crate::store::DEFAULT_MAX_RECORD_LEN)?;
+        Ok(reader.filter_map(move |item| match item {
+            Ok(LogItem::Record(record)) => match LoggedMessage::from_record(&record) {
+                Ok(m) => self.matches(&m).then_some(Ok(LogItem::Record(m))),
+                Err(e) => Some(Err(e.into())),
+            },
+            Ok(LogItem::Damage(damage)) => Some(Ok(LogItem::Damage(damage))),
+            Err(e) => Some(Err(e.into())),
+        }))
     }
 
     fn select(&self, records: &[Record]) -> Result<Vec<LoggedMessage>, QueryError> {

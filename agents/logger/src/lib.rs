@@ -17,6 +17,6 @@ pub mod store;
 
 pub use entry::{EntryError, LoggedMessage, Query, QueryError};
 pub use store::{
-    DEFAULT_MAX_RECORD_LEN, Damage, LogError, LogRead, LogStore, Record, Recovery, SyncPolicy,
-    parse_log, read_log, read_records,
+    DEFAULT_MAX_RECORD_LEN, Damage, LogError, LogItem, LogRead, LogReader, LogStore, Record,
+    Recovery, SyncPolicy, parse_log, read_log, read_records,
 };

@@ -65,14 +65,13 @@ struct JsonKeypoint {
 /// Reads an image as 8-bit RGB, saying which file failed and why. Only a regular file is
 /// opened (a FIFO blocks the open); the decoder's own limits bound what a header may ask for.
 pub fn load_rgb(path: &Path) -> anyhow::Result<RgbImage> {
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("reading image {}", path.display()))?;
-    anyhow::ensure!(
-        meta.is_file(),
-        "reading image {}: not a regular file (a folder, FIFO or device is refused)",
-        path.display()
-    );
-    let img = image::open(path).with_context(|| format!("reading image {}", path.display()))?;
+    let context = || format!("reading image {}", path.display());
+    let file = iw_file::open_regular(path).with_context(context)?;
+    let img = image::ImageReader::new(std::io::BufReader::new(file))
+        .with_guessed_format()
+        .with_context(context)?
+        .decode()
+        .with_context(context)?;
     Ok(img.to_rgb8())
 }
 

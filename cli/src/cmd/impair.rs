@@ -57,10 +57,14 @@ pub struct Args {
     /// Stop after this many ms (0 = run until killed).
     #[arg(long, default_value_t = 0)]
     duration_ms: u64,
-    /// Print the counters every this many ms.
-    #[arg(long, default_value_t = 1000)]
+    /// Print the counters every this many ms, 100 to 3600000 (an hour): a shorter period floods
+    /// the output, a longer one never reports.
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(REPORT_MS))]
     report_ms: u64,
 }
+
+/// The `--report-ms` accepted.
+const REPORT_MS: std::ops::RangeInclusive<u64> = 100..=3_600_000;
 
 /// Runs the proxy until `--duration-ms` passes (or until killed), printing its counters.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -81,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         ImpairProxy::start_on(args.listen, args.a, args.b, config).context("starting the proxy")?;
     eprintln!("intellwheels impair: listening on {}", proxy.addr());
     let started = Instant::now();
-    let report = Duration::from_millis(args.report_ms.max(10));
+    let report = Duration::from_millis(args.report_ms);
     let mut last_report = Instant::now();
     loop {
         std::thread::sleep(Duration::from_millis(10));

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context;
-use iw_logger::{Damage, LoggedMessage, Query};
+use iw_logger::{LogItem, LoggedMessage, Query};
 
 /// The `log` subcommands.
 #[derive(clap::Subcommand)]
@@ -19,7 +19,8 @@ pub enum Command {
     /// was read, even when nothing matches; 1 when any of it could not be read: each damaged
     /// region (a flipped byte, a torn tail left by a crash or a write in progress) is reported on
     /// stderr with the file, its byte offset and what is wrong, and the intact records after it
-    /// are still printed; a file that is not a log at all prints nothing.
+    /// are still printed; a file that is not a log at all prints nothing. The log is read as it
+    /// is printed, so a log of any size is queried in bounded memory.
     Query {
         /// The log file.
         #[arg(long)]
@@ -56,7 +57,7 @@ pub enum Command {
     /// (`--speed 0`: as fast as possible).
     ///
     /// Damage is handled as by `log query`: each damaged region is reported on stderr (file, byte
-    /// offset, what) before the replay starts, every intact record is replayed, and the exit
+    /// offset, what) when the replay reaches it, every intact record is replayed, and the exit
     /// status is 1.
     Replay {
         /// The log file.
@@ -87,19 +88,32 @@ fn print_line(out: &mut impl Write, m: &LoggedMessage) -> std::io::Result<()> {
     writeln!(out, "    {}", m.acl)
 }
 
-/// Reports each damaged region on stderr; true when there was any.
-fn report_damage(log: &Path, damage: &[Damage]) -> bool {
-    for d in damage {
-        eprintln!("warning: {}: {d}", log.display());
+/// The messages of the log at `log` that `query` selects, handed to `each` in log order as they
+/// are read (memory does not follow the log's size); each damaged region is reported on stderr
+/// as it is met. True when there was any.
+fn stream(
+    log: &Path,
+    query: &Query,
+    mut each: impl FnMut(&LoggedMessage) -> anyhow::Result<()>,
+) -> anyhow::Result<bool> {
+    let context = || format!("reading {}", log.display());
+    let mut damaged = 0usize;
+    for item in query.stream(log).with_context(context)? {
+        match item.with_context(context)? {
+            LogItem::Record(m) => each(&m)?,
+            LogItem::Damage(d) => {
+                eprintln!("warning: {}: {d}", log.display());
+                damaged += 1;
+            }
+        }
     }
-    if !damage.is_empty() {
+    if damaged > 0 {
         eprintln!(
-            "error: {}: {} damaged region(s) skipped; every intact record was read",
-            log.display(),
-            damage.len()
+            "error: {}: {damaged} damaged region(s) skipped; every intact record was read",
+            log.display()
         );
     }
-    !damage.is_empty()
+    Ok(damaged > 0)
 }
 
 /// Runs a `log` subcommand: exit 1 for a log that could not be read wholly (see `--help`).
@@ -140,28 +154,22 @@ fn run_inner(command: Command) -> anyhow::Result<ExitCode> {
                 until_ns,
                 contains,
             };
-            let (found, damage) = query
-                .run_past_damage(&log)
-                .with_context(|| format!("querying {}", log.display()))?;
-            for m in &found {
+            let damaged = stream(&log, &query, |m| {
                 if json {
                     writeln!(out, "{}", serde_json::to_string(m)?)?;
                 } else {
                     print_line(&mut out, m)?;
                 }
-            }
+                Ok(())
+            })?;
             out.flush()?;
-            if report_damage(&log, &damage) {
+            if damaged {
                 return Ok(ExitCode::FAILURE);
             }
         }
         Command::Replay { log, speed } => {
-            let (all, damage) = Query::default()
-                .run_past_damage(&log)
-                .with_context(|| format!("reading {}", log.display()))?;
-            let damaged = report_damage(&log, &damage);
             let mut previous_ns = None;
-            for m in &all {
+            let damaged = stream(&log, &Query::default(), |m| {
                 if let (Some(previous), true) = (previous_ns, speed > 0.0) {
                     let gap_ns = m.time_ns.saturating_sub(previous) as f64 / speed;
                     out.flush()?;
@@ -169,8 +177,9 @@ fn run_inner(command: Command) -> anyhow::Result<ExitCode> {
                     std::thread::sleep(Duration::from_secs_f64(gap_ns * 1e-9));
                 }
                 previous_ns = Some(m.time_ns);
-                print_line(&mut out, m)?;
-            }
+                Ok(print_line(&mut out, m)?)
+            })?;
+            out.flush()?;
             if damaged {
                 return Ok(ExitCode::FAILURE);
             }

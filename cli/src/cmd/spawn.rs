@@ -143,13 +143,24 @@ fn apply(args: &Args, config: &mut SpawnConfig) -> Result<(), NodeError> {
         config.world.lockstep = true;
     }
     if let Some(start) = &args.start {
+        if args.chair.is_none() {
+            return Err(flag_err(
+                "--start",
+                start,
+                "only a chair has a start pose (give it with --chair NAME)",
+            ));
+        }
         let values: Vec<f64> = start
             .split(',')
             .map(|v| v.trim().parse::<f64>())
             .collect::<Result<_, _>>()
             .map_err(|e| flag_err("--start", start, &e.to_string()))?;
-        config.body.start = <[f64; 3]>::try_from(values)
+        let pose = <[f64; 3]>::try_from(values)
             .map_err(|_| flag_err("--start", start, "expected three numbers X,Y,HEADING_DEG"))?;
+        if !pose.iter().all(|v| v.is_finite()) {
+            return Err(flag_err("--start", start, "every number must be finite"));
+        }
+        config.body.start = pose;
     }
     for goal in &args.goals {
         let (chair, place) = goal

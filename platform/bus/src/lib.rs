@@ -14,6 +14,7 @@
 //!   blocked on its mailbox receives from the transport itself (see [`Mailbox`]).
 //! - [`InProcNetwork`], [`InProcTransport`]: the in-process transport.
 //! - [`FaultyTransport`], [`Impairments`]: a seeded fault injector for tests.
+//! - [`ConnectionSlots`]: total and per-source connection caps for listeners facing outside.
 //! - [`Time`], [`Clock`], [`MockController`]: nanosecond time and the clock handle;
 //!   [`millis`]: serde for a `Duration` kept as whole milliseconds in files.
 //!
@@ -35,6 +36,7 @@ mod inproc;
 mod layer;
 pub mod millis;
 mod router;
+mod slots;
 mod time;
 pub mod transport;
 mod warn;
@@ -47,6 +49,7 @@ pub use layer::{
     Counters, Layer, LayerKind, LayerSet, PassThrough, Reason, Stack, Verdict, WARN_PERIOD,
 };
 pub use router::{Bus, BusConfig, Mailbox};
+pub use slots::{ConnectionSlot, ConnectionSlots};
 pub use time::{Clock, MockController, Time, duration_ns};
 pub use warn::WarnEvery;
 

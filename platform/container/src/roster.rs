@@ -95,32 +95,23 @@ impl Roster {
 
     /// Reads and parses the roster file at `path` (at most [`MAX_ROSTER_BYTES`]).
     pub fn load(path: &Path) -> Result<Roster, ContainerError> {
-        use std::io::Read;
         let source = path.display().to_string();
-        let unreadable = |source| ContainerError::RosterRead {
-            file: path.display().to_string(),
-            source,
-        };
-        // Before the open: opening a FIFO for reading blocks until something writes to it.
-        if !std::fs::metadata(path).map_err(unreadable)?.is_file() {
-            return Err(ContainerError::Roster {
-                file: source,
-                line: None,
-                reason: "not a regular file (a folder, FIFO or device is refused)".into(),
-            });
-        }
-        let file = std::fs::File::open(path).map_err(unreadable)?;
-        let mut text = String::new();
-        file.take(MAX_ROSTER_BYTES + 1)
-            .read_to_string(&mut text)
-            .map_err(unreadable)?;
-        if text.len() as u64 > MAX_ROSTER_BYTES {
-            return Err(ContainerError::Roster {
-                file: source,
-                line: None,
-                reason: format!("larger than {MAX_ROSTER_BYTES} bytes"),
-            });
-        }
+        // A FIFO, device or folder (refused unread) and an oversize file are rosters that cannot
+        // be; any other failure keeps its `io::Error`.
+        let text = iw_file::read_text(path, MAX_ROSTER_BYTES).map_err(|e| {
+            if iw_file::is_refusal(&e) {
+                ContainerError::Roster {
+                    file: source.clone(),
+                    line: None,
+                    reason: e.to_string(),
+                }
+            } else {
+                ContainerError::RosterRead {
+                    file: source.clone(),
+                    source: e,
+                }
+            }
+        })?;
         Roster::parse(&text, &source)
     }
 

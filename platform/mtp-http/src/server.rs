@@ -1,6 +1,5 @@
 //! The receiving side: an HTTP/1.1 server on tokio that accepts FIPA MTP posts.
 
-use std::collections::HashMap;
 use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -173,8 +172,7 @@ impl Drop for MtpServer {
 /// Connections held, in total and per source, under [`ServerLimits`]; and the rate-limited
 /// warnings about refused and failed ones (one per kind per 10 s, with the count held back).
 struct Slots {
-    limits: ServerLimits,
-    held: Mutex<(usize, HashMap<IpAddr, usize>)>,
+    held: Arc<iw_bus::ConnectionSlots>,
     warnings: Mutex<iw_bus::WarnEvery<&'static str>>,
     started: Instant,
 }
@@ -182,14 +180,13 @@ struct Slots {
 /// One connection's hold on [`Slots`], given back when dropped.
 struct Slot {
     slots: Arc<Slots>,
-    source: IpAddr,
+    _held: iw_bus::ConnectionSlot,
 }
 
 impl Slots {
     fn new(limits: ServerLimits) -> Self {
         Self {
-            limits,
-            held: Mutex::new((0, HashMap::new())),
+            held: iw_bus::ConnectionSlots::new(limits.max_connections, limits.max_per_source),
             warnings: Mutex::new(iw_bus::WarnEvery::new(Duration::from_secs(10))),
             started: Instant::now(),
         }
@@ -197,20 +194,9 @@ impl Slots {
 
     /// A slot for a connection from `source`, or why there is none.
     fn take(self: &Arc<Self>, source: IpAddr) -> Result<Slot, &'static str> {
-        let mut held = self.held.lock().unwrap_or_else(PoisonError::into_inner);
-        let (total, per_source) = &mut *held;
-        if *total >= self.limits.max_connections {
-            return Err("connection cap reached");
-        }
-        let of_source = per_source.entry(source).or_default();
-        if *of_source >= self.limits.max_per_source {
-            return Err("source over its connection cap");
-        }
-        *of_source += 1;
-        *total += 1;
         Ok(Slot {
             slots: Arc::clone(self),
-            source,
+            _held: self.held.take(source)?,
         })
     }
 
@@ -223,24 +209,6 @@ impl Slots {
             .admit(kind, now);
         if let Some(held_back) = admitted {
             tracing::warn!(%peer, %error, held_back, "HTTP MTP: {kind}");
-        }
-    }
-}
-
-impl Drop for Slot {
-    fn drop(&mut self) {
-        let mut held = self
-            .slots
-            .held
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        let (total, per_source) = &mut *held;
-        *total -= 1;
-        if let Some(n) = per_source.get_mut(&self.source) {
-            *n -= 1;
-            if *n == 0 {
-                per_source.remove(&self.source);
-            }
         }
     }
 }

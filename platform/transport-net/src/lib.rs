@@ -4,7 +4,8 @@
 //! Organization:
 //! - [`UdpTransport`]: one frame per datagram, std blocking sockets with a read timeout.
 //! - [`TcpTransport`]: length-prefixed frames ([`frame`] draws the header) over a cache of
-//!   outbound connections with reconnect; inbound connections each get a reader thread.
+//!   outbound connections with reconnect; inbound connections each get a reader thread, under
+//!   [`TcpLimits`] (a hello and an idle timeout, a total and a per-source cap).
 //! - [`ImpairProxy`] / [`Impairer`]: a UDP relay between two loopback endpoints that drops,
 //!   duplicates, reorders, corrupts, delays and injects datagrams by seeded probabilities
 //!   (`intellwheels impair` runs it as a process of its own).
@@ -20,7 +21,7 @@ mod tcp;
 mod udp;
 
 pub use impair::{Direction, Emit, ImpairConfig, ImpairProxy, ImpairStats, Impairer};
-pub use tcp::{TCP_DEFAULT_MAX_FRAME, TcpTransport};
+pub use tcp::{TCP_DEFAULT_MAX_FRAME, TcpLimits, TcpTransport};
 pub use udp::{UDP_MAX_PAYLOAD, UdpTransport};
 
 /// Errors of the codec and the impairment proxy, with the offending input.

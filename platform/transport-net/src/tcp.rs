@@ -3,12 +3,13 @@
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
+use iw_bus::ConnectionSlots;
 use iw_bus::transport::{FrameTransport, PeerAddr, TransportError};
 
 use crate::NetError;
@@ -23,12 +24,35 @@ const INBOX_CAPACITY: usize = 1024;
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
 /// Longest a hello frame (a listening address) may be, bytes.
 const MAX_HELLO_LEN: usize = 256;
-/// Time an accepted connection has to send its hello: a connector sends it at once, so a silent
-/// or trickling peer is cut instead of holding a reader thread forever.
-pub const HELLO_TIMEOUT: Duration = Duration::from_secs(5);
-/// Inbound connections read at once (one thread each); more are closed at accept, so a flood
-/// of connections cannot exhaust threads or descriptors.
-pub const MAX_INBOUND: usize = 256;
+
+/// What inbound connections may hold; the defaults suit a deployment, tests shorten them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TcpLimits {
+    /// Time an accepted connection has to send its hello: a connector sends it at once, so a
+    /// silent or trickling peer is cut instead of holding a reader thread forever.
+    pub hello_timeout: Duration,
+    /// Longest silence after the hello (between frames or inside one) before the connection is
+    /// cut and its slot freed. A sender reconnects instead of writing into a connection idle for
+    /// half of this, so a quiet but live peer loses nothing to the cut.
+    pub idle_timeout: Duration,
+    /// Inbound connections read at once (one thread each); more are closed at accept, so a
+    /// flood of connections cannot exhaust threads or descriptors.
+    pub max_inbound: usize,
+    /// Inbound connections one source address may hold at once, so one host cannot take every
+    /// slot (the containers of one host each hold one connection to a peer).
+    pub max_per_source: usize,
+}
+
+impl Default for TcpLimits {
+    fn default() -> Self {
+        Self {
+            hello_timeout: Duration::from_secs(5),
+            idle_timeout: Duration::from_secs(60),
+            max_inbound: 256,
+            max_per_source: 64,
+        }
+    }
+}
 
 type Inbound = (PeerAddr, Vec<u8>);
 
@@ -43,8 +67,10 @@ type Inbound = (PeerAddr, Vec<u8>);
 pub struct TcpTransport {
     local: PeerAddr,
     codec: FrameCodec,
+    limits: TcpLimits,
     inbox: Mutex<Receiver<Inbound>>,
-    outbound: Mutex<HashMap<PeerAddr, TcpStream>>,
+    /// Connections to peers and when each last carried a frame.
+    outbound: Mutex<HashMap<PeerAddr, (TcpStream, Instant)>>,
     shared: Arc<Shared>,
     acceptor: Option<JoinHandle<()>>,
 }
@@ -54,8 +80,8 @@ struct Shared {
     stop: AtomicBool,
     /// Clones of accepted streams, shut down on drop so their reader threads end.
     accepted: Mutex<Vec<TcpStream>>,
-    /// Reader threads running (at most [`MAX_INBOUND`]).
-    readers: AtomicUsize,
+    /// One per reader thread running, under [`TcpLimits`]' caps.
+    slots: Arc<ConnectionSlots>,
 }
 
 impl TcpTransport {
@@ -66,6 +92,15 @@ impl TcpTransport {
 
     /// Listens on `addr`, refusing frames longer than `max_frame_len` bytes.
     pub fn bind_with_limit(addr: &str, max_frame_len: usize) -> Result<Self, TransportError> {
+        Self::bind_with_limits(addr, max_frame_len, TcpLimits::default())
+    }
+
+    /// Listens on `addr` under `limits`, refusing frames longer than `max_frame_len` bytes.
+    pub fn bind_with_limits(
+        addr: &str,
+        max_frame_len: usize,
+        limits: TcpLimits,
+    ) -> Result<Self, TransportError> {
         let listener = TcpListener::bind(addr).map_err(|source| TransportError::Io {
             context: format!("listening on TCP `{addr}`"),
             source,
@@ -79,13 +114,13 @@ impl TcpTransport {
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
             accepted: Mutex::new(Vec::new()),
-            readers: AtomicUsize::new(0),
+            slots: ConnectionSlots::new(limits.max_inbound, limits.max_per_source),
         });
         let acceptor = {
             let shared = Arc::clone(&shared);
             std::thread::Builder::new()
                 .name(format!("iw-tcp-accept-{bound}"))
-                .spawn(move || accept_loop(listener, codec, tx, shared))
+                .spawn(move || accept_loop(listener, codec, limits, tx, shared))
                 .map_err(|source| TransportError::Io {
                     context: "spawning the TCP accept thread".into(),
                     source,
@@ -94,6 +129,7 @@ impl TcpTransport {
         Ok(Self {
             local: PeerAddr(bound.to_string()),
             codec,
+            limits,
             inbox: Mutex::new(rx),
             outbound: Mutex::new(HashMap::new()),
             shared,
@@ -142,12 +178,20 @@ impl FrameTransport for TcpTransport {
                 max: self.codec.max_frame_len(),
             })?;
         let mut cache = self.outbound.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(stream) = cache.get_mut(to) {
-            match stream.write_all(&bytes) {
-                Ok(()) => return Ok(()),
-                Err(e) => {
-                    tracing::debug!(%to, error = %e, "cached TCP connection broken; reconnecting");
-                    cache.remove(to);
+        if let Some((stream, used)) = cache.get_mut(to) {
+            // Well before the peer's idle cut: a frame written as it closes could be lost.
+            if used.elapsed() >= self.limits.idle_timeout / 2 {
+                cache.remove(to);
+            } else {
+                match stream.write_all(&bytes) {
+                    Ok(()) => {
+                        *used = Instant::now();
+                        return Ok(());
+                    }
+                    Err(e) => {
+                        tracing::debug!(%to, error = %e, "cached TCP connection broken; reconnecting");
+                        cache.remove(to);
+                    }
                 }
             }
         }
@@ -158,7 +202,7 @@ impl FrameTransport for TcpTransport {
                 context: format!("sending a frame to {to}"),
                 source,
             })?;
-        cache.insert(to.clone(), stream);
+        cache.insert(to.clone(), (stream, Instant::now()));
         Ok(())
     }
 
@@ -193,7 +237,7 @@ impl Drop for TcpTransport {
             .unwrap_or_else(PoisonError::into_inner)
             .values()
         {
-            let _ = stream.shutdown(Shutdown::Both);
+            let _ = stream.0.shutdown(Shutdown::Both);
         }
         // Wake the blocking accept so the thread sees `stop`.
         if let Ok(addr) = self.local.0.parse::<SocketAddr>() {
@@ -208,6 +252,7 @@ impl Drop for TcpTransport {
 fn accept_loop(
     listener: TcpListener,
     codec: FrameCodec,
+    limits: TcpLimits,
     tx: SyncSender<Inbound>,
     shared: Arc<Shared>,
 ) {
@@ -222,11 +267,17 @@ fn accept_loop(
                 continue;
             }
         };
-        if shared.readers.load(Ordering::Relaxed) >= MAX_INBOUND {
-            tracing::debug!("TCP connection closed at accept: {MAX_INBOUND} already read");
-            drop(stream);
-            continue;
-        }
+        let slot = match stream.peer_addr().map(|a| shared.slots.take(a.ip())) {
+            Ok(Ok(slot)) => slot,
+            Ok(Err(why)) => {
+                tracing::debug!("TCP connection closed at accept: {why}");
+                continue;
+            }
+            Err(e) => {
+                tracing::debug!(error = %e, "TCP connection gone at accept");
+                continue;
+            }
+        };
         let _ = stream.set_nodelay(true);
         match stream.try_clone() {
             Ok(clone) => {
@@ -240,8 +291,6 @@ fn accept_loop(
             Err(e) => tracing::warn!(error = %e, "cannot track an accepted TCP connection"),
         }
         let tx = tx.clone();
-        shared.readers.fetch_add(1, Ordering::Relaxed);
-        let reader = Arc::clone(&shared);
         let spawned = std::thread::Builder::new()
             .name("iw-tcp-read".into())
             .spawn(move || {
@@ -251,32 +300,33 @@ fn accept_loop(
                     .unwrap_or_default();
                 // `accepted` holds a clone: only a shutdown closes the connection for the peer.
                 let closer = stream.try_clone();
-                if let Err(e) = read_connection(stream, codec, &tx) {
+                if let Err(e) = read_connection(stream, codec, &limits, &tx) {
                     tracing::debug!(%peer, error = %e, "TCP connection closed");
                 }
                 if let Ok(closer) = closer {
                     let _ = closer.shutdown(Shutdown::Both);
                 }
-                reader.readers.fetch_sub(1, Ordering::Relaxed);
+                drop(slot);
             });
         if let Err(e) = spawned {
-            shared.readers.fetch_sub(1, Ordering::Relaxed);
             tracing::warn!(error = %e, "cannot spawn a TCP reader thread");
         }
     }
 }
 
-/// Reads frames until EOF or a corrupt frame; the first must be a hello naming the sender.
+/// Reads frames until EOF, a corrupt frame or a silence past the limits; the first must be a
+/// hello naming the sender.
 fn read_connection(
     mut stream: TcpStream,
     codec: FrameCodec,
+    limits: &TcpLimits,
     tx: &SyncSender<Inbound>,
 ) -> Result<(), NetError> {
     let mut from: Option<PeerAddr> = None;
     let mut header = [0u8; HEADER_LEN];
     // Until the hello is in; a read past the deadline fails (WouldBlock or TimedOut).
     stream
-        .set_read_timeout(Some(HELLO_TIMEOUT))
+        .set_read_timeout(Some(limits.hello_timeout))
         .map_err(|source| NetError::Io {
             context: "setting the hello timeout".into(),
             source,
@@ -286,8 +336,14 @@ fn read_connection(
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(()),
             Err(source) => {
+                let context = match source.kind() {
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => {
+                        "silent past the hello or idle timeout; cut"
+                    }
+                    _ => "reading a frame header",
+                };
                 return Err(NetError::Io {
-                    context: "reading a frame header".into(),
+                    context: context.into(),
                     source,
                 });
             }
@@ -317,9 +373,9 @@ fn read_connection(
                     .map_err(|source| NetError::HelloNotUtf8 { source })?;
                 from = Some(PeerAddr(addr));
                 stream
-                    .set_read_timeout(None)
+                    .set_read_timeout(Some(limits.idle_timeout))
                     .map_err(|source| NetError::Io {
-                        context: "clearing the hello timeout".into(),
+                        context: "setting the idle timeout".into(),
                         source,
                     })?;
             }
@@ -426,38 +482,147 @@ mod tests {
         raw
     }
 
+    /// Limits short enough for a test: 300 ms to the hello and of silence.
+    fn short(max_inbound: usize, max_per_source: usize) -> TcpLimits {
+        TcpLimits {
+            hello_timeout: Duration::from_millis(300),
+            idle_timeout: Duration::from_millis(300),
+            max_inbound,
+            max_per_source,
+        }
+    }
+
+    fn bind_short(limits: TcpLimits) -> TcpTransport {
+        TcpTransport::bind_with_limits("127.0.0.1:0", TCP_DEFAULT_MAX_FRAME, limits).unwrap()
+    }
+
+    /// Whether `t` receives `frame` from a fresh transport within a bounded number of tries.
+    fn served(t: &TcpTransport, frame: &[u8]) -> bool {
+        let a = TcpTransport::bind("127.0.0.1:0").unwrap();
+        for _ in 0..100 {
+            let _ = a.send(t.local_addr(), frame);
+            if let Some(got) = t.recv_timeout(Duration::from_millis(100)).unwrap() {
+                return got.1 == frame;
+            }
+        }
+        false
+    }
+
     #[test]
     fn a_connection_silent_before_its_hello_is_cut() {
-        let t = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let t = bind_short(short(8, 8));
         let mut silent = TcpStream::connect(t.local_addr().0.as_str()).unwrap();
         assert!(
-            closed_within(&mut silent, HELLO_TIMEOUT * 4),
+            closed_within(&mut silent, WAIT),
             "a peer that never sends its hello holds a reader thread"
         );
     }
 
     #[test]
+    fn a_peer_silent_after_its_hello_is_cut_and_its_slot_served_to_another() {
+        let t = bind_short(short(1, 1));
+        let mut silent = greeted(&t.local_addr().0);
+        assert!(
+            closed_within(&mut silent, WAIT),
+            "a peer that says hello and goes silent keeps its slot"
+        );
+        assert!(served(&t, b"in the freed slot"));
+    }
+
+    #[test]
+    fn a_quiet_live_peer_loses_nothing_across_the_idle_cut() {
+        let limits = short(8, 8);
+        let a = bind_short(limits);
+        let b = bind_short(limits);
+        a.send(b.local_addr(), b"one").unwrap();
+        assert_eq!(b.recv_timeout(WAIT).unwrap().unwrap().1, b"one");
+        // b cuts a's quiet connection; a's next frame must not vanish into it.
+        std::thread::sleep(limits.idle_timeout * 3);
+        a.send(b.local_addr(), b"two").unwrap();
+        assert_eq!(b.recv_timeout(WAIT).unwrap().unwrap().1, b"two");
+    }
+
+    #[test]
     fn a_flood_of_connections_is_capped_and_a_peer_is_served_once_it_ends() {
-        let t = TcpTransport::bind("127.0.0.1:0").unwrap();
+        let limits = TcpLimits {
+            max_inbound: 16,
+            max_per_source: 16,
+            ..TcpLimits::default()
+        };
+        let t = bind_short(limits);
         let addr = t.local_addr().0.clone();
-        let flood: Vec<TcpStream> = (0..MAX_INBOUND).map(|_| greeted(&addr)).collect();
+        let flood: Vec<TcpStream> = (0..limits.max_inbound).map(|_| greeted(&addr)).collect();
         let mut over = greeted(&addr);
         assert!(
-            closed_within(&mut over, HELLO_TIMEOUT * 4),
+            closed_within(&mut over, WAIT),
             "connection {} was accepted and read",
-            MAX_INBOUND + 1
+            limits.max_inbound + 1
         );
         drop(flood);
-        let a = TcpTransport::bind("127.0.0.1:0").unwrap();
-        let mut got = None;
-        for _ in 0..100 {
-            let _ = a.send(t.local_addr(), b"after the flood");
-            if let Some(frame) = t.recv_timeout(Duration::from_millis(100)).unwrap() {
-                got = Some(frame.1);
-                break;
-            }
+        assert!(served(&t, b"after the flood"));
+    }
+
+    /// A connection to `to` from local address `source` (another loopback address than
+    /// 127.0.0.1: another host, as far as the listener can tell).
+    fn connect_from(source: std::net::Ipv4Addr, to: SocketAddr) -> TcpStream {
+        use std::os::fd::FromRawFd;
+        let SocketAddr::V4(to) = to else {
+            panic!("{to} is not IPv4")
+        };
+        let sockaddr = |ip: std::net::Ipv4Addr, port: u16| libc::sockaddr_in {
+            sin_family: libc::AF_INET as libc::sa_family_t,
+            sin_port: port.to_be(),
+            sin_addr: libc::in_addr {
+                s_addr: u32::from(ip).to_be(),
+            },
+            sin_zero: [0; 8],
+        };
+        let len = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
+        // SAFETY: a fresh socket owned by the returned stream; the addresses outlive the calls.
+        unsafe {
+            let fd = libc::socket(libc::AF_INET, libc::SOCK_STREAM | libc::SOCK_CLOEXEC, 0);
+            assert!(fd >= 0, "socket: {}", std::io::Error::last_os_error());
+            let stream = TcpStream::from_raw_fd(fd);
+            let local = sockaddr(source, 0);
+            let bound = libc::bind(fd, (&raw const local).cast(), len);
+            assert_eq!(bound, 0, "bind: {}", std::io::Error::last_os_error());
+            let remote = sockaddr(*to.ip(), to.port());
+            let connected = libc::connect(fd, (&raw const remote).cast(), len);
+            assert_eq!(connected, 0, "connect: {}", std::io::Error::last_os_error());
+            stream
         }
-        assert_eq!(got.as_deref(), Some(&b"after the flood"[..]));
+    }
+
+    #[test]
+    fn one_source_cannot_take_every_slot() {
+        let t = bind_short(TcpLimits {
+            max_inbound: 16,
+            max_per_source: 2,
+            ..TcpLimits::default()
+        });
+        let addr = t.local_addr().0.clone();
+        let _held: Vec<TcpStream> = (0..2).map(|_| greeted(&addr)).collect();
+        let mut third = greeted(&addr);
+        assert!(
+            closed_within(&mut third, WAIT),
+            "a third connection from one source was read"
+        );
+        // Another source is still served.
+        let mut other = connect_from([127, 0, 0, 2].into(), addr.parse().unwrap());
+        let codec = FrameCodec::new(TCP_DEFAULT_MAX_FRAME);
+        let mut frames = Vec::new();
+        codec
+            .encode(FrameKind::Hello, b"127.0.0.2:9", &mut frames)
+            .unwrap();
+        codec
+            .encode(FrameKind::Data, b"from elsewhere", &mut frames)
+            .unwrap();
+        other.write_all(&frames).unwrap();
+        let (from, frame) = t.recv_timeout(WAIT).unwrap().unwrap();
+        assert_eq!(
+            (from.0.as_str(), &frame[..]),
+            ("127.0.0.2:9", &b"from elsewhere"[..])
+        );
     }
 
     #[test]

@@ -602,7 +602,62 @@ mod tests {
         config.validate(&crate::Role::Services).unwrap();
     }
 
+    /// `v` as a TOML float (`nan`, `inf` and `-inf` included).
+    fn toml_float(v: f64) -> String {
+        match v {
+            v if v.is_nan() => "nan".into(),
+            v if v.is_infinite() => if v > 0.0 { "inf" } else { "-inf" }.into(),
+            v => format!("{v:?}"),
+        }
+    }
+
     proptest! {
+        /// Any numbers in the numeric keys (NaN and infinities in the start pose included): the
+        /// file parses and validates for every role, or is refused naming a key, never a panic;
+        /// a chair accepted has a finite start and periods within their ranges.
+        #[test]
+        fn any_numbers_parse_and_validate_or_are_refused_naming_the_key(
+            periods in prop::array::uniform4(prop_oneof![0u64..20_000, any::<u64>()]),
+            start in prop::array::uniform3(prop_oneof![any::<f64>(), -50.0f64..50.0]),
+        ) {
+            let [heartbeat, lease, step, reattach] = periods;
+            let text = format!(
+                "[container]\nheartbeat_ms = {heartbeat}\nlease_ms = {lease}\nstep_ms = {step}\n\
+                 [security]\ninsecure_dev = true\n\
+                 [body]\nstart = [{}, {}, {}]\nreattach_wait_ms = {reattach}\n",
+                toml_float(start[0]), toml_float(start[1]), toml_float(start[2]),
+            );
+            let config = match SpawnConfig::parse(&text, "fuzz.toml") {
+                Ok(config) => config,
+                Err(e) => {
+                    prop_assert!(e.to_string().contains("fuzz.toml"), "{}", e);
+                    return Ok(());
+                }
+            };
+            let roles = [
+                crate::Role::Services,
+                crate::Role::World,
+                crate::Role::Chair { name: "c1".into() },
+            ];
+            for role in &roles {
+                match config.validate(role) {
+                    Ok(()) => {
+                        prop_assert!(!config.container.heartbeat.is_zero());
+                        if let crate::Role::Chair { .. } = role {
+                            prop_assert!(config.body.start.iter().all(|v| v.is_finite()));
+                        }
+                    }
+                    Err(e) => {
+                        let e = e.to_string();
+                        prop_assert!(
+                            ["container.", "body."].iter().any(|k| e.contains(k)),
+                            "{}", e
+                        );
+                    }
+                }
+            }
+        }
+
         /// No text makes the parser panic; whatever parses re-serialises to itself.
         #[test]
         fn parse_never_panics_and_round_trips(text in "\\PC{0,200}") {

@@ -324,13 +324,27 @@ fn fresh_log_path() -> PathBuf {
     ))
 }
 
-/// Refuses a start pose whose footprint overlaps a wall, furniture or a closed door of the map
-/// (checked on a scratch copy of the world: the shared one lives in the world container).
+/// Refuses a start pose outside the map's bounds or whose footprint overlaps a wall, furniture
+/// or a closed door of the map (checked on a scratch copy of the world: the shared one lives in
+/// the world container).
 fn refuse_an_obstructed_start(
     config: &SpawnConfig,
     t_world_body: &Isometry2<f64>,
 ) -> Result<(), NodeError> {
-    let mut scratch = World::new(load_map(&config.world.map)?, config.world.seed);
+    let map = load_map(&config.world.map)?;
+    let (min, max) = map.bounds();
+    let at = t_world_body.translation.vector;
+    if !(min.x..=max.x).contains(&at.x) || !(min.y..=max.y).contains(&at.y) {
+        return Err(NodeError::Config {
+            file: "body.start".into(),
+            reason: format!(
+                "{:?} (--start X,Y,DEG) is outside the map, which spans x {:.2}..{:.2} m and \
+                 y {:.2}..{:.2} m",
+                config.body.start, min.x, max.x, min.y, max.y
+            ),
+        });
+    }
+    let mut scratch = World::new(map, config.world.seed);
     let id = scratch.add_chair(ChairSpec::default(), *t_world_body, ChairKind::Simulated);
     let obstruction = scratch.obstruction(id).map_err(|e| NodeError::Body {
         what: "its start pose".into(),
@@ -1256,7 +1270,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_start_pose_on_a_wall_is_refused_with_the_key() {
+    fn a_start_pose_on_a_wall_or_outside_the_map_is_refused_with_the_key() {
         let mut config = SpawnConfig::default();
         // On the sample building's wall from (0, 7) to (1.4, 7).
         config.body.start = [0.7, 7.0, 0.0];
@@ -1271,6 +1285,17 @@ mod tests {
             err.contains("body.start") && err.contains("a wall"),
             "{err}"
         );
+        // Far outside the building, and at coordinates no map reaches.
+        for start in [[1e9, 6.0, 0.0], [1.0, -1e6, 0.0]] {
+            config.body.start = start;
+            let err = refuse_an_obstructed_start(&config, &pose(&config))
+                .expect_err("a start pose outside the map is refused")
+                .to_string();
+            assert!(
+                err.contains("body.start") && err.contains("--start") && err.contains("outside"),
+                "{err}"
+            );
+        }
         config.body.start = SpawnConfig::default().body.start;
         assert!(refuse_an_obstructed_start(&config, &pose(&config)).is_ok());
     }

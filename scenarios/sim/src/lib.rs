@@ -37,9 +37,11 @@
 //!   head-on are resolved in favour of the lower index.
 #![warn(missing_docs)]
 
+/// Files read only if regular and within a cap (the platform's helper, re-exported for the
+/// map, scenario and configuration readers above).
+pub use iw_file as file;
 mod body;
 mod chair;
-pub mod file;
 mod geom;
 #[cfg(feature = "localization")]
 pub mod localization;

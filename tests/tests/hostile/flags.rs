@@ -93,3 +93,45 @@ fn a_fifo_in_a_sequence_is_refused_not_waited_on() {
         );
     }
 }
+
+#[test]
+fn a_report_period_that_floods_and_a_start_pose_that_is_no_pose_are_refused_naming_the_flag() {
+    let Some(bin) = crate::intellwheels() else {
+        return;
+    };
+    let huge = u64::MAX.to_string();
+    let impair = |period| {
+        vec![
+            "impair",
+            "--a",
+            "127.0.0.1:9",
+            "--b",
+            "127.0.0.1:10",
+            "--duration-ms",
+            "1",
+            "--report-ms",
+            period,
+        ]
+    };
+    let spawn = |role: &'static [&'static str], start: &'static str| {
+        let mut args = role.to_vec();
+        args.extend(["--insecure-dev", "--start", start]);
+        args
+    };
+    let cases = [
+        // Printed its counters in a tight loop, or never.
+        (impair("0"), "--report-ms"),
+        (impair("99"), "--report-ms"),
+        (impair(huge.as_str()), "--report-ms"),
+        // Accepted, then ignored (the world has no body) or driven as NaN.
+        (spawn(&["spawn", "--world"], "NaN,NaN,NaN"), "--start"),
+        (spawn(&["spawn", "--world"], "1,6,0"), "--start"),
+        (spawn(&["spawn", "--chair", "c1"], "NaN,6,0"), "--start"),
+        (spawn(&["spawn", "--chair", "c1"], "1,inf,0"), "--start"),
+        (spawn(&["spawn", "--chair", "c1"], "1,6,-inf"), "--start"),
+    ];
+    for (args, flag) in cases {
+        let result = crate::run(&bin, &args, b"", LIMIT);
+        crate::assert_refused(&args.join(" "), &result, 2, flag);
+    }
+}

@@ -207,6 +207,7 @@ pub enum DriveInput {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     #[test]
     fn actions_parse_from_the_page_shape() {
@@ -240,6 +241,72 @@ mod tests {
         let step: PageAction = serde_json::from_str(r#"{"do":"step"}"#).unwrap();
         assert_eq!(step, PageAction::Step);
         assert!(serde_json::from_str::<PageAction>(r#"{"do":"explode"}"#).is_err());
+    }
+
+    /// A number as a page's slider, stick or click sends it: up to a million, three decimals
+    /// (serde_json reads such numbers exactly; its best-effort float parsing may put a
+    /// 17-digit number one unit in the last place off).
+    fn finite() -> impl Strategy<Value = f64> {
+        (-1_000_000_000i64..=1_000_000_000).prop_map(|n| n as f64 / 1000.0)
+    }
+
+    fn drive_input() -> impl Strategy<Value = DriveInput> {
+        prop_oneof![
+            (finite(), finite()).prop_map(|(x, y)| DriveInput::Stick { x, y }),
+            (finite(), finite()).prop_map(|(x, y)| DriveInput::Gamepad { x, y }),
+            any::<[bool; 4]>().prop_map(|[up, down, left, right]| DriveInput::Keys {
+                up,
+                down,
+                left,
+                right
+            }),
+            (finite(), finite()).prop_map(|(pitch, roll)| DriveInput::Head { pitch, roll }),
+        ]
+    }
+
+    fn page_action() -> impl Strategy<Value = PageAction> {
+        let name = "\\PC{0,12}";
+        prop_oneof![
+            (name, finite(), finite()).prop_map(|(chair, x, y)| PageAction::Goal { chair, x, y }),
+            (name, any::<bool>()).prop_map(|(door, open)| PageAction::Door { door, open }),
+            any::<bool>().prop_map(|paused| PageAction::Pause { paused }),
+            Just(PageAction::Step),
+            (name, any::<bool>()).prop_map(|(chair, failed)| PageAction::Fault { chair, failed }),
+            (name, drive_input()).prop_map(|(chair, input)| PageAction::Drive { chair, input }),
+        ]
+    }
+
+    proptest! {
+        /// Whatever a page sends is an action or an error, never a panic; an action it accepts
+        /// reads back as the same kind of action from its own JSON.
+        #[test]
+        fn any_text_is_an_action_or_an_error(text in "\\PC{0,120}") {
+            if let Ok(action) = serde_json::from_str::<PageAction>(&text) {
+                let again = serde_json::to_string(&action).unwrap();
+                let back = serde_json::from_str::<PageAction>(&again).unwrap();
+                prop_assert_eq!(std::mem::discriminant(&back), std::mem::discriminant(&action));
+            }
+        }
+
+        /// Every action the page can send survives the trip as JSON unchanged.
+        #[test]
+        fn every_action_round_trips(action in page_action()) {
+            let text = serde_json::to_string(&action).unwrap();
+            prop_assert_eq!(serde_json::from_str::<PageAction>(&text).unwrap(), action);
+        }
+
+        /// An action with one of its keys dropped is refused with an error, never taken as
+        /// another action or filled in.
+        #[test]
+        fn a_mangled_action_is_refused_not_misread(action in page_action(), pick in any::<prop::sample::Index>()) {
+            let mut value = serde_json::to_value(&action).unwrap();
+            let object = value.as_object_mut().unwrap();
+            let keys: Vec<String> = object.keys().filter(|k| *k != "do").cloned().collect();
+            prop_assume!(!keys.is_empty());
+            let key = &keys[pick.index(keys.len())];
+            object.remove(key);
+            prop_assert!(serde_json::from_value::<PageAction>(value).is_err(), "{} dropped", key);
+        }
     }
 
     #[test]

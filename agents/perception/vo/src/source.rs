@@ -45,7 +45,7 @@ pub trait CameraSource {
 pub fn load_pair(pair: &FramePair) -> Result<RgbdFrame, VoError> {
     let started = std::time::Instant::now();
     let open = |path: &Path| {
-        let file = crate::tum::open_regular(path).map_err(|e| VoError::io(path, e))?;
+        let file = iw_file::open_regular(path).map_err(|e| VoError::io(path, e))?;
         image::ImageReader::new(std::io::BufReader::new(file))
             .with_guessed_format()
             .map_err(|e| VoError::io(path, e))?

@@ -110,31 +110,10 @@ impl TumSequence {
 /// Reads a whole text file with its path in the error.
 pub fn read(path: &Path) -> Result<String, VoError> {
     let mut text = String::new();
-    open_regular(path)
+    iw_file::open_regular(path)
         .and_then(|mut file| std::io::Read::read_to_string(&mut file, &mut text))
         .map_err(|e| VoError::io(path, e))?;
     Ok(text)
-}
-
-/// Opens `path` for reading only if it is a regular file: a FIFO named in a sequence's lists
-/// would block the open forever, a device would never end.
-pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
-    let not_regular = || {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a regular file (a FIFO, device or folder is refused: reading it could block \
-             or never end)",
-        )
-    };
-    if !std::fs::metadata(path)?.is_file() {
-        return Err(not_regular());
-    }
-    let file = std::fs::File::open(path)?;
-    // Checked again on the open file: the path may have been swapped in between.
-    if !file.metadata()?.is_file() {
-        return Err(not_regular());
-    }
-    Ok(file)
 }
 
 /// Lines that carry data: 1-based number and fields, skipping blanks and `#` comments.

@@ -77,27 +77,17 @@ pub fn read_group_key(path: &Path) -> Result<PreSharedKey, GroupKeyError> {
         path: file_name(),
         reason,
     };
-    // A FIFO would block the open and a device (`/dev/zero`) never end: both are refused, and
-    // no more than the cap is read even if the file grows meanwhile.
+    // A FIFO, a device or a folder is refused unread, and no more than the cap is read even if
+    // the file grows meanwhile; both are keys that cannot be, not I/O failures.
     const MAX_KEY_FILE: u64 = 1024;
-    let meta = std::fs::metadata(path).map_err(io)?;
-    if !meta.is_file() {
-        return Err(bad(
-            "not a regular file (a FIFO or device is refused)".into()
-        ));
-    }
-    if meta.len() > MAX_KEY_FILE {
-        return Err(bad(format!(
-            "{} bytes; a key file holds 64 hex digits",
-            meta.len()
-        )));
-    }
-    let mut text = String::new();
-    std::io::Read::read_to_string(
-        &mut std::io::Read::take(std::fs::File::open(path).map_err(io)?, MAX_KEY_FILE),
-        &mut text,
-    )
-    .map_err(io)?;
+    let bytes = iw_file::read_file(path, MAX_KEY_FILE).map_err(|e| {
+        if iw_file::is_refusal(&e) {
+            bad(format!("{e}; a key file holds 64 hex digits"))
+        } else {
+            io(e)
+        }
+    })?;
+    let text = String::from_utf8_lossy(&bytes);
     let digits = text.trim();
     if digits.len() != 64 {
         return Err(bad(format!(
