@@ -395,7 +395,7 @@ pub enum LogItem<T = Record> {
 const READ_CHUNK: usize = 64 * 1024;
 
 /// Reads a log one [`LogItem`] at a time, as [`read_log`] describes, holding only a read-ahead
-/// window of at most one largest record plus [`READ_CHUNK`] bytes: a log of any size is read in
+/// window of at most one largest record plus 64 KiB: a log of any size is read in
 /// bounded memory. An I/O error ends the reading after it is returned.
 #[derive(Debug)]
 pub struct LogReader<R> {
@@ -464,7 +464,7 @@ impl<R: Read> LogReader<R> {
     }
 
     /// Bytes the read-ahead window holds room for: at most one largest record, its header and
-    /// one [`READ_CHUNK`], whatever the log's size.
+    /// one 64 KiB read, whatever the log's size.
     pub fn window_capacity(&self) -> usize {
         self.buf.capacity()
     }
