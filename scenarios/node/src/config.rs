@@ -351,6 +351,17 @@ impl SpawnConfig {
                 ),
             );
         }
+        let report = self.services.pose_report;
+        if report < c.step || report > Duration::from_secs(3600) {
+            return bad(
+                "services.pose_report_ms",
+                format!(
+                    "{} ms is outside {}..=3600000 (at most one report per container step)",
+                    report.as_millis(),
+                    c.step.as_millis()
+                ),
+            );
+        }
         if self.transport.listen.is_empty() {
             return bad("transport.listen", "empty".into());
         }
@@ -553,6 +564,17 @@ mod tests {
             chair(),
             "body.reattach_wait_ms",
         );
+        // 0 would report every step (a stdout flood), u64::MAX never
+        refused(
+            |c| c.services.pose_report = Duration::ZERO,
+            crate::Role::World,
+            "services.pose_report_ms",
+        );
+        refused(
+            |c| c.services.pose_report = Duration::from_millis(u64::MAX),
+            crate::Role::Services,
+            "services.pose_report_ms",
+        );
         let mut config = SpawnConfig::default();
         config.security.insecure_dev = true;
         for (listen, token, role, key) in [
@@ -650,7 +672,7 @@ mod tests {
                     Err(e) => {
                         let e = e.to_string();
                         prop_assert!(
-                            ["container.", "body."].iter().any(|k| e.contains(k)),
+                            ["container.", "body.", "services."].iter().any(|k| e.contains(k)),
                             "{}", e
                         );
                     }
