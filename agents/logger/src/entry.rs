@@ -103,9 +103,22 @@ impl Query {
 
     /// The matching messages of the log at `path`, in log order; fails on any damage (the
     /// logger agent answers from its own, open log, where damage means something went wrong).
+    /// Read as [`Query::stream`] reads: only the matches are held, not the whole log.
     pub fn run(&self, path: &std::path::Path) -> Result<Vec<LoggedMessage>, QueryError> {
-        let records = crate::store::read_records(path, crate::store::DEFAULT_MAX_RECORD_LEN)?;
-        self.select(&records)
+        let mut found = Vec::new();
+        for item in self.stream(path)? {
+            match item? {
+                LogItem::Record(m) => found.push(m),
+                LogItem::Damage(damage) => {
+                    return Err(LogError::Damaged {
+                        path: path.to_path_buf(),
+                        damage,
+                    }
+                    .into());
+                }
+            }
+        }
+        Ok(found)
     }
 
     /// The matching messages of every intact record of the log at `path` and each damaged region
@@ -125,17 +138,6 @@ impl Query {
             Ok(LogItem::Damage(damage)) => Some(Ok(LogItem::Damage(damage))),
             Err(e) => Some(Err(e.into())),
         }))
-    }
-
-    fn select(&self, records: &[Record]) -> Result<Vec<LoggedMessage>, QueryError> {
-        let mut out = Vec::new();
-        for record in records {
-            let message = LoggedMessage::from_record(record)?;
-            if self.matches(&message) {
-                out.push(message);
-            }
-        }
-        Ok(out)
     }
 }
 
