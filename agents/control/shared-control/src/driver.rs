@@ -15,6 +15,14 @@
 //! - **reacting when slowed**: when the chair moves at under 40 % of the commanded speed for
 //!   0.8 s, the person backs off for a second if something is right ahead, else edges towards
 //!   the most open bearing for a second; when there is no progress for 5 s they back off;
+//! - **a bump** ([`DriverModel::Steady`] only): the person feels the chair touch something
+//!   ([`Perception::touching`]), backs straight off for [`BUMP_BACK_S`] if it was in front, and
+//!   within [`WARY_WITHIN_M`] of any bump remembered this trial drives warily: slowly
+//!   ([`WARY_INPUT`]), with gentle corrections ([`WARY_GAIN`]), without turning on the spot
+//!   ([`WARY_TURN`]), and judging "ahead" by the bearings nearest straight ahead
+//!   ([`WARY_AHEAD_RAD`]). Traced: without it a person stopped by a front corner in a narrow
+//!   passage turned on the spot, swung the other corner into the other side, and repeated that
+//!   dozens of times (docs/results/shared-control.md);
 //! - **reaction delay**: the device outputs what the person intended `reaction_delay_s` ago;
 //! - **device**: a joystick (proportional, with tremor) or the head cap (tremor, lapses, the
 //!   forward axis on three speed levels (a third, two thirds and full tilt) besides stop, and one
@@ -878,6 +886,80 @@ mod tests {
                 "seed {seed}: per period {per_period:.2}, steady {steady:.2}"
             );
         }
+    }
+
+    /// Joystick outputs of a person rolling along x (1 cm a period) in the open, who bumps
+    /// something straight ahead at period `bump` if given (touching for 3 periods); the pose
+    /// jumps `jump_m` further along x from period 100 on.
+    fn outputs_around_a_bump(
+        model: DriverModel,
+        bump: Option<u64>,
+        jump_m: f64,
+    ) -> Vec<Vector2<f64>> {
+        let mut d = SeeingDriver::new(
+            DriverProfile::from_seed(5),
+            InputDevice::Joystick,
+            square(),
+            5,
+        )
+        .with_model(model);
+        let touching_ahead = [0.0, 0.5, 0.5, 2.0];
+        (0..200u64)
+            .map(|k| {
+                let touching = bump.is_some_and(|b| (b..b + 3).contains(&k));
+                let seen = Perception {
+                    bearings_rad: &BEARINGS,
+                    clearance_m: if touching { &touching_ahead } else { &OPEN },
+                    touching,
+                };
+                let x = 0.01 * k as f64 + if k >= 100 { jump_m } else { 0.0 };
+                let pose = Isometry2::new(Vector2::new(x, 0.0), 0.0);
+                d.step(k * 50_000_000, pose, 0.3, &seen).unwrap().input
+            })
+            .collect()
+    }
+
+    fn mean_forward(outputs: &[Vector2<f64>]) -> f64 {
+        outputs.iter().map(|u| u.x).sum::<f64>() / outputs.len() as f64
+    }
+
+    #[test]
+    fn after_a_bump_ahead_the_person_backs_off_then_creeps_near_it_and_not_far_from_it() {
+        let calm = outputs_around_a_bump(DriverModel::Steady, None, 0.0);
+        let bumped = outputs_around_a_bump(DriverModel::Steady, Some(20), 0.0);
+        assert_eq!(calm[..20], bumped[..20], "nothing changes before the bump");
+        // Backing off (0.5 s) shows within the reaction delay (at most 0.72 s) after the bump.
+        assert!(
+            bumped[20..50].iter().any(|u| u.x < -0.2),
+            "no back-off: {:?}",
+            &bumped[20..50]
+        );
+        // Then near the bump: slow (the lowest step's wish, give or take tremor) and no turn on
+        // the spot, where the same person without the bump drives at their preferred input.
+        let (near, before) = (mean_forward(&bumped[60..100]), mean_forward(&calm[60..100]));
+        assert!(near < WARY_INPUT + 0.1, "near the bump {near:.2}");
+        assert!(
+            before > near + 0.2,
+            "without the bump {before:.2}, with {near:.2}"
+        );
+        // Farther than WARY_WITHIN_M from the bump the person drives as before.
+        let far = outputs_around_a_bump(DriverModel::Steady, Some(20), WARY_WITHIN_M + 0.5);
+        let away = mean_forward(&far[140..200]);
+        assert!(
+            away > near + 0.2,
+            "far from the bump {away:.2}, near {near:.2}"
+        );
+    }
+
+    #[test]
+    fn the_per_period_model_ignores_bumps() {
+        // The named older model keeps its figures: the touch changes only the clearance seen.
+        let bumped = outputs_around_a_bump(DriverModel::PerPeriod, Some(20), 0.0);
+        assert!(
+            bumped[20..50].iter().all(|u| u.x > -0.2),
+            "{:?}",
+            &bumped[20..50]
+        );
     }
 
     #[test]
