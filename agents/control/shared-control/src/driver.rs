@@ -15,6 +15,14 @@
 //! - **reacting when slowed**: when the chair moves at under 40 % of the commanded speed for
 //!   0.8 s, the person backs off for a second if something is right ahead, else edges towards
 //!   the most open bearing for a second; when there is no progress for 5 s they back off;
+//! - **a bump** ([`DriverModel::Steady`] only): the person feels the chair touch something
+//!   ([`Perception::touching`]), backs straight off for [`BUMP_BACK_S`] if it was in front, and
+//!   within [`WARY_WITHIN_M`] of any bump remembered this trial drives warily: slowly
+//!   ([`WARY_INPUT`]), with gentle corrections ([`WARY_GAIN`]), without turning on the spot
+//!   ([`WARY_TURN`]), and judging "ahead" by the bearings nearest straight ahead
+//!   ([`WARY_AHEAD_RAD`]). Traced: without it a person stopped by a front corner in a narrow
+//!   passage turned on the spot, swung the other corner into the other side, and repeated that
+//!   dozens of times (docs/results/shared-control.md);
 //! - **reaction delay**: the device outputs what the person intended `reaction_delay_s` ago;
 //! - **device**: a joystick (proportional, with tremor) or the head cap (tremor, lapses, the
 //!   forward axis on three speed levels (a third, two thirds and full tilt) besides stop, and one
@@ -238,6 +246,9 @@ pub struct Perception<'a> {
     pub bearings_rad: &'a [f64],
     /// Clearance along each bearing, m (`f64::INFINITY` for nothing in sight).
     pub clearance_m: &'a [f64],
+    /// The chair is pressed against something: the person feels the bump (a new contact is
+    /// the rising edge, as the simulator counts collisions).
+    pub touching: bool,
 }
 
 /// What the driver does in one period.
@@ -276,8 +287,34 @@ pub struct SeeingDriver {
     misjudged: Vec<f64>,
     /// [`DriverModel::Steady`]: when the head-cap step last changed.
     step_since_ns: u64,
+    /// [`DriverModel::Steady`]: where the chair was at each bump this trial (world frame, the
+    /// newest [`MAX_BUMPS`]).
+    bumps: Vec<Point2<f64>>,
+    /// Whether the chair was touching something last period.
+    touching: bool,
 }
 
+/// [`DriverModel::Steady`]: bumps a person remembers at once (the oldest is forgotten first).
+const MAX_BUMPS: usize = 32;
+/// [`DriverModel::Steady`]: within this of a remembered bump the person drives warily, m. The
+/// repeated contacts traced on the ward corridor were 0.3-3 m apart along one passage.
+pub const WARY_WITHIN_M: f64 = 2.5;
+/// [`DriverModel::Steady`]: how long the person backs straight off after bumping something in
+/// front, s.
+pub const BUMP_BACK_S: f64 = 0.5;
+/// [`DriverModel::Steady`]: when wary, only bearings within this of straight ahead count as
+/// "ahead" (the 0 and 15 degree bearings), rad: in a passage the 30 degree bearings see the side
+/// walls past the front corners, and stopping on them left the person turning on the spot.
+pub const WARY_AHEAD_RAD: f64 = 0.27;
+/// [`DriverModel::Steady`]: when wary, the avoidance gain is scaled by this: small corrections,
+/// not a swing from one side to the other.
+pub const WARY_GAIN: f64 = 0.25;
+/// [`DriverModel::Steady`]: when wary, the forward wish is at most this (just above the head
+/// cap's lowest step, a third).
+pub const WARY_INPUT: f64 = 0.34;
+/// [`DriverModel::Steady`]: when wary, the turn wish is at most this, or the forward wish if
+/// larger: no turning on the spot, which swings the corners into what is beside them.
+pub const WARY_TURN: f64 = 0.15;
 /// Seconds without 20 cm of progress after which the person backs off.
 const STUCK_S: f64 = 5.0;
 /// How long they back off or detour, s.
@@ -325,6 +362,8 @@ impl SeeingDriver {
             model: DriverModel::default(),
             misjudged: Vec::new(),
             step_since_ns: 0,
+            bumps: Vec::new(),
+            touching: false,
         }
     }
 
@@ -390,6 +429,7 @@ impl SeeingDriver {
             .project_near(position, self.progress_m, 0.5, 1.5)
             .max(self.progress_m - 0.5);
         self.react(time_ns, speed_mps, perception);
+        self.feel(time_ns, position, perception);
         let intended = self.intend(time_ns, dt_s, position, heading, perception);
         self.intended.push_back((time_ns, intended));
         let delay_ns = (self.profile.reaction_delay_s * 1e9) as u64;
@@ -456,6 +496,41 @@ impl SeeingDriver {
         }
     }
 
+    /// [`DriverModel::Steady`]: a new bump is remembered where it happened and, if it was in
+    /// front, the person backs straight off for [`BUMP_BACK_S`].
+    fn feel(&mut self, time_ns: u64, position: Point2<f64>, perception: &Perception<'_>) {
+        let new = perception.touching && !self.touching;
+        self.touching = perception.touching;
+        if !new || self.model != DriverModel::Steady {
+            return;
+        }
+        if self.bumps.len() == MAX_BUMPS {
+            self.bumps.remove(0);
+        }
+        self.bumps.push(position);
+        // The person knows where they bumped: the bearing of the least true clearance.
+        let touched = perception
+            .bearings_rad
+            .iter()
+            .zip(perception.clearance_m)
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .map_or(0.0, |(b, _)| *b);
+        if touched.abs() < FRAC_PI_2 {
+            // Straight: turning while backing swings a front corner too (tried, more contacts).
+            self.reverse_turn = 0.0;
+            self.reverse_until_ns = time_ns + (BUMP_BACK_S * 1e9) as u64;
+            self.checkpoint = (self.reverse_until_ns, self.progress_m);
+            self.slowed_since_ns = None;
+        }
+    }
+
+    /// Whether a remembered bump is within [`WARY_WITHIN_M`] of `position`.
+    fn wary_at(&self, position: Point2<f64>) -> bool {
+        self.bumps
+            .iter()
+            .any(|b| (b - position).norm() < WARY_WITHIN_M)
+    }
+
     /// Reverses for [`REACT_S`], the rear swinging towards the more open side.
     fn back_off(&mut self, time_ns: u64, perception: &Perception<'_>) {
         let (left, right) = side_clearance(perception);
@@ -478,12 +553,14 @@ impl SeeingDriver {
             // Backing off: the chair's rear swings the other way, so turn the other way.
             return Vector2::new(-0.5, self.reverse_turn);
         }
+        let wary = self.wary_at(position);
         let target = self.circuit.point_at(self.progress_m + p.lookahead_m);
         let to_target = target - position;
         let alpha = wrap_angle(to_target.y.atan2(to_target.x) - heading);
         // Perceived clearances, each misjudged by its own factor.
         let mut ahead = f64::INFINITY;
         let (mut left, mut right) = (f64::INFINITY, f64::INFINITY);
+        let ahead_rad = if wary { WARY_AHEAD_RAD } else { AHEAD_RAD };
         self.misjudge(dt_s, perception.bearings_rad.len());
         for (i, (&bearing, &clearance)) in perception
             .bearings_rad
@@ -496,7 +573,7 @@ impl SeeingDriver {
                 DriverModel::Steady => self.misjudged[i],
             };
             let seen = (clearance * (1.0 + error)).max(0.0);
-            if bearing.abs() <= AHEAD_RAD {
+            if bearing.abs() <= ahead_rad {
                 ahead = ahead.min(seen);
             }
             if bearing > 0.0 && bearing <= 1.9 {
@@ -510,7 +587,12 @@ impl SeeingDriver {
         let pursuit = 2.0 * (0.8 * p.preferred_input).max(0.3) * alpha.sin() / p.lookahead_m;
         let mut turn = pursuit.clamp(-1.0, 1.0);
         // Never towards a side closer than comfort; away from it the closer it is.
-        let urge = |c: f64| p.avoid_gain * (1.0 - c / p.comfort_m).max(0.0);
+        let gain = if wary {
+            p.avoid_gain * WARY_GAIN
+        } else {
+            p.avoid_gain
+        };
+        let urge = |c: f64| gain * (1.0 - c / p.comfort_m).max(0.0);
         let (away_from_left, away_from_right) = (urge(left), urge(right));
         if away_from_left > 0.0 && away_from_right > 0.0 {
             turn = away_from_right - away_from_left;
@@ -526,7 +608,12 @@ impl SeeingDriver {
         let room = ((ahead - p.stop_m) / (p.slow_m - p.stop_m)).clamp(0.0, 1.0);
         let narrow = 0.5 + 0.5 * (narrowest / p.comfort_m).clamp(0.0, 1.0);
         let facing = (1.0 - alpha.abs() / FRAC_PI_2).clamp(0.0, 1.0);
-        let forward = p.preferred_input * room.min(facing) * narrow;
+        let mut forward = p.preferred_input * room.min(facing) * narrow;
+        if wary {
+            forward = forward.min(WARY_INPUT);
+            let most = WARY_TURN.max(forward);
+            turn = turn.clamp(-most, most);
+        }
         Vector2::new(forward, turn.clamp(-1.0, 1.0))
     }
 
@@ -687,6 +774,7 @@ mod tests {
         let seen = Perception {
             bearings_rad: &BEARINGS,
             clearance_m: &OPEN,
+            touching: false,
         };
         for k in 0..(seconds / dt) as u64 {
             let out = driver.step(k * 50_000_000, pose, v, &seen).unwrap();
@@ -721,6 +809,7 @@ mod tests {
         let seen = Perception {
             bearings_rad: &BEARINGS,
             clearance_m: clearance,
+            touching: false,
         };
         (0..100u64)
             .map(|k| {
@@ -770,6 +859,7 @@ mod tests {
         let seen = Perception {
             bearings_rad: &BEARINGS,
             clearance_m: &near,
+            touching: false,
         };
         let periods = 600u64;
         let xs: Vec<f64> = (0..periods)
@@ -798,6 +888,80 @@ mod tests {
         }
     }
 
+    /// Joystick outputs of a person rolling along x (1 cm a period) in the open, who bumps
+    /// something straight ahead at period `bump` if given (touching for 3 periods); the pose
+    /// jumps `jump_m` further along x from period 100 on.
+    fn outputs_around_a_bump(
+        model: DriverModel,
+        bump: Option<u64>,
+        jump_m: f64,
+    ) -> Vec<Vector2<f64>> {
+        let mut d = SeeingDriver::new(
+            DriverProfile::from_seed(5),
+            InputDevice::Joystick,
+            square(),
+            5,
+        )
+        .with_model(model);
+        let touching_ahead = [0.0, 0.5, 0.5, 2.0];
+        (0..200u64)
+            .map(|k| {
+                let touching = bump.is_some_and(|b| (b..b + 3).contains(&k));
+                let seen = Perception {
+                    bearings_rad: &BEARINGS,
+                    clearance_m: if touching { &touching_ahead } else { &OPEN },
+                    touching,
+                };
+                let x = 0.01 * k as f64 + if k >= 100 { jump_m } else { 0.0 };
+                let pose = Isometry2::new(Vector2::new(x, 0.0), 0.0);
+                d.step(k * 50_000_000, pose, 0.3, &seen).unwrap().input
+            })
+            .collect()
+    }
+
+    fn mean_forward(outputs: &[Vector2<f64>]) -> f64 {
+        outputs.iter().map(|u| u.x).sum::<f64>() / outputs.len() as f64
+    }
+
+    #[test]
+    fn after_a_bump_ahead_the_person_backs_off_then_creeps_near_it_and_not_far_from_it() {
+        let calm = outputs_around_a_bump(DriverModel::Steady, None, 0.0);
+        let bumped = outputs_around_a_bump(DriverModel::Steady, Some(20), 0.0);
+        assert_eq!(calm[..20], bumped[..20], "nothing changes before the bump");
+        // Backing off (0.5 s) shows within the reaction delay (at most 0.72 s) after the bump.
+        assert!(
+            bumped[20..50].iter().any(|u| u.x < -0.2),
+            "no back-off: {:?}",
+            &bumped[20..50]
+        );
+        // Then near the bump: slow (the lowest step's wish, give or take tremor) and no turn on
+        // the spot, where the same person without the bump drives at their preferred input.
+        let (near, before) = (mean_forward(&bumped[60..100]), mean_forward(&calm[60..100]));
+        assert!(near < WARY_INPUT + 0.1, "near the bump {near:.2}");
+        assert!(
+            before > near + 0.2,
+            "without the bump {before:.2}, with {near:.2}"
+        );
+        // Farther than WARY_WITHIN_M from the bump the person drives as before.
+        let far = outputs_around_a_bump(DriverModel::Steady, Some(20), WARY_WITHIN_M + 0.5);
+        let away = mean_forward(&far[140..200]);
+        assert!(
+            away > near + 0.2,
+            "far from the bump {away:.2}, near {near:.2}"
+        );
+    }
+
+    #[test]
+    fn the_per_period_model_ignores_bumps() {
+        // The named older model keeps its figures: the touch changes only the clearance seen.
+        let bumped = outputs_around_a_bump(DriverModel::PerPeriod, Some(20), 0.0);
+        assert!(
+            bumped[20..50].iter().all(|u| u.x > -0.2),
+            "{:?}",
+            &bumped[20..50]
+        );
+    }
+
     #[test]
     fn reaction_delay_holds_the_start() {
         let mut d = SeeingDriver::new(
@@ -809,12 +973,14 @@ mod tests {
         let seen = Perception {
             bearings_rad: &BEARINGS,
             clearance_m: &OPEN,
+            touching: false,
         };
         let first = d.step(0, Isometry2::identity(), 0.0, &seen).unwrap();
         assert_eq!(first.input, Vector2::zeros());
         let short = Perception {
             bearings_rad: &BEARINGS,
             clearance_m: &OPEN[..2],
+            touching: false,
         };
         assert!(d.step(1, Isometry2::identity(), 0.0, &short).is_err());
     }

@@ -441,6 +441,7 @@ pub fn run_trial(
             &Perception {
                 bearings_rad: &bearings,
                 clearance_m: &seen,
+                touching: world.in_contact(id)?,
             },
         )?;
         if out.laps > trial.laps_completed {
