@@ -13,6 +13,11 @@ is scored over those few. Here every pair is scored at one common count instead:
      (`--max-common K`: at most K as well); a detector with no keypoint in either image scores
      R = 0 on that pair (as the shared checker scores it) and N is the smallest among the others;
   3. every detector keeps its N best keypoints in both images, then R = C / N.
+With `--also-n-from PEER` the same run also scores every detector at that one detector's count
+(N = the smallest of PEER's counts on the two images, the others not lowering it; where PEER
+finds none, N = the smallest count of the others), with the detectors' own ranking: how the
+detectors compare at AKAZE's count, not pulled down by a detector that keeps few keypoints. A
+detector with fewer than N keypoints keeps all it has (R = C over them).
 "Best" is reported two ways, both in one run, the same rule for every detector:
   * `own`: the detector's own ranking (ours: the cap's order: lsac-surf-nt ranks by
     signal-to-noise, size-discounted, with its 2 px spacing; the others by response; OpenCV's by
@@ -24,7 +29,8 @@ one-to-one, nearest first; ours see the RGB PNG, OpenCV's the gray 0.299 R + 0.5
 Beside the matched R, the R each detector gets uncapped (its threshold's full count) is printed.
 
 Usage: matched_counts.py --bin BIN --images DIR [--detectors lsac-surf-nt,lsac-surf]
-                         [--peers AKAZE] [--collections LCC,LIC] [--json OUT]
+                         [--peers AKAZE] [--collections LCC,LIC,LIS] [--also-n-from AKAZE]
+                         [--json OUT]
        matched_counts.py --from-json OUT   (reprint the medians of a saved run)
 Prints the medians over the (image, parameter) pairs per collection and detector, with the number
 of pairs where some detector found no keypoint (it scores 0 there).
@@ -152,6 +158,20 @@ def summarise(rows, images):
                          f" {{{v('repeatability_uncapped'):.1f}, {ratio:.2f}}}")
         print(f"| {coll} | {len(rs)} ({none}) | {np.median([r['common_count'] for r in rs]):.0f} | "
               + ", ".join(f"{n} {c}" for n, c in setter.items() if c) + " | " + " | ".join(cells) + " |")
+    source = rows[0].get("n_from")
+    if source:
+        print(f"\nAt {source}'s count (own ranking; [pairs where the detector had fewer than N]):")
+        print("| collection | median N | " + " | ".join(dets) + " |")
+        print("|---|---|" + "---|" * len(dets))
+        for coll in dict.fromkeys(r["collection"] for r in rows):
+            rs = [r for r in rows if r["collection"] == coll and r["n_from_count"] > 0]
+            cells = []
+            for n in dets:
+                med = float(np.median([r["detectors"][n]["repeatability_at_n_from"] for r in rs]))
+                short = sum(1 for r in rs if min(r["detectors"][n]["reference_keypoints"],
+                                                 r["detectors"][n]["keypoints"]) < r["n_from_count"])
+                cells.append(f"{med:.1f} [{short}]")
+            print(f"| {coll} | {np.median([r['n_from_count'] for r in rs]):.0f} | " + " | ".join(cells) + " |")
 
 
 def main():
@@ -165,6 +185,7 @@ def main():
                     help="AKAZE's detector threshold (OpenCV's default 0.001; peers.py's AKAZE@N uses 1e-4)")
     ap.add_argument("--max-common", type=int,
                     help="cap the common count N as well (e.g. 1000, lsac-surf-nt's own cap)")
+    ap.add_argument("--also-n-from", help="also score every detector at this detector's count (e.g. AKAZE)")
     ap.add_argument("--json", help="write every pair's counts and R here")
     ap.add_argument("--from-json", help="print the medians of a saved --json run (no detection)")
     a = ap.parse_args()
@@ -182,6 +203,8 @@ def main():
     dets = {n: ours(a.bin, n, tmp) for n in a.detectors.split(",") if n}
     dets.update({(f"{n}(t={a.akaze_threshold:g})" if n == "AKAZE" and a.akaze_threshold else n):
                  opencv(n, a.akaze_threshold) for n in a.peers.split(",") if n})
+    if a.also_n_from and a.also_n_from not in dets:
+        raise SystemExit(f"--also-n-from {a.also_n_from}: not among the detectors {list(dets)}")
     files = sorted(glob.glob(os.path.join(a.images, "*.png")) + glob.glob(os.path.join(a.images, "*.jpg")))
     if not files:
         raise SystemExit(f"{a.images}: no .png or .jpg images")
@@ -199,6 +222,11 @@ def main():
                     n_common = min(n_common, a.max_common)
                 row = {"image": os.path.basename(f), "collection": coll, "parameter": p,
                        "common_count": n_common, "detectors": {}}
+                if a.also_n_from:
+                    own = counts[a.also_n_from]
+                    others = [c for n, c in counts.items() if n != a.also_n_from and c > 0]
+                    row["n_from"] = a.also_n_from
+                    row["n_from_count"] = own if own > 0 else (min(others) if others else 0)
                 for n in dets:
                     full = lambda k: (k.pts, k.sizes)
                     # No keypoint in either image: nothing repeats (0, as the shared checker scores it).
@@ -206,6 +234,8 @@ def main():
                         row["detectors"][n] = {"reference_keypoints": len(ref[n].pts), "keypoints": len(relit[n].pts),
                                                "repeatability_uncapped": 0.0, "repeatability_matched_own": 0.0,
                                                "repeatability_matched_response": 0.0}
+                        if a.also_n_from:
+                            row["detectors"][n]["repeatability_at_n_from"] = 0.0
                         continue
                     row["detectors"][n] = {
                         "reference_keypoints": len(ref[n].pts), "keypoints": len(relit[n].pts),
@@ -215,6 +245,10 @@ def main():
                         "repeatability_matched_response": r_percent(relit[n].best(n_common, "response"),
                                                                     ref[n].best(n_common, "response")),
                     }
+                    if a.also_n_from:
+                        k = row["n_from_count"]
+                        row["detectors"][n]["repeatability_at_n_from"] = r_percent(relit[n].best(k, "own"),
+                                                                                   ref[n].best(k, "own"))
                 rows.append(row)
                 print(f"{os.path.basename(f)} {coll} {p:.3g}: N {n_common}; " + ", ".join(
                     f"{n} {v['repeatability_matched_own']:.1f}" for n, v in row["detectors"].items()),

@@ -7,13 +7,103 @@
 //! Per step it also prints the mean count kept: a change that lowers the relit count raises R
 //! for that reason alone, so a gain counts only at matched counts (the thesis's fairness rule).
 //!
-//! `cargo run --profile test -p iw-features --example lcc_losses -- DIR [lic] [lcc] [--detail]`
+//! `cargo run --profile test -p iw-features --example lcc_losses -- DIR [lic] [lcc] [--detail]
+//! [--set FIELD=JSON]... [--sequence SEQ:ORIGIN]...`
 //! (DIR: the photographs, e.g. the skimage folder of the shared data). Same relighting and
-//! protocol as `intellwheels repeatability --images`, `lsac-surf-nt` only.
+//! protocol as `intellwheels repeatability --images`, `lsac-surf-nt` only. `--set` overrides a
+//! field of its `DetectorConfig` (e.g. `--set doubled_sigma=2.4 --set noise_factor=11`), so a
+//! variant is measured without a build; `--sequence` also scores a real-light sequence
+//! (`img1..imgN`, `H1toKp`, the homographies read with pixel origin ORIGIN) as
+//! `intellwheels repeatability --sequence` does: R = C / m_i and C / min(m_1, m_i) per pair and
+//! their means (`--sequence` alone, with DIR `-`, skips the collections).
 
 use iw_features::experiment::{Collection, Relight, Summary, correspondences};
+use iw_features::homography::Homography;
 use iw_features::{Detector, DetectorConfig, DetectorKind, Keypoint};
 use rayon::prelude::*;
+
+/// The config with each `FIELD=JSON` override applied.
+fn overridden(
+    mut config: DetectorConfig,
+    sets: &[String],
+) -> Result<DetectorConfig, Box<dyn std::error::Error>> {
+    for set in sets {
+        let (field, value) = set
+            .split_once('=')
+            .ok_or_else(|| format!("--set {set}: expected FIELD=JSON"))?;
+        let mut json = serde_json::to_value(&config)?;
+        let slot = json
+            .get_mut(field)
+            .ok_or_else(|| format!("--set {set}: no config field `{field}`"))?;
+        *slot = serde_json::from_str(value)?;
+        config = serde_json::from_value(json)?;
+    }
+    config.validate()?;
+    Ok(config)
+}
+
+/// Scores sequence `dir` (homographies read with pixel origin `origin`) and prints every pair.
+fn sequence(
+    dir: &str,
+    origin: f64,
+    config: &DetectorConfig,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let path = std::path::Path::new(dir);
+    let mut images = Vec::new();
+    for k in 1.. {
+        let Some(file) = ["png", "jpg", "ppm"]
+            .iter()
+            .map(|e| path.join(format!("img{k}.{e}")))
+            .find(|p| p.exists())
+        else {
+            break;
+        };
+        images.push(image::open(&file)?.to_rgb8());
+    }
+    let keypoints: Vec<Vec<Keypoint>> = images
+        .par_iter()
+        .map(|im| {
+            Detector::new()
+                .detect(DetectorKind::LsacSurfNt, im, config)
+                .map(|f| f.keypoints)
+                .unwrap_or_default()
+        })
+        .collect();
+    let size = |i: usize| (images[i].width(), images[i].height());
+    let (mut sum, mut sum_sym) = (0.0, 0.0);
+    let mut pairs = Vec::new();
+    for k in 1..images.len() {
+        let text = std::fs::read_to_string(path.join(format!("H1to{}p", k + 1)))?;
+        let h = Homography::parse(&text)?.with_pixel_origin(origin);
+        let s = iw_features::sequence::score_pair(
+            &keypoints[0],
+            size(0),
+            &keypoints[k],
+            size(k),
+            &h,
+            &[],
+        );
+        sum += s.repeatability;
+        sum_sym += s.repeatability_symmetric;
+        pairs.push(format!(
+            "1-{}: {:.1}/{:.1} ({}, {}, C {})",
+            k + 1,
+            s.repeatability,
+            s.repeatability_symmetric,
+            s.reference_keypoints,
+            s.keypoints,
+            s.correspondences
+        ));
+    }
+    let n = (images.len() - 1).max(1) as f64;
+    println!(
+        "{dir}: mean R {:.1} R_sym {:.1}; per pair R/R_sym (m_1, m_i, C): {}",
+        sum / n,
+        sum_sym / n,
+        pairs.join("; ")
+    );
+    Ok(())
+}
 
 /// One relit image scored: parameter, R %, kept keypoints, rank swaps, absent.
 struct Row {
@@ -40,7 +130,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let dir = args
         .first()
-        .ok_or("usage: lcc_losses DIR [lic] [lcc] [--detail]")?;
+        .ok_or("usage: lcc_losses DIR [lic] [lcc] [--detail] [--set FIELD=JSON]... [--sequence SEQ:ORIGIN]...")?;
+    let after = |flag: &str| -> Vec<String> {
+        args.windows(2)
+            .filter(|w| w[0] == flag)
+            .map(|w| w[1].clone())
+            .collect()
+    };
+    let config = overridden(
+        DetectorConfig::for_kind(DetectorKind::LsacSurfNt),
+        &after("--set"),
+    )?;
+    for seq in after("--sequence") {
+        let (seq_dir, origin) = seq
+            .rsplit_once(':')
+            .ok_or_else(|| format!("--sequence {seq}: expected DIR:ORIGIN"))?;
+        sequence(seq_dir, origin.parse()?, &config)?;
+    }
+    if dir == "-" {
+        return Ok(());
+    }
     let detail = args.iter().any(|a| a == "--detail");
     let wanted =
         |c: &str| args.iter().any(|a| a == c) || !args.iter().any(|a| a == "lic" || a == "lcc");
@@ -49,7 +158,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .filter(|p| p.extension().is_some_and(|e| e == "png" || e == "jpg"))
         .collect();
     files.sort();
-    let config = DetectorConfig::for_kind(DetectorKind::LsacSurfNt);
     let cap = config.max_keypoints.ok_or("lsac-surf-nt has no cap")?;
     let changes: Vec<(&str, Relight)> = [Collection::Lic, Collection::Lcc]
         .into_iter()

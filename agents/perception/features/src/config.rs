@@ -107,10 +107,18 @@ pub struct DetectorConfig {
     /// (16..=512; default 32).
     #[serde(default = "default_noise_tile_px")]
     pub noise_tile_px: usize,
+    /// With [`Self::upsample`]: sigma of the Gaussian the doubled image is blurred by, doubled px
+    /// (default 1.6, SIFT's base scale; 0.5..=8).
+    #[serde(default = "default_doubled_sigma")]
+    pub doubled_sigma: f32,
 }
 
 fn default_noise_tile_px() -> usize {
     32
+}
+
+fn default_doubled_sigma() -> f32 {
+    1.6
 }
 
 impl DetectorConfig {
@@ -135,6 +143,7 @@ impl DetectorConfig {
             noise_factor: 0.0,
             contrast_threshold: 0.0,
             noise_tile_px: default_noise_tile_px(),
+            doubled_sigma: default_doubled_sigma(),
         };
         match kind {
             DetectorKind::Surf => base,
@@ -243,6 +252,13 @@ impl DetectorConfig {
                 "noise_tile_px",
                 self.noise_tile_px.to_string(),
                 "expected 16..=512",
+            );
+        }
+        if !(self.doubled_sigma.is_finite() && (0.5..=8.0).contains(&self.doubled_sigma)) {
+            return bad(
+                "doubled_sigma",
+                self.doubled_sigma.to_string(),
+                "expected 0.5..=8 doubled px",
             );
         }
         if let Some((lower, upper)) = self.soft_band

@@ -221,7 +221,7 @@ impl Detector {
             return Ok(Features::default());
         }
         let (source, pixel) = if config.upsample {
-            self.doubled.double(image);
+            self.doubled.double(image, config.doubled_sigma);
             (working::Source::Planes(&self.doubled), 2.0)
         } else {
             (working::Source::Rgb(image), 1.0)

@@ -260,3 +260,34 @@ mod properties {
         }
     }
 }
+
+#[test]
+fn the_doubled_images_blur_is_checked_and_used() {
+    let mut config = DetectorConfig::for_kind(DetectorKind::LsacSurfNt);
+    for bad in [0.4, 8.5, f32::NAN] {
+        config.doubled_sigma = bad;
+        assert!(
+            matches!(
+                config.validate(),
+                Err(crate::FeatureError::InvalidConfig {
+                    field: "doubled_sigma",
+                    ..
+                })
+            ),
+            "{bad} accepted"
+        );
+    }
+    let img = texture(96, 96, 7);
+    let count = |sigma: f32| {
+        let config = DetectorConfig {
+            doubled_sigma: sigma,
+            ..DetectorConfig::for_kind(DetectorKind::LsacSurfNt)
+        };
+        detect(DetectorKind::LsacSurfNt, &img, &config)
+            .unwrap()
+            .keypoints
+            .len()
+    };
+    // More blur leaves fewer fine extrema (the default is the SIFT base scale, 1.6).
+    assert!(count(4.0) < count(1.6), "{} vs {}", count(4.0), count(1.6));
+}

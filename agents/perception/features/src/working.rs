@@ -10,11 +10,6 @@ use crate::{
     DetectorConfig, DetectorKind, FeatureClass, GrayImage32, IntegralImage, Keypoint, LsacSpace,
 };
 
-/// Gaussian blur of the doubled image, its px: SIFT's base scale (Lowe 2004, sigma 1.6). Without
-/// it the finest filters respond to the interpolation's own pattern, which a sub-pixel shift of
-/// the scene changes (measured: see `docs/results/repeatability.md`).
-const DOUBLED_SIGMA: f32 = 1.6;
-
 /// The three colour channels of an image as `f32` planes (8-bit units, not rounded).
 #[derive(Debug, Default)]
 pub(crate) struct Planes {
@@ -35,12 +30,14 @@ impl Planes {
     }
 
     /// `image` at twice its width and height (bilinear, pixel centres at `(X + 0.5) / 2 - 0.5` of
-    /// the input), then blurred by [`DOUBLED_SIGMA`] (see [`DetectorConfig::upsample`]). Kept in
-    /// float: rounding back to 8 bits would add a quantisation noise of its own, largest
-    /// relative to the signal where the light is dim.
-    pub(crate) fn double(&mut self, image: &image::RgbImage) {
+    /// the input), then blurred by a Gaussian of `sigma` doubled px (see
+    /// [`DetectorConfig::upsample`], [`DetectorConfig::doubled_sigma`]: without the blur the
+    /// finest filters respond to the interpolation's own pattern, which a sub-pixel shift of the
+    /// scene changes). Kept in float: rounding back to 8 bits would add a quantisation noise of
+    /// its own, largest relative to the signal where the light is dim.
+    pub(crate) fn double(&mut self, image: &image::RgbImage, sigma: f32) {
         let (w, h) = (image.width() as usize, image.height() as usize);
-        let kernel = gaussian_kernel(DOUBLED_SIGMA);
+        let kernel = gaussian_kernel(sigma);
         let raw = image.as_raw();
         for (c, plane) in self.channels.iter_mut().enumerate() {
             // Rows doubled horizontally into `tmp` (2w x h), then columns into `plane` (2w x 2h).
@@ -423,8 +420,8 @@ mod tests {
             image::Rgb(bright.get_pixel(x, y).0.map(|v| v / 2))
         });
         let (mut a, mut b) = (Planes::default(), Planes::default());
-        a.double(&bright);
-        b.double(&dim);
+        a.double(&bright, 1.6);
+        b.double(&dim, 1.6);
         assert_eq!((a.width(), a.height()), (2 * w as usize, 2 * h as usize));
         for c in 0..3 {
             for (&p, &q) in a.channel(c).as_slice().iter().zip(b.channel(c).as_slice()) {
@@ -433,7 +430,7 @@ mod tests {
         }
         // A flat image stays flat, borders included.
         let flat = image::RgbImage::from_pixel(5, 4, image::Rgb([9, 99, 199]));
-        a.double(&flat);
+        a.double(&flat, 1.6);
         for (c, v) in [9.0, 99.0, 199.0].into_iter().enumerate() {
             assert!(
                 a.channel(c)
