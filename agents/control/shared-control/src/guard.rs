@@ -1020,11 +1020,12 @@ mod tests {
 
     #[test]
     fn a_chair_held_at_a_corner_ahead_turns_on_the_spot_the_way_its_user_asks() {
-        // A wall 3 cm ahead of the front, across its right half: no forward motion is clear, a
-        // turn to the right on the spot is (it swings the front's right half away from the
-        // wall). The user asks for forward and right: the guard keeps the turn, not a stop.
+        // A wall 3 cm ahead of the front's right corner, from 0.1 m right of the centre line
+        // outwards: no forward motion is clear, a turn to the right on the spot is (it swings
+        // the front's right part away from the wall). The user asks for forward and right: the
+        // guard keeps the turn, not a stop.
         let fp = Footprint::PROTOTYPE;
-        let wall: Vec<Point2<f64>> = (0..=25)
+        let wall: Vec<Point2<f64>> = (5..=25)
             .map(|k| Point2::new(fp.front_m + 0.03, -0.02 * f64::from(k)))
             .collect();
         let g = guard();
