@@ -11,8 +11,9 @@
 //! current and remembered; never a map): of the straight lanes ahead of the stalled chair's front,
 //! the passage's axis is the heading whose lane is widest, because a lane across two walls
 //! narrows as it tilts. [`Docking`] then turns the chair on the spot to that axis, reverses along
-//! it until there is room to take out the sideways offset, and drives forwards onto the centre
-//! line at an angle that shrinks with the offset, so it comes alongside the line before the entry.
+//! it until there is room to take out the sideways offset, drives forwards onto the centre line
+//! at an angle that shrinks with the offset, so it comes alongside the line before the entry, and
+//! follows the line until the chair's front is well inside the passage.
 
 use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -59,6 +60,11 @@ const DOCK_MPS: f64 = 0.2;
 const DOCK_TURN_RADPS: f64 = 0.6;
 /// Heading error under which the chair is lined up, rad (3 degrees).
 const ALIGNED_RAD: f64 = 0.05;
+/// How far past the entry the front is taken along the centre line before docking hands back, m.
+/// Handed back before the entry, the user's own steering (a head cap's lateral wobble, a
+/// misjudged jamb) turned the lined-up chair off the line again, and it wedged at the same door
+/// (two rooms, held-out driver 216: docked twice onto the lower door's line, wedged twice more).
+const THROUGH_M: f64 = 1.0;
 
 /// A passage's centre line (odometry frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -127,8 +133,9 @@ pub(crate) fn find_lane(
     })
 }
 
-/// Driving to the dock pose of a [`Lane`], in three steps: turn on the spot to the passage's
-/// axis, reverse along it until there is room for the run-in, then the S onto the centre line.
+/// Driving to the dock pose of a [`Lane`] and on into the passage, in four steps: turn on the
+/// spot to the passage's axis, reverse along it until there is room for the run-in, the S onto
+/// the centre line, then along the line until the front is [`THROUGH_M`] past the entry.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Docking {
     /// Where the axle ends up (odometry frame).
@@ -147,6 +154,8 @@ enum Step {
     Back { run_in_m: f64 },
     /// Driving forwards onto the dock pose.
     In,
+    /// Lined up: on along the centre line until the front is [`THROUGH_M`] past the entry.
+    Through,
 }
 
 impl Docking {
@@ -169,7 +178,7 @@ impl Docking {
     }
 
     /// The commands towards the dock pose from `pose`, best first (the first one the sweep check
-    /// clears is sent), or `None` when the chair is there and lined up.
+    /// clears is sent), or `None` when the chair is through the entry.
     pub(crate) fn commands(&mut self, pose: &Isometry2<f64>) -> Option<[VelocityCommand; 3]> {
         let theta = pose.rotation.angle();
         let error = wrap_angle(self.heading - theta);
@@ -205,6 +214,9 @@ impl Docking {
         // through the walls beside it.
         let (along, across) = self.offsets(pose);
         if along >= 0.0 || (across.abs() < LINED_UP_M && error.abs() <= ALIGNED_RAD) {
+            self.step = Step::Through;
+        }
+        if self.step == Step::Through && along >= DOCK_BEFORE_M + THROUGH_M {
             return None;
         }
         let wanted = self.heading
@@ -264,7 +276,7 @@ mod tests {
     }
 
     #[test]
-    fn docking_brings_a_unicycle_onto_the_line_lined_up_before_the_entry() {
+    fn docking_brings_a_unicycle_onto_the_line_and_along_it_into_the_passage() {
         // Free space, a start 0.77 m off the centre line and 48 degrees off its axis, either
         // facing towards the dock pose or away from it.
         let fp = Footprint::PROTOTYPE;
@@ -298,7 +310,11 @@ mod tests {
             assert!(done, "{start:?} -> {pose:?}");
             assert!(pose.translation.y.abs() < 0.08, "{start:?} -> {pose:?}");
             assert!(pose.rotation.angle().abs() <= ALIGNED_RAD, "{pose:?}");
-            assert!(pose.translation.x < -fp.front_m, "{pose:?}");
+            // handed back with the front inside the passage, not before its entry
+            assert!(
+                pose.translation.x + fp.front_m >= THROUGH_M - 0.05,
+                "{pose:?}"
+            );
         }
     }
 }

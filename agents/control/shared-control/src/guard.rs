@@ -445,9 +445,23 @@ impl ArcGuard {
                 }
             }
         }
+        // The user's turn kept on the spot: a chair whose front is held at a corner can often
+        // still turn the way its user asks, and stopping it instead left the user pushing into a
+        // stall (two rooms, held-out drivers 203 and 215: held for seconds at a desk's corner and
+        // in the upper door, asking for a turn that was clear). Dearer than any scaled or
+        // steered command that moves the chair on, cheaper than a stop.
+        let turn = VelocityCommand::new(0.0, command.angular_radps);
+        if command.linear_mps != 0.0 && best.is_none_or(|(c, _)| c > KEEP_TURN_COST) && clear(turn)
+        {
+            best = Some((KEEP_TURN_COST, turn));
+        }
         (best.map_or(VelocityCommand::STOP, |(_, c)| c), true)
     }
 }
+
+/// Cost of turning on the spot at the user's turn rate when no scaled or steered command is
+/// clear (a stop costs 1, the user's command unchanged 0).
+const KEEP_TURN_COST: f64 = 0.95;
 
 /// Spacing of the points laid across the front blind zone, m: finer than the 5 cm margin.
 const FRONT_GAP_STEP_M: f64 = 0.02;
@@ -1002,6 +1016,27 @@ mod tests {
             .unwrap();
         assert_eq!(out.command, user);
         assert_eq!(out.intervention, Intervention::default());
+    }
+
+    #[test]
+    fn a_chair_held_at_a_corner_ahead_turns_on_the_spot_the_way_its_user_asks() {
+        // A wall 3 cm ahead of the front's right corner, from 0.1 m right of the centre line
+        // outwards: no forward motion is clear, a turn to the right on the spot is (it swings
+        // the front's right part away from the wall). The user asks for forward and right: the
+        // guard keeps the turn, not a stop.
+        let fp = Footprint::PROTOTYPE;
+        let wall: Vec<Point2<f64>> = (5..=25)
+            .map(|k| Point2::new(fp.front_m + 0.03, -0.02 * f64::from(k)))
+            .collect();
+        let g = guard();
+        let user = VelocityCommand::new(0.3, -0.5);
+        let turn = VelocityCommand::new(0.0, -0.5);
+        assert!(g.is_clear(turn, &wall));
+        let (out, changed) = g.limit(user, &wall);
+        assert!(changed && out == turn, "{out:?}");
+        // turning the other way would swing the front into the wall: a stop
+        let (out, _) = g.limit(VelocityCommand::new(0.3, 0.5), &wall);
+        assert_eq!(out, VelocityCommand::STOP);
     }
 
     #[test]

@@ -17,9 +17,9 @@
 //! wedges again. So when the stall was at a passage the dense sensor saw (found then, from its
 //! points alone: [`crate::dock::find_lane`]), the backing is followed by docking
 //! ([`crate::dock::Docking`]): the chair is driven onto the passage's centre line before the
-//! entry, lined up with its axis, and handed back, so the user's own command drives it in. Each
-//! docking command passes the same sweep check as the backing's; docking ends when the chair
-//! is lined up, when the user lets go, when it has been held for [`DOCK_HELD_S`], or after
+//! entry, lined up with its axis, and along the line until its front is inside the passage, then
+//! handed back. Each docking command passes the same sweep check as the backing's; docking ends
+//! there, when the user lets go, when it has been held for [`DOCK_HELD_S`], or after
 //! [`DOCK_MAX_S`].
 
 use std::collections::VecDeque;
