@@ -632,7 +632,8 @@ mod tests {
         let map = LocalizationMap::new(segments, vec![], 1.0).expect("map");
         let points: Vec<ScanPoint> = (0..60)
             .map(|k| {
-                let (a, r) = (f64::from(k) * 0.37, 0.5 + f64::from(k % 7) * 0.61);
+                // off the cells' boundaries at every heading (on one, either cell is right)
+                let (a, r) = (f64::from(k) * 0.37 + 0.011, 0.503 + f64::from(k % 7) * 0.61);
                 ScanPoint {
                     p_base: Point2::new(r * a.cos(), r * a.sin()),
                     sigma_m: 0.02,
