@@ -198,6 +198,12 @@ impl LocalizationMap {
         })
     }
 
+    /// The distance grid's lower-left corner, cell size (m), columns and rows: cell `(c, r)`
+    /// spans `min + cell * (c, r)` to `min + cell * (c + 1, r + 1)`.
+    pub(crate) fn field_grid(&self) -> (Point2<f64>, f64, usize, usize) {
+        (self.min, FIELD_CELL_M, self.field_cols, self.field_rows)
+    }
+
     /// Distance to the nearest segment from the coarse grid (0.1 m cells, capped at the reach;
     /// outside the map: the reach). For the global search, where speed beats precision.
     pub fn field_distance(&self, x: f64, y: f64) -> f64 {
