@@ -6,11 +6,11 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::AgentHost;
 use iw_agent::gateway::gateway;
+use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
-use iw_ontology::OntologyContent;
-use iw_body::layout::Footprint;
 use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, SonarGeometry};
+use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, SensorReading, SensorUse, WheelchairContent};
 use iw_perception::{PerceptionAgent, PerceptionConfig};
 use iw_vo::Pose2;
@@ -163,7 +163,8 @@ fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
     let mut host = AgentHost::new(Arc::new(bus));
     let start = Pose2::new(2.0, 2.0, 0.0);
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), start);
-    let corners = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)].map(|(x, y)| nalgebra::Point2::new(x, y));
+    let corners =
+        [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)].map(|(x, y)| nalgebra::Point2::new(x, y));
     let room = (0..4).map(|i| (corners[i], corners[(i + 1) % 4])).collect();
     let map = Arc::new(LocalizationMap::new(room, Vec::new(), 2.0).unwrap());
     let sonar = SonarGeometry {
@@ -183,7 +184,8 @@ fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
     let agent = PerceptionAgent::new(config, Box::new(GarbledSonars { reads: 0 }), None)
         .unwrap()
         .with_localizer(localizer);
-    host.add(AgentId::new("perception"), Box::new(agent)).unwrap();
+    host.add(AgentId::new("perception"), Box::new(agent))
+        .unwrap();
     let (agent, probe) = gateway(Duration::from_millis(1));
     host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
     let subscribe = |conversation: &str| {
@@ -231,7 +233,8 @@ fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
     run(100);
     let told = health(probe.take_received());
     assert!(
-        told.iter().any(|(c, s, u, _)| c == "s2" && s == "sonars" && *u == SensorUse::Dropped),
+        told.iter()
+            .any(|(c, s, u, _)| c == "s2" && s == "sonars" && *u == SensorUse::Dropped),
         "{told:?}"
     );
     // good readings again: both subscribers are told the ring is back, once
