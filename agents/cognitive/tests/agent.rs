@@ -354,11 +354,12 @@ fn via_the_landmark(request: &AclMessage) -> bool {
     matches!((at((3.0, 2.0)), at((2.0, 2.0))), (Some(a), Some(b)) if a < b)
 }
 
-fn laser(usage: SensorUse) -> Fact {
+/// The perception agent's word on a range sensor (`laser` or `sonars`).
+fn sensor(name: &str, usage: SensorUse) -> Fact {
     Fact::Sensor {
         agent: AgentId::new("chair1"),
         state: SensorState {
-            sensor: "laser".into(),
+            sensor: name.into(),
             usage,
             reason: "silent: no readings".into(),
         },
@@ -388,14 +389,24 @@ fn a_silent_laser_routes_the_chair_past_a_landmark_once() {
     rig.run(10);
     rig.pose(pose_at(2.5, 4.0, 0.0001));
     rig.run(10);
-    rig.pose(laser(SensorUse::InUse));
+    rig.pose(sensor("laser", SensorUse::InUse));
     rig.run(10);
     assert_eq!(
         rig.control.lock().unwrap().len(),
         1,
         "a laser in use: no detour"
     );
-    rig.pose(laser(SensorUse::Dropped));
+    // dropped sonars leave the laser to localize: no detour either
+    rig.pose(sensor("sonars", SensorUse::Dropped));
+    rig.run(10);
+    rig.pose(sensor("sonars", SensorUse::InUse));
+    rig.run(10);
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        1,
+        "dropped sonars: no detour"
+    );
+    rig.pose(sensor("laser", SensorUse::Dropped));
     rig.run(10);
     {
         let control = rig.control.lock().unwrap();
@@ -408,7 +419,7 @@ fn a_silent_laser_routes_the_chair_past_a_landmark_once() {
         assert!(!via_the_landmark(&control[0]));
     }
     // told again (a new subscription, a repeat): the chair is on its way already
-    rig.pose(laser(SensorUse::Dropped));
+    rig.pose(sensor("laser", SensorUse::Dropped));
     rig.run(10);
     assert_eq!(rig.control.lock().unwrap().len(), 2);
 }

@@ -33,12 +33,12 @@
 //!   c00 .. c22))))` in the subscription's conversation. A subscription whose content names
 //!   `sensor-reading` also gets `((sensor-reading CHAIR (sonar-reading :ranges (sequence ...))))`
 //!   (no echo reads as the sonar's maximum range, [`PerceptionConfig::sonar_max_m`]).
-//! - With a map, whenever the localizer drops the laser (silent, or garbage: see
-//!   [`iw_localization::LocalizerConfig::drop_after`]) or takes it back, every subscriber
+//! - With a map, whenever the localizer drops the laser or the sonar ring (silent, or garbage:
+//!   see [`iw_localization::LocalizerConfig::drop_after`]) or takes it back, every subscriber
 //!   gets an INFORM `((sensor-health (agent-identifier :name CHAIR) (sensor-state :sensor laser
-//!   :use dropped :reason "silent: no readings")))` (`:use in-use` when it is back), and a new
-//!   subscriber gets it at once while the laser is dropped: a chair that dead-reckons should be
-//!   routed past a landmark.
+//!   :use dropped :reason "silent: no readings")))` (`:sensor sonars` for the ring; `:use
+//!   in-use` when it is back), and a new subscriber gets it at once while the sensor is dropped:
+//!   a chair whose laser is dropped dead-reckons and should be routed past a landmark.
 //! - CANCEL in the conversation of a subscription: ends it, INFORM `((done ...))` is not sent
 //!   (FIPA allows silence); other performatives get NOT-UNDERSTOOD. Each subscription is its
 //!   conversation's `iw_agent::Responder`: the notifications answer it, a CANCEL ends only it.
@@ -173,10 +173,52 @@ pub struct PerceptionAgent {
     last_sonar_m: Vec<f64>,
     localizer: Option<Localizer>,
     history: WheelHistory,
-    /// Why the localizer dropped the laser, as last told to the subscribers (`None`: in use).
-    laser_dropped: Option<&'static str>,
-    /// The laser's use changed since the subscribers were last told.
-    laser_news: bool,
+    /// The laser's and the sonar ring's use, as last told to the subscribers.
+    ranges: [RangeSensor; 2],
+}
+
+/// A range sensor the localizer may drop, as the subscribers were told of it.
+#[derive(Debug)]
+struct RangeSensor {
+    /// Its name in `sensor-state`: `laser` or `sonars`.
+    name: &'static str,
+    /// Why the localizer dropped it (`None`: in use).
+    dropped: Option<&'static str>,
+    /// Its use changed since the subscribers were last told.
+    news: bool,
+}
+
+impl RangeSensor {
+    const fn new(name: &'static str) -> Self {
+        RangeSensor {
+            name,
+            dropped: None,
+            news: false,
+        }
+    }
+
+    /// Takes the localizer's word on it; notes news when its use changed.
+    fn observe(&mut self, dropped: Option<&'static str>) {
+        if dropped != self.dropped {
+            self.dropped = dropped;
+            self.news = true;
+        }
+    }
+
+    /// Its use as the ontology says it.
+    fn state(&self, chair: &AgentId) -> WheelchairContent {
+        WheelchairContent::Inform(Fact::Sensor {
+            agent: chair.clone(),
+            state: SensorState {
+                sensor: self.name.into(),
+                usage: match self.dropped {
+                    Some(_) => SensorUse::Dropped,
+                    None => SensorUse::InUse,
+                },
+                reason: self.dropped.unwrap_or_default().into(),
+            },
+        })
+    }
 }
 
 impl PerceptionAgent {
@@ -227,8 +269,7 @@ impl PerceptionAgent {
             last_sonar_m: Vec::new(),
             localizer: None,
             history: WheelHistory::default(),
-            laser_dropped: None,
-            laser_news: false,
+            ranges: [RangeSensor::new("laser"), RangeSensor::new("sonars")],
         })
     }
 
@@ -294,10 +335,8 @@ impl PerceptionAgent {
                     if l.status() != before {
                         tracing::info!(chair = %self.config.chair.name, status = ?l.status(), "localization status changed");
                     }
-                    if l.laser_dropped() != self.laser_dropped {
-                        self.laser_dropped = l.laser_dropped();
-                        self.laser_news = true;
-                    }
+                    self.ranges[0].observe(l.laser_dropped());
+                    self.ranges[1].observe(l.sonar_dropped());
                 }
                 self.last_sonar_m = frame
                     .sonar_m
@@ -386,27 +425,14 @@ impl PerceptionAgent {
         visual.worker.request();
     }
 
-    /// The laser's use as the ontology says it.
-    fn laser_state(&self) -> WheelchairContent {
-        WheelchairContent::Inform(Fact::Sensor {
-            agent: self.config.chair.clone(),
-            state: SensorState {
-                sensor: "laser".into(),
-                usage: match self.laser_dropped {
-                    Some(_) => SensorUse::Dropped,
-                    None => SensorUse::InUse,
-                },
-                reason: self.laser_dropped.unwrap_or_default().into(),
-            },
-        })
-    }
-
-    /// Tells every subscriber that the laser was dropped or taken back.
-    fn tell_laser(&mut self, ctx: &mut Context<'_>) {
-        self.laser_news = false;
-        let state = self.laser_state();
-        for sub in &mut self.subscribers {
-            let _ = ctx.answer(&mut sub.responder, Performative::Inform, &state);
+    /// Tells every subscriber of each range sensor that was dropped or taken back.
+    fn tell_ranges(&mut self, ctx: &mut Context<'_>) {
+        for sensor in self.ranges.iter_mut().filter(|s| s.news) {
+            sensor.news = false;
+            let state = sensor.state(&self.config.chair);
+            for sub in &mut self.subscribers {
+                let _ = ctx.answer(&mut sub.responder, Performative::Inform, &state);
+            }
         }
     }
 
@@ -458,8 +484,9 @@ impl Agent for PerceptionAgent {
                     s.responder.conversation_id() != responder.conversation_id()
                         || s.responder.initiator() != responder.initiator()
                 });
-                if self.laser_dropped.is_some() {
-                    let _ = ctx.answer(&mut responder, Performative::Inform, &self.laser_state());
+                for sensor in self.ranges.iter().filter(|s| s.dropped.is_some()) {
+                    let state = sensor.state(&self.config.chair);
+                    let _ = ctx.answer(&mut responder, Performative::Inform, &state);
                 }
                 self.subscribers.push(Subscription {
                     responder,
@@ -483,9 +510,7 @@ impl Agent for PerceptionAgent {
 
     fn tick(&mut self, ctx: &mut Context<'_>) {
         self.sense();
-        if self.laser_news {
-            self.tell_laser(ctx);
-        }
+        self.tell_ranges(ctx);
         self.ticks += 1;
         if self
             .ticks

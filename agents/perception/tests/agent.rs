@@ -6,10 +6,12 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::AgentHost;
 use iw_agent::gateway::gateway;
+use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
 use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
+use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, SonarGeometry};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{Fact, SensorReading, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, SensorReading, SensorUse, WheelchairContent};
 use iw_perception::{PerceptionAgent, PerceptionConfig};
 use iw_vo::Pose2;
 
@@ -122,4 +124,127 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     probe.take_received();
     run(1000);
     assert_eq!(probe.take_received().len(), 0, "no informs after cancel");
+}
+
+/// Standing still in a room, the sonars echo at 1.2 m, except reads 21..=60 where every
+/// sonar reads 65.533 m (the world's `sensor-failure` of the sonars: past any range).
+struct GarbledSonars {
+    reads: u64,
+}
+
+impl Body for GarbledSonars {
+    fn read(&mut self) -> Result<SensorFrame, BodyError> {
+        self.reads += 1;
+        let mut frame = SensorFrame::empty(self.reads * 50_000_000);
+        let range = if (21..=60).contains(&self.reads) {
+            65.533
+        } else {
+            1.2
+        };
+        frame.sonar_m = [Some(range); iw_body::SONAR_COUNT];
+        Ok(frame)
+    }
+    fn command(&mut self, _: WheelSpeeds) -> Result<(), BodyError> {
+        Ok(())
+    }
+}
+
+#[test]
+fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
+    let network = InProcNetwork::new();
+    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
+    let bus = Bus::start(
+        Stack::new(),
+        Arc::new(network.endpoint("c1").unwrap()),
+        clock,
+        BusConfig::default(),
+    )
+    .unwrap();
+    let mut host = AgentHost::new(Arc::new(bus));
+    let start = Pose2::new(2.0, 2.0, 0.0);
+    let config = PerceptionConfig::prototype(AgentId::new("chair1"), start);
+    let corners =
+        [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)].map(|(x, y)| nalgebra::Point2::new(x, y));
+    let room = (0..4).map(|i| (corners[i], corners[(i + 1) % 4])).collect();
+    let map = Arc::new(LocalizationMap::new(room, Vec::new(), 2.0).unwrap());
+    let sonar = SonarGeometry {
+        t_base_sonar: Footprint::PROTOTYPE
+            .sonar_mounts()
+            .iter()
+            .map(|m| Pose2::new(m.translation.x, m.translation.y, m.rotation.angle()))
+            .collect(),
+        max_range_m: 3.0,
+        sigma_m: 0.15,
+    };
+    let localizer = Localizer::new(
+        map,
+        LocalizerConfig::new(None, Some(sonar), config.drive.alpha),
+        Some((start, nalgebra::Matrix3::identity() * 1e-4)),
+    );
+    let agent = PerceptionAgent::new(config, Box::new(GarbledSonars { reads: 0 }), None)
+        .unwrap()
+        .with_localizer(localizer);
+    host.add(AgentId::new("perception"), Box::new(agent))
+        .unwrap();
+    let (agent, probe) = gateway(Duration::from_millis(1));
+    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    let subscribe = |conversation: &str| {
+        AclMessage::new(Performative::Subscribe)
+            .with_receiver(AgentId::new("perception"))
+            .with_protocol("fipa-subscribe")
+            .with_conversation_id(conversation)
+            .with_content("((at-pose ?agent ?pose))")
+    };
+    let mut run = |ms: u64| {
+        for _ in 0..ms / 10 {
+            host.step(controller.now());
+            controller.advance(Duration::from_millis(10));
+        }
+    };
+    // (conversation, sensor, use, reason) of every sensor-health notification
+    let health = |inbox: Vec<AclMessage>| -> Vec<(String, String, SensorUse, String)> {
+        inbox
+            .iter()
+            .filter_map(|m| match WheelchairContent::from_message(m) {
+                Ok(WheelchairContent::Inform(Fact::Sensor { agent, state })) => {
+                    assert_eq!(agent.name, "chair1");
+                    Some((
+                        m.conversation_id.clone().unwrap_or_default(),
+                        state.sensor,
+                        state.usage,
+                        state.reason,
+                    ))
+                }
+                _ => None,
+            })
+            .collect()
+    };
+    probe.send(subscribe("s1"));
+    // well into the garbage: dropped after ten garbled reads in a row
+    run(2500);
+    let told = health(probe.take_received());
+    assert_eq!(told.len(), 1, "{told:?}");
+    let (conversation, sensor, usage, reason) = &told[0];
+    assert_eq!((conversation.as_str(), sensor.as_str()), ("s1", "sonars"));
+    assert_eq!(*usage, SensorUse::Dropped);
+    assert!(reason.starts_with("garbage"), "{reason}");
+    // a subscriber that comes while the sonars are dropped is told at once
+    probe.send(subscribe("s2"));
+    run(100);
+    let told = health(probe.take_received());
+    assert!(
+        told.iter()
+            .any(|(c, s, u, _)| c == "s2" && s == "sonars" && *u == SensorUse::Dropped),
+        "{told:?}"
+    );
+    // good readings again: both subscribers are told the ring is back, once
+    run(2500);
+    let told = health(probe.take_received());
+    assert_eq!(told.len(), 2, "{told:?}");
+    for (conversation, sensor, usage, reason) in &told {
+        assert!(conversation == "s1" || conversation == "s2");
+        assert_eq!((sensor.as_str(), *usage), ("sonars", SensorUse::InUse));
+        assert!(reason.is_empty());
+    }
+    assert!(probe.take_send_errors().is_empty());
 }

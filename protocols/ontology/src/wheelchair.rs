@@ -385,7 +385,7 @@ word_enum! {
 /// SL: `(sensor-state :sensor laser :use dropped :reason "silent: no readings")`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SensorState {
-    /// The sensor: `laser` or `sonar`.
+    /// The sensor: `laser` or `sonars` (the ring).
     pub sensor: String,
     /// In use or dropped.
     pub usage: SensorUse,

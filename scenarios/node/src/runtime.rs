@@ -23,7 +23,7 @@ use iw_wiring::world_link::{
     world_agent,
 };
 use iw_wiring::{Building, ServiceConfig, SharedBody, SharedDesk, StartError};
-use nalgebra::{Isometry2, Vector2};
+use nalgebra::{Isometry2, Point2, Vector2};
 
 use crate::BodyKind;
 use crate::config::{SpawnConfig, TransportKind};
@@ -324,13 +324,12 @@ fn fresh_log_path() -> PathBuf {
     ))
 }
 
-/// Refuses a start pose outside the map's bounds or whose footprint overlaps a wall, furniture
-/// or a closed door of the map (checked on a scratch copy of the world: the shared one lives in
+/// Refuses a start pose outside the map's bounds, outside its free space (on a wall, inside
+/// furniture, or walled off from every place of the map), or whose footprint overlaps a wall,
+/// furniture or a closed door of the map (checked on a scratch copy of the world: the shared one lives in
 /// the world container).
-fn refuse_an_obstructed_start(
-    config: &SpawnConfig,
-    t_world_body: &Isometry2<f64>,
-) -> Result<(), NodeError> {
+fn refuse_an_obstructed_start(config: &SpawnConfig) -> Result<(), NodeError> {
+    let t_world_body = &start_pose(config);
     let map = load_map(&config.world.map)?;
     let (min, max) = map.bounds();
     let at = t_world_body.translation.vector;
@@ -344,6 +343,7 @@ fn refuse_an_obstructed_start(
             ),
         });
     }
+    let free = map.free_space_at(&Point2::from(at));
     let mut scratch = World::new(map, config.world.seed);
     let id = scratch.add_chair(ChairSpec::default(), *t_world_body, ChairKind::Simulated);
     let obstruction = scratch.obstruction(id).map_err(|e| NodeError::Body {
@@ -359,8 +359,17 @@ fn refuse_an_obstructed_start(
                 scratch.describe(what)
             ),
         }),
-        None => Ok(()),
+        None => free.map_err(|why| NodeError::Config {
+            file: "body.start".into(),
+            reason: format!("{:?} (--start X,Y,DEG) is {why}", config.body.start),
+        }),
     }
+}
+
+/// `body.start` as a pose in the map frame.
+fn start_pose(config: &SpawnConfig) -> Isometry2<f64> {
+    let [x, y, heading_deg] = config.body.start;
+    Isometry2::new(Vector2::new(x, y), heading_deg.to_radians())
 }
 
 /// Chair `name`'s agents over its body: a virtual body lives in the world container; a real
@@ -373,8 +382,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
             source: e.into(),
         })
     };
-    let [x, y, heading_deg] = config.body.start;
-    let t_world_body = Isometry2::new(Vector2::new(x, y), heading_deg.to_radians());
+    let t_world_body = start_pose(config);
     let serial = || {
         SerialBody::open(&config.body.port, config.body.baud, config.body.timeout).map_err(|e| {
             NodeError::Body {
@@ -383,7 +391,6 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
             }
         })
     };
-    refuse_an_obstructed_start(config, &t_world_body)?;
     let building = building(config)?;
     let mut visual = None;
     let body = match config.body.kind {
@@ -658,6 +665,10 @@ impl Runtime {
         events: Sender<Event>,
     ) -> Result<Runtime, NodeError> {
         config.validate(role)?;
+        if let Role::Chair { .. } = role {
+            // before anything binds: a chair that cannot start there takes no port
+            refuse_an_obstructed_start(&config)?;
+        }
         let name = role.name().to_string();
         let setup = |what: &str, source: Cause| {
             NodeError::Start(StartError {
@@ -1274,11 +1285,7 @@ mod tests {
         let mut config = SpawnConfig::default();
         // On the sample building's wall from (0, 7) to (1.4, 7).
         config.body.start = [0.7, 7.0, 0.0];
-        let pose = |c: &SpawnConfig| {
-            let [x, y, deg] = c.body.start;
-            Isometry2::new(Vector2::new(x, y), deg.to_radians())
-        };
-        let err = refuse_an_obstructed_start(&config, &pose(&config))
+        let err = refuse_an_obstructed_start(&config)
             .expect_err("a start pose on a wall is refused")
             .to_string();
         assert!(
@@ -1288,7 +1295,7 @@ mod tests {
         // Far outside the building, and at coordinates no map reaches.
         for start in [[1e9, 6.0, 0.0], [1.0, -1e6, 0.0]] {
             config.body.start = start;
-            let err = refuse_an_obstructed_start(&config, &pose(&config))
+            let err = refuse_an_obstructed_start(&config)
                 .expect_err("a start pose outside the map is refused")
                 .to_string();
             assert!(
@@ -1296,8 +1303,18 @@ mod tests {
                 "{err}"
             );
         }
+        // Inside the building's outer box, clear of every wall, but not where a chair can be:
+        // wholly inside the therapy room's 2 x 1 m bed (its footprint touches no outline).
+        config.body.start = [14.0, 2.5, 0.0];
+        let err = refuse_an_obstructed_start(&config)
+            .expect_err("a start inside furniture is refused")
+            .to_string();
+        assert!(
+            err.contains("body.start") && err.contains("--start") && err.contains("furniture"),
+            "{err}"
+        );
         config.body.start = SpawnConfig::default().body.start;
-        assert!(refuse_an_obstructed_start(&config, &pose(&config)).is_ok());
+        assert!(refuse_an_obstructed_start(&config).is_ok());
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //!
 //! # Organization
 //! - [`Map`]: the world description, parsed from the text format of `docs/map-format.md`
-//!   ([`Map::load`], [`Map::parse`]) or imported from a PNG occupancy image.
+//!   ([`Map::load`], [`Map::parse`]) or imported from a PNG occupancy image;
+//!   [`Map::free_space_at`] tells a point a chair may start at ([`NotFree`]).
 //! - [`World`]: static geometry in a uniform-grid broad phase, doors, chairs. Add chairs with
 //!   [`World::add_chair`], command them with [`World::command`], advance with [`step`], read
 //!   [`World::sensors`] (16 sonars, 270 deg laser, encoders) and, for chairs that ask,
@@ -46,6 +47,7 @@ mod geom;
 #[cfg(feature = "localization")]
 pub mod localization;
 mod map;
+mod reach;
 mod render;
 #[cfg(feature = "vo")]
 pub mod vo;
@@ -59,6 +61,7 @@ pub use geom::Owner;
 pub use map::{
     Area, Door, Furniture, MAX_MAP_BYTES, Map, Marker, NarrowPassage, Place, Route, Start,
 };
+pub use reach::NotFree;
 pub use render::{RgbdFrame, TUM_DEPTH_PER_M, TextureSet, optical_pose};
 pub use world::{ChairId, ChairKind, Hit, World, step};
 

@@ -135,3 +135,50 @@ fn a_report_period_that_floods_and_a_start_pose_that_is_no_pose_are_refused_nami
         crate::assert_refused(&args.join(" "), &result, 2, flag);
     }
 }
+
+#[test]
+fn a_start_inside_the_maps_box_but_not_in_its_free_space_is_refused_before_anything_binds() {
+    let Some(bin) = crate::intellwheels() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    // An L-shaped building: (8, 8) is inside its outer box but outside its walls.
+    let map = dir.path().join("l.map");
+    std::fs::write(
+        &map,
+        "wall closed 0 0 10 0 10 4 4 4 4 10 0 10\nplace inside 1 1\n",
+    )
+    .unwrap();
+    let config = dir.path().join("chair.toml");
+    std::fs::write(
+        &config,
+        format!("[world]\nmap = {:?}\n", map.display().to_string()),
+    )
+    .unwrap();
+    let config = config.display().to_string();
+    let chair = |extra: &[&str], start: &str| {
+        let mut args = vec!["spawn", "--chair", "c1", "--insecure-dev"];
+        args.extend_from_slice(extra);
+        args.extend(["--start", start]);
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let cases = [
+        // wholly inside the sample building's therapy bed: the footprint crosses no outline
+        (chair(&[], "14,2.5,0"), "furniture"),
+        (
+            chair(&["--config", &config], "8,8,0"),
+            "outside the building",
+        ),
+    ];
+    for (args, why) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let result = crate::run(&bin, &args, b"", LIMIT);
+        crate::assert_refused(&args.join(" "), &result, 2, "--start");
+        let stderr = String::from_utf8_lossy(&result.0.stderr);
+        assert!(
+            stderr.contains("body.start") && stderr.contains(why),
+            "{}: {stderr}",
+            args.join(" ")
+        );
+    }
+}

@@ -272,6 +272,11 @@ impl Localizer {
         self.laser.reason
     }
 
+    /// Why the sonar ring is dropped, while it is (see [`LocalizerConfig::drop_after`]).
+    pub fn sonar_dropped(&self) -> Option<&'static str> {
+        self.sonar.reason
+    }
+
     /// Predicts with one wheel odometry step.
     pub fn predict(&mut self, step: &OdometryStep) {
         self.fusion.predict(step);
