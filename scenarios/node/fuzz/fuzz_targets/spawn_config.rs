@@ -24,5 +24,11 @@ fuzz_target!(|bytes: &[u8]| {
         }
     }
     let again = toml::to_string(&config).expect("a parsed configuration serialises");
-    assert_eq!(SpawnConfig::parse(&again, "again.toml").expect("it parses back"), config);
+    let reparsed = SpawnConfig::parse(&again, "again.toml").expect("it parses back");
+    // Compared as text: the loader keeps a `nan` (only a chair's validation refuses it), and a
+    // NaN is never equal to itself as a number.
+    assert_eq!(
+        toml::to_string(&reparsed).expect("it serialises again"),
+        again
+    );
 });
