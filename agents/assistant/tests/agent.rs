@@ -6,7 +6,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_assistant::{AssistantAgent, AssistantConfig};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
+use iw_bus::Time;
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
 
@@ -86,16 +86,7 @@ fn run(
     nurse_goals: Vec<AclMessage>,
     visitor_goals: Vec<AclMessage>,
 ) -> [Mailbag; 3] {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let config = AssistantConfig {
         chairs: [("chair1".to_string(), AgentId::new("cognitive-chair1"))].into(),
         staff: ["nurse".to_string()].into(),

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_bus::{MockController, Time};
 use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CANCEL_CONFIRM_TIMEOUT, CognitiveAgent, CognitiveConfig,
     DoorPassage, LandmarkStop,
@@ -83,16 +83,7 @@ fn rig(door_answers: Script, control_answers: Script) -> Rig {
 }
 
 fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answers: Script) -> Rig {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let places = [
         ("a", Point2::new(1.0, 5.0)),
         ("b", Point2::new(9.0, 5.0)),

@@ -8,7 +8,7 @@ use iw_agent::AgentHost;
 use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_body::TRACK_M;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_bus::{MockController, Time};
 use iw_control::{ControlAgent, ControlConfig, LaserMount};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Pose, WheelchairAction, WheelchairContent};
@@ -92,16 +92,7 @@ fn rig() -> Rig {
 
 /// A rig whose control agent's configuration `adjust` changed.
 fn rig_with(adjust: impl FnOnce(&mut ControlConfig)) -> Rig {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let body = Recorder::default();
     let mut config = ControlConfig::prototype(Some(AgentId::new("probe"))).unwrap();
     config.staff = vec!["staff".into()];

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
+use iw_bus::Time;
 use iw_door::{ActuatorFault, DoorActuator, DoorAgent, DoorConfig, DoorPolicy, RefusalLog};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{DoorState, Fact, WheelchairAction, WheelchairContent};
@@ -56,16 +56,7 @@ fn request(action: WheelchairAction, conversation: &str) -> AclMessage {
 
 #[test]
 fn restricted_doors_open_only_for_authorised_chairs_and_refusals_are_logged() {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let mut doors = BTreeMap::new();
     doors.insert(
         "lab".to_string(),

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack, Time};
+use iw_bus::Time;
 use iw_interface::sequence::DEFAULT_MAX_GAP;
 use iw_interface::{
     Command, Device, InputSequence, InterfaceAgent, InterfaceConfig, RawInput, Recognizer,
@@ -70,16 +70,7 @@ fn add_interface(
 
 /// A host on an in-process bus with a mock clock at 0.
 fn host() -> (AgentHost, iw_bus::MockController) {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(0));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    (AgentHost::new(Arc::new(bus)), controller)
+    AgentHost::on_a_mock_clock(Time::from_ns(0))
 }
 
 #[test]

@@ -8,26 +8,12 @@ use iw_agent::AgentHost;
 use iw_agent::gateway::gateway;
 use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_bus::Time;
 use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, SonarGeometry};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, SensorReading, SensorUse, WheelchairContent};
 use iw_perception::{PerceptionAgent, PerceptionConfig};
 use iw_vo::Pose2;
-
-/// A host on an in-process bus (container `c1`) whose clock the test advances by hand.
-fn host_on_a_mock_clock() -> (AgentHost, MockController) {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    (AgentHost::new(Arc::new(bus)), controller)
-}
 
 /// Both wheels advance 100 ticks per read; sonar 0 sees a wall at 1.2 m; every 7th read fails.
 struct Rolling {
@@ -55,7 +41,7 @@ impl Body for Rolling {
 
 #[test]
 fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
-    let (mut host, controller) = host_on_a_mock_clock();
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
     host.add(
         AgentId::new("perception"),
@@ -156,7 +142,7 @@ impl Body for GarbledSonars {
 
 #[test]
 fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
-    let (mut host, controller) = host_on_a_mock_clock();
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let start = Pose2::new(2.0, 2.0, 0.0);
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), start);
     let corners =

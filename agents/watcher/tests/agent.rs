@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, MockController, Stack, Time};
+use iw_bus::{MockController, Time};
 use iw_interaction::{Error, EventKind, Initiator, Protocol, Responder, SessionState};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
@@ -44,16 +44,7 @@ struct Rig {
 }
 
 fn rig() -> Rig {
-    let network = InProcNetwork::new();
-    let (clock, controller) = Clock::mock(Time::from_ns(1_000_000_000));
-    let bus = Bus::start(
-        Stack::new(),
-        Arc::new(network.endpoint("c1").unwrap()),
-        clock,
-        BusConfig::default(),
-    )
-    .unwrap();
-    let mut host = AgentHost::new(Arc::new(bus));
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let config = WatcherConfig {
         passages: PASSAGES.iter().map(|p| p.to_string()).collect(),
         lease: Duration::from_secs(2),

@@ -30,7 +30,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
-use iw_bus::{Bus, BusError, Mailbox, Time};
+use iw_bus::{
+    Bus, BusConfig, BusError, Clock, InProcNetwork, Mailbox, MockController, Stack, Time,
+};
 use iw_ontology::OntologyContent;
 use iw_ontology::fipa::{
     AgentDescription, DfAgentDescription, ManagementAction, ManagementContent, ManagementRequest,
@@ -286,6 +288,24 @@ impl AgentHost {
             stats: HostStats::default(),
             tap: None,
         }
+    }
+
+    /// A host with no agents, alone on an in-process bus (container `c1`, no layers), whose clock
+    /// starts at `start` and moves only when the returned controller advances it: how an agent
+    /// is tested step by step, with a [`gateway`] speaking to it.
+    pub fn on_a_mock_clock(start: Time) -> (AgentHost, MockController) {
+        let (clock, controller) = Clock::mock(start);
+        let endpoint = InProcNetwork::new()
+            .endpoint("c1")
+            .expect("a fresh in-process network has no endpoint named c1");
+        let bus = Bus::start(
+            Stack::new(),
+            Arc::new(endpoint),
+            clock,
+            BusConfig::default(),
+        )
+        .expect("a bus starts on an in-process endpoint");
+        (AgentHost::new(Arc::new(bus)), controller)
     }
 
     /// Shows every message the agents send from now on to `tap` (replacing any earlier one).
