@@ -28,6 +28,9 @@ channels x a, LCC: R and G x a, LIS: all + b; correspondence within 2 px and a s
 one-to-one, nearest first; ours see the RGB PNG, OpenCV's the gray 0.299 R + 0.587 G + 0.114 B).
 Beside the matched R, the R each detector gets uncapped (its threshold's full count) is printed.
 
+A detector of ours may carry `features` flags, `NAME+FLAG=VALUE[+...]` (e.g.
+`lsac-surf-nt+dequantise-iterations=32`), to measure a variant beside its default in one run.
+
 Usage: matched_counts.py --bin BIN --images DIR [--detectors lsac-surf-nt,lsac-surf]
                          [--peers AKAZE] [--collections LCC,LIC,LIS] [--also-n-from AKAZE]
                          [--json OUT]
@@ -99,11 +102,20 @@ class Keypoints:
         return self.pts[keep], self.sizes[keep]
 
 
-def ours(binary, name, tmp):
+def ours(binary, spec, tmp):
+    """`spec`: a detector name, optionally with `features` flags: `lsac-surf-nt+dequantise-iterations=32`."""
+    name, *flags = spec.split("+")
+    extra = []
+    for flag in flags:
+        key, sep, value = flag.partition("=")
+        if not (key and sep and value):
+            raise SystemExit(f"--detectors {spec}: expected NAME+FLAG=VALUE")
+        extra += [f"--{key}", value]
+
     def detect(rgb_u8):
         path = os.path.join(tmp, "img.png")
         cv2.imwrite(path, rgb_u8[..., ::-1])
-        args = [binary, "features", path, "--detector", name, "--max-keypoints", UNCAPPED, "--json"]
+        args = [binary, "features", path, "--detector", name, *extra, "--max-keypoints", UNCAPPED, "--json"]
         r = subprocess.run(args, capture_output=True, timeout=900)
         if r.returncode != 0:
             raise SystemExit(f"{name}: features --json failed: {r.stderr.decode()[-400:]}")

@@ -45,6 +45,10 @@ pub struct Args {
     /// Keep at most this many keypoints, in the detector's ranking order (see `DetectorConfig::max_keypoints`).
     #[arg(long)]
     max_keypoints: Option<usize>,
+    /// Override the de-quantisation rounds before detection (see
+    /// `DetectorConfig::dequantise_iterations`; 0: off).
+    #[arg(long)]
+    dequantise_iterations: Option<usize>,
     /// Skip orientation (U-SURF).
     #[arg(long)]
     upright: bool,
@@ -85,6 +89,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(c) = args.contrast_threshold {
         config.contrast_threshold = c;
+    }
+    if let Some(n) = args.dequantise_iterations {
+        config.dequantise_iterations = n;
     }
     if args.max_keypoints.is_some() {
         config.max_keypoints = args.max_keypoints;

@@ -38,6 +38,9 @@ const NT_RANK_SIZE_EXPONENT: f32 = 1.5;
 /// LSAC-SURF-NT's spacing of the kept keypoints, input px: the protocol's tolerance (2 px).
 const NT_MIN_SEPARATION_PX: f32 = 2.0;
 
+/// Most de-quantisation rounds accepted: each costs two passes over every channel.
+const MAX_DEQUANTISE_ITERATIONS: usize = 256;
+
 /// Parameters of the shared SURF pipeline. Build with [`DetectorConfig::for_kind`], then adjust.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DetectorConfig {
@@ -111,6 +114,18 @@ pub struct DetectorConfig {
     /// (default 1.6, SIFT's base scale; 0.5..=8).
     #[serde(default = "default_doubled_sigma")]
     pub doubled_sigma: f32,
+    /// De-quantisation before detection, rounds (0: off; 0..=256). An 8-bit value `v` says only
+    /// that the light there lay within `[v - 0.5, v + 0.5]`; where the contrast is low (a dim or
+    /// tinted light, LCC) whole regions round to one value and their edges become steps that
+    /// move with the rounding, and the LSAC division magnifies them. Each round blurs every
+    /// channel by the binomial `[1, 2, 1] / 4` and clamps each sample back into its
+    /// quantisation cell: toward the smoothest image the 8 bits allow, moving no sample more
+    /// than half a grey level, the same rule for every image. Off in every detector's defaults:
+    /// it lost on LIC and LCC (docs/results/repeatability.md, tenth round), since at low
+    /// contrast a photograph's pixel-scale texture is a fraction of a step, and the smoothest
+    /// image flattens it by more than the rounding moved it.
+    #[serde(default)]
+    pub dequantise_iterations: usize,
 }
 
 fn default_noise_tile_px() -> usize {
@@ -144,6 +159,7 @@ impl DetectorConfig {
             contrast_threshold: 0.0,
             noise_tile_px: default_noise_tile_px(),
             doubled_sigma: default_doubled_sigma(),
+            dequantise_iterations: 0,
         };
         match kind {
             DetectorKind::Surf => base,
@@ -259,6 +275,13 @@ impl DetectorConfig {
                 "doubled_sigma",
                 self.doubled_sigma.to_string(),
                 "expected 0.5..=8 doubled px",
+            );
+        }
+        if self.dequantise_iterations > MAX_DEQUANTISE_ITERATIONS {
+            return bad(
+                "dequantise_iterations",
+                self.dequantise_iterations.to_string(),
+                "expected 0..=256 rounds (0: off)",
             );
         }
         if let Some((lower, upper)) = self.soft_band

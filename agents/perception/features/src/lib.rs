@@ -194,8 +194,9 @@ pub enum FeatureError {
 #[derive(Debug, Default)]
 pub struct Detector {
     scratch: working::Scratch,
-    /// The doubled input ([`DetectorConfig::upsample`]).
-    doubled: working::Planes,
+    /// The input in float, de-quantised ([`DetectorConfig::dequantise_iterations`]) and doubled
+    /// ([`DetectorConfig::upsample`]) as the config asks.
+    planes: working::Planes,
     /// One plane of the input (a channel, or the luma), where the noise model measures the
     /// camera's noise.
     input_plane: GrayImage32,
@@ -220,9 +221,13 @@ impl Detector {
         if width == 0 || height == 0 {
             return Ok(Features::default());
         }
-        let (source, pixel) = if config.upsample {
-            self.doubled.double(image, config.doubled_sigma);
-            (working::Source::Planes(&self.doubled), 2.0)
+        let (source, pixel) = if config.upsample || config.dequantise_iterations > 0 {
+            self.planes.load(image, config.dequantise_iterations);
+            if config.upsample {
+                self.planes.double(config.doubled_sigma);
+            }
+            let pixel = if config.upsample { 2.0 } else { 1.0 };
+            (working::Source::Planes(&self.planes), pixel)
         } else {
             (working::Source::Rgb(image), 1.0)
         };

@@ -291,3 +291,40 @@ fn the_doubled_images_blur_is_checked_and_used() {
     // More blur leaves fewer fine extrema (the default is the SIFT base scale, 1.6).
     assert!(count(4.0) < count(1.6), "{} vs {}", count(4.0), count(1.6));
 }
+
+#[test]
+fn dequantisation_is_checked_and_used() {
+    let mut config = DetectorConfig::for_kind(DetectorKind::LsacSurfNt);
+    config.dequantise_iterations = 257;
+    assert!(matches!(
+        config.validate(),
+        Err(crate::FeatureError::InvalidConfig {
+            field: "dequantise_iterations",
+            ..
+        })
+    ));
+    // A low-contrast image (the texture at a fifth of its contrast): its rounding plateaus
+    // are what the rounds smooth, with and without the doubled image.
+    let mut dim = texture(96, 96, 7);
+    for px in dim.pixels_mut() {
+        px.0 = px.0.map(|v| (f32::from(v) * 0.2).round() as u8);
+    }
+    for upsample in [true, false] {
+        let run = |rounds: usize| {
+            let config = DetectorConfig {
+                dequantise_iterations: rounds,
+                upsample,
+                ..DetectorConfig::for_kind(DetectorKind::LsacSurfNt)
+            };
+            detect(DetectorKind::LsacSurfNt, &dim, &config)
+                .unwrap()
+                .keypoints
+        };
+        let (plain, smoothed) = (run(0), run(16));
+        assert!(!plain.is_empty() && !smoothed.is_empty());
+        assert_ne!(
+            plain, smoothed,
+            "upsample {upsample}: the rounds changed nothing"
+        );
+    }
+}

@@ -29,26 +29,38 @@ impl Planes {
         self.channels[0].height()
     }
 
-    /// `image` at twice its width and height (bilinear, pixel centres at `(X + 0.5) / 2 - 0.5` of
-    /// the input), then blurred by a Gaussian of `sigma` doubled px (see
+    /// The channels of `image` in float, each de-quantised by `iterations` rounds of
+    /// [`dequantise`] (0: the 8-bit values as they are).
+    pub(crate) fn load(&mut self, image: &image::RgbImage, iterations: usize) {
+        for (c, plane) in self.channels.iter_mut().enumerate() {
+            plane.channel_into(image, c);
+            dequantise(plane, &mut self.tmp, image, c, iterations);
+        }
+    }
+
+    /// The loaded planes at twice their width and height (bilinear, pixel centres at
+    /// `(X + 0.5) / 2 - 0.5` of the input), then blurred by a Gaussian of `sigma` doubled px (see
     /// [`DetectorConfig::upsample`], [`DetectorConfig::doubled_sigma`]: without the blur the
     /// finest filters respond to the interpolation's own pattern, which a sub-pixel shift of the
     /// scene changes). Kept in float: rounding back to 8 bits would add a quantisation noise of
     /// its own, largest relative to the signal where the light is dim.
-    pub(crate) fn double(&mut self, image: &image::RgbImage, sigma: f32) {
-        let (w, h) = (image.width() as usize, image.height() as usize);
+    pub(crate) fn double(&mut self, sigma: f32) {
+        let (w, h) = (self.width(), self.height());
+        if w == 0 || h == 0 {
+            return;
+        }
         let kernel = gaussian_kernel(sigma);
-        let raw = image.as_raw();
-        for (c, plane) in self.channels.iter_mut().enumerate() {
-            // Rows doubled horizontally into `tmp` (2w x h), then columns into `plane` (2w x 2h).
+        for plane in &mut self.channels {
+            // Rows doubled horizontally into `tmp` (2w x h), then columns back into `plane`.
             self.tmp.resize(2 * w, h);
+            let input = &*plane;
             self.tmp
                 .as_mut_slice()
                 .par_chunks_mut(2 * w)
                 .enumerate()
                 .for_each(|(y, out)| {
-                    let row = &raw[3 * y * w..3 * (y + 1) * w];
-                    double_line(out, |x| f32::from(row[3 * x + c]), w);
+                    let row = row_of(input, y);
+                    double_line(out, |x| row[x], w);
                 });
             plane.resize(2 * w, 2 * h);
             let tmp = &self.tmp;
@@ -93,6 +105,43 @@ fn double_line(out: &mut [f32], at: impl Fn(usize) -> f32, n: usize) {
         out[2 * i + 1] = 0.75 * here + 0.25 * after;
     }
 }
+
+/// De-quantisation, "projection onto the quantisation cell" (see
+/// [`DetectorConfig::dequantise_iterations`]): `plane` holds channel `c` of `image`; each round
+/// blurs it by the binomial `[1, 2, 1] / 4` both ways (border repeated) and clamps every sample
+/// back into `[v - 0.5, v + 0.5]` around its 8-bit value `v`. The rounds tend to the smoothest
+/// image the 8 bits allow: rounding plateaus become ramps, and no sample moves more than half a
+/// grey level. `tmp` is scratch.
+fn dequantise(
+    plane: &mut GrayImage32,
+    tmp: &mut GrayImage32,
+    image: &image::RgbImage,
+    c: usize,
+    iterations: usize,
+) {
+    let (w, h) = (plane.width(), plane.height());
+    if iterations == 0 || w == 0 || h == 0 {
+        return;
+    }
+    let raw = image.as_raw();
+    for _ in 0..iterations {
+        blur(plane, tmp, &BINOMIAL);
+        plane
+            .as_mut_slice()
+            .par_chunks_mut(w)
+            .enumerate()
+            .for_each(|(y, out)| {
+                let observed = &raw[3 * y * w..3 * (y + 1) * w];
+                for (o, v) in out.iter_mut().zip(observed.iter().skip(c).step_by(3)) {
+                    let v = f32::from(*v);
+                    *o = o.clamp(v - 0.5, v + 0.5);
+                }
+            });
+    }
+}
+
+/// The de-quantisation's light blur, per axis.
+const BINOMIAL: [f32; 3] = [0.25, 0.5, 0.25];
 
 /// Normalised Gaussian taps `-r..=r`, `r = ceil(3 sigma)`.
 fn gaussian_kernel(sigma: f32) -> Vec<f32> {
@@ -420,8 +469,10 @@ mod tests {
             image::Rgb(bright.get_pixel(x, y).0.map(|v| v / 2))
         });
         let (mut a, mut b) = (Planes::default(), Planes::default());
-        a.double(&bright, 1.6);
-        b.double(&dim, 1.6);
+        a.load(&bright, 0);
+        a.double(1.6);
+        b.load(&dim, 0);
+        b.double(1.6);
         assert_eq!((a.width(), a.height()), (2 * w as usize, 2 * h as usize));
         for c in 0..3 {
             for (&p, &q) in a.channel(c).as_slice().iter().zip(b.channel(c).as_slice()) {
@@ -430,13 +481,60 @@ mod tests {
         }
         // A flat image stays flat, borders included.
         let flat = image::RgbImage::from_pixel(5, 4, image::Rgb([9, 99, 199]));
-        a.double(&flat, 1.6);
+        a.load(&flat, 0);
+        a.double(1.6);
         for (c, v) in [9.0, 99.0, 199.0].into_iter().enumerate() {
             assert!(
                 a.channel(c)
                     .as_slice()
                     .iter()
                     .all(|&p| (p - v).abs() < 1e-3)
+            );
+        }
+    }
+
+    #[test]
+    fn dequantising_a_rounded_slope_recovers_it_inside_the_quantisation_cells() {
+        // A dim, smooth light: a slope of 0.3 grey level per column and 0.2 per row, different
+        // per channel, rounded to 8 bits: plateaus 3-5 px wide.
+        let (w, h) = (64usize, 48usize);
+        let truth = |x: usize, y: usize, c: usize| {
+            20.0 + 0.3 * x as f32 + 0.2 * y as f32 + 7.0 * c as f32 + 0.1 * (x * c) as f32
+        };
+        let image = image::RgbImage::from_fn(w as u32, h as u32, |x, y| {
+            image::Rgb(std::array::from_fn(|c| {
+                truth(x as usize, y as usize, c).round() as u8
+            }))
+        });
+        let rms = |planes: &Planes, c: usize| {
+            let mut sum = 0.0;
+            let mut n = 0;
+            for y in 8..h - 8 {
+                for x in 8..w - 8 {
+                    let p = planes.channel(c).get(x, y).unwrap();
+                    sum += (p - truth(x, y, c)).powi(2);
+                    n += 1;
+                }
+            }
+            (sum / n as f32).sqrt()
+        };
+        let (mut rounded, mut smooth) = (Planes::default(), Planes::default());
+        rounded.load(&image, 0);
+        smooth.load(&image, 64);
+        for c in 0..3 {
+            // No sample leaves its cell.
+            for (x, y) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))) {
+                let v = f32::from(image.get_pixel(x as u32, y as u32).0[c]);
+                assert_eq!(rounded.channel(c).get(x, y), Some(v));
+                let p = smooth.channel(c).get(x, y).unwrap();
+                assert!((p - v).abs() <= 0.5, "channel {c} ({x}, {y}): {p} from {v}");
+            }
+            // The rounding's error (about 1 / sqrt(12) = 0.29) mostly gone.
+            let (before, after) = (rms(&rounded, c), rms(&smooth, c));
+            assert!(before > 0.25, "channel {c}: rounding error {before}");
+            assert!(
+                after < 0.1,
+                "channel {c}: rms error {after} (rounded {before})"
             );
         }
     }
