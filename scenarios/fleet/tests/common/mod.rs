@@ -4,6 +4,7 @@
 
 use std::time::{Duration, Instant};
 
+use iw_cognitive::agent::worst_variance_m2;
 use iw_fleet::{ChairConfig, Fleet, FleetOptions};
 use iw_sim::Map;
 use nalgebra::{Isometry2, Matrix2, Point2, Vector2};
@@ -11,7 +12,8 @@ use nalgebra::{Isometry2, Matrix2, Point2, Vector2};
 pub const STEP: Duration = Duration::from_millis(50);
 pub const CHAIR: &str = "chair-0";
 
-/// The deployment's detour threshold, which the tests do not set.
+/// The deployment's detour threshold (on the worst direction's variance), which the tests do
+/// not set.
 pub const THRESHOLD_M2: f64 = iw_fleet::compose::LANDMARK_UNCERTAINTY_M2;
 
 /// One control period of a drive: simulated time, the true position, the published estimate and
@@ -22,6 +24,8 @@ pub struct Sample {
     pub truth: Point2<f64>,
     pub estimate: Point2<f64>,
     pub covariance: Matrix2<f64>,
+    /// Its variance in the worst direction, m²: what the cognitive agent decides the detour on.
+    pub worst_m2: f64,
 }
 
 impl Sample {
@@ -57,8 +61,20 @@ impl Drive<'_> {
     /// Drives chair-0 from `start` to `place` with visual odometry, in real time (never faster:
     /// the perception agent reads the camera on its own thread at the pace it can, as on the
     /// chair; stepped faster, the simulated chair outruns its camera and passes a marker between
-    /// two frames); returns every period with an estimate, and the fleet.
+    /// two frames); returns every period with an estimate, and the fleet. Prints the goal's
+    /// answers when the drive ends; with `RUST_LOG` set, the agents' log lines too (those on
+    /// this thread, each under a `drive` span naming the seed and the threshold).
     pub fn run(&self) -> (Vec<Sample>, Fleet) {
+        let _log = std::env::var("RUST_LOG").ok().map(|filter| {
+            let subscriber = tracing_subscriber::fmt()
+                .with_env_filter(tracing_subscriber::EnvFilter::new(filter))
+                .with_test_writer()
+                .finish();
+            tracing::subscriber::set_default(subscriber)
+        });
+        let _drive =
+            tracing::info_span!("drive", seed = self.seed, threshold_m2 = ?self.threshold_m2)
+                .entered();
         let chair = ChairConfig {
             name: CHAIR.into(),
             t_world_body: self.start,
@@ -88,6 +104,7 @@ impl Drive<'_> {
                     truth: Point2::new(truth[0], truth[1]),
                     estimate: Point2::new(estimate.x_m, estimate.y_m),
                     covariance: c.fixed_view::<2, 2>(0, 0).into_owned(),
+                    worst_m2: worst_variance_m2(&estimate),
                 });
             }
             if fleet
@@ -97,6 +114,16 @@ impl Drive<'_> {
             {
                 break;
             }
+        }
+        for e in fleet.goal_events() {
+            println!(
+                "seed {} goal answer at {:.1} s: {} from {} ({})",
+                self.seed,
+                e.time_s,
+                e.performative,
+                e.from,
+                e.reason.as_deref().unwrap_or("no reason given")
+            );
         }
         (samples, fleet)
     }
@@ -117,12 +144,13 @@ pub fn stops(fleet: &Fleet) -> Vec<Point2<f64>> {
 pub fn print(label: &str, samples: &[Sample]) {
     for s in samples.iter().step_by(20) {
         println!(
-            "{label} {:6.1} s  ({:5.2}, {:5.2})  error {:5.3} m  trace {:.4} m2",
+            "{label} {:6.1} s  ({:5.2}, {:5.2})  error {:5.3} m  trace {:.4} m2  worst {:.4} m2",
             s.t_s,
             s.truth.x,
             s.truth.y,
             s.error_m(),
-            s.trace_m2()
+            s.trace_m2(),
+            s.worst_m2
         );
     }
 }
@@ -130,7 +158,7 @@ pub fn print(label: &str, samples: &[Sample]) {
 /// What a detour to a landmark did, read from a drive's samples.
 #[derive(Debug, Clone, Copy)]
 pub struct Detour {
-    /// The first period whose trace passed the threshold.
+    /// The first period whose worst direction's variance passed the threshold.
     pub crossed: Sample,
     /// Index of that period.
     pub crossed_at: usize,
@@ -147,7 +175,7 @@ pub struct Detour {
 pub fn detour(samples: &[Sample], stops: &[Point2<f64>], threshold_m2: f64) -> Detour {
     let crossed_at = samples
         .iter()
-        .position(|s| s.trace_m2() > threshold_m2)
+        .position(|s| s.worst_m2 > threshold_m2)
         .expect("the covariance never passed the threshold");
     let arrived_at = samples[crossed_at..]
         .iter()

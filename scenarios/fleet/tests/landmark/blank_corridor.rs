@@ -2,8 +2,9 @@
 //! the two parallel walls, so the localizer learns the chair's heading and its place across the
 //! corridor from them but nothing along it. The estimate degrades gracefully: its covariance
 //! grows along the corridor's axis (and only there), the error stays inside it, the pose does
-//! not jump, and once the trace passes the deployment's default threshold the cognitive agent
-//! detours into the alcove whose wall carries a landmark, where the marker resets the error.
+//! not jump, and once its variance along the axis (the worst direction, what the cognitive agent
+//! decides on) passes the deployment's default threshold the cognitive agent detours into the
+//! alcove whose wall carries a landmark, where the marker resets the error.
 
 use iw_sim::Map;
 use nalgebra::{Isometry2, Vector2};
