@@ -67,7 +67,10 @@ impl Drive<'_> {
     pub fn run(&self) -> (Vec<Sample>, Fleet) {
         let _log = std::env::var("RUST_LOG").ok().map(|filter| {
             let subscriber = tracing_subscriber::fmt()
-                .with_env_filter(tracing_subscriber::EnvFilter::new(filter))
+                .with_env_filter(tracing_subscriber::EnvFilter::new(format!(
+                    "{filter},{}=info",
+                    module_path!()
+                )))
                 .with_test_writer()
                 .finish();
             tracing::subscriber::set_default(subscriber)
