@@ -59,6 +59,11 @@
 //! dropped laser) passes the threshold again a few metres past a landmark, and the landmark
 //! behind it can still be the shortest detour, so it would shuttle between two points and never
 //! get on. With no other landmark on the map there is no detour; the chair goes on.
+//!
+//! Measured at the default threshold ([`LANDMARK_UNCERTAINTY_M2`]; the commands and figures are
+//! on the localization results page, "The landmark detour on the worst direction"): with the
+//! laser in use the worst direction's variance stays under 1e-4 m² (no detour in the demo,
+//! `head-on` or the scenario files); blind, a chair passes it about 5 m past a landmark.
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
