@@ -9,7 +9,7 @@ use iw_agent::{Agent, AgentHost, Context};
 use iw_bus::{MockController, Time};
 use iw_cognitive::agent::{
     BUILDING_DOMAIN, BuildingMap, CANCEL_CONFIRM_TIMEOUT, CognitiveAgent, CognitiveConfig,
-    DoorPassage, LandmarkStop,
+    DoorPassage, LANDMARK_UNCERTAINTY_M2, LandmarkStop, worst_variance_m2,
 };
 use iw_cognitive::{Domain, NarrowPassage, OccupancyGrid};
 use iw_ontology::OntologyContent;
@@ -83,6 +83,51 @@ fn rig(door_answers: Script, control_answers: Script) -> Rig {
 }
 
 fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answers: Script) -> Rig {
+    rig_with(
+        door_answers,
+        control_answers,
+        watcher_answers,
+        Setup::default(),
+    )
+}
+
+/// What a rig's map and threshold are.
+struct Setup {
+    /// The landmark detour's threshold, m².
+    uncertainty_m2: f64,
+    /// How many of the map's two landmarks it keeps.
+    landmarks: usize,
+    /// Whether the narrow passage `gap` is on the map (a drive across it stops short of it).
+    gap: bool,
+}
+
+impl Default for Setup {
+    fn default() -> Self {
+        Setup {
+            uncertainty_m2: 0.5,
+            landmarks: 2,
+            gap: true,
+        }
+    }
+}
+
+/// A rig whose control agent agrees to every drive and never finishes one, so that the motion
+/// under way is re-issued when the chair detours.
+fn driving(setup: Setup) -> Rig {
+    rig_with(
+        Box::new(|m| agree_then(m, Performative::Inform)),
+        Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]),
+        Box::new(|_| Vec::new()),
+        setup,
+    )
+}
+
+fn rig_with(
+    door_answers: Script,
+    control_answers: Script,
+    watcher_answers: Script,
+    setup: Setup,
+) -> Rig {
     let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let places = [
         ("a", Point2::new(1.0, 5.0)),
@@ -115,13 +160,19 @@ fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answe
                 at: Point2::new(8.0, 8.0),
                 from: None,
             },
-        ],
+        ]
+        .into_iter()
+        .take(setup.landmarks)
+        .collect(),
         passages: vec![NarrowPassage {
             name: "gap".into(),
             a: Point2::new(4.0, 5.0),
             b: Point2::new(6.0, 5.0),
             width_m: 1.2,
-        }],
+        }]
+        .into_iter()
+        .filter(|_| setup.gap)
+        .collect(),
     };
     let grid = OccupancyGrid::new(100, 100, 0.1, Point2::origin(), vec![false; 10_000]).unwrap();
     let config = CognitiveConfig {
@@ -136,7 +187,7 @@ fn rig_with_watcher(door_answers: Script, control_answers: Script, watcher_answe
         grid,
         chair_radius_m: 0.3,
         start_place: "a".into(),
-        uncertainty_m2: 0.5,
+        uncertainty_m2: setup.uncertainty_m2,
         max_states: 10_000,
     };
     host.add(
@@ -337,6 +388,62 @@ fn growing_uncertainty_routes_the_chair_past_the_nearest_landmark() {
     assert!(!waypoints(&action_of(&control[0])).contains(&(2.0, 2.0)));
 }
 
+/// A pose at (2.5, 4) whose x-y covariance has variances `major_m2` and `minor_m2` along axes
+/// turned `angle_rad` from the map's.
+fn elongated(major_m2: f64, minor_m2: f64, angle_rad: f64) -> Fact {
+    let r = nalgebra::Rotation2::new(angle_rad).into_inner();
+    let xy = r * nalgebra::Matrix2::new(major_m2, 0.0, 0.0, minor_m2) * r.transpose();
+    let mut covariance = Matrix3::from_diagonal_element(1e-4);
+    covariance.fixed_view_mut::<2, 2>(0, 0).copy_from(&xy);
+    Fact::AtPose {
+        agent: AgentId::new("chair1"),
+        pose: Pose {
+            x_m: 2.5,
+            y_m: 4.0,
+            theta_rad: 0.0,
+            covariance,
+        },
+    }
+}
+
+#[test]
+fn the_detour_is_decided_on_the_worst_direction_not_the_trace() {
+    let mut rig = driving(Setup {
+        uncertainty_m2: LANDMARK_UNCERTAINTY_M2,
+        ..Setup::default()
+    });
+    rig.goal("b");
+    rig.run(10);
+    // round, 8.9 cm each way: a trace of 0.016 m², but no direction past 0.01 m²
+    rig.pose(elongated(0.008, 0.008, 0.0));
+    rig.run(10);
+    assert_eq!(rig.control.lock().unwrap().len(), 1, "round: no detour");
+    // long and thin along a corridor turned 30 degrees: a trace of 0.0124 m² (under the trace's
+    // old 0.04 m²), x and y variances each under 0.01 m², but 11 cm along the axis
+    rig.pose(elongated(0.012, 0.0004, 30f64.to_radians()));
+    rig.run(10);
+    let control = rig.control.lock().unwrap();
+    assert_eq!(control.len(), 2, "elongated: re-issued via a landmark");
+    assert!(via_the_landmark(&control[1]));
+}
+
+#[test]
+fn the_worst_variance_is_the_larger_eigenvalue_and_nan_stays_nan() {
+    let Fact::AtPose { pose, .. } = elongated(0.012, 0.0004, 30f64.to_radians()) else {
+        unreachable!()
+    };
+    assert!((worst_variance_m2(&pose) - 0.012).abs() < 1e-12);
+    let Fact::AtPose { mut pose, .. } = pose_at(0.0, 0.0, 0.003) else {
+        unreachable!()
+    };
+    assert!((worst_variance_m2(&pose) - 0.003).abs() < 1e-15);
+    // a sender's not quite symmetric matrix counts by its symmetric part
+    pose.covariance[(0, 1)] = 0.002;
+    assert!((worst_variance_m2(&pose) - 0.004).abs() < 1e-12);
+    pose.covariance[(1, 1)] = f64::NAN;
+    assert!(worst_variance_m2(&pose).is_nan());
+}
+
 /// Whether `request` to the control agent goes past the test map's nearest landmark, coming
 /// in on the marker's axis (its approach point, then the landmark).
 fn via_the_landmark(request: &AclMessage) -> bool {
@@ -415,12 +522,18 @@ fn a_silent_laser_routes_the_chair_past_a_landmark_once() {
     assert_eq!(rig.control.lock().unwrap().len(), 2);
 }
 
+/// Whether `request` to the control agent goes past the test map's other landmark, (8, 8).
+fn via_the_far_landmark(request: &AclMessage) -> bool {
+    waypoints(&action_of(request)).contains(&(8.0, 8.0))
+}
+
 #[test]
-fn past_its_landmark_a_chair_detours_again_when_the_uncertainty_grows_again() {
-    let mut rig = rig(
-        Box::new(|m| agree_then(m, Performative::Inform)),
-        Box::new(|m| vec![m.create_reply().with_performative(Performative::Agree)]),
-    );
+fn past_its_landmark_a_chair_detours_again_elsewhere_never_back_to_it() {
+    // no passage on the way to the far landmark, where a drive would stop to ask the watcher
+    let mut rig = driving(Setup {
+        gap: false,
+        ..Setup::default()
+    });
     rig.goal("b");
     rig.run(10);
     rig.pose(pose_at(2.5, 4.0, 1.0));
@@ -430,24 +543,66 @@ fn past_its_landmark_a_chair_detours_again_when_the_uncertainty_grows_again() {
         2,
         "re-issued via a landmark"
     );
+    assert!(via_the_landmark(&rig.control.lock().unwrap()[1]));
     // at the landmark the marker is read: the uncertainty drops, and counts from there
     rig.pose(pose_at(2.1, 2.0, 0.3));
     rig.run(5);
     rig.pose(pose_at(2.2, 2.1, 0.01));
     rig.run(5);
     // the same drive goes on; 0.5 m² more than at the landmark is past the threshold
-    rig.pose(pose_at(4.0, 3.0, 0.2));
+    rig.pose(pose_at(2.6, 2.6, 0.3));
     rig.run(10);
     assert_eq!(
         rig.control.lock().unwrap().len(),
         2,
-        "0.38 m² more: no detour"
+        "0.29 m² more: no detour"
     );
-    rig.pose(pose_at(4.5, 3.0, 0.3));
+    // a few metres on the error grows fast again (a dropped laser): the landmark just behind is
+    // still the shortest detour, but going back there would shuttle the chair between the two
+    // points for ever; it goes on, past the other one
+    rig.pose(pose_at(3.0, 3.0, 0.6));
+    rig.run(10);
+    {
+        let control = rig.control.lock().unwrap();
+        assert_eq!(control.len(), 3, "0.59 m² more: via a landmark again");
+        let points = waypoints(&action_of(&control[2]));
+        assert!(
+            !via_the_landmark(&control[2]) && !points.contains(&(2.0, 2.0)),
+            "back to the landmark visited last: {points:?}"
+        );
+        assert!(via_the_far_landmark(&control[2]), "{points:?}");
+    }
+    // at the far one, and past it: the next detour may go back to the first (no longer the last)
+    rig.pose(pose_at(8.0, 8.0, 0.01));
+    rig.run(10);
+    rig.pose(pose_at(7.0, 7.0, 0.8));
     rig.run(10);
     let control = rig.control.lock().unwrap();
-    assert_eq!(control.len(), 3, "0.58 m² more: via a landmark again");
-    assert!(via_the_landmark(&control[2]));
+    assert_eq!(control.len(), 4, "0.79 m² more: via a landmark again");
+    assert!(!via_the_far_landmark(&control[3]));
+    assert!(via_the_landmark(&control[3]));
+}
+
+#[test]
+fn with_one_landmark_a_chair_visited_it_goes_on_without_a_detour() {
+    let mut rig = driving(Setup {
+        landmarks: 1,
+        ..Setup::default()
+    });
+    rig.goal("b");
+    rig.run(10);
+    rig.pose(pose_at(2.5, 4.0, 1.0));
+    rig.run(10);
+    assert!(via_the_landmark(&rig.control.lock().unwrap()[1]));
+    rig.pose(pose_at(2.1, 2.0, 0.01));
+    rig.run(10);
+    rig.pose(pose_at(3.0, 3.0, 1.0));
+    rig.run(10);
+    assert_eq!(
+        rig.control.lock().unwrap().len(),
+        2,
+        "the only landmark is the one just visited: no detour back to it"
+    );
 }
 
 /// A rig whose goal `b` lies through the gap, the watcher answering with `watcher`: the

@@ -107,8 +107,8 @@ pub struct FleetOptions {
     /// simulator's rendered camera and fuse it with the wheels (costs a render and a detection
     /// per chair and control period).
     pub visual_odometry: bool,
-    /// The trace of a chair's x-y pose covariance, m², above which its cognitive agent detours
-    /// past a landmark; `None`: [`compose::LANDMARK_UNCERTAINTY_M2`].
+    /// The variance of a chair's position in its worst direction, m², above which its
+    /// cognitive agent detours past a landmark; `None`: [`compose::LANDMARK_UNCERTAINTY_M2`].
     pub landmark_uncertainty_m2: Option<f64>,
 }
 

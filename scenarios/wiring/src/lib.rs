@@ -139,13 +139,10 @@ const LANDMARK_VIEW_M: [f64; 3] = [1.8, 1.5, 2.2];
 /// drives the last metre towards the marker, so the camera reads it on the way in.
 const LANDMARK_RUN_IN_M: f64 = 1.0;
 
-/// The trace of a chair's x-y pose covariance, m², above which its cognitive agent detours past
-/// a landmark (thesis 3.8), unless the deployment sets [`Building::landmark_uncertainty_m2`]:
-/// 14 cm standard deviation in x and in y, 2 sigma about 40 cm, so the chair relocalises before
-/// a 1 m doorway or a 1.5 m opening becomes marginal. It works because the covariance is honest
-/// when the chair dead-reckons (the wheels' bias in the filter, visual odometry's noise growing
-/// with the motion, [`camera::VISUAL_NOISE`]): blind, the trace passes it after about 8 m.
-pub const LANDMARK_UNCERTAINTY_M2: f64 = 0.04;
+/// The deployment's landmark detour threshold unless [`Building::landmark_uncertainty_m2`] sets
+/// one. It works because the covariance is honest when the chair dead-reckons (the wheels' bias
+/// in the filter, visual odometry's noise growing with the motion, [`camera::VISUAL_NOISE`]).
+pub use iw_cognitive::agent::LANDMARK_UNCERTAINTY_M2;
 
 /// The clearance a doorway must leave the chair's centre, m: the chair's half width less a few
 /// centimetres (the grid rounds it up a cell), so a 1 m doorway stays passable.
@@ -257,8 +254,8 @@ pub struct Building {
     /// The map as every chair's localizer matches its laser and sonars against it (walls,
     /// furniture, the doors drawn closed, landmarks), indexed once and shared.
     pub localization: Arc<LocalizationMap>,
-    /// The trace of a chair's x-y pose covariance, m², above which its cognitive agent detours
-    /// past a landmark ([`LANDMARK_UNCERTAINTY_M2`] unless set).
+    /// The variance of a chair's position in its worst direction, m², above which its
+    /// cognitive agent detours past a landmark ([`LANDMARK_UNCERTAINTY_M2`] unless set).
     pub landmark_uncertainty_m2: f64,
 }
 

@@ -2,7 +2,8 @@
 //! the chair's laser blinded so its localizer can only dead-reckon (wheels and visual
 //! odometry). The perception agent says it dropped the laser and the chair first goes past the
 //! nearest landmark; then the covariance, honest while blind, grows past the deployment's
-//! default threshold, the chair detours to a landmark again, the perception agent reads the
+//! default threshold, the chair detours to another landmark (never back to the one it visited
+//! last), the perception agent reads the
 //! marker in the simulator's rendered camera, and its error against the simulator's true pose
 //! and its covariance drop. On several seeds (the simulator's encoder bias, slip and sensor
 //! noise), each drive beside the same drive with no detour for the uncertainty.
@@ -67,14 +68,18 @@ fn one_seed(map: &Map, seed: u64) -> Result<String, String> {
         .ok_or("the drive without the detour published no pose")?;
     let summary = format!(
         "seed {seed}: error within 2 sigma on {:.0} % of the periods before the crossing; \
-         crossed at {:.1} s ({:.3} m, {:.4} m²), arrived at {:.1} s, after {:.3} m at {:.5} m² \
-         ({:.1} s), largest error on the way {:.3} m; without the detour {:.3} m at {:.4} m² \
-         ({:.1} s)",
+         crossed at {:.1} s at x = {:.2} m ({:.3} m, worst {:.4} m², trace {:.4} m²), arrived at \
+         {:.1} s at ({:.2}, {:.2}), after {:.3} m at {:.5} m² ({:.1} s), largest error on the way \
+         {:.3} m; without the detour {:.3} m at {:.4} m² ({:.1} s)",
         cover * 100.0,
         d.crossed.t_s,
+        d.crossed.truth.x,
         d.crossed.error_m(),
+        d.crossed.worst_m2,
         d.crossed.trace_m2(),
         d.arrived.t_s,
+        d.arrived.truth.x,
+        d.arrived.truth.y,
         after.error_m(),
         after.trace_m2(),
         after.t_s,
