@@ -56,6 +56,10 @@ pub struct LocalizerConfig {
     /// it and held while they do not, so the covariance grows as fast as the error when the
     /// chair dead-reckons.
     pub wheel_bias: WheelBias,
+    /// Prior standard deviation of visual odometry's scale error, estimated in the filter (see
+    /// [`OdometryFusion::with_visual_scale`]): until walls or landmarks have measured it, visual
+    /// odometry cannot tell the wheels' scale, and with it the place along a blank corridor.
+    pub visual_scale_sigma: f64,
 }
 
 impl LocalizerConfig {
@@ -82,6 +86,7 @@ impl LocalizerConfig {
             landmark_sigma: (0.05, 1f64.to_radians()),
             alpha,
             wheel_bias: WheelBias::WHEELCHAIR,
+            visual_scale_sigma: 0.03,
         }
     }
 }
@@ -202,7 +207,8 @@ impl Localizer {
         Localizer {
             map,
             fusion: OdometryFusion::new(pose, covariance, config.alpha)
-                .with_bias(config.wheel_bias),
+                .with_bias(config.wheel_bias)
+                .with_visual_scale(config.visual_scale_sigma),
             status: if start.is_some() {
                 Status::Tracking
             } else {
