@@ -140,43 +140,78 @@ fn restricted_door_passes_across_processes() {
 #[test]
 fn laser_blind_and_a_failed_laser_pass_across_processes() {
     let report = passes("laser-blind");
-    let trace: Vec<&str> = report["trace"]
+    let trace = told_by_perception(&report);
+    let silent = health(&trace, 0, "laser", "dropped", "silent")
+        .unwrap_or_else(|| panic!("no drop of the blind laser"));
+    let garbage = health(&trace, 0, "laser", "dropped", "garbage")
+        .unwrap_or_else(|| panic!("no drop of the failed laser"));
+    assert!(silent < garbage, "the blind laser is dropped first");
+    assert!(
+        health(&trace, silent, "laser", "in-use", "").is_some_and(|k| k < garbage),
+        "the laser is taken back between the blinding and the failure"
+    );
+    let end = health(&trace, garbage, "laser", "in-use", "")
+        .unwrap_or_else(|| panic!("the failed laser never taken back"));
+    no_jump(&trace, garbage, end, "laser dropped as garbage");
+}
+
+/// chair1's sonar ring returns garbage (the world container's `sensor-failure` of the sonars) from
+/// 5 s for 10 s while the laser reads on: the perception agent drops the sonars with that reason
+/// (the warning its subscribers get) and takes them back when they read ranges again, the laser
+/// stays in use, the pose does not jump, and the chair reaches its goal without contact.
+#[test]
+fn garbled_sonars_are_dropped_and_taken_back_across_processes() {
+    let report = passes("sonar-garbage");
+    let trace = told_by_perception(&report);
+    let garbage = health(&trace, 0, "sonars", "dropped", "garbage")
+        .unwrap_or_else(|| panic!("no drop of the garbled sonars"));
+    let end = health(&trace, garbage, "sonars", "in-use", "")
+        .unwrap_or_else(|| panic!("the sonars never taken back"));
+    assert_eq!(
+        health(&trace, 0, "laser", "dropped", ""),
+        None,
+        "only the sonars failed"
+    );
+    no_jump(&trace, garbage, end, "sonars dropped as garbage");
+}
+
+/// What chair1's perception agent told its cognitive agent, in the logger's order.
+fn told_by_perception(report: &Value) -> Vec<&str> {
+    report["trace"]
         .as_array()
         .expect("a trace")
         .iter()
         .filter_map(Value::as_str)
-        // what the perception agent tells the cognitive agent, in the logger's order
         .filter(|m| m.starts_with("perception@chair1 -> cognitive@chair1"))
-        .collect();
-    let health = |reason: &str| {
-        trace.iter().position(|m| {
-            m.contains("sensor-health") && m.contains(":use dropped") && m.contains(reason)
+        .collect()
+}
+
+/// The first message from `from` on saying that `sensor`'s use is `usage` (`dropped` or
+/// `in-use`), for a reason containing `reason`.
+fn health(trace: &[&str], from: usize, sensor: &str, usage: &str, reason: &str) -> Option<usize> {
+    let (sensor, usage) = (format!(":sensor {sensor} "), format!(":use {usage}"));
+    trace[from..]
+        .iter()
+        .position(|m| {
+            m.contains("sensor-health")
+                && m.contains(&sensor)
+                && m.contains(&usage)
+                && m.contains(reason)
         })
-    };
-    let silent = health("silent").unwrap_or_else(|| panic!("no drop of the blind laser"));
-    let garbage = health("garbage").unwrap_or_else(|| panic!("no drop of the failed laser"));
-    assert!(silent < garbage, "the blind laser is dropped first");
-    let back = |from: usize| {
-        trace[from..]
-            .iter()
-            .position(|m| m.contains("sensor-health") && m.contains(":use in-use"))
-            .map(|k| from + k)
-    };
-    assert!(
-        back(silent).is_some_and(|k| k < garbage),
-        "the laser is taken back between the blinding and the failure"
-    );
-    let end = back(garbage).unwrap_or_else(|| panic!("the failed laser never taken back"));
-    // the published estimates from the last before the drop to the last before the laser is
-    // back: dead-reckoned on wheels and visual odometry, with no jump between two
+        .map(|k| from + k)
+}
+
+/// Checks that the published estimates from the last before message `dropped` to the last
+/// before message `back` (while a range sensor was dropped) are many and never jump.
+fn no_jump(trace: &[&str], dropped: usize, back: usize, what: &str) {
     let estimate = |m: &str| {
         m.starts_with("perception@chair1 -> cognitive@chair1: (INFORM") && m.contains("at-pose")
     };
-    let start = trace[..garbage]
+    let start = trace[..dropped]
         .iter()
         .rposition(|m| estimate(m))
         .expect("an estimate before");
-    let poses: Vec<[f64; 2]> = trace[start..end]
+    let poses: Vec<[f64; 2]> = trace[start..back]
         .iter()
         .filter(|m| estimate(m))
         .map(|m| position(m))
@@ -187,9 +222,8 @@ fn laser_blind_and_a_failed_laser_pass_across_processes() {
         .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
         .fold(0.0, f64::max);
     eprintln!(
-        "laser dropped as garbage for {} estimates; largest step between two: {:.3} m",
-        poses.len(),
-        largest
+        "{what} for {} estimates; largest step between two: {largest:.3} m",
+        poses.len()
     );
     // an estimate every two 50 ms periods: about 6 cm of motion; a process stalled by the loaded
     // machine while the world drives on for its 300 ms watchdog at 0.6 m/s adds 18 cm

@@ -49,3 +49,22 @@ proptest! {
         }
     }
 }
+
+/// Found by the `parse` fuzz target: the printer left out every user parameter
+/// `JADE-Encoding Base64`, also an agent identifier's, which the parser keeps (only a message's is
+/// JADE's byte-content marker), so the parsed message did not print back to itself.
+#[test]
+fn an_agents_jade_encoding_parameter_prints_back() {
+    let text =
+        "(REQUEST :sender (agent-identifier :X-JADE-Encoding Base64 :name a@p) :content \"x\")";
+    for (parse, print) in [
+        (ParseOptions::default(), PrintOptions::default()),
+        (ParseOptions::jade(), PrintOptions::jade()),
+    ] {
+        let m = codec::parse_with(text, &parse).unwrap();
+        let sender = m.sender.as_ref().unwrap();
+        assert_eq!(sender.user_params["JADE-Encoding"], "Base64");
+        let printed = codec::print_with(&m, &print).unwrap();
+        assert_eq!(codec::parse_with(&printed, &parse).unwrap(), m, "{printed}");
+    }
+}

@@ -246,8 +246,17 @@ pub fn parse_trajectory(path: &Path, text: &str) -> Result<Vec<StampedPose>, VoE
                 *slot = number(path, line, field, what)?;
             }
             let q = Quaternion::new(v[7], v[4], v[5], v[6]);
-            if q.norm() < 1e-6 {
+            let length = q.norm();
+            if length < 1e-6 {
                 return Err(VoError::parse(path, line, "quaternion has zero length"));
+            }
+            // finite components whose squares overflow would normalise to zeros
+            if !length.is_finite() {
+                return Err(VoError::parse(
+                    path,
+                    line,
+                    "quaternion's length overflows (a unit quaternion is expected)",
+                ));
             }
             Ok(StampedPose {
                 timestamp_s: v[0],
@@ -405,6 +414,10 @@ mod tests {
         );
         let err = parse_trajectory(p(), "1 0 0 0 0 0 0 0\n").expect_err("zero quaternion");
         assert!(err.to_string().contains("zero length"), "{err}");
+        // found by the `tum_text` fuzz target: a component of 6.7e179 was accepted and
+        // normalised to a zero quaternion, which the writer wrote and the parser then refused
+        let err = parse_trajectory(p(), "1 3 9 0 3 3 -6.7e179 8\n").expect_err("huge quaternion");
+        assert!(err.to_string().contains("overflows"), "{err}");
         let err = parse_associations(p(), "1 a 2\n").expect_err("three fields");
         assert!(err.to_string().starts_with("x.txt:1:"), "{err}");
     }

@@ -74,7 +74,7 @@ fn write_message(m: &AclMessage, out: &mut String, escaping: Escaping) -> Result
         // A date-time never needs quoting.
         let _ = write!(out, "\n :reply-by {deadline}");
     }
-    write_user_params(&m.user_params, "\n :X-", out, escaping)?;
+    write_user_params(&m.user_params, ParamsOf::Message, out, escaping)?;
     out.push(')');
     Ok(())
 }
@@ -91,16 +91,31 @@ fn write_slot(
     write_value(name, value, out, escaping)
 }
 
-/// User parameters with their `X-` prefix. JADE's byte-content marker (`JADE-Encoding Base64`)
-/// is written from the content, never from the map (the parser never leaves it there).
+/// Whose user parameters are written.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum ParamsOf {
+    Message,
+    Agent,
+}
+
+/// User parameters with their `X-` prefix. A message's byte-content marker (`JADE-Encoding
+/// Base64`) is written from the content, never from the map (the parser never leaves it there);
+/// in an agent identifier a parameter of that name is an ordinary one, and is written.
 fn write_user_params(
     params: &BTreeMap<String, String>,
-    lead: &str,
+    of: ParamsOf,
     out: &mut String,
     escaping: Escaping,
 ) -> Result<(), Error> {
+    let lead = match of {
+        ParamsOf::Message => "\n :X-",
+        ParamsOf::Agent => " :X-",
+    };
     for (key, value) in params {
-        if key == JADE_ENCODING_PARAM && value.eq_ignore_ascii_case("Base64") {
+        if of == ParamsOf::Message
+            && key == JADE_ENCODING_PARAM
+            && value.eq_ignore_ascii_case("Base64")
+        {
             continue;
         }
         out.push_str(lead);
@@ -150,7 +165,7 @@ fn write_agent_id(aid: &AgentId, out: &mut String, escaping: Escaping) -> Result
         }
         out.push(')');
     }
-    write_user_params(&aid.user_params, " :X-", out, escaping)?;
+    write_user_params(&aid.user_params, ParamsOf::Agent, out, escaping)?;
     out.push(')');
     Ok(())
 }
