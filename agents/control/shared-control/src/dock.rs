@@ -12,9 +12,10 @@
 //! the passage's axis is the heading whose lane is widest, because a lane across two walls
 //! narrows as it tilts; the widest reached from the chair's own heading, since that is the
 //! passage it was pushing into. [`Docking`] then turns the chair on the spot to that axis,
-//! reverses along it until there is room to take out the sideways offset, drives forwards onto
-//! the centre line at an angle that shrinks with the offset, so it comes alongside the line
-//! before the entry, and follows the line until the chair's front is well inside the passage.
+//! reverses along it until there is room to take out the sideways offset (or until something
+//! behind holds it), drives forwards onto the centre line at an angle that shrinks with the
+//! offset, so it comes alongside the line before the entry, and follows the line until the
+//! chair's front is well inside the passage.
 
 use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -195,6 +196,19 @@ impl Docking {
             heading: lane.heading,
             step: Step::Turn,
         }
+    }
+
+    /// Ends the run back when something behind holds it, so the chair merges onto the line from
+    /// where it is; whether it was running back. The run back only buys a gentler S: giving up
+    /// the whole docking there left the chair where it had come in off the line, and its user
+    /// came in off the line again (two rooms, seed 116: held by the trolley behind, three times
+    /// before the 0.85 m door, until the lap timed out).
+    pub(crate) fn no_room_behind(&mut self) -> bool {
+        let running_back = matches!(self.step, Step::Back { .. });
+        if running_back {
+            self.step = Step::In;
+        }
+        running_back
     }
 
     /// The chair's position relative to the dock pose: along the axis (negative before it) and
