@@ -10,10 +10,12 @@
 //! [`find_lane`] finds the passage from the sensed free space only (the dense sensor's points,
 //! current and remembered; never a map): of the straight lanes ahead of the stalled chair's front,
 //! the passage's axis is the heading whose lane is widest, because a lane across two walls
-//! narrows as it tilts. [`Docking`] then turns the chair on the spot to that axis, reverses along
-//! it until there is room to take out the sideways offset, drives forwards onto the centre line
-//! at an angle that shrinks with the offset, so it comes alongside the line before the entry, and
-//! follows the line until the chair's front is well inside the passage.
+//! narrows as it tilts; the widest reached from the chair's own heading, since that is the
+//! passage it was pushing into. [`Docking`] then turns the chair on the spot to that axis,
+//! reverses along it until there is room to take out the sideways offset (or until something
+//! behind holds it), drives forwards onto the centre line at an angle that shrinks with the
+//! offset, so it comes alongside the line before the entry, and follows the line until the
+//! chair's front is well inside the passage.
 
 use iw_body::layout::Footprint;
 use nalgebra::{Isometry2, Point2, Vector2};
@@ -78,9 +80,10 @@ pub(crate) struct Lane {
 }
 
 /// The passage ahead of a stalled chair at `stalled` (odometry frame), from the dense points
-/// `dense` (chair frame): the widest straight lane (at least the chair's width plus `margin_m`
-/// each side, at most [`WIDEST_PASSAGE_M`]) through the chair's front centre, with walls on both
-/// sides. `None` if there is none.
+/// `dense` (chair frame): the widest straight lane through the chair's front centre, with walls
+/// on both sides, that the width climbs to from the chair's heading (it must be at least the
+/// chair's width plus `margin_m` each side, at most [`WIDEST_PASSAGE_M`]). `None` if there is
+/// none.
 pub(crate) fn find_lane(
     stalled: &Isometry2<f64>,
     dense: &[Point2<f64>],
@@ -89,9 +92,10 @@ pub(crate) fn find_lane(
 ) -> Option<Lane> {
     let front = Point2::new(fp.front_m, 0.0);
     let narrowest = 2.0 * (fp.half_width_m + margin_m);
-    // (heading, left edge, right edge) of each lane through the front centre.
-    let lanes: Vec<(f64, f64, f64)> = (-SEARCH_DEG..=SEARCH_DEG)
-        .filter_map(|deg| {
+    // (heading, left edge, right edge) of the lane through the front centre at each heading
+    // searched (index SEARCH_DEG is the chair's own heading); None without walls on both sides.
+    let lanes: Vec<Option<(f64, f64, f64)>> = (-SEARCH_DEG..=SEARCH_DEG)
+        .map(|deg| {
             let heading = f64::from(deg).to_radians();
             let (sin, cos) = heading.sin_cos();
             let (mut left, mut right) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -114,14 +118,39 @@ pub(crate) fn find_lane(
                 .then_some((heading, left, right))
         })
         .collect();
-    let widest = lanes.iter().map(|(_, l, r)| l - r).fold(0.0, f64::max);
+    let width = |i: usize| lanes[i].map_or(f64::NEG_INFINITY, |(_, l, r)| l - r);
+    // The passage the chair stalled at is the one it was heading into: the widest lane reached
+    // by climbing the width from the chair's own heading, either way, not the widest anywhere.
+    // Through a doorway the lanes tilted far across the room beyond are wider than the door's
+    // own (two rooms, seed 116: a 1.43 m lane 49 degrees off the 0.90 m door's axis), and
+    // docking onto one drove the chair away from the door into the furniture, five times.
+    let climb = |step: isize| {
+        let (mut peak, mut i) = (SEARCH_DEG as usize, SEARCH_DEG as usize);
+        while let Some(next) = i.checked_add_signed(step).filter(|&j| j < lanes.len()) {
+            if lanes[next].is_none() || width(next) < width(peak) - WIDTH_TIE_M {
+                break;
+            }
+            if width(next) > width(peak) {
+                peak = next;
+            }
+            i = next;
+        }
+        peak
+    };
+    let (up, down) = (climb(1), climb(-1));
+    let peak = if width(down) > width(up) { down } else { up };
+    let widest = width(peak);
     if !(narrowest..=WIDEST_PASSAGE_M).contains(&widest) {
         return None;
     }
-    let ties: Vec<&(f64, f64, f64)> = lanes
-        .iter()
-        .filter(|(_, l, r)| l - r >= widest - WIDTH_TIE_M)
-        .collect();
+    // the lanes as wide as the peak next to it (a doorway in a thin wall gives a flat optimum)
+    let flat = |i: &usize| lanes[*i].is_some() && width(*i) >= widest - WIDTH_TIE_M;
+    let from = (0..peak).rev().take_while(flat).last().unwrap_or(peak);
+    let to = (peak + 1..lanes.len())
+        .take_while(flat)
+        .last()
+        .unwrap_or(peak);
+    let ties: Vec<(f64, f64, f64)> = lanes[from..=to].iter().flatten().copied().collect();
     let n = ties.len() as f64;
     let heading = ties.iter().map(|t| t.0).sum::<f64>() / n;
     let middle = ties.iter().map(|(_, l, r)| (l + r) / 2.0).sum::<f64>() / n;
@@ -167,6 +196,19 @@ impl Docking {
             heading: lane.heading,
             step: Step::Turn,
         }
+    }
+
+    /// Ends the run back when something behind holds it, so the chair merges onto the line from
+    /// where it is; whether it was running back. The run back only buys a gentler S: giving up
+    /// the whole docking there left the chair where it had come in off the line, and its user
+    /// came in off the line again (two rooms, seed 116: held by the trolley behind, three times
+    /// before the 0.85 m door, until the lap timed out).
+    pub(crate) fn no_room_behind(&mut self) -> bool {
+        let running_back = matches!(self.step, Step::Back { .. });
+        if running_back {
+            self.step = Step::In;
+        }
+        running_back
     }
 
     /// The chair's position relative to the dock pose: along the axis (negative before it) and
@@ -273,6 +315,41 @@ mod tests {
         .map(|p| inv * p)
         .collect();
         assert_eq!(find_lane(&stalled, &open, &fp, 0.05), None);
+    }
+
+    #[test]
+    fn a_chair_stalled_in_a_doorway_docks_onto_the_door_not_a_wider_lane_across_the_room_beyond() {
+        // The two rooms' lower door (0.90 m, in the wall x = 5) with the right room's south wall,
+        // table and chair beyond, and the chair stalled with its front in the door, 9 cm right of
+        // the door's centre line and 1 degree off its axis (seed 116). A lane tilted 47 degrees
+        // to the right runs across the open room beyond and is 1.45 m wide (the widest anywhere,
+        // which docking took before); the door's own is 0.90 m.
+        let boxed = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            [
+                segment((x0, y0), (x1, y0)),
+                segment((x1, y0), (x1, y1)),
+                segment((x1, y1), (x0, y1)),
+                segment((x0, y1), (x0, y0)),
+            ]
+            .concat()
+        };
+        let walls = [
+            segment((5.0, 0.0), (5.0, 1.05)),
+            segment((5.0, 1.95), (5.0, 3.075)),
+            segment((0.0, 0.0), (11.0, 0.0)),
+            boxed(7.4, 0.2, 8.6, 1.0),
+            boxed(6.05, 2.05, 6.55, 2.55),
+            boxed(2.5, 0.325, 3.9, 0.925),
+        ]
+        .concat();
+        let fp = Footprint::PROTOTYPE;
+        let stalled = Isometry2::new(Vector2::new(4.29, 1.41), -1f64.to_radians());
+        let inv = stalled.inverse();
+        let dense: Vec<Point2<f64>> = walls.iter().map(|p| inv * p).collect();
+        let lane = find_lane(&stalled, &dense, &fp, 0.05).expect("the door");
+        assert!(lane.heading.abs() < 3f64.to_radians(), "{lane:?}");
+        assert!((lane.entry.y - 1.5).abs() < 0.03, "{lane:?}");
+        assert!((lane.width_m - 0.9).abs() < 0.03, "{lane:?}");
     }
 
     #[test]

@@ -20,7 +20,7 @@
 //! entry, lined up with its axis, and along the line until its front is inside the passage, then
 //! handed back. Each docking command passes the same sweep check as the backing's; docking ends
 //! there, when the user lets go, when it has been held for [`DOCK_HELD_S`], or after
-//! [`DOCK_MAX_S`].
+//! [`DOCK_MAX_S`]; held that long while it reverses for room, it lines up from where it is.
 
 use std::collections::VecDeque;
 
@@ -114,7 +114,7 @@ pub(crate) enum Plan {
     /// the backing ends and the chair stops.
     Back([VelocityCommand; BACK_SCALES.len()]),
     /// Dock: try these commands, best first; the first one clear is sent, and if none is for
-    /// [`DOCK_HELD_S`], docking ends.
+    /// [`DOCK_HELD_S`], docking ends (reversing for room, it goes on forwards from there).
     Dock([VelocityCommand; 3]),
 }
 
@@ -196,7 +196,11 @@ impl Recovery {
             };
             dock.held_since_ns = since;
             if since.is_some_and(|t| time_ns.saturating_sub(t) as f64 * 1e-9 >= DOCK_HELD_S) {
-                self.docking = None;
+                if dock.to.no_room_behind() {
+                    dock.held_since_ns = None;
+                } else {
+                    self.docking = None;
+                }
             }
             return;
         }

@@ -296,3 +296,39 @@ fn a_chair_that_would_back_into_something_stays_where_it_is() {
     assert!(closest > 0.0, "touched something: {closest}");
     assert!(rig.pose.translation.x < 0.5, "it cannot have got through");
 }
+
+#[test]
+fn a_docking_with_no_room_behind_to_run_back_lines_up_from_where_it_is() {
+    // The straight-pushing user's docking, with a post put in 0.6 m behind the rear, across the
+    // chair's whole width, once docking has turned the chair to the axis and starts reversing
+    // along it for its run-in (1.85 m for this chair, 0.58 m off the line): the post holds the
+    // run back short, as the trolley behind the chair did before the two rooms' upper door
+    // (seed 116). Giving up the docking there left the chair off the line where it had come in,
+    // and the same push wedged it again.
+    let mut rig = Rig::new(passage(), aimed(), true);
+    let mut post_at = None;
+    for _ in 0..(60.0 / PERIOD_S) as usize {
+        let (l, r) = rig.wheels;
+        if rig.guard.is_docking() && l < -0.15 && r < -0.15 {
+            post_at = Some(rig.pose);
+            break;
+        }
+        rig.step(straight(&rig));
+    }
+    let at = post_at.expect("docking runs back along the axis");
+    let fp = Footprint::PROTOTYPE;
+    let post: Vec<Point2<f64>> = (-4..=4)
+        .map(|k| at * Point2::new(-fp.rear_m - 0.6, k as f64 * 0.08))
+        .collect();
+    let inv = rig.pose.inverse();
+    let before: Vec<f64> = post.iter().map(|p| distance(&fp, &(inv * p))).collect();
+    rig.walls.extend(&post);
+    rig.nearest.extend(&before);
+    assert!(
+        rig.drive_with(120.0, straight),
+        "still stuck at {:?}",
+        rig.pose
+    );
+    let closest = rig.nearest.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(closest > 0.0, "touched something: {closest}");
+}
