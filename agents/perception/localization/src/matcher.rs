@@ -21,13 +21,9 @@ pub struct MatcherConfig {
     pub kernel_m: f64,
     /// A point within this distance of the map at the match counts as an inlier, m.
     pub inlier_m: f64,
-    /// Points closer than this along the scan share their errors, m: each point counts for its
-    /// spacing over this length, at most one. 10 cm by default, measured, not traced to a
-    /// source: single scans on the simulator's tour are consistent with every beam counted
-    /// (mean NEES 1.87), but fused at 20 Hz they left the filter 1.8 times overconfident across
-    /// the chair's heading, and in the fleet's blank corridor a swerve then read the wheels'
-    /// scale from a millimetre of sideways travel and moved the estimate 10 cm along the axis,
-    /// 2.4 standard deviations. Counting the beams within 10 cm as one passes that test.
+    /// Points closer than this along the scan share their errors (the same stretch of wall,
+    /// drawn a little off, seen by neighbouring beams), m: each point counts for its spacing
+    /// over this length, at most one.
     pub correlation_m: f64,
     /// A direction whose variance at the points' standard deviations (every point counted)
     /// would exceed this is not observed (m², with 1 rad = 1 m): a scan that places it no
@@ -43,7 +39,7 @@ impl Default for MatcherConfig {
             iterations: 12,
             kernel_m: 0.05,
             inlier_m: 0.1,
-            correlation_m: 0.1,
+            correlation_m: 0.0,
             unobserved_var: 0.08f64.powi(2),
             min_points: 12,
         }

@@ -31,8 +31,7 @@ fn a_scan_pulls_a_guess_15cm_off_back_to_within_a_centimetre() {
     assert!(m.inlier_fraction > 0.95);
 }
 
-/// The matcher's covariance is derived from the points' own noise, not tuned: with every beam's
-/// error its own (no correlation length), over scans with 1
+/// The matcher's covariance is derived from the points' own noise, not tuned: over scans with 1
 /// cm of Gaussian range noise (drawn independently per beam; the shared scan's pseudo-noise is
 /// a low-discrepancy sequence whose errors cancel) from three places in the room, the matches' errors against their
 /// covariance have a mean NEES inside [1, 4.5] (3 degrees of freedom: 3 if exact; under it,
@@ -44,11 +43,6 @@ fn a_matched_scans_covariance_is_the_size_of_its_error() {
     let laser = LaserGeometry {
         sigma_m: 0.01,
         ..laser()
-    };
-    // every beam its own error (the deployment shares them within 10 cm, for the filter)
-    let independent = MatcherConfig {
-        correlation_m: 0.0,
-        ..Default::default()
     };
     let mut noise = SimWheels {
         radius_scale: [1.0; 2],
@@ -70,7 +64,7 @@ fn a_matched_scans_covariance_is_the_size_of_its_error() {
                 .collect();
             let mut points = Vec::new();
             laser.points(&ranges, &mut points);
-            let m = match_scan(&map, &points, truth, &independent).unwrap();
+            let m = match_scan(&map, &points, truth, &Default::default()).unwrap();
             assert_eq!(m.observed, 3);
             let e = Vector3::new(
                 m.pose.x - truth.x,
