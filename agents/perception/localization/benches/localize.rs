@@ -27,13 +27,11 @@ fn bench(c: &mut Criterion) {
         sigma_m: 0.15,
     };
     let sonar_m: Vec<Option<f64>> = (0..16).map(|k| Some(1.0 + 0.1 * k as f64)).collect();
-    // the deployment's motion model: the alphas and the acceleration's slip
-    // (iw_sim::localization::localizer_config)
-    let config = common::deployed_motion(LocalizerConfig::new(
+    let config = LocalizerConfig::new(
         Some(common::laser()),
         Some(sonar),
-        [0.0; 4],
-    ));
+        [0.01, 0.002, 0.01, 0.002],
+    );
     let step = OdometryStep::from_wheels(0.0, 0.0, TRACK_M);
     let mut group = c.benchmark_group("localize");
     group

@@ -1,8 +1,8 @@
 //! Synthetic rooms and a ray-cast laser, shared by the tests and the bench.
 #![allow(dead_code)] // each test target uses a subset
 
-use iw_localization::{LaserGeometry, LocalizerConfig, ScanPoint};
-use iw_vo::{AccelerationSlip, Pose2};
+use iw_localization::{LaserGeometry, ScanPoint};
+use iw_vo::Pose2;
 use nalgebra::{Point2, Vector2};
 
 pub type Seg = (Point2<f64>, Point2<f64>);
@@ -33,20 +33,6 @@ pub fn room() -> Vec<Seg> {
     s.extend(polygon(&[(7.0, 0.0), (8.0, 0.0), (8.0, 0.6), (7.0, 0.6)]));
     s.extend(polygon(&[(1.5, 5.5), (1.9, 5.5), (1.9, 5.9), (1.5, 5.9)]));
     s
-}
-
-/// `config` with the deployment's motion model (iw_sim::localization::localizer_config): the
-/// simulator's random slip as alphas, and its slip with the wheels' acceleration.
-pub fn deployed_motion(config: LocalizerConfig) -> LocalizerConfig {
-    LocalizerConfig {
-        alpha: [3.63e-5, 1.16e-4, 1.82e-5, 2.85e-6],
-        acceleration_slip: Some(AccelerationSlip {
-            per_mps2: 0.02,
-            period_s: 0.05,
-            track_m: iw_body::TRACK_M,
-        }),
-        ..config
-    }
 }
 
 pub fn laser() -> LaserGeometry {
