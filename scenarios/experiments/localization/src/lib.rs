@@ -149,6 +149,9 @@ pub struct Sample {
     pub localized: Pose2,
     /// The localizer's NEES (x, y, theta).
     pub nees: f64,
+    /// Each component's squared error over its variance (x, y, theta): 1 on average if
+    /// consistent; where the NEES misses.
+    pub nees_components: [f64; 3],
 }
 
 /// One tracking drive.
@@ -405,6 +408,16 @@ pub fn nees(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> f64 {
         .map_or(f64::INFINITY, |inv| (e.transpose() * inv * e)[0])
 }
 
+/// Each component's squared error over its variance (x, y, theta).
+pub fn nees_components(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> [f64; 3] {
+    let e = [
+        estimate.x - truth.x,
+        estimate.y - truth.y,
+        wrap_angle(estimate.theta - truth.theta),
+    ];
+    std::array::from_fn(|k| e[k] * e[k] / covariance[(k, k)])
+}
+
 fn position_error(a: &Pose2, b: &Pose2) -> f64 {
     ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt()
 }
@@ -522,6 +535,7 @@ pub fn drive(
                 fused: estimates[2],
                 localized: estimates[3],
                 nees: nees(&estimates[3], &localizer.covariance(), &truth),
+                nees_components: nees_components(&estimates[3], &localizer.covariance(), &truth),
             });
         }
         if k % (60 * per_second) == 0 {

@@ -101,6 +101,9 @@ pub struct Summary {
     pub nees_mean: f64,
     /// Fraction of NEES samples above the interval (overconfident).
     pub nees_above_rate: f64,
+    /// Mean squared error over variance of x, y and theta in the same samples (1 each if
+    /// consistent): which component the NEES misses on.
+    pub nees_components: [f64; 3],
     /// Ground distance per drive, m.
     pub distance_m: Vec<f64>,
     /// Localizer time per 50 ms period: median and 99th percentile, µs.
@@ -200,6 +203,15 @@ impl Summary {
             nees_pass_rate: inside as f64 / n,
             nees_mean: nees.iter().filter(|v| v.is_finite()).sum::<f64>() / n,
             nees_above_rate: above as f64 / n,
+            nees_components: std::array::from_fn(|k| {
+                report
+                    .drives
+                    .iter()
+                    .flat_map(|d| d.samples.iter().map(|s| s.nees_components[k]))
+                    .filter(|v| v.is_finite())
+                    .sum::<f64>()
+                    / n
+            }),
             distance_m: report.drives.iter().map(|d| d.distance_m).collect(),
             localizer_us: (percentile(&mut us, 0.5), percentile(&mut us, 0.99)),
             vo_frames,
