@@ -3,42 +3,17 @@
 //! stops a body it does not hear; a new world attaches it at rest) but refuses a drive, and a
 //! restarted world takes it back where it stood with its wheel ticks continued.
 
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use iw_agent::AgentHost;
 use iw_body::{Body, SensorFrame, WheelSpeeds};
 use iw_bus::transport::PeerAddr;
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
-use iw_wiring::agent_id;
-use iw_wiring::world_link::{LINK_TIMEOUT, WorldAgent, WorldBody, body_endpoint, world_agent};
+use iw_bus::{Clock, InProcNetwork};
+use iw_wiring::world_link::{LINK_TIMEOUT, WorldBody, world_agent};
 use nalgebra::{Isometry2, Vector2};
 
-/// A world on its own bus (endpoint `endpoint`) with chair `c1`'s body routed to it.
-fn world(network: &InProcNetwork, clock: &Clock, endpoint: &str) -> AgentHost {
-    let bus = Arc::new(
-        Bus::start(
-            Stack::new(),
-            Arc::new(network.endpoint(endpoint).unwrap()),
-            clock.clone(),
-            BusConfig::default(),
-        )
-        .unwrap(),
-    );
-    bus.add_route(&body_endpoint("c1").name, PeerAddr("c1".into()));
-    let map = iw_sim::Map::parse(
-        include_str!("../../maps/sample-building.map"),
-        "sample-building.map",
-    )
-    .unwrap();
-    let agent = WorldAgent::new(
-        iw_sim::shared(iw_sim::World::new(map, 1)),
-        agent_id("door", "services"),
-    );
-    let mut host = AgentHost::new(bus);
-    host.add(world_agent(), Box::new(agent)).unwrap();
-    host
-}
+mod common;
+use common::{bus, world};
 
 /// Steps `host` and commands `speeds` until the body reads a frame that `done` accepts.
 fn drive_until(
@@ -66,15 +41,7 @@ fn drive_until(
 fn a_body_rides_out_its_worlds_restart() {
     let network = InProcNetwork::new();
     let clock = Clock::system();
-    let chair_bus = Arc::new(
-        Bus::start(
-            Stack::new(),
-            Arc::new(network.endpoint("c1").unwrap()),
-            clock.clone(),
-            BusConfig::default(),
-        )
-        .unwrap(),
-    );
+    let chair_bus = bus(&network, &clock, "c1");
     chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
     let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
     let mut body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
