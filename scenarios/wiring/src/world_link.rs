@@ -219,7 +219,17 @@ impl WorldLink {
             if behind.is_some_and(|ns| ns > 0) && !restarted && self.fresh(now) {
                 continue;
             }
-            if !self.fresh(now) || restarted {
+            // After a silence, a frame whose world time did not go on is from a new world: a
+            // new attachment, whose ticks continue from where they were. One whose time went on
+            // is the same world after a stall (its process or the link late): its ticks go on as
+            // they are, since its first step after the stall moved the body (up to
+            // MAX_STEP_S of driving) and the scans show it; rebased, that motion was lost to
+            // the odometry, every scan then missed the estimate by it (10 cm in a
+            // `sonar-garbage` run across processes) and the chair was taken for lost.
+            // Assumption: a restarted world has run for less time than the one it replaces when
+            // its first frame comes.
+            let new_world = restarted || (!self.fresh(now) && behind.is_some_and(|ns| ns > 0));
+            if new_world {
                 // a new attachment: continue the ticks from where they were
                 if let Some((last, _)) = &self.latest {
                     self.tick_offset = (

@@ -97,3 +97,49 @@ fn a_body_rides_out_its_worlds_restart() {
     });
     assert!(on.left_ticks > after.left_ticks);
 }
+
+/// A world that stalls (its process late) past the link timeout and goes on: its first step
+/// after the stall moves the body by up to a fifth of a second of driving, which its scans
+/// show; the body's ticks keep that motion instead of being rebased as for a new world.
+#[test]
+fn a_body_keeps_the_motion_of_its_worlds_first_step_after_a_stall() {
+    let network = InProcNetwork::new();
+    let clock = Clock::system();
+    let chair_bus = bus(&network, &clock, "c1");
+    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
+    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
+    let mut body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
+    let forward = WheelSpeeds {
+        left_mps: 0.5,
+        right_mps: 0.5,
+    };
+    let mut host = world(&network, &clock, "w1");
+    let before = drive_until(&mut host, &mut body, &clock, forward, |f| {
+        f.left_ticks > 2000
+    });
+    let at = |body: &WorldBody| {
+        let truth = body.true_pose();
+        let guard = truth.lock().unwrap();
+        guard.expect("a frame came").1.translation.vector
+    };
+    let true_before = at(&body);
+    // the world steps no more for longer than the link timeout; the chair drives on
+    let stalled = Instant::now();
+    while stalled.elapsed() < LINK_TIMEOUT + Duration::from_millis(200) {
+        let _ = body.read();
+        body.command(forward).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let after = drive_until(&mut host, &mut body, &clock, forward, |_| true);
+    let moved_m = (at(&body) - true_before).norm();
+    let ticked_m = (after.left_ticks - before.left_ticks) as f64
+        * iw_body::WheelGeometry::default().m_per_tick();
+    assert!(
+        moved_m > 0.05,
+        "the world's step after the stall moved {moved_m} m"
+    );
+    assert!(
+        (ticked_m - moved_m).abs() < 0.2 * moved_m,
+        "moved {moved_m} m, the ticks say {ticked_m} m"
+    );
+}
