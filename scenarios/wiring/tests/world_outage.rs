@@ -3,17 +3,35 @@
 //! stops a body it does not hear; a new world attaches it at rest) but refuses a drive, and a
 //! restarted world takes it back where it stood with its wheel ticks continued.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use iw_agent::AgentHost;
 use iw_body::{Body, SensorFrame, WheelSpeeds};
 use iw_bus::transport::PeerAddr;
-use iw_bus::{Clock, InProcNetwork};
+use iw_bus::{Bus, Clock, InProcNetwork};
 use iw_wiring::world_link::{LINK_TIMEOUT, WorldBody, world_agent};
 use nalgebra::{Isometry2, Vector2};
 
 mod common;
 use common::{bus, world};
+
+/// Chair `c1`'s bus on `network` with the world routed at `w1`, and its body at (7.5, 6).
+fn chair_c1(network: &InProcNetwork, clock: &Clock) -> (Arc<Bus>, WorldBody) {
+    let chair_bus = bus(network, clock, "c1");
+    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
+    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
+    let body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
+    (chair_bus, body)
+}
+
+/// Both wheels at `mps`.
+fn ahead(mps: f64) -> WheelSpeeds {
+    WheelSpeeds {
+        left_mps: mps,
+        right_mps: mps,
+    }
+}
 
 /// Steps `host` and commands `speeds` until the body reads a frame that `done` accepts.
 fn drive_until(
@@ -41,14 +59,8 @@ fn drive_until(
 fn a_body_rides_out_its_worlds_restart() {
     let network = InProcNetwork::new();
     let clock = Clock::system();
-    let chair_bus = bus(&network, &clock, "c1");
-    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
-    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
-    let mut body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
-    let forward = WheelSpeeds {
-        left_mps: 0.3,
-        right_mps: 0.3,
-    };
+    let (chair_bus, mut body) = chair_c1(&network, &clock);
+    let forward = ahead(0.3);
 
     let mut first = world(&network, &clock, "w1");
     let before = drive_until(&mut first, &mut body, &clock, forward, |f| {
@@ -105,14 +117,8 @@ fn a_body_rides_out_its_worlds_restart() {
 fn a_body_keeps_the_motion_of_its_worlds_first_step_after_a_stall() {
     let network = InProcNetwork::new();
     let clock = Clock::system();
-    let chair_bus = bus(&network, &clock, "c1");
-    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
-    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
-    let mut body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
-    let forward = WheelSpeeds {
-        left_mps: 0.5,
-        right_mps: 0.5,
-    };
+    let (_chair_bus, mut body) = chair_c1(&network, &clock);
+    let forward = ahead(0.5);
     let mut host = world(&network, &clock, "w1");
     let before = drive_until(&mut host, &mut body, &clock, forward, |f| {
         f.left_ticks > 2000
