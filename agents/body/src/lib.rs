@@ -51,6 +51,11 @@ pub struct SensorFrame {
     pub sonar_m: [Option<f64>; SONAR_COUNT],
     /// Laser ranges in metres, if a laser is fitted (empty otherwise).
     pub laser_m: Vec<f64>,
+    /// When the range readings (sonars and laser) were taken, in the clock of `time_ns`:
+    /// `time_ns` for a body that reads them with its encoders, earlier for one whose ranges
+    /// come from where it was a while ago (a mixed chair's ghost in a world process). The
+    /// localizer matches a scan where the chair was at that time.
+    pub ranges_time_ns: u64,
 }
 
 impl SensorFrame {
@@ -62,6 +67,7 @@ impl SensorFrame {
             right_ticks: 0,
             sonar_m: [None; SONAR_COUNT],
             laser_m: Vec::new(),
+            ranges_time_ns: time_ns,
         }
     }
 }

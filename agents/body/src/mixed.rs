@@ -9,6 +9,9 @@ use crate::{Body, BodyError, Odometry, SensorFrame, WheelSpeeds};
 /// virtual body at `t_world_body` and returns its virtual sonar and laser readings.
 pub trait VirtualSensors {
     /// Virtual readings of a body at `t_world_body` at `time_ns` (ticks are ignored by the merge).
+    /// The frame's times are in the clock of `time_ns`: its `ranges_time_ns` is `time_ns` when
+    /// the readings are sensed at once, earlier when they were sensed where the body was
+    /// placed before (a world in another process answers with its last frame).
     fn sense_at(
         &mut self,
         t_world_body: Isometry2<f64>,
@@ -18,9 +21,12 @@ pub trait VirtualSensors {
 
 /// Per sonar and per laser beam, the nearer of the two readings wins (an echo beats no echo).
 /// Encoders and time come from `real`. Laser beams are merged only when both have the same count;
-/// otherwise the one that has beams is kept (the real one if both do).
+/// otherwise the one that has beams is kept (the real one if both do). The ranges are taken to
+/// be as old as the older of the two (both frames in one clock, see [`VirtualSensors`]): a
+/// virtual laser from where the chair was a period ago is matched where the chair was then.
 pub fn merge_nearest(real: &SensorFrame, virtual_frame: &SensorFrame) -> SensorFrame {
     let mut out = real.clone();
+    out.ranges_time_ns = real.ranges_time_ns.min(virtual_frame.ranges_time_ns);
     for (o, v) in out.sonar_m.iter_mut().zip(virtual_frame.sonar_m.iter()) {
         *o = match (*o, *v) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -102,5 +108,16 @@ mod tests {
         );
         assert_eq!(m.time_ns, 5);
         assert_eq!(m.laser_m, vec![1.0, 2.0]);
+    }
+
+    #[test]
+    fn merged_ranges_are_as_old_as_the_older_frame() {
+        let real = SensorFrame::empty(50);
+        let mut virt = SensorFrame::empty(50);
+        virt.ranges_time_ns = 30;
+        virt.laser_m = vec![1.0];
+        let m = merge_nearest(&real, &virt);
+        assert_eq!((m.time_ns, m.ranges_time_ns), (50, 30));
+        assert_eq!(merge_nearest(&virt, &real).ranges_time_ns, 30);
     }
 }

@@ -254,12 +254,15 @@ fn parse_payload(kind: u8, p: &[u8]) -> Result<Message, ProtocolError> {
                 let mm = u16::from_le_bytes([p[24 + 2 * k], p[25 + 2 * k]]);
                 *range = (mm != 0).then(|| f64::from(mm) / 1000.0);
             }
+            // the board samples its sonars with its encoders
+            let time_ns = u64_at(0);
             Ok(Message::Sensors(SensorFrame {
-                time_ns: u64_at(0),
+                time_ns,
                 left_ticks: u64_at(8) as i64,
                 right_ticks: u64_at(16) as i64,
                 sonar_m,
                 laser_m: Vec::new(),
+                ranges_time_ns: time_ns,
             }))
         }
         _ => Err(ProtocolError::UnknownKind { kind }),

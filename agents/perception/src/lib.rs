@@ -173,9 +173,15 @@ pub struct PerceptionAgent {
     last_sonar_m: Vec<f64>,
     localizer: Option<Localizer>,
     history: WheelHistory,
+    /// The body time of the last range readings given to the localizer.
+    last_ranges_ns: Option<u64>,
     /// The laser's and the sonar ring's use, as last told to the subscribers.
     ranges: [RangeSensor; 2],
 }
+
+/// Range readings this far behind the last ones (body time, ns) come from a body clock that
+/// started again (a restarted board), not from the past.
+const CLOCK_RESTART_NS: u64 = 1_000_000_000;
 
 /// A range sensor the localizer may drop, as the subscribers were told of it.
 #[derive(Debug)]
@@ -269,6 +275,7 @@ impl PerceptionAgent {
             last_sonar_m: Vec::new(),
             localizer: None,
             history: WheelHistory::default(),
+            last_ranges_ns: None,
             ranges: [RangeSensor::new("laser"), RangeSensor::new("sonars")],
         })
     }
@@ -329,9 +336,10 @@ impl PerceptionAgent {
                     }
                 }
                 self.history.record(frame.time_ns, self.wheels.pose());
-                if let Some(l) = self.localizer.as_mut() {
+                let since = self.ranges_since(&frame);
+                if let (Some(l), Some(since)) = (self.localizer.as_mut(), since) {
                     let before = l.status();
-                    l.update_ranges(&frame.laser_m, &frame.sonar_m);
+                    l.update_ranges_since(&frame.laser_m, &frame.sonar_m, &since);
                     if l.status() != before {
                         tracing::info!(chair = %self.config.chair.name, status = ?l.status(), "localization status changed");
                     }
@@ -349,6 +357,32 @@ impl PerceptionAgent {
             }
         }
         self.vision();
+    }
+
+    /// The wheels' motion from when `frame`'s ranges were taken to now (base frame at the
+    /// ranges' time), or `None` when they are not new: readings already given to the
+    /// localizer (a body that returns its last readings again, as a mixed chair's ghost does
+    /// while the world process is late) are no new scan, and are neither matched again nor
+    /// counted as a scan that did not fit.
+    fn ranges_since(&mut self, frame: &iw_body::SensorFrame) -> Option<Pose2> {
+        // a time ahead of the encoders' cannot be: taken as now
+        let taken = frame.ranges_time_ns.min(frame.time_ns);
+        if let Some(last) = self.last_ranges_ns
+            && taken <= last
+            && last - taken <= CLOCK_RESTART_NS
+        {
+            tracing::trace!(chair = %self.config.chair.name, taken, last, "range readings not new: not matched");
+            return None;
+        }
+        self.last_ranges_ns = Some(taken);
+        if taken == frame.time_ns {
+            return Some(Pose2::default());
+        }
+        let now = self.wheels.pose();
+        // Assumption: ranges older than the recorded ticks (the first read) are taken as read
+        // now.
+        let at_ranges = self.history.interpolated(taken).unwrap_or(now);
+        Some(at_ranges.between(&now))
     }
 
     /// Fuses the visual results that have arrived and asks for the next frame; never waits.

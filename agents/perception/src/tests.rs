@@ -177,3 +177,40 @@ fn visual_motions_are_fused_when_they_arrive() {
     );
     assert!(pose.covariance[(0, 0)] <= before[(0, 0)] + 1e-9);
 }
+
+/// Where a scan was taken, from the times the body gives: readings that trail the encoders
+/// are carried by the wheels' motion since, a scan given again is no new scan.
+#[test]
+fn range_readings_are_placed_at_their_own_time_and_not_taken_twice() {
+    let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::default());
+    let body = Still {
+        clock: Arc::new(AtomicU64::new(0)),
+    };
+    let mut agent = PerceptionAgent::new(config, Box::new(body), None).unwrap();
+    // straight ahead, 1000 ticks a period on both wheels, from 2 s on the body's clock
+    let at = |periods: u64| 2_000_000_000 + periods * PERIOD_NS / 2;
+    let mut x_at = Vec::new();
+    for k in 0..=4i64 {
+        agent.wheels.update(1000 * k, 1000 * k);
+        agent.history.record(at(2 * k as u64), agent.wheels.pose());
+        x_at.push(agent.wheels.pose().x);
+    }
+    let mut frame = SensorFrame::empty(at(8));
+    // taken two periods before the encoders were read
+    frame.ranges_time_ns = at(4);
+    let since = agent.ranges_since(&frame).unwrap();
+    assert!((since.x - (x_at[4] - x_at[2])).abs() < 1e-12, "{since:?}");
+    assert!(since.y.abs() < 1e-12 && since.theta.abs() < 1e-12);
+    // the same readings again (a ghost whose world is late) are not new
+    assert!(agent.ranges_since(&frame).is_none());
+    // taken between two of this agent's reads
+    frame.ranges_time_ns = at(5);
+    let since = agent.ranges_since(&frame).unwrap();
+    assert!((since.x - (x_at[4] - (x_at[2] + x_at[3]) / 2.0)).abs() < 1e-12);
+    // a time ahead of the encoders' is taken as now
+    frame.ranges_time_ns = at(18);
+    assert_eq!(agent.ranges_since(&frame), Some(Pose2::default()));
+    // a body clock that started again: new readings, not old ones
+    let restarted = SensorFrame::empty(PERIOD_NS);
+    assert_eq!(agent.ranges_since(&restarted), Some(Pose2::default()));
+}

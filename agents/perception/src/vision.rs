@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
 
 use iw_localization::markers_in;
-use iw_vo::{CameraSource, Pose2, VisualOdometry, VoConfig, VoError};
+use iw_vo::{CameraSource, Pose2, VisualOdometry, VoConfig, VoError, wrap_angle};
 use nalgebra::{Isometry3, Point2};
 
 /// What the worker made of one requested frame.
@@ -155,6 +155,24 @@ impl WheelHistory {
             .min_by_key(|(t, _)| t.abs_diff(time_ns))
             .map(|(_, p)| *p)
     }
+
+    /// The wheel pose at body time `time_ns`, interpolated between the recorded ticks around
+    /// it (a time between two of this agent's reads, e.g. a read by the control agent); `None`
+    /// outside the recorded times.
+    pub(crate) fn interpolated(&self, time_ns: u64) -> Option<Pose2> {
+        let i = self.poses.partition_point(|(t, _)| *t < time_ns);
+        let &(t1, p1) = self.poses.get(i)?;
+        if t1 == time_ns {
+            return Some(p1);
+        }
+        let &(t0, p0) = self.poses.get(i.checked_sub(1)?)?;
+        let f = (time_ns - t0) as f64 / (t1 - t0) as f64;
+        Some(Pose2::new(
+            p0.x + f * (p1.x - p0.x),
+            p0.y + f * (p1.y - p0.y),
+            p0.theta + f * wrap_angle(p1.theta - p0.theta),
+        ))
+    }
 }
 
 /// The base motion from the filter's clone to its current pose, given the base motion
@@ -190,6 +208,20 @@ mod tests {
         assert_eq!(h.at(5025, 30).map(|p| p.x), Some(100.0));
         assert_eq!(h.at(5025, 10), None);
         assert_eq!(h.at(1_000_000, 10), None);
+    }
+
+    #[test]
+    fn history_interpolates_between_ticks_across_the_heading_wrap() {
+        let mut h = WheelHistory::default();
+        h.record(100, Pose2::new(0.0, 0.0, 3.1));
+        h.record(200, Pose2::new(1.0, 2.0, -3.1));
+        let p = h.interpolated(150).unwrap();
+        assert!((p.x - 0.5).abs() < 1e-12 && (p.y - 1.0).abs() < 1e-12);
+        // halfway from 3.1 to -3.1 the short way round is pi, not 0
+        assert!((p.theta.abs() - std::f64::consts::PI).abs() < 1e-9);
+        assert_eq!(h.interpolated(200), Some(Pose2::new(1.0, 2.0, -3.1)));
+        assert_eq!(h.interpolated(99), None);
+        assert_eq!(h.interpolated(201), None);
     }
 
     #[test]

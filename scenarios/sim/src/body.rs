@@ -84,10 +84,16 @@ impl VirtualSensors for GhostSensors {
     fn sense_at(
         &mut self,
         t_world_body: Isometry2<f64>,
-        _time_ns: u64,
+        time_ns: u64,
     ) -> Result<SensorFrame, BodyError> {
         let mut world = lock(&self.world);
         world.place(self.id, t_world_body).map_err(virtual_err)?;
-        world.sensors(self.id).cloned().map_err(virtual_err)
+        // sensed at once where it was placed: in the caller's clock, now
+        let frame = world.sensors(self.id).map_err(virtual_err)?;
+        Ok(SensorFrame {
+            time_ns,
+            ranges_time_ns: time_ns,
+            ..frame.clone()
+        })
     }
 }

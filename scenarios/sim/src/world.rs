@@ -784,6 +784,7 @@ impl World {
             right_ticks: chair.ticks.1.floor() as i64,
             sonar_m,
             laser_m,
+            ranges_time_ns: self.time_ns,
         };
     }
 }

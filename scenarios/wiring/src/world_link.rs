@@ -35,7 +35,7 @@
 //! came or how loaded the host is. The chairs' own agents still run on their own clocks: a
 //! deployment's agents are not made reproducible by this.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -219,7 +219,17 @@ impl WorldLink {
             if behind.is_some_and(|ns| ns > 0) && !restarted && self.fresh(now) {
                 continue;
             }
-            if !self.fresh(now) || restarted {
+            // After a silence, a frame whose world time did not go on is from a new world: a
+            // new attachment, whose ticks continue from where they were. One whose time went on
+            // is the same world after a stall (its process or the link late): its ticks go on as
+            // they are, since its first step after the stall moved the body (up to
+            // MAX_STEP_S of driving) and the scans show it; rebased, that motion was lost to
+            // the odometry, every scan then missed the estimate by it (10 cm in a
+            // `sonar-garbage` run across processes) and the chair was taken for lost.
+            // Assumption: a restarted world has run for less time than the one it replaces when
+            // its first frame comes.
+            let new_world = restarted || (!self.fresh(now) && behind.is_some_and(|ns| ns > 0));
+            if new_world {
                 // a new attachment: continue the ticks from where they were
                 if let Some((last, _)) = &self.latest {
                     self.tick_offset = (
@@ -290,6 +300,8 @@ impl WorldLink {
             right_ticks: frame.right_ticks,
             sonar_m,
             laser_m: frame.laser_m.clone(),
+            // the world steps and senses a simulated body together
+            ranges_time_ns: at.0,
         })
     }
 }
@@ -351,10 +363,31 @@ impl iw_body::Body for WorldBody {
 
 /// A real chair's ghost in the world: reports the chair's pose; `senses` (mixed reality) also
 /// returns the virtual readings there, and fails while the world is unreachable.
+///
+/// The world senses the ghost where it was last placed, at its next step, and the answer comes
+/// back a message later: the readings a read returns were taken where the chair was one or more
+/// reads before (one or two periods in `mixed-reality` run as processes, more when the host is
+/// loaded). Matched as if taken now, they pulled the estimate back along the motion and, in a
+/// turn, off in heading, until the scans stopped fitting and the chair was taken for lost. The
+/// world's frame carries the pose it sensed at, so the ghost finds the read that reported that
+/// pose and stamps the readings with its time ([`SensorFrame::ranges_time_ns`]); a frame it
+/// already returned keeps its stamp, so it is not taken for a new scan.
 pub struct WorldGhost {
     link: WorldLink,
     senses: bool,
+    /// The last reports: the caller's time and the pose sent then, oldest first.
+    reported: VecDeque<(u64, Isometry2<f64>)>,
+    /// The world time of the last frame returned, and the stamp it was given.
+    stamped: Option<(u64, u64)>,
 }
+
+/// Reports a ghost remembers to stamp its readings: 40 reads, longer than [`LINK_TIMEOUT`] at
+/// the 20 reads a second of a chair's agents.
+const GHOST_REPORTS: usize = 40;
+
+/// A world frame's pose matches a report within this (m, rad): the pose goes out and comes
+/// back as decimal text of the same doubles.
+const SAME_POSE: f64 = 1e-6;
 
 impl WorldGhost {
     /// The ghost of real chair `chair` on `bus`; `senses`: a mixed chair.
@@ -365,7 +398,23 @@ impl WorldGhost {
         senses: bool,
     ) -> Result<WorldGhost, WiringError> {
         let link = WorldLink::open(bus, chair, BodyLink::Tracked, t_world_body)?;
-        Ok(WorldGhost { link, senses })
+        Ok(WorldGhost {
+            link,
+            senses,
+            reported: VecDeque::with_capacity(GHOST_REPORTS),
+            stamped: None,
+        })
+    }
+
+    /// When (the caller's time) the ghost was reported where the world sensed it: the latest
+    /// report of that pose (a chair that stands reports it many times; the latest is the
+    /// shortest lag), `None` when none of the remembered reports placed it there.
+    fn reported_at(&self, sensed: &Isometry2<f64>) -> Option<u64> {
+        self.reported.iter().rev().find_map(|(time_ns, pose)| {
+            let apart = (pose.translation.vector - sensed.translation.vector).norm();
+            let turned = pose.rotation.angle_to(&sensed.rotation).abs();
+            (apart <= SAME_POSE && turned <= SAME_POSE).then_some(*time_ns)
+        })
     }
 }
 
@@ -387,7 +436,35 @@ impl VirtualSensors for WorldGhost {
             return Ok(SensorFrame::empty(time_ns));
         }
         sent.map_err(unreachable)?;
-        self.link.frame()
+        if self.reported.len() == GHOST_REPORTS {
+            self.reported.pop_front();
+        }
+        self.reported.push_back((time_ns, t_world_body));
+        let frame = self.link.frame()?;
+        let Some((world_ns, sensed)) = self
+            .link
+            .latest
+            .as_ref()
+            .map(|(f, _)| (f.time_ns, f.pose.t_map_base()))
+        else {
+            return Ok(SensorFrame {
+                time_ns,
+                ranges_time_ns: time_ns,
+                ..frame
+            });
+        };
+        let ranges_time_ns = match self.stamped {
+            Some((last_ns, stamp)) if last_ns == world_ns => stamp,
+            // Assumption: a pose none of the remembered reports placed (a restarted world that
+            // attached the ghost where it last was) is taken as sensed now.
+            _ => self.reported_at(&sensed).unwrap_or(time_ns),
+        };
+        self.stamped = Some((world_ns, ranges_time_ns));
+        Ok(SensorFrame {
+            time_ns,
+            ranges_time_ns,
+            ..frame
+        })
     }
 }
 

@@ -9,35 +9,28 @@ use std::time::{Duration, Instant};
 use iw_agent::AgentHost;
 use iw_body::{Body, SensorFrame, WheelSpeeds};
 use iw_bus::transport::PeerAddr;
-use iw_bus::{Bus, BusConfig, Clock, InProcNetwork, Stack};
-use iw_wiring::agent_id;
-use iw_wiring::world_link::{LINK_TIMEOUT, WorldAgent, WorldBody, body_endpoint, world_agent};
+use iw_bus::{Bus, Clock, InProcNetwork};
+use iw_wiring::world_link::{LINK_TIMEOUT, WorldBody, world_agent};
 use nalgebra::{Isometry2, Vector2};
 
-/// A world on its own bus (endpoint `endpoint`) with chair `c1`'s body routed to it.
-fn world(network: &InProcNetwork, clock: &Clock, endpoint: &str) -> AgentHost {
-    let bus = Arc::new(
-        Bus::start(
-            Stack::new(),
-            Arc::new(network.endpoint(endpoint).unwrap()),
-            clock.clone(),
-            BusConfig::default(),
-        )
-        .unwrap(),
-    );
-    bus.add_route(&body_endpoint("c1").name, PeerAddr("c1".into()));
-    let map = iw_sim::Map::parse(
-        include_str!("../../maps/sample-building.map"),
-        "sample-building.map",
-    )
-    .unwrap();
-    let agent = WorldAgent::new(
-        iw_sim::shared(iw_sim::World::new(map, 1)),
-        agent_id("door", "services"),
-    );
-    let mut host = AgentHost::new(bus);
-    host.add(world_agent(), Box::new(agent)).unwrap();
-    host
+mod common;
+use common::{bus, world};
+
+/// Chair `c1`'s bus on `network` with the world routed at `w1`, and its body at (7.5, 6).
+fn chair_c1(network: &InProcNetwork, clock: &Clock) -> (Arc<Bus>, WorldBody) {
+    let chair_bus = bus(network, clock, "c1");
+    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
+    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
+    let body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
+    (chair_bus, body)
+}
+
+/// Both wheels at `mps`.
+fn ahead(mps: f64) -> WheelSpeeds {
+    WheelSpeeds {
+        left_mps: mps,
+        right_mps: mps,
+    }
 }
 
 /// Steps `host` and commands `speeds` until the body reads a frame that `done` accepts.
@@ -66,22 +59,8 @@ fn drive_until(
 fn a_body_rides_out_its_worlds_restart() {
     let network = InProcNetwork::new();
     let clock = Clock::system();
-    let chair_bus = Arc::new(
-        Bus::start(
-            Stack::new(),
-            Arc::new(network.endpoint("c1").unwrap()),
-            clock.clone(),
-            BusConfig::default(),
-        )
-        .unwrap(),
-    );
-    chair_bus.add_route(&world_agent().name, PeerAddr("w1".into()));
-    let start = Isometry2::new(Vector2::new(7.5, 6.0), 0.0);
-    let mut body = WorldBody::open(chair_bus.clone(), "c1", start).unwrap();
-    let forward = WheelSpeeds {
-        left_mps: 0.3,
-        right_mps: 0.3,
-    };
+    let (chair_bus, mut body) = chair_c1(&network, &clock);
+    let forward = ahead(0.3);
 
     let mut first = world(&network, &clock, "w1");
     let before = drive_until(&mut first, &mut body, &clock, forward, |f| {
@@ -129,4 +108,44 @@ fn a_body_rides_out_its_worlds_restart() {
         f.left_ticks > after.left_ticks + 500
     });
     assert!(on.left_ticks > after.left_ticks);
+}
+
+/// A world that stalls (its process late) past the link timeout and goes on: its first step
+/// after the stall moves the body by up to a fifth of a second of driving, which its scans
+/// show; the body's ticks keep that motion instead of being rebased as for a new world.
+#[test]
+fn a_body_keeps_the_motion_of_its_worlds_first_step_after_a_stall() {
+    let network = InProcNetwork::new();
+    let clock = Clock::system();
+    let (_chair_bus, mut body) = chair_c1(&network, &clock);
+    let forward = ahead(0.5);
+    let mut host = world(&network, &clock, "w1");
+    let before = drive_until(&mut host, &mut body, &clock, forward, |f| {
+        f.left_ticks > 2000
+    });
+    let at = |body: &WorldBody| {
+        let truth = body.true_pose();
+        let guard = truth.lock().unwrap();
+        guard.expect("a frame came").1.translation.vector
+    };
+    let true_before = at(&body);
+    // the world steps no more for longer than the link timeout; the chair drives on
+    let stalled = Instant::now();
+    while stalled.elapsed() < LINK_TIMEOUT + Duration::from_millis(200) {
+        let _ = body.read();
+        body.command(forward).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let after = drive_until(&mut host, &mut body, &clock, forward, |_| true);
+    let moved_m = (at(&body) - true_before).norm();
+    let ticked_m = (after.left_ticks - before.left_ticks) as f64
+        * iw_body::WheelGeometry::default().m_per_tick();
+    assert!(
+        moved_m > 0.05,
+        "the world's step after the stall moved {moved_m} m"
+    );
+    assert!(
+        (ticked_m - moved_m).abs() < 0.2 * moved_m,
+        "moved {moved_m} m, the ticks say {ticked_m} m"
+    );
 }

@@ -190,6 +190,11 @@ pub struct Localizer {
     sonar_points: Vec<ScanPoint>,
 }
 
+/// The motion that undoes `motion`: `inverse(m) ⊕ m` is no motion.
+fn inverse(motion: &Pose2) -> Pose2 {
+    motion.between(&Pose2::default())
+}
+
 /// Below this inlier fraction at the predicted pose a sensor contradicts the map.
 const DISAGREE_INLIERS: f64 = 0.2;
 /// Pose reported while searching before the search has a scan.
@@ -298,8 +303,30 @@ impl Localizer {
     }
 
     /// Updates with the latest laser ranges (empty: no laser reading this period) and sonar
-    /// ranges (`None`: no echo).
+    /// ranges (`None`: no echo), taken with the last odometry step.
     pub fn update_ranges(&mut self, laser_m: &[f64], sonar_m: &[Option<f64>]) -> ScanOutcome {
+        self.update_ranges_since(laser_m, sonar_m, &Pose2::default())
+    }
+
+    /// Updates with ranges taken earlier, where the base was before it moved by `since` (the
+    /// wheel odometry's motion from the ranges' time to the last odometry step, in the base
+    /// frame at the ranges' time): the scan is matched from the estimate carried back by
+    /// `since`, and its pose carried forward by it is fused as a measurement of the current
+    /// pose.
+    ///
+    /// Ranges a period or two old (a mixed chair's ghost in a world process) matched as if
+    /// taken now were off by the motion in between: up to 6 cm and 0.03 rad while turning,
+    /// about 2 standard deviations of a match, so a loaded host's longer lag had every scan
+    /// gated out and the chair taken for lost.
+    /// Assumption: the odometry's error over `since` (a few centimetres) is negligible beside
+    /// the match's, so it is neither added to the measurement's noise nor correlated with the
+    /// prediction's.
+    pub fn update_ranges_since(
+        &mut self,
+        laser_m: &[f64],
+        sonar_m: &[Option<f64>],
+        since: &Pose2,
+    ) -> ScanOutcome {
         self.laser_points.clear();
         self.sonar_points.clear();
         let laser_count = self
@@ -316,7 +343,7 @@ impl Localizer {
         let mut sonar_problem = sonar_count.as_ref().and_then(reading_problem);
         if self.status == Status::Tracking {
             // a sensor that contradicts the map while the other agrees is what is wrong
-            let pose = self.fusion.pose();
+            let pose = self.fusion.pose().compose(&inverse(since));
             let fit = |points: &[ScanPoint]| {
                 (points.len() >= 5)
                     .then(|| inlier_fraction(&self.map, points, &pose, &self.config.matcher))
@@ -345,35 +372,67 @@ impl Localizer {
             points.extend_from_slice(&self.sonar_points);
         }
         match self.status {
-            Status::Tracking => self.track(&points),
+            Status::Tracking => self.track(&points, since),
+            // the search's hypotheses are spread far wider than a few periods' motion
             Status::Searching => self.search(&points),
         }
     }
 
-    fn track(&mut self, points: &[ScanPoint]) -> ScanOutcome {
+    fn track(&mut self, points: &[ScanPoint], since: &Pose2) -> ScanOutcome {
         let predicted = self.fusion.pose();
-        let fused = match_scan(&self.map, points, &predicted, &self.config.matcher)
-            .filter(|m| m.inlier_fraction >= self.config.min_inliers)
-            .and_then(|m| {
+        let at_scan = predicted.compose(&inverse(since));
+        let fused = match match_scan(&self.map, points, &at_scan, &self.config.matcher) {
+            None => Err("no match"),
+            Some(m) if m.inlier_fraction < self.config.min_inliers => Err("too few inliers"),
+            Some(m) => {
+                let measured = m.pose.compose(since);
                 let innovation = Vector3::new(
-                    m.pose.x - predicted.x,
-                    m.pose.y - predicted.y,
-                    wrap_angle(m.pose.theta - predicted.theta),
+                    measured.x - predicted.x,
+                    measured.y - predicted.y,
+                    wrap_angle(measured.theta - predicted.theta),
                 );
-                self.fusion.update_current(
+                // the match's covariance carried forward: d(m ⊕ since)/dm
+                let (s, c) = m.pose.theta.sin_cos();
+                let carry = Matrix3::new(
+                    1.0,
+                    0.0,
+                    -(s * since.x + c * since.y),
+                    0.0,
+                    1.0,
+                    c * since.x - s * since.y,
+                    0.0,
+                    0.0,
+                    1.0,
+                );
+                match self.fusion.update_current(
                     &innovation,
                     &Matrix3::identity(),
-                    &m.covariance,
+                    &(carry * m.covariance * carry.transpose()),
                     self.config.gate_chi2,
-                )
-            });
+                ) {
+                    Some((nis, true)) => Ok(nis),
+                    Some((nis, false)) => {
+                        tracing::debug!(
+                            nis,
+                            dx = innovation.x,
+                            dy = innovation.y,
+                            dtheta = innovation.z,
+                            "scan outside the gate"
+                        );
+                        Err("outside the gate")
+                    }
+                    None => Err("singular innovation covariance"),
+                }
+            }
+        };
         match fused {
-            Some((nis, true)) => {
+            Ok(nis) => {
                 self.rejected_in_row = 0;
                 ScanOutcome::Fused { nis }
             }
-            _ => {
+            Err(why) => {
                 self.rejected_in_row = self.rejected_in_row.saturating_add(1);
+                tracing::debug!(why, in_row = self.rejected_in_row, "scan not fused");
                 if self.rejected_in_row >= self.config.lost_after && points.len() >= 12 {
                     tracing::warn!(
                         scans = self.rejected_in_row,

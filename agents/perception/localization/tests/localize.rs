@@ -526,3 +526,66 @@ fn a_turn_in_a_blank_corridor_measures_the_wheel_scale_and_the_error_along_the_a
          {sd1:.3} m"
     );
 }
+
+/// Scans that trail the wheels by `lag` periods, as a mixed chair's ghost answers from a
+/// loaded world process: an S-curve at 0.5 m/s (0.26 rad/s in the turns, like the start of
+/// `mixed-reality`), each scan ray-cast where the chair was `lag` periods before. Returns how
+/// many searches the localizer started and its largest error, fed the scans with the motion
+/// since they were taken (`stamped`) or as if taken now.
+fn drive_with_late_scans(lag: usize, stamped: bool) -> (u64, f64) {
+    let world = room();
+    let start = Pose2::new(1.5, 1.5, 0.0);
+    let mut loc = Localizer::new(
+        map_of(room()),
+        config(),
+        Some((start, Matrix3::identity() * 1e-4)),
+    );
+    let mut truth = start;
+    let mut past = std::collections::VecDeque::from([start]);
+    let mut worst: f64 = 0.0;
+    for k in 0..200u64 {
+        // straight, left, straight, right, straight, ...: 40 periods each
+        let turn = match (k / 40) % 4 {
+            1 => 1.0,
+            3 => -1.0,
+            _ => 0.0,
+        };
+        let (l, r) = (0.025 - turn * 0.0036, 0.025 + turn * 0.0036);
+        let step = OdometryStep::from_wheels(l, r, TRACK_M);
+        truth = truth.compose(&step.as_delta());
+        loc.predict(&step);
+        past.push_back(truth);
+        if past.len() > lag + 1 {
+            past.pop_front();
+        }
+        let taken = past[0];
+        let ranges = scan(&world, &taken, 0.01, k);
+        if stamped {
+            loc.update_ranges_since(&ranges, &[], &taken.between(&truth));
+        } else {
+            loc.update_ranges(&ranges, &[]);
+        }
+        if loc.status() == Status::Tracking {
+            let e = loc.pose();
+            worst = worst.max((e.x - truth.x).hypot(e.y - truth.y));
+        }
+    }
+    (loc.searches(), worst)
+}
+
+#[test]
+fn scans_that_trail_the_wheels_are_matched_where_they_were_taken() {
+    // matched as if taken now, four periods late (10 cm and up to 0.05 rad behind), the scans
+    // stop fitting and the chair is taken for lost (with the simulator's chairs' motion model,
+    // already two periods late)
+    let (searches, _) = drive_with_late_scans(4, false);
+    assert!(
+        searches > 0,
+        "late scans matched as now should lose the chair"
+    );
+    for lag in [0, 1, 4, 8] {
+        let (searches, worst) = drive_with_late_scans(lag, true);
+        assert_eq!(searches, 0, "{lag} periods late: lost");
+        assert!(worst < 0.01, "{lag} periods late: worst error {worst} m");
+    }
+}
