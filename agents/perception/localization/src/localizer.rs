@@ -190,11 +190,6 @@ pub struct Localizer {
     sonar_points: Vec<ScanPoint>,
 }
 
-/// The motion that undoes `motion`: `inverse(m) ⊕ m` is no motion.
-fn inverse(motion: &Pose2) -> Pose2 {
-    motion.between(&Pose2::default())
-}
-
 /// Below this inlier fraction at the predicted pose a sensor contradicts the map.
 const DISAGREE_INLIERS: f64 = 0.2;
 /// Pose reported while searching before the search has a scan.
@@ -343,7 +338,7 @@ impl Localizer {
         let mut sonar_problem = sonar_count.as_ref().and_then(reading_problem);
         if self.status == Status::Tracking {
             // a sensor that contradicts the map while the other agrees is what is wrong
-            let pose = self.fusion.pose().compose(&inverse(since));
+            let pose = self.fusion.pose().compose(&since.inverse());
             let fit = |points: &[ScanPoint]| {
                 (points.len() >= 5)
                     .then(|| inlier_fraction(&self.map, points, &pose, &self.config.matcher))
@@ -380,7 +375,7 @@ impl Localizer {
 
     fn track(&mut self, points: &[ScanPoint], since: &Pose2) -> ScanOutcome {
         let predicted = self.fusion.pose();
-        let at_scan = predicted.compose(&inverse(since));
+        let at_scan = predicted.compose(&since.inverse());
         let fused = match match_scan(&self.map, points, &at_scan, &self.config.matcher) {
             None => Err("no match"),
             Some(m) if m.inlier_fraction < self.config.min_inliers => Err("too few inliers"),

@@ -52,6 +52,11 @@ impl Pose2 {
         let (dx, dy) = (other.x - self.x, other.y - self.y);
         Pose2::new(c * dx + s * dy, -s * dx + c * dy, other.theta - self.theta)
     }
+
+    /// `self^-1`: the motion that undoes this one (`self^-1 ⊕ self` is no motion).
+    pub fn inverse(&self) -> Pose2 {
+        self.between(&Pose2::default())
+    }
 }
 
 /// Drive geometry and the motion model's noise parameters.
