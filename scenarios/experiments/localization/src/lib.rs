@@ -396,13 +396,18 @@ fn step_world(s: &mut Setup, dt_s: f64) -> Result<(), ExperimentError> {
     Ok(())
 }
 
-/// NEES of `estimate` with `covariance` against `truth`.
-pub fn nees(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> f64 {
-    let e = Vector3::new(
+/// The error of `estimate` against `truth` (x, y, theta), the heading's wrapped.
+fn pose_error(estimate: &Pose2, truth: &Pose2) -> Vector3<f64> {
+    Vector3::new(
         estimate.x - truth.x,
         estimate.y - truth.y,
         wrap_angle(estimate.theta - truth.theta),
-    );
+    )
+}
+
+/// NEES of `estimate` with `covariance` against `truth`.
+pub fn nees(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> f64 {
+    let e = pose_error(estimate, truth);
     covariance
         .try_inverse()
         .map_or(f64::INFINITY, |inv| (e.transpose() * inv * e)[0])
@@ -410,11 +415,7 @@ pub fn nees(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> f64 {
 
 /// Each component's squared error over its variance (x, y, theta).
 pub fn nees_components(estimate: &Pose2, covariance: &Matrix3<f64>, truth: &Pose2) -> [f64; 3] {
-    let e = [
-        estimate.x - truth.x,
-        estimate.y - truth.y,
-        wrap_angle(estimate.theta - truth.theta),
-    ];
+    let e = pose_error(estimate, truth);
     std::array::from_fn(|k| e[k] * e[k] / covariance[(k, k)])
 }
 
@@ -527,6 +528,7 @@ pub fn drive(
             acc.1 = acc.1.max(err);
         }
         if k % per_second == 0 {
+            let covariance = localizer.covariance();
             result.samples.push(Sample {
                 time_s: k as f64 * config.dt_s,
                 truth,
@@ -534,8 +536,8 @@ pub fn drive(
                 vo: estimates[1],
                 fused: estimates[2],
                 localized: estimates[3],
-                nees: nees(&estimates[3], &localizer.covariance(), &truth),
-                nees_components: nees_components(&estimates[3], &localizer.covariance(), &truth),
+                nees: nees(&estimates[3], &covariance, &truth),
+                nees_components: nees_components(&estimates[3], &covariance, &truth),
             });
         }
         if k % (60 * per_second) == 0 {
