@@ -1,6 +1,6 @@
 //! Scan-to-map matching: Gauss-Newton on point-to-segment distances with a Cauchy kernel, so
 //! that returns from chairs and people that are not on the map weigh little. The covariance is
-//! the inverse of the weighted normal matrix scaled to the size of the matches' measured error;
+//! the inverse of the weighted normal matrix, inflated for beams whose errors are correlated;
 //! directions the scan cannot see (along a blank corridor) get no information at all.
 
 use nalgebra::{Matrix3, Vector3};
@@ -18,21 +18,12 @@ pub struct MatcherConfig {
     pub kernel_m: f64,
     /// A point within this distance of the map at the match counts as an inlier, m.
     pub inlier_m: f64,
-    /// The covariance is the normal matrix's inverse (at the points' stated noise) times this:
-    /// (position, heading). Measured in the simulator's sample building (laser stated at 2 cm,
-    /// drawn at 1 cm; 5-minute drives, seeds 1, 2, 3 and 5, 24 000 scans; docs/results/
-    /// localization.md, the `calib` section). A single scan's squared error is 0.18 of the
-    /// inverse along and across the chair's heading alike (so one figure for both) and 0.10 in
-    /// heading, the same share from the best to the worst placed fifth of the scans, so there is
-    /// no floor. Fused every period, the scans' small correlation in time adds up over the
-    /// filter's window (about 14-20 scans along the heading, 100 across, 2 in heading): n times
-    /// the variance of an n-scan mean is there 0.25-0.35 along, 0.23-0.32 across and 0.11 in
-    /// heading; the largest in position and in heading are the figures used. They hold for the
-    /// points' stated noise on an exact map; a map with errors of its own needs them measured
-    /// again.
-    pub inflation: (f64, f64),
-    /// A direction the points place no better than this variance at their stated noise (the
-    /// normal matrix's inverse, before [`Self::inflation`]) is not observed (m², with 1 rad = 1 m).
+    /// The covariance is the normal matrix's inverse times this (neighbouring beams share map
+    /// and model errors, so they are not independent).
+    pub inflation: f64,
+    /// Smallest covariance of a matched pose: (m², rad²).
+    pub floor: (f64, f64),
+    /// A direction whose variance would exceed this is not observed (m², with 1 rad = 1 m).
     pub unobserved_var: f64,
     /// Fewer matched points than this give no match.
     pub min_points: usize,
@@ -44,8 +35,9 @@ impl Default for MatcherConfig {
             iterations: 12,
             kernel_m: 0.05,
             inlier_m: 0.1,
-            inflation: (0.35, 0.11),
-            unobserved_var: 0.025,
+            inflation: 10.0,
+            floor: (0.01f64.powi(2), 0.3f64.to_radians().powi(2)),
+            unobserved_var: 0.25,
             min_points: 12,
         }
     }
@@ -123,7 +115,7 @@ pub fn match_scan(
         let mut step = Vector3::zeros();
         for k in 0..3 {
             let lambda = eig.eigenvalues[k];
-            if lambda * config.unobserved_var > 1.0 {
+            if lambda * config.unobserved_var > config.inflation {
                 let v = eig.eigenvectors.column(k);
                 step -= v * (v.dot(&g) / lambda);
             }
@@ -146,21 +138,22 @@ pub fn match_scan(
     } else {
         last?
     };
-    let (mut measured, mut unobserved) = (Matrix3::zeros(), Matrix3::zeros());
+    let mut covariance = Matrix3::zeros();
     let mut observed = 0;
     for k in 0..3 {
         let lambda = eig.eigenvalues[k];
         let v = eig.eigenvectors.column(k);
-        if lambda * config.unobserved_var > 1.0 {
+        let var = if lambda * config.unobserved_var > config.inflation {
             observed += 1;
-            measured += v * v.transpose() / lambda;
+            config.inflation / lambda
         } else {
-            unobserved += v * v.transpose() * UNOBSERVED_VAR;
-        }
+            UNOBSERVED_VAR
+        };
+        covariance += v * v.transpose() * var;
     }
-    let (position, heading) = config.inflation;
-    let scale = Vector3::new(position.sqrt(), position.sqrt(), heading.sqrt());
-    let covariance = Matrix3::from_fn(|i, j| measured[(i, j)] * scale[i] * scale[j]) + unobserved;
+    covariance[(0, 0)] += config.floor.0;
+    covariance[(1, 1)] += config.floor.0;
+    covariance[(2, 2)] += config.floor.1;
     Some(ScanMatch {
         pose,
         covariance,

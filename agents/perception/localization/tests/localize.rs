@@ -31,65 +31,6 @@ fn a_scan_pulls_a_guess_15cm_off_back_to_within_a_centimetre() {
     assert!(m.inlier_fraction > 0.95);
 }
 
-/// A standard normal draw (splitmix64 and Box-Muller): independent from beam to beam, as the
-/// simulator's laser noise is, unlike [`scan`]'s evenly spread pseudo-noise.
-fn gaussian(state: &mut u64) -> f64 {
-    let mut uniform = || {
-        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = *state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let (u1, u2) = (uniform().max(1e-300), uniform());
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
-
-/// Scans drawn with the simulator's laser noise (1 cm, stated 2 cm as the simulator's chairs
-/// state it) at many poses of the room: a matched pose's error is the size its covariance says,
-/// once the covariance's inflation is read as the measured single-scan share (0.18 of the
-/// normal matrix's inverse in position, 0.10 in heading, docs/results/localization.md) over the
-/// inflation's (0.35, 0.11): a mean NEES near 2 × 0.18 / 0.35 + 0.10 / 0.11 ≈ 1.9.
-#[test]
-fn a_matched_scans_covariance_is_the_size_of_its_error() {
-    let map = map_of(room());
-    let places = [
-        (1.0, 1.0),
-        (2.5, 2.0),
-        (5.0, 3.0),
-        (6.5, 1.5),
-        (9.0, 2.0),
-        (3.0, 1.2),
-        (1.0, 5.0),
-        (3.0, 7.0),
-        (2.8, 4.8),
-        (8.0, 3.2),
-    ];
-    let n = 300;
-    let mut nees = 0.0;
-    let mut state = 7u64;
-    for i in 0..n {
-        let (x, y) = places[i % places.len()];
-        let truth = Pose2::new(x, y, (i as f64 * 0.7) % std::f64::consts::TAU);
-        let ranges: Vec<f64> = scan(&room(), &truth, 0.0, 0)
-            .into_iter()
-            .map(|r| r + 0.01 * gaussian(&mut state))
-            .collect();
-        let guess = Pose2::new(truth.x + 0.03, truth.y - 0.02, truth.theta + 0.01);
-        let m = match_scan(&map, &points(&ranges), &guess, &Default::default()).unwrap();
-        assert_eq!(m.observed, 3, "{truth:?}");
-        let e = nalgebra::Vector3::new(
-            m.pose.x - truth.x,
-            m.pose.y - truth.y,
-            iw_vo::wrap_angle(m.pose.theta - truth.theta),
-        );
-        nees += (e.transpose() * m.covariance.try_inverse().unwrap() * e)[(0, 0)];
-    }
-    let mean = nees / n as f64;
-    println!("mean NEES of {n} matched scans: {mean:.3}");
-    assert!((1.4..=2.6).contains(&mean), "mean NEES {mean:.3}");
-}
-
 #[test]
 fn people_not_on_the_map_do_not_pull_the_match() {
     let map = map_of(room());
