@@ -38,9 +38,12 @@ fn board_until(
 #[test]
 fn killing_a_chair_leaves_the_others_running_and_its_board_stops() {
     let net = Deployment::new();
-    let board = BoardEmulator::spawn_with_watchdog(
+    // in real time, as the scenario runner's boards: the chair's I/O thread reads as fast as
+    // the board answers, so a board that advanced a period per request raced ahead of real
+    // time, and the chair's odometry with it
+    let board = BoardEmulator::spawn_real_time(
         WheelGeometry::default(),
-        50_000_000,
+        Duration::from_millis(50),
         Some(Duration::from_millis(300)),
     )
     .expect("pty");

@@ -4,7 +4,8 @@
 //! The emulated board is a small plant: each sensor request advances its clock by one control
 //! period and integrates the last wheel speed references into encoder ticks (nominal geometry,
 //! no errors), so runs are deterministic whatever the wall-clock timing. Sonar ranges are set
-//! through the [`BoardHandle`]; faults are injected with [`BoardHandle::corrupt_next_reply`].
+//! through the [`BoardHandle`]; faults are injected with [`BoardHandle::corrupt_next_reply`] and
+//! [`BoardHandle::set_silent`].
 
 use std::io::{ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,6 +40,7 @@ pub struct BoardState {
     /// Sub-tick remainder of the integration, per wheel.
     residual_ticks: (f64, f64),
     corrupt_next: bool,
+    silent: bool,
 }
 
 /// Shared access to a running emulator's state.
@@ -68,6 +70,13 @@ impl BoardHandle {
     /// Flips one payload bit in the next sensor frame sent, as line noise would.
     pub fn corrupt_next_reply(&self) {
         self.lock().corrupt_next = true;
+    }
+
+    /// Cuts the link (`true`) or restores it: while cut, the board drops every byte it is sent
+    /// and answers nothing, as with a pulled cable, and its watchdog stops the wheels as on a
+    /// real board.
+    pub fn set_silent(&self, silent: bool) {
+        self.lock().silent = silent;
     }
 }
 
@@ -133,6 +142,7 @@ impl BoardEmulator {
             watchdog_stops: 0,
             residual_ticks: (0.0, 0.0),
             corrupt_next: false,
+            silent: false,
         })));
         let stop = Arc::new(AtomicBool::new(false));
         let (thread_handle, thread_stop) = (handle.clone(), stop.clone());
@@ -214,6 +224,7 @@ fn serve(
         }
         match master.read(&mut chunk) {
             Ok(0) => continue,
+            Ok(_) if handle.lock().silent => continue,
             Ok(n) => decoder.push(&chunk[..n]),
             Err(e)
                 if matches!(

@@ -184,3 +184,26 @@ fn a_silent_or_garbled_link_times_out_and_says_which() {
         other => panic!("expected a garbled timeout, got {other:?}"),
     }
 }
+
+#[test]
+fn a_cut_link_is_silent_and_the_board_answers_again_when_it_is_restored() {
+    let board = BoardEmulator::spawn(WheelGeometry::default(), PERIOD_NS).expect("pty pair");
+    let mut body = SerialBody::open(board.port_name(), 115_200, Duration::from_millis(100))
+        .expect("open slave tty");
+    let first = body.read().unwrap();
+    board.handle().set_silent(true);
+    body.command(WheelSpeeds {
+        left_mps: 0.5,
+        right_mps: 0.5,
+    })
+    .unwrap();
+    match body.read() {
+        Err(BodyError::Timeout { received: 0, .. }) => {}
+        other => panic!("expected a silent link, got {other:?}"),
+    }
+    board.handle().set_silent(false);
+    let next = body.read().unwrap();
+    // the request and the command sent while cut never reached the board
+    assert_eq!(next.time_ns, first.time_ns + PERIOD_NS);
+    assert_eq!(board.handle().state().commands, 0);
+}

@@ -310,6 +310,16 @@ fn off_the_control_path(serial: SerialBody) -> Result<BodyWorker, NodeError> {
 /// Age past which a serial sensor frame is refused, ms (the board answers every 50 ms period).
 const STALE_FRAME_MS: u64 = 300;
 
+/// How long a serial chair holds its task, wheels stopped, while its board's link is stalled
+/// before the task fails (the control agent's default, 500 ms, failed it 0.8 s after the last
+/// frame). A board's bytes reach the driver through the kernel's tty buffer worker, which on a
+/// saturated core waited on its run queue for up to 3.09 s (every process of a deployment pinned
+/// to one core beside two busy loops; docs/results/localization.md, "The real boards' serial
+/// link stalls"), and a request and its answer over a pty cross it twice. The wheels still stop
+/// when the newest frame is [`STALE_FRAME_MS`] old; a board silent for longer than this fails
+/// the task.
+const SERIAL_STALL_WAIT: Duration = Duration::from_secs(5);
+
 /// A log file no other services container uses: named by process, a per-process counter and
 /// the clock, so neither two containers in one process nor a recycled process id share one.
 fn fresh_log_path() -> PathBuf {
@@ -420,6 +430,7 @@ fn chair_parts(name: &str, config: &SpawnConfig, bus: &Arc<Bus>) -> Result<Chair
                 ghost,
                 Odometry::new(WheelGeometry::default(), t_world_body),
             ))
+            .outages(SERIAL_STALL_WAIT)
         }
     };
     let parts = iw_wiring::chair_agents(

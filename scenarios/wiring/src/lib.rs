@@ -580,9 +580,9 @@ impl SharedBody {
     }
 
     /// A body whose faults are outages of up to `wait` that it recovers from by itself (a
-    /// virtual chair's world link re-attaching): the control agent holds a task through one,
-    /// wheels stopped, instead of failing it after its short fault window (a board or sensor
-    /// that fails is reported at once).
+    /// virtual chair's world link re-attaching, a serial link stalled in a loaded computer's
+    /// kernel): the control agent holds a task through one, wheels stopped, instead of failing
+    /// it after its short fault window (a sensor that fails is reported at once).
     pub fn outages(mut self, wait: Duration) -> Self {
         self.outage = Some(wait);
         self
