@@ -336,12 +336,13 @@ impl Localizer {
             .map(|g| g.points(sonar_m, &mut self.sonar_points));
         let mut laser_problem = laser_count.as_ref().and_then(reading_problem);
         let mut sonar_problem = sonar_count.as_ref().and_then(reading_problem);
+        // where the estimate puts the base when the ranges were taken
+        let at_scan = self.fusion.pose().compose(&since.inverse());
         if self.status == Status::Tracking {
             // a sensor that contradicts the map while the other agrees is what is wrong
-            let pose = self.fusion.pose().compose(&since.inverse());
             let fit = |points: &[ScanPoint]| {
                 (points.len() >= 5)
-                    .then(|| inlier_fraction(&self.map, points, &pose, &self.config.matcher))
+                    .then(|| inlier_fraction(&self.map, points, &at_scan, &self.config.matcher))
             };
             let (lf, sf) = (fit(&self.laser_points), fit(&self.sonar_points));
             if let (Some(lf), Some(sf)) = (lf, sf) {
@@ -367,16 +368,17 @@ impl Localizer {
             points.extend_from_slice(&self.sonar_points);
         }
         match self.status {
-            Status::Tracking => self.track(&points, since),
+            Status::Tracking => self.track(&points, since, &at_scan),
             // the search's hypotheses are spread far wider than a few periods' motion
             Status::Searching => self.search(&points),
         }
     }
 
-    fn track(&mut self, points: &[ScanPoint], since: &Pose2) -> ScanOutcome {
+    /// Matches `points` from `at_scan` (the estimate carried back by `since`) and fuses the
+    /// match carried forward by `since`.
+    fn track(&mut self, points: &[ScanPoint], since: &Pose2, at_scan: &Pose2) -> ScanOutcome {
         let predicted = self.fusion.pose();
-        let at_scan = predicted.compose(&since.inverse());
-        let fused = match match_scan(&self.map, points, &at_scan, &self.config.matcher) {
+        let fused = match match_scan(&self.map, points, at_scan, &self.config.matcher) {
             None => Err("no match"),
             Some(m) if m.inlier_fraction < self.config.min_inliers => Err("too few inliers"),
             Some(m) => {
