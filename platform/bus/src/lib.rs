@@ -130,9 +130,10 @@ pub enum BusError {
         receiver: String,
     },
     /// The local receiver's mailbox is full (it fell [`BusConfig::mailbox_capacity`] envelopes
-    /// behind) or closed: the message was not delivered (counted [`Reason::MailboxFull`]).
+    /// behind) or closed (it left): the message was not delivered (counted
+    /// [`Reason::MailboxFull`]).
     #[error(
-        "the mailbox of `{receiver}` is full or closed: the message was not delivered (the agent is behind)"
+        "the mailbox of `{receiver}` is full (the agent is behind) or closed (it left): the message was not delivered"
     )]
     MailboxFull {
         /// The receiver's name.

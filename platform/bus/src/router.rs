@@ -518,21 +518,22 @@ impl Inner {
             })
     }
 
-    /// Puts `env` in its receiver's mailbox. A full or closed mailbox drops it: counted, and
-    /// warned of (one warning per [`crate::WARN_PERIOD`], naming the receiver and the sender),
-    /// never silent.
+    /// Puts `env` in its receiver's mailbox. A full or closed mailbox (or a receiver gone since
+    /// the route was chosen) drops it: counted, and warned of (one warning per
+    /// [`crate::WARN_PERIOD`], naming the receiver, the sender and the mailbox's state), never
+    /// silent.
     fn deliver(&self, env: Envelope) -> Result<(), BusError> {
         let local = self.local.read().unwrap_or_else(PoisonError::into_inner);
         let refused = match local.get(&env.header.receiver) {
             Some(tx) => tx.try_send(env).err().map(|e| match e {
-                mpsc::error::TrySendError::Full(env) | mpsc::error::TrySendError::Closed(env) => {
-                    env
-                }
+                mpsc::error::TrySendError::Full(env) => (env, "full: the agent is behind"),
+                mpsc::error::TrySendError::Closed(env) => (env, "closed"),
             }),
-            None => Some(env),
+            // it left (deregistered) since the route was chosen, e.g. at a take-down
+            None => Some((env, "gone: the agent left")),
         };
         drop(local);
-        let Some(env) = refused else {
+        let Some((env, why)) = refused else {
             return Ok(());
         };
         let now = self.clock.now();
@@ -540,7 +541,7 @@ impl Inner {
         if let Some(held_back) = stack.record_and_admit(Reason::MailboxFull, now) {
             let total = stack.counters().get(Reason::MailboxFull);
             drop(stack);
-            tracing::warn!(receiver = %env.header.receiver, sender = %env.header.sender, held_back, total, "message dropped: its receiver's mailbox is full or closed (the agent is behind; one warning per 10 s)");
+            tracing::warn!(receiver = %env.header.receiver, sender = %env.header.sender, mailbox = why, held_back, total, "message dropped at its receiver's mailbox (one warning per 10 s)");
         }
         Err(BusError::MailboxFull {
             receiver: env.header.receiver,
