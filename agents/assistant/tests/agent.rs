@@ -6,7 +6,7 @@ use std::time::Duration;
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::{Agent, AgentHost, Context};
 use iw_assistant::{AssistantAgent, AssistantConfig, GOAL_CHECK};
-use iw_bus::Time;
+use iw_bus::{MockController, Time};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, GoalInFlight, WheelchairAction, WheelchairContent};
 
@@ -79,13 +79,9 @@ fn goal(chair: &str, conversation: &str) -> AclMessage {
     )
 }
 
-/// A host with the assistant (chair1's cognitive agent answering as `answer`), the nurse
-/// (staff) sending `nurse_goals` and a visitor sending `visitor_goals`, run for two steps.
-fn run(
-    answer: Answer,
-    nurse_goals: Vec<AclMessage>,
-    visitor_goals: Vec<AclMessage>,
-) -> [Mailbag; 3] {
+/// A host on a mock clock (at 1 s) with the assistant: chair1's cognitive agent is
+/// `cognitive-chair1`, the nurse is staff.
+fn with_assistant() -> (AgentHost, MockController) {
     let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let config = AssistantConfig {
         chairs: [("chair1".to_string(), AgentId::new("cognitive-chair1"))].into(),
@@ -96,6 +92,17 @@ fn run(
         Box::new(AssistantAgent::new(config)),
     )
     .unwrap();
+    (host, controller)
+}
+
+/// A host with the assistant (chair1's cognitive agent answering as `answer`), the nurse
+/// (staff) sending `nurse_goals` and a visitor sending `visitor_goals`, run for two steps.
+fn run(
+    answer: Answer,
+    nurse_goals: Vec<AclMessage>,
+    visitor_goals: Vec<AclMessage>,
+) -> [Mailbag; 3] {
+    let (mut host, controller) = with_assistant();
     let (cognitive, nurse, visitor): (Mailbag, Mailbag, Mailbag) = Default::default();
     host.add(
         AgentId::new("cognitive-chair1"),
@@ -258,16 +265,7 @@ impl Agent for Forgetful {
 /// The nurse's goal to a [`Forgetful`] chair, run `seconds` of the mock clock in 100 ms steps:
 /// what the nurse got, and the queries the chair was asked.
 fn lost_answer(record: Option<Result<(), String>>, under_way: bool, seconds: u64) -> [Mailbag; 2] {
-    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
-    let config = AssistantConfig {
-        chairs: [("chair1".to_string(), AgentId::new("cognitive-chair1"))].into(),
-        staff: ["nurse".to_string()].into(),
-    };
-    host.add(
-        AgentId::new("assistant"),
-        Box::new(AssistantAgent::new(config)),
-    )
-    .unwrap();
+    let (mut host, controller) = with_assistant();
     let (queries, nurse): (Mailbag, Mailbag) = Default::default();
     host.add(
         AgentId::new("cognitive-chair1"),

@@ -467,24 +467,16 @@ fn an_acknowledgement_left_by_a_leading_thread_goes_out_though_it_never_sends_ag
 #[test]
 fn a_local_sender_is_told_when_its_receivers_mailbox_is_full_and_a_remote_drop_is_counted() {
     let net = InProcNetwork::new();
-    let config = BusConfig {
-        mailbox_capacity: 2,
-        ..BusConfig::default()
+    let start = |name: &str, mailbox_capacity: usize| {
+        let config = BusConfig {
+            mailbox_capacity,
+            ..BusConfig::default()
+        };
+        let transport = Arc::new(net.endpoint(name).unwrap());
+        Bus::start(Stack::new(), transport, Clock::system(), config).unwrap()
     };
-    let one = Bus::start(
-        Stack::new(),
-        Arc::new(net.endpoint("one").unwrap()),
-        Clock::system(),
-        config,
-    )
-    .unwrap();
-    let two = Bus::start(
-        Stack::new(),
-        Arc::new(net.endpoint("two").unwrap()),
-        Clock::system(),
-        BusConfig::default(),
-    )
-    .unwrap();
+    let one = start("one", 2);
+    let two = start("two", 1024);
     let mut slow = one.register("slow").unwrap();
     two.add_route("slow", one.local_addr().clone());
     for n in 0..2u8 {
