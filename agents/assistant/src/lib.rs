@@ -16,18 +16,35 @@
 //!   same reason (the assistant has already agreed, so fipa-request allows no REFUSE). The id
 //!   (`ME-T-N`) carries the time the assistant started, so the answer to a goal forwarded by an
 //!   earlier life of the assistant (its container restarted) is never taken for one of its own.
+//! - To the cognitive agent, for a forwarded goal it has not answered for [`GOAL_CHECK`]:
+//!   QUERY-REF `((current-goal COGNITIVE ?goal))` (`fipa-query`), again every [`GOAL_CHECK`]
+//!   while it stays unanswered. The chair's answer says whether the goal is still under way
+//!   (nothing to do), ended in the forward's conversation (its outcome is relayed to staff as if
+//!   the chair's INFORM or FAILURE had come: that answer was lost on the way, e.g. a send that
+//!   failed for want of a route, or a frame given up after its last retransmission), or is
+//!   unknown to it
+//!   (relayed as a FAILURE that says so). So a goal the assistant agreed to ends, for staff, in
+//!   an INFORM or a FAILURE with a reason within a bounded time after the chair's own end,
+//!   whichever hop lost the chair's answer. A chair that does not answer the query is asked
+//!   again; one that is gone is the services' matter (its agents `left`).
 //! - At setup, to its platform's DF (`df@PLATFORM`, `:ontology FIPA-Agent-Management`): a
 //!   registration of service [`SERVICE_NAME`] of type [`SERVICE_TYPE`], so other platforms'
 //!   agents (JADE's) find it with a DF search; the DF's answers are absorbed.
 #![warn(missing_docs)]
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::time::Duration;
 
-use iw_acl::{AclMessage, AgentId, Performative};
+use iw_acl::{AclMessage, AgentId, FipaDateTime, Performative};
 use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_ontology::OntologyContent;
-use iw_ontology::wheelchair::{WheelchairAction, WheelchairContent};
+use iw_ontology::wheelchair::{Fact, GoalInFlight, WheelchairAction, WheelchairContent};
+
+/// How long a forwarded goal may go without a word from its chair before the assistant asks
+/// the chair about it (and the period of those queries, each given as long to be answered).
+/// A goal runs for minutes; a query every 10 s per unanswered goal costs next to nothing.
+pub const GOAL_CHECK: Duration = Duration::from_secs(10);
 
 /// The service the assistant registers with its platform's DF.
 pub const SERVICE_NAME: &str = "wheelchair-assistant";
@@ -53,6 +70,18 @@ pub struct AssistantAgent {
     /// When this life of the assistant started (ms of the bus clock), and the goals forwarded
     /// since: the forwards' conversation ids.
     life: (u64, u64),
+    /// Per forwarded goal not answered for good (by the forward's conversation): its chair's
+    /// cognitive agent, its place, and when it is to be asked about it (bus ns).
+    checks: BTreeMap<String, Check>,
+    /// Queries about forwarded goals under way, each with the forward's conversation.
+    queries: Initiated<String>,
+}
+
+/// A forwarded goal the assistant asks its chair about when it goes unanswered.
+struct Check {
+    cognitive: AgentId,
+    place: String,
+    due_ns: u64,
 }
 
 impl AssistantAgent {
@@ -63,6 +92,8 @@ impl AssistantAgent {
             forwarded: Initiated::new(),
             registration: Initiated::new(),
             life: (0, 0),
+            checks: BTreeMap::new(),
+            queries: Initiated::new(),
         }
     }
 
@@ -110,23 +141,35 @@ impl AssistantAgent {
         let conversation = format!("{}-{}-{}", ctx.name(), self.life.0, self.life.1);
         let forward = goal.fill(
             AclMessage::new(Performative::Request)
-                .with_receiver(cognitive)
+                .with_receiver(cognitive.clone())
                 .with_conversation_id(conversation),
         );
         let agreed = WheelchairContent::Request {
             actor: AgentId::new(chair),
-            action: WheelchairAction::GoTo { place },
+            action: WheelchairAction::GoTo {
+                place: place.clone(),
+            },
         };
         if let Err(err) = ctx.answer(&mut staff, Performative::Agree, &agreed) {
             tracing::warn!(error = %err, "could not agree to a staff goal");
             return;
         }
-        if let Err(err) = self
+        match self
             .forwarded
             .open(ctx, Protocol::Request, forward, staff.clone())
         {
-            let why = format!("could not forward the goal: {err}");
-            let _ = ctx.answer_error(&mut staff, Performative::Failure, &why);
+            Ok(conversation) => {
+                let check = Check {
+                    cognitive,
+                    place,
+                    due_ns: due(ctx),
+                };
+                self.checks.insert(conversation, check);
+            }
+            Err(err) => {
+                let why = format!("could not forward the goal: {err}");
+                let _ = ctx.answer_error(&mut staff, Performative::Failure, &why);
+            }
         }
     }
 
@@ -136,9 +179,17 @@ impl AssistantAgent {
         let Some(answer) = self.forwarded.handle(ctx, message) else {
             return false;
         };
+        let conversation = message.conversation_id.as_deref().unwrap_or_default();
+        if let Some(check) = self.checks.get_mut(conversation) {
+            // the chair is heard from: the next check counts from now
+            check.due_ns = due(ctx);
+        }
         let (kind, mut staff) = match answer {
             Ok(Progress::Continues(_)) => return true,
-            Ok(Progress::Ended(event, staff)) => (event.kind, staff),
+            Ok(Progress::Ended(event, staff)) => {
+                self.checks.remove(conversation);
+                (event.kind, staff)
+            }
             Err(err) => {
                 tracing::debug!(error = %err, "out-of-protocol answer to a forwarded goal");
                 return true;
@@ -162,6 +213,109 @@ impl AssistantAgent {
         }
         true
     }
+
+    /// Asks the chair about each forwarded goal unanswered for [`GOAL_CHECK`].
+    fn check_goals(&mut self, ctx: &mut Context<'_>) {
+        for (_, conversation) in self.queries.expire(ctx.now()) {
+            tracing::debug!(%conversation, "a chair did not answer the query for its goal; asked again");
+        }
+        let now = ctx.now().as_ns();
+        let asking: BTreeSet<String> = self.queries.iter().map(|(_, c)| c.clone()).collect();
+        let due_now: Vec<(String, AgentId)> = self
+            .checks
+            .iter()
+            .filter(|(c, check)| now >= check.due_ns && !asking.contains(*c))
+            .map(|(c, check)| (c.clone(), check.cognitive.clone()))
+            .collect();
+        for (conversation, cognitive) in due_now {
+            let by_ms = now.saturating_add(duration_ns(GOAL_CHECK)) / 1_000_000;
+            let query = WheelchairContent::GoalQuery {
+                agent: cognitive.clone(),
+            }
+            .fill(
+                AclMessage::new(Performative::QueryRef)
+                    .with_receiver(cognitive.clone())
+                    .with_conversation_id(format!("{conversation}-check-{now}"))
+                    .with_reply_by(FipaDateTime::from_unix_ms(
+                        i64::try_from(by_ms).unwrap_or(i64::MAX),
+                    )),
+            );
+            tracing::info!(%conversation, chair = %cognitive.name, "no answer to a forwarded goal for a while: asking the chair about it");
+            if let Err(err) = self
+                .queries
+                .open(ctx, Protocol::Query, query, conversation.clone())
+            {
+                tracing::warn!(%conversation, error = %err, "could not ask the chair about its goal");
+            }
+            if let Some(check) = self.checks.get_mut(&conversation) {
+                check.due_ns = due(ctx);
+            }
+        }
+    }
+
+    /// The chair's answer to a query about the forwarded goal `conversation`: a goal that ended
+    /// there, or that the chair does not know, is answered to staff now (its own answer was
+    /// lost); one still under way waits.
+    fn on_check_answer(&mut self, ctx: &mut Context<'_>, message: &AclMessage, conversation: &str) {
+        let Ok(WheelchairContent::Inform(Fact::CurrentGoal { goal, ended, .. })) =
+            WheelchairContent::from_message(message)
+        else {
+            tracing::debug!(%conversation, performative = %message.performative, "no usable answer about a forwarded goal; asked again later");
+            return;
+        };
+        let ours = |g: &Option<Box<GoalInFlight>>| {
+            g.as_deref()
+                .filter(|g| g.conversation == conversation)
+                .cloned()
+        };
+        if ours(&goal).is_some() {
+            return;
+        }
+        let (Some(mut staff), Some(check)) = (
+            self.forwarded.forget(conversation),
+            self.checks.remove(conversation),
+        ) else {
+            return;
+        };
+        let chair = check.cognitive.name.clone();
+        let relayed = match ours(&ended).and_then(|g| g.outcome) {
+            Some(Ok(())) => {
+                tracing::warn!(%conversation, %chair, "the chair's INFORM (goal done) was lost on the way; relayed from its answer to a query");
+                let done = WheelchairContent::Done {
+                    actor: check.cognitive,
+                    action: WheelchairAction::GoTo { place: check.place },
+                };
+                ctx.answer(&mut staff, Performative::Inform, &done)
+            }
+            Some(Err(why)) => {
+                tracing::warn!(%conversation, %chair, "the chair's FAILURE was lost on the way; relayed from its answer to a query");
+                ctx.answer_error(&mut staff, Performative::Failure, &why)
+            }
+            None => {
+                let under_way = goal.map_or_else(
+                    || "no goal".to_string(),
+                    |g| format!("a goal to {} for {}", g.place, g.requester.name),
+                );
+                let why = format!(
+                    "{chair} has no record of this goal (conversation {conversation}) and carries out {under_way}: its answer was lost, or it restarted"
+                );
+                tracing::warn!(%conversation, %chair, %why, "a forwarded goal ended unheard");
+                ctx.answer_error(&mut staff, Performative::Failure, &why)
+            }
+        };
+        if let Err(err) = relayed {
+            tracing::warn!(error = %err, "could not relay a goal's outcome to staff");
+        }
+    }
+}
+
+/// When a forwarded goal heard from now is next asked about, bus ns.
+fn due(ctx: &Context<'_>) -> u64 {
+    ctx.now().as_ns().saturating_add(duration_ns(GOAL_CHECK))
+}
+
+fn duration_ns(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 impl Agent for AssistantAgent {
@@ -176,7 +330,25 @@ impl Agent for AssistantAgent {
         }
     }
 
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_secs(1))
+    }
+
+    fn tick(&mut self, ctx: &mut Context<'_>) {
+        self.check_goals(ctx);
+    }
+
     fn handle(&mut self, ctx: &mut Context<'_>, message: AclMessage) {
+        if let Some(answer) = self.queries.handle(ctx, &message) {
+            match answer {
+                Ok(Progress::Ended(_, conversation)) => {
+                    self.on_check_answer(ctx, &message, &conversation)
+                }
+                Ok(Progress::Continues(_)) => {}
+                Err(err) => tracing::debug!(error = %err, "out-of-protocol answer to a goal query"),
+            }
+            return;
+        }
         if let Some(answer) = self.registration.handle(ctx, &message) {
             match answer {
                 Ok(Progress::Ended(event, ())) if event.kind != EventKind::Informed => {

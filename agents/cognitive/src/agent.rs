@@ -15,7 +15,9 @@
 //!   `:outcome` (told once: its answer may have gone to a requester that is gone); an empty set
 //!   when there is neither. A query about another agent is refused. The services ask this when
 //!   a chair joins them, so a goal whose requester they no longer know (they restarted) is given
-//!   again, failed or reported ended, not lost.
+//!   again, failed or reported ended, not lost; the assistant asks it about a goal it forwarded
+//!   that went unanswered (`iw_assistant::GOAL_CHECK`), so an answer lost on the way still ends
+//!   the goal for staff.
 //! - Understood: INFORM `((at-pose agent (pose ...)))` from the perception agent, subscribed at
 //!   setup with SUBSCRIBE `((at-pose ?agent ?pose))` (`fipa-subscribe`) when
 //!   [`CognitiveConfig::perception`] is set.

@@ -362,6 +362,14 @@ impl Stack {
         self.counters.record(reason);
     }
 
+    /// As [`Stack::record`], for a rejection that must show in the log: `Some(held_back)` when
+    /// the caller is to warn about it at `now` (one warning per reason per [`WARN_PERIOD`], with
+    /// how many were held back since the last one).
+    pub fn record_and_admit(&mut self, reason: Reason, now: Time) -> Option<u64> {
+        self.counters.record(reason);
+        self.warn.admit(reason, now)
+    }
+
     /// Runs `env` down the layers from `first`: true if it passed them all (a drop is counted).
     fn down_from(&mut self, first: usize, env: &mut Envelope, now: Time) -> bool {
         for i in first..self.layers.len() {

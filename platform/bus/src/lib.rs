@@ -129,6 +129,16 @@ pub enum BusError {
         /// The receiver's name.
         receiver: String,
     },
+    /// The local receiver's mailbox is full (it fell [`BusConfig::mailbox_capacity`] envelopes
+    /// behind) or closed (it left): the message was not delivered (counted
+    /// [`Reason::MailboxFull`]).
+    #[error(
+        "the mailbox of `{receiver}` is full (the agent is behind) or closed (it left): the message was not delivered"
+    )]
+    MailboxFull {
+        /// The receiver's name.
+        receiver: String,
+    },
     /// A local agent of that name is already registered.
     #[error("agent `{name}` is already registered on this bus")]
     AgentExists {

@@ -53,7 +53,8 @@ use crate::transport::{FrameTransport, PeerAddr, TransportError};
 /// Bus settings.
 #[derive(Debug, Clone, Copy)]
 pub struct BusConfig {
-    /// Envelopes a mailbox holds before further ones are dropped ([`Reason::MailboxFull`]).
+    /// Envelopes a mailbox holds before further ones are dropped ([`Reason::MailboxFull`],
+    /// warned of with the receiver's name; a local sender gets [`BusError::MailboxFull`]).
     pub mailbox_capacity: usize,
     /// Longest the pump waits for a frame before it checks the layers' timers (default 1 ms).
     pub tick: Duration,
@@ -380,21 +381,23 @@ impl Bus {
         // One lock for the message: down the stack, back up for a local receiver, and whatever
         // the layers originate meanwhile; delivery and sending happen after it is released.
         let mut out = Outcome::default();
+        let mut own = Vec::new();
         let remote = {
             let mut stack = lock(&self.inner.stack);
             let now = self.inner.clock.now();
             let remote = match stack.outbound(&mut env, now) {
-                Verdict::Pass => {
-                    Inner::route_locked(&mut stack, destination, env, now, &mut out.deliver)
-                }
+                Verdict::Pass => Inner::route_locked(&mut stack, destination, env, now, &mut own),
                 Verdict::Drop(_) | Verdict::Consumed => None,
             };
             self.inner.collect_locked(&mut stack, now, &mut out);
             remote
         };
         let sent = remote.map_or(Ok(()), |(addr, env)| self.inner.send_remote(&addr, &env));
+        // A local receiver that cannot take the message: its sender is told (FIPA's ACC
+        // returns an error to the sender), not only the counter.
+        let delivered = own.into_iter().try_for_each(|env| self.inner.deliver(env));
         self.inner.finish(out);
-        sent
+        sent.and(delivered)
     }
 
     /// Rejections so far, per reason (all layers and the bus itself).
@@ -481,7 +484,8 @@ impl Inner {
     /// Delivers and sends what a locked pass through the stack produced.
     fn finish(&self, out: Outcome) {
         for env in out.deliver {
-            self.deliver(env);
+            // counted and logged by `deliver`; a remote sender has had its acknowledgement
+            let _ = self.deliver(env);
         }
         for (addr, env) in out.send {
             if let Err(e) = self.send_remote(&addr, &env) {
@@ -514,16 +518,34 @@ impl Inner {
             })
     }
 
-    fn deliver(&self, env: Envelope) {
+    /// Puts `env` in its receiver's mailbox. A full or closed mailbox (or a receiver gone since
+    /// the route was chosen) drops it: counted, and warned of (one warning per
+    /// [`crate::WARN_PERIOD`], naming the receiver, the sender and the mailbox's state), never
+    /// silent.
+    fn deliver(&self, env: Envelope) -> Result<(), BusError> {
         let local = self.local.read().unwrap_or_else(PoisonError::into_inner);
-        let sent = match local.get(&env.header.receiver) {
-            Some(tx) => tx.try_send(env).is_ok(),
-            None => false,
+        let refused = match local.get(&env.header.receiver) {
+            Some(tx) => tx.try_send(env).err().map(|e| match e {
+                mpsc::error::TrySendError::Full(env) => (env, "full: the agent is behind"),
+                mpsc::error::TrySendError::Closed(env) => (env, "closed"),
+            }),
+            // it left (deregistered) since the route was chosen, e.g. at a take-down
+            None => Some((env, "gone: the agent left")),
         };
         drop(local);
-        if !sent {
-            lock(&self.stack).record(Reason::MailboxFull);
+        let Some((env, why)) = refused else {
+            return Ok(());
+        };
+        let now = self.clock.now();
+        let mut stack = lock(&self.stack);
+        if let Some(held_back) = stack.record_and_admit(Reason::MailboxFull, now) {
+            let total = stack.counters().get(Reason::MailboxFull);
+            drop(stack);
+            tracing::warn!(receiver = %env.header.receiver, sender = %env.header.sender, mailbox = why, held_back, total, "message dropped at its receiver's mailbox (one warning per 10 s)");
         }
+        Err(BusError::MailboxFull {
+            receiver: env.header.receiver,
+        })
     }
 
     /// The pump thread: runs rounds while no agent thread leads.

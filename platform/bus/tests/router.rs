@@ -463,3 +463,44 @@ fn an_acknowledgement_left_by_a_leading_thread_goes_out_though_it_never_sends_ag
         ("b", &b"ack"[..])
     );
 }
+
+#[test]
+fn a_local_sender_is_told_when_its_receivers_mailbox_is_full_and_a_remote_drop_is_counted() {
+    let net = InProcNetwork::new();
+    let start = |name: &str, mailbox_capacity: usize| {
+        let config = BusConfig {
+            mailbox_capacity,
+            ..BusConfig::default()
+        };
+        let transport = Arc::new(net.endpoint(name).unwrap());
+        Bus::start(Stack::new(), transport, Clock::system(), config).unwrap()
+    };
+    let one = start("one", 2);
+    let two = start("two", 1024);
+    let mut slow = one.register("slow").unwrap();
+    two.add_route("slow", one.local_addr().clone());
+    for n in 0..2u8 {
+        one.send("a", "slow", vec![n]).unwrap();
+    }
+    // the third does not fit: the sender hears it, not only the counter
+    match one.send("a", "slow", vec![2]) {
+        Err(BusError::MailboxFull { receiver }) => assert_eq!(receiver, "slow"),
+        other => panic!("expected MailboxFull, got {other:?}"),
+    }
+    assert_eq!(one.counters().get(Reason::MailboxFull), 1);
+    // from another bus the send itself succeeds (the frame left); the drop is counted where it
+    // happened
+    two.send("b", "slow", vec![3]).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while one.counters().get(Reason::MailboxFull) < 2 {
+        assert!(Instant::now() < deadline, "the remote drop was not counted");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    // what fitted is delivered, in order; room again once the agent caught up
+    assert_eq!(wait(&mut slow).payload, [0]);
+    assert_eq!(wait(&mut slow).payload, [1]);
+    one.send("a", "slow", vec![4]).unwrap();
+    assert_eq!(wait(&mut slow).payload, [4]);
+    one.shutdown();
+    two.shutdown();
+}

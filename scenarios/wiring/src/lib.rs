@@ -927,6 +927,12 @@ pub fn log_tap(
                     }
                     break;
                 }
+                // the logger is behind: the bus counted the copy dropped and warns of it,
+                // once per period, not once per copy
+                Err(iw_bus::BusError::MailboxFull { .. }) => {
+                    failing = false;
+                    backlog.pop_front();
+                }
                 // not a matter of waiting: this copy cannot be sent
                 Err(err) => {
                     tracing::warn!(error = %err, "a copy for the logger could not be sent");
