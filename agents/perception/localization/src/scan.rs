@@ -35,12 +35,8 @@ pub struct SonarGeometry {
 pub struct ScanPoint {
     /// Endpoint, base frame, m.
     pub p_base: Point2<f64>,
-    /// Its range's standard deviation, m.
+    /// Its standard deviation, m.
     pub sigma_m: f64,
-    /// Unit direction of the beam that measured it, base frame: a range error moves the point
-    /// along it, so it reaches a wall's normal by the cosine of the incidence. Zero where the
-    /// error has no one direction (a sonar's echo may come from anywhere in its cone).
-    pub beam_base: Vector2<f64>,
 }
 
 /// What became of one sensor's readings.
@@ -91,7 +87,6 @@ impl LaserGeometry {
                     out.push(ScanPoint {
                         p_base: endpoint(&beam, range_m),
                         sigma_m: self.sigma_m,
-                        beam_base: Vector2::new(beam.theta.cos(), beam.theta.sin()),
                     });
                     count.kept += 1;
                 }
@@ -117,7 +112,6 @@ impl SonarGeometry {
                     out.push(ScanPoint {
                         p_base: endpoint(mount, range_m),
                         sigma_m: self.sigma_m,
-                        beam_base: Vector2::zeros(),
                     });
                     count.kept += 1;
                 }
