@@ -220,6 +220,8 @@ impl AssistantAgent {
             tracing::debug!(%conversation, "a chair did not answer the query for its goal; asked again");
         }
         let now = ctx.now().as_ns();
+        // each goal asked about now is asked again, or its query expires, at `next_ns`
+        let next_ns = due(ctx);
         let asking: BTreeSet<String> = self.queries.iter().map(|(_, c)| c.clone()).collect();
         let due_now: Vec<(String, AgentId)> = self
             .checks
@@ -228,7 +230,7 @@ impl AssistantAgent {
             .map(|(c, check)| (c.clone(), check.cognitive.clone()))
             .collect();
         for (conversation, cognitive) in due_now {
-            let by_ms = now.saturating_add(duration_ns(GOAL_CHECK)) / 1_000_000;
+            let by_ms = next_ns / 1_000_000;
             let query = WheelchairContent::GoalQuery {
                 agent: cognitive.clone(),
             }
@@ -248,7 +250,7 @@ impl AssistantAgent {
                 tracing::warn!(%conversation, error = %err, "could not ask the chair about its goal");
             }
             if let Some(check) = self.checks.get_mut(&conversation) {
-                check.due_ns = due(ctx);
+                check.due_ns = next_ns;
             }
         }
     }
@@ -311,11 +313,7 @@ impl AssistantAgent {
 
 /// When a forwarded goal heard from now is next asked about, bus ns.
 fn due(ctx: &Context<'_>) -> u64 {
-    ctx.now().as_ns().saturating_add(duration_ns(GOAL_CHECK))
-}
-
-fn duration_ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+    ctx.now().plus(GOAL_CHECK).as_ns()
 }
 
 impl Agent for AssistantAgent {

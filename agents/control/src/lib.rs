@@ -67,6 +67,7 @@ use iw_agent::conversation::answers_a_conversation;
 use iw_agent::{Agent, Context, EventKind, Initiated, Progress, Protocol, Responder};
 use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelGeometry};
+use iw_bus::duration_ns;
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, Subscription, Topic, WheelchairAction, WheelchairContent};
 use iw_shared_control::basic::{BasicControl, DiffDrive, Watchdog};
@@ -240,11 +241,6 @@ struct Stream {
     user: VelocityCommand,
 }
 
-/// `d` in the bus clock's nanoseconds (saturating: a window of centuries never closes).
-fn ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
-}
-
 fn sender_name(message: &AclMessage) -> &str {
     message.sender.as_ref().map_or("", |s| s.name.as_str())
 }
@@ -313,7 +309,7 @@ impl ControlAgent {
             None => guard,
         };
         let motion = WheelMotion::new(config.wheels);
-        let basic = BasicControl::new(config.drive, ns(config.watchdog));
+        let basic = BasicControl::new(config.drive, duration_ns(config.watchdog));
         Ok(ControlAgent {
             body,
             basic,
@@ -322,7 +318,7 @@ impl ControlAgent {
             mode: Mode::Idle,
             poses: Initiated::new(),
             t_map_base: None,
-            manual_watchdog: Watchdog::new(ns(config.watchdog)),
+            manual_watchdog: Watchdog::new(duration_ns(config.watchdog)),
             body_fault_since_ns: None,
             status: SharedDriveStatus::default(),
             applied_to: Vec::new(),
@@ -703,8 +699,8 @@ impl ControlAgent {
                 now_ns
             }
         };
-        let blocked =
-            now_ns.saturating_sub(since) > ns(self.config.blocked_after) && !task.is_waiting();
+        let blocked = now_ns.saturating_sub(since) > duration_ns(self.config.blocked_after)
+            && !task.is_waiting();
         match outcome {
             Ok(out) if out.status == SequenceStatus::Finished => {
                 let done = WheelchairContent::Done {
@@ -823,7 +819,7 @@ impl Agent for ControlAgent {
                     return;
                 }
                 let since = *self.body_fault_since_ns.get_or_insert(now_ns);
-                if now_ns.saturating_sub(since) < ns(self.config.body_fault) {
+                if now_ns.saturating_sub(since) < duration_ns(self.config.body_fault) {
                     tracing::warn!(error = %err, "body read failed; wheels stopped, task held");
                     return;
                 }
