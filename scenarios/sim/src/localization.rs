@@ -56,14 +56,16 @@ pub fn drive_params(spec: &ChairSpec) -> DiffDriveParams {
 pub const LOCALIZER_ALPHA: [f64; 4] = [0.002, 0.00012, 0.00002, 0.0002];
 
 /// The localizer's defaults for a chair built like `spec`: its laser (if fitted) and sonar ring,
-/// and [`LOCALIZER_ALPHA`]. The matcher assumes 2 cm per laser beam (1 cm noise and the map's
-/// own error) and 15 cm per sonar echo (the 45 degree cone).
+/// and [`LOCALIZER_ALPHA`]. The matcher assumes the laser's own range noise per beam (the
+/// simulator's walls are the map's, so the map adds no error of its own; where the residuals
+/// spread wider the matcher scales its covariance up) and 15 cm per sonar echo (the 45 degree
+/// cone).
 pub fn localizer_config(spec: &ChairSpec) -> LocalizerConfig {
     let laser = spec.laser.map(|l| LaserGeometry {
         t_base_laser: pose2(&l.t_body_laser),
         fov_rad: l.fov_deg.to_radians(),
         max_range_m: l.max_range_m,
-        sigma_m: 0.02,
+        sigma_m: l.noise_std_m,
     });
     let sonar = SonarGeometry {
         t_base_sonar: spec.sonars.iter().map(|s| pose2(&s.t_body_sonar)).collect(),
