@@ -35,9 +35,9 @@ place east-end 58.0 6.0
 /// stretch this test can drive. Measured on this map and seed (the derived matcher with the
 /// acceleration-slip motion model): the along-axis variance grew to 0.0016 m² by x = 14 m, then
 /// by 0.0002-0.0004 m² a metre, 0.0039 m² at x = 25 m, 0.0069 m² at 34 m and 0.0077 m² at 38.5 m
-/// where the alcove came into view, while the error at the last scan read stayed within 3 cm;
-/// this threshold was crossed at x = 25.8 m (3 runs), 11 m before that. On shorter maps of the
-/// same corridor it grew faster (0.0069 m² at x = 18-27 m); why was not traced.
+/// where the alcove came into view, while the error at the last scan read stayed within about
+/// 3 cm; this threshold was crossed at x = 25.8-25.9 m (7 runs), 11 m before that. On shorter
+/// maps of the same corridor it grew faster (0.0069 m² at x = 18-27 m); why was not traced.
 const THRESHOLD_M2: f64 = 0.004;
 
 /// Longest drive, s.
