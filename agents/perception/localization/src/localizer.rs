@@ -291,9 +291,22 @@ impl Localizer {
         self.sonar.reason
     }
 
-    /// Predicts with one wheel odometry step.
+    /// Predicts with one wheel odometry step of the nominal period.
     pub fn predict(&mut self, step: &OdometryStep) {
-        self.fusion.predict(step);
+        self.predict_timed(step, None);
+    }
+
+    /// Predicts with one wheel odometry step that took `duration_s` (see
+    /// [`OdometryFusion::predict_over`]).
+    pub fn predict_over(&mut self, step: &OdometryStep, duration_s: f64) {
+        self.predict_timed(step, Some(duration_s));
+    }
+
+    fn predict_timed(&mut self, step: &OdometryStep, duration_s: Option<f64>) {
+        match duration_s {
+            Some(took_s) => self.fusion.predict_over(step, took_s),
+            None => self.fusion.predict(step),
+        }
         if let Some(search) = self.search.as_mut() {
             search.predict(step);
         }

@@ -9,7 +9,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Matrix3x2, Matrix3x6, SMatrix, SVector, Vector3};
 
-use crate::wheel::{AccelerationSlip, OdometryStep, Pose2, wrap_angle};
+use crate::wheel::{AccelerationSlip, OdometryStep, Pose2, WheelRates, wrap_angle};
 
 /// The planar motion of a robot base between two camera poses: the camera's motion expressed in
 /// the base frame (`t_base_camera` is the camera mount; base z points up), reduced to x, y, yaw.
@@ -132,8 +132,8 @@ pub struct OdometryFusion {
     walk: [f64; 2],
     /// Track for the turn's translation from the heading drift (see [`WheelBias`]).
     bias_track_m: f64,
-    /// Slip with the wheels' acceleration, if modelled, and the wheels' travel in the last step.
-    slip: Option<(AccelerationSlip, (f64, f64))>,
+    /// Slip with the wheels' acceleration, if modelled, and the wheels' speeds in the last step.
+    slip: Option<(AccelerationSlip, WheelRates)>,
 }
 
 fn to_vec(a: &Pose2, b: &Pose2, bias: &[f64; 2], visual_scale: f64) -> SVector<f64, N> {
@@ -175,7 +175,7 @@ impl OdometryFusion {
     /// unsure of it to the motion model's noise (see [`AccelerationSlip`]); the first step after
     /// this counts as starting from rest.
     pub fn with_acceleration_slip(mut self, slip: AccelerationSlip) -> Self {
-        self.slip = Some((slip, (0.0, 0.0)));
+        self.slip = Some((slip, WheelRates::default()));
         self
     }
 
@@ -241,13 +241,27 @@ impl OdometryFusion {
         )
     }
 
-    /// Prediction with one wheel odometry step, corrected by the acceleration's slip (if
-    /// modelled) and the estimated bias.
+    /// Prediction with one wheel odometry step of the slip model's nominal period (see
+    /// [`Self::predict_over`]).
     pub fn predict(&mut self, step: &OdometryStep) {
+        self.predict_timed(step, None);
+    }
+
+    /// Prediction with one wheel odometry step that took `duration_s`, corrected by the
+    /// acceleration's slip (if modelled; the wheels' speeds are the step's travel over its
+    /// duration) and the estimated bias.
+    pub fn predict_over(&mut self, step: &OdometryStep, duration_s: f64) {
+        self.predict_timed(step, Some(duration_s));
+    }
+
+    fn predict_timed(&mut self, step: &OdometryStep, duration_s: Option<f64>) {
         // the slip with the wheels' acceleration taken off before the bias is applied
         let raw = *step;
-        let step = &match self.slip {
-            Some((slip, previous)) => slip.corrected(&raw, previous),
+        let timed = self
+            .slip
+            .map(|(slip, previous)| (slip, previous, duration_s.unwrap_or(slip.period_s)));
+        let step = &match timed {
+            Some((slip, previous, took_s)) => slip.corrected(&raw, took_s, previous),
             None => raw,
         };
         let [scale, heading] = self.bias;
@@ -273,9 +287,9 @@ impl OdometryFusion {
         f.fixed_view_mut::<3, 3>(3, 3).copy_from(&g);
         f.fixed_view_mut::<3, 2>(3, BIAS).copy_from(&(v * d_step));
         let mut motion = step.covariance(&self.alpha);
-        if let Some((slip, previous)) = self.slip.as_mut() {
-            motion += slip.covariance(&raw, *previous);
-            *previous = slip.wheels(&raw);
+        if let (Some((slip, previous, took_s)), Some((_, last))) = (timed, self.slip.as_mut()) {
+            motion += slip.covariance(&raw, took_s, previous);
+            *last = slip.rates(&raw, took_s);
         }
         let mut q = StateMatrix::zeros();
         q.fixed_view_mut::<3, 3>(3, 3)

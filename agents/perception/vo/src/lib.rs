@@ -44,5 +44,5 @@ pub use odometry::{FrameStats, KeyframeParams, Pipeline, VisualOdometry, VoConfi
 pub use source::{CameraSource, DepthImage, RgbdFrame, TumReplay, load_pair};
 pub use tum::{FramePair, StampedPose, TumSequence};
 pub use wheel::{
-    AccelerationSlip, DiffDriveParams, OdometryStep, Pose2, WheelOdometry, wrap_angle,
+    AccelerationSlip, DiffDriveParams, OdometryStep, Pose2, WheelOdometry, WheelRates, wrap_angle,
 };
