@@ -334,11 +334,11 @@ fn a_chair_dead_reckoning_on_uneven_world_steps_keeps_up_with_the_world() {
     let last = probe
         .take_received()
         .iter()
-        .filter_map(|m| match WheelchairContent::from_message(m) {
+        .rev()
+        .find_map(|m| match WheelchairContent::from_message(m) {
             Ok(WheelchairContent::Inform(Fact::AtPose { pose, .. })) => Some(pose),
             _ => None,
         })
-        .last()
         .expect("poses published");
     // the odometry starts at the first read's ticks, the first step's 20 mm already driven
     let driven = UnevenWorldSteps::travel_m(UnevenWorldSteps::DRIVE_NS)
