@@ -311,6 +311,7 @@ fn answer(
                 sonar_m: state.sonar_m,
                 laser_m: Vec::new(),
                 ranges_time_ns: state.time_ns,
+                ticks_time_ns: state.time_ns,
             };
             let mut bytes = encode(&Message::Sensors(frame));
             if std::mem::take(&mut state.corrupt_next)

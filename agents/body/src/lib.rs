@@ -56,6 +56,12 @@ pub struct SensorFrame {
     /// come from where it was a while ago (a mixed chair's ghost in a world process). The
     /// localizer matches a scan where the chair was at that time.
     pub ranges_time_ns: u64,
+    /// When the encoder ticks were counted, in the body's own clock, which may differ from
+    /// `time_ns`'s and restart with the body (a world process's simulated time): only the
+    /// difference between two frames' is meant, as the time the ticks between them took. A
+    /// chair's frames from a world process arrive at the chair's reads, while the world moved
+    /// it by the time its own steps took (40 or 60 ms for a 50 ms period).
+    pub ticks_time_ns: u64,
 }
 
 impl SensorFrame {
@@ -68,6 +74,7 @@ impl SensorFrame {
             sonar_m: [None; SONAR_COUNT],
             laser_m: Vec::new(),
             ranges_time_ns: time_ns,
+            ticks_time_ns: time_ns,
         }
     }
 }

@@ -263,6 +263,7 @@ fn parse_payload(kind: u8, p: &[u8]) -> Result<Message, ProtocolError> {
                 sonar_m,
                 laser_m: Vec::new(),
                 ranges_time_ns: time_ns,
+                ticks_time_ns: time_ns,
             }))
         }
         _ => Err(ProtocolError::UnknownKind { kind }),

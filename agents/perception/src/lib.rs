@@ -59,8 +59,8 @@ use iw_ontology::wheelchair::{
     Fact, Pose, SensorReading, SensorState, SensorUse, Topic, WheelchairContent,
 };
 use iw_vo::{
-    CameraSource, DiffDriveParams, OdometryFusion, Pose2, VisualNoise, VoConfig, WheelBias,
-    WheelOdometry, planar_motion,
+    CameraSource, DiffDriveParams, OdometryFusion, OdometryStep, Pose2, VisualNoise, VoConfig,
+    WheelBias, WheelOdometry, planar_motion,
 };
 use nalgebra::{Isometry3, Matrix3};
 use vision::{VisionResult, VisionWorker, WheelHistory};
@@ -175,6 +175,8 @@ pub struct PerceptionAgent {
     history: WheelHistory,
     /// The body time of the last range readings given to the localizer.
     last_ranges_ns: Option<u64>,
+    /// The body's clock of the last encoder ticks ([`iw_body::SensorFrame::ticks_time_ns`]).
+    last_ticks_ns: Option<u64>,
     /// The laser's and the sonar ring's use, as last told to the subscribers.
     ranges: [RangeSensor; 2],
 }
@@ -276,6 +278,7 @@ impl PerceptionAgent {
             localizer: None,
             history: WheelHistory::default(),
             last_ranges_ns: None,
+            last_ticks_ns: None,
             ranges: [RangeSensor::new("laser"), RangeSensor::new("sonars")],
         })
     }
@@ -329,10 +332,18 @@ impl PerceptionAgent {
     fn sense(&mut self) {
         match self.body.read() {
             Ok(frame) => {
+                let last_ticks_ns = self.last_ticks_ns.replace(frame.ticks_time_ns);
                 if let Some(step) = self.wheels.update(frame.left_ticks, frame.right_ticks) {
                     self.fusion.predict(&step);
                     if let Some(l) = self.localizer.as_mut() {
-                        l.predict(&step);
+                        // the slip model's speeds are the step's travel over the time it took
+                        match last_ticks_ns.map(|last| frame.ticks_time_ns.checked_sub(last)) {
+                            // the same ticks read again: no motion and no time to measure
+                            Some(Some(0)) if step == OdometryStep::default() => {}
+                            Some(Some(ns)) if ns > 0 => l.predict_over(&step, ns as f64 * 1e-9),
+                            // the first ticks, or the body's clock started again: one period
+                            _ => l.predict(&step),
+                        }
                     }
                 }
                 self.history.record(frame.time_ns, self.wheels.pose());

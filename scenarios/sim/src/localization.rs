@@ -4,7 +4,7 @@
 use iw_localization::{
     Landmark, LaserGeometry, LocalizationError, LocalizationMap, LocalizerConfig, SonarGeometry,
 };
-use iw_vo::{DiffDriveParams, Pose2};
+use iw_vo::{AccelerationSlip, DiffDriveParams, Pose2};
 use nalgebra::Isometry2;
 
 use crate::{ChairSpec, Map};
@@ -45,30 +45,44 @@ pub fn drive_params(spec: &ChairSpec) -> DiffDriveParams {
     }
 }
 
-/// The localizer's motion model (Thrun's alphas): only the random part of the encoders' error: the systematic part (tyre
-/// compression, mean slip) is in the filter's state ([`iw_vo::WheelBias::WHEELCHAIR`]). What is
-/// left is the per-step slip, about 0.6 % of each wheel's travel (translation 2e-5 m²/m²,
-/// heading 1.2e-4 rad²/m² per half turn), and the slip while the wheels accelerate into and out
-/// of turns (rotation 0.002 rad²/rad²). With the plain model's larger alphas
-/// ([`DiffDriveParams::default`]) the tracking NEES sat far under its interval (the covariance
-/// was several times the error); with these it is consistent on the 30-minute drives
-/// (docs/results/localization.md).
-pub const LOCALIZER_ALPHA: [f64; 4] = [0.002, 0.00012, 0.00002, 0.0002];
+/// The localizer's motion model (Thrun's alphas): the random part of the simulator's slip
+/// alone. `World::drive` loses |N(0,1)| × [`crate::EncoderModel::slip_std`] (1 %) of each
+/// wheel's travel per tick (one tick per 50 ms period). Its mean (0.80 %) is a scale error, which
+/// the filter's wheel-scale state absorbs ([`iw_vo::WheelBias::WHEELCHAIR`]); what is left is
+/// its variance, σ² = (1 − 2/π) × 1e-4 = 3.63e-5 per wheel. Through Thrun's model with the turn
+/// split in two halves, track T = 0.56 m: a1 = σ² (a turn on the spot), a2 = σ² / T² (heading
+/// from travel), a3 = σ² / 2 (travel from travel), a4 = σ² T² / 4 (travel from a turn). The slip
+/// with the wheels' acceleration is the other term ([`localizer_config`]).
+pub const LOCALIZER_ALPHA: [f64; 4] = [3.63e-5, 1.16e-4, 1.82e-5, 2.85e-6];
+
+/// Time between the wheel odometry steps the localizer is given, s: one per control period.
+pub const ODOMETRY_PERIOD_S: f64 = 0.05;
 
 /// The localizer's defaults for a chair built like `spec`: its laser (if fitted) and sonar ring,
-/// and [`LOCALIZER_ALPHA`]. The matcher assumes 2 cm per laser beam (1 cm noise and the map's
-/// own error) and 15 cm per sonar echo (the 45 degree cone).
+/// [`LOCALIZER_ALPHA`], and the slip with the wheels' acceleration as `spec`'s encoder model has
+/// it ([`crate::EncoderModel::slip_per_mps2`], 2 % per m/s²), one odometry step per
+/// [`ODOMETRY_PERIOD_S`]. The matcher assumes the laser's own range noise per beam (the
+/// simulator's walls are the map's, so the map adds no error of its own; where the residuals
+/// spread wider the matcher scales its covariance up) and 15 cm per sonar echo (the 45 degree
+/// cone).
 pub fn localizer_config(spec: &ChairSpec) -> LocalizerConfig {
     let laser = spec.laser.map(|l| LaserGeometry {
         t_base_laser: pose2(&l.t_body_laser),
         fov_rad: l.fov_deg.to_radians(),
         max_range_m: l.max_range_m,
-        sigma_m: 0.02,
+        sigma_m: l.noise_std_m,
     });
     let sonar = SonarGeometry {
         t_base_sonar: spec.sonars.iter().map(|s| pose2(&s.t_body_sonar)).collect(),
         max_range_m: spec.sonar.max_range_m,
         sigma_m: 0.15,
     };
-    LocalizerConfig::new(laser, Some(sonar), LOCALIZER_ALPHA)
+    LocalizerConfig {
+        acceleration_slip: Some(AccelerationSlip {
+            per_mps2: spec.encoder.slip_per_mps2,
+            period_s: ODOMETRY_PERIOD_S,
+            track_m: spec.geometry.track_m,
+        }),
+        ..LocalizerConfig::new(laser, Some(sonar), LOCALIZER_ALPHA)
+    }
 }

@@ -785,6 +785,7 @@ impl World {
             sonar_m,
             laser_m,
             ranges_time_ns: self.time_ns,
+            ticks_time_ns: self.time_ns,
         };
     }
 }

@@ -302,6 +302,8 @@ impl WorldLink {
             laser_m: frame.laser_m.clone(),
             // the world steps and senses a simulated body together
             ranges_time_ns: at.0,
+            // the world's own steps, which are not the chair's reads (see the field)
+            ticks_time_ns: frame.time_ns,
         })
     }
 }

@@ -637,6 +637,7 @@ mod tests {
                 ScanPoint {
                     p_base: Point2::new(r * a.cos(), r * a.sin()),
                     sigma_m: 0.02,
+                    beam_base: nalgebra::Vector2::new(a.cos(), a.sin()),
                 }
             })
             .collect();

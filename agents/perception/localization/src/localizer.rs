@@ -11,7 +11,7 @@ use crate::global::{GlobalConfig, GlobalLocalizer};
 use crate::map::LocalizationMap;
 use crate::matcher::{MatcherConfig, inlier_fraction, match_scan};
 use crate::scan::{LaserGeometry, ReadingCount, ScanPoint, SonarGeometry};
-use iw_vo::{OdometryFusion, OdometryStep, Pose2, WheelBias, wrap_angle};
+use iw_vo::{AccelerationSlip, OdometryFusion, OdometryStep, Pose2, WheelBias, wrap_angle};
 
 /// When a search may say it has found the pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,6 +52,9 @@ pub struct LocalizerConfig {
     pub landmark_sigma: (f64, f64),
     /// Motion model of the odometry (Thrun's alphas), as in [`iw_vo::DiffDriveParams`].
     pub alpha: [f64; 4],
+    /// The slip that follows the wheels' acceleration, added to the alphas' noise (`None`:
+    /// the alphas alone).
+    pub acceleration_slip: Option<AccelerationSlip>,
     /// The wheels' systematic error, estimated in the filter while scans and landmarks observe
     /// it and held while they do not, so the covariance grows as fast as the error when the
     /// chair dead-reckons.
@@ -85,6 +88,7 @@ impl LocalizerConfig {
             drop_after: 10,
             landmark_sigma: (0.05, 1f64.to_radians()),
             alpha,
+            acceleration_slip: None,
             wheel_bias: WheelBias::WHEELCHAIR,
             visual_scale_sigma: 0.03,
         }
@@ -204,11 +208,15 @@ impl Localizer {
     ) -> Self {
         let (pose, covariance) =
             start.unwrap_or((Pose2::default(), Matrix3::identity() * UNKNOWN_VAR));
+        let mut fusion = OdometryFusion::new(pose, covariance, config.alpha)
+            .with_bias(config.wheel_bias)
+            .with_visual_scale(config.visual_scale_sigma);
+        if let Some(slip) = config.acceleration_slip {
+            fusion = fusion.with_acceleration_slip(slip);
+        }
         Localizer {
             map,
-            fusion: OdometryFusion::new(pose, covariance, config.alpha)
-                .with_bias(config.wheel_bias)
-                .with_visual_scale(config.visual_scale_sigma),
+            fusion,
             status: if start.is_some() {
                 Status::Tracking
             } else {
@@ -283,9 +291,22 @@ impl Localizer {
         self.sonar.reason
     }
 
-    /// Predicts with one wheel odometry step.
+    /// Predicts with one wheel odometry step of the nominal period.
     pub fn predict(&mut self, step: &OdometryStep) {
-        self.fusion.predict(step);
+        self.predict_timed(step, None);
+    }
+
+    /// Predicts with one wheel odometry step that took `duration_s` (see
+    /// [`OdometryFusion::predict_over`]).
+    pub fn predict_over(&mut self, step: &OdometryStep, duration_s: f64) {
+        self.predict_timed(step, Some(duration_s));
+    }
+
+    fn predict_timed(&mut self, step: &OdometryStep, duration_s: Option<f64>) {
+        match duration_s {
+            Some(took_s) => self.fusion.predict_over(step, took_s),
+            None => self.fusion.predict(step),
+        }
         if let Some(search) = self.search.as_mut() {
             search.predict(step);
         }

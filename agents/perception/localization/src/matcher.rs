@@ -1,9 +1,12 @@
 //! Scan-to-map matching: Gauss-Newton on point-to-segment distances with a Cauchy kernel, so
 //! that returns from chairs and people that are not on the map weigh little. The covariance is
-//! the inverse of the weighted normal matrix, inflated for beams whose errors are correlated;
-//! directions the scan cannot see (along a blank corridor) get no information at all.
+//! derived, not tuned: the inverse of the weighted normal matrix at the points' own standard
+//! deviations along the walls' normals (a beam's range noise reaches the normal by the cosine of
+//! its incidence), over the points the converged pose puts on the map, scaled up when the
+//! residuals spread wider than those deviations say; directions the scan cannot see (along a
+//! blank corridor) get no information at all.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 
 use crate::map::LocalizationMap;
 use crate::scan::{ScanPoint, d_dtheta, to_map};
@@ -18,12 +21,20 @@ pub struct MatcherConfig {
     pub kernel_m: f64,
     /// A point within this distance of the map at the match counts as an inlier, m.
     pub inlier_m: f64,
-    /// The covariance is the normal matrix's inverse times this (neighbouring beams share map
-    /// and model errors, so they are not independent).
-    pub inflation: f64,
-    /// Smallest covariance of a matched pose: (m², rad²).
-    pub floor: (f64, f64),
-    /// A direction whose variance would exceed this is not observed (m², with 1 rad = 1 m).
+    /// Least cosine of a beam's incidence on the wall counted: a beam that grazes a wall is
+    /// placed along the normal by its range noise times this at best. Below it the fit leans
+    /// on grazing beams near corners and door edges, where the nearest segment is not the one
+    /// hit, and single scans came out overconfident and slower to converge
+    /// (docs/results/localization.md, the `derive` work).
+    pub min_incidence_cos: f64,
+    /// At the converged pose, a point farther from the map than this many of its standard
+    /// deviations is taken for something not on the map (a person, a chair) and left out of a
+    /// refit and of the covariance: the Cauchy kernel's pull falls only as one over the distance,
+    /// so a mover's dozen points would pull every scan that sees it the same way. 0: no refit.
+    pub outlier_sigmas: f64,
+    /// A direction whose variance at the points' standard deviations would exceed this is not
+    /// observed (m², with 1 rad = 1 m): a scan that places it no better than to 8 cm does so
+    /// from a few points, at the kernel's edge.
     pub unobserved_var: f64,
     /// Fewer matched points than this give no match.
     pub min_points: usize,
@@ -35,11 +46,18 @@ impl Default for MatcherConfig {
             iterations: 12,
             kernel_m: 0.05,
             inlier_m: 0.1,
-            inflation: 10.0,
-            floor: (0.01f64.powi(2), 0.3f64.to_radians().powi(2)),
-            unobserved_var: 0.25,
+            min_incidence_cos: 0.3,
+            outlier_sigmas: 4.0,
+            unobserved_var: 0.08f64.powi(2),
             min_points: 12,
         }
+    }
+}
+
+impl MatcherConfig {
+    /// Whether a direction with information `lambda` (1/m², with 1 rad = 1 m) is observed.
+    fn observes(&self, lambda: f64) -> bool {
+        lambda * self.unobserved_var > 1.0
     }
 }
 
@@ -54,20 +72,46 @@ pub struct ScanMatch {
     pub inlier_fraction: f64,
     /// Number of directions (of 3) the scan observed.
     pub observed: usize,
+    /// The residuals' mean squared influence over the points' variances (1 if they spread as
+    /// the points' standard deviations say); the covariance is scaled by it when above 1.
+    pub residual_scale: f64,
 }
 
 /// Variance given to a direction the scan does not observe.
 pub const UNOBSERVED_VAR: f64 = 1e4;
 
-/// Normal equations at `pose`: (H, g, weighted points, inliers).
+/// The normal equations at one pose.
+struct Normal {
+    /// Information of the pose.
+    h: Matrix3<f64>,
+    /// Gradient.
+    g: Vector3<f64>,
+    /// Sum of the squared influences (robust weight times normalised residual), and of the
+    /// robust weights: a point off the map (a person, a moved chair) pulls the match by its
+    /// influence, which the kernel bounds, not by its residual.
+    spread: (f64, f64),
+    /// Points with a map normal.
+    used: usize,
+    /// Points within the inlier distance.
+    inliers: usize,
+}
+
+/// Normal equations at `pose`, over the points within `gate` of their standard deviations of
+/// the map (all with a map normal if `None`).
 fn normal_equations(
     map: &LocalizationMap,
     points: &[ScanPoint],
     pose: &Pose2,
     config: &MatcherConfig,
-) -> (Matrix3<f64>, Vector3<f64>, usize, usize) {
-    let (mut h, mut g) = (Matrix3::zeros(), Vector3::zeros());
-    let (mut used, mut inliers) = (0, 0);
+    gate: Option<f64>,
+) -> Normal {
+    let mut n = Normal {
+        h: Matrix3::zeros(),
+        g: Vector3::zeros(),
+        spread: (0.0, 0.0),
+        used: 0,
+        inliers: 0,
+    };
     for p in points {
         let q = to_map(pose, &p.p_base);
         let Some(near) = map.nearest(&q) else {
@@ -75,9 +119,9 @@ fn normal_equations(
         };
         let e = near.distance_m;
         if e <= config.inlier_m {
-            inliers += 1;
+            n.inliers += 1;
         }
-        if near.normal == nalgebra::Vector2::zeros() {
+        if near.normal == Vector2::zeros() || gate.is_some_and(|g| e > g * p.sigma_m) {
             continue;
         }
         let j = Vector3::new(
@@ -86,12 +130,80 @@ fn normal_equations(
             near.normal.dot(&d_dtheta(pose.theta, &p.p_base)),
         );
         let robust = 1.0 / (1.0 + (e / config.kernel_m).powi(2));
-        let w = robust / (p.sigma_m * p.sigma_m);
-        h += j * j.transpose() * w;
-        g += j * (w * e);
-        used += 1;
+        let sigma_m = p.sigma_m * incidence_cos(&near.normal, pose, &p.beam_base, config);
+        let w = robust / (sigma_m * sigma_m);
+        n.h += j * j.transpose() * w;
+        n.g += j * (w * e);
+        n.spread.0 += (robust * e / sigma_m).powi(2);
+        n.spread.1 += robust;
+        n.used += 1;
     }
-    (h, g, used, inliers)
+    n
+}
+
+/// How much of a beam's range error reaches the wall's normal `normal` (map frame) for a base
+/// at `pose`: the cosine of the incidence, at least [`MatcherConfig::min_incidence_cos`]; 1 for
+/// a point with no beam direction.
+fn incidence_cos(
+    normal: &Vector2<f64>,
+    pose: &Pose2,
+    beam_base: &Vector2<f64>,
+    config: &MatcherConfig,
+) -> f64 {
+    if *beam_base == Vector2::zeros() {
+        return 1.0;
+    }
+    let beam_map = nalgebra::Rotation2::new(pose.theta) * beam_base;
+    normal.dot(&beam_map).abs().max(config.min_incidence_cos)
+}
+
+/// Gauss-Newton from `guess`: the pose it converged to and the normal equations there. `None`
+/// when fewer than [`MatcherConfig::min_points`] points lie near the map (or inside the gate).
+fn solve(
+    map: &LocalizationMap,
+    points: &[ScanPoint],
+    guess: &Pose2,
+    config: &MatcherConfig,
+    gate: Option<f64>,
+) -> Option<(Pose2, Normal)> {
+    let observed = |lambda: f64| config.observes(lambda);
+    let mut pose = *guess;
+    let mut last = None;
+    for _ in 0..config.iterations.max(1) {
+        let n = normal_equations(map, points, &pose, config, gate);
+        if n.used < config.min_points {
+            return None;
+        }
+        let eig = n.h.symmetric_eigen();
+        // Solve in the observed directions only: a blank corridor leaves its axis where the
+        // guess put it.
+        let mut step = Vector3::zeros();
+        for k in 0..3 {
+            let lambda = eig.eigenvalues[k];
+            if observed(lambda) {
+                let v = eig.eigenvectors.column(k);
+                step -= v * (v.dot(&n.g) / lambda);
+            }
+        }
+        // Gauss-Newton on a piecewise distance field can overshoot: cap each step.
+        let len = step.fixed_rows::<2>(0).norm();
+        if len > 0.2 {
+            step *= 0.2 / len;
+        }
+        step[2] = step[2].clamp(-0.1, 0.1);
+        pose = Pose2::new(pose.x + step[0], pose.y + step[1], pose.theta + step[2]);
+        last = Some(n);
+        if step.fixed_rows::<2>(0).norm() < 1e-4 && step[2].abs() < 1e-4 {
+            break;
+        }
+    }
+    let n = normal_equations(map, points, &pose, config, gate);
+    let n = if n.used >= config.min_points {
+        n
+    } else {
+        last?
+    };
+    Some((pose, n))
 }
 
 /// Matches `points` (base frame) against `map` from `guess`. `None` when fewer than
@@ -102,63 +214,37 @@ pub fn match_scan(
     guess: &Pose2,
     config: &MatcherConfig,
 ) -> Option<ScanMatch> {
-    let mut pose = *guess;
-    let mut last = None;
-    for _ in 0..config.iterations.max(1) {
-        let (h, g, used, _) = normal_equations(map, points, &pose, config);
-        if used < config.min_points {
-            return None;
-        }
-        let eig = h.symmetric_eigen();
-        // Solve in the observed directions only: a blank corridor leaves its axis where the
-        // guess put it.
-        let mut step = Vector3::zeros();
-        for k in 0..3 {
-            let lambda = eig.eigenvalues[k];
-            if lambda * config.unobserved_var > config.inflation {
-                let v = eig.eigenvectors.column(k);
-                step -= v * (v.dot(&g) / lambda);
-            }
-        }
-        // Gauss-Newton on a piecewise distance field can overshoot: cap each step.
-        let len = step.fixed_rows::<2>(0).norm();
-        if len > 0.2 {
-            step *= 0.2 / len;
-        }
-        step[2] = step[2].clamp(-0.1, 0.1);
-        pose = Pose2::new(pose.x + step[0], pose.y + step[1], pose.theta + step[2]);
-        last = Some(eig);
-        if step.fixed_rows::<2>(0).norm() < 1e-4 && step[2].abs() < 1e-4 {
-            break;
-        }
-    }
-    let (h, _, used, inliers) = normal_equations(map, points, &pose, config);
-    let eig = if used >= config.min_points {
-        h.symmetric_eigen()
+    let observed = |lambda: f64| config.observes(lambda);
+    let (pose, n) = solve(map, points, guess, config, None)?;
+    // Refit without the points the converged pose puts off the map.
+    let (pose, n) = if config.outlier_sigmas > 0.0 {
+        solve(map, points, &pose, config, Some(config.outlier_sigmas)).unwrap_or((pose, n))
     } else {
-        last?
+        (pose, n)
     };
+    let eig = n.h.symmetric_eigen();
+    let residual_scale = n.spread.0 / n.spread.1.max(f64::MIN_POSITIVE);
+    // The information in the observed directions, inverted there.
+    let basis: Vec<_> = (0..3)
+        .filter(|&k| observed(eig.eigenvalues[k]))
+        .map(|k| eig.eigenvectors.column(k).into_owned())
+        .collect();
     let mut covariance = Matrix3::zeros();
-    let mut observed = 0;
-    for k in 0..3 {
-        let lambda = eig.eigenvalues[k];
+    for k in (0..3).filter(|&k| !observed(eig.eigenvalues[k])) {
         let v = eig.eigenvectors.column(k);
-        let var = if lambda * config.unobserved_var > config.inflation {
-            observed += 1;
-            config.inflation / lambda
-        } else {
-            UNOBSERVED_VAR
-        };
-        covariance += v * v.transpose() * var;
+        covariance += v * v.transpose() * UNOBSERVED_VAR;
     }
-    covariance[(0, 0)] += config.floor.0;
-    covariance[(1, 1)] += config.floor.0;
-    covariance[(2, 2)] += config.floor.1;
+    if !basis.is_empty() {
+        let v = nalgebra::Matrix3xX::from_columns(&basis);
+        let inv = (v.transpose() * n.h * &v).try_inverse()?;
+        covariance += &v * inv * v.transpose() * residual_scale.max(1.0);
+    }
     Some(ScanMatch {
         pose,
         covariance,
-        inlier_fraction: inliers as f64 / points.len().max(1) as f64,
-        observed,
+        inlier_fraction: n.inliers as f64 / points.len().max(1) as f64,
+        observed: basis.len(),
+        residual_scale,
     })
 }
 

@@ -35,8 +35,12 @@ pub struct SonarGeometry {
 pub struct ScanPoint {
     /// Endpoint, base frame, m.
     pub p_base: Point2<f64>,
-    /// Its standard deviation, m.
+    /// Its range's standard deviation, m.
     pub sigma_m: f64,
+    /// Unit direction of the beam that measured it, base frame: a range error moves the point
+    /// along it, so it reaches a wall's normal by the cosine of the incidence. Zero where the
+    /// error has no one direction (a sonar's echo may come from anywhere in its cone).
+    pub beam_base: Vector2<f64>,
 }
 
 /// What became of one sensor's readings.
@@ -87,6 +91,7 @@ impl LaserGeometry {
                     out.push(ScanPoint {
                         p_base: endpoint(&beam, range_m),
                         sigma_m: self.sigma_m,
+                        beam_base: Vector2::new(beam.theta.cos(), beam.theta.sin()),
                     });
                     count.kept += 1;
                 }
@@ -112,6 +117,7 @@ impl SonarGeometry {
                     out.push(ScanPoint {
                         p_base: endpoint(mount, range_m),
                         sigma_m: self.sigma_m,
+                        beam_base: Vector2::zeros(),
                     });
                     count.kept += 1;
                 }

@@ -43,4 +43,6 @@ pub use geometry::{RansacParams, RigidFit, ransac_rigid, umeyama};
 pub use odometry::{FrameStats, KeyframeParams, Pipeline, VisualOdometry, VoConfig};
 pub use source::{CameraSource, DepthImage, RgbdFrame, TumReplay, load_pair};
 pub use tum::{FramePair, StampedPose, TumSequence};
-pub use wheel::{DiffDriveParams, OdometryStep, Pose2, WheelOdometry, wrap_angle};
+pub use wheel::{
+    AccelerationSlip, DiffDriveParams, OdometryStep, Pose2, WheelOdometry, WheelRates, wrap_angle,
+};
