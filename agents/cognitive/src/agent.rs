@@ -12,7 +12,8 @@
 //! - Understood: QUERY-REF `((current-goal ME ?goal))` (`fipa-query`) from anyone. Answer: INFORM
 //!   `((current-goal ME (set (goal :place P :requester R :conversation C))))`, the goal under way
 //!   and the conversation it will be answered in, and the last goal that ended with its
-//!   `:outcome` (told once: its answer may have gone to a requester that is gone); an empty set
+//!   `:outcome` (told once to each agent that asks: its answer may have gone to a requester that
+//!   is gone, and the services and the assistant may both ask about it); an empty set
 //!   when there is neither. A query about another agent is refused. The services ask this when
 //!   a chair joins them, so a goal whose requester they no longer know (they restarted) is given
 //!   again, failed or reported ended, not lost; the assistant asks it about a goal it forwarded
@@ -84,6 +85,17 @@ use crate::passage::{Leg, NarrowPassage, legs, touched};
 use crate::pddl::{Atom, Domain, Literal, Problem, Term};
 use crate::planner::{Step, plan};
 use crate::{GridError, OccupancyGrid};
+
+/// A goal that ended and the agents told it so far (at most [`ENDED_TOLD_MAX`]; past that a
+/// querier may be told it again, a repeated answer rather than a lost one).
+#[derive(Debug, Clone)]
+struct EndedGoal {
+    goal: GoalInFlight,
+    told: BTreeSet<String>,
+}
+
+/// Agents remembered as told an ended goal: the services and an assistant or two in practice.
+const ENDED_TOLD_MAX: usize = 32;
 
 /// Why the cognitive agent cannot be built.
 #[derive(Debug, thiserror::Error)]
@@ -263,8 +275,8 @@ pub struct CognitiveAgent {
     locked_doors: BTreeSet<String>,
     blocked: BTreeSet<(String, String)>,
     goal: Option<Goal>,
-    /// The last goal that ended (not replaced), until a goal query tells it.
-    ended: Option<GoalInFlight>,
+    /// The last goal that ended (not replaced), and who has been told it.
+    ended: Option<EndedGoal>,
     /// The request of the step under way (at most one; a new step abandons the last).
     pending: Initiated<Waiting>,
     /// The pose subscription to the perception agent.
@@ -694,9 +706,12 @@ impl CognitiveAgent {
         };
         // A replaced goal's story goes on in the newer one; any other end is kept to be told.
         if outcome.as_ref().err().is_none_or(|why| why != REPLACED) {
-            self.ended = in_flight(&goal).map(|g| GoalInFlight {
-                outcome: Some(outcome.clone()),
-                ..g
+            self.ended = in_flight(&goal).map(|g| EndedGoal {
+                goal: GoalInFlight {
+                    outcome: Some(outcome.clone()),
+                    ..g
+                },
+                told: BTreeSet::new(),
             });
         }
         let answered = match outcome {
@@ -791,13 +806,24 @@ impl CognitiveAgent {
             let _ = ctx.answer_error(&mut query, Performative::Refuse, &why);
             return;
         }
+        let querier = message.sender.as_ref().map(|s| s.name.clone());
+        let ended = self
+            .ended
+            .as_ref()
+            .filter(|e| querier.as_ref().is_none_or(|q| !e.told.contains(q)));
         let answer = WheelchairContent::Inform(Fact::CurrentGoal {
             agent: ctx.aid().clone(),
             goal: self.goal.as_ref().and_then(in_flight).map(Box::new),
-            ended: self.ended.clone().map(Box::new),
+            ended: ended.map(|e| Box::new(e.goal.clone())),
         });
         match ctx.answer(&mut query, Performative::Inform, &answer) {
-            Ok(()) => self.ended = None,
+            Ok(()) => {
+                if let (Some(e), Some(q)) = (self.ended.as_mut(), querier)
+                    && e.told.len() < ENDED_TOLD_MAX
+                {
+                    e.told.insert(q);
+                }
+            }
             Err(err) => {
                 tracing::warn!(chair = %self.config.chair, error = %err, "could not answer a goal query")
             }

@@ -981,9 +981,10 @@ fn a_goal_query_is_answered_with_the_goal_under_way_its_requester_and_conversati
 }
 
 /// A goal that ended (its answer may have gone to a requester that is gone) is told, with its
-/// outcome, by the next goal query only.
+/// outcome, once to each agent that asks: the services' query on a join does not take it from
+/// the assistant's check of a goal it forwarded.
 #[test]
-fn a_goal_that_ended_is_told_once_with_its_outcome() {
+fn a_goal_that_ended_is_told_once_to_each_agent_with_its_outcome() {
     let mut rig = rig(
         Box::new(|m| agree_then(m, Performative::Inform)),
         Box::new(body_fault),
@@ -1007,6 +1008,34 @@ fn a_goal_that_ended_is_told_once_with_its_outcome() {
     assert_eq!(
         told(&answered_in(&rig, "q-2")[0]),
         (None, None),
-        "told once"
+        "told once to the user"
     );
+    // another agent asks after the user was told: it is told too, once
+    for conversation in ["p-1", "p-2"] {
+        let query = WheelchairContent::GoalQuery {
+            agent: AgentId::new("cognitive"),
+        }
+        .fill(
+            AclMessage::new(Performative::QueryRef)
+                .with_receiver(AgentId::new("cognitive"))
+                .with_conversation_id(conversation),
+        );
+        rig.perception.1.lock().unwrap().push(query);
+    }
+    rig.run(20);
+    let answers = rig.perception.0.lock().unwrap().clone();
+    let answer = |conversation: &str| {
+        let found = answers
+            .iter()
+            .find(|m| m.conversation_id.as_deref() == Some(conversation))
+            .unwrap_or_else(|| panic!("no answer in {conversation}: {answers:?}"));
+        told(found)
+    };
+    let (_, ended) = answer("p-1");
+    assert_eq!(
+        ended.map(|g| g.conversation),
+        Some("goal-1".to_string()),
+        "another agent is told the ended goal"
+    );
+    assert_eq!(answer("p-2"), (None, None), "told once to that agent");
 }
