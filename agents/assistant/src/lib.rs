@@ -82,6 +82,11 @@ struct Check {
     cognitive: AgentId,
     place: String,
     due_ns: u64,
+    /// The chair has been asked about it before: told at the first check, not at every one.
+    asked: bool,
+    /// The chair could not be asked last time (a killed chair until it is back): warned once,
+    /// not at every check.
+    unreachable: bool,
 }
 
 impl AssistantAgent {
@@ -163,6 +168,8 @@ impl AssistantAgent {
                     cognitive,
                     place,
                     due_ns: due(ctx),
+                    asked: false,
+                    unreachable: false,
                 };
                 self.checks.insert(conversation, check);
             }
@@ -223,13 +230,16 @@ impl AssistantAgent {
         // each goal asked about now is asked again, or its query expires, at `next_ns`
         let next_ns = due(ctx);
         let asking: BTreeSet<String> = self.queries.iter().map(|(_, c)| c.clone()).collect();
-        let due_now: Vec<(String, AgentId)> = self
+        let due_now: Vec<(String, AgentId, (bool, bool))> = self
             .checks
             .iter()
             .filter(|(c, check)| now >= check.due_ns && !asking.contains(*c))
-            .map(|(c, check)| (c.clone(), check.cognitive.clone()))
+            .map(|(c, check)| {
+                let state = (check.asked, check.unreachable);
+                (c.clone(), check.cognitive.clone(), state)
+            })
             .collect();
-        for (conversation, cognitive) in due_now {
+        for (conversation, cognitive, (asked, was_unreachable)) in due_now {
             let by_ms = next_ns / 1_000_000;
             let query = WheelchairContent::GoalQuery {
                 agent: cognitive.clone(),
@@ -242,15 +252,35 @@ impl AssistantAgent {
                         i64::try_from(by_ms).unwrap_or(i64::MAX),
                     )),
             );
-            tracing::info!(%conversation, chair = %cognitive.name, "no answer to a forwarded goal for a while: asking the chair about it");
-            if let Err(err) = self
-                .queries
-                .open(ctx, Protocol::Query, query, conversation.clone())
-            {
-                tracing::warn!(%conversation, error = %err, "could not ask the chair about its goal");
+            if asked {
+                tracing::debug!(%conversation, chair = %cognitive.name, "still no answer to a forwarded goal: asking the chair again");
+            } else {
+                tracing::info!(%conversation, chair = %cognitive.name, "no answer to a forwarded goal for a while: asking the chair about it, again every check until it ends");
             }
+            let unreachable = match self.queries.open(
+                ctx,
+                Protocol::Query,
+                query,
+                conversation.clone(),
+            ) {
+                Ok(_) if was_unreachable => {
+                    tracing::info!(%conversation, chair = %cognitive.name, "the chair can be asked about its goal again");
+                    false
+                }
+                Ok(_) => false,
+                Err(err) if was_unreachable => {
+                    tracing::debug!(%conversation, error = %err, "still cannot ask the chair about its goal");
+                    true
+                }
+                Err(err) => {
+                    tracing::warn!(%conversation, error = %err, "could not ask the chair about its goal; asking again every check, quietly until it can be asked");
+                    true
+                }
+            };
             if let Some(check) = self.checks.get_mut(&conversation) {
                 check.due_ns = next_ns;
+                check.asked = true;
+                check.unreachable = unreachable;
             }
         }
     }
