@@ -5,10 +5,10 @@ use std::time::Duration;
 
 use iw_acl::{AclMessage, AgentId, Performative};
 use iw_agent::AgentHost;
-use iw_agent::gateway::gateway;
+use iw_agent::gateway::{GatewayHandle, gateway};
 use iw_body::layout::Footprint;
 use iw_body::{Body, BodyError, SensorFrame, WheelSpeeds};
-use iw_bus::Time;
+use iw_bus::{MockController, Time};
 use iw_localization::{LocalizationMap, Localizer, LocalizerConfig, SonarGeometry};
 use iw_ontology::OntologyContent;
 use iw_ontology::wheelchair::{Fact, SensorReading, SensorUse, WheelchairContent};
@@ -41,15 +41,9 @@ impl Body for Rolling {
 
 #[test]
 fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
-    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), Pose2::new(1.0, 2.0, 0.0));
-    host.add(
-        AgentId::new("perception"),
-        Box::new(PerceptionAgent::new(config, Box::new(Rolling { reads: 0 }), None).unwrap()),
-    )
-    .unwrap();
-    let (agent, probe) = gateway(Duration::from_millis(1));
-    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    let agent = PerceptionAgent::new(config, Box::new(Rolling { reads: 0 }), None).unwrap();
+    let (mut host, controller, probe) = beside_a_probe(agent);
     let subscribe = |content: &str| {
         AclMessage::new(Performative::Subscribe)
             .with_receiver(AgentId::new("perception"))
@@ -117,6 +111,29 @@ fn subscribers_get_poses_with_growing_covariance_until_they_cancel() {
     assert_eq!(probe.take_received().len(), 0, "no informs after cancel");
 }
 
+/// A `width_m` by `depth_m` room with a corner at the origin.
+fn room(width_m: f64, depth_m: f64) -> Arc<LocalizationMap> {
+    let corners = [
+        (0.0, 0.0),
+        (width_m, 0.0),
+        (width_m, depth_m),
+        (0.0, depth_m),
+    ]
+    .map(|(x, y)| nalgebra::Point2::new(x, y));
+    let walls = (0..4).map(|i| (corners[i], corners[(i + 1) % 4])).collect();
+    Arc::new(LocalizationMap::new(walls, Vec::new(), 2.0).unwrap())
+}
+
+/// `agent` as `perception` on a mock clock, with a probe beside it.
+fn beside_a_probe(agent: PerceptionAgent) -> (AgentHost, MockController, GatewayHandle) {
+    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
+    host.add(AgentId::new("perception"), Box::new(agent))
+        .unwrap();
+    let (agent, probe) = gateway(Duration::from_millis(1));
+    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    (host, controller, probe)
+}
+
 /// Standing still in a room, the sonars echo at 1.2 m, except reads 21..=60 where every
 /// sonar reads 65.533 m (the world's `sensor-failure` of the sonars: past any range).
 struct GarbledSonars {
@@ -142,13 +159,8 @@ impl Body for GarbledSonars {
 
 #[test]
 fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
-    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let start = Pose2::new(2.0, 2.0, 0.0);
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), start);
-    let corners =
-        [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)].map(|(x, y)| nalgebra::Point2::new(x, y));
-    let room = (0..4).map(|i| (corners[i], corners[(i + 1) % 4])).collect();
-    let map = Arc::new(LocalizationMap::new(room, Vec::new(), 2.0).unwrap());
     let sonar = SonarGeometry {
         t_base_sonar: Footprint::PROTOTYPE
             .sonar_mounts()
@@ -159,17 +171,14 @@ fn garbled_sonars_are_reported_dropped_to_every_subscriber_and_back_in_use() {
         sigma_m: 0.15,
     };
     let localizer = Localizer::new(
-        map,
+        room(4.0, 4.0),
         LocalizerConfig::new(None, Some(sonar), config.drive.alpha),
         Some((start, nalgebra::Matrix3::identity() * 1e-4)),
     );
     let agent = PerceptionAgent::new(config, Box::new(GarbledSonars { reads: 0 }), None)
         .unwrap()
         .with_localizer(localizer);
-    host.add(AgentId::new("perception"), Box::new(agent))
-        .unwrap();
-    let (agent, probe) = gateway(Duration::from_millis(1));
-    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    let (mut host, controller, probe) = beside_a_probe(agent);
     let subscribe = |conversation: &str| {
         AclMessage::new(Performative::Subscribe)
             .with_receiver(AgentId::new("perception"))
@@ -287,17 +296,12 @@ impl Body for UnevenWorldSteps {
 /// when they came back, were gated out until it was taken for lost.
 #[test]
 fn a_chair_dead_reckoning_on_uneven_world_steps_keeps_up_with_the_world() {
-    let (mut host, controller) = AgentHost::on_a_mock_clock(Time::from_ns(1_000_000_000));
     let start = Pose2::new(1.0, 2.0, 0.0);
     let config = PerceptionConfig::prototype(AgentId::new("chair1"), start);
     let m_per_tick = config.drive.geometry().m_per_tick();
     // a long room with no range sensor: the localizer dead-reckons
-    let corners = [(0.0, 0.0), (20.0, 0.0), (20.0, 4.0), (0.0, 4.0)]
-        .map(|(x, y)| nalgebra::Point2::new(x, y));
-    let room = (0..4).map(|i| (corners[i], corners[(i + 1) % 4])).collect();
-    let map = Arc::new(LocalizationMap::new(room, Vec::new(), 2.0).unwrap());
     let localizer = Localizer::new(
-        map,
+        room(20.0, 4.0),
         LocalizerConfig {
             acceleration_slip: Some(AccelerationSlip {
                 per_mps2: 0.02,
@@ -315,10 +319,7 @@ fn a_chair_dead_reckoning_on_uneven_world_steps_keeps_up_with_the_world() {
     let agent = PerceptionAgent::new(config, Box::new(body), None)
         .unwrap()
         .with_localizer(localizer);
-    host.add(AgentId::new("perception"), Box::new(agent))
-        .unwrap();
-    let (agent, probe) = gateway(Duration::from_millis(1));
-    host.add(AgentId::new("probe"), Box::new(agent)).unwrap();
+    let (mut host, controller, probe) = beside_a_probe(agent);
     probe.send(
         AclMessage::new(Performative::Subscribe)
             .with_receiver(AgentId::new("perception"))
