@@ -110,10 +110,11 @@ impl DiffDriveParams {
 ///
 /// The speeds need each step's own duration. A world process steps when its timer fires, 40 or
 /// 60 ms apart for a 50 ms period, and moves the chairs by the time that passed; taken as
-/// [`Self::period_s`] each, those steps' travel alternated by a fifth, read as about 2 m/s² of
-/// acceleration back and forth, and the one-sided loss of it shortened every metre by about
-/// 2.5 %: across processes a chair dead-reckoning for 10 s fell 11 cm behind with a standard
-/// deviation of 1.3 cm, and the laser's scans, back, were gated out until it was taken for lost.
+/// [`Self::period_s`] each, those steps' travel alternated by a fifth, read as several m/s² of
+/// acceleration back and forth (4 m/s² at 0.5 m/s if they strictly alternate), and the
+/// one-sided loss of it shortened the drive: across processes a chair dead-reckoning at
+/// 0.5 m/s fell 11 cm behind in 4.4 m (2.5 %) with a standard deviation of 1.3 cm, and the
+/// laser's scans, back, were gated out until it was taken for lost.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AccelerationSlip {
     /// Fraction of a wheel's travel lost per m/s² of its acceleration.
