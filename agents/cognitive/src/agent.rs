@@ -88,7 +88,7 @@ use crate::{GridError, OccupancyGrid};
 
 /// A goal that ended and the agents told it so far (at most [`ENDED_TOLD_MAX`]; past that a
 /// querier may be told it again, a repeated answer rather than a lost one).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct EndedGoal {
     goal: GoalInFlight,
     told: BTreeSet<String>,
